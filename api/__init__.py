@@ -1,0 +1,1 @@
+"""The HTTP layer of hybrid-planner (FastAPI). ``api.app.create_app`` builds the service."""

@@ -1,0 +1,499 @@
+"""Kinematics of the 3-DOF hybrid manipulator: postures, modes, Jacobians, conditioning.
+
+Frame (``CONVENTIONS.md``): O is the midpoint of AB, +y points from A to B, theta1 turns the
+linkage plane about +y. In the plane, u runs along +y and w along
+``e(theta1) = (cos theta1, 0, -sin theta1)``, so ``P = (w cos theta1, u, -w sin theta1)``.
+Planar angles are measured from A->B, counter-clockwise about the plane normal
+``k = (sin theta1, 0, cos theta1)``::
+
+            w (e)
+            ^            P
+            |          /   \\
+            |    L2  /       \\  L2
+            |      C           D
+            |   L1/             \\ L1
+    --------A-----O-----B---------> u (= y)
+            |<-L0/2->|<-L0/2->|
+
+Two layers:
+
+* vectorised functions over N postures (:func:`forward_batch`, :func:`inverse_batch`,
+  :func:`conditioning`, :func:`link_points`), used by analysis and planning;
+* :class:`Manipulator` with one :class:`Posture` at a time, for people.
+
+Angles: actuated joint values given to forward kinematics are kept literal (joint limits are
+literal); passive angles and inverse-kinematics solutions are wrapped into (-pi, pi].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from types import MappingProxyType
+from typing import Literal
+
+import numpy as np
+
+from planner import _kernels
+from planner.constants import KAPPA_SOLVABLE, SIGN_TOL
+from planner.design import Design
+from planner.exceptions import AssemblyError, InputError, SingularPostureError
+
+__all__ = [
+    "ASSEMBLY_MODES",
+    "SERIAL_KINDS",
+    "WORKING_MODES",
+    "Conditioning",
+    "Manipulator",
+    "Posture",
+    "PostureBatch",
+    "conditioning",
+    "forward_batch",
+    "inverse_batch",
+    "link_points",
+    "mode_label",
+    "wrap_angle",
+]
+
+#: The eight working modes (s_axis, s_A, s_B), in the slot order of :func:`inverse_batch`.
+WORKING_MODES: tuple[str, ...] = ("+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---")
+#: The two assembly modes: sign of sin(theta5 - theta4).
+ASSEMBLY_MODES: tuple[str, ...] = ("+", "-")
+#: Names of the serial-singularity measures, in the order of the working-mode signs.
+SERIAL_KINDS: tuple[str, ...] = ("P_on_axis", "leg_A", "leg_B")
+
+_SLOT_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
+_SIGN_CHAR = {1: "+", -1: "-", 0: "0"}
+
+AssemblyMode = Literal["+", "-"]
+
+
+def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
+    """Angle(s) mapped into (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), 2 * np.pi)
+
+
+def mode_label(signs: np.ndarray) -> str:
+    """'+-+'-style label of a sign vector; a 0 sign (exactly on a singularity) is written '0'."""
+    return "".join(_SIGN_CHAR[int(s)] for s in np.asarray(signs).ravel())
+
+
+def _sign(x: np.ndarray) -> np.ndarray:
+    """Sign with a dead band: |x| <= SIGN_TOL (and NaN) counts as 0."""
+    x = np.asarray(x)
+    return (x > SIGN_TOL).astype(np.int8) - (x < -SIGN_TOL).astype(np.int8)
+
+
+def _finite_array(name: str, value: object, last: int) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be numbers, got {value!r}") from exc
+    if arr.ndim == 0 or arr.shape[-1] != last or arr.ndim > 2:
+        raise InputError(f"{name} must have shape ({last},) or (N, {last}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must be finite (no NaN or infinity)")
+    return arr
+
+
+def _branch(assembly_mode: object, n: int) -> np.ndarray:
+    """Assembly mode(s) as +1/-1 int8 of shape (n,)."""
+    if isinstance(assembly_mode, str):
+        if assembly_mode not in ASSEMBLY_MODES:
+            raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
+        return np.full(n, 1 if assembly_mode == "+" else -1, dtype=np.float64)
+    arr = np.broadcast_to(np.asarray(assembly_mode, dtype=float), (n,))
+    if not np.all(np.abs(arr) == 1):
+        raise InputError("assembly_mode must be '+'/'-' or +1/-1 per posture")
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------- batches
+@dataclass(frozen=True, slots=True)
+class PostureBatch:
+    """Many postures at once; every array shares the leading shape ``S`` ((N,) or (N, 8)).
+
+    Attributes
+    ----------
+    q : shape S + (3,), rad
+        Actuated joints (theta1, theta2, theta3).
+    passive : shape S + (2,), rad
+        Passive joints (theta4, theta5), in (-pi, pi].
+    p : shape S + (3,), m
+        Point P in the base frame.
+    w : shape S, m
+        In-plane coordinate of P normal to AB (signed distance to the axis).
+    ok : shape S, bool
+        The posture exists. Where False, the other arrays hold NaN.
+    """
+
+    design: Design
+    q: np.ndarray
+    passive: np.ndarray
+    p: np.ndarray
+    w: np.ndarray
+    ok: np.ndarray
+
+    @property
+    def serial_measures(self) -> np.ndarray:
+        """Shape S + (3,): w / (L1 + L2), sin(theta4 - theta2), sin(theta5 - theta3);
+        dimensionless, their signs are the working mode."""
+        return np.stack(
+            [
+                self.w / self.design.reach,
+                np.sin(self.passive[..., 0] - self.q[..., 1]),
+                np.sin(self.passive[..., 1] - self.q[..., 2]),
+            ],
+            axis=-1,
+        )
+
+    @property
+    def working_mode_signs(self) -> np.ndarray:
+        """Shape S + (3,), int8 in {-1, 0, +1}: (s_axis, s_A, s_B)."""
+        return _sign(self.serial_measures)
+
+    @property
+    def assembly_mode_signs(self) -> np.ndarray:
+        """Shape S, int8: sign of sin(theta5 - theta4) (0 on the CD-stretched singularity)."""
+        return _sign(np.sin(self.passive[..., 1] - self.passive[..., 0]))
+
+
+def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> PostureBatch:
+    """Direct kinematics of N postures.
+
+    Parameters
+    ----------
+    q : array, shape (N, 3) or (3,), rad
+        Actuated joints.
+    assembly_mode : '+' | '-' | array of +1/-1, shape (N,)
+        Which of the two loop closures to take (sign of sin(theta5 - theta4)).
+
+    Returns
+    -------
+    PostureBatch
+        Leading shape (N,). ``ok`` is False where the loop does not close
+        (|CD| > 2 L2) or C = D (P undetermined: a parallel singularity).
+    """
+    q2 = np.ascontiguousarray(np.atleast_2d(_finite_array("q", q, 3)))
+    n = q2.shape[0]
+    p = np.empty((n, 3))
+    passive = np.empty((n, 2))
+    w = np.empty(n)
+    ok = np.empty(n, dtype=np.bool_)
+    _kernels.forward_kernel(
+        design.L0, design.L1, design.L2, q2, _branch(assembly_mode, n), p, passive, w, ok
+    )
+    return PostureBatch(design, q2, passive, p, w, ok)
+
+
+@dataclass(frozen=True, slots=True)
+class InverseBatch(PostureBatch):
+    """Inverse kinematics of N points: a :class:`PostureBatch` of leading shape (N, 8), slot k
+    being ``WORKING_MODES[k]``, plus ``degenerate`` (N,): points where one leg's angle is
+    undetermined (P = A or P = B with L1 = L2), which have no slot ``ok``."""
+
+    degenerate: np.ndarray = None  # type: ignore[assignment]
+
+
+def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0) -> InverseBatch:
+    """Inverse kinematics of N points P into the eight working modes.
+
+    Parameters
+    ----------
+    p : array, shape (N, 3) or (3,), m
+    theta1_on_axis : float, rad
+        theta1 reported for a point on the axis AB, where every theta1 gives the same P.
+
+    Returns
+    -------
+    InverseBatch
+        Leading shape (N, 8). A slot is ``ok`` when that working mode reaches P and it is not a
+        duplicate: on a serial singularity two modes meet, and only the slot with '+' in the
+        vanishing sign is kept (its mode then has a '0' there). Joint limits are not applied.
+    """
+    p2 = np.ascontiguousarray(np.atleast_2d(_finite_array("p", p, 3)))
+    n = p2.shape[0]
+    q = np.empty((n, 8, 3))
+    passive = np.empty((n, 8, 2))
+    w = np.empty((n, 8))
+    ok = np.empty((n, 8), dtype=np.bool_)
+    degenerate = np.empty(n, dtype=np.bool_)
+    _kernels.inverse_kernel(
+        design.L0, design.L1, design.L2, p2, float(theta1_on_axis), q, passive, w, ok, degenerate
+    )
+    batch = InverseBatch(design, q, passive, p2[:, None, :].repeat(8, axis=1), w, ok, degenerate)
+    duplicate = np.any((batch.working_mode_signs == 0) & (_SLOT_SIGNS < 0), axis=-1)
+    ok &= ~duplicate
+    return batch
+
+
+def link_points(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
+    """3-D joint centres of postures, shape S + (5, 3) in the order A, B, C, D, P, m.
+
+    ``q`` has shape S + (3,) and ``passive`` S + (2,); P is rebuilt from C and theta4.
+    """
+    q = np.asarray(q, dtype=float)
+    passive = np.asarray(passive, dtype=float)
+    half = design.L0 / 2
+    t1, t2, t3 = q[..., 0], q[..., 1], q[..., 2]
+    cu = -half + design.L1 * np.cos(t2)
+    cw = design.L1 * np.sin(t2)
+    du = half + design.L1 * np.cos(t3)
+    dw = design.L1 * np.sin(t3)
+    pu = cu + design.L2 * np.cos(passive[..., 0])
+    pw = cw + design.L2 * np.sin(passive[..., 0])
+    zeros = np.zeros_like(t1)
+    u = np.stack([zeros - half, zeros + half, cu, du, pu], axis=-1)
+    w = np.stack([zeros, zeros, cw, dw, pw], axis=-1)
+    c, s = np.cos(t1)[..., None], np.sin(t1)[..., None]
+    return np.stack([w * c, u, -w * s], axis=-1)
+
+
+@dataclass(frozen=True, slots=True)
+class Conditioning:
+    """Conditioning and singularity margins of one or many postures (arrays of shape S, or
+    floats for one posture).
+
+    Attributes
+    ----------
+    kappa_A : condition number of A (corrected eq. 8), ``max(|cot(d/2)|, |tan(d/2)|)``,
+        ``d = theta4 - theta5``; 1 is isotropic, inf is a parallel singularity.
+    kappa_B : condition number of B = diag(-L2 w, L1 L2 sin(theta4 - theta2),
+        L1 L2 sin(theta5 - theta3)); inf on a serial singularity.
+    P_on_axis : |w| / (L1 + L2), serial margin of the theta1 row (0: P on the axis AB).
+    leg_A : |sin(theta4 - theta2)| (0: leg A stretched or folded).
+    leg_B : |sin(theta5 - theta3)| (0: leg B stretched or folded).
+    parallel : distance of theta4 - theta5 to the nearest multiple of pi, rad, in [0, pi/2]
+        (0: C, D, P aligned).
+    """
+
+    kappa_A: np.ndarray
+    kappa_B: np.ndarray
+    P_on_axis: np.ndarray
+    leg_A: np.ndarray
+    leg_B: np.ndarray
+    parallel: np.ndarray
+
+    @property
+    def serial(self) -> np.ndarray:
+        """Shape S + (3,): the serial margins in the order of :data:`SERIAL_KINDS`."""
+        return np.stack([self.P_on_axis, self.leg_A, self.leg_B], axis=-1)
+
+    @property
+    def min_serial(self) -> np.ndarray:
+        """Smallest of the three serial margins."""
+        return np.min(self.serial, axis=-1)
+
+    @property
+    def nearest_serial_kind(self) -> np.ndarray:
+        """Name(s) from :data:`SERIAL_KINDS` of the smallest serial margin."""
+        return np.asarray(SERIAL_KINDS)[np.argmin(self.serial, axis=-1)]
+
+
+def conditioning(design: Design, q: np.ndarray, passive: np.ndarray, w: np.ndarray) -> Conditioning:
+    """Conditioning of postures given their joints, passive angles and in-plane w (shapes
+    S + (3,), S + (2,), S), elementwise. Undefined postures (NaN inputs) give NaN."""
+    q = np.asarray(q, dtype=float)
+    passive = np.asarray(passive, dtype=float)
+    w = np.asarray(w, dtype=float)
+    delta = passive[..., 0] - passive[..., 1]
+    s = np.abs(np.sin(delta))
+    c = np.abs(np.cos(delta))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa_a = np.where(s > 0, (1 + c) / np.where(s > 0, s, 1), np.inf)
+        kappa_a = np.where(np.isnan(delta), np.nan, kappa_a)
+        b = np.abs(
+            np.stack(
+                [
+                    design.L2 * w,
+                    design.L1 * design.L2 * np.sin(passive[..., 0] - q[..., 1]),
+                    design.L1 * design.L2 * np.sin(passive[..., 1] - q[..., 2]),
+                ],
+                axis=-1,
+            )
+        )
+        bmin = b.min(axis=-1)
+        kappa_b = np.where(bmin > 0, b.max(axis=-1) / np.where(bmin > 0, bmin, 1), np.inf)
+        kappa_b = np.where(np.isnan(bmin), np.nan, kappa_b)
+    folded = np.mod(delta, np.pi)
+    return Conditioning(
+        kappa_A=kappa_a,
+        kappa_B=kappa_b,
+        P_on_axis=np.abs(w) / design.reach,
+        leg_A=b[..., 1] / (design.L1 * design.L2),
+        leg_B=b[..., 2] / (design.L1 * design.L2),
+        parallel=np.minimum(folded, np.pi - folded),
+    )
+
+
+# ---------------------------------------------------------------------------- one posture
+@dataclass(frozen=True, slots=True, eq=False)
+class Posture:
+    """One posture of the manipulator.
+
+    Attributes
+    ----------
+    q : shape (3,), rad -- actuated (theta1, theta2, theta3).
+    passive : shape (2,), rad -- (theta4, theta5) in (-pi, pi].
+    p : shape (3,), m -- point P.
+    points : mapping 'A', 'B', 'C', 'D', 'P' -> shape (3,), m.
+    working_mode : '+-+'-style (s_axis, s_A, s_B); '0' where the posture sits exactly on
+        that serial singularity.
+    assembly_mode : '+' or '-' (sign of sin(theta5 - theta4)); '0' on the CD-stretched
+        parallel singularity, where both assembly modes meet.
+    """
+
+    q: np.ndarray
+    passive: np.ndarray
+    p: np.ndarray
+    points: Mapping[str, np.ndarray]
+    working_mode: str
+    assembly_mode: str
+
+    @property
+    def w(self) -> float:
+        """Signed distance of P from the axis AB in the linkage plane, m."""
+        t1 = self.q[0]
+        return float(self.p[0] * np.cos(t1) - self.p[2] * np.sin(t1))
+
+    def __repr__(self) -> str:
+        return (
+            f"Posture(q={np.round(self.q, 6).tolist()}, p={np.round(self.p, 6).tolist()}, "
+            f"working_mode={self.working_mode!r}, assembly_mode={self.assembly_mode!r})"
+        )
+
+
+def _postures(batch: PostureBatch) -> list[Posture]:
+    """The ``ok`` entries of a flat batch as Posture objects."""
+    flat = batch.ok.reshape(-1)
+    q = batch.q.reshape(-1, 3)[flat]
+    passive = batch.passive.reshape(-1, 2)[flat]
+    p = batch.p.reshape(-1, 3)[flat]
+    wm = batch.working_mode_signs.reshape(-1, 3)[flat]
+    am = batch.assembly_mode_signs.reshape(-1)[flat]
+    pts = link_points(batch.design, q, passive)
+    out = []
+    for i in range(len(q)):
+        arrays = [q[i].copy(), passive[i].copy(), p[i].copy(), pts[i].copy()]
+        for a in arrays:
+            a.flags.writeable = False
+        points = MappingProxyType(dict(zip("ABCDP", arrays[3], strict=True)))
+        out.append(Posture(arrays[0], arrays[1], arrays[2], points, mode_label(wm[i]), mode_label(am[i])))
+    return out
+
+
+class Manipulator:
+    """Kinematics of one :class:`Design`, one posture at a time.
+
+    >>> m = Manipulator(Design.singularity_free())
+    >>> [post.working_mode for post in m.inverse([0.3, 0.1, 0.2])][:2]
+    ['+++', '++-']
+    """
+
+    def __init__(self, design: Design | None = None) -> None:
+        self._design = design if design is not None else Design.default()
+
+    @property
+    def design(self) -> Design:
+        return self._design
+
+    def __repr__(self) -> str:
+        return f"Manipulator({self._design!r})"
+
+    # -- position
+    def forward(self, q: np.ndarray) -> list[Posture]:
+        """Every posture with actuated joints q: 0, 1 or 2 (one per assembly mode, '+' first).
+
+        One when CD is exactly stretched (both modes meet); none when the loop does not close
+        or C = D (P is then undetermined).
+        """
+        q = _finite_array("q", q, 3)
+        if q.ndim != 1:
+            raise InputError(f"q must have shape (3,), got {q.shape}")
+        batch = forward_batch(self._design, np.stack([q, q]), np.array([1.0, -1.0]))
+        found = _postures(batch)
+        if len(found) == 2 and found[1].assembly_mode == "0":
+            found = found[:1]
+        return found
+
+    def posture(self, q: np.ndarray, assembly_mode: AssemblyMode) -> Posture:
+        """The posture of q in one assembly mode; :class:`AssemblyError` if it does not exist."""
+        q = _finite_array("q", q, 3)
+        if q.ndim != 1:
+            raise InputError(f"q must have shape (3,), got {q.shape}")
+        batch = forward_batch(self._design, q, assembly_mode)
+        if not batch.ok[0]:
+            cu = -self._design.L0 / 2 + self._design.L1 * np.cos(q[1])
+            du = self._design.L0 / 2 + self._design.L1 * np.cos(q[2])
+            cd = float(np.hypot(du - cu, self._design.L1 * (np.sin(q[2]) - np.sin(q[1]))))
+            if cd == 0.0:
+                raise AssemblyError("q puts C on D: P is undetermined (parallel singularity)")
+            raise AssemblyError(
+                f"q does not assemble: |CD| = {cd:.6g} m > 2 L2 = {2 * self._design.L2:.6g} m"
+            )
+        return _postures(batch)[0]
+
+    def inverse(self, p: np.ndarray, *, theta1_on_axis: float = 0.0) -> list[Posture]:
+        """Every inverse-kinematics posture of P: up to 8, one per working mode, in the order of
+        :data:`WORKING_MODES`. Empty when P is out of reach. Joint limits are not applied.
+
+        Raises
+        ------
+        SingularPostureError
+            P = A or P = B with L1 = L2: that leg's angle is undetermined (a continuum of
+            postures; with L0 = 0 this is the base point of erratum 6).
+        """
+        p = _finite_array("p", p, 3)
+        if p.ndim != 1:
+            raise InputError(f"p must have shape (3,), got {p.shape}")
+        batch = inverse_batch(self._design, p, theta1_on_axis=theta1_on_axis)
+        if batch.degenerate[0]:
+            raise SingularPostureError(
+                "P coincides with a pivot (A or B) and L1 = L2: that leg's angle is undetermined"
+            )
+        return _postures(batch)
+
+    def within_limits(self, q: np.ndarray) -> bool:
+        """Whether the literal joint values lie inside the design's joint limits."""
+        q = np.asarray(q, dtype=float)
+        return bool(np.all(q >= self._design.joint_min) and np.all(q <= self._design.joint_max))
+
+    # -- velocity
+    def jacobians(self, posture: Posture) -> tuple[np.ndarray, np.ndarray]:
+        """(A, B) of eq. (2)-(4) in our frame: ``A p_dot = B q_dot``, shapes (3, 3).
+
+        ``A = [L2 k^T; (p - c)^T; (p - d)^T]`` with k the plane normal, and
+        ``B = diag(-L2 w, L1 L2 sin(theta4 - theta2), L1 L2 sin(theta5 - theta3))``.
+        """
+        d = self._design
+        t1 = posture.q[0]
+        k = np.array([np.sin(t1), 0.0, np.cos(t1)])
+        p, c, dd = posture.points["P"], posture.points["C"], posture.points["D"]
+        a = np.stack([d.L2 * k, p - c, p - dd])
+        t4, t5 = posture.passive
+        b = np.diag(
+            [
+                -d.L2 * posture.w,
+                d.L1 * d.L2 * np.sin(t4 - posture.q[1]),
+                d.L1 * d.L2 * np.sin(t5 - posture.q[2]),
+            ]
+        )
+        return a, b
+
+    def cartesian_velocity(self, posture: Posture, qd: np.ndarray) -> np.ndarray:
+        """Velocity of P, shape (3,), m/s, for joint rates qd (3,), rad/s.
+
+        Raises :class:`SingularPostureError` at a parallel singularity (A not invertible).
+        """
+        qd = _finite_array("qd", qd, 3)
+        a, b = self.jacobians(posture)
+        if not self.conditioning(posture).kappa_A <= KAPPA_SOLVABLE:
+            raise SingularPostureError(
+                "A is singular here (C, D, P aligned): the velocity of P is undetermined"
+            )
+        return np.linalg.solve(a, b @ qd)
+
+    def conditioning(self, posture: Posture) -> Conditioning:
+        """kappa(A), kappa(B) and the serial and parallel margins of one posture (floats)."""
+        c = conditioning(self._design, posture.q, posture.passive, np.float64(posture.w))
+        return Conditioning(**{f.name: float(getattr(c, f.name)) for f in fields(Conditioning)})
