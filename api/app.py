@@ -2,22 +2,58 @@
 
 from __future__ import annotations
 
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
 from fastapi import FastAPI
 
 import planner
-from api.routes import meta
+from api.deps import ApiKey
+from api.errors import install_error_handlers
+from api.middleware import RequestLimitsMiddleware
+from api.routes import designs, kinematics, meta, plan
 from api.settings import Settings, get_settings
+from api.workers import WorkerPool
+from planner.schemas import ErrorResponse
+
+#: Error answers every /v1 route may give (documented in the OpenAPI schema).
+_ERRORS = {code: {"model": ErrorResponse} for code in (401, 413, 422, 502, 503, 504)}
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """The service, configured by ``settings`` (default: from the environment)."""
+    """The service, configured by ``settings`` (default: from the environment).
+
+    The worker pool starts with the application's lifespan (``with TestClient(app)`` in
+    tests, or a server).
+    """
     settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        pool = WorkerPool(settings.workers, settings.queue_size or 0,
+                          retry_after_s=settings.retry_after_s)
+        await pool.start()
+        app.state.pool = pool
+        try:
+            yield
+        finally:
+            pool.shutdown()
+
     app = FastAPI(
         title="hybrid-planner",
         version=planner.__version__,
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
         "manipulator (five-bar A-C-P-D-B turning about AB).",
+        lifespan=lifespan,
     )
     app.state.settings = settings
+    install_error_handlers(app)
+    app.add_middleware(
+        RequestLimitsMiddleware,
+        max_body_bytes=settings.max_body_bytes,
+        timeout_s=settings.request_timeout_s,
+    )
     app.include_router(meta.router)
+    for router in (designs.router, kinematics.router, plan.router):
+        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     return app

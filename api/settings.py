@@ -1,11 +1,37 @@
-"""Service settings, read from environment variables prefixed ``PLANNER_``."""
+"""Service settings, read from environment variables prefixed ``PLANNER_``.
+
+========================  ==============================  ======================================
+variable                  default                         meaning
+========================  ==============================  ======================================
+PLANNER_HOST              127.0.0.1                       interface to bind
+PLANNER_PORT              8000                            TCP port
+PLANNER_WORKERS           number of CPUs                  worker processes for CPU-bound work
+PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
+PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
+PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
+PLANNER_MAX_BATCH         64                              plan requests in one batch
+PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
+PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
+PLANNER_API_KEY           (none)                          when set, required on /v1 but health
+========================  ==============================  ======================================
+"""
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 
-from pydantic import Field
+from pydantic import Field, SecretStr, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from planner.schemas import MAX_BATCH_REQUESTS, MAX_OBSTACLES
+
+
+def _cpu_count() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
 
 
 class Settings(BaseSettings):
@@ -15,6 +41,43 @@ class Settings(BaseSettings):
 
     host: str = Field("127.0.0.1", description="Interface to bind.")
     port: int = Field(8000, ge=1, le=65535, description="TCP port.")
+    workers: int = Field(
+        default_factory=_cpu_count,
+        ge=1,
+        le=256,
+        description="Worker processes running the CPU-bound work (default: the usable CPUs).",
+    )
+    queue_size: int | None = Field(
+        None,
+        ge=0,
+        le=100_000,
+        description="Jobs allowed to wait for a worker; one more is answered 503 "
+        "(default: 4 per worker).",
+    )
+    request_timeout_s: float = Field(
+        30.0, gt=0.0, le=3600.0, allow_inf_nan=False, description="Time budget of one request, s."
+    )
+    max_body_bytes: int = Field(
+        4 * 1024 * 1024, ge=1024, le=1024**3, description="Largest request body, bytes."
+    )
+    max_batch: int = Field(64, ge=1, le=MAX_BATCH_REQUESTS, description="Plans in one batch.")
+    max_obstacles: int = Field(
+        256, ge=0, le=MAX_OBSTACLES, description="Obstacles in one plan request."
+    )
+    retry_after_s: int = Field(1, ge=1, le=3600, description="Retry-After of a 503, s.")
+    api_key: SecretStr | None = Field(
+        None,
+        description="When set, every /v1 route except /v1/health requires it "
+        "(header X-API-Key or Authorization: Bearer).",
+    )
+
+    @model_validator(mode="after")
+    def _fill_queue(self) -> Settings:
+        if self.queue_size is None:
+            self.queue_size = 4 * self.workers
+        if self.api_key is not None and not self.api_key.get_secret_value():
+            self.api_key = None  # PLANNER_API_KEY="" means no key
+        return self
 
 
 @lru_cache(maxsize=1)

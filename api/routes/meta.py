@@ -1,22 +1,38 @@
-"""Liveness and version."""
+"""Liveness, readiness and version."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Response
 
 import planner
-from planner.schemas import Health, VersionInfo
+from api.deps import ApiKey, Pool, SettingsDep
+from planner.schemas import ErrorResponse, Health, Readiness, VersionInfo
 
 router = APIRouter(prefix="/v1", tags=["meta"])
 
 
 @router.get("/health", response_model=Health)
 def health() -> Health:
-    """Liveness: the process answers."""
+    """Liveness: the process answers (never needs the API key)."""
     return Health(status="ok")
 
 
-@router.get("/version", response_model=VersionInfo)
+@router.get(
+    "/ready",
+    response_model=Readiness,
+    dependencies=[ApiKey],
+    responses={503: {"model": Readiness, "description": "Workers not up (yet)."}},
+)
+def ready(pool: Pool, settings: SettingsDep, response: Response) -> Readiness:
+    """Readiness: every worker process started and answered once (503 until then)."""
+    if pool.state != "ready":
+        response.status_code = 503
+        response.headers["Retry-After"] = str(settings.retry_after_s)
+    return Readiness(status=pool.state, workers=pool.workers)
+
+
+@router.get("/version", response_model=VersionInfo, dependencies=[ApiKey],
+            responses={401: {"model": ErrorResponse}})
 def version() -> VersionInfo:
     """Versions of the service and of the libraries that shape its answers."""
     from importlib.metadata import version as dist_version

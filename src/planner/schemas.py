@@ -1,25 +1,541 @@
 """Pydantic models of the HTTP wire vocabulary (``CONVENTIONS.md``), shared by the service
-and the client: the one definition of every field name on /v1."""
+and the client: the one definition of every field name on /v1.
+
+Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored
+option) and check every number for finiteness and a sane range, so the library never sees
+NaN, an infinity or an absurd size. Responses ignore fields they do not know, so an older
+client keeps working against a newer server.
+
+Units: metres, radians and seconds everywhere. An infinite quantity (kappa at a singularity)
+is written ``null`` on the wire: JSON has no infinity.
+"""
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    field_validator,
+    model_validator,
+)
+
+from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
+from planner.exceptions import DesignError
+
+__all__ = [
+    "MAX_BATCH_REQUESTS",
+    "MAX_COORDINATE",
+    "MAX_OBSTACLES",
+    "AnalyzeRequest",
+    "AnalyzeResponse",
+    "BoxObstacle",
+    "CapsuleObstacle",
+    "CartesianTarget",
+    "DesignModel",
+    "DesignPreset",
+    "DesignsResponse",
+    "Diagnostics",
+    "ErrorItem",
+    "ErrorResponse",
+    "FKRequest",
+    "FKResponse",
+    "Goal",
+    "Health",
+    "IKRequest",
+    "IKResponse",
+    "JointPosture",
+    "Limits",
+    "Margins",
+    "Obstacle",
+    "PathModel",
+    "PlanBatchRequest",
+    "PlanBatchResponse",
+    "PlanRequest",
+    "PlanResponse",
+    "PlanStatus",
+    "PlannerOptions",
+    "PostureModel",
+    "Readiness",
+    "SegmentModel",
+    "SerialMargins",
+    "SphereObstacle",
+    "TimingOptions",
+    "TrajectoryModel",
+    "TransitModel",
+    "VersionInfo",
+]
+
+#: Largest |coordinate| of a point on the wire, m: a sanity bound far above any workcell.
+MAX_COORDINATE = 1e4
+#: Hard cap on obstacles in one request (the service's own, lower cap is a setting).
+MAX_OBSTACLES = 10_000
+#: Hard cap on plan requests in one batch (the service's own, lower cap is a setting).
+MAX_BATCH_REQUESTS = 10_000
+#: Largest sample count of a returned trajectory or path accepted by a client.
+_MAX_SAMPLES = 10_000_000
+
+_DEFAULT = Design.default()
+
+WorkingModeLabel = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---"]
+AssemblyModeLabel = Literal["+", "-"]
+
+# ---------------------------------------------------------------------------- number types
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Length = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)]
+LinkLength = Annotated[float, Field(allow_inf_nan=False, ge=MIN_LENGTH, le=MAX_LENGTH)]
+Coordinate = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Angle = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_JOINT_TRAVEL, le=MAX_JOINT_TRAVEL)]
+PositiveSize = Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=MAX_COORDINATE)]
+#: Three angles, rad (a joint vector).
+Angles3 = Annotated[list[Angle], Field(min_length=3, max_length=3)]
+#: A point, m.
+Point3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
+#: Three positive rates (one per joint).
+Rates3 = Annotated[
+    list[Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1e6)]],
+    Field(min_length=3, max_length=3),
+]
+#: A 3-vector of any finite numbers (responses).
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 
 
-class _Wire(BaseModel):
+class _Request(BaseModel):
+    """Base of request models: unknown fields are errors."""
+
     model_config = ConfigDict(extra="forbid")
 
 
-class Health(_Wire):
+class _Response(BaseModel):
+    """Base of response models: unknown fields are ignored (forward compatibility)."""
+
+    model_config = ConfigDict(extra="ignore")
+
+
+# ---------------------------------------------------------------------------- design
+class DesignModel(_Request):
+    """A design on the wire; every field defaults to the default robot
+    (:meth:`planner.Design.default`: L0 = 0.5, L1 = 0.2, L2 = 0.6 m, joints within +-pi)."""
+
+    L0: Length = Field(_DEFAULT.L0, description="|AB|, m, >= 0.")
+    L1: LinkLength = Field(_DEFAULT.L1, description="|AC| = |BD|, m, > 0.")
+    L2: LinkLength = Field(_DEFAULT.L2, description="|CP| = |DP|, m, > 0.")
+    link_radius: Length = Field(
+        _DEFAULT.link_radius, description="Radius of the link capsules, m, >= 0."
+    )
+    joint_min: Angles3 = Field(
+        default_factory=lambda: list(_DEFAULT.joint_min),
+        description="Lower limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
+    )
+    joint_max: Angles3 = Field(
+        default_factory=lambda: list(_DEFAULT.joint_max),
+        description="Upper limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
+    )
+
+    @model_validator(mode="after")
+    def _check_design(self) -> DesignModel:
+        for i, (lo, hi) in enumerate(zip(self.joint_min, self.joint_max, strict=True)):
+            if not lo < hi:
+                raise ValueError(f"joint_min[{i}] must be below joint_max[{i}], got {lo} >= {hi}")
+        try:
+            self.to_design()
+        except DesignError as exc:  # any remaining rule of Design
+            raise ValueError(str(exc)) from exc
+        return self
+
+    def to_design(self) -> Design:
+        """The library's :class:`planner.Design`."""
+        return Design(
+            L0=self.L0,
+            L1=self.L1,
+            L2=self.L2,
+            link_radius=self.link_radius,
+            joint_min=tuple(self.joint_min),
+            joint_max=tuple(self.joint_max),
+        )
+
+    @classmethod
+    def from_design(cls, design: Design) -> DesignModel:
+        """The wire form of a library design."""
+        return cls(
+            L0=design.L0,
+            L1=design.L1,
+            L2=design.L2,
+            link_radius=design.link_radius,
+            joint_min=list(design.joint_min),
+            joint_max=list(design.joint_max),
+        )
+
+
+_DesignField = Field(default_factory=DesignModel, description="The robot; default robot if absent.")
+
+
+class DesignPreset(_Response):
+    """One named design of ``GET /v1/designs``."""
+
+    name: str
+    description: str
+    design: DesignModel
+
+
+class DesignsResponse(_Response):
+    """Answer of ``GET /v1/designs``: the presets, ``default`` first."""
+
+    presets: list[DesignPreset]
+
+
+# ---------------------------------------------------------------------------- postures, targets
+class JointPosture(_Request):
+    """A joint posture: actuated joints and the assembly mode (sign of sin(theta5 - theta4))."""
+
+    q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
+    assembly_mode: AssemblyModeLabel = Field(description="'+' or '-'.")
+
+
+class CartesianTarget(_Request):
+    """A Cartesian target for P, with the working mode to reach it in (or ``"any"``)."""
+
+    p: Point3 = Field(description="(x, y, z) of P, m.")
+    working_mode: WorkingModeLabel | Literal["any"] = Field(
+        "any", description="(s_axis, s_A, s_B) as '+-+'-style text, or 'any'."
+    )
+
+
+def _goal_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        if "q" in value:
+            return "q"
+        return "p" if "p" in value else None
+    if isinstance(value, CartesianTarget):
+        return "p"
+    if isinstance(value, JointPosture):
+        return "q"
+    return None
+
+
+#: A goal: a joint posture (has ``q``) or a Cartesian target (has ``p``). Validation errors
+#: name the branch taken: ``goal.q.<field>`` or ``goal.p.<field>``.
+Goal = Annotated[
+    Annotated[JointPosture, Tag("q")] | Annotated[CartesianTarget, Tag("p")],
+    Discriminator(
+        _goal_kind,
+        custom_error_type="goal_kind",
+        custom_error_message="goal must be a joint posture {q, assembly_mode} "
+        "or a Cartesian target {p, working_mode}",
+    ),
+]
+
+
+# ---------------------------------------------------------------------------- obstacles
+class SphereObstacle(_Request):
+    type: Literal["sphere"] = "sphere"
+    center: Point3 = Field(description="m.")
+    radius: PositiveSize = Field(description="m, > 0.")
+
+
+class BoxObstacle(_Request):
+    """An oriented box: ``size`` is the full edge lengths along its own axes, turned by the
+    unit quaternion ``[w, x, y, z]`` (normalised here; a zero quaternion is an error)."""
+
+    type: Literal["box"] = "box"
+    center: Point3 = Field(description="m.")
+    size: Annotated[list[PositiveSize], Field(min_length=3, max_length=3)] = Field(
+        description="Full edge lengths (sx, sy, sz), m, > 0."
+    )
+    quaternion: Annotated[list[Finite], Field(min_length=4, max_length=4)] = Field(
+        default_factory=lambda: [1.0, 0.0, 0.0, 0.0], description="[w, x, y, z]."
+    )
+
+    @field_validator("quaternion")
+    @classmethod
+    def _unit(cls, value: list[float]) -> list[float]:
+        norm = math.sqrt(sum(v * v for v in value))
+        if not 1e-9 < norm < 1e9:
+            raise ValueError(f"quaternion must have a norm in (1e-9, 1e9), got {norm:.3g}")
+        return [v / norm for v in value]
+
+
+class CapsuleObstacle(_Request):
+    """The set of points within ``radius`` of the segment ``a``-``b``."""
+
+    type: Literal["capsule"] = "capsule"
+    a: Point3 = Field(description="m.")
+    b: Point3 = Field(description="m.")
+    radius: PositiveSize = Field(description="m, > 0.")
+
+
+Obstacle = Annotated[SphereObstacle | BoxObstacle | CapsuleObstacle, Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------------------- plan options
+class Margins(_Request):
+    """Validity margins of a plan; an absent field takes the planner's documented default."""
+
+    kappa_max: Annotated[float, Field(allow_inf_nan=False, ge=1.0, le=1e12)] | None = Field(
+        None, description="Upper bound on kappa(A), >= 1."
+    )
+    serial_min: Annotated[float, Field(allow_inf_nan=False, ge=0.0, lt=1.0)] | None = Field(
+        None,
+        description="Lower bound on |sin(t4 - t2)|, |sin(t5 - t3)| and |w| / (L1 + L2), in [0, 1).",
+    )
+    clearance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)] | None = (
+        Field(None, description="Least distance from every link capsule to every obstacle, m.")
+    )
+
+
+class PlannerOptions(_Request):
+    """Search options of a plan."""
+
+    name: str = Field(
+        "RRTConnect",
+        pattern=r"^[A-Za-z][A-Za-z0-9_]{0,31}$",
+        description="OMPL planner name (e.g. RRTConnect, RRTstar, PRMstar, BITstar).",
+    )
+    time_budget_s: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=600.0)] = Field(
+        1.0, description="Search budget, s."
+    )
+    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = Field(
+        None, description="Seed of the planner's random numbers (reproducible results)."
+    )
+    simplify: bool = Field(True, description="Shorten and smooth the path (OMPL simplifier).")
+
+
+class TimingOptions(_Request):
+    """How the planned path is turned into a trajectory."""
+
+    method: Literal["toppra", "ruckig", "none"] = "toppra"
+    sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
+    stop_at_transits: bool = Field(False, description="Come to rest at each mode transit.")
+
+
+class Limits(_Request):
+    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent field takes the timing default."""
+
+    velocity: Rates3 | None = None
+    acceleration: Rates3 | None = None
+    jerk: Rates3 | None = None
+
+
+# ---------------------------------------------------------------------------- plan
+class PlanRequest(_Request):
+    """Body of ``POST /v1/plan``. Only ``start`` and ``goal`` are required."""
+
+    design: DesignModel = _DesignField
+    start: JointPosture
+    goal: Goal
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    margins: Margins = Field(default_factory=Margins)
+    planner: PlannerOptions = Field(default_factory=PlannerOptions)
+    timing: TimingOptions = Field(default_factory=TimingOptions)
+    limits: Limits = Field(default_factory=Limits)
+
+
+PlanStatus = Literal["solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout"]
+TransitKind = Literal[
+    "P_on_axis", "leg_A_stretched", "leg_A_folded", "leg_B_stretched", "leg_B_folded"
+]
+
+
+class SegmentModel(_Response):
+    """A run of waypoints in one working and assembly mode; indices inclusive."""
+
+    working_mode: WorkingModeLabel
+    assembly_mode: AssemblyModeLabel
+    start_index: int = Field(ge=0)
+    end_index: int = Field(ge=0)
+
+
+class TransitModel(_Response):
+    """A serial-singularity posture where exactly one working-mode sign flips."""
+
+    index: int = Field(ge=0)
+    q: Vec3
+    kind: TransitKind
+    flipped: Literal["axis", "A", "B"]
+
+
+class PathModel(_Response):
+    """The planned joint path: waypoints (N x 3, rad), its segments and transits."""
+
+    waypoints: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    segments: list[SegmentModel] = Field(default_factory=list)
+    transits: list[TransitModel] = Field(default_factory=list)
+
+
+class TrajectoryModel(_Response):
+    """The timed trajectory: M samples of t (s), q (rad), qd (rad/s), qdd (rad/s^2)."""
+
+    duration: float
+    t: Annotated[list[float], Field(max_length=_MAX_SAMPLES)]
+    q: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    qd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    qdd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+
+
+class Diagnostics(BaseModel):
+    """Timings and margins met; the service may add fields (kept, not dropped)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    planning_time_s: float | None = None
+    timing_time_s: float | None = None
+    min_clearance: float | None = None
+    max_kappa_A: float | None = None
+    min_serial_margin: float | None = None
+
+
+class PlanResponse(_Response):
+    """Answer of ``POST /v1/plan``: a finished search is a 200 with one of the statuses."""
+
+    status: PlanStatus
+    message: str = ""
+    path: PathModel | None = None
+    trajectory: TrajectoryModel | None = None
+    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+
+
+class PlanBatchRequest(_Request):
+    """Body of ``POST /v1/plan/batch``."""
+
+    requests: list[PlanRequest] = Field(min_length=1, max_length=MAX_BATCH_REQUESTS)
+
+
+class PlanBatchResponse(_Response):
+    """Answer of ``POST /v1/plan/batch``: one response per request, in the same order."""
+
+    results: list[PlanResponse]
+
+
+# ---------------------------------------------------------------------------- kinematics
+class PostureModel(_Response):
+    """One posture. Mode labels hold '0' where the posture sits exactly on that singularity."""
+
+    q: Vec3 = Field(description="(theta1, theta2, theta3), rad.")
+    passive: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
+        description="(theta4, theta5), rad, in (-pi, pi]."
+    )
+    p: Vec3 = Field(description="Point P, m.")
+    points: dict[Literal["A", "B", "C", "D", "P"], Vec3] = Field(
+        description="Joint centres, m."
+    )
+    w: float = Field(description="Signed distance of P from the axis AB in the plane, m.")
+    working_mode: str = Field(pattern=r"^[+\-0]{3}$")
+    assembly_mode: str = Field(pattern=r"^[+\-0]$")
+    within_limits: bool = Field(description="q lies inside the design's joint limits.")
+
+
+class FKRequest(_Request):
+    """Body of ``POST /v1/fk``: actuated joints; all assembly modes when none is given."""
+
+    design: DesignModel = _DesignField
+    q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
+    assembly_mode: AssemblyModeLabel | None = None
+
+
+class FKResponse(_Response):
+    """Answer of ``POST /v1/fk``: 0, 1 or 2 postures ('+' first); none when q does not
+    assemble."""
+
+    postures: list[PostureModel]
+
+
+class IKRequest(_Request):
+    """Body of ``POST /v1/ik``: a point P and the working mode(s) wanted."""
+
+    design: DesignModel = _DesignField
+    p: Point3 = Field(description="(x, y, z) of P, m.")
+    working_mode: WorkingModeLabel | Literal["any"] = "any"
+
+
+class IKResponse(_Response):
+    """Answer of ``POST /v1/ik``: up to eight postures, one per working mode reaching P, in
+    the order ``+++, ++-, +-+, +--, -++, -+-, --+, ---``; empty when P is out of reach.
+    Joint limits are not applied (see ``within_limits``)."""
+
+    postures: list[PostureModel]
+
+
+class AnalyzeRequest(_Request):
+    """Body of ``POST /v1/analyze``: one joint posture (and optionally joint rates)."""
+
+    design: DesignModel = _DesignField
+    q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
+    assembly_mode: AssemblyModeLabel
+    qd: Annotated[list[Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]],
+                  Field(min_length=3, max_length=3)] | None = Field(
+        None, description="Joint rates, rad/s: ask for the velocity of P."
+    )
+
+
+class SerialMargins(_Response):
+    """The dimensionless serial-singularity measures (0 on that singularity)."""
+
+    P_on_axis: float = Field(description="|w| / (L1 + L2).")
+    leg_A: float = Field(description="|sin(theta4 - theta2)|.")
+    leg_B: float = Field(description="|sin(theta5 - theta3)|.")
+    min: float
+    nearest: Literal["P_on_axis", "leg_A", "leg_B"]
+
+
+class AnalyzeResponse(_Response):
+    """Answer of ``POST /v1/analyze``: the Jacobians of ``A p_dot = B q_dot`` (eq. 2-4),
+    their condition numbers (``null`` = infinite: singular) and the singularity margins."""
+
+    posture: PostureModel
+    A: Matrix3
+    B: Matrix3
+    det_A: float
+    det_B: float
+    kappa_A: float | None = Field(description="Condition number of A; null at a parallel "
+                                  "singularity.")
+    kappa_B: float | None = Field(description="Condition number of B; null at a serial "
+                                  "singularity.")
+    serial: SerialMargins
+    parallel: float = Field(description="Distance of theta4 - theta5 to the nearest multiple "
+                            "of pi, rad (0: C, D, P aligned).")
+    parallel_singular: bool
+    serial_singular: list[Literal["P_on_axis", "leg_A", "leg_B"]]
+    pd: Vec3 | None = Field(None, description="Velocity of P for qd, m/s (null when not asked "
+                            "or A is singular).")
+
+
+# ---------------------------------------------------------------------------- meta, errors
+class Health(_Response):
     """Answer of ``GET /v1/health``."""
 
     status: Literal["ok"]
 
 
-class VersionInfo(_Wire):
+class VersionInfo(_Response):
     """Answer of ``GET /v1/version``."""
 
     version: str
     libraries: dict[str, str]
+
+
+class Readiness(_Response):
+    """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
+
+    status: Literal["ready", "starting", "broken"]
+    workers: int = Field(ge=0, description="Worker processes configured.")
+
+
+class ErrorItem(_Response):
+    """One error in FastAPI's format: ``loc`` is the path to the field, e.g.
+    ``["body", "design", "L1"]``."""
+
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class ErrorResponse(_Response):
+    """Body of every 4xx/5xx answer of the service."""
+
+    detail: list[ErrorItem]

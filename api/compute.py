@@ -1,0 +1,135 @@
+"""The service's jobs: one module-level function per endpoint, request model in, response
+model out, run in a worker process (:mod:`api.workers`). No FastAPI here: the same functions
+serve the CLI.
+
+A library error raised while handling one field gets ``loc`` (the path of that field in the
+request body) attached, so :mod:`api.errors` can name the field in its 422 answer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+
+from api.exceptions import PlanningUnavailableError
+from planner.constants import KAPPA_SOLVABLE
+from planner.exceptions import AssemblyError, PlannerError
+from planner.kinematics import SERIAL_KINDS, Manipulator, Posture
+from planner.schemas import (
+    AnalyzeRequest,
+    AnalyzeResponse,
+    FKRequest,
+    FKResponse,
+    IKRequest,
+    IKResponse,
+    PlanRequest,
+    PlanResponse,
+    PostureModel,
+    SerialMargins,
+)
+
+__all__ = ["analyze", "fk", "ik", "located", "plan", "posture_model"]
+
+
+@contextmanager
+def located(*loc: str | int) -> Iterator[None]:
+    """Attach ``loc`` (e.g. ``("body", "q")``) to a :class:`PlannerError` raised inside, unless
+    a more precise location is already attached."""
+    try:
+        yield
+    except PlannerError as exc:
+        if not hasattr(exc, "loc"):
+            exc.loc = loc  # type: ignore[attr-defined]
+        raise
+
+
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def posture_model(manipulator: Manipulator, posture: Posture) -> PostureModel:
+    """The wire form of a library posture."""
+    return PostureModel(
+        q=posture.q.tolist(),
+        passive=posture.passive.tolist(),
+        p=posture.p.tolist(),
+        points={k: v.tolist() for k, v in posture.points.items()},
+        w=posture.w,
+        working_mode=posture.working_mode,
+        assembly_mode=posture.assembly_mode,
+        within_limits=manipulator.within_limits(posture.q),
+    )
+
+
+def fk(request: FKRequest) -> FKResponse:
+    """``POST /v1/fk``: the postures of q (one assembly mode, or all)."""
+    with located("body", "design"):
+        m = Manipulator(request.design.to_design())
+    with located("body", "q"):
+        if request.assembly_mode is None:
+            found = m.forward(np.array(request.q))
+        else:
+            try:
+                found = [m.posture(np.array(request.q), request.assembly_mode)]
+            except AssemblyError:
+                found = []
+    return FKResponse(postures=[posture_model(m, p) for p in found])
+
+
+def ik(request: IKRequest) -> IKResponse:
+    """``POST /v1/ik``: the postures reaching p, one per working mode."""
+    with located("body", "design"):
+        m = Manipulator(request.design.to_design())
+    with located("body", "p"):
+        found = m.inverse(np.array(request.p))
+    if request.working_mode != "any":
+        found = [p for p in found if p.working_mode == request.working_mode]
+    return IKResponse(postures=[posture_model(m, p) for p in found])
+
+
+def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
+    """``POST /v1/analyze``: Jacobians, condition numbers, margins and modes of one posture."""
+    with located("body", "design"):
+        m = Manipulator(request.design.to_design())
+    with located("body", "q"):
+        posture = m.posture(np.array(request.q), request.assembly_mode)
+    a, b = m.jacobians(posture)
+    c = m.conditioning(posture)
+    kappa_a = _finite_or_none(c.kappa_A)
+    parallel_singular = kappa_a is None or kappa_a > KAPPA_SOLVABLE or posture.assembly_mode == "0"
+    pd = None
+    if request.qd is not None and not parallel_singular:
+        pd = m.cartesian_velocity(posture, np.array(request.qd)).tolist()
+    serial = [c.P_on_axis, c.leg_A, c.leg_B]
+    return AnalyzeResponse(
+        posture=posture_model(m, posture),
+        A=a.tolist(),
+        B=b.tolist(),
+        det_A=float(np.linalg.det(a)),
+        det_B=float(np.linalg.det(b)),
+        kappa_A=kappa_a,
+        kappa_B=_finite_or_none(c.kappa_B),
+        serial=SerialMargins(
+            P_on_axis=c.P_on_axis,
+            leg_A=c.leg_A,
+            leg_B=c.leg_B,
+            min=min(serial),
+            nearest=SERIAL_KINDS[int(np.argmin(serial))],
+        ),
+        parallel=c.parallel,
+        parallel_singular=parallel_singular,
+        serial_singular=[k for k, s in zip(SERIAL_KINDS, posture.working_mode, strict=True)
+                         if s == "0"],
+        pd=pd,
+    )
+
+
+def plan(request: PlanRequest) -> PlanResponse:
+    """``POST /v1/plan``: plan (and time) one request.
+
+    Raises :class:`PlanningUnavailableError` (HTTP 501) until the planner of issue 5 lands;
+    the route, validation, limits, batching and worker dispatch around it are in place.
+    """
+    raise PlanningUnavailableError("planning is not available in this build yet")

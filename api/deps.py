@@ -1,0 +1,56 @@
+"""Dependencies of the routes, as ``Annotated`` aliases: settings, worker pool, the request's
+deadline, and the API-key check."""
+
+from __future__ import annotations
+
+import secrets
+import time
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from api.exceptions import AuthenticationError
+from api.settings import Settings
+from api.workers import WorkerPool
+
+__all__ = ["ApiKey", "Deadline", "Pool", "SettingsDep", "require_api_key"]
+
+
+def get_app_settings(request: Request) -> Settings:
+    """The settings the application was built with."""
+    return request.app.state.settings
+
+
+def get_pool(request: Request) -> WorkerPool:
+    """The application's worker pool."""
+    return request.app.state.pool
+
+
+def get_deadline(request: Request, settings: Annotated[Settings, Depends(get_app_settings)]) -> float:
+    """The request's deadline, a :func:`time.monotonic` value (stamped on arrival by
+    :mod:`api.middleware`)."""
+    deadline = getattr(request.state, "deadline", None)
+    return deadline if deadline is not None else time.monotonic() + settings.request_timeout_s
+
+
+def require_api_key(
+    request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
+) -> None:
+    """Nothing when no key is configured; else the key must come in ``X-API-Key`` or
+    ``Authorization: Bearer <key>`` (compared in constant time)."""
+    if settings.api_key is None:
+        return
+    given = request.headers.get("x-api-key")
+    if given is None:
+        scheme, _, token = request.headers.get("authorization", "").partition(" ")
+        given = token.strip() if scheme.lower() == "bearer" else None
+    expected = settings.api_key.get_secret_value()
+    if given is None or not secrets.compare_digest(given.encode(), expected.encode()):
+        raise AuthenticationError("a valid API key is required (X-API-Key or Authorization: "
+                                  "Bearer)")
+
+
+SettingsDep = Annotated[Settings, Depends(get_app_settings)]
+Pool = Annotated[WorkerPool, Depends(get_pool)]
+Deadline = Annotated[float, Depends(get_deadline)]
+ApiKey = Depends(require_api_key)

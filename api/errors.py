@@ -1,0 +1,147 @@
+"""Every error of the service mapped to an HTTP answer, in one place.
+
+Every error body has FastAPI's shape, ``{"detail": [{"loc": [...], "msg": "...", "type":
+"..."}]}`` (:class:`planner.schemas.ErrorResponse`), whatever raised it:
+
+=================================  ======  =====================================================
+raised                             status  notes
+=================================  ======  =====================================================
+request validation (pydantic)      422     ``loc`` is the path of the field, e.g. body.design.L1
+malformed or too deeply nested     422     ``loc`` = ["body"]
+JSON body
+LimitExceededError                 422     a setting's size limit (obstacles, batch size)
+DesignError, InputError,           422     library errors; ``loc`` from :func:`api.compute.located`
+KinematicsError, other PlannerError
+AuthenticationError                401     ``WWW-Authenticate: Bearer``
+body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
+PlanningUnavailableError           501
+WorkerCrashedError                 502
+PoolSaturatedError                 503     ``Retry-After``
+DeadlineExceededError              504
+any other exception                500     logged with its traceback; never the answer to any
+                                           input (the tests send bad inputs of every kind)
+=================================  ======  =====================================================
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from api.exceptions import (
+    AuthenticationError,
+    DeadlineExceededError,
+    LimitExceededError,
+    PlanningUnavailableError,
+    PoolSaturatedError,
+    WorkerCrashedError,
+)
+from planner.exceptions import (
+    AssemblyError,
+    DesignError,
+    InputError,
+    KinematicsError,
+    PlannerError,
+    SingularPostureError,
+)
+
+__all__ = ["error_response", "install_error_handlers"]
+
+logger = logging.getLogger(__name__)
+
+#: Library errors: (HTTP status, error type, default loc). The most derived class wins.
+_LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]] = {
+    DesignError: (422, "design_error", ("body", "design")),
+    InputError: (422, "input_error", ("body",)),
+    AssemblyError: (422, "assembly_error", ("body", "q")),
+    SingularPostureError: (422, "singular_posture", ("body",)),
+    KinematicsError: (422, "kinematics_error", ("body",)),
+    PlannerError: (422, "planner_error", ("body",)),
+}
+
+#: Service errors: (HTTP status, error type).
+_SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
+    AuthenticationError: (401, "unauthorized"),
+    PlanningUnavailableError: (501, "not_implemented"),
+    WorkerCrashedError: (502, "worker_crashed"),
+    PoolSaturatedError: (503, "saturated"),
+    DeadlineExceededError: (504, "deadline_exceeded"),
+}
+
+
+def error_response(
+    status: int,
+    msg: str,
+    type_: str,
+    loc: Sequence[str | int] = (),
+    headers: dict[str, str] | None = None,
+) -> JSONResponse:
+    """A JSON error answer with one item in FastAPI's ``detail`` format."""
+    item = {"loc": list(loc), "msg": msg, "type": type_}
+    return JSONResponse({"detail": [item]}, status_code=status, headers=headers)
+
+
+def _clean_loc(loc: Sequence[Any]) -> list[str | int]:
+    return [x if isinstance(x, int) else str(x) for x in loc]
+
+
+async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
+    # FastAPI's own handler echoes the input, which may hold NaN (not JSON) or megabytes.
+    items = [
+        {"loc": _clean_loc(e.get("loc", ())), "msg": str(e.get("msg", "")),
+         "type": str(e.get("type", "value_error"))}
+        for e in exc.errors()
+    ]
+    return JSONResponse({"detail": items}, status_code=422)
+
+
+async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+    if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
+        return error_response(422, f"the body is not valid JSON: {exc.detail}", "json_invalid",
+                              ("body",))
+    return error_response(exc.status_code, str(exc.detail), "http_error", (),
+                          headers=getattr(exc, "headers", None))
+
+
+async def _library(_: Request, exc: PlannerError) -> JSONResponse:
+    for cls in type(exc).__mro__:
+        if cls in _LIBRARY_ERRORS:
+            status, type_, loc = _LIBRARY_ERRORS[cls]
+            break
+    else:  # pragma: no cover - PlannerError is in the table
+        status, type_, loc = 422, "planner_error", ("body",)
+    return error_response(status, str(exc), type_, getattr(exc, "loc", loc))
+
+
+async def _service(_: Request, exc: Exception) -> JSONResponse:
+    if isinstance(exc, LimitExceededError):
+        return error_response(422, exc.message, "limit_exceeded", exc.loc)
+    status, type_ = next(v for k, v in _SERVICE_ERRORS.items() if isinstance(exc, k))
+    headers = None
+    if isinstance(exc, PoolSaturatedError):
+        headers = {"Retry-After": str(exc.retry_after_s)}
+    elif isinstance(exc, AuthenticationError):
+        headers = {"WWW-Authenticate": "Bearer"}
+    return error_response(status, str(exc), type_, (), headers=headers)
+
+
+async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+    logger.exception("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
+    return error_response(500, "internal error (logged on the server)", "internal_error")
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Register every handler of this module on ``app``."""
+    app.add_exception_handler(RequestValidationError, _validation)  # type: ignore[arg-type]
+    app.add_exception_handler(StarletteHTTPException, _http)  # type: ignore[arg-type]
+    app.add_exception_handler(PlannerError, _library)  # type: ignore[arg-type]
+    app.add_exception_handler(LimitExceededError, _service)
+    for cls in _SERVICE_ERRORS:
+        app.add_exception_handler(cls, _service)
+    app.add_exception_handler(Exception, _unexpected)

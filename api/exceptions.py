@@ -1,0 +1,69 @@
+"""Errors of the service itself (not of the library); :mod:`api.errors` maps each one, and
+every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
+
+::
+
+    ServiceError
+    ├── PoolSaturatedError        503 + Retry-After: every worker busy, queue full
+    ├── DeadlineExceededError     504: the request's time budget ran out
+    ├── WorkerCrashedError        502: a worker process died during the job
+    ├── PlanningUnavailableError  501: this build has no planner yet
+    ├── LimitExceededError        422: a request exceeds a size limit of the service settings
+    └── AuthenticationError       401: missing or wrong API key
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AuthenticationError",
+    "DeadlineExceededError",
+    "LimitExceededError",
+    "PlanningUnavailableError",
+    "PoolSaturatedError",
+    "ServiceError",
+    "WorkerCrashedError",
+]
+
+
+class ServiceError(Exception):
+    """Base of the errors of the service itself."""
+
+
+class PoolSaturatedError(ServiceError):
+    """Every worker is busy and the queue is full: retry after ``retry_after_s`` seconds."""
+
+    def __init__(self, message: str, retry_after_s: int) -> None:
+        super().__init__(message, retry_after_s)
+        self.message = message
+        self.retry_after_s = retry_after_s
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class DeadlineExceededError(ServiceError):
+    """The request's time budget ran out before its job finished."""
+
+
+class WorkerCrashedError(ServiceError):
+    """A worker process died while the job ran; the pool was rebuilt."""
+
+
+class PlanningUnavailableError(ServiceError):
+    """This build has no planner (``planner.planning.plan``) yet."""
+
+
+class LimitExceededError(ServiceError):
+    """A request is larger than a limit of the settings (``loc`` names the field)."""
+
+    def __init__(self, message: str, loc: tuple[str | int, ...]) -> None:
+        super().__init__(message, loc)
+        self.message = message
+        self.loc = loc
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class AuthenticationError(ServiceError):
+    """The API key is missing or wrong."""

@@ -1,0 +1,65 @@
+"""POST /v1/plan and /v1/plan/batch.
+
+The job is :func:`api.compute.plan`, resolved through the ``get_plan_function`` dependency
+(tests override it). A finished search is a 200 whatever its status; errors are for invalid
+input (422), a full pool (503) or the request's deadline (504).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Annotated
+
+from fastapi import APIRouter, Depends
+
+from api import compute
+from api.deps import Deadline, Pool, SettingsDep
+from api.exceptions import LimitExceededError
+from api.settings import Settings
+from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+
+router = APIRouter(prefix="/v1", tags=["plan"])
+
+PlanFunction = Callable[[PlanRequest], PlanResponse]
+
+
+def get_plan_function() -> PlanFunction:
+    """The job that answers one plan request (a module-level, picklable function)."""
+    return compute.plan
+
+
+PlanJob = Annotated[PlanFunction, Depends(get_plan_function)]
+
+
+def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int, ...]) -> None:
+    """Raise :class:`LimitExceededError` when a request exceeds a size limit of the settings."""
+    if len(request.obstacles) > settings.max_obstacles:
+        raise LimitExceededError(
+            f"at most {settings.max_obstacles} obstacles per request, got "
+            f"{len(request.obstacles)}",
+            (*loc, "obstacles"),
+        )
+
+
+@router.post("/plan", response_model=PlanResponse)
+async def plan(
+    body: PlanRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
+) -> PlanResponse:
+    """Plan (and time) a motion from ``start`` to ``goal``."""
+    check_limits(body, settings, ("body",))
+    return await pool.run(job, body, deadline=deadline)
+
+
+@router.post("/plan/batch", response_model=PlanBatchResponse)
+async def plan_batch(
+    body: PlanBatchRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
+) -> PlanBatchResponse:
+    """Many plan requests, spread over the workers, answered in order."""
+    if len(body.requests) > settings.max_batch:
+        raise LimitExceededError(
+            f"at most {settings.max_batch} requests per batch, got {len(body.requests)}",
+            ("body", "requests"),
+        )
+    for i, request in enumerate(body.requests):
+        check_limits(request, settings, ("body", "requests", i))
+    return PlanBatchResponse(results=await pool.map(job, body.requests, deadline=deadline))
