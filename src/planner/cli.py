@@ -12,16 +12,103 @@ app = typer.Typer(help="Plan, time and analyse motions of the 3-DOF hybrid manip
 
 @app.command()
 def serve(
-    host: Annotated[str, typer.Option(help="Interface to bind.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option(help="TCP port.", min=1, max=65535)] = 8000,
+    host: Annotated[str | None, typer.Option(help="Interface to bind (env PLANNER_HOST).")] = None,
+    port: Annotated[int | None, typer.Option(help="TCP port (env PLANNER_PORT).", min=1,
+                                             max=65535)] = None,
+    workers: Annotated[int | None, typer.Option(
+        help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1)] = None,
+    log_level: Annotated[str, typer.Option(help="uvicorn log level.")] = "info",
 ) -> None:
-    """Start the HTTP service."""
+    """Start the HTTP service (every setting also from PLANNER_* environment variables)."""
     import uvicorn
 
     from api.app import create_app
     from api.settings import Settings
 
-    uvicorn.run(create_app(Settings(host=host, port=port)), host=host, port=port)
+    overrides = {k: v for k, v in {"host": host, "port": port, "workers": workers}.items()
+                 if v is not None}
+    settings = Settings(**overrides)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port,
+                log_level=log_level)
+
+
+_PRESETS = {
+    "default": "default",
+    "singularity-free": "singularity_free",
+    "paper-optimum": "paper_optimum",
+}
+
+
+def _design_option(preset: str, l0: float | None, l1: float | None, l2: float | None) -> dict:
+    from planner.design import Design
+    from planner.schemas import DesignModel
+
+    if preset not in _PRESETS:
+        raise typer.BadParameter(f"one of {', '.join(_PRESETS)}", param_hint="--design")
+    base = DesignModel.from_design(getattr(Design, _PRESETS[preset])()).model_dump()
+    base.update({k: v for k, v in {"L0": l0, "L1": l1, "L2": l2}.items() if v is not None})
+    return base
+
+
+def _run_job(job, model, data: dict) -> None:  # type: ignore[no-untyped-def]
+    """Validate ``data`` as ``model``, run ``job`` locally and echo its JSON answer."""
+    from pydantic import ValidationError
+
+    from planner.exceptions import PlannerError
+
+    try:
+        answer = job(model.model_validate(data))
+    except ValidationError as exc:
+        for e in exc.errors():
+            typer.echo(f"error: {'.'.join(map(str, e['loc']))}: {e['msg']}", err=True)
+        raise typer.Exit(2) from None
+    except PlannerError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(answer.model_dump_json(indent=2))
+
+
+_Design = Annotated[str, typer.Option("--design", help="Preset: default, singularity-free, "
+                                      "paper-optimum.")]
+_L0 = Annotated[float | None, typer.Option("--L0", help="Override L0, m.")]
+_L1 = Annotated[float | None, typer.Option("--L1", help="Override L1, m.")]
+_L2 = Annotated[float | None, typer.Option("--L2", help="Override L2, m.")]
+
+
+@app.command()
+def fk(
+    q: Annotated[list[float], typer.Argument(help="theta1 theta2 theta3, rad (after -- if "
+                                             "one is negative).")],
+    assembly_mode: Annotated[str | None, typer.Option(help="'+' or '-' (default: both).")] = None,
+    design: _Design = "default",
+    l0: _L0 = None,
+    l1: _L1 = None,
+    l2: _L2 = None,
+) -> None:
+    """Direct kinematics of q, computed locally; prints the JSON of POST /v1/fk."""
+    from api.compute import fk as job
+    from planner.schemas import FKRequest
+
+    _run_job(job, FKRequest, {"q": q, "assembly_mode": assembly_mode,
+                              "design": _design_option(design, l0, l1, l2)})
+
+
+@app.command()
+def ik(
+    p: Annotated[list[float], typer.Argument(help="x y z of P, m (after -- if one is "
+                                             "negative).")],
+    working_mode: Annotated[str, typer.Option(help="e.g. '+-+', or 'any'.")] = "any",
+    design: _Design = "default",
+    l0: _L0 = None,
+    l1: _L1 = None,
+    l2: _L2 = None,
+) -> None:
+    """Inverse kinematics of P, computed locally; prints the JSON of POST /v1/ik."""
+    from api.compute import ik as job
+    from planner.schemas import IKRequest
+
+    _run_job(job, IKRequest, {"p": p, "working_mode": working_mode,
+                              "design": _design_option(design, l0, l1, l2)})
 
 
 @app.command()

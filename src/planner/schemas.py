@@ -83,6 +83,7 @@ _MAX_SAMPLES = 10_000_000
 _DEFAULT = Design.default()
 
 WorkingModeLabel = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---"]
+WorkingModeOrAny = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---", "any"]
 AssemblyModeLabel = Literal["+", "-"]
 
 # ---------------------------------------------------------------------------- number types
@@ -202,7 +203,7 @@ class CartesianTarget(_Request):
     """A Cartesian target for P, with the working mode to reach it in (or ``"any"``)."""
 
     p: Point3 = Field(description="(x, y, z) of P, m.")
-    working_mode: WorkingModeLabel | Literal["any"] = Field(
+    working_mode: WorkingModeOrAny = Field(
         "any", description="(s_axis, s_A, s_B) as '+-+'-style text, or 'any'."
     )
 
@@ -450,7 +451,7 @@ class IKRequest(_Request):
 
     design: DesignModel = _DesignField
     p: Point3 = Field(description="(x, y, z) of P, m.")
-    working_mode: WorkingModeLabel | Literal["any"] = "any"
+    working_mode: WorkingModeOrAny = "any"
 
 
 class IKResponse(_Response):

@@ -1,0 +1,543 @@
+"""Python client of the hybrid-planner service (``/v1``), sync and async, on httpx.
+
+>>> with PlannerClient("http://127.0.0.1:8000") as client:          # doctest: +SKIP
+...     postures = client.ik([0.3, 0.1, 0.2]).postures
+...     result = client.plan(start={"q": [0, 1, 2], "assembly_mode": "+"},
+...                          goal={"p": [0.3, 0.1, 0.2], "working_mode": "any"})
+
+Both clients take the same keyword-only options and return the shared wire models of
+:mod:`planner.schemas`; :class:`AsyncPlannerClient`'s methods are coroutines. Each endpoint
+method is written once (a request builder in :class:`_BaseClient`) and turned into a sync or
+an async method, so the two clients cannot drift apart.
+
+Requests are validated locally before they are sent (a bad field raises
+:class:`InvalidRequestError` without a round trip). A 503 (every worker busy) is retried
+``max_retries`` times, waiting what the server's ``Retry-After`` asks, else an exponential
+backoff, capped at ``max_backoff_s``.
+
+Exceptions (all carry a message; :class:`APIError` also the server's status and ``detail``)::
+
+    PlannerError                         (planner.exceptions)
+    └── PlannerClientError               base of every error raised here
+        ├── TransportError               the server could not be reached
+        │   └── RequestTimeoutError      no answer within the client's timeout
+        ├── ProtocolError                the answer is not what the API promises
+        └── APIError                     the server answered an error status
+            ├── InvalidRequestError      422 (or rejected locally: status_code None)
+            ├── AuthenticationError      401
+            ├── NotFoundError            404
+            ├── PayloadTooLargeError     413
+            ├── DeadlineExceededError    504: the request's time budget ran out
+            └── ServerError              other 5xx
+                └── ServiceUnavailableError  503 after the retries ran out
+"""
+
+from __future__ import annotations
+
+import asyncio
+import email.utils
+import inspect
+import itertools
+import time
+from collections.abc import Awaitable, Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Concatenate, Generic, ParamSpec, TypeVar
+
+import httpx
+from pydantic import BaseModel, ValidationError
+
+import planner
+from planner.design import Design
+from planner.exceptions import PlannerError
+from planner.schemas import (
+    AnalyzeRequest,
+    AnalyzeResponse,
+    DesignModel,
+    DesignsResponse,
+    FKRequest,
+    FKResponse,
+    Health,
+    IKRequest,
+    IKResponse,
+    PlanBatchRequest,
+    PlanBatchResponse,
+    PlanRequest,
+    PlanResponse,
+    Readiness,
+    VersionInfo,
+)
+
+__all__ = [
+    "DEFAULT_BACKOFF_S",
+    "DEFAULT_BASE_URL",
+    "DEFAULT_MAX_BACKOFF_S",
+    "DEFAULT_MAX_RETRIES",
+    "DEFAULT_TIMEOUT_S",
+    "APIError",
+    "AsyncPlannerClient",
+    "AuthenticationError",
+    "DeadlineExceededError",
+    "InvalidRequestError",
+    "NotFoundError",
+    "PayloadTooLargeError",
+    "PlannerClient",
+    "PlannerClientError",
+    "ProtocolError",
+    "RequestTimeoutError",
+    "ServerError",
+    "ServiceUnavailableError",
+    "TransportError",
+]
+
+#: Where ``planner serve`` listens by default.
+DEFAULT_BASE_URL = "http://127.0.0.1:8000"
+#: Seconds to wait for one answer (planning may take the whole request budget of the server).
+DEFAULT_TIMEOUT_S = 60.0
+#: Retries of a request answered 503.
+DEFAULT_MAX_RETRIES = 3
+#: First backoff, s, doubled at each retry when the server sends no Retry-After.
+DEFAULT_BACKOFF_S = 0.25
+#: Longest single wait between retries, s.
+DEFAULT_MAX_BACKOFF_S = 10.0
+
+
+# ---------------------------------------------------------------------------- exceptions
+class PlannerClientError(PlannerError):
+    """Base of every error raised by the client."""
+
+
+class TransportError(PlannerClientError):
+    """The server could not be reached (connection refused, reset, DNS...)."""
+
+
+class RequestTimeoutError(TransportError):
+    """No answer within the client's ``timeout``."""
+
+
+class ProtocolError(PlannerClientError):
+    """The server's answer does not parse as the model the API promises."""
+
+
+class APIError(PlannerClientError):
+    """The server answered an error status.
+
+    Attributes
+    ----------
+    status_code : int or None
+        HTTP status (None for a request rejected locally, before sending).
+    detail : list of dict
+        The server's ``detail`` items, each with ``loc``, ``msg`` and ``type``.
+    message : str
+        The items joined as ``"body.design.L1: Input should be ..."``.
+    """
+
+    def __init__(self, message: str, *, status_code: int | None,
+                 detail: list[dict[str, Any]] | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.status_code = status_code
+        self.detail = detail or []
+
+    def __str__(self) -> str:
+        return self.message if self.status_code is None else f"{self.status_code}: {self.message}"
+
+
+class InvalidRequestError(APIError):
+    """422: a field breaks a rule (``detail[i]["loc"]`` names it)."""
+
+
+class AuthenticationError(APIError):
+    """401: the API key is missing or wrong."""
+
+
+class NotFoundError(APIError):
+    """404: no such route (an older server?)."""
+
+
+class PayloadTooLargeError(APIError):
+    """413: the request body is larger than the server accepts."""
+
+
+class DeadlineExceededError(APIError):
+    """504: the server's time budget for the request ran out."""
+
+
+class ServerError(APIError):
+    """A 5xx answer other than 504."""
+
+
+class ServiceUnavailableError(ServerError):
+    """503 after every retry: all workers stayed busy. ``retry_after`` is the server's last
+    advice, s (None if it gave none)."""
+
+    def __init__(self, message: str, *, status_code: int | None,
+                 detail: list[dict[str, Any]] | None = None,
+                 retry_after: float | None = None) -> None:
+        super().__init__(message, status_code=status_code, detail=detail)
+        self.retry_after = retry_after
+
+
+_STATUS_ERRORS: dict[int, type[APIError]] = {
+    401: AuthenticationError,
+    404: NotFoundError,
+    413: PayloadTooLargeError,
+    422: InvalidRequestError,
+    503: ServiceUnavailableError,
+    504: DeadlineExceededError,
+}
+
+
+def _retry_after(response: httpx.Response) -> float | None:
+    """Seconds asked by a ``Retry-After`` header (delta-seconds or an HTTP date)."""
+    value = response.headers.get("retry-after")
+    if value is None:
+        return None
+    try:
+        return max(0.0, float(value))
+    except ValueError:
+        pass
+    try:
+        when = email.utils.parsedate_to_datetime(value)
+    except (TypeError, ValueError):
+        return None
+    return max(0.0, when.timestamp() - time.time())
+
+
+def _error_from(response: httpx.Response) -> APIError:
+    """The typed exception of an error answer, carrying the server's message."""
+    try:
+        detail = response.json().get("detail")
+    except (ValueError, AttributeError):
+        detail = None
+    if isinstance(detail, str):
+        detail = [{"loc": [], "msg": detail, "type": "http_error"}]
+    if not isinstance(detail, list):
+        detail = [{"loc": [], "msg": response.text[:500] or response.reason_phrase,
+                   "type": "http_error"}]
+    message = "; ".join(_describe_item(item) for item in detail) or response.reason_phrase
+    status = response.status_code
+    cls = _STATUS_ERRORS.get(status, ServerError if status >= 500 else APIError)
+    if cls is ServiceUnavailableError:
+        return ServiceUnavailableError(message, status_code=status, detail=detail,
+                                       retry_after=_retry_after(response))
+    return cls(message, status_code=status, detail=detail)
+
+
+def _describe_item(item: Any) -> str:
+    if not isinstance(item, dict):
+        return str(item)
+    loc = ".".join(str(x) for x in item.get("loc", []))
+    msg = str(item.get("msg", ""))
+    return f"{loc}: {msg}" if loc else msg
+
+
+# ---------------------------------------------------------------------------- requests
+M = TypeVar("M", bound=BaseModel)
+
+
+@dataclass(frozen=True, slots=True)
+class _Call(Generic[M]):
+    """One API call: what to send and what to parse the answer into."""
+
+    method: str
+    path: str
+    body: BaseModel | None
+    model: type[M]
+    ok_statuses: frozenset[int] = frozenset({200})
+    retry: bool = True
+
+
+DesignLike = DesignModel | Design | Mapping[str, Any] | None
+
+
+def _validated(model: type[M], data: Any) -> M:
+    """``model`` from ``data``, a local validation error raised as InvalidRequestError."""
+    try:
+        return data if isinstance(data, model) else model.model_validate(data)
+    except ValidationError as exc:
+        detail = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]}
+                  for e in exc.errors()]
+        raise InvalidRequestError("; ".join(_describe_item(d) for d in detail),
+                                  status_code=None, detail=detail) from None
+
+
+def _design(design: DesignLike) -> DesignModel | dict[str, Any]:
+    if design is None:
+        return {}
+    if isinstance(design, Design):
+        return DesignModel.from_design(design)
+    return design if isinstance(design, DesignModel) else dict(design)
+
+
+def _floats(values: Any) -> Any:
+    """A numpy array or other sequence as a list of floats (anything else left to pydantic)."""
+    try:
+        return [float(x) for x in values]
+    except (TypeError, ValueError):
+        return values
+
+
+class _BaseClient:
+    """Configuration, request building, error translation and retry policy shared by
+    :class:`PlannerClient` and :class:`AsyncPlannerClient`."""
+
+    def __init__(
+        self,
+        base_url: str = DEFAULT_BASE_URL,
+        *,
+        timeout: float = DEFAULT_TIMEOUT_S,
+        api_key: str | None = None,
+        max_retries: int = DEFAULT_MAX_RETRIES,
+        backoff_s: float = DEFAULT_BACKOFF_S,
+        max_backoff_s: float = DEFAULT_MAX_BACKOFF_S,
+        headers: Mapping[str, str] | None = None,
+    ) -> None:
+        if max_retries < 0 or backoff_s < 0 or max_backoff_s < 0 or not timeout > 0:
+            raise ValueError("timeout must be > 0; max_retries, backoff_s, max_backoff_s >= 0")
+        self.base_url = base_url.rstrip("/")
+        self.timeout = timeout
+        self.max_retries = max_retries
+        self.backoff_s = backoff_s
+        self.max_backoff_s = max_backoff_s
+        self._headers = {"user-agent": f"hybrid-planner-client/{planner.__version__}",
+                         **(headers or {})}
+        if api_key is not None:
+            self._headers["x-api-key"] = api_key
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.base_url!r})"
+
+    def _client_options(self) -> dict[str, Any]:
+        return {"base_url": self.base_url, "timeout": self.timeout, "headers": self._headers}
+
+    # -- policy
+    def _retry_delay(self, call: _Call[Any], attempt: int, response: httpx.Response) -> float | None:
+        """Seconds to wait before retrying, or None to stop and answer."""
+        if response.status_code != 503 or not call.retry or attempt >= self.max_retries:
+            return None
+        asked = _retry_after(response)
+        delay = asked if asked is not None else self.backoff_s * 2**attempt
+        return min(delay, self.max_backoff_s)
+
+    @staticmethod
+    def _parse(call: _Call[M], response: httpx.Response) -> M:
+        if response.status_code not in call.ok_statuses:
+            raise _error_from(response)
+        try:
+            return call.model.model_validate_json(response.content)
+        except ValidationError as exc:
+            raise ProtocolError(
+                f"{call.method} {call.path}: the answer is not a {call.model.__name__}: {exc}"
+            ) from exc
+
+    @staticmethod
+    def _request_args(call: _Call[Any]) -> dict[str, Any]:
+        args: dict[str, Any] = {"method": call.method, "url": call.path}
+        if call.body is not None:
+            args["content"] = call.body.model_dump_json(exclude_unset=True).encode()
+            args["headers"] = {"content-type": "application/json"}
+        return args
+
+    @staticmethod
+    def _transport_error(call: _Call[Any], exc: httpx.HTTPError) -> PlannerClientError:
+        where = f"{call.method} {call.path}"
+        if isinstance(exc, httpx.TimeoutException):
+            return RequestTimeoutError(f"{where}: no answer in time ({exc})")
+        return TransportError(f"{where}: {type(exc).__name__}: {exc}")
+
+    # -- endpoints (one builder each; the public methods are made from them)
+    def _health(self) -> _Call[Health]:
+        """Liveness of the server."""
+        return _Call("GET", "/v1/health", None, Health)
+
+    def _ready(self) -> _Call[Readiness]:
+        """Readiness of the server's workers (a 503 answer is returned, not raised)."""
+        return _Call("GET", "/v1/ready", None, Readiness, frozenset({200, 503}), retry=False)
+
+    def _version(self) -> _Call[VersionInfo]:
+        """Versions of the server and its libraries."""
+        return _Call("GET", "/v1/version", None, VersionInfo)
+
+    def _designs(self) -> _Call[DesignsResponse]:
+        """The preset designs (``default`` first)."""
+        return _Call("GET", "/v1/designs", None, DesignsResponse)
+
+    def _fk(self, q: Sequence[float], assembly_mode: str | None = None, *,
+            design: DesignLike = None) -> _Call[FKResponse]:
+        """Direct kinematics of q (rad): the postures in both assembly modes, or in the one
+        given ('+' or '-')."""
+        body = _validated(FKRequest, {"q": _floats(q), "assembly_mode": assembly_mode,
+                                      "design": _design(design)})
+        return _Call("POST", "/v1/fk", body, FKResponse)
+
+    def _ik(self, p: Sequence[float], working_mode: str = "any", *,
+            design: DesignLike = None) -> _Call[IKResponse]:
+        """Inverse kinematics of P (m): one posture per working mode reaching it (or the one
+        asked, e.g. '+-+')."""
+        body = _validated(IKRequest, {"p": _floats(p), "working_mode": working_mode,
+                                      "design": _design(design)})
+        return _Call("POST", "/v1/ik", body, IKResponse)
+
+    def _analyze(self, q: Sequence[float], assembly_mode: str, *,
+                 qd: Sequence[float] | None = None,
+                 design: DesignLike = None) -> _Call[AnalyzeResponse]:
+        """Jacobians, kappa(A), kappa(B), singularity margins and modes of one posture
+        (and the velocity of P for joint rates ``qd``, rad/s)."""
+        data: dict[str, Any] = {"q": _floats(q), "assembly_mode": assembly_mode,
+                                "design": _design(design)}
+        if qd is not None:
+            data["qd"] = _floats(qd)
+        return _Call("POST", "/v1/analyze", _validated(AnalyzeRequest, data), AnalyzeResponse)
+
+    def _plan(self, request: PlanRequest | Mapping[str, Any] | None = None,
+              **fields: Any) -> _Call[PlanResponse]:
+        """Plan a motion: a :class:`PlanRequest` (or its dict), and/or its fields as keywords
+        (``start=..., goal=..., obstacles=...``). A finished search returns its ``status``."""
+        if isinstance(request, PlanRequest) and not fields:
+            body = request
+        else:
+            data = dict(request.model_dump(exclude_unset=True) if isinstance(request, PlanRequest)
+                        else request or {})
+            body = _validated(PlanRequest, {**data, **fields})
+        return _Call("POST", "/v1/plan", body, PlanResponse)
+
+    def _plan_batch(self, requests: Sequence[PlanRequest | Mapping[str, Any]]
+                    ) -> _Call[PlanBatchResponse]:
+        """Many plan requests in one call; ``results`` come in the same order."""
+        body = _validated(PlanBatchRequest, {"requests": [
+            r if isinstance(r, PlanRequest) else _validated(PlanRequest, r) for r in requests]})
+        return _Call("POST", "/v1/plan/batch", body, PlanBatchResponse)
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def _adopt(method: Callable[..., Any], build: Callable[..., Any], owner: str) -> None:
+    """Give ``method`` the public name, docstring and signature of its builder, the return
+    annotation being the model (``FKResponse``), not the ``_Call[FKResponse]`` built."""
+    name = build.__name__.lstrip("_")
+    method.__name__ = name
+    method.__qualname__ = f"{owner}.{name}"
+    method.__doc__ = build.__doc__
+    sig = inspect.signature(build)
+    returns = str(sig.return_annotation).removeprefix("_Call[").removesuffix("]")
+    method.__signature__ = sig.replace(return_annotation=returns)  # type: ignore[attr-defined]
+
+
+def _sync(build: Callable[Concatenate[_BaseClient, P], _Call[R]]
+          ) -> Callable[Concatenate[PlannerClient, P], R]:
+    def method(self: PlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        return self._execute(build(self, *args, **kwargs))
+
+    _adopt(method, build, "PlannerClient")
+    return method
+
+
+def _async(build: Callable[Concatenate[_BaseClient, P], _Call[R]]
+           ) -> Callable[Concatenate[AsyncPlannerClient, P], Awaitable[R]]:
+    async def method(self: AsyncPlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        return await self._execute(build(self, *args, **kwargs))
+
+    _adopt(method, build, "AsyncPlannerClient")
+    return method
+
+
+class PlannerClient(_BaseClient):
+    """Blocking client. Use as a context manager (or call :meth:`close`).
+
+    Parameters
+    ----------
+    base_url : str
+        Root of the service, e.g. ``"http://127.0.0.1:8000"``.
+    timeout : float, keyword-only
+        Seconds to wait for one answer.
+    api_key : str, optional, keyword-only
+        Sent as ``X-API-Key`` when the server requires one.
+    max_retries, backoff_s, max_backoff_s : keyword-only
+        Retry policy for 503 answers (see the module docstring).
+    headers : mapping, optional
+        Extra headers sent with every request.
+    transport : httpx.BaseTransport, optional
+        For tests (e.g. ``httpx.MockTransport``).
+    """
+
+    def __init__(self, base_url: str = DEFAULT_BASE_URL, *,
+                 transport: httpx.BaseTransport | None = None, **options: Any) -> None:
+        super().__init__(base_url, **options)
+        self._http = httpx.Client(transport=transport, **self._client_options())
+
+    def _execute(self, call: _Call[M]) -> M:
+        for attempt in itertools.count():
+            try:
+                response = self._http.request(**self._request_args(call))
+            except httpx.HTTPError as exc:
+                raise self._transport_error(call, exc) from exc
+            delay = self._retry_delay(call, attempt, response)
+            if delay is None:
+                return self._parse(call, response)
+            time.sleep(delay)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def close(self) -> None:
+        """Close the connections."""
+        self._http.close()
+
+    def __enter__(self) -> PlannerClient:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    health = _sync(_BaseClient._health)
+    ready = _sync(_BaseClient._ready)
+    version = _sync(_BaseClient._version)
+    designs = _sync(_BaseClient._designs)
+    fk = _sync(_BaseClient._fk)
+    ik = _sync(_BaseClient._ik)
+    analyze = _sync(_BaseClient._analyze)
+    plan = _sync(_BaseClient._plan)
+    plan_batch = _sync(_BaseClient._plan_batch)
+
+
+class AsyncPlannerClient(_BaseClient):
+    """Asynchronous client (every endpoint method is a coroutine). Use with ``async with``
+    (or await :meth:`aclose`). Parameters as :class:`PlannerClient`, ``transport`` an
+    ``httpx.AsyncBaseTransport``."""
+
+    def __init__(self, base_url: str = DEFAULT_BASE_URL, *,
+                 transport: httpx.AsyncBaseTransport | None = None, **options: Any) -> None:
+        super().__init__(base_url, **options)
+        self._http = httpx.AsyncClient(transport=transport, **self._client_options())
+
+    async def _execute(self, call: _Call[M]) -> M:
+        for attempt in itertools.count():
+            try:
+                response = await self._http.request(**self._request_args(call))
+            except httpx.HTTPError as exc:
+                raise self._transport_error(call, exc) from exc
+            delay = self._retry_delay(call, attempt, response)
+            if delay is None:
+                return self._parse(call, response)
+            await asyncio.sleep(delay)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    async def aclose(self) -> None:
+        """Close the connections."""
+        await self._http.aclose()
+
+    async def __aenter__(self) -> AsyncPlannerClient:
+        return self
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        await self.aclose()
+
+    health = _async(_BaseClient._health)
+    ready = _async(_BaseClient._ready)
+    version = _async(_BaseClient._version)
+    designs = _async(_BaseClient._designs)
+    fk = _async(_BaseClient._fk)
+    ik = _async(_BaseClient._ik)
+    analyze = _async(_BaseClient._analyze)
+    plan = _async(_BaseClient._plan)
+    plan_batch = _async(_BaseClient._plan_batch)
