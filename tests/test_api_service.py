@@ -1,0 +1,208 @@
+"""The service machinery: settings, API key, readiness, the worker pool (saturation -> 503,
+deadline -> 504, crashed worker -> 502 and recovery, fan-out over processes), the plan routes'
+wiring, and the OpenAPI document."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import threading
+import time
+
+import pytest
+from pydantic import ValidationError
+
+from api.exceptions import PoolSaturatedError
+from api.routes.plan import get_plan_function
+from api.settings import Settings
+from api.workers import WorkerPool
+from conftest import make_client
+from planner.schemas import PlanRequest, PlanResponse
+
+START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
+PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}
+
+
+# ---------------------------------------------------------------- jobs run in worker processes
+def _echo_seed(request: PlanRequest) -> PlanResponse:
+    return PlanResponse(status="no_path", message=str(request.planner.seed))
+
+
+def _sleep_pid(request: PlanRequest) -> PlanResponse:
+    time.sleep(request.planner.time_budget_s)
+    return PlanResponse(status="timeout", message=str(os.getpid()))
+
+
+def _die(_request: PlanRequest) -> PlanResponse:
+    os._exit(3)
+
+
+def _wait_ready(client, timeout_s: float = 60.0) -> None:
+    end = time.monotonic() + timeout_s
+    while client.get("/v1/ready").status_code != 200:
+        assert time.monotonic() < end, "workers never became ready"
+        time.sleep(0.05)
+
+
+# ---------------------------------------------------------------- settings
+def test_settings_from_environment(monkeypatch):
+    monkeypatch.setenv("PLANNER_WORKERS", "3")
+    monkeypatch.setenv("PLANNER_MAX_BATCH", "7")
+    monkeypatch.setenv("PLANNER_API_KEY", "")
+    s = Settings()
+    assert (s.workers, s.max_batch, s.queue_size, s.api_key) == (3, 7, 12, None)
+    monkeypatch.setenv("PLANNER_API_KEY", "k")
+    assert Settings().api_key.get_secret_value() == "k"
+    monkeypatch.setenv("PLANNER_WORKERS", "0")
+    with pytest.raises(ValidationError, match="workers"):
+        Settings()
+    monkeypatch.setenv("PLANNER_WORKERS", "1")
+    monkeypatch.setenv("PLANNER_REQUEST_TIMEOUT_S", "nan")
+    with pytest.raises(ValidationError, match="request_timeout_s"):
+        Settings()
+
+
+# ---------------------------------------------------------------- API key
+def test_api_key_guards_every_v1_route_but_health():
+    with make_client(api_key="s3cret") as c:
+        assert c.get("/v1/health").status_code == 200
+        for method, path, body in [("GET", "/v1/version", None), ("GET", "/v1/ready", None),
+                                   ("GET", "/v1/designs", None),
+                                   ("POST", "/v1/fk", {"q": [0, 1, 2]}),
+                                   ("POST", "/v1/plan", PLAN)]:
+            r = c.request(method, path, json=body)
+            assert r.status_code == 401, path
+            assert r.headers["www-authenticate"] == "Bearer"
+            assert r.json()["detail"][0]["type"] == "unauthorized"
+            r = c.request(method, path, json=body, headers={"X-API-Key": "wrong"})
+            assert r.status_code == 401, path
+        assert c.get("/v1/designs", headers={"X-API-Key": "s3cret"}).status_code == 200
+        r = c.post("/v1/fk", json={"q": [0, 1, 2]}, headers={"Authorization": "Bearer s3cret"})
+        assert r.status_code == 200
+        r = c.post("/v1/fk", json={"q": [0, 1, 2]}, headers={"Authorization": "Basic s3cret"})
+        assert r.status_code == 401
+
+
+def test_no_key_configured_means_open(api):
+    assert api.get("/v1/designs").status_code == 200
+
+
+# ---------------------------------------------------------------- readiness and saturation
+def test_ready_turns_200_once_workers_answer():
+    with make_client() as c:
+        r = c.get("/v1/ready")
+        if r.status_code == 503:  # the usual case: spawning takes a while
+            assert r.json()["status"] == "starting" and r.headers["retry-after"] == "1"
+        _wait_ready(c)
+        assert c.get("/v1/ready").json() == {"status": "ready", "workers": 1}
+
+
+def test_saturated_pool_answers_503_with_retry_after_then_recovers():
+    with make_client(workers=1, queue_size=0, retry_after_s=2) as c:
+        _wait_ready(c)
+        pool: WorkerPool = c.app.state.pool
+        pool._reserve(1)
+        busy = pool._submit(time.sleep, 0.5)
+        r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+        assert r.status_code == 503
+        assert r.headers["retry-after"] == "2"
+        assert r.json()["detail"][0]["type"] == "saturated"
+        busy.result(timeout=30)
+        end = time.monotonic() + 10
+        while pool.in_flight and time.monotonic() < end:
+            time.sleep(0.01)
+        assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
+
+
+def test_request_over_its_time_budget_is_504():
+    with make_client(workers=1, queue_size=2, request_timeout_s=0.2) as c:
+        _wait_ready(c)
+        pool: WorkerPool = c.app.state.pool
+        pool._reserve(1)
+        busy = pool._submit(time.sleep, 1.0)  # the fk job waits behind it past its deadline
+        r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+        assert r.status_code == 504
+        assert r.json()["detail"][0]["type"] == "deadline_exceeded"
+        busy.result(timeout=30)
+        assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
+
+
+def test_pool_reserves_a_batch_all_or_nothing():
+    async def scenario() -> None:
+        pool = WorkerPool(1, 1)
+        await pool.start()
+        try:
+            with pytest.raises(PoolSaturatedError):
+                await pool.map(abs, [-1, -2, -3], deadline=time.monotonic() + 30)
+            assert pool.in_flight == 0
+            assert await pool.map(abs, [-1, -2], deadline=time.monotonic() + 30) == [1, 2]
+        finally:
+            pool.shutdown()
+
+    asyncio.run(scenario())
+
+
+# ---------------------------------------------------------------- plan routes, fan-out, crashes
+@pytest.fixture(scope="module")
+def two_workers():
+    with make_client(workers=2) as c:
+        _wait_ready(c)
+        yield c
+        c.app.dependency_overrides.clear()
+
+
+def test_plan_without_planner_is_501_after_validation(two_workers):
+    r = two_workers.post("/v1/plan", json=PLAN)
+    assert r.status_code == 501
+    assert r.json()["detail"][0]["type"] == "not_implemented"
+
+
+def test_batch_answers_in_request_order(two_workers):
+    two_workers.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
+    seeds = [4, 0, 3, 1, 2, 7, 5, 6]
+    body = {"requests": [{**PLAN, "planner": {"seed": s}} for s in seeds]}
+    r = two_workers.post("/v1/plan/batch", json=body)
+    assert r.status_code == 200, r.text
+    results = r.json()["results"]
+    assert [int(x["message"]) for x in results] == seeds
+    assert {x["status"] for x in results} == {"no_path"}
+    r = two_workers.post("/v1/plan", json={**PLAN, "planner": {"seed": 9}})
+    assert r.status_code == 200 and r.json()["message"] == "9"
+
+
+def test_batch_runs_on_several_processes_without_blocking_the_loop(two_workers):
+    two_workers.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
+    body = {"requests": [{**PLAN, "planner": {"time_budget_s": 1.0}}] * 2}
+    answer: dict = {}
+    thread = threading.Thread(target=lambda: answer.update(
+        r=two_workers.post("/v1/plan/batch", json=body)))
+    thread.start()
+    time.sleep(0.2)
+    assert two_workers.get("/v1/health").status_code == 200
+    assert thread.is_alive(), "health had to wait for the batch: the event loop was blocked"
+    thread.join(30)
+    pids = {int(x["message"]) for x in answer["r"].json()["results"]}
+    assert len(pids) == 2 and os.getpid() not in pids
+
+
+def test_crashed_worker_is_502_and_the_pool_recovers(two_workers):
+    two_workers.app.dependency_overrides[get_plan_function] = lambda: _die
+    r = two_workers.post("/v1/plan", json=PLAN)
+    assert r.status_code == 502
+    assert r.json()["detail"][0]["type"] == "worker_crashed"
+    two_workers.app.dependency_overrides.clear()
+    r = two_workers.post("/v1/fk", json={"q": [0, 1, 2]})
+    assert r.status_code == 200 and len(r.json()["postures"]) == 2
+
+
+# ---------------------------------------------------------------- documentation
+def test_openapi_lists_every_route_with_its_models(api):
+    spec = api.get("/openapi.json").json()
+    paths = spec["paths"]
+    for path in ["/v1/health", "/v1/ready", "/v1/version", "/v1/designs", "/v1/fk", "/v1/ik",
+                 "/v1/analyze", "/v1/plan", "/v1/plan/batch"]:
+        assert path in paths, path
+    schemas = spec["components"]["schemas"]
+    assert {"PlanRequest", "PlanResponse", "DesignModel", "ErrorResponse"} <= set(schemas)
+    assert "503" in paths["/v1/plan"]["post"]["responses"]
+    assert api.get("/docs").status_code == 200
