@@ -30,8 +30,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        pool = WorkerPool(settings.workers, settings.queue_size or 0,
-                          retry_after_s=settings.retry_after_s)
+        pool = WorkerPool(
+            settings.workers, settings.queue_size or 0, retry_after_s=settings.retry_after_s
+        )
         await pool.start()
         app.state.pool = pool
         try:

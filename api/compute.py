@@ -120,8 +120,9 @@ def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
         ),
         parallel=c.parallel,
         parallel_singular=parallel_singular,
-        serial_singular=[k for k, s in zip(SERIAL_KINDS, posture.working_mode, strict=True)
-                         if s == "0"],
+        serial_singular=[
+            k for k, s in zip(SERIAL_KINDS, posture.working_mode, strict=True) if s == "0"
+        ],
         pd=pd,
     )
 

@@ -26,7 +26,9 @@ def get_pool(request: Request) -> WorkerPool:
     return request.app.state.pool
 
 
-def get_deadline(request: Request, settings: Annotated[Settings, Depends(get_app_settings)]) -> float:
+def get_deadline(
+    request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
+) -> float:
     """The request's deadline, a :func:`time.monotonic` value (stamped on arrival by
     :mod:`api.middleware`)."""
     deadline = getattr(request.state, "deadline", None)
@@ -46,8 +48,9 @@ def require_api_key(
         given = token.strip() if scheme.lower() == "bearer" else None
     expected = settings.api_key.get_secret_value()
     if given is None or not secrets.compare_digest(given.encode(), expected.encode()):
-        raise AuthenticationError("a valid API key is required (X-API-Key or Authorization: "
-                                  "Bearer)")
+        raise AuthenticationError(
+            "a valid API key is required (X-API-Key or Authorization: Bearer)"
+        )
 
 
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]

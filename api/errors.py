@@ -94,8 +94,11 @@ def _clean_loc(loc: Sequence[Any]) -> list[str | int]:
 async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
     # FastAPI's own handler echoes the input, which may hold NaN (not JSON) or megabytes.
     items = [
-        {"loc": _clean_loc(e.get("loc", ())), "msg": str(e.get("msg", "")),
-         "type": str(e.get("type", "value_error"))}
+        {
+            "loc": _clean_loc(e.get("loc", ())),
+            "msg": str(e.get("msg", "")),
+            "type": str(e.get("type", "value_error")),
+        }
         for e in exc.errors()
     ]
     return JSONResponse({"detail": items}, status_code=422)
@@ -103,10 +106,12 @@ async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
 
 async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
     if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
-        return error_response(422, f"the body is not valid JSON: {exc.detail}", "json_invalid",
-                              ("body",))
-    return error_response(exc.status_code, str(exc.detail), "http_error", (),
-                          headers=getattr(exc, "headers", None))
+        return error_response(
+            422, f"the body is not valid JSON: {exc.detail}", "json_invalid", ("body",)
+        )
+    return error_response(
+        exc.status_code, str(exc.detail), "http_error", (), headers=getattr(exc, "headers", None)
+    )
 
 
 async def _library(_: Request, exc: PlannerError) -> JSONResponse:

@@ -52,8 +52,11 @@ class RequestLimitsMiddleware:
             chunks.append(body)
             if not message.get("more_body", False):
                 break
-        buffered: Message | None = {"type": "http.request", "body": b"".join(chunks),
-                                    "more_body": False}
+        buffered: Message | None = {
+            "type": "http.request",
+            "body": b"".join(chunks),
+            "more_body": False,
+        }
 
         async def replay() -> Message:
             nonlocal buffered
@@ -65,13 +68,26 @@ class RequestLimitsMiddleware:
         await self.app(scope, replay, send)
 
     async def _too_large(self, send: Send) -> None:
-        body = json.dumps({"detail": [{
-            "loc": ["body"],
-            "msg": f"the request body exceeds {self.max_body_bytes} bytes",
-            "type": "body_too_large",
-        }]}).encode()
-        await send({"type": "http.response.start", "status": 413,
-                    "headers": [(b"content-type", b"application/json"),
-                                (b"content-length", str(len(body)).encode()),
-                                (b"connection", b"close")]})
+        body = json.dumps(
+            {
+                "detail": [
+                    {
+                        "loc": ["body"],
+                        "msg": f"the request body exceeds {self.max_body_bytes} bytes",
+                        "type": "body_too_large",
+                    }
+                ]
+            }
+        ).encode()
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 413,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                    (b"connection", b"close"),
+                ],
+            }
+        )
         await send({"type": "http.response.body", "body": body})

@@ -50,16 +50,18 @@ def _wait_healthy(url: str, process: subprocess.Popen[bytes], log: Path) -> None
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
     while time.monotonic() < deadline:
         if process.poll() is not None:
-            raise RuntimeError(f"the service exited with {process.returncode}:\n"
-                               f"{log.read_text()[-4000:]}")
+            raise RuntimeError(
+                f"the service exited with {process.returncode}:\n{log.read_text()[-4000:]}"
+            )
         try:
             if httpx.get(f"{url}/v1/health", timeout=1.0).status_code == 200:
                 return
         except httpx.HTTPError:
             pass
         time.sleep(0.1)
-    raise RuntimeError(f"the service did not answer within {STARTUP_TIMEOUT_S} s:\n"
-                       f"{log.read_text()[-4000:]}")
+    raise RuntimeError(
+        f"the service did not answer within {STARTUP_TIMEOUT_S} s:\n{log.read_text()[-4000:]}"
+    )
 
 
 @pytest.fixture(scope="session")
@@ -77,9 +79,22 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     env.pop("PLANNER_API_KEY", None)
     with log.open("wb") as out:
         process = subprocess.Popen(
-            [sys.executable, "-m", "planner.cli", "serve", "--host", "127.0.0.1",
-             "--port", str(port), "--log-level", "warning"],
-            cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT,
+            [
+                sys.executable,
+                "-m",
+                "planner.cli",
+                "serve",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--log-level",
+                "warning",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
         )
     url = f"http://127.0.0.1:{port}"
     try:

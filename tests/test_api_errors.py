@@ -44,8 +44,11 @@ def _raw(api, path, text):
         ("/v1/fk", '{"q": [0, 1, 1e400]}', ("body", "q", 2)),
         ("/v1/ik", '{"p": [0.1, 0.2, NaN]}', ("body", "p", 2)),
         ("/v1/fk", '{"q": [0, 1, 2], "design": {"L1": NaN}}', ("body", "design", "L1")),
-        ("/v1/analyze", '{"q": [0, 1, 2], "assembly_mode": "+", "qd": [0, NaN, 0]}',
-         ("body", "qd", 1)),
+        (
+            "/v1/analyze",
+            '{"q": [0, 1, 2], "assembly_mode": "+", "qd": [0, NaN, 0]}',
+            ("body", "qd", 1),
+        ),
     ],
 )
 def test_non_finite_numbers_are_422_naming_the_element(api, path, text, loc):
@@ -69,10 +72,14 @@ def test_non_finite_numbers_are_422_naming_the_element(api, path, text, loc):
         ({"q": [0, 1, 2], "design": {"L2": 0}}, ("body", "design", "L2")),
         ({"q": [0, 1, 2], "design": {"L0": 1e9}}, ("body", "design", "L0")),
         ({"q": [0, 1, 2], "design": {"link_radius": -1}}, ("body", "design", "link_radius")),
-        ({"q": [0, 1, 2], "design": {"joint_min": [0, 0, 0], "joint_max": [1, -1, 1]}},
-         ("body", "design")),
-        ({"q": [0, 1, 2], "design": {"joint_max": [100, 1, 1]}},
-         ("body", "design", "joint_max", 0)),
+        (
+            {"q": [0, 1, 2], "design": {"joint_min": [0, 0, 0], "joint_max": [1, -1, 1]}},
+            ("body", "design"),
+        ),
+        (
+            {"q": [0, 1, 2], "design": {"joint_max": [100, 1, 1]}},
+            ("body", "design", "joint_max", 0),
+        ),
         ({"q": [0, 1, 2], "design": {"L3": 1}}, ("body", "design", "L3")),
         ({"q": [1e6, 1, 2]}, ("body", "q", 0)),
         ({"q": [10**400, 1, 2]}, ("body", "q", 0)),
@@ -92,13 +99,27 @@ def test_bad_fk_bodies_are_422_naming_the_field(api, body, loc):
         ({"goal": {"q": [0, 0, 0]}}, ("body", "goal", "q", "assembly_mode")),
         ({"start": {"p": [0.3, 0, 0]}}, ("body", "start", "q")),
         ({"obstacles": [{"type": "cone"}]}, ("body", "obstacles", 0)),
-        ({"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": -1}]},
-         ("body", "obstacles", 0, "sphere", "radius")),
-        ({"obstacles": [{"type": "box", "center": [0, 0, 0], "size": [1, 1, 1],
-                         "quaternion": [0, 0, 0, 0]}]},
-         ("body", "obstacles", 0, "box", "quaternion")),
-        ({"obstacles": [{"type": "capsule", "a": [0, 0, 0], "b": [0, 0, NaN], "radius": 1}]},
-         ("body", "obstacles", 0, "capsule", "b", 2)),
+        (
+            {"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": -1}]},
+            ("body", "obstacles", 0, "sphere", "radius"),
+        ),
+        (
+            {
+                "obstacles": [
+                    {
+                        "type": "box",
+                        "center": [0, 0, 0],
+                        "size": [1, 1, 1],
+                        "quaternion": [0, 0, 0, 0],
+                    }
+                ]
+            },
+            ("body", "obstacles", 0, "box", "quaternion"),
+        ),
+        (
+            {"obstacles": [{"type": "capsule", "a": [0, 0, 0], "b": [0, 0, NaN], "radius": 1}]},
+            ("body", "obstacles", 0, "capsule", "b", 2),
+        ),
         ({"margins": {"kappa_max": 0.5}}, ("body", "margins", "kappa_max")),
         ({"margins": {"serial_min": 1.0}}, ("body", "margins", "serial_min")),
         ({"margins": {"clearance": -0.1}}, ("body", "margins", "clearance")),
@@ -134,8 +155,7 @@ def test_batch_limits_are_422_naming_the_field(api):
     r = api.post("/v1/plan/batch", json={"requests": []})
     assert r.status_code == 422 and _items(r)[0]["loc"] == ["body", "requests"]
     sphere = {"type": "sphere", "center": [1, 1, 1], "radius": 0.1}
-    r = api.post("/v1/plan/batch",
-                 json={"requests": [one, {**one, "obstacles": [sphere] * 300}]})
+    r = api.post("/v1/plan/batch", json={"requests": [one, {**one, "obstacles": [sphere] * 300}]})
     assert r.status_code == 422
     assert _items(r)[0]["loc"] == ["body", "requests", 1, "obstacles"]
 
@@ -143,10 +163,28 @@ def test_batch_limits_are_422_naming_the_field(api):
 @pytest.mark.parametrize("path", ROUTES)
 @pytest.mark.parametrize(
     "text",
-    ["", "{", "not json", "[]", "null", "3", '"q"', "[" * 100_000 + "]" * 100_000,
-     '{"q": ' + "[" * 50_000 + "]" * 50_000 + "}"],
-    ids=["empty", "truncated", "garbage", "list", "null", "number", "string", "deep-list",
-         "deep-field"],
+    [
+        "",
+        "{",
+        "not json",
+        "[]",
+        "null",
+        "3",
+        '"q"',
+        "[" * 100_000 + "]" * 100_000,
+        '{"q": ' + "[" * 50_000 + "]" * 50_000 + "}",
+    ],
+    ids=[
+        "empty",
+        "truncated",
+        "garbage",
+        "list",
+        "null",
+        "number",
+        "string",
+        "deep-list",
+        "deep-field",
+    ],
 )
 def test_malformed_bodies_are_422(api, path, text):
     r = _raw(api, path, text)
@@ -197,16 +235,37 @@ def test_unexpected_error_is_a_clean_logged_500(caplog):
 
 _json = st.recursive(
     st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=5),
-    lambda children: st.lists(children, max_size=4)
-    | st.dictionaries(st.sampled_from(["q", "p", "design", "L0", "assembly_mode", "goal",
-                                       "start", "type", "obstacles", "x"]), children,
-                      max_size=4),
+    lambda children: (
+        st.lists(children, max_size=4)
+        | st.dictionaries(
+            st.sampled_from(
+                [
+                    "q",
+                    "p",
+                    "design",
+                    "L0",
+                    "assembly_mode",
+                    "goal",
+                    "start",
+                    "type",
+                    "obstacles",
+                    "x",
+                ]
+            ),
+            children,
+            max_size=4,
+        )
+    ),
     max_leaves=12,
 )
 
 
-@settings(max_examples=60, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(path=st.sampled_from(ROUTES), body=_json)
 def test_fuzzed_bodies_never_give_a_5xx(api, path, body):
     r = _raw(api, path, json.dumps(body))

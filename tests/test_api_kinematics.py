@@ -99,8 +99,7 @@ def test_ik_degenerate_point_is_422_naming_p(api):
 def test_analyze_jacobians_match_finite_differences_of_fk(api):
     q = np.array([0.4, 1.1, 2.2])
     qd = np.array([0.3, -0.7, 0.5])
-    r = api.post("/v1/analyze", json={"q": q.tolist(), "assembly_mode": "+",
-                                     "qd": qd.tolist()})
+    r = api.post("/v1/analyze", json={"q": q.tolist(), "assembly_mode": "+", "qd": qd.tolist()})
     assert r.status_code == 200, r.text
     body = r.json()
     A, B = np.array(body["A"]), np.array(body["B"])
@@ -148,8 +147,14 @@ def test_analyze_serial_singularity_P_on_axis(api):
     # with L0 = 0 and L1 = L2 the modes with s_A = s_B put C on D (assembly '0'): skip them
     (posture, *_) = [p for p in post["postures"] if p["assembly_mode"] in "+-"]
     assert posture["working_mode"][0] == "0"
-    r = api.post("/v1/analyze", json={"q": posture["q"], "design": PAPER_OPTIMUM,
-                                     "assembly_mode": posture["assembly_mode"]})
+    r = api.post(
+        "/v1/analyze",
+        json={
+            "q": posture["q"],
+            "design": PAPER_OPTIMUM,
+            "assembly_mode": posture["assembly_mode"],
+        },
+    )
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["posture"]["working_mode"] == posture["working_mode"]
@@ -160,8 +165,15 @@ def test_analyze_serial_singularity_P_on_axis(api):
 
 def test_analyze_parallel_singularity_CD_stretched(api):
     # paper optimum, theta3 = theta2 + pi: C and D opposite, P the midpoint of a stretched CD
-    body = api.post("/v1/analyze", json={"q": [0.0, 0.0, math.pi], "assembly_mode": "+",
-                                        "qd": [0.1, 0.1, 0.1], "design": PAPER_OPTIMUM})
+    body = api.post(
+        "/v1/analyze",
+        json={
+            "q": [0.0, 0.0, math.pi],
+            "assembly_mode": "+",
+            "qd": [0.1, 0.1, 0.1],
+            "design": PAPER_OPTIMUM,
+        },
+    )
     assert body.status_code == 200, body.text
     body = body.json()
     assert body["parallel_singular"] is True
@@ -171,8 +183,9 @@ def test_analyze_parallel_singularity_CD_stretched(api):
 
 
 def test_analyze_non_assembling_q_is_422_naming_q(api):
-    r = api.post("/v1/analyze", json={"q": [0.0, 0.7, 0.7], "assembly_mode": "+",
-                                     "design": PAPER_OPTIMUM})
+    r = api.post(
+        "/v1/analyze", json={"q": [0.0, 0.7, 0.7], "assembly_mode": "+", "design": PAPER_OPTIMUM}
+    )
     assert r.status_code == 422
     (item,) = r.json()["detail"]
     assert item["loc"] == ["body", "q"] and item["type"] == "assembly_error"

@@ -10,13 +10,13 @@ import threading
 import time
 
 import pytest
+from conftest import make_client
 from pydantic import ValidationError
 
 from api.exceptions import PoolSaturatedError
 from api.routes.plan import get_plan_function
 from api.settings import Settings
 from api.workers import WorkerPool
-from conftest import make_client
 from planner.schemas import PlanRequest, PlanResponse
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
@@ -66,10 +66,13 @@ def test_settings_from_environment(monkeypatch):
 def test_api_key_guards_every_v1_route_but_health():
     with make_client(api_key="s3cret") as c:
         assert c.get("/v1/health").status_code == 200
-        for method, path, body in [("GET", "/v1/version", None), ("GET", "/v1/ready", None),
-                                   ("GET", "/v1/designs", None),
-                                   ("POST", "/v1/fk", {"q": [0, 1, 2]}),
-                                   ("POST", "/v1/plan", PLAN)]:
+        for method, path, body in [
+            ("GET", "/v1/version", None),
+            ("GET", "/v1/ready", None),
+            ("GET", "/v1/designs", None),
+            ("POST", "/v1/fk", {"q": [0, 1, 2]}),
+            ("POST", "/v1/plan", PLAN),
+        ]:
             r = c.request(method, path, json=body)
             assert r.status_code == 401, path
             assert r.headers["www-authenticate"] == "Bearer"
@@ -174,8 +177,9 @@ def test_batch_runs_on_several_processes_without_blocking_the_loop(two_workers):
     two_workers.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
     body = {"requests": [{**PLAN, "planner": {"time_budget_s": 1.0}}] * 2}
     answer: dict = {}
-    thread = threading.Thread(target=lambda: answer.update(
-        r=two_workers.post("/v1/plan/batch", json=body)))
+    thread = threading.Thread(
+        target=lambda: answer.update(r=two_workers.post("/v1/plan/batch", json=body))
+    )
     thread.start()
     time.sleep(0.2)
     assert two_workers.get("/v1/health").status_code == 200
@@ -199,8 +203,17 @@ def test_crashed_worker_is_502_and_the_pool_recovers(two_workers):
 def test_openapi_lists_every_route_with_its_models(api):
     spec = api.get("/openapi.json").json()
     paths = spec["paths"]
-    for path in ["/v1/health", "/v1/ready", "/v1/version", "/v1/designs", "/v1/fk", "/v1/ik",
-                 "/v1/analyze", "/v1/plan", "/v1/plan/batch"]:
+    for path in [
+        "/v1/health",
+        "/v1/ready",
+        "/v1/version",
+        "/v1/designs",
+        "/v1/fk",
+        "/v1/ik",
+        "/v1/analyze",
+        "/v1/plan",
+        "/v1/plan/batch",
+    ]:
         assert path in paths, path
     schemas = spec["components"]["schemas"]
     assert {"PlanRequest", "PlanResponse", "DesignModel", "ErrorResponse"} <= set(schemas)

@@ -31,8 +31,12 @@ def ready(pool: Pool, settings: SettingsDep, response: Response) -> Readiness:
     return Readiness(status=pool.state, workers=pool.workers)
 
 
-@router.get("/version", response_model=VersionInfo, dependencies=[ApiKey],
-            responses={401: {"model": ErrorResponse}})
+@router.get(
+    "/version",
+    response_model=VersionInfo,
+    dependencies=[ApiKey],
+    responses={401: {"model": ErrorResponse}},
+)
 def version() -> VersionInfo:
     """Versions of the service and of the libraries that shape its answers."""
     from importlib.metadata import version as dist_version

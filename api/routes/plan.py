@@ -35,8 +35,7 @@ def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int,
     """Raise :class:`LimitExceededError` when a request exceeds a size limit of the settings."""
     if len(request.obstacles) > settings.max_obstacles:
         raise LimitExceededError(
-            f"at most {settings.max_obstacles} obstacles per request, got "
-            f"{len(request.obstacles)}",
+            f"at most {settings.max_obstacles} obstacles per request, got {len(request.obstacles)}",
             (*loc, "obstacles"),
         )
 

@@ -6,17 +6,23 @@ from typing import Annotated
 
 import typer
 
-app = typer.Typer(help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
-                  no_args_is_help=True, add_completion=False)
+app = typer.Typer(
+    help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
+    no_args_is_help=True,
+    add_completion=False,
+)
 
 
 @app.command()
 def serve(
     host: Annotated[str | None, typer.Option(help="Interface to bind (env PLANNER_HOST).")] = None,
-    port: Annotated[int | None, typer.Option(help="TCP port (env PLANNER_PORT).", min=1,
-                                             max=65535)] = None,
-    workers: Annotated[int | None, typer.Option(
-        help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1)] = None,
+    port: Annotated[
+        int | None, typer.Option(help="TCP port (env PLANNER_PORT).", min=1, max=65535)
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1),
+    ] = None,
     log_level: Annotated[str, typer.Option(help="uvicorn log level.")] = "info",
 ) -> None:
     """Start the HTTP service (every setting also from PLANNER_* environment variables)."""
@@ -25,11 +31,11 @@ def serve(
     from api.app import create_app
     from api.settings import Settings
 
-    overrides = {k: v for k, v in {"host": host, "port": port, "workers": workers}.items()
-                 if v is not None}
+    overrides = {
+        k: v for k, v in {"host": host, "port": port, "workers": workers}.items() if v is not None
+    }
     settings = Settings(**overrides)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port,
-                log_level=log_level)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
 
 
 _PRESETS = {
@@ -68,8 +74,9 @@ def _run_job(job, model, data: dict) -> None:  # type: ignore[no-untyped-def]
     typer.echo(answer.model_dump_json(indent=2))
 
 
-_Design = Annotated[str, typer.Option("--design", help="Preset: default, singularity-free, "
-                                      "paper-optimum.")]
+_Design = Annotated[
+    str, typer.Option("--design", help="Preset: default, singularity-free, paper-optimum.")
+]
 _L0 = Annotated[float | None, typer.Option("--L0", help="Override L0, m.")]
 _L1 = Annotated[float | None, typer.Option("--L1", help="Override L1, m.")]
 _L2 = Annotated[float | None, typer.Option("--L2", help="Override L2, m.")]
@@ -77,8 +84,9 @@ _L2 = Annotated[float | None, typer.Option("--L2", help="Override L2, m.")]
 
 @app.command()
 def fk(
-    q: Annotated[list[float], typer.Argument(help="theta1 theta2 theta3, rad (after -- if "
-                                             "one is negative).")],
+    q: Annotated[
+        list[float], typer.Argument(help="theta1 theta2 theta3, rad (after -- if one is negative).")
+    ],
     assembly_mode: Annotated[str | None, typer.Option(help="'+' or '-' (default: both).")] = None,
     design: _Design = "default",
     l0: _L0 = None,
@@ -89,14 +97,16 @@ def fk(
     from api.compute import fk as job
     from planner.schemas import FKRequest
 
-    _run_job(job, FKRequest, {"q": q, "assembly_mode": assembly_mode,
-                              "design": _design_option(design, l0, l1, l2)})
+    _run_job(
+        job,
+        FKRequest,
+        {"q": q, "assembly_mode": assembly_mode, "design": _design_option(design, l0, l1, l2)},
+    )
 
 
 @app.command()
 def ik(
-    p: Annotated[list[float], typer.Argument(help="x y z of P, m (after -- if one is "
-                                             "negative).")],
+    p: Annotated[list[float], typer.Argument(help="x y z of P, m (after -- if one is negative).")],
     working_mode: Annotated[str, typer.Option(help="e.g. '+-+', or 'any'.")] = "any",
     design: _Design = "default",
     l0: _L0 = None,
@@ -107,8 +117,11 @@ def ik(
     from api.compute import ik as job
     from planner.schemas import IKRequest
 
-    _run_job(job, IKRequest, {"p": p, "working_mode": working_mode,
-                              "design": _design_option(design, l0, l1, l2)})
+    _run_job(
+        job,
+        IKRequest,
+        {"p": p, "working_mode": working_mode, "design": _design_option(design, l0, l1, l2)},
+    )
 
 
 @app.command()

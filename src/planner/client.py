@@ -131,8 +131,9 @@ class APIError(PlannerClientError):
         The items joined as ``"body.design.L1: Input should be ..."``.
     """
 
-    def __init__(self, message: str, *, status_code: int | None,
-                 detail: list[dict[str, Any]] | None = None) -> None:
+    def __init__(
+        self, message: str, *, status_code: int | None, detail: list[dict[str, Any]] | None = None
+    ) -> None:
         super().__init__(message)
         self.message = message
         self.status_code = status_code
@@ -170,9 +171,14 @@ class ServiceUnavailableError(ServerError):
     """503 after every retry: all workers stayed busy. ``retry_after`` is the server's last
     advice, s (None if it gave none)."""
 
-    def __init__(self, message: str, *, status_code: int | None,
-                 detail: list[dict[str, Any]] | None = None,
-                 retry_after: float | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        *,
+        status_code: int | None,
+        detail: list[dict[str, Any]] | None = None,
+        retry_after: float | None = None,
+    ) -> None:
         super().__init__(message, status_code=status_code, detail=detail)
         self.retry_after = retry_after
 
@@ -212,14 +218,16 @@ def _error_from(response: httpx.Response) -> APIError:
     if isinstance(detail, str):
         detail = [{"loc": [], "msg": detail, "type": "http_error"}]
     if not isinstance(detail, list):
-        detail = [{"loc": [], "msg": response.text[:500] or response.reason_phrase,
-                   "type": "http_error"}]
+        detail = [
+            {"loc": [], "msg": response.text[:500] or response.reason_phrase, "type": "http_error"}
+        ]
     message = "; ".join(_describe_item(item) for item in detail) or response.reason_phrase
     status = response.status_code
     cls = _STATUS_ERRORS.get(status, ServerError if status >= 500 else APIError)
     if cls is ServiceUnavailableError:
-        return ServiceUnavailableError(message, status_code=status, detail=detail,
-                                       retry_after=_retry_after(response))
+        return ServiceUnavailableError(
+            message, status_code=status, detail=detail, retry_after=_retry_after(response)
+        )
     return cls(message, status_code=status, detail=detail)
 
 
@@ -255,10 +263,10 @@ def _validated(model: type[M], data: Any) -> M:
     try:
         return data if isinstance(data, model) else model.model_validate(data)
     except ValidationError as exc:
-        detail = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]}
-                  for e in exc.errors()]
-        raise InvalidRequestError("; ".join(_describe_item(d) for d in detail),
-                                  status_code=None, detail=detail) from None
+        detail = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in exc.errors()]
+        raise InvalidRequestError(
+            "; ".join(_describe_item(d) for d in detail), status_code=None, detail=detail
+        ) from None
 
 
 def _design(design: DesignLike) -> DesignModel | dict[str, Any]:
@@ -299,8 +307,10 @@ class _BaseClient:
         self.max_retries = max_retries
         self.backoff_s = backoff_s
         self.max_backoff_s = max_backoff_s
-        self._headers = {"user-agent": f"hybrid-planner-client/{planner.__version__}",
-                         **(headers or {})}
+        self._headers = {
+            "user-agent": f"hybrid-planner-client/{planner.__version__}",
+            **(headers or {}),
+        }
         if api_key is not None:
             self._headers["x-api-key"] = api_key
 
@@ -311,7 +321,9 @@ class _BaseClient:
         return {"base_url": self.base_url, "timeout": self.timeout, "headers": self._headers}
 
     # -- policy
-    def _retry_delay(self, call: _Call[Any], attempt: int, response: httpx.Response) -> float | None:
+    def _retry_delay(
+        self, call: _Call[Any], attempt: int, response: httpx.Response
+    ) -> float | None:
         """Seconds to wait before retrying, or None to stop and answer."""
         if response.status_code != 503 or not call.retry or attempt >= self.max_retries:
             return None
@@ -362,50 +374,74 @@ class _BaseClient:
         """The preset designs (``default`` first)."""
         return _Call("GET", "/v1/designs", None, DesignsResponse)
 
-    def _fk(self, q: Sequence[float], assembly_mode: str | None = None, *,
-            design: DesignLike = None) -> _Call[FKResponse]:
+    def _fk(
+        self, q: Sequence[float], assembly_mode: str | None = None, *, design: DesignLike = None
+    ) -> _Call[FKResponse]:
         """Direct kinematics of q (rad): the postures in both assembly modes, or in the one
         given ('+' or '-')."""
-        body = _validated(FKRequest, {"q": _floats(q), "assembly_mode": assembly_mode,
-                                      "design": _design(design)})
+        body = _validated(
+            FKRequest, {"q": _floats(q), "assembly_mode": assembly_mode, "design": _design(design)}
+        )
         return _Call("POST", "/v1/fk", body, FKResponse)
 
-    def _ik(self, p: Sequence[float], working_mode: str = "any", *,
-            design: DesignLike = None) -> _Call[IKResponse]:
+    def _ik(
+        self, p: Sequence[float], working_mode: str = "any", *, design: DesignLike = None
+    ) -> _Call[IKResponse]:
         """Inverse kinematics of P (m): one posture per working mode reaching it (or the one
         asked, e.g. '+-+')."""
-        body = _validated(IKRequest, {"p": _floats(p), "working_mode": working_mode,
-                                      "design": _design(design)})
+        body = _validated(
+            IKRequest, {"p": _floats(p), "working_mode": working_mode, "design": _design(design)}
+        )
         return _Call("POST", "/v1/ik", body, IKResponse)
 
-    def _analyze(self, q: Sequence[float], assembly_mode: str, *,
-                 qd: Sequence[float] | None = None,
-                 design: DesignLike = None) -> _Call[AnalyzeResponse]:
+    def _analyze(
+        self,
+        q: Sequence[float],
+        assembly_mode: str,
+        *,
+        qd: Sequence[float] | None = None,
+        design: DesignLike = None,
+    ) -> _Call[AnalyzeResponse]:
         """Jacobians, kappa(A), kappa(B), singularity margins and modes of one posture
         (and the velocity of P for joint rates ``qd``, rad/s)."""
-        data: dict[str, Any] = {"q": _floats(q), "assembly_mode": assembly_mode,
-                                "design": _design(design)}
+        data: dict[str, Any] = {
+            "q": _floats(q),
+            "assembly_mode": assembly_mode,
+            "design": _design(design),
+        }
         if qd is not None:
             data["qd"] = _floats(qd)
         return _Call("POST", "/v1/analyze", _validated(AnalyzeRequest, data), AnalyzeResponse)
 
-    def _plan(self, request: PlanRequest | Mapping[str, Any] | None = None,
-              **fields: Any) -> _Call[PlanResponse]:
+    def _plan(
+        self, request: PlanRequest | Mapping[str, Any] | None = None, **fields: Any
+    ) -> _Call[PlanResponse]:
         """Plan a motion: a :class:`PlanRequest` (or its dict), and/or its fields as keywords
         (``start=..., goal=..., obstacles=...``). A finished search returns its ``status``."""
         if isinstance(request, PlanRequest) and not fields:
             body = request
         else:
-            data = dict(request.model_dump(exclude_unset=True) if isinstance(request, PlanRequest)
-                        else request or {})
+            data = dict(
+                request.model_dump(exclude_unset=True)
+                if isinstance(request, PlanRequest)
+                else request or {}
+            )
             body = _validated(PlanRequest, {**data, **fields})
         return _Call("POST", "/v1/plan", body, PlanResponse)
 
-    def _plan_batch(self, requests: Sequence[PlanRequest | Mapping[str, Any]]
-                    ) -> _Call[PlanBatchResponse]:
+    def _plan_batch(
+        self, requests: Sequence[PlanRequest | Mapping[str, Any]]
+    ) -> _Call[PlanBatchResponse]:
         """Many plan requests in one call; ``results`` come in the same order."""
-        body = _validated(PlanBatchRequest, {"requests": [
-            r if isinstance(r, PlanRequest) else _validated(PlanRequest, r) for r in requests]})
+        body = _validated(
+            PlanBatchRequest,
+            {
+                "requests": [
+                    r if isinstance(r, PlanRequest) else _validated(PlanRequest, r)
+                    for r in requests
+                ]
+            },
+        )
         return _Call("POST", "/v1/plan/batch", body, PlanBatchResponse)
 
 
@@ -425,8 +461,9 @@ def _adopt(method: Callable[..., Any], build: Callable[..., Any], owner: str) ->
     method.__signature__ = sig.replace(return_annotation=returns)  # type: ignore[attr-defined]
 
 
-def _sync(build: Callable[Concatenate[_BaseClient, P], _Call[R]]
-          ) -> Callable[Concatenate[PlannerClient, P], R]:
+def _sync(
+    build: Callable[Concatenate[_BaseClient, P], _Call[R]],
+) -> Callable[Concatenate[PlannerClient, P], R]:
     def method(self: PlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
         return self._execute(build(self, *args, **kwargs))
 
@@ -434,8 +471,9 @@ def _sync(build: Callable[Concatenate[_BaseClient, P], _Call[R]]
     return method
 
 
-def _async(build: Callable[Concatenate[_BaseClient, P], _Call[R]]
-           ) -> Callable[Concatenate[AsyncPlannerClient, P], Awaitable[R]]:
+def _async(
+    build: Callable[Concatenate[_BaseClient, P], _Call[R]],
+) -> Callable[Concatenate[AsyncPlannerClient, P], Awaitable[R]]:
     async def method(self: AsyncPlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
         return await self._execute(build(self, *args, **kwargs))
 
@@ -462,8 +500,13 @@ class PlannerClient(_BaseClient):
         For tests (e.g. ``httpx.MockTransport``).
     """
 
-    def __init__(self, base_url: str = DEFAULT_BASE_URL, *,
-                 transport: httpx.BaseTransport | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        base_url: str = DEFAULT_BASE_URL,
+        *,
+        transport: httpx.BaseTransport | None = None,
+        **options: Any,
+    ) -> None:
         super().__init__(base_url, **options)
         self._http = httpx.Client(transport=transport, **self._client_options())
 
@@ -505,8 +548,13 @@ class AsyncPlannerClient(_BaseClient):
     (or await :meth:`aclose`). Parameters as :class:`PlannerClient`, ``transport`` an
     ``httpx.AsyncBaseTransport``."""
 
-    def __init__(self, base_url: str = DEFAULT_BASE_URL, *,
-                 transport: httpx.AsyncBaseTransport | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        base_url: str = DEFAULT_BASE_URL,
+        *,
+        transport: httpx.AsyncBaseTransport | None = None,
+        **options: Any,
+    ) -> None:
         super().__init__(base_url, **options)
         self._http = httpx.AsyncClient(transport=transport, **self._client_options())
 

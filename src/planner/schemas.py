@@ -285,8 +285,8 @@ class Margins(_Request):
         None,
         description="Lower bound on |sin(t4 - t2)|, |sin(t5 - t3)| and |w| / (L1 + L2), in [0, 1).",
     )
-    clearance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)] | None = (
-        Field(None, description="Least distance from every link capsule to every obstacle, m.")
+    clearance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)] | None = Field(
+        None, description="Least distance from every link capsule to every obstacle, m."
     )
 
 
@@ -422,9 +422,7 @@ class PostureModel(_Response):
         description="(theta4, theta5), rad, in (-pi, pi]."
     )
     p: Vec3 = Field(description="Point P, m.")
-    points: dict[Literal["A", "B", "C", "D", "P"], Vec3] = Field(
-        description="Joint centres, m."
-    )
+    points: dict[Literal["A", "B", "C", "D", "P"], Vec3] = Field(description="Joint centres, m.")
     w: float = Field(description="Signed distance of P from the axis AB in the plane, m.")
     working_mode: str = Field(pattern=r"^[+\-0]{3}$")
     assembly_mode: str = Field(pattern=r"^[+\-0]$")
@@ -468,10 +466,13 @@ class AnalyzeRequest(_Request):
     design: DesignModel = _DesignField
     q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
     assembly_mode: AssemblyModeLabel
-    qd: Annotated[list[Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]],
-                  Field(min_length=3, max_length=3)] | None = Field(
-        None, description="Joint rates, rad/s: ask for the velocity of P."
-    )
+    qd: (
+        Annotated[
+            list[Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]],
+            Field(min_length=3, max_length=3),
+        ]
+        | None
+    ) = Field(None, description="Joint rates, rad/s: ask for the velocity of P.")
 
 
 class SerialMargins(_Response):
@@ -493,17 +494,22 @@ class AnalyzeResponse(_Response):
     B: Matrix3
     det_A: float
     det_B: float
-    kappa_A: float | None = Field(description="Condition number of A; null at a parallel "
-                                  "singularity.")
-    kappa_B: float | None = Field(description="Condition number of B; null at a serial "
-                                  "singularity.")
+    kappa_A: float | None = Field(
+        description="Condition number of A; null at a parallel singularity."
+    )
+    kappa_B: float | None = Field(
+        description="Condition number of B; null at a serial singularity."
+    )
     serial: SerialMargins
-    parallel: float = Field(description="Distance of theta4 - theta5 to the nearest multiple "
-                            "of pi, rad (0: C, D, P aligned).")
+    parallel: float = Field(
+        description="Distance of theta4 - theta5 to the nearest multiple "
+        "of pi, rad (0: C, D, P aligned)."
+    )
     parallel_singular: bool
     serial_singular: list[Literal["P_on_axis", "leg_A", "leg_B"]]
-    pd: Vec3 | None = Field(None, description="Velocity of P for qd, m/s (null when not asked "
-                            "or A is singular).")
+    pd: Vec3 | None = Field(
+        None, description="Velocity of P for qd, m/s (null when not asked or A is singular)."
+    )
 
 
 # ---------------------------------------------------------------------------- meta, errors

@@ -1,0 +1,157 @@
+"""The wire models hold exactly the vocabulary of CONVENTIONS.md (names, statuses, kinds)."""
+
+from __future__ import annotations
+
+import math
+import typing
+
+import pytest
+from pydantic import ValidationError
+
+from planner import schemas
+from planner.schemas import (
+    BoxObstacle,
+    CartesianTarget,
+    Diagnostics,
+    JointPosture,
+    PlanBatchRequest,
+    PlanBatchResponse,
+    PlanRequest,
+    PlanResponse,
+)
+
+START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
+
+
+def test_plan_request_fields_and_required():
+    assert set(PlanRequest.model_fields) == {
+        "design",
+        "start",
+        "goal",
+        "obstacles",
+        "margins",
+        "planner",
+        "timing",
+        "limits",
+    }
+    required = {n for n, f in PlanRequest.model_fields.items() if f.is_required()}
+    assert required == {"start", "goal"}
+    assert set(schemas.Margins.model_fields) == {"kappa_max", "serial_min", "clearance"}
+    assert {"name", "time_budget_s", "seed", "simplify"} <= set(schemas.PlannerOptions.model_fields)
+    assert {"method", "sample_rate_hz"} <= set(schemas.TimingOptions.model_fields)
+    assert set(schemas.Limits.model_fields) == {"velocity", "acceleration", "jerk"}
+    assert typing.get_args(schemas.TimingOptions.model_fields["method"].annotation) == (
+        "toppra",
+        "ruckig",
+        "none",
+    )
+    assert set(schemas.DesignModel.model_fields) == {
+        "L0",
+        "L1",
+        "L2",
+        "link_radius",
+        "joint_min",
+        "joint_max",
+    }
+
+
+def test_plan_response_vocabulary():
+    assert set(typing.get_args(schemas.PlanStatus)) == {
+        "solved",
+        "no_path",
+        "unreachable",
+        "invalid_start",
+        "invalid_goal",
+        "timeout",
+    }
+    assert {"status", "message", "path", "trajectory", "diagnostics"} <= set(
+        PlanResponse.model_fields
+    )
+    assert set(schemas.PathModel.model_fields) == {"waypoints", "segments", "transits"}
+    assert set(schemas.SegmentModel.model_fields) == {
+        "working_mode",
+        "assembly_mode",
+        "start_index",
+        "end_index",
+    }
+    assert set(schemas.TransitModel.model_fields) == {"index", "q", "kind", "flipped"}
+    assert set(typing.get_args(schemas.TransitKind)) == {
+        "P_on_axis",
+        "leg_A_stretched",
+        "leg_A_folded",
+        "leg_B_stretched",
+        "leg_B_folded",
+    }
+    assert set(typing.get_args(schemas.TransitModel.model_fields["flipped"].annotation)) == {
+        "axis",
+        "A",
+        "B",
+    }
+    assert {"duration", "t", "q", "qd", "qdd"} <= set(schemas.TrajectoryModel.model_fields)
+    assert {
+        "planning_time_s",
+        "timing_time_s",
+        "min_clearance",
+        "max_kappa_A",
+        "min_serial_margin",
+    } <= set(Diagnostics.model_fields)
+    assert set(PlanBatchRequest.model_fields) == {"requests"}
+    assert set(PlanBatchResponse.model_fields) == {"results"}
+
+
+def test_a_full_response_parses_and_keeps_extra_diagnostics():
+    text = """{"status": "solved", "message": "",
+      "path": {"waypoints": [[0,1,2],[0.1,1,2],[0.2,1,2]],
+               "segments": [{"working_mode": "++-", "assembly_mode": "+", "start_index": 0,
+                             "end_index": 1},
+                            {"working_mode": "+--", "assembly_mode": "+", "start_index": 1,
+                             "end_index": 2}],
+               "transits": [{"index": 1, "q": [0.1,1,2], "kind": "leg_A_stretched",
+                             "flipped": "A"}]},
+      "trajectory": {"duration": 1.0, "t": [0, 1], "q": [[0,1,2],[0.2,1,2]],
+                     "qd": [[0,0,0],[0,0,0]], "qdd": [[0,0,0],[0,0,0]], "jerk": null},
+      "diagnostics": {"planning_time_s": 0.01, "path_length": 0.2},
+      "future_field": 1}"""
+    r = PlanResponse.model_validate_json(text)
+    assert r.path.transits[0].kind == "leg_A_stretched"
+    assert r.diagnostics.model_extra == {"path_length": 0.2}
+    assert r.trajectory.duration == 1.0
+
+
+def test_goal_is_a_posture_or_a_target():
+    joint = PlanRequest(start=START, goal={"q": [0, 1, 2], "assembly_mode": "-"})
+    assert isinstance(joint.goal, JointPosture)
+    cart = PlanRequest(start=START, goal={"p": [0.3, 0.1, 0.2]})
+    assert isinstance(cart.goal, CartesianTarget) and cart.goal.working_mode == "any"
+    with pytest.raises(ValidationError):
+        PlanRequest(start=START, goal={"q": [0, 1, 2], "p": [0, 0, 0], "assembly_mode": "+"})
+
+
+def test_obstacles_are_discriminated_on_type_and_box_quaternion_normalised():
+    req = PlanRequest(
+        start=START,
+        goal=START,
+        obstacles=[
+            {"type": "sphere", "center": [0, 0, 1], "radius": 0.1},
+            {"type": "box", "center": [0, 0, 0], "size": [1, 2, 3], "quaternion": [2, 0, 0, 0]},
+            {"type": "capsule", "a": [0, 0, 0], "b": [1, 0, 0], "radius": 0.05},
+        ],
+    )
+    assert [type(o).__name__ for o in req.obstacles] == [
+        "SphereObstacle",
+        "BoxObstacle",
+        "CapsuleObstacle",
+    ]
+    assert req.obstacles[1].quaternion == [1.0, 0.0, 0.0, 0.0]
+    q = BoxObstacle(center=[0, 0, 0], size=[1, 1, 1], quaternion=[1, 1, 1, 1]).quaternion
+    assert math.isclose(sum(v * v for v in q), 1.0)
+
+
+def test_round_trip_through_json_is_lossless():
+    req = PlanRequest(
+        start=START,
+        goal={"p": [0.3, 0.1, 0.2], "working_mode": "+-+"},
+        planner={"seed": 3, "time_budget_s": 0.5},
+        limits={"velocity": [1, 2, 3]},
+    )
+    assert PlanRequest.model_validate_json(req.model_dump_json()) == req
