@@ -6,8 +6,11 @@ from typing import Annotated
 
 import typer
 
-app = typer.Typer(help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
-                  no_args_is_help=True, add_completion=False)
+app = typer.Typer(
+    help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
+    no_args_is_help=True,
+    add_completion=False,
+)
 
 
 @app.command()
