@@ -128,9 +128,50 @@ def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
 
 
 def plan(request: PlanRequest) -> PlanResponse:
-    """``POST /v1/plan``: plan (and time) one request.
+    """``POST /v1/plan``: plan one request with :func:`planner.planning.plan`.
 
-    Raises :class:`PlanningUnavailableError` (HTTP 501) until the planner of issue 5 lands;
-    the route, validation, limits, batching and worker dispatch around it are in place.
+    The wire models are turned into the library's objects here; a library error is a 422
+    naming the field it came from. Time parameterisation (``timing``) is not wired yet
+    (issue 7): ``trajectory`` stays null and ``diagnostics.timing`` says why.
+
+    Raises
+    ------
+    PlanningUnavailableError
+        This build has no planner (``planner.planning``): HTTP 501.
     """
-    raise PlanningUnavailableError("planning is not available in this build yet")
+    try:
+        from planner.geometry import obstacle_from_wire
+        from planner.planning import CartesianTarget, JointPosture, PlanOptions
+        from planner.planning import plan as plan_path
+        from planner.validity import Margins
+    except ImportError as exc:
+        raise PlanningUnavailableError("planning is not available in this build yet") from exc
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    with located("body", "start"):
+        start = JointPosture(np.array(request.start.q), request.start.assembly_mode)
+    with located("body", "goal"):
+        g = request.goal
+        goal = (
+            JointPosture(np.array(g.q), g.assembly_mode)
+            if hasattr(g, "q")
+            else CartesianTarget(np.array(g.p), g.working_mode)
+        )
+    obstacles = []
+    for i, o in enumerate(request.obstacles):
+        with located("body", "obstacles", i):
+            obstacles.append(obstacle_from_wire(o.model_dump()))
+    with located("body", "margins"):
+        margins = Margins(**request.margins.model_dump(exclude_none=True))
+    with located("body", "planner"):
+        options = PlanOptions(
+            **request.planner.model_dump(
+                exclude_none=True, include={"name", "time_budget_s", "seed", "simplify"}
+            )
+        )
+    result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
+    response = PlanResponse.model_validate(result.as_wire())
+    if request.timing.method != "none" and response.path is not None:
+        response.diagnostics.timing = "not available in this build (trajectory omitted)"
+    return response

@@ -271,3 +271,11 @@ def test_fuzzed_bodies_never_give_a_5xx(api, path, body):
     r = _raw(api, path, json.dumps(body))
     assert r.status_code < 500 or r.status_code == 501, r.text
     assert r.json()
+
+
+def test_planning_budget_over_the_request_budget_is_422(api):
+    r = api.post("/v1/plan", json={"start": START, "goal": START, "planner": {"time_budget_s": 31}})
+    assert r.status_code == 422
+    (item,) = _items(r)
+    assert item["loc"] == ["body", "planner", "time_budget_s"]
+    assert "30 s" in item["msg"]

@@ -33,6 +33,12 @@ PlanJob = Annotated[PlanFunction, Depends(get_plan_function)]
 
 def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int, ...]) -> None:
     """Raise :class:`LimitExceededError` when a request exceeds a size limit of the settings."""
+    if request.planner.time_budget_s > settings.request_timeout_s:
+        raise LimitExceededError(
+            f"planner.time_budget_s must be at most the service's request budget "
+            f"{settings.request_timeout_s:g} s, got {request.planner.time_budget_s:g}",
+            (*loc, "planner", "time_budget_s"),
+        )
     if len(request.obstacles) > settings.max_obstacles:
         raise LimitExceededError(
             f"at most {settings.max_obstacles} obstacles per request, got {len(request.obstacles)}",

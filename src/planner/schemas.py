@@ -278,12 +278,13 @@ Obstacle = Annotated[SphereObstacle | BoxObstacle | CapsuleObstacle, Field(discr
 class Margins(_Request):
     """Validity margins of a plan; an absent field takes the planner's documented default."""
 
-    kappa_max: Annotated[float, Field(allow_inf_nan=False, ge=1.0, le=1e12)] | None = Field(
-        None, description="Upper bound on kappa(A), >= 1."
+    kappa_max: Annotated[float, Field(allow_inf_nan=False, gt=1.0, le=1e12)] | None = Field(
+        None, description="Upper bound on kappa(A), > 1."
     )
-    serial_min: Annotated[float, Field(allow_inf_nan=False, ge=0.0, lt=1.0)] | None = Field(
+    serial_min: Annotated[float, Field(allow_inf_nan=False, gt=0.0, lt=1.0)] | None = Field(
         None,
-        description="Lower bound on |sin(t4 - t2)|, |sin(t5 - t3)| and |w| / (L1 + L2), in [0, 1).",
+        description="Lower bound on |sin(t4 - t2)|, |sin(t5 - t3)| and |w| / (L1 + L2), in "
+        "(0, 1): a zero margin would let a motion touch a serial singularity.",
     )
     clearance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)] | None = Field(
         None, description="Least distance from every link capsule to every obstacle, m."
@@ -294,17 +295,25 @@ class PlannerOptions(_Request):
     """Search options of a plan."""
 
     name: str = Field(
-        "RRTConnect",
+        "rrtconnect",
         pattern=r"^[A-Za-z][A-Za-z0-9_]{0,31}$",
-        description="OMPL planner name (e.g. RRTConnect, RRTstar, PRMstar, BITstar).",
+        description="Planner (case-insensitive): rrtconnect (default), rrt, rrtstar, prmstar, "
+        "bitstar, aorrtc, lbkpiece.",
     )
     time_budget_s: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=600.0)] = Field(
-        1.0, description="Search budget, s."
+        1.0, description="Search budget, s (at most the service's request budget)."
     )
-    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = Field(
-        None, description="Seed of the planner's random numbers (reproducible results)."
+    seed: Annotated[int, Field(ge=1, le=2**31 - 1)] | None = Field(
+        None,
+        description="Seed of the planner's random numbers, >= 1 (reproducible results); "
+        "absent: the planner's default seed.",
     )
     simplify: bool = Field(True, description="Shorten and smooth the path (OMPL simplifier).")
+
+    @field_validator("name")
+    @classmethod
+    def _lower(cls, value: str) -> str:
+        return value.lower()
 
 
 class TimingOptions(_Request):
