@@ -40,13 +40,26 @@ def _init_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+#: ``(module, function)`` pairs a worker calls at start-up when the module exists, so that
+#: numba kernels are compiled (or loaded from cache) before the first request, not during it.
+WARM_UPS: tuple[tuple[str, str], ...] = (("planner.validity", "warm_up"),)
+
+
 def _warm_up() -> bool:
-    """Import the library and run one forward-kinematics call (loads the numba kernels)."""
+    """Import the library, run one forward-kinematics call and every :data:`WARM_UPS`."""
+    import importlib
+
     import numpy as np
 
     from planner import Design, forward_batch
 
     forward_batch(Design.default(), np.zeros((1, 3)), "+")
+    for module_name, function in WARM_UPS:
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError:
+            continue
+        getattr(module, function)()
     return True
 
 
