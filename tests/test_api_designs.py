@@ -47,7 +47,7 @@ def test_design_model_defaults_and_round_trip():
         ({"L2": float("inf")}, ("L2",)),
         ({"link_radius": float("nan")}, ("link_radius",)),
         ({"joint_min": [0, 0]}, ("joint_min",)),
-        ({"joint_min": [1, 0, 0], "joint_max": [0.5, 1, 1]}, ()),
+        ({"joint_min": [1, 0, 0], "joint_max": [0.5, 1, 1]}, ("joint_max",)),
         ({"L4": 1.0}, ("L4",)),
     ],
 )

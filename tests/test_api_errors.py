@@ -74,7 +74,7 @@ def test_non_finite_numbers_are_422_naming_the_element(api, path, text, loc):
         ({"q": [0, 1, 2], "design": {"link_radius": -1}}, ("body", "design", "link_radius")),
         (
             {"q": [0, 1, 2], "design": {"joint_min": [0, 0, 0], "joint_max": [1, -1, 1]}},
-            ("body", "design"),
+            ("body", "design", "joint_max"),
         ),
         (
             {"q": [0, 1, 2], "design": {"joint_max": [100, 1, 1]}},

@@ -49,6 +49,13 @@ def _wait_ready(client, timeout_s: float = 60.0) -> None:
         time.sleep(0.05)
 
 
+def _wait_idle(pool: WorkerPool, timeout_s: float = 30.0) -> None:
+    end = time.monotonic() + timeout_s
+    while pool.in_flight:
+        assert time.monotonic() < end, "jobs never finished"
+        time.sleep(0.01)
+
+
 # ---------------------------------------------------------------- settings
 def test_settings_from_environment(monkeypatch):
     monkeypatch.setenv("PLANNER_WORKERS", "3")
@@ -116,22 +123,21 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers():
         assert r.headers["retry-after"] == "2"
         assert r.json()["detail"][0]["type"] == "saturated"
         busy.result(timeout=30)
-        end = time.monotonic() + 10
-        while pool.in_flight and time.monotonic() < end:
-            time.sleep(0.01)
+        _wait_idle(pool)
         assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
 
 
 def test_request_over_its_time_budget_is_504():
-    with make_client(workers=1, queue_size=2, request_timeout_s=0.2) as c:
+    with make_client(workers=1, queue_size=2, request_timeout_s=1.0) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
         pool._reserve(1)
-        busy = pool._submit(time.sleep, 1.0)  # the fk job waits behind it past its deadline
+        busy = pool._submit(time.sleep, 2.0)  # the fk job waits behind it past its deadline
         r = c.post("/v1/fk", json={"q": [0, 1, 2]})
         assert r.status_code == 504
         assert r.json()["detail"][0]["type"] == "deadline_exceeded"
         busy.result(timeout=30)
+        _wait_idle(pool)
         assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
 
 

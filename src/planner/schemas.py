@@ -21,6 +21,7 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -139,11 +140,19 @@ class DesignModel(_Request):
         description="Upper limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
     )
 
+    @field_validator("joint_max")
+    @classmethod
+    def _above_min(cls, value: list[float], info: ValidationInfo) -> list[float]:
+        lo = info.data.get("joint_min")
+        for i in range(3 if lo is not None else 0):
+            if not lo[i] < value[i]:
+                raise ValueError(
+                    f"joint_max[{i}] must be above joint_min[{i}], got {value[i]} <= {lo[i]}"
+                )
+        return value
+
     @model_validator(mode="after")
     def _check_design(self) -> DesignModel:
-        for i, (lo, hi) in enumerate(zip(self.joint_min, self.joint_max, strict=True)):
-            if not lo < hi:
-                raise ValueError(f"joint_min[{i}] must be below joint_max[{i}], got {lo} >= {hi}")
         try:
             self.to_design()
         except DesignError as exc:  # any remaining rule of Design
