@@ -1,0 +1,170 @@
+"""Service benchmark: latency and throughput of the HTTP service on loopback.
+
+Starts ``planner serve`` (uvicorn, ``--workers`` processes) on a free port, then sends a fixed,
+seeded set of requests with the async client at concurrency 1, 8 and 32, and prints p50 / p95
+/ p99 latency and throughput per endpoint, next to the same work done in-process (the job
+function called directly), and their ratio (the service overhead).
+
+Endpoints: ``/v1/fk`` (the cheapest call: the overhead floor), ``/v1/analyze``, and
+``/v1/plan`` with free-space joint goals when the planner is in this build.
+
+    PYTHONPATH=src:. python benchmarks/service.py [--workers 2] [--requests 400]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import importlib.util
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+from api import compute
+from planner.client import AsyncPlannerClient
+from planner.schemas import AnalyzeRequest, FKRequest, PlanRequest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
+    port = _free_port()
+    env = {
+        **os.environ,
+        "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
+        "PLANNER_WORKERS": str(workers),
+        "PLANNER_QUEUE_SIZE": "256",
+    }
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "planner.cli",
+            "serve",
+            "--port",
+            str(port),
+            "--log-level",
+            "warning",
+        ],
+        cwd=ROOT,
+        env=env,
+    )
+    url = f"http://127.0.0.1:{port}"
+    end = time.monotonic() + 120
+    while time.monotonic() < end:
+        try:
+            if httpx.get(f"{url}/v1/ready", timeout=1).status_code == 200:
+                return proc, url
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.1)
+    proc.kill()
+    raise RuntimeError("the service did not become ready")
+
+
+def _requests(kind: str, n: int, rng: np.random.Generator) -> list:
+    q = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(0.8, 1.2, n), rng.uniform(1.8, 2.2, n)])
+    if kind == "fk":
+        return [FKRequest(q=row.tolist(), assembly_mode="+") for row in q]
+    if kind == "analyze":
+        return [AnalyzeRequest(q=row.tolist(), assembly_mode="+") for row in q]
+    goal = q + rng.uniform(-0.1, 0.1, q.shape)
+    return [
+        PlanRequest(
+            start={"q": a.tolist(), "assembly_mode": "+"},
+            goal={"q": b.tolist(), "assembly_mode": "+"},
+            planner={"seed": 1},
+            timing={"method": "none"},
+        )
+        for a, b in zip(q, goal, strict=True)
+    ]
+
+
+async def _load(url: str, method: str, requests: list, concurrency: int) -> tuple[list, float]:
+    latencies: list[float] = []
+    queue = list(requests)
+
+    async def worker(client: AsyncPlannerClient) -> None:
+        call = getattr(client, method)
+        while queue:
+            body = queue.pop()
+            t0 = time.perf_counter()
+            if method == "plan":
+                await call(body)
+            else:
+                await call(body.q, body.assembly_mode)
+            latencies.append(time.perf_counter() - t0)
+
+    async with AsyncPlannerClient(url, timeout=60) as client:  # httpx pools 100 connections
+        t0 = time.perf_counter()
+        await asyncio.gather(*(worker(client) for _ in range(concurrency)))
+        wall = time.perf_counter() - t0
+    return latencies, wall
+
+
+def _in_process(job: Callable, requests: list) -> list[float]:
+    times = []
+    for body in requests:
+        t0 = time.perf_counter()
+        job(body)
+        times.append(time.perf_counter() - t0)
+    return times
+
+
+def _pct(values: list[float], p: float) -> float:
+    return float(np.percentile(values, p)) * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--requests", type=int, default=400)
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    endpoints = [("fk", "fk", compute.fk), ("analyze", "analyze", compute.analyze)]
+    if importlib.util.find_spec("planner.planning") is not None:
+        endpoints.append(("plan", "plan", compute.plan))
+    proc, url = _start_server(args.workers)
+    try:
+        print(
+            f"service on {url}, {args.workers} worker processes, {args.requests} requests "
+            "per row; latencies in ms"
+        )
+        print(
+            f"{'endpoint':9} {'conc':>4} {'p50':>8} {'p95':>8} {'p99':>8} {'req/s':>8} "
+            f"{'in-proc p50':>12} {'p50 ratio':>10}"
+        )
+        for name, method, job in endpoints:
+            requests = _requests(name, args.requests, rng)
+            _in_process(job, requests[:20])  # warm-up (JIT caches) before timing
+            local = _in_process(job, requests)
+            local_p50 = statistics.median(local) * 1e3
+            asyncio.run(_load(url, method, requests[:50], 8))  # warm the workers
+            for concurrency in (1, 8, 32):
+                lat, wall = asyncio.run(_load(url, method, requests, concurrency))
+                print(
+                    f"{name:9} {concurrency:>4} {_pct(lat, 50):8.2f} {_pct(lat, 95):8.2f} "
+                    f"{_pct(lat, 99):8.2f} {len(lat) / wall:8.0f} {local_p50:12.3f} "
+                    f"{_pct(lat, 50) / local_p50:10.1f}"
+                )
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+if __name__ == "__main__":
+    main()
