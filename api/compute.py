@@ -8,10 +8,12 @@ request body) attached, so :mod:`api.errors` can name the field in its 422 answe
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from api.exceptions import PlanningUnavailableError
 from planner.constants import KAPPA_SOLVABLE
@@ -30,7 +32,13 @@ from planner.schemas import (
     SerialMargins,
 )
 
-__all__ = ["analyze", "fk", "ik", "located", "plan", "posture_model"]
+__all__ = ["analyze", "as_json", "fk", "ik", "located", "plan", "posture_model"]
+
+
+def as_json(job: Callable[[Any], BaseModel], request: Any) -> bytes:
+    """``job(request)`` serialised to JSON bytes, in the worker: the event loop then only
+    forwards bytes (no re-validation, no pickling of large response models)."""
+    return job(request).model_dump_json().encode()
 
 
 @contextmanager

@@ -4,6 +4,9 @@ Pure ASGI (no ``BaseHTTPMiddleware``): it reads the body up to ``max_body_bytes`
 application sees it, answering 413 beyond (whether the client sent ``Content-Length`` or
 streamed the body in chunks), and stamps ``scope["state"]["deadline"]`` (a
 :func:`time.monotonic` value) when the request arrives, which the worker pool honours.
+
+Why not ``FastAPI(max_body_size=...)``: it answers an oversized ``Content-Length`` with a
+plain-text 413, outside the exception handlers, so not in the service's ``detail`` format.
 """
 
 from __future__ import annotations

@@ -156,6 +156,10 @@ class WorkerPool:
             self._release()
             self._rebuild()
             raise WorkerCrashedError("a worker process died; the pool was restarted") from exc
+        except Exception as exc:  # e.g. a worker process that cannot be started
+            self._release()
+            logger.exception("could not hand a job to the worker pool")
+            raise WorkerCrashedError(f"could not start a worker process: {exc}") from exc
         future.add_done_callback(self._release)
         return future
 

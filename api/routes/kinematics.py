@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Response
 
 from api import compute
 from api.deps import Deadline, Pool
+from api.routes._common import run_job
 from planner.schemas import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -19,19 +20,19 @@ router = APIRouter(prefix="/v1", tags=["kinematics"])
 
 
 @router.post("/fk", response_model=FKResponse)
-async def fk(body: FKRequest, pool: Pool, deadline: Deadline) -> FKResponse:
+async def fk(body: FKRequest, pool: Pool, deadline: Deadline) -> Response:
     """Direct kinematics: the postures of the actuated joints ``q`` (both assembly modes
     unless one is asked; none when q does not close the loop)."""
-    return await pool.run(compute.fk, body, deadline=deadline)
+    return await run_job(pool, compute.fk, body, deadline)
 
 
 @router.post("/ik", response_model=IKResponse)
-async def ik(body: IKRequest, pool: Pool, deadline: Deadline) -> IKResponse:
+async def ik(body: IKRequest, pool: Pool, deadline: Deadline) -> Response:
     """Inverse kinematics: one posture per working mode reaching ``p``."""
-    return await pool.run(compute.ik, body, deadline=deadline)
+    return await run_job(pool, compute.ik, body, deadline)
 
 
 @router.post("/analyze", response_model=AnalyzeResponse)
-async def analyze(body: AnalyzeRequest, pool: Pool, deadline: Deadline) -> AnalyzeResponse:
+async def analyze(body: AnalyzeRequest, pool: Pool, deadline: Deadline) -> Response:
     """Jacobians A and B, kappa(A), kappa(B), singularity margins and modes of a posture."""
-    return await pool.run(compute.analyze, body, deadline=deadline)
+    return await run_job(pool, compute.analyze, body, deadline)

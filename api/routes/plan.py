@@ -10,11 +10,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Annotated
 
-from fastapi import APIRouter, Depends
+from fastapi import APIRouter, Depends, Response
 
 from api import compute
 from api.deps import Deadline, Pool, SettingsDep
 from api.exceptions import LimitExceededError
+from api.routes._common import json_response, run_job, run_jobs
 from api.settings import Settings
 from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 
@@ -49,16 +50,16 @@ def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int,
 @router.post("/plan", response_model=PlanResponse)
 async def plan(
     body: PlanRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
-) -> PlanResponse:
+) -> Response:
     """Plan (and time) a motion from ``start`` to ``goal``."""
     check_limits(body, settings, ("body",))
-    return await pool.run(job, body, deadline=deadline)
+    return await run_job(pool, job, body, deadline)
 
 
 @router.post("/plan/batch", response_model=PlanBatchResponse)
 async def plan_batch(
     body: PlanBatchRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
-) -> PlanBatchResponse:
+) -> Response:
     """Many plan requests, spread over the workers, answered in order."""
     if len(body.requests) > settings.max_batch:
         raise LimitExceededError(
@@ -67,4 +68,5 @@ async def plan_batch(
         )
     for i, request in enumerate(body.requests):
         check_limits(request, settings, ("body", "requests", i))
-    return PlanBatchResponse(results=await pool.map(job, body.requests, deadline=deadline))
+    results = await run_jobs(pool, job, body.requests, deadline)
+    return json_response(b'{"results":[' + b",".join(results) + b"]}")

@@ -1,0 +1,35 @@
+"""What the routes share: running a job in the worker pool and answering its JSON."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from functools import partial
+from typing import Any
+
+from fastapi import Response
+from pydantic import BaseModel
+
+from api.compute import as_json
+from api.workers import WorkerPool
+
+__all__ = ["json_response", "run_job", "run_jobs"]
+
+
+def json_response(content: bytes) -> Response:
+    """An ``application/json`` answer of ready-made bytes."""
+    return Response(content=content, media_type="application/json")
+
+
+async def run_job(
+    pool: WorkerPool, job: Callable[[Any], BaseModel], body: Any, deadline: float
+) -> Response:
+    """``job(body)`` in a worker, serialised there; the answer as it is (the route's
+    ``response_model`` documents it, the job's return type guarantees it)."""
+    return json_response(await pool.run(partial(as_json, job), body, deadline=deadline))
+
+
+async def run_jobs(
+    pool: WorkerPool, job: Callable[[Any], BaseModel], bodies: Sequence[Any], deadline: float
+) -> list[bytes]:
+    """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order."""
+    return await pool.map(partial(as_json, job), bodies, deadline=deadline)
