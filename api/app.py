@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import FastAPI
 
 import planner
-from api.routes import meta
+from api.routes import design, meta
 from api.settings import Settings, get_settings
 
 
@@ -20,4 +20,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.include_router(meta.router)
+    app.include_router(design.router)
     return app
