@@ -16,7 +16,6 @@ from planner.analysis.workspace import Estimate
 from planner.schemas import DesignCheckRequest, DesignCheckResponse, DesignModel, SampledValue
 
 
-
 def _json_safe(value: Any) -> Any:
     """``value`` with every non-finite float written as a string ('nan', 'inf', '-inf')."""
     if isinstance(value, float) and not math.isfinite(value):

@@ -84,7 +84,9 @@ def _leg(base_u, L1, L2, pu, pw, side):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def inverse_kernel(L0, L1, L2, p, theta1_on_axis, q, passive, w_out, ok, degenerate):  # pragma: no cover
+def inverse_kernel(
+    L0, L1, L2, p, theta1_on_axis, q, passive, w_out, ok, degenerate
+):  # pragma: no cover
     """Inverse kinematics of N points into the eight working modes.
 
     Slot k of the second axis is the working mode with signs

@@ -378,7 +378,9 @@ def _postures(batch: PostureBatch) -> list[Posture]:
         for a in arrays:
             a.flags.writeable = False
         points = MappingProxyType(dict(zip("ABCDP", arrays[3], strict=True)))
-        out.append(Posture(arrays[0], arrays[1], arrays[2], points, mode_label(wm[i]), mode_label(am[i])))
+        out.append(
+            Posture(arrays[0], arrays[1], arrays[2], points, mode_label(wm[i]), mode_label(am[i]))
+        )
     return out
 
 

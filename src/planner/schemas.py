@@ -101,11 +101,17 @@ class DesignCheckRequest(_Wire):
 
     design: DesignModel = Field(default_factory=_default_design)
     kappa_max: float = Field(
-        10.0, ge=1.0, le=1e12, allow_inf_nan=False,
+        10.0,
+        ge=1.0,
+        le=1e12,
+        allow_inf_nan=False,
         description="Bound on kappa(A) for the well-conditioned fraction.",
     )
     rel_se: float = Field(
-        0.01, ge=1e-3, le=0.5, allow_inf_nan=False,
+        0.01,
+        ge=1e-3,
+        le=0.5,
+        allow_inf_nan=False,
         description="Relative standard error asked of the sampled volume.",
     )
     seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")

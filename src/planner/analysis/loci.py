@@ -122,7 +122,7 @@ class Locus:
         """
         if space == "cartesian":
             xy = self.uw
-            jump = 0.25 * float(np.nanmax(np.abs(xy))) if np.any(np.isfinite(xy)) else 0.0
+            jump = math.inf  # P moves continuously along a branch: no wrap to break at
         elif space == "joint":
             xy = self.q[:, 1:3]
             jump = math.pi
