@@ -1,9 +1,11 @@
 """Compiled per-posture loops behind the vectorised kinematics (numba).
 
 Private: :mod:`planner.kinematics` validates inputs and wraps these. One fused loop per
-quantity keeps every intermediate in registers; the same maths in plain numpy allocates a
-temporary array per operation and runs about three times slower (``benchmarks/kinematics.py``).
-Formulas and frames are those of ``CONVENTIONS.md``.
+quantity keeps every intermediate in registers instead of a temporary array per numpy
+operation; angles are left to numpy's SIMD ``arctan2``, which beats a scalar ``atan2`` in
+the loop by far (``benchmarks/kinematics.py`` measures the result).
+Formulas and frames are those of ``CONVENTIONS.md``. Tolerances come in as arguments, never
+as module globals: numba's on-disk cache would freeze a global's value at compile time.
 """
 
 from __future__ import annotations
@@ -12,8 +14,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-from planner.constants import ASSEMBLY_TOL, REACH_TOL
 
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
@@ -26,15 +26,19 @@ def _wrap(x: float) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def forward_kernel(L0, L1, L2, q, branch, p, passive, w_out, ok):  # pragma: no cover - compiled
+def forward_kernel(
+    L0, L1, L2, q, branch, assembly_tol, p, dy, dx, w_out, ok
+):  # pragma: no cover - compiled
     """Direct kinematics of N postures in one assembly branch each (+1 or -1).
 
-    Writes P (N, 3), (theta4, theta5) (N, 2), the in-plane coordinate w (N,) and whether the
-    loop closes (N,). A posture with C = D or |CD| > 2 L2 has ``ok = False`` and NaN outputs.
+    Writes P (N, 3), the in-plane coordinate w (N,), whether the loop closes (N,), and the
+    in-plane vectors C->P and D->P as (dy, dx) pairs (N, 2) each, so that the caller gets
+    (theta4, theta5) = arctan2(dy, dx) from numpy's SIMD arctan2 (much faster than a scalar
+    atan2 here). A posture with C = D or |CD| > 2 L2 has ``ok = False`` and NaN outputs.
     """
     n = q.shape[0]
     half = 0.5 * L0
-    lim = 4.0 * L2 * L2 * (1.0 + ASSEMBLY_TOL)
+    lim = 4.0 * L2 * L2 * (1.0 + assembly_tol)
     for i in range(n):
         t1 = q[i, 0]
         cu = -half + L1 * math.cos(q[i, 1])
@@ -47,15 +51,17 @@ def forward_kernel(L0, L1, L2, q, branch, p, passive, w_out, ok):  # pragma: no 
         if d2 > lim or d2 == 0.0 or not (d2 == d2):
             ok[i] = False
             p[i, 0] = p[i, 1] = p[i, 2] = np.nan
-            passive[i, 0] = passive[i, 1] = np.nan
+            dy[i, 0] = dy[i, 1] = dx[i, 0] = dx[i, 1] = np.nan
             w_out[i] = np.nan
             continue
         h2 = L2 * L2 - 0.25 * d2
         s = branch[i] * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
         pu = 0.5 * (cu + du) - s * ew
         pw = 0.5 * (cw + dw) + s * eu
-        passive[i, 0] = math.atan2(pw - cw, pu - cu)
-        passive[i, 1] = math.atan2(pw - dw, pu - du)
+        dy[i, 0] = pw - cw
+        dx[i, 0] = pu - cu
+        dy[i, 1] = pw - dw
+        dx[i, 1] = pu - du
         p[i, 0] = pw * math.cos(t1)
         p[i, 1] = pu
         p[i, 2] = -pw * math.sin(t1)
@@ -63,86 +69,107 @@ def forward_kernel(L0, L1, L2, q, branch, p, passive, w_out, ok):  # pragma: no 
         ok[i] = True
 
 
-@njit(cache=True, inline="always")
-def _leg(base_u, L1, L2, pu, pw, side):
-    """Actuated angle of one leg reaching (pu, pw) with sign ``side`` of sin(theta_distal -
-    theta_proximal); returns (angle, ok)."""
-    au = pu - base_u
-    r = math.sqrt(au * au + pw * pw)
-    if r == 0.0:
-        return np.nan, False
-    cos_a = (L1 * L1 + r * r - L2 * L2) / (2.0 * L1 * r)
-    if cos_a > 1.0:
-        if cos_a > 1.0 + REACH_TOL:
-            return np.nan, False
-        cos_a = 1.0
-    elif cos_a < -1.0:
-        if cos_a < -1.0 - REACH_TOL:
-            return np.nan, False
-        cos_a = -1.0
-    return _wrap(math.atan2(pw, au) - side * math.acos(cos_a)), True
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def inverse_kernel(
-    L0, L1, L2, p, theta1_on_axis, q, passive, w_out, ok, degenerate
-):  # pragma: no cover
-    """Inverse kinematics of N points into the eight working modes.
+    L0, L1, L2, p, reach_tol, sign_tol, ys, xs, ok, degenerate
+):  # pragma: no cover - compiled
+    """Inverse kinematics of N points, as in-plane vectors whose angles the caller takes with
+    numpy's SIMD arctan2.
 
-    Slot k of the second axis is the working mode with signs
-    (s_axis, s_A, s_B) = (+1 if k < 4 else -1, +1 if k % 4 < 2 else -1, +1 if k % 2 == 0 else -1).
-    A slot that duplicates another (a sign that is 0 at a serial singularity) is ``ok = False``.
-    ``degenerate[i]`` marks a point where one leg's angle is undetermined (P = A or P = B with
-    L1 = L2): every slot is ``ok = False`` there.
+    For point i, axis side a (0: w = +r, 1: w = -r), leg g (0: A, 1: B) and elbow side e
+    (0: sin(distal - proximal) > 0, 1: < 0), ``(ys, xs)[i, a, g, e, 0]`` is the proximal link
+    vector (A->C or B->D) and ``[..., 1]`` the distal one (C->P or D->P); ``ok[i, a, g, e]``
+    says that this leg solution exists and is not a duplicate (on a serial singularity the two
+    elbow sides meet and only e = 0 is kept; on the axis only a = 0 is kept).
+    ``degenerate[i]``: P is a pivot with L1 = L2, the leg angle is undetermined; nothing is ok.
     """
     n = p.shape[0]
     half = 0.5 * L0
     axis_tol = 1e-12 * (L1 + L2)
+    l1l2 = L1 * L2
     for i in range(n):
         x = p[i, 0]
         pu = p[i, 1]
         z = p[i, 2]
         r = math.sqrt(x * x + z * z)
         on_axis = r <= axis_tol
-        deg = False
         if on_axis:
-            au = pu + half
-            bu = pu - half
-            deg = abs(au) <= axis_tol or abs(bu) <= axis_tol
-        degenerate[i] = deg
-        for k in range(8):
-            sx = 1.0 if k < 4 else -1.0
-            sa = 1.0 if k % 4 < 2 else -1.0
-            sb = 1.0 if k % 2 == 0 else -1.0
-            q[i, k, 0] = q[i, k, 1] = q[i, k, 2] = np.nan
-            passive[i, k, 0] = passive[i, k, 1] = np.nan
-            w_out[i, k] = np.nan
-            ok[i, k] = False
-            if deg or not (r == r) or (on_axis and sx < 0.0):
-                continue
-            if on_axis:
-                t1 = _wrap(theta1_on_axis)
-                pw = 0.0
-            elif sx > 0.0:
-                t1 = math.atan2(-z, x)
-                pw = r
-            else:
-                t1 = math.atan2(z, -x)
-                pw = -r
-            t2, oka = _leg(-half, L1, L2, pu, pw, sa)
-            t3, okb = _leg(half, L1, L2, pu, pw, sb)
-            if not (oka and okb):
-                continue
-            cu = -half + L1 * math.cos(t2)
-            cw = L1 * math.sin(t2)
-            du = half + L1 * math.cos(t3)
-            dw = L1 * math.sin(t3)
-            t4 = math.atan2(pw - cw, pu - cu)
-            t5 = math.atan2(pw - dw, pu - du)
-            q[i, k, 0] = _wrap(t1)
-            q[i, k, 1] = t2
-            q[i, k, 2] = t3
-            passive[i, k, 0] = t4
-            passive[i, k, 1] = t5
-            w_out[i, k] = pw
-            ok[i, k] = True
+            r = 0.0
+        degenerate[i] = False
+        for a in range(2):
+            pw = r if a == 0 else -r
+            for g in range(2):
+                base = -half if g == 0 else half
+                au = pu - base
+                dist = math.sqrt(au * au + pw * pw)
+                cos_a = (
+                    (L1 * L1 + dist * dist - L2 * L2) / (2.0 * L1 * dist) if dist > 0.0 else np.nan
+                )
+                reach = dist > 0.0 and abs(cos_a) <= 1.0 + reach_tol
+                if dist <= axis_tol and abs(L1 - L2) <= axis_tol:
+                    degenerate[i] = True
+                if reach:
+                    cos_a = min(1.0, max(-1.0, cos_a))
+                    sin_a = math.sqrt(1.0 - cos_a * cos_a)
+                    ux = au / dist
+                    uy = pw / dist
+                for e in range(2):
+                    if not reach:
+                        ok[i, a, g, e] = False
+                        ys[i, a, g, e, 0] = ys[i, a, g, e, 1] = np.nan
+                        xs[i, a, g, e, 0] = xs[i, a, g, e, 1] = np.nan
+                        continue
+                    # proximal angle = phi - side * alpha, side = +1 for e = 0
+                    sn = -sin_a if e == 0 else sin_a
+                    cx = L1 * (ux * cos_a - uy * sn)
+                    cy = L1 * (uy * cos_a + ux * sn)
+                    px = au - cx
+                    py = pw - cy
+                    ys[i, a, g, e, 0] = cy
+                    xs[i, a, g, e, 0] = cx
+                    ys[i, a, g, e, 1] = py
+                    xs[i, a, g, e, 1] = px
+                    measure = (cx * py - cy * px) / l1l2
+                    dup = (e == 1 and abs(measure) <= sign_tol) or (a == 1 and on_axis)
+                    ok[i, a, g, e] = not dup
+        if degenerate[i]:
+            for a in range(2):
+                for g in range(2):
+                    for e in range(2):
+                        ok[i, a, g, e] = False
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def conditioning_kernel(L1, L2, q, passive, w, out):  # pragma: no cover - compiled
+    """Per posture (flat N): out[:, 0..5] = kappa_A, kappa_B, |w|/(L1+L2), |sin(t4-t2)|,
+    |sin(t5-t3)|, distance of t4-t5 to the nearest multiple of pi. NaN in, NaN out."""
+    n = q.shape[0]
+    reach = L1 + L2
+    for i in range(n):
+        delta = passive[i, 0] - passive[i, 1]
+        s = abs(math.sin(delta))
+        c = abs(math.cos(delta))
+        if delta != delta:
+            out[i, 0] = np.nan
+        elif s > 0.0:
+            out[i, 0] = (1.0 + c) / s
+        else:
+            out[i, 0] = np.inf
+        b0 = L2 * abs(w[i])
+        sa = abs(math.sin(passive[i, 0] - q[i, 1]))
+        sb = abs(math.sin(passive[i, 1] - q[i, 2]))
+        b1 = L1 * L2 * sa
+        b2 = L1 * L2 * sb
+        lo = min(b0, min(b1, b2))
+        hi = max(b0, max(b1, b2))
+        if lo != lo or hi != hi:
+            out[i, 1] = np.nan
+        elif lo > 0.0:
+            out[i, 1] = hi / lo
+        else:
+            out[i, 1] = np.inf
+        out[i, 2] = abs(w[i]) / reach
+        out[i, 3] = sa
+        out[i, 4] = sb
+        folded = delta % math.pi
+        out[i, 5] = min(folded, math.pi - folded)

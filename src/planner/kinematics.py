@@ -35,7 +35,7 @@ from typing import Literal
 import numpy as np
 
 from planner import _kernels
-from planner.constants import KAPPA_SOLVABLE, SIGN_TOL
+from planner.constants import ASSEMBLY_TOL, KAPPA_SOLVABLE, REACH_TOL, SIGN_TOL
 from planner.design import Design
 from planner.exceptions import AssemblyError, InputError, SingularPostureError
 
@@ -62,8 +62,10 @@ ASSEMBLY_MODES: tuple[str, ...] = ("+", "-")
 #: Names of the serial-singularity measures, in the order of the working-mode signs.
 SERIAL_KINDS: tuple[str, ...] = ("P_on_axis", "leg_A", "leg_B")
 
-_SLOT_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
 _SIGN_CHAR = {1: "+", -1: "-", 0: "0"}
+# For each slot of WORKING_MODES: index of the axis side, leg-A elbow side, leg-B elbow side
+# in the inverse kernel's output (0 for '+', 1 for '-').
+_SLOT_INDEX = tuple(np.array([0 if m[j] == "+" else 1 for m in WORKING_MODES]) for j in range(3))
 
 AssemblyMode = Literal["+", "-"]
 
@@ -178,11 +180,23 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
     n = q2.shape[0]
     p = np.empty((n, 3))
     passive = np.empty((n, 2))
+    dx = np.empty((n, 2))
     w = np.empty(n)
     ok = np.empty(n, dtype=np.bool_)
     _kernels.forward_kernel(
-        design.L0, design.L1, design.L2, q2, _branch(assembly_mode, n), p, passive, w, ok
+        design.L0,
+        design.L1,
+        design.L2,
+        q2,
+        _branch(assembly_mode, n),
+        ASSEMBLY_TOL,
+        p,
+        passive,
+        dx,
+        w,
+        ok,
     )
+    np.arctan2(passive, dx, out=passive)
     return PostureBatch(design, q2, passive, p, w, ok)
 
 
@@ -213,18 +227,32 @@ def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0)
     """
     p2 = np.ascontiguousarray(np.atleast_2d(_finite_array("p", p, 3)))
     n = p2.shape[0]
-    q = np.empty((n, 8, 3))
-    passive = np.empty((n, 8, 2))
-    w = np.empty((n, 8))
-    ok = np.empty((n, 8), dtype=np.bool_)
+    ys = np.empty((n, 2, 2, 2, 2))
+    xs = np.empty((n, 2, 2, 2, 2))
+    leg_ok = np.empty((n, 2, 2, 2), dtype=np.bool_)
     degenerate = np.empty(n, dtype=np.bool_)
     _kernels.inverse_kernel(
-        design.L0, design.L1, design.L2, p2, float(theta1_on_axis), q, passive, w, ok, degenerate
+        design.L0, design.L1, design.L2, p2, REACH_TOL, SIGN_TOL, ys, xs, leg_ok, degenerate
     )
-    batch = InverseBatch(design, q, passive, p2[:, None, :].repeat(8, axis=1), w, ok, degenerate)
-    duplicate = np.any((batch.working_mode_signs == 0) & (_SLOT_SIGNS < 0), axis=-1)
-    ok &= ~duplicate
-    return batch
+    angles = np.arctan2(ys, xs, out=ys)
+    ax, sa, sb = _SLOT_INDEX
+    q = np.empty((n, 8, 3))
+    on_axis = np.hypot(p2[:, 0], p2[:, 2]) <= 1e-12 * design.reach
+    t1 = np.stack([np.arctan2(-p2[:, 2], p2[:, 0]), np.arctan2(p2[:, 2], -p2[:, 0])], axis=1)
+    t1[on_axis] = float(theta1_on_axis)
+    q[..., 0] = t1[:, ax]
+    q[..., 1] = angles[:, ax, 0, sa, 0]
+    q[..., 2] = angles[:, ax, 1, sb, 0]
+    q = wrap_angle(q)
+    passive = np.stack([angles[:, ax, 0, sa, 1], angles[:, ax, 1, sb, 1]], axis=-1)
+    ok = leg_ok[:, ax, 0, sa] & leg_ok[:, ax, 1, sb]
+    w = np.where(ax == 0, 1.0, -1.0) * np.where(on_axis, 0.0, np.hypot(p2[:, 0], p2[:, 2]))[:, None]
+    nan = ~ok
+    q[nan] = np.nan
+    passive[nan] = np.nan
+    w = np.where(nan, np.nan, w)
+    p_rep = np.broadcast_to(p2[:, None, :], (n, 8, 3))
+    return InverseBatch(design, q, passive, p_rep, w, ok, degenerate)
 
 
 def link_points(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
@@ -294,36 +322,18 @@ def conditioning(design: Design, q: np.ndarray, passive: np.ndarray, w: np.ndarr
     """Conditioning of postures given their joints, passive angles and in-plane w (shapes
     S + (3,), S + (2,), S), elementwise. Undefined postures (NaN inputs) give NaN."""
     q = np.asarray(q, dtype=float)
-    passive = np.asarray(passive, dtype=float)
-    w = np.asarray(w, dtype=float)
-    delta = passive[..., 0] - passive[..., 1]
-    s = np.abs(np.sin(delta))
-    c = np.abs(np.cos(delta))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        kappa_a = np.where(s > 0, (1 + c) / np.where(s > 0, s, 1), np.inf)
-        kappa_a = np.where(np.isnan(delta), np.nan, kappa_a)
-        b = np.abs(
-            np.stack(
-                [
-                    design.L2 * w,
-                    design.L1 * design.L2 * np.sin(passive[..., 0] - q[..., 1]),
-                    design.L1 * design.L2 * np.sin(passive[..., 1] - q[..., 2]),
-                ],
-                axis=-1,
-            )
-        )
-        bmin = b.min(axis=-1)
-        kappa_b = np.where(bmin > 0, b.max(axis=-1) / np.where(bmin > 0, bmin, 1), np.inf)
-        kappa_b = np.where(np.isnan(bmin), np.nan, kappa_b)
-    folded = np.mod(delta, np.pi)
-    return Conditioning(
-        kappa_A=kappa_a,
-        kappa_B=kappa_b,
-        P_on_axis=np.abs(w) / design.reach,
-        leg_A=b[..., 1] / (design.L1 * design.L2),
-        leg_B=b[..., 2] / (design.L1 * design.L2),
-        parallel=np.minimum(folded, np.pi - folded),
+    shape = q.shape[:-1]
+    out = np.empty((int(np.prod(shape)), 6))
+    _kernels.conditioning_kernel(
+        design.L1,
+        design.L2,
+        np.ascontiguousarray(q.reshape(-1, 3)),
+        np.ascontiguousarray(np.asarray(passive, dtype=float).reshape(-1, 2)),
+        np.ascontiguousarray(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
+        out,
     )
+    cols = out.T.reshape((6, *shape))
+    return Conditioning(*cols)
 
 
 # ---------------------------------------------------------------------------- one posture
