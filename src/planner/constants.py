@@ -10,8 +10,10 @@ ASSEMBLY_TOL = 1e-12
 #: taken as on its boundary (stretched or folded), not unreachable.
 REACH_TOL = 1e-9
 #: A dimensionless sign measure (sin of a joint difference, w / (L1 + L2)) at most this large
-#: in magnitude is written '0': the posture is on that singularity.
-SIGN_TOL = 1e-9
+#: in magnitude is written '0': the posture is on that singularity. Not smaller, because the
+#: measures grow like the square root of a distance near a boundary: a point 1e-16 m inside a
+#: leg's reach (one rounding) already gives sin(theta4 - theta2) ~ 1e-8.
+SIGN_TOL = 1e-7
 #: Largest kappa(A) at which A is still inverted (a Cartesian velocity is computed); beyond,
 #: the posture is treated as parallel-singular.
-KAPPA_SOLVABLE = 1e12
+KAPPA_SOLVABLE = 1e7

@@ -13,7 +13,7 @@ import numpy as np
 
 from planner.exceptions import DesignError
 
-__all__ = ["MAX_LENGTH", "MIN_LENGTH", "MAX_JOINT_TRAVEL", "Design"]
+__all__ = ["MAX_JOINT_TRAVEL", "MAX_LENGTH", "MIN_LENGTH", "Design"]
 
 #: Shortest link accepted, m. Shorter links make every squared length underflow-prone.
 MIN_LENGTH = 1e-6

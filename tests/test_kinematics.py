@@ -1,0 +1,416 @@
+"""Kinematics checked against independent routes: loop-closure geometry written out in 3-D,
+finite differences, numpy's SVD, the paper's closed forms (with the errata)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner import (
+    WORKING_MODES,
+    AssemblyError,
+    Design,
+    InputError,
+    Manipulator,
+    SingularPostureError,
+    conditioning,
+    forward_batch,
+    inverse_batch,
+    link_points,
+)
+from planner.kinematics import wrap_angle
+
+DESIGNS = [
+    Design.default(),
+    Design.paper_optimum(),
+    Design(L0=0.3, L1=0.25, L2=0.4),
+    Design(L0=1.0, L1=0.3, L2=0.5),  # L0 > 2 L1
+    Design(L0=0.0, L1=0.2, L2=0.5),
+]
+
+
+def pivots(design: Design) -> tuple[np.ndarray, np.ndarray]:
+    return np.array([0.0, -design.L0 / 2, 0.0]), np.array([0.0, design.L0 / 2, 0.0])
+
+
+def reference_points(design: Design, q: np.ndarray, passive: np.ndarray) -> dict[str, np.ndarray]:
+    """Joint centres written out from the conventions, one posture, in 3-D (independent of the
+    library: rotation of the in-plane frame by an explicit rotation matrix about +y)."""
+    t1, t2, t3 = q
+    t4, _ = passive
+    # rotation about +y by theta1 maps the x axis to e(theta1) = (cos, 0, -sin)
+    rot = np.array([[math.cos(t1), 0, math.sin(t1)], [0, 1, 0], [-math.sin(t1), 0, math.cos(t1)]])
+    a, b = pivots(design)
+
+    # plane axes at theta1 = 0: u along +y, w along +x
+    def lift(u: float, w: float) -> np.ndarray:
+        return rot @ np.array([w, u, 0.0])
+
+    c = a + lift(design.L1 * math.cos(t2), design.L1 * math.sin(t2))
+    d = b + lift(design.L1 * math.cos(t3), design.L1 * math.sin(t3))
+    p = c + lift(design.L2 * math.cos(t4), design.L2 * math.sin(t4))
+    return {"A": a, "B": b, "C": c, "D": d, "P": p}
+
+
+def random_q(rng: np.random.Generator, n: int) -> np.ndarray:
+    return rng.uniform(-math.pi, math.pi, size=(n, 3))
+
+
+# ------------------------------------------------------------------ design
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"L0": float("nan"), "L1": 1, "L2": 1}, "L0"),
+        ({"L0": 0, "L1": 0, "L2": 1}, "L1"),
+        ({"L0": 0, "L1": 1, "L2": -1}, "L2"),
+        ({"L0": -0.1, "L1": 1, "L2": 1}, "L0"),
+        ({"L0": 0, "L1": 1, "L2": float("inf")}, "L2"),
+        ({"L0": 0, "L1": 1e9, "L2": 1}, "L1"),
+        ({"L0": 0, "L1": 1, "L2": 1, "link_radius": -1}, "link_radius"),
+        (
+            {"L0": 0, "L1": 1, "L2": 1, "joint_min": (0, 0, 1), "joint_max": (1, 1, 1)},
+            "joint_min[2]",
+        ),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_min": (0, 0)}, "joint_min"),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_max": (1, 1, float("nan"))}, "joint_max"),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_max": (1, 1, 100)}, "joint_max[2]"),
+    ],
+)
+def test_design_rejects_bad_numbers_naming_the_field(kwargs, field):
+    with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        Design(**kwargs)
+
+
+def test_presets_satisfy_their_claims():
+    opt = Design.paper_optimum()
+    assert opt.L0 == 0 and opt.L1 == opt.L2
+    free = Design.singularity_free()
+    assert 2 * free.L1 < free.L0 < 2 * (free.L2 - free.L1)
+    assert Design.default() == free
+
+
+# ------------------------------------------------------------------ forward kinematics
+@pytest.mark.parametrize("design", DESIGNS, ids=lambda d: f"L0={d.L0},L1={d.L1},L2={d.L2}")
+def test_forward_closes_the_loop_in_3d(design):
+    """Every returned posture has |AC| = |BD| = L1, |CP| = |DP| = L2, P in the turned plane,
+    points equal to an independent construction, and the assembly sign it claims."""
+    rng = np.random.default_rng(1)
+    m = Manipulator(design)
+    seen = 0
+    for q in random_q(rng, 300):
+        for post in m.forward(q):
+            seen += 1
+            ref = reference_points(design, post.q, post.passive)
+            for name in "ABCDP":
+                np.testing.assert_allclose(post.points[name], ref[name], atol=1e-12)
+            pts = post.points
+            assert np.linalg.norm(pts["C"] - pts["A"]) == pytest.approx(design.L1, abs=1e-12)
+            assert np.linalg.norm(pts["D"] - pts["B"]) == pytest.approx(design.L1, abs=1e-12)
+            assert np.linalg.norm(pts["P"] - pts["C"]) == pytest.approx(design.L2, abs=1e-12)
+            assert np.linalg.norm(pts["P"] - pts["D"]) == pytest.approx(design.L2, abs=1e-12)
+            np.testing.assert_allclose(post.p, pts["P"], atol=1e-12)
+            cross = np.cross(pts["P"] - pts["C"], pts["P"] - pts["D"])
+            # planar angles grow from u (+y) towards w (e): positive rotation is about y x e
+            e = np.array([math.cos(q[0]), 0.0, -math.sin(q[0])])
+            expected = "+" if cross @ np.cross([0.0, 1.0, 0.0], e) > 0 else "-"
+            assert post.assembly_mode == expected
+            np.testing.assert_array_equal(post.q, q)  # literal, not wrapped
+    assert seen > 100
+
+
+def test_forward_two_one_or_no_postures():
+    d = Design(L0=0.4, L1=0.3, L2=0.3)
+    m = Manipulator(d)
+    assert {p.assembly_mode for p in m.forward([0.1, 1.2, 1.9])} == {"+", "-"}
+    # legs pointing apart: |CD| = L0 + 2 L1 = 1.0 > 2 L2 = 0.6
+    assert m.forward([0.0, math.pi, 0.0]) == []
+    with pytest.raises(AssemblyError, match="does not assemble"):
+        m.posture([0.0, math.pi, 0.0], "+")
+    # CD exactly stretched: |CD| = 2 L2 -> one posture, P the midpoint of CD
+    theta = math.acos((2 * d.L2 - d.L0) / (2 * d.L1))  # C, D symmetric above the axis
+    q = [0.0, math.pi - theta, theta]
+    found = m.forward(q)
+    assert len(found) == 1 and found[0].assembly_mode == "0"
+    np.testing.assert_allclose(
+        found[0].p, (found[0].points["C"] + found[0].points["D"]) / 2, atol=1e-7
+    )
+
+
+def test_forward_with_c_on_d_has_no_posture():
+    m = Manipulator(Design.paper_optimum())  # L0 = 0: C = D whenever theta2 = theta3
+    assert m.forward([0.3, 0.7, 0.7]) == []
+    with pytest.raises(AssemblyError, match="C on D"):
+        m.posture([0.3, 0.7, 0.7], "+")
+
+
+def test_posture_rejects_non_finite_and_bad_shapes():
+    m = Manipulator()
+    with pytest.raises(InputError, match="finite"):
+        m.forward([0.0, float("nan"), 0.0])
+    with pytest.raises(InputError, match="shape"):
+        m.forward([0.0, 1.0])
+    with pytest.raises(InputError, match="assembly_mode"):
+        m.posture([0.0, 0.0, 0.0], "x")  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ inverse kinematics
+@st.composite
+def design_and_point(draw):
+    l1 = draw(st.floats(0.05, 1.0))
+    l2 = draw(st.floats(0.05, 1.0))
+    l0 = draw(st.floats(0.0, 1.0))
+    design = Design(L0=l0, L1=l1, L2=l2)
+    q = np.array([draw(st.floats(-math.pi, math.pi)) for _ in range(3)])
+    return design, q
+
+
+@settings(max_examples=300, deadline=None)
+@given(design_and_point())
+def test_inverse_of_forward_contains_q_and_recovers_p(case):
+    design, q = case
+    m = Manipulator(design)
+    for post in m.forward(q):
+        to_pivot = min(np.linalg.norm(post.p - a) for a in pivots(design))
+        if to_pivot == 0.0 and design.L1 == design.L2:  # erratum 6: the leg angle is free
+            with pytest.raises(SingularPostureError):
+                m.inverse(post.p)
+            continue
+        if to_pivot < 1e-9 * design.reach:  # ill-conditioned: nothing to compare
+            continue
+        sols = m.inverse(post.p)
+        assert post.working_mode in {s.working_mode for s in sols} or "0" in post.working_mode
+        for s in sols:  # every IK posture lands on P and has the mode of its slot
+            np.testing.assert_allclose(s.p, post.p, atol=1e-12)
+            again = m.posture(s.q, s.assembly_mode) if s.assembly_mode != "0" else None
+            if again is not None:
+                np.testing.assert_allclose(again.p, post.p, atol=1e-9 * design.reach + 1e-12)
+        match = [s for s in sols if s.working_mode == post.working_mode]
+        if match and "0" not in post.working_mode:
+            np.testing.assert_allclose(wrap_angle(match[0].q - post.q), 0, atol=1e-7)
+
+
+def test_generic_points_have_exactly_eight_solutions():
+    rng = np.random.default_rng(7)
+    for design in DESIGNS:
+        b = forward_batch(design, random_q(rng, 2000), "+")
+        p = b.p[b.ok & ~np.all(b.working_mode_signs == 0, axis=1)]  # not the base point (err. 6)
+        ib = inverse_batch(design, p)
+        counts = ib.ok.sum(axis=1)
+        assert np.all(counts == 8), design
+        # every slot's own mode is its label, and every slot lands on P
+        labels = np.array(WORKING_MODES)
+        for k in range(8):
+            signs = ib.working_mode_signs[:, k]
+            got = np.array(["".join("+" if s > 0 else "-" for s in row) for row in signs])
+            assert np.all(got == labels[k])
+        # forward of every IK posture returns P (except C = D ones: P is undetermined there)
+        branch = ib.assembly_mode_signs.reshape(-1)
+        regular = branch != 0
+        assert regular.mean() > 0.45
+        back = forward_batch(design, ib.q.reshape(-1, 3)[regular], branch[regular])
+        np.testing.assert_allclose(back.p, ib.p.reshape(-1, 3)[regular], atol=1e-10)
+
+
+def test_unreachable_points_give_an_empty_list():
+    m = Manipulator(Design.default())
+    assert m.inverse([5.0, 0.0, 0.0]) == []
+    assert m.inverse([0.0, 0.0, 0.0]) == []  # inside both inner shells (|L1 - L2| = 0.4 > 0.25)
+
+
+def test_point_on_axis_has_four_solutions_with_zero_axis_sign():
+    d = Design(L0=0.3, L1=0.3, L2=0.4)
+    m = Manipulator(d)
+    sols = m.inverse([0.0, 0.0, 0.0], theta1_on_axis=0.7)
+    assert len(sols) == 4
+    assert {s.working_mode for s in sols} == {"0++", "0+-", "0-+", "0--"}
+    for s in sols:
+        assert s.q[0] == pytest.approx(0.7)
+        np.testing.assert_allclose(s.p, [0.0, 0.0, 0.0], atol=1e-12)
+        assert m.conditioning(s).P_on_axis == pytest.approx(0.0, abs=1e-15)
+
+
+def test_stretched_and_folded_legs_are_serial_singular():
+    d = Design(L0=0.3, L1=0.3, L2=0.4)
+    m = Manipulator(d)
+    a = np.array([0.0, -0.15, 0.0])
+    # P at distance L1 + L2 from A along a direction: leg A stretched
+    direction = np.array([math.cos(0.3), math.sin(0.3), 0.0])
+    p = a + (d.L1 + d.L2) * direction
+    sols = m.inverse(p)
+    assert sols and all(s.working_mode[1] == "0" for s in sols)
+    assert len(sols) == 4
+    for s in sols:
+        assert m.conditioning(s).leg_A < 1e-7
+        assert math.cos(s.passive[0] - s.q[1]) > 0  # stretched: theta4 = theta2
+    # folded: |AP| = L2 - L1
+    p = a + (d.L2 - d.L1) * direction
+    sols = m.inverse(p)
+    assert sols and all(s.working_mode[1] == "0" for s in sols)
+    assert all(math.cos(s.passive[0] - s.q[1]) < 0 for s in sols)
+
+
+def test_base_point_of_the_paper_optimum_is_degenerate():
+    """Erratum 6: with L0 = 0 and L1 = L2, P = A = B for half of the (theta2, theta3) plane."""
+    m = Manipulator(Design.paper_optimum())
+    with pytest.raises(SingularPostureError):
+        m.inverse([0.0, 0.0, 0.0])
+    found = m.forward([0.2, 0.3, 1.4])
+    base = [p for p in found if np.linalg.norm(p.p) < 1e-12]
+    assert len(base) == 1
+    c = m.conditioning(base[0])
+    assert c.P_on_axis < 1e-12 and c.leg_A < 1e-12 and c.leg_B < 1e-12
+    assert math.isinf(c.kappa_B)
+    assert base[0].working_mode == "000"
+
+
+def test_angles_outside_pi_are_handled():
+    m = Manipulator(Design.default())
+    q = np.array([0.4, -0.3, 0.5])
+    shifted = q + np.array([2 * math.pi, -2 * math.pi, 4 * math.pi])
+    a, b = m.posture(q, "+"), m.posture(shifted, "+")
+    np.testing.assert_allclose(a.p, b.p, atol=1e-12)
+    np.testing.assert_array_equal(b.q, shifted)  # kept literal
+    assert np.all(np.abs(b.passive) <= math.pi)
+    sols = m.inverse(b.p)
+    assert all(np.all((s.q > -math.pi) & (s.q <= math.pi)) for s in sols)
+    assert wrap_angle(-math.pi) == pytest.approx(math.pi)
+    assert wrap_angle(3 * math.pi) == pytest.approx(math.pi)
+
+
+# ------------------------------------------------------------------ Jacobians
+def numeric_dp_dq(m: Manipulator, q: np.ndarray, mode: str, h: float = 1e-6) -> np.ndarray:
+    jac = np.zeros((3, 3))
+    for j in range(3):
+        dq = np.zeros(3)
+        dq[j] = h
+        jac[:, j] = (m.posture(q + dq, mode).p - m.posture(q - dq, mode).p) / (2 * h)
+    return jac
+
+
+@pytest.mark.parametrize("design", DESIGNS[:4], ids=lambda d: f"L0={d.L0},L1={d.L1},L2={d.L2}")
+def test_jacobians_match_finite_differences(design):
+    rng = np.random.default_rng(3)
+    m = Manipulator(design)
+    checked = 0
+    for q in random_q(rng, 200):
+        for post in m.forward(q):
+            c = m.conditioning(post)
+            if c.kappa_A > 1e3 or min(c.leg_A, c.leg_B) < 1e-3:
+                continue
+            a, b = m.jacobians(post)
+            jac = numeric_dp_dq(m, post.q, post.assembly_mode)
+            np.testing.assert_allclose(a @ jac, b, atol=1e-7 * design.reach**2)
+            qd = rng.normal(size=3)
+            np.testing.assert_allclose(m.cartesian_velocity(post, qd), jac @ qd, atol=1e-6)
+            checked += 1
+    assert checked > 50
+
+
+def test_cartesian_velocity_refuses_parallel_singularity():
+    d = Design(L0=0.4, L1=0.3, L2=0.3)
+    m = Manipulator(d)
+    theta = math.acos((2 * d.L2 - d.L0) / (2 * d.L1))
+    post = m.forward([0.0, math.pi - theta, theta])[0]  # CD stretched
+    with pytest.raises(SingularPostureError):
+        m.cartesian_velocity(post, [0.1, 0.2, 0.3])
+
+
+# ------------------------------------------------------------------ conditioning
+def test_kappa_matches_svd_and_eq6_and_the_paper_where_it_holds():
+    rng = np.random.default_rng(5)
+    for design in DESIGNS[:4]:
+        m = Manipulator(design)
+        for q in random_q(rng, 100):
+            for post in m.forward(q):
+                a, b = m.jacobians(post)
+                c = m.conditioning(post)
+                sv = np.linalg.svd(a, compute_uv=False)
+                assert c.kappa_A == pytest.approx(sv[0] / sv[-1], rel=1e-6)
+                delta = post.passive[0] - post.passive[1]
+                cos = math.cos(delta)
+                expected = design.L2**2 * np.array([[1, 0, 0], [0, 1, cos], [0, cos, 1]])
+                np.testing.assert_allclose(a @ a.T, expected, atol=1e-12)
+                wrapped = float(wrap_angle(delta))
+                if abs(wrapped) <= math.pi / 2:
+                    assert c.kappa_A == pytest.approx(1 / abs(math.tan(wrapped / 2)), rel=1e-9)
+                else:  # the paper's form drops below 1 there (erratum 2)
+                    assert 1 / abs(math.tan(wrapped / 2)) < 1 <= c.kappa_A
+                diag = np.abs(np.diag(b))
+                if diag.min() == 0.0:
+                    assert math.isinf(c.kappa_B)
+                else:
+                    assert c.kappa_B == pytest.approx(diag.max() / diag.min(), rel=1e-9)
+                # parallel margin: angular distance of delta to k*pi
+                k = round(delta / math.pi)
+                assert c.parallel == pytest.approx(abs(delta - k * math.pi), abs=1e-12)
+
+
+def test_isotropy_at_right_angle():
+    d = Design.default()
+    m = Manipulator(d)
+    rng = np.random.default_rng(11)
+    best = min(
+        (
+            abs(abs(float(wrap_angle(p.passive[0] - p.passive[1]))) - math.pi / 2),
+            m.conditioning(p).kappa_A,
+        )
+        for q in random_q(rng, 400)
+        for p in m.forward(q)
+    )
+    assert best[0] < 0.05 and best[1] < 1.06
+
+
+def test_paper_optimum_equal_sign_modes_are_parallel_singular():
+    d = Design.paper_optimum()
+    rng = np.random.default_rng(2)
+    b = forward_batch(d, random_q(rng, 500), "+")
+    keep = b.ok & (np.linalg.norm(b.p, axis=1) > 1e-6)
+    ib = inverse_batch(d, b.p[keep])
+    cond = conditioning(d, ib.q, ib.passive, ib.w)
+    signs = ib.working_mode_signs
+    same = (signs[..., 1] == signs[..., 2]) & ib.ok
+    diff = (signs[..., 1] != signs[..., 2]) & ib.ok
+    assert same.sum() > 100 and diff.sum() > 100
+    assert np.all(cond.kappa_A[same] > 1e6)  # C = D
+    pts = link_points(d, ib.q, ib.passive)
+    np.testing.assert_allclose(pts[same][:, 2], pts[same][:, 3], atol=1e-9)
+    assert np.median(cond.kappa_A[diff]) < 10
+
+
+def test_vectorised_and_scalar_forms_agree():
+    d = Design(L0=0.3, L1=0.25, L2=0.4)
+    m = Manipulator(d)
+    rng = np.random.default_rng(9)
+    q = random_q(rng, 200)
+    for mode in "+-":
+        b = forward_batch(d, q, mode)
+        cond = conditioning(d, b.q, b.passive, b.w)
+        for i in range(len(q)):
+            found = [p for p in m.forward(q[i]) if p.assembly_mode == mode]
+            assert bool(b.ok[i]) == bool(found)
+            if found:
+                np.testing.assert_allclose(found[0].p, b.p[i], atol=1e-14)
+                np.testing.assert_allclose(found[0].passive, b.passive[i], atol=1e-14)
+                c = m.conditioning(found[0])
+                assert c.kappa_A == pytest.approx(cond.kappa_A[i], rel=1e-12)
+                assert c.leg_B == pytest.approx(cond.leg_B[i], rel=1e-12)
+    ib = inverse_batch(d, b.p[b.ok][:20])
+    for i in range(20):
+        sols = m.inverse(b.p[b.ok][i])
+        assert [s.working_mode for s in sols] == [
+            WORKING_MODES[k] for k in np.flatnonzero(ib.ok[i])
+        ]
+
+
+def test_batch_inputs_are_validated():
+    d = Design.default()
+    with pytest.raises(InputError, match="q must have shape"):
+        forward_batch(d, np.zeros((4, 2)), "+")
+    with pytest.raises(InputError, match="finite"):
+        inverse_batch(d, np.array([[0.0, np.inf, 0.0]]))
+    with pytest.raises(InputError, match="assembly_mode"):
+        forward_batch(d, np.zeros((2, 3)), np.array([1, 0]))
