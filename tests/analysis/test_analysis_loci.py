@@ -16,7 +16,12 @@ from planner.analysis.loci import (
 )
 from planner.exceptions import InputError
 
-DESIGNS = [Design.paper_optimum(), Design.singularity_free(), Design(0.3, 0.3, 0.4), Design(0.6, 0.25, 0.45)]
+DESIGNS = [
+    Design.paper_optimum(),
+    Design.singularity_free(),
+    Design(0.3, 0.3, 0.4),
+    Design(0.6, 0.25, 0.45),
+]
 
 
 def _matrix_a(design, q, passive):

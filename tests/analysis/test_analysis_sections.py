@@ -11,7 +11,9 @@ from planner.analysis.sections import cartesian_section, joint_section
 from planner.kinematics import WORKING_MODES
 
 
-@pytest.mark.parametrize("design", [Design.paper_optimum(), Design.singularity_free(), Design(0.3, 0.5, 0.2)])
+@pytest.mark.parametrize(
+    "design", [Design.paper_optimum(), Design.singularity_free(), Design(0.3, 0.5, 0.2)]
+)
 def test_cartesian_reach_matches_the_two_shells(design):
     s = cartesian_section(design, 96)
     uu, ww = np.meshgrid(s.x, s.y)
@@ -20,7 +22,9 @@ def test_cartesian_reach_matches_the_two_shells(design):
     db = np.hypot(uu - design.L0 / 2, ww)
     inside = (da >= small) & (da <= big) & (db >= small) & (db <= big)
     cell = max(s.x[1] - s.x[0], s.y[1] - s.y[0])
-    margin = np.minimum.reduce([np.abs(da - big), np.abs(da - small), np.abs(db - big), np.abs(db - small)])
+    margin = np.minimum.reduce(
+        [np.abs(da - big), np.abs(da - small), np.abs(db - big), np.abs(db - small)]
+    )
     clear = (margin > cell) & (np.abs(ww) > cell)
     reached = s.reached.any(axis=-1)
     assert np.array_equal(reached[clear], inside[clear])

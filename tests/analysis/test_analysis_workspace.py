@@ -37,7 +37,11 @@ def _slab_volume(design: Design) -> float:
         return math.pi * max(hi - lo, 0.0)
 
     lim = big + design.L0 / 2
-    pts = sorted({-design.L0 / 2 + s for s in (-small, small)} | {design.L0 / 2 + s for s in (-small, small)} | {0.0})
+    pts = sorted(
+        {-design.L0 / 2 + s for s in (-small, small)}
+        | {design.L0 / 2 + s for s in (-small, small)}
+        | {0.0}
+    )
     return integrate.quad(area, -lim, lim, points=pts, limit=400, epsabs=1e-12)[0]
 
 
@@ -112,7 +116,9 @@ def test_half_turn_of_theta1_keeps_the_volume_but_halves_each_mode():
 
 def test_quarter_turn_of_theta1_halves_the_volume():
     base = Design(0.2, 0.4, 0.35)
-    d = Design(base.L0, base.L1, base.L2, joint_min=(0.0, -4.0, -4.0), joint_max=(math.pi / 2, 4.0, 4.0))
+    d = Design(
+        base.L0, base.L1, base.L2, joint_min=(0.0, -4.0, -4.0), joint_max=(math.pi / 2, 4.0, 4.0)
+    )
     s = sample_workspace(d, rel_se=0.004, replicates=16, seed=2)
     assert abs(s.volume.value - closed_form_volume(d) / 2) <= 3 * s.volume.standard_error
 
