@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/analysis.py [--n 256] [--rel-se 0.005] [--repeat 7]
 
-Prints the median wall time of repeats (after one warm-up call) on one core, against the goal
+Prints the median wall time of repeats (after one warm-up call) on one core (the numba kernels
+and numpy run single-threaded), against the goal
 of one second each (issue 4):
 
 * a Cartesian (u, w) section, n x n cells x 8 working modes: inverse kinematics, joint limits,
@@ -15,16 +16,13 @@ of one second each (issue 4):
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import time
 from collections.abc import Callable
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-
-from planner import Design  # noqa: E402
-from planner.analysis.sections import cartesian_section, joint_section  # noqa: E402
-from planner.analysis.workspace import closed_form_volume, sample_workspace  # noqa: E402
+from planner import Design
+from planner.analysis.sections import cartesian_section, joint_section
+from planner.analysis.workspace import closed_form_volume, sample_workspace
 
 GOAL_S = 1.0
 

@@ -345,7 +345,7 @@ def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
     p = np.array([locus.uw[i, 1], locus.uw[i, 0], 0.0])
     b = inverse_batch(design, p)
     c = conditioning(design, b.q, b.passive, b.w)
-    fig = Figure(figsize=(10, 4.8))
+    fig = Figure(figsize=(10, 3.6))
     for k, mode in enumerate((CONVEX[0], NONCONVEX[0])):
         ax = fig.add_subplot(1, 2, k + 1)
         s = MODE_INDEX[mode]

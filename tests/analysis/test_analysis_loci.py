@@ -117,3 +117,19 @@ def test_select_and_polyline():
     assert len(finite) == sel.valid.sum()
     with pytest.raises(InputError):
         loc.polyline("polar")
+
+
+def test_curves_are_continuous_and_closed_in_the_plane():
+    """The two circle-intersection branches are joined at their turning points: along a branch
+    P moves by small steps, and each joined curve ends where it started."""
+    d = Design(0.6, 0.25, 0.45)
+    loc = isoconditioning_loci(d, 2.0, samples=2001)
+    xy = loc.uw
+    breaks = np.flatnonzero(~loc.valid)
+    starts = np.concatenate([[0], breaks + 1])
+    ends = np.concatenate([breaks, [len(xy)]])
+    for s, e in zip(starts, ends, strict=True):
+        seg = xy[s:e]
+        steps = np.linalg.norm(np.diff(seg, axis=0), axis=1)
+        assert steps.max() < 0.05 * d.reach
+        assert np.linalg.norm(seg[0] - seg[-1]) < 0.03 * d.reach

@@ -191,7 +191,9 @@ def _locus(kind: str, batch: PostureBatch, **extra: object) -> Locus:
 
 
 def _cat(parts: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
-    """Concatenate branches (tuples of equally long arrays) with a NaN row between them."""
+    """Concatenate branches (t2, t3, P) with a NaN row between them (one NaN row if none)."""
+    if not parts:
+        return np.full(1, np.nan), np.full(1, np.nan), np.full((1, 2), np.nan)
     out = []
     for i in range(len(parts[0])):
         pieces = []
@@ -209,13 +211,44 @@ def _check_samples(samples: int) -> int:
     return int(samples)
 
 
+def _joined(
+    plus: np.ndarray, minus: np.ndarray, *, periodic: bool
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Join the two solution branches of a circle intersection into continuous curves.
+
+    Where the solutions exist on an interval of the parameter, the '+' branch runs across it
+    and the '-' branch back, meeting at the interval's ends (the turning points), so the curve
+    closes. ``periodic``: the parameter samples a full turn with the last sample equal to the
+    first. Returns (rows, solution) pairs, rows indexing the parameter samples.
+    """
+    n = len(plus)
+    ok = np.isfinite(plus)
+    if ok.all():
+        rows = np.arange(n)
+        return [(rows, plus), (rows, minus)]
+    if periodic:  # start at a gap so that no interval wraps around the array's ends
+        m = n - 1
+        order = (int(np.flatnonzero(~ok[:m])[0]) + np.arange(m)) % m
+    else:
+        order = np.arange(n)
+    okk = ok[order]
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], okk.astype(np.int8), [0]])))
+    out = []
+    for s, e in zip(edges[::2], edges[1::2], strict=True):
+        run = order[s:e]
+        rows = np.concatenate([run, run[::-1], run[:1]])
+        sol = np.concatenate([plus[run], minus[run][::-1], plus[run[:1]]])
+        out.append((rows, sol))
+    return out
+
+
 def _cd_curves(design: Design, dist: float, samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Branches (t2, t3) of the joint-space curve |CD| = dist, t2 over a full turn."""
+    """Closed curves (t2, t3) of the joint-space curve |CD| = dist, t2 over a full turn."""
     t2 = np.linspace(-math.pi, math.pi, samples)
     c = np.array([-design.L0 / 2, 0.0]) + design.L1 * _e(t2)
     b = np.broadcast_to(np.array([design.L0 / 2, 0.0]), c.shape)
     plus, minus = _angles_to(b, c, design.L1, dist)
-    return [(t2, plus), (t2, minus)]
+    return [(t2[rows], sol) for rows, sol in _joined(plus, minus, periodic=True)]
 
 
 # ----------------------------------------------------------------------------- public
@@ -304,7 +337,12 @@ def serial_loci(
         ):
             p = base + radius * _e(t)
             sol = _angles_to(np.broadcast_to(other, p.shape), p, design.L1, design.L2)
-            parts = [(t, s, p) if leg == "A" else (s, t, p) for s in sol]
+            parts = [
+                (t[rows], x, p[rows]) if leg == "A" else (x, t[rows], p[rows])
+                for rows, x in _joined(*sol, periodic=True)
+            ]
+            if not parts:
+                continue
             t2, t3, pp = _cat(parts)
             loc = _locus(f"leg_{leg}_{name}", _batch(design, theta1, t2, t3, pp))
             if loc.valid.any():
