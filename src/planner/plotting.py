@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.axes import Axes
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
@@ -67,7 +68,7 @@ def _labels() -> list[str | None]:
     return [v["label"] for v in _LOCUS_STYLE.values()]
 
 
-def _legend_below(ax, ncol: int = 3) -> None:
+def _legend_below(ax: Axes, ncol: int = 3) -> None:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7, frameon=False)
 
 
@@ -82,7 +83,7 @@ def _in_plane(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
     return np.stack([pts[:, 1], pts[:, 0]], axis=1)
 
 
-def _frame(ax, design: Design) -> None:
+def _frame(ax: Axes, design: Design) -> None:
     """Same (u, w) window for every posture drawing of a design."""
     r = design.reach
     ax.set_xlim(-1.05 * (design.L0 / 2 + r), 1.05 * (design.L0 / 2 + r))
@@ -90,7 +91,7 @@ def _frame(ax, design: Design) -> None:
 
 
 def draw_posture(
-    ax, design: Design, q: np.ndarray, passive: np.ndarray, *, colour: str = "k"
+    ax: Axes, design: Design, q: np.ndarray, passive: np.ndarray, *, colour: str = "k"
 ) -> None:
     """Draw the five-bar A-C-P-D-B of one posture in the (u, w) plane."""
     a, b, c, d, p = _in_plane(design, q, passive)
@@ -106,7 +107,7 @@ def draw_posture(
 
 
 def plot_loci(
-    ax,
+    ax: Axes,
     loci: dict[str, Locus],
     space: str = "cartesian",
     *,
@@ -166,7 +167,7 @@ def _kappa_image(section: Section, slots: list[int]) -> np.ndarray:
         return np.where(np.isfinite(k), np.log10(k), np.nan)
 
 
-def _kappa_panel(fig: Figure, ax, section: Section, slots: list[int]) -> None:
+def _kappa_panel(fig: Figure, ax: Axes, section: Section, slots: list[int]) -> None:
     img = _kappa_image(section, slots)
     sing = np.any(section.reached[..., slots] & section.singular[..., slots], axis=-1)
     im = ax.imshow(img, origin="lower", extent=_extent(section), cmap="viridis_r",
@@ -191,15 +192,18 @@ def _joint_axes(ax) -> None:
 
 
 # ----------------------------------------------------------------------------- figures
-def _pick(locus: Locus, design: Design, *, upper: bool = True) -> int:
-    """Row of a locus with P above AB and the largest distance to every other singularity."""
-    v = locus.valid & ((locus.uw[:, 1] > 1e-3 * design.reach) if upper else True)
+def _pick(locus: Locus, design: Design) -> int:
+    """Row of a locus with P above AB that is farthest from the *other* singularities: the
+    largest serial margin for a parallel locus; for a serial locus (whose own margin is 0) the
+    larger of the second-smallest serial margin and 1 / kappa(A)."""
+    v = locus.valid & (locus.uw[:, 1] > 1e-3 * design.reach)
     c = conditioning(design, locus.q, locus.passive, locus.uw[:, 1])
-    serial = np.sort(c.serial, axis=-1)[..., 1]  # the locus's own margin is the smallest
-    score = np.where(v, np.minimum(serial, 1.0 / np.maximum(c.kappa_A, 1.0)), -np.inf)
-    if locus.kind.startswith(("C=D", "CD")):
-        score = np.where(v, c.min_serial, -np.inf)
-    return int(np.argmax(score))
+    if locus.kind in ("C=D", "CD_stretched"):
+        score = c.min_serial
+    else:
+        second = np.sort(c.serial, axis=-1)[..., 1]
+        score = np.minimum(second, 1.0 / np.maximum(c.kappa_A, 1.0))
+    return int(np.argmax(np.where(v, score, -np.inf)))
 
 
 def figure_04(design: Design = GENERAL_DESIGN) -> Figure:
@@ -361,8 +365,9 @@ def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
 def _mode_workspace_figure(title: str, design: Design, modes: tuple[str, str], n: int) -> Figure:
     section = cartesian_section(design, n)
     slots = [MODE_INDEX[m] for m in modes]
-    par = {k: loc.select(working_mode=modes[0]) for k, loc in parallel_loci(design).items()}
-    par2 = {k: loc.select(working_mode=modes[1]) for k, loc in parallel_loci(design).items()}
+    loci = parallel_loci(design)
+    par = {k: loc.select(working_mode=modes[0]) for k, loc in loci.items()}
+    par2 = {k: loc.select(working_mode=modes[1]) for k, loc in loci.items()}
     fig = Figure(figsize=(7, 7))
     ax = fig.add_subplot(1, 1, 1)
     _kappa_panel(fig, ax, section, slots)

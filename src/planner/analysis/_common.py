@@ -8,7 +8,13 @@ from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import WORKING_MODES
 
-__all__ = ["KAPPA_SINGULAR", "MODE_INDEX", "parse_modes", "within_limits_mod_2pi"]
+__all__ = [
+    "KAPPA_SINGULAR",
+    "MODE_INDEX",
+    "MODE_SIGNS",
+    "parse_modes",
+    "within_limits_mod_2pi",
+]
 
 #: kappa(A) at or above which a sampled posture counts as parallel-singular in the analyses
 #: (the bound of the design-check test of the issue).
@@ -16,6 +22,9 @@ KAPPA_SINGULAR = 1e6
 
 #: Slot index of each working-mode label in :func:`planner.inverse_batch`.
 MODE_INDEX: dict[str, int] = {m: k for k, m in enumerate(WORKING_MODES)}
+
+#: Shape (8, 3), int8: the signs (s_axis, s_A, s_B) of each slot of :data:`WORKING_MODES`.
+MODE_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
 
 
 def parse_modes(working_modes: object) -> np.ndarray:

@@ -125,7 +125,9 @@ def check_design(
     volume = closed_form_volume(design)
     sample = sample_workspace(design, rel_se=rel_se, kappa_max=kappa_max, seed=seed)
     operative = tuple(m for m in WORKING_MODES if sample.per_mode_regular[m].value > 0.0)
-    assert sample.well_conditioned_fraction is not None
+    fraction = sample.well_conditioned_fraction
+    if fraction is None:  # pragma: no cover - kappa_max was given, so it is computed
+        raise RuntimeError("sample_workspace returned no well-conditioned fraction")
     return DesignCheck(
         design=design,
         volume=volume,
@@ -135,6 +137,6 @@ def check_design(
         operative_working_modes=operative,
         sampled_volume=sample.volume,
         kappa_max=float(kappa_max),
-        well_conditioned_fraction=sample.well_conditioned_fraction,
+        well_conditioned_fraction=fraction,
         gci=sample.gci,
     )

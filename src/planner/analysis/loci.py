@@ -25,7 +25,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import PostureBatch, mode_label
+from planner.kinematics import PostureBatch, mode_label, wrap_angle
 
 __all__ = [
     "LOCUS_KINDS",
@@ -167,8 +167,7 @@ def _batch(
     d = np.array([half, 0.0]) + design.L1 * _e(t3)
     t4 = np.arctan2(p_uw[:, 1] - c[:, 1], p_uw[:, 0] - c[:, 0])
     t5 = np.arctan2(p_uw[:, 1] - d[:, 1], p_uw[:, 0] - d[:, 0])
-    wrap = lambda x: np.pi - np.mod(np.pi - x, 2 * np.pi)  # noqa: E731
-    q = np.stack([np.full_like(t2, theta1), wrap(t2), wrap(t3)], axis=1)
+    q = np.stack([np.full_like(t2, theta1), wrap_angle(t2), wrap_angle(t3)], axis=1)
     passive = np.stack([t4, t5], axis=1)
     w = p_uw[:, 1]
     p = np.stack([w * math.cos(theta1), p_uw[:, 0], -w * math.sin(theta1)], axis=1)

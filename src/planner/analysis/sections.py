@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from planner.analysis._common import KAPPA_SINGULAR, within_limits_mod_2pi
+from planner.analysis._common import KAPPA_SINGULAR, MODE_SIGNS, within_limits_mod_2pi
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import (
@@ -32,8 +32,6 @@ __all__ = ["Section", "cartesian_section", "joint_section"]
 
 #: Largest grid side accepted (cells per axis): a sanity bound on memory (8 slots per cell).
 MAX_GRID = 2048
-
-_SLOT_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,9 +184,7 @@ def cartesian_section(
     p = np.stack([ww * math.cos(theta1), uu, -ww * math.sin(theta1)], axis=-1).reshape(-1, 3)
     batch = inverse_batch(design, p, theta1_on_axis=theta1)
     side = np.sign(ww.reshape(-1))
-    in_plane = np.where(
-        side[:, None] >= 0, _SLOT_SIGNS[None, :, 0] > 0, _SLOT_SIGNS[None, :, 0] < 0
-    )
+    in_plane = np.where(side[:, None] >= 0, MODE_SIGNS[None, :, 0] > 0, MODE_SIGNS[None, :, 0] < 0)
     reached = batch.ok & in_plane
     if joint_limits:
         reached &= within_limits_mod_2pi(design, batch.q)
