@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from planner import Design, InputError, Manipulator
 from planner.analysis.loci import kappa_from_cd_distance
@@ -113,3 +114,47 @@ def test_bad_grid_arguments():
         joint_section(Design.default(), 8, extent=(1.0, 0.0, 0.0, 1.0))
     with pytest.raises(InputError, match="theta1"):
         cartesian_section(Design.default(), 8, theta1=float("nan"))
+
+
+def _cells_of(section, xy):
+    """Grid indices (row, col) of the cells holding points xy (M, 2), or -1 outside."""
+    dx, dy = section.x[1] - section.x[0], section.y[1] - section.y[0]
+    col = np.floor((xy[:, 0] - (section.x[0] - dx / 2)) / dx).astype(int)
+    row = np.floor((xy[:, 1] - (section.y[0] - dy / 2)) / dy).astype(int)
+    inside = (col >= 0) & (col < len(section.x)) & (row >= 0) & (row < len(section.y))
+    return row[inside], col[inside]
+
+
+def test_grid_singular_flags_lie_along_the_computed_loci():
+    """Two routes to the same singularities: sign flips between grid cells and the closed-form
+    curves. Every cell on the stretched-CD curve of a mode is flagged (or a neighbour is)."""
+    from planner.analysis.loci import parallel_loci, serial_loci
+
+    d = Design(0.6, 0.25, 0.45)
+    s = cartesian_section(d, 128)
+    loc = parallel_loci(d)["CD_stretched"].select(working_mode="+-+")
+    v = loc.valid & (loc.uw[:, 1] > 0.02)
+    row, col = _cells_of(s, loc.uw[v])
+    k = s.slot("+-+")
+    hit, interior = [], []
+    for r, c in zip(row, col, strict=True):
+        block = (slice(max(r - 2, 0), r + 3), slice(max(c - 2, 0), c + 3), k)
+        interior.append(s.reached[block].all())  # the curve also touches the boundary
+        hit.append(s.singular[max(r - 1, 0) : r + 2, max(c - 1, 0) : c + 2, k].any())
+    hit = np.array(hit)[np.array(interior)]
+    assert len(hit) > 50 and hit.all()
+    # and the flagged cells of a regular mode lie near its serial boundary only
+    j = joint_section(d, 96)
+    sl = serial_loci(d, samples=20001)
+    pts = np.concatenate([loc_.q[loc_.valid][:, 1:] for loc_ in sl.values()])
+    flagged = np.argwhere(j.singular[..., 0])
+    cell = j.x[1] - j.x[0]
+    g = np.stack([j.x[flagged[:, 1]], j.y[flagged[:, 0]]], axis=1)
+
+    def on_torus(x):
+        y = np.mod(x + np.pi, 2 * np.pi)
+        return np.where(y >= 2 * np.pi, 0.0, y)
+
+    torus = cKDTree(on_torus(pts), boxsize=2 * np.pi)
+    dist, _ = torus.query(on_torus(g), p=np.inf)
+    assert len(g) > 100 and dist.max() < 1.5 * cell
