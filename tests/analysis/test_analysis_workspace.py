@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import integrate
 
 from planner import Design, InputError
@@ -38,9 +40,7 @@ def _slab_volume(design: Design) -> float:
 
     lim = big + design.L0 / 2
     pts = sorted(
-        {-design.L0 / 2 + s for s in (-small, small)}
-        | {design.L0 / 2 + s for s in (-small, small)}
-        | {0.0}
+        {c + s for c in (-design.L0 / 2, design.L0 / 2) for s in (-big, -small, small, big)} | {0.0}
     )
     return integrate.quad(area, -lim, lim, points=pts, limit=400, epsabs=1e-12)[0]
 
@@ -163,3 +163,14 @@ def test_one_mode_reaches_everything_without_limits_but_not_with_them():
     both = sample_workspace(lim, rel_se=None, seed=4).volume.value
     assert 0.0 < cut < both <= all_modes
     assert np.isfinite(cut)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(
+    l0=st.floats(0.0, 2.0),
+    l1=st.floats(0.01, 1.0),
+    l2=st.floats(0.01, 1.0),
+)
+def test_closed_form_matches_slab_integration_for_any_design(l0, l1, l2):
+    d = Design(l0, l1, l2)
+    assert closed_form_volume(d) == pytest.approx(_slab_volume(d), rel=1e-6, abs=1e-10)
