@@ -86,3 +86,20 @@ def test_figures_command_writes_every_figure(tmp_path):
             assert files[0].stat().st_size > 2000
     png = next(tmp_path.glob("fig08_*.png")).read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    ("extra", "field"),
+    [({"kappa_max": 0.5}, "kappa_max"), ({"rel_se": 0.0}, "rel_se"), ({"seed": -1}, "seed")],
+)
+def test_bad_check_options_are_422(client, extra, field):
+    r = client.post("/v1/design/check", json={"design": {"L0": 0.1, "L1": 0.4, "L2": 0.4}, **extra})
+    assert r.status_code == 422
+    assert [e["loc"] for e in r.json()["detail"]] == [["body", field]]
+
+
+def test_openapi_documents_the_design_check(client):
+    spec = client.get("/openapi.json").json()
+    op = spec["paths"]["/v1/design/check"]["post"]
+    assert "requestBody" in op
+    assert "DesignModel" in spec["components"]["schemas"]
