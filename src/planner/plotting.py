@@ -64,10 +64,6 @@ _LOCUS_STYLE = {
 }
 
 
-def _labels() -> list[str | None]:
-    return [v["label"] for v in _LOCUS_STYLE.values()]
-
-
 def _legend_below(ax: Axes, ncol: int = 3) -> None:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7, frameon=False)
 
@@ -116,15 +112,16 @@ def plot_loci(
 ) -> None:
     """Draw singularity loci (from :func:`parallel_loci` / :func:`serial_loci`); a locus that
     is a single point (e.g. the stretched CD at P = O when L0 = 0) is drawn as a cross."""
-    seen: set[str | None] = set() if labels else {label for label in _labels()}
+    seen: set[str] = set()
     for kind, locus in loci.items():
         if locus.fills_region and space == "cartesian":
             continue
         style = dict(_LOCUS_STYLE.get(kind, {"color": "grey"}))
         label = style.pop("label", None)
-        if label in seen:
+        if not labels or label in seen:
             label = None
-        seen.add(label)
+        elif label is not None:
+            seen.add(label)
         xy = locus.polyline(space)
         finite = xy[np.all(np.isfinite(xy), axis=1)]
         if len(finite) and np.ptp(finite, axis=0).max() < 1e-6:
