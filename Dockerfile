@@ -1,0 +1,33 @@
+# hybrid-planner service image.
+#   docker build -t hybrid-planner .
+#   docker run --rm -p 8000:8000 hybrid-planner
+# Stage 1 installs the project and its pinned dependencies into a virtual environment and
+# compiles the numba kernels once; stage 2 copies only that environment onto a slim base and
+# runs it as an unprivileged user.
+FROM python:3.11-slim AS build
+# numba's compiled kernels go to one cache folder that the runtime stage reuses.
+ENV PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_CACHE_DIR=1 PYTHONDONTWRITEBYTECODE=1 \
+    NUMBA_CACHE_DIR=/opt/numba-cache
+WORKDIR /src
+RUN python -m venv /opt/venv
+COPY pyproject.toml constraints.txt README.md ./
+COPY src ./src
+COPY api ./api
+RUN /opt/venv/bin/pip install --quiet -c constraints.txt . \
+ && /opt/venv/bin/python -c "import numpy as np, planner as p; d = p.Design.default(); b = p.forward_batch(d, np.zeros((1, 3)), '+'); p.inverse_batch(d, b.p); p.conditioning(d, b.q, b.passive, b.w)"
+
+FROM python:3.11-slim
+RUN useradd --create-home --uid 10001 planner
+COPY --from=build /opt/venv /opt/venv
+COPY --from=build --chown=planner /opt/numba-cache /opt/numba-cache
+ENV PATH=/opt/venv/bin:$PATH \
+    PYTHONUNBUFFERED=1 \
+    NUMBA_CACHE_DIR=/opt/numba-cache \
+    PLANNER_HOST=0.0.0.0 \
+    PLANNER_PORT=8000
+USER planner
+WORKDIR /home/planner
+EXPOSE 8000
+HEALTHCHECK --interval=30s --timeout=5s --start-period=20s --retries=3 \
+  CMD ["python", "-c", "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/v1/health', timeout=4)"]
+CMD ["planner", "serve", "--host", "0.0.0.0", "--port", "8000"]
