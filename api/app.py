@@ -11,7 +11,7 @@ import planner
 from api.deps import ApiKey
 from api.errors import install_error_handlers
 from api.middleware import RequestLimitsMiddleware
-from api.routes import designs, kinematics, meta, plan
+from api.routes import design, designs, kinematics, meta, plan
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
@@ -55,6 +55,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         timeout_s=settings.request_timeout_s,
     )
     app.include_router(meta.router)
-    for router in (designs.router, kinematics.router, plan.router):
+    for router in (design.router, designs.router, kinematics.router, plan.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     return app

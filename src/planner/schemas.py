@@ -38,6 +38,8 @@ __all__ = [
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianTarget",
+    "DesignCheckRequest",
+    "DesignCheckResponse",
     "DesignModel",
     "DesignPreset",
     "DesignsResponse",
@@ -63,6 +65,7 @@ __all__ = [
     "PlannerOptions",
     "PostureModel",
     "Readiness",
+    "SampledValue",
     "SegmentModel",
     "SerialMargins",
     "SphereObstacle",
@@ -564,3 +567,54 @@ class ErrorResponse(_Response):
     """Body of every 4xx/5xx answer of the service."""
 
     detail: list[ErrorItem]
+
+
+# ---------------------------------------------------------------------------- design check
+class DesignCheckRequest(_Request):
+    """Body of ``POST /v1/design/check``."""
+
+    design: DesignModel = _DesignField
+    kappa_max: float = Field(
+        10.0,
+        ge=1.0,
+        le=1e12,
+        allow_inf_nan=False,
+        description="Bound on kappa(A) for the well-conditioned fraction.",
+    )
+    rel_se: float = Field(
+        0.01,
+        ge=1e-3,
+        le=0.5,
+        allow_inf_nan=False,
+        description="Relative standard error asked of the sampled volume.",
+    )
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
+
+
+class SampledValue(_Response):
+    """A sampled quantity and its standard error."""
+
+    value: float
+    standard_error: float
+    n_samples: int
+
+
+class DesignCheckResponse(_Response):
+    """Answer of ``POST /v1/design/check``."""
+
+    design: DesignModel
+    volume: float = Field(description="Closed-form workspace volume without joint limits, m^3.")
+    parallel_singularities: list[Literal["C=D", "CD_stretched"]] = Field(
+        description="Parallel-singularity kinds that occur in the workspace."
+    )
+    singularity_free: bool = Field(description="No parallel singularity anywhere.")
+    reasons: dict[str, str] = Field(description="Why each kind can or cannot occur.")
+    operative_working_modes: list[str] = Field(
+        description="Working modes with a regular (kappa(A) finite) posture in some volume."
+    )
+    sampled_volume: SampledValue = Field(description="Volume within the joint limits, m^3.")
+    kappa_max: float
+    well_conditioned_fraction: SampledValue = Field(
+        description="Fraction of the sampled volume where some posture has kappa(A) <= kappa_max."
+    )
+    gci: SampledValue = Field(description="Global conditioning index (mean 1/kappa(A)).")

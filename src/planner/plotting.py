@@ -1,0 +1,489 @@
+"""Figures of the design analysis (matplotlib; the only plotting module, core never imports it).
+
+:func:`write_figures` reproduces the seed paper's figures 4-15 as PNG and SVG files, one per
+figure, each titled with the design used; axes in metres (the linkage plane: u along AB, w
+normal to it) or radians (joint space theta2-theta3). Figures are built on
+:class:`matplotlib.figure.Figure` objects (no pyplot global state), so this module is safe to
+use from a server thread.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.axes import Axes
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+
+from planner.analysis._common import MODE_INDEX
+from planner.analysis.loci import (
+    Locus,
+    isoconditioning_loci,
+    parallel_loci,
+    serial_loci,
+)
+from planner.analysis.sections import Section, cartesian_section, joint_section
+from planner.design import Design
+from planner.kinematics import WORKING_MODES, conditioning, inverse_batch, link_points
+
+__all__ = [
+    "FIGURES",
+    "GENERAL_DESIGN",
+    "MODE_CHANGE_DESIGN",
+    "draw_posture",
+    "plot_loci",
+    "write_figures",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Design of figures 4-7: both parallel-singularity kinds occur (L0 <= 2 L1, L0 >= 2 (L2 - L1)).
+GENERAL_DESIGN = Design(L0=0.3, L1=0.3, L2=0.4)
+#: Design of figures 12-15: no C = D (2 L1 < L0) but a stretched CD, which lies only in some
+#: working modes (the convex one, '+-+'), so a change of working mode avoids it (section 3.3).
+MODE_CHANGE_DESIGN = Design(L0=0.6, L1=0.25, L2=0.45)
+#: Convex and non-convex working modes (upper half-plane) and their mirrors about AB.
+CONVEX = ("+-+", "-+-")
+NONCONVEX = ("++-", "--+")
+
+_MODE_COLOURS = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf",
+]  # fmt: skip
+_LOCUS_STYLE = {
+    "CD_stretched": {"color": "red", "lw": 1.6, "ls": "-", "label": "parallel: CD stretched"},
+    "C=D": {"color": "magenta", "lw": 1.6, "ls": "--", "label": "parallel: C = D"},
+    "leg_A_stretched": {"color": "navy", "lw": 1.0, "ls": "-", "label": "serial: leg A"},
+    "leg_A_folded": {"color": "navy", "lw": 1.0, "ls": "-", "label": None},
+    "leg_B_stretched": {"color": "darkgreen", "lw": 1.0, "ls": "-", "label": "serial: leg B"},
+    "leg_B_folded": {"color": "darkgreen", "lw": 1.0, "ls": "-", "label": None},
+    "P_on_axis": {"color": "black", "lw": 1.0, "ls": ":", "label": "serial: P on AB"},
+}
+
+
+def _legend_below(ax: Axes, ncol: int = 3) -> None:
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7, frameon=False)
+
+
+def _design_text(design: Design) -> str:
+    return f"L0 = {design.L0:g} m, L1 = {design.L1:g} m, L2 = {design.L2:g} m"
+
+
+def _in_plane(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
+    """(5, 2) in-plane (u, w) of A, B, C, D, P for planar joints (theta1 ignored)."""
+    q0 = np.array([0.0, q[1], q[2]])
+    pts = link_points(design, q0, passive)
+    return np.stack([pts[:, 1], pts[:, 0]], axis=1)
+
+
+def _frame(ax: Axes, design: Design) -> None:
+    """Same (u, w) window for every posture drawing of a design."""
+    r = design.reach
+    ax.set_xlim(-1.05 * (design.L0 / 2 + r), 1.05 * (design.L0 / 2 + r))
+    ax.set_ylim(-0.45 * r, 1.05 * r)
+
+
+def draw_posture(
+    ax: Axes, design: Design, q: np.ndarray, passive: np.ndarray, *, colour: str = "k"
+) -> None:
+    """Draw the five-bar A-C-P-D-B of one posture in the (u, w) plane."""
+    a, b, c, d, p = _in_plane(design, q, passive)
+    chain = np.array([a, c, p, d, b])
+    ax.plot(chain[:, 0], chain[:, 1], "-", color=colour, lw=2.5, solid_capstyle="round")
+    ax.plot([a[0], b[0]], [a[1], b[1]], "-", color="0.4", lw=4)
+    ax.plot(*np.array([a, b, c, d]).T, "o", color=colour, ms=5, mfc="white")
+    ax.plot(*p, "o", color=colour, ms=7)
+    off = 0.02 * design.reach
+    for name, pt in zip("ABCDP", (a, b, c, d, p), strict=True):
+        ax.text(pt[0] + off, pt[1] + off, name, fontsize=9)
+    _frame(ax, design)
+
+
+def plot_loci(
+    ax: Axes,
+    loci: dict[str, Locus],
+    space: str = "cartesian",
+    *,
+    legend: bool = True,
+    labels: bool = True,
+) -> None:
+    """Draw singularity loci (from :func:`parallel_loci` / :func:`serial_loci`); a locus that
+    is a single point (e.g. the stretched CD at P = O when L0 = 0) is drawn as a cross."""
+    seen: set[str] = set()
+    for kind, locus in loci.items():
+        if locus.fills_region and space == "cartesian":
+            continue
+        style = dict(_LOCUS_STYLE.get(kind, {"color": "grey"}))
+        label = style.pop("label", None)
+        if not labels or label in seen:
+            label = None
+        elif label is not None:
+            seen.add(label)
+        xy = locus.polyline(space)
+        finite = xy[np.all(np.isfinite(xy), axis=1)]
+        if len(finite) and np.ptp(finite, axis=0).max() < 1e-6:
+            ax.plot(*finite[0], "x", color=style["color"], ms=10, mew=2, label=label)
+            continue
+        if space == "joint" and kind == "C=D" and not locus.fills_region:
+            ax.plot(xy[:, 0], xy[:, 1], "o", color=style["color"], ms=7, mfc="none",
+                    label=label)  # fmt: skip
+            continue
+        ax.plot(xy[:, 0], xy[:, 1], label=label, **style)
+    if legend:
+        _legend_below(ax)
+
+
+def _extent(section: Section) -> list[float]:
+    dx = (section.x[1] - section.x[0]) / 2
+    dy = (section.y[1] - section.y[0]) / 2
+    return [section.x[0] - dx, section.x[-1] + dx, section.y[0] - dy, section.y[-1] + dy]
+
+
+def _mode_index_image(section: Section, slot: int) -> np.ndarray:
+    """(ny, nx) float: working-mode slot index 0-7, 8 where singular, NaN where not reached."""
+    wm = section.working_mode[..., slot, :]
+    idx = 4 * (wm[..., 0] < 0) + 2 * (wm[..., 1] < 0) + (wm[..., 2] < 0)
+    img = idx.astype(float)
+    img[section.singular[..., slot]] = 8
+    img[~section.reached[..., slot]] = np.nan
+    return img
+
+
+def _mode_cmap() -> ListedColormap:
+    return ListedColormap([*_MODE_COLOURS, "black"])
+
+
+def _kappa_image(section: Section, slots: list[int]) -> np.ndarray:
+    """log10 of the smallest regular kappa(A) over ``slots`` (NaN where none reaches)."""
+    reached = section.reached[..., slots] & ~section.singular[..., slots]
+    k = np.where(reached, section.kappa_A[..., slots], np.inf).min(axis=-1)
+    with np.errstate(divide="ignore"):
+        return np.where(np.isfinite(k), np.log10(k), np.nan)
+
+
+def _kappa_panel(fig: Figure, ax: Axes, section: Section, slots: list[int]) -> None:
+    img = _kappa_image(section, slots)
+    sing = np.any(section.reached[..., slots] & section.singular[..., slots], axis=-1)
+    im = ax.imshow(img, origin="lower", extent=_extent(section), cmap="viridis_r",
+                   vmin=0.0, vmax=1.5, interpolation="nearest", aspect="equal")  # fmt: skip
+    shade = np.where(sing & np.isnan(img), 1.0, np.nan)
+    ax.imshow(shade, origin="lower", extent=_extent(section), cmap=ListedColormap(["0.55"]),
+              interpolation="nearest", aspect="equal")  # fmt: skip
+    cb = fig.colorbar(im, ax=ax, shrink=0.8)
+    cb.set_label("log10 kappa(A), best regular posture")
+
+
+def _cartesian_axes(ax) -> None:
+    ax.set_xlabel("u (along AB) [m]")
+    ax.set_ylabel("w (in the linkage plane) [m]")
+    ax.set_aspect("equal")
+
+
+def _joint_axes(ax) -> None:
+    ax.set_xlabel("theta2 [rad]")
+    ax.set_ylabel("theta3 [rad]")
+    ax.set_aspect("equal")
+
+
+# ----------------------------------------------------------------------------- figures
+def _pick(locus: Locus, design: Design) -> int:
+    """Row of a locus with P above AB that is farthest from the *other* singularities: the
+    largest serial margin for a parallel locus; for a serial locus (whose own margin is 0) the
+    larger of the second-smallest serial margin and 1 / kappa(A)."""
+    v = locus.valid & (locus.uw[:, 1] > 1e-3 * design.reach)
+    c = conditioning(design, locus.q, locus.passive, locus.uw[:, 1])
+    if locus.kind in ("C=D", "CD_stretched"):
+        score = c.min_serial
+    else:
+        second = np.sort(c.serial, axis=-1)[..., 1]
+        score = np.minimum(second, 1.0 / np.maximum(c.kappa_A, 1.0))
+    return int(np.argmax(np.where(v, score, -np.inf)))
+
+
+def figure_04(design: Design = GENERAL_DESIGN) -> Figure:
+    """The four working modes (s_A, s_B) with P above AB, at one point P."""
+    u = np.linspace(-0.3, 0.3, 41) * design.reach
+    w = np.linspace(0.2, 0.9, 36) * design.reach
+    uu, ww = np.meshgrid(u, w)
+    p = np.stack([ww.ravel(), uu.ravel(), np.zeros(uu.size)], axis=1)
+    b = inverse_batch(design, p)
+    c = conditioning(design, b.q, b.passive, b.w)
+    spread = np.minimum(np.abs(np.sin(b.q[..., 1])), np.abs(np.sin(b.q[..., 2])))
+    good = np.minimum(np.minimum(c.min_serial, 1 / c.kappa_A), spread)
+    score = np.where(b.ok[:, :4], good[:, :4], -1).min(axis=1)
+    i = int(np.argmax(score))
+    fig = Figure(figsize=(8, 7))
+    for k in range(4):
+        ax = fig.add_subplot(2, 2, k + 1)
+        draw_posture(ax, design, b.q[i, k], b.passive[i, k], colour=_MODE_COLOURS[k])
+        ax.set_title(f"working mode {WORKING_MODES[k]}  (kappa(A) = {c.kappa_A[i, k]:.2f})",
+                     fontsize=9)  # fmt: skip
+        _cartesian_axes(ax)
+    fig.suptitle(f"Fig. 4: the four working modes (s_axis = +) at P = ({p[i, 1]:.3f}, "
+                 f"{p[i, 0]:.3f}) m\n{_design_text(design)}", fontsize=10)  # fmt: skip
+    return fig
+
+
+def _posture_figure(title: str, design: Design, locus: Locus, note: str) -> Figure:
+    i = _pick(locus, design)
+    fig = Figure(figsize=(6, 5))
+    ax = fig.add_subplot(1, 1, 1)
+    draw_posture(ax, design, locus.q[i], locus.passive[i], colour="tab:red")
+    c = conditioning(design, locus.q[i], locus.passive[i], locus.uw[i, 1])
+    ax.set_title(f"{title}\n{_design_text(design)}", fontsize=10)
+    ax.text(0.02, 0.02, f"{note}\nkappa(A) = {float(c.kappa_A):.3g}, "
+            f"min serial margin = {float(c.min_serial):.3g}",
+            transform=ax.transAxes, fontsize=8)  # fmt: skip
+    _cartesian_axes(ax)
+    return fig
+
+
+def figure_05(design: Design = GENERAL_DESIGN) -> Figure:
+    """Parallel singularity: P the midpoint of a stretched CD."""
+    locus = parallel_loci(design)["CD_stretched"]
+    return _posture_figure("Fig. 5: parallel singularity, C, P, D aligned (CD stretched)",
+                           design, locus, "A cannot resist a force normal to CD")  # fmt: skip
+
+
+def figure_06(design: Design = GENERAL_DESIGN) -> Figure:
+    """Parallel singularity: C = D, P turns freely about them."""
+    locus = parallel_loci(design)["C=D"]
+    fig = _posture_figure("Fig. 6: parallel singularity, C = D", design, locus,
+                          "P can turn about C = D with the actuators locked")  # fmt: skip
+    ax = fig.axes[0]
+    i = _pick(locus, design)
+    cd = _in_plane(design, locus.q[i], locus.passive[i])[2]
+    t = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(cd[0] + design.L2 * np.cos(t), cd[1] + design.L2 * np.sin(t), ":", color="tab:red")
+    return fig
+
+
+def figure_07(design: Design = GENERAL_DESIGN) -> Figure:
+    """Serial singularity: leg B stretched, P on the workspace boundary."""
+    locus = serial_loci(design)["leg_B_stretched"]
+    fig = _posture_figure("Fig. 7: serial singularity, leg B stretched (B, D, P aligned)",
+                          design, locus, "P cannot move along BP")  # fmt: skip
+    ax = fig.axes[0]
+    t = np.linspace(0, 2 * np.pi, 400)
+    ax.plot(design.L0 / 2 + design.reach * np.cos(t), design.reach * np.sin(t), ":",
+            color="0.5", label="|BP| = L1 + L2")  # fmt: skip
+    ax.legend(loc="upper right", fontsize=7)
+    return fig
+
+
+def _cartesian_section_figure(title: str, design: Design, n: int, note: str) -> Figure:
+    section = cartesian_section(design, n)
+    loci = {**serial_loci(design), **parallel_loci(design)}
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot(1, 1, 1)
+    _kappa_panel(fig, ax, section, list(range(8)))
+    plot_loci(ax, loci, "cartesian")
+    ax.set_title(f"{title}\n{_design_text(design)}\n{note}", fontsize=8)
+    _cartesian_axes(ax)
+    return fig
+
+
+def _joint_section_figure(title: str, design: Design, n: int) -> Figure:
+    section = joint_section(design, n)
+    loci = {**serial_loci(design), **parallel_loci(design)}
+    fig = Figure(figsize=(11, 6.2))
+    for k, mode in enumerate(section.labels):
+        ax = fig.add_subplot(1, 2, k + 1)
+        img = _mode_index_image(section, k)
+        ax.imshow(img, origin="lower", extent=_extent(section), cmap=_mode_cmap(), vmin=-0.5,
+                  vmax=8.5, interpolation="nearest", aspect="equal")  # fmt: skip
+        mine = {kind: loc.select(assembly_mode=mode) if kind != "C=D" else loc
+                for kind, loc in loci.items()}  # fmt: skip
+        plot_loci(ax, mine, "joint", legend=False)
+        present = sorted({WORKING_MODES[int(v)] for v in np.unique(img[np.isfinite(img)]) if v < 8})
+        for m in present:
+            ax.plot([], [], "s", color=_MODE_COLOURS[MODE_INDEX[m]], label=f"mode {m}")
+        ax.plot([], [], "s", color="black", label="singular")
+        _legend_below(ax, ncol=3)
+        ax.set_title(f"assembly mode '{mode}'", fontsize=9)
+        _joint_axes(ax)
+    fig.suptitle(f"{title}\n{_design_text(design)}", fontsize=10)
+    return fig
+
+
+def figure_08(design: Design | None = None, n: int = 256) -> Figure:
+    design = design or Design.paper_optimum()
+    return _cartesian_section_figure(
+        "Fig. 8: cross-section of the Cartesian workspace (L0 = 0, L1 = L2)", design, n,
+        "Modes with s_A = s_B are parallel-singular everywhere (C = D): only ++-, +-+ (and "
+        "mirrors) operate.\nAll singularities lie on the boundary: |OP| = L1 + L2, the axis, P = O.",
+    )  # fmt: skip
+
+
+def figure_09(design: Design | None = None, n: int = 256) -> Figure:
+    design = design or Design.paper_optimum()
+    return _joint_section_figure(
+        "Fig. 9: cross-section of the joint space (L0 = 0, L1 = L2); black: P at the base "
+        "point A = B (erratum 6)", design, n,
+    )  # fmt: skip
+
+
+def figure_10(design: Design | None = None, n: int = 256) -> Figure:
+    design = design or Design.singularity_free()
+    return _cartesian_section_figure(
+        "Fig. 10: Cartesian workspace free of parallel singularities (2 L1 < L0 < 2 (L2 - L1))",
+        design, n, "kappa(A) stays bounded: only serial singularities, on the boundary.",
+    )  # fmt: skip
+
+
+def figure_11(design: Design | None = None, n: int = 256) -> Figure:
+    design = design or Design.singularity_free()
+    return _joint_section_figure("Fig. 11: joint space free of parallel singularities", design, n)
+
+
+def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
+    """The same P: parallel-singular in the convex mode, regular in the non-convex one."""
+    locus = parallel_loci(design)["CD_stretched"].select(working_mode=CONVEX[0])
+    i = _pick(locus, design)
+    p = np.array([locus.uw[i, 1], locus.uw[i, 0], 0.0])
+    b = inverse_batch(design, p)
+    c = conditioning(design, b.q, b.passive, b.w)
+    fig = Figure(figsize=(10, 3.6))
+    for k, mode in enumerate((CONVEX[0], NONCONVEX[0])):
+        ax = fig.add_subplot(1, 2, k + 1)
+        s = MODE_INDEX[mode]
+        draw_posture(ax, design, b.q[0, s], b.passive[0, s], colour=_MODE_COLOURS[s])
+        kind = "convex" if k == 0 else "non-convex"
+        ax.set_title(f"{kind} working mode {mode}: kappa(A) = {c.kappa_A[0, s]:.3g}", fontsize=9)
+        _cartesian_axes(ax)
+    fig.suptitle(f"Fig. 12: working mode and parallel singularity, P = ({p[1]:.3f}, {p[0]:.3f}) m"
+                 f"\n{_design_text(design)}", fontsize=10)  # fmt: skip
+    return fig
+
+
+def _mode_workspace_figure(title: str, design: Design, modes: tuple[str, str], n: int) -> Figure:
+    section = cartesian_section(design, n)
+    slots = [MODE_INDEX[m] for m in modes]
+    loci = parallel_loci(design)
+    par = {k: loc.select(working_mode=modes[0]) for k, loc in loci.items()}
+    par2 = {k: loc.select(working_mode=modes[1]) for k, loc in loci.items()}
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot(1, 1, 1)
+    _kappa_panel(fig, ax, section, slots)
+    plot_loci(ax, serial_loci(design), "cartesian", legend=False)
+    plot_loci(ax, par, "cartesian", legend=False, labels=False)
+    plot_loci(ax, par2, "cartesian", legend=False, labels=False)
+    ax.plot([], [], color="red", label="parallel singularity in these modes")
+    _legend_below(ax, ncol=2)
+    ax.set_title(f"{title}\nmodes {modes[0]} (w > 0) and {modes[1]} (w < 0); "
+                 f"{_design_text(design)}", fontsize=9)  # fmt: skip
+    _cartesian_axes(ax)
+    return fig
+
+
+def figure_13(design: Design = MODE_CHANGE_DESIGN, n: int = 256) -> Figure:
+    return _mode_workspace_figure(
+        "Fig. 13: workspace of the convex working mode", design, CONVEX, n
+    )
+
+
+def figure_14(design: Design = MODE_CHANGE_DESIGN, n: int = 256) -> Figure:
+    return _mode_workspace_figure(
+        "Fig. 14: workspace of the non-convex working mode", design, NONCONVEX, n
+    )
+
+
+#: Levels of kappa(A) drawn in figure 15 (1 is the isotropy locus).
+ISO_LEVELS = (1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0)
+
+
+def figure_15(design: Design = MODE_CHANGE_DESIGN, n: int = 128) -> Figure:
+    """Isoconditioning curves of kappa(A) for the convex and the non-convex working modes."""
+    section = cartesian_section(design, n)
+    fig = Figure(figsize=(11, 6.5))
+    cmap = colormaps["plasma"]
+    for k, modes in enumerate((CONVEX, NONCONVEX)):
+        ax = fig.add_subplot(1, 2, k + 1)
+        slots = [MODE_INDEX[m] for m in modes]
+        area = np.where(section.reached[..., slots].any(axis=-1), 1.0, np.nan)
+        ax.imshow(area, origin="lower", extent=_extent(section), cmap=ListedColormap(["0.9"]),
+                  interpolation="nearest", aspect="equal")  # fmt: skip
+        for j, level in enumerate(ISO_LEVELS):
+            loc = isoconditioning_loci(design, level, samples=4001)
+            colour = cmap(j / len(ISO_LEVELS))
+            for m in modes:
+                xy = loc.select(working_mode=m).polyline("cartesian")
+                ax.plot(xy[:, 0], xy[:, 1], color=colour, lw=2.2 if level == 1 else 1.0)
+            ax.plot([], [], color=colour, lw=2.2 if level == 1 else 1.0,
+                    label="isotropy (kappa = 1)" if level == 1 else f"kappa = {level:g}")  # fmt: skip
+        par = parallel_loci(design)
+        for m in modes:
+            sel = {kk: v.select(working_mode=m) for kk, v in par.items()}
+            plot_loci(ax, sel, "cartesian", legend=False, labels=False)
+        ax.plot([], [], color="red", label="parallel singularity")
+        _legend_below(ax, ncol=3)
+        kind = "convex" if k == 0 else "non-convex"
+        ax.set_title(f"{kind} modes {modes[0]} / {modes[1]}", fontsize=9)
+        _cartesian_axes(ax)
+    fig.suptitle(f"Fig. 15: isoconditioning curves of kappa(A) for two working modes\n"
+                 f"{_design_text(design)}", fontsize=10)  # fmt: skip
+    return fig
+
+
+#: Figure number -> (file stem, builder taking the grid size).
+FIGURES: dict[int, tuple[str, Callable[[int], Figure]]] = {
+    4: ("fig04_working_modes", lambda n: figure_04()),
+    5: ("fig05_parallel_cd_stretched", lambda n: figure_05()),
+    6: ("fig06_parallel_c_equals_d", lambda n: figure_06()),
+    7: ("fig07_serial_singularity", lambda n: figure_07()),
+    8: ("fig08_cartesian_section_optimum", lambda n: figure_08(n=n)),
+    9: ("fig09_joint_section_optimum", lambda n: figure_09(n=n)),
+    10: ("fig10_cartesian_section_singularity_free", lambda n: figure_10(n=n)),
+    11: ("fig11_joint_section_singularity_free", lambda n: figure_11(n=n)),
+    12: ("fig12_working_mode_and_parallel_singularity", lambda n: figure_12()),
+    13: ("fig13_workspace_convex_mode", lambda n: figure_13(n=n)),
+    14: ("fig14_workspace_nonconvex_mode", lambda n: figure_14(n=n)),
+    15: ("fig15_isoconditioning", lambda n: figure_15(n=max(64, n // 2))),
+}
+
+
+def write_figures(
+    outdir: str | Path,
+    *,
+    n: int = 256,
+    formats: tuple[str, ...] = ("png", "svg"),
+    dpi: int = 80,
+    only: tuple[int, ...] | None = None,
+) -> list[Path]:
+    """Write the paper's figures 4-15 into ``outdir``, one file per figure and format.
+
+    Parameters
+    ----------
+    outdir : path
+        Created if missing.
+    n : int
+        Cells per axis of the section grids.
+    formats : tuple of str
+        Matplotlib output formats.
+    dpi : int
+        Resolution of raster formats.
+    only : tuple of int, optional
+        Figure numbers to write (default: all of :data:`FIGURES`).
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for number, (stem, build) in FIGURES.items():
+        if only is not None and number not in only:
+            continue
+        fig = build(n)
+        fig.tight_layout()
+        for fmt in formats:
+            path = out / f"{stem}.{fmt}"
+            fig.savefig(path, format=fmt, dpi=dpi, bbox_inches="tight")
+            written.append(path)
+        logger.info("figure %d written: %s", number, stem)
+    return written
