@@ -22,6 +22,9 @@ from planner.kinematics import SERIAL_KINDS, Manipulator, Posture
 from planner.schemas import (
     AnalyzeRequest,
     AnalyzeResponse,
+    DesignCheckRequest,
+    DesignCheckResponse,
+    DesignModel,
     FKRequest,
     FKResponse,
     IKRequest,
@@ -29,10 +32,11 @@ from planner.schemas import (
     PlanRequest,
     PlanResponse,
     PostureModel,
+    SampledValue,
     SerialMargins,
 )
 
-__all__ = ["analyze", "as_json", "fk", "ik", "located", "plan", "posture_model"]
+__all__ = ["analyze", "as_json", "design_check", "fk", "ik", "located", "plan", "posture_model"]
 
 
 def as_json(job: Callable[[Any], BaseModel], request: Any) -> bytes:
@@ -132,6 +136,34 @@ def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
             k for k, s in zip(SERIAL_KINDS, posture.working_mode, strict=True) if s == "0"
         ],
         pd=pd,
+    )
+
+
+def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
+    """``POST /v1/design/check``: which parallel singularities the design allows and why, its
+    operative working modes, closed-form and sampled volumes, well-conditioned fraction."""
+    from planner.analysis.design_check import check_design
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    check = check_design(
+        design, kappa_max=request.kappa_max, rel_se=request.rel_se, seed=request.seed
+    )
+
+    def sampled(e: Any) -> SampledValue:
+        return SampledValue(value=e.value, standard_error=e.standard_error, n_samples=e.n_samples)
+
+    return DesignCheckResponse(
+        design=DesignModel.from_design(check.design),
+        volume=check.volume,
+        parallel_singularities=list(check.parallel_singularities),
+        singularity_free=check.singularity_free,
+        reasons=check.reasons,
+        operative_working_modes=list(check.operative_working_modes),
+        sampled_volume=sampled(check.sampled_volume),
+        kappa_max=check.kappa_max,
+        well_conditioned_fraction=sampled(check.well_conditioned_fraction),
+        gci=sampled(check.gci),
     )
 
 

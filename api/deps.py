@@ -9,7 +9,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from api.exceptions import AuthenticationError
+from api.exceptions import AuthenticationError, PoolNotRunningError
 from api.settings import Settings
 from api.workers import WorkerPool
 
@@ -22,8 +22,11 @@ def get_app_settings(request: Request) -> Settings:
 
 
 def get_pool(request: Request) -> WorkerPool:
-    """The application's worker pool."""
-    return request.app.state.pool
+    """The application's worker pool (started by the application's lifespan)."""
+    pool = getattr(request.app.state, "pool", None)
+    if pool is None:
+        raise PoolNotRunningError("the worker pool is not running (application not started)")
+    return pool
 
 
 def get_deadline(

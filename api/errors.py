@@ -17,6 +17,7 @@ body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
 PlanningUnavailableError           501
 WorkerCrashedError                 502
 PoolSaturatedError                 503     ``Retry-After``
+PoolNotRunningError                503     the app's lifespan was not started
 DeadlineExceededError              504
 any other exception                500     logged with its traceback; never the answer to any
                                            input (the tests send bad inputs of every kind)
@@ -39,6 +40,7 @@ from api.exceptions import (
     DeadlineExceededError,
     LimitExceededError,
     PlanningUnavailableError,
+    PoolNotRunningError,
     PoolSaturatedError,
     WorkerCrashedError,
 )
@@ -71,6 +73,7 @@ _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     PlanningUnavailableError: (501, "not_implemented"),
     WorkerCrashedError: (502, "worker_crashed"),
     PoolSaturatedError: (503, "saturated"),
+    PoolNotRunningError: (503, "not_running"),
     DeadlineExceededError: (504, "deadline_exceeded"),
 }
 

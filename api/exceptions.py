@@ -5,6 +5,7 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
 
     ServiceError
     ├── PoolSaturatedError        503 + Retry-After: every worker busy, queue full
+    ├── PoolNotRunningError       503: the worker pool was not started (no lifespan)
     ├── DeadlineExceededError     504: the request's time budget ran out
     ├── WorkerCrashedError        502: a worker process died during the job
     ├── PlanningUnavailableError  501: this build has no planner yet
@@ -19,6 +20,7 @@ __all__ = [
     "DeadlineExceededError",
     "LimitExceededError",
     "PlanningUnavailableError",
+    "PoolNotRunningError",
     "PoolSaturatedError",
     "ServiceError",
     "WorkerCrashedError",
@@ -39,6 +41,11 @@ class PoolSaturatedError(ServiceError):
 
     def __str__(self) -> str:
         return self.message
+
+
+class PoolNotRunningError(ServiceError):
+    """The application's worker pool is not running (its lifespan was not started, e.g. a
+    ``TestClient`` used without ``with``)."""
 
 
 class DeadlineExceededError(ServiceError):

@@ -57,3 +57,20 @@ def test_design_model_rejects_with_the_field(fields, loc):
     with pytest.raises(ValidationError) as info:
         DesignModel(**fields)
     assert loc in [tuple(e["loc"]) for e in info.value.errors()]
+
+
+def test_design_check_runs_in_a_worker_and_names_bad_fields(api):
+    r = api.post(
+        "/v1/design/check", json={"design": {"L0": 0.5, "L1": 0.2, "L2": 0.6}, "rel_se": 0.05}
+    )
+    assert r.status_code == 200, r.text
+    body = r.json()
+    # 2 L1 < L0 < 2 (L2 - L1): no parallel singularity (CONVENTIONS.md, erratum 4)
+    assert body["singularity_free"] is True and body["parallel_singularities"] == []
+    r = api.post(
+        "/v1/design/check",
+        content=b'{"design": {"L2": NaN}}',
+        headers={"content-type": "application/json"},
+    )
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["loc"] == ["body", "design", "L2"]

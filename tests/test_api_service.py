@@ -98,6 +98,14 @@ def test_api_key_guards_every_v1_route_but_health():
         assert r.status_code == 401
 
 
+def test_app_without_its_lifespan_answers_503_not_500():
+    c = make_client()  # not entered: the worker pool never starts
+    r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+    assert r.status_code == 503
+    assert r.json()["detail"][0]["type"] == "not_running"
+    assert c.get("/v1/health").status_code == 200
+
+
 def test_no_key_configured_means_open(api):
     assert api.get("/v1/designs").status_code == 200
 

@@ -7,6 +7,7 @@ from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
 from api.app import create_app
+from api.settings import Settings
 from planner import Design
 from planner.cli import app as cli_app
 from planner.schemas import DesignModel
@@ -14,7 +15,8 @@ from planner.schemas import DesignModel
 
 @pytest.fixture(scope="module")
 def client():
-    return TestClient(create_app())
+    with TestClient(create_app(Settings(workers=1))) as c:  # starts the worker pool
+        yield c
 
 
 def test_design_check_answers_the_wire_fields(client):
