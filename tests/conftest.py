@@ -11,7 +11,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
@@ -37,6 +37,18 @@ def make_client(**settings: object) -> TestClient:
     """A TestClient of an app built with these settings (one worker unless told)."""
     settings.setdefault("workers", 1)
     return TestClient(create_app(Settings(**settings)), raise_server_exceptions=False)
+
+
+@pytest.fixture(scope="session")
+def client_factory() -> Callable[..., TestClient]:
+    """:func:`make_client`, as a fixture (test modules do not import conftest)."""
+    return make_client
+
+
+@pytest.fixture
+def unused_port() -> int:
+    """A loopback TCP port nobody listens on."""
+    return free_port()
 
 
 @pytest.fixture(scope="session")

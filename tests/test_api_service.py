@@ -12,7 +12,6 @@ import time
 import typing
 
 import pytest
-from conftest import make_client
 from pydantic import ValidationError
 
 from api.exceptions import PoolSaturatedError
@@ -75,8 +74,8 @@ def test_settings_from_environment(monkeypatch):
 
 
 # ---------------------------------------------------------------- API key
-def test_api_key_guards_every_v1_route_but_health():
-    with make_client(api_key="s3cret") as c:
+def test_api_key_guards_every_v1_route_but_health(client_factory):
+    with client_factory(api_key="s3cret") as c:
         assert c.get("/v1/health").status_code == 200
         for method, path, body in [
             ("GET", "/v1/version", None),
@@ -98,8 +97,8 @@ def test_api_key_guards_every_v1_route_but_health():
         assert r.status_code == 401
 
 
-def test_app_without_its_lifespan_answers_503_not_500():
-    c = make_client()  # not entered: the worker pool never starts
+def test_app_without_its_lifespan_answers_503_not_500(client_factory):
+    c = client_factory()  # not entered: the worker pool never starts
     r = c.post("/v1/fk", json={"q": [0, 1, 2]})
     assert r.status_code == 503
     assert r.json()["detail"][0]["type"] == "not_running"
@@ -111,8 +110,8 @@ def test_no_key_configured_means_open(api):
 
 
 # ---------------------------------------------------------------- readiness and saturation
-def test_ready_turns_200_once_workers_answer():
-    with make_client() as c:
+def test_ready_turns_200_once_workers_answer(client_factory):
+    with client_factory() as c:
         r = c.get("/v1/ready")
         if r.status_code == 503:  # the usual case: spawning takes a while
             assert r.json()["status"] == "starting" and r.headers["retry-after"] == "1"
@@ -120,8 +119,8 @@ def test_ready_turns_200_once_workers_answer():
         assert c.get("/v1/ready").json() == {"status": "ready", "workers": 1}
 
 
-def test_saturated_pool_answers_503_with_retry_after_then_recovers():
-    with make_client(workers=1, queue_size=0, retry_after_s=2) as c:
+def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory):
+    with client_factory(workers=1, queue_size=0, retry_after_s=2) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
         pool._reserve(1)
@@ -135,8 +134,8 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers():
         assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
 
 
-def test_request_over_its_time_budget_is_504():
-    with make_client(workers=1, queue_size=2, request_timeout_s=1.0) as c:
+def test_request_over_its_time_budget_is_504(client_factory):
+    with client_factory(workers=1, queue_size=2, request_timeout_s=1.0) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
         pool._reserve(1)
@@ -166,8 +165,8 @@ def test_pool_reserves_a_batch_all_or_nothing():
 
 # ---------------------------------------------------------------- plan routes, fan-out, crashes
 @pytest.fixture(scope="module")
-def two_workers():
-    with make_client(workers=2) as c:
+def two_workers(client_factory):
+    with client_factory(workers=2) as c:
         _wait_ready(c)
         yield c
         c.app.dependency_overrides.clear()

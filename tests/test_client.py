@@ -255,10 +255,8 @@ def test_transport_failures_are_translated():
             c.health()
 
 
-def test_real_refused_connection(tmp_path):
-    from conftest import free_port
-
-    with PlannerClient(f"http://127.0.0.1:{free_port()}", timeout=2) as c:
+def test_real_refused_connection(unused_port):
+    with PlannerClient(f"http://127.0.0.1:{unused_port}", timeout=2) as c:
         with pytest.raises(TransportError):
             c.health()
 
