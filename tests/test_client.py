@@ -275,6 +275,7 @@ def test_sync_and_async_clients_have_the_same_endpoint_methods():
         "ready",
         "plan",
         "plan_batch",
+        "check_design",
     } <= public
     for name in public - {"base_url", "timeout", "max_retries", "backoff_s", "max_backoff_s"}:
         sync_m, async_m = getattr(PlannerClient, name), getattr(AsyncPlannerClient, name)

@@ -36,6 +36,8 @@ def test_sync_client_every_endpoint(live_server):
         analysis = c.analyze([0.2, 1.0, 2.0], "+", qd=[0.1, 0.2, 0.3])
         assert isinstance(analysis, AnalyzeResponse)
         assert analysis.kappa_A == pytest.approx(np.linalg.cond(np.array(analysis.A)), rel=1e-9)
+        verdict = c.check_design(planner.Design.paper_optimum(), rel_se=0.05)
+        assert verdict.singularity_free is False and "C=D" in verdict.parallel_singularities
         # design objects travel: the paper optimum has L0 = 0, so A = B at the origin
         po = c.fk([0.0, 1.0, 2.0], "+", design=planner.Design.paper_optimum())
         assert po.postures[0].points["A"] == po.postures[0].points["B"] == [0.0, 0.0, 0.0]

@@ -2,6 +2,7 @@
 
 >>> with PlannerClient("http://127.0.0.1:8000") as client:          # doctest: +SKIP
 ...     postures = client.ik([0.3, 0.1, 0.2]).postures
+...     verdict = client.check_design({"L0": 0.5, "L1": 0.2, "L2": 0.6})
 ...     result = client.plan(start={"q": [0, 1, 2], "assembly_mode": "+"},
 ...                          goal={"p": [0.3, 0.1, 0.2], "working_mode": "any"})
 
@@ -52,6 +53,8 @@ from planner.exceptions import PlannerError
 from planner.schemas import (
     AnalyzeRequest,
     AnalyzeResponse,
+    DesignCheckRequest,
+    DesignCheckResponse,
     DesignModel,
     DesignsResponse,
     FKRequest,
@@ -413,6 +416,23 @@ class _BaseClient:
             data["qd"] = _floats(qd)
         return _Call("POST", "/v1/analyze", _validated(AnalyzeRequest, data), AnalyzeResponse)
 
+    def _check_design(
+        self,
+        design: DesignLike = None,
+        *,
+        kappa_max: float | None = None,
+        rel_se: float | None = None,
+        seed: int | None = None,
+    ) -> _Call[DesignCheckResponse]:
+        """Design check: parallel-singularity kinds and why, operative working modes,
+        closed-form and sampled workspace volumes (absent options: the server's defaults)."""
+        data: dict[str, Any] = {"design": _design(design)}
+        for name, value in (("kappa_max", kappa_max), ("rel_se", rel_se), ("seed", seed)):
+            if value is not None:
+                data[name] = value
+        body = _validated(DesignCheckRequest, data)
+        return _Call("POST", "/v1/design/check", body, DesignCheckResponse)
+
     def _plan(
         self, request: PlanRequest | Mapping[str, Any] | None = None, **fields: Any
     ) -> _Call[PlanResponse]:
@@ -539,6 +559,7 @@ class PlannerClient(_BaseClient):
     fk = _sync(_BaseClient._fk)
     ik = _sync(_BaseClient._ik)
     analyze = _sync(_BaseClient._analyze)
+    check_design = _sync(_BaseClient._check_design)
     plan = _sync(_BaseClient._plan)
     plan_batch = _sync(_BaseClient._plan_batch)
 
@@ -587,5 +608,6 @@ class AsyncPlannerClient(_BaseClient):
     fk = _async(_BaseClient._fk)
     ik = _async(_BaseClient._ik)
     analyze = _async(_BaseClient._analyze)
+    check_design = _async(_BaseClient._check_design)
     plan = _async(_BaseClient._plan)
     plan_batch = _async(_BaseClient._plan_batch)
