@@ -90,9 +90,11 @@ def _solve_move(
     otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, corners: tuple[int, ...]
 ) -> _Move:
     inp.current_position, inp.current_velocity, inp.current_acceleration = (
-        x.tolist() for x in start
+        np.asarray(x, dtype=float).tolist() for x in start
     )
-    inp.target_position, inp.target_velocity, inp.target_acceleration = (x.tolist() for x in target)
+    inp.target_position, inp.target_velocity, inp.target_acceleration = (
+        np.asarray(x, dtype=float).tolist() for x in target
+    )
     traj = RuckigTrajectory(3)
     try:
         result = otg.calculate(inp, traj)

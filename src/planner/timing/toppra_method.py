@@ -36,7 +36,7 @@ logger = logging.getLogger(__name__)
 #: Grid step on straight pieces, rad of joint-space arc length (at least LINE_MIN_INTERVALS
 #: intervals per piece: the accelerate/decelerate switch point is quantised by the grid).
 LINE_STEP = 0.1
-LINE_MIN_INTERVALS = 3
+LINE_MIN_INTERVALS = 4
 #: Grid step on arcs, rad of turning angle (q' turns by at most this between grid points).
 ARC_STEP = 0.2
 #: Length of the short line interval next to each line/arc junction, as a fraction of the

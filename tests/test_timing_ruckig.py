@@ -1,0 +1,121 @@
+"""Ruckig timing: jerk limits, continuity of q, qd, qdd, exact ends at rest, agreement with
+Ruckig's own evaluation, straight rest-to-rest moves, and duration against toppra."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from ruckig import InputParameter, Ruckig
+from timing_factories import brute_distance_to_polyline, fine_times, random_walk
+
+from planner import Design
+from planner.exceptions import TimingInfeasibleError
+from planner.timing import LIMIT_RTOL, JointLimits, time_path
+from planner.timing.ruckig_method import _solve_move
+
+DESIGN = Design.default()
+LIMITS = JointLimits(velocity=(2.0, 1.5, 2.5), acceleration=(8.0, 6.0, 10.0), jerk=(200.0,) * 3)
+TOL = 1 + LIMIT_RTOL
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_limits_and_continuity(seed):
+    w = random_walk(seed, n=6)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig", sample_rate_hz=250.0)
+    assert traj.jerk is not None
+    t = fine_times(traj.duration, 40001)
+    q, qd, qdd, jerk = traj.at(t)
+    for x, lim in ((qd, LIMITS.velocity), (qdd, LIMITS.acceleration), (jerk, LIMITS.jerk)):
+        assert np.all(np.abs(x) <= np.asarray(lim) * TOL)
+    for x, lim in ((traj.qd, LIMITS.velocity), (traj.qdd, LIMITS.acceleration)):
+        assert np.all(np.abs(x) <= np.asarray(lim) * TOL)
+    # q, qd and qdd continuous: steps bounded by the next derivative's limit.
+    dt = t[1] - t[0]
+    for x, lim in ((q, LIMITS.velocity), (qd, LIMITS.acceleration), (qdd, LIMITS.jerk)):
+        assert np.all(np.abs(np.diff(x, axis=0)) <= np.asarray(lim) * dt * TOL + 1e-9)
+    # Both sides of every move boundary agree.
+    bounds = traj.curve.start[1:-1]
+    for eps in (1e-9,):
+        a = traj.at(bounds - eps)
+        b = traj.at(bounds + eps)
+        for k, lim in enumerate((LIMITS.velocity, LIMITS.acceleration, LIMITS.jerk)):
+            np.testing.assert_allclose(a[k], b[k], atol=np.max(lim) * 2 * eps + 1e-7)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_starts_and_ends_exactly_at_rest(seed):
+    w = random_walk(seed, n=5)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig")
+    assert np.array_equal(traj.q[0], w[0]) and np.array_equal(traj.q[-1], w[-1])
+    q, qd, qdd, _ = traj.at(np.array([0.0, traj.duration]))
+    np.testing.assert_allclose(q, w[[0, -1]], atol=1e-9)
+    np.testing.assert_allclose(qd, 0.0, atol=1e-9)
+    np.testing.assert_allclose(qdd, 0.0, atol=1e-9)
+
+
+def test_vectorised_evaluation_matches_ruckig_at_time():
+    w = random_walk(4, n=5)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig")
+    rng = np.random.default_rng(0)
+    for move in traj.curve.moves:
+        tau = np.sort(rng.uniform(0, move.duration, 10))
+        ours = move.evaluate(tau)
+        ref = ruckig_reference(move)
+        for i, x in enumerate(tau):
+            pos, vel, acc = ref.at_time(float(x))
+            np.testing.assert_allclose(ours[0][i], pos, atol=1e-9)
+            np.testing.assert_allclose(ours[1][i], vel, atol=1e-9)
+            np.testing.assert_allclose(ours[2][i], acc, atol=1e-9)
+
+
+def ruckig_reference(move):
+    """The same move computed again by Ruckig from its start and end states."""
+    from ruckig import Result, Synchronization
+    from ruckig import Trajectory as RT
+
+    otg, inp = Ruckig(3), InputParameter(3)
+    inp.max_velocity, inp.max_acceleration = list(LIMITS.velocity), list(LIMITS.acceleration)
+    inp.max_jerk = list(LIMITS.jerk)
+    inp.synchronization = Synchronization.Phase
+    inp.current_position, inp.current_velocity = move.p[:, 0].tolist(), move.v[:, 0].tolist()
+    inp.current_acceleration = move.a[:, 0].tolist()
+    end = move.evaluate(np.array([move.duration]))
+    inp.target_position, inp.target_velocity = end[0][0].tolist(), end[1][0].tolist()
+    inp.target_acceleration = end[2][0].tolist()
+    tr = RT(3)
+    assert otg.calculate(inp, tr) in (Result.Working, Result.Finished)
+    assert tr.duration == pytest.approx(move.duration, rel=1e-6, abs=1e-9)
+    return tr
+
+
+def test_rest_to_rest_moves_stay_on_the_segments():
+    w = random_walk(2, n=6)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_deviation=0.0)
+    q, _, _, _ = traj.at(fine_times(traj.duration, 3001))
+    assert brute_distance_to_polyline(w, q, per_seg=2000).max() < 1e-3
+    assert traj.max_deviation_q < 1e-9
+
+
+def test_duration_relative_to_toppra():
+    ratios, stop_ratios, devs = [], [], []
+    for seed in range(4):
+        w = random_walk(seed, n=10)
+        top = time_path(DESIGN, w, LIMITS)
+        ruck = time_path(DESIGN, w, LIMITS, method="ruckig")
+        stop = time_path(DESIGN, w, LIMITS, method="ruckig", max_deviation=0.0)
+        ratios.append(ruck.duration / top.duration)
+        stop_ratios.append(stop.duration / top.duration)
+        devs.append(ruck.max_deviation_q)
+    # Jerk limits cost some time, through-waypoint states much less than resting at each.
+    assert all(0.95 < r < 1.25 for r in ratios), ratios
+    assert all(r < s for r, s in zip(ratios, stop_ratios, strict=True))
+    assert max(devs) < 0.1
+
+
+def test_ruckig_errors_become_timing_errors():
+    otg, inp = Ruckig(3), InputParameter(3)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [1.0] * 3, [1.0] * 3, [1.0] * 3
+    zero = np.zeros(3)
+    too_fast = (np.ones(3), np.array([5.0, 0.0, 0.0]), zero)  # beyond the velocity limit
+    with pytest.raises(TimingInfeasibleError, match="ruckig"):
+        _solve_move(otg, inp, (zero, zero, zero), too_fast, ())
