@@ -132,10 +132,11 @@ def dense_check(
         rule[~valid & (rule == "")] = "validity"
     bad = rule != ""
 
-    off = curve.may_deviate(t)
+    segments = curve.plan_segments(t)
+    off = segments[:, 0] >= 0
     dev_q, dev_p = 0.0, 0.0
     if np.any(off):
-        dist, nearest = distance_to_polyline(waypoints, q[off])
+        dist, nearest = distance_to_polyline(waypoints, q[off], segments[off])
         p_near = forward_batch(design, nearest, assembly_mode)
         both = assembled[off] & p_near.ok
         dev_q = float(np.max(dist))

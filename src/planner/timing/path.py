@@ -281,33 +281,46 @@ class BlendedPath:
         return self.corner[self.piece_index(np.asarray(s, dtype=float))]
 
 
-def distance_to_polyline(waypoints: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def distance_to_polyline(
+    waypoints: np.ndarray, q: np.ndarray, segments: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean joint-space distance of each posture to a polyline, and the nearest point.
 
     Parameters
     ----------
     waypoints : shape (N, 3), rad
     q : shape (M, 3), rad
+    segments : shape (M, 2), int, optional
+        For each posture, the first and last segment (segment i joins waypoints i and i+1)
+        to measure against: the part of the plan it stands for. Default: every segment.
 
     Returns
     -------
     distance : shape (M,), rad
     nearest : shape (M, 3), rad
-        The closest point of the polyline to each posture.
+        The closest point of those segments to each posture.
     """
     w = np.asarray(waypoints, dtype=float)
     q = np.asarray(q, dtype=float)
-    best_d2 = np.full(q.shape[0], np.inf)
-    nearest = np.broadcast_to(w[0], q.shape).copy()
-    for i in range(max(w.shape[0] - 1, 1)):  # one segment at a time: M-vectors, no M x N x 3
-        a = w[i]
-        ab = w[i + 1] - a if w.shape[0] > 1 else np.zeros(3)
+    m, n_seg = q.shape[0], max(w.shape[0] - 1, 1)
+    if w.shape[0] == 1:
+        w = np.concatenate([w, w])
+    if segments is None:
+        segments = np.tile([0, n_seg - 1], (m, 1))
+    lo = np.clip(segments[:, 0], 0, n_seg - 1)
+    hi = np.clip(segments[:, 1], lo, n_seg - 1)
+    best_d2 = np.full(m, np.inf)
+    nearest = np.empty_like(q)
+    for j in range(int(np.max(hi - lo, initial=0)) + 1):  # M-vectors per offset, no M x N x 3
+        seg = np.minimum(lo + j, hi)
+        a = w[seg]
+        ab = w[seg + 1] - a
         rel = q - a
-        denom = float(ab @ ab)
-        t = np.clip(rel @ ab / denom, 0.0, 1.0) if denom > 0 else np.zeros(q.shape[0])
-        foot_rel = t[:, None] * ab
-        d2 = np.sum((rel - foot_rel) ** 2, axis=1)
+        denom = np.sum(ab * ab, axis=1)
+        t = np.where(denom > 0, np.sum(rel * ab, axis=1) / np.maximum(denom, 1e-300), 0.0)
+        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+        d2 = np.sum((q - foot) ** 2, axis=1)
         better = d2 < best_d2
         best_d2[better] = d2[better]
-        nearest[better] = a + foot_rel[better]
+        nearest[better] = foot[better]
     return np.sqrt(best_d2), nearest

@@ -176,10 +176,13 @@ class RuckigCurve:
         n = max(2, int(np.ceil(self.duration * self.speed_bound / resolution)) + 1)
         return np.unique(np.concatenate([np.linspace(0.0, self.duration, n), self.start]))
 
-    def may_deviate(self, t: np.ndarray) -> np.ndarray:
-        """False on rest-to-rest moves (phase-synchronised: on the planned segment)."""
-        idx = self.move_index(np.atleast_1d(t))
-        return np.array([bool(m.corners) for m in self.moves])[idx]
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        """A move through blends k..m stands for segments k-1..m; a rest-to-rest move
+        (phase-synchronised: on its planned segment) for none (-1, -1)."""
+        table = np.array(
+            [[min(m.corners) - 1, max(m.corners)] if m.corners else [-1, -1] for m in self.moves]
+        )
+        return table[self.move_index(np.atleast_1d(t))]
 
     def corners_at(self, t: np.ndarray) -> list[tuple[int, ...]]:
         """For each time, the blends whose move covers it (empty: a rest-to-rest move)."""

@@ -45,9 +45,9 @@ class Curve(Protocol):
         in joint space (Euclidean, rad), plus every instant where the acceleration jumps."""
         ...
 
-    def may_deviate(self, t: np.ndarray) -> np.ndarray:
-        """Bool (M,): False where the posture lies on the planned polyline by construction
-        (its deviation need not be measured)."""
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        """Shape (M, 2), int: first and last planned segment each posture stands for, or
+        (-1, -1) where it lies on the planned polyline by construction (no deviation)."""
         ...
 
 
@@ -93,10 +93,11 @@ class ToppraCurve:
         t, _, _ = self.profile.at_path(self.check_path_positions(resolution))
         return np.unique(np.clip(t, 0.0, self.profile.duration))
 
-    def may_deviate(self, t: np.ndarray) -> np.ndarray:
-        """Whether the posture at each time can be off the polyline (it is on a blend)."""
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        """On the blend of vertex k: segments k-1 and k; on a straight piece: (-1, -1)."""
         s, _, _ = self.profile.at_time(t)
-        return self.path.arc_corner_at(s) >= 0
+        k = self.path.arc_corner_at(s)
+        return np.where(k[:, None] >= 0, np.stack([k - 1, k], axis=1), -1)
 
 
 def sample_times(duration: float, rate_hz: float) -> np.ndarray:
@@ -148,10 +149,12 @@ class Trajectory:
     p_speed : shape (M,), m/s -- |dP/dt|.
     max_deviation_q : float, rad
         Largest joint-space distance from the timed trajectory to the planned polyline, over
-        the dense check samples.
+        the dense check samples. Each posture is measured against the planned segments it
+        stands for (the two segments of its corner), not against any far part of the plan
+        that happens to pass nearby, so this is an upper bound of the distance to the plan.
     max_deviation_p : float, m
         Largest distance between P of a timed posture and P of its nearest planned posture
-        (the closest point of the polyline in joint space), over the same samples.
+        (the closest point of those segments in joint space), over the same samples.
     repairs : int
         Repair rounds taken (0: the first trajectory passed the dense re-check).
     checked_samples : int
@@ -199,5 +202,5 @@ class RestCurve:
     def check_times(self, resolution: float) -> np.ndarray:
         return np.zeros(1)
 
-    def may_deviate(self, t: np.ndarray) -> np.ndarray:
-        return np.zeros(np.shape(t), bool)
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        return np.full((np.shape(t)[0], 2), -1)
