@@ -63,13 +63,14 @@ class _Move:
     v: np.ndarray
     a: np.ndarray
     corners: tuple[int, ...]
-    exact: RuckigTrajectory | None  # set when a brake phase makes the table form inexact
+    source: RuckigTrajectory  # Ruckig's own trajectory object
+    braking: bool  # a brake phase precedes the profile: evaluate with Ruckig's at_time
 
     def evaluate(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
         """q, qd, qdd, jerk at local times tau (M,) in [0, duration], shapes (M, 3)."""
         tau = np.clip(tau, 0.0, self.duration)
-        if self.exact is not None:
-            rows = [self.exact.at_time(float(x)) for x in tau]
+        if self.braking:
+            rows = [self.source.at_time(float(x)) for x in tau]
             q = np.array([r[0] for r in rows])
             qd = np.array([r[1] for r in rows])
             qdd = np.array([r[2] for r in rows])
@@ -113,7 +114,8 @@ def _solve_move(
         v=np.array([pr.v for pr in profiles]),
         a=np.array([pr.a for pr in profiles]),
         corners=corners,
-        exact=traj if braking else None,
+        source=traj,
+        braking=braking,
     )
 
 
