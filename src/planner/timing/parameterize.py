@@ -152,8 +152,7 @@ def _fit_time_scale(
     prof = curve.profile
     s = curve.check_path_positions(resolution)
     _, sd, sdd = prof.at_path(s)
-    d1 = curve.path.evaluate(s, 1)
-    d2 = curve.path.evaluate(s, 2)
+    _, d1, d2 = curve.path.evaluate_all(s)
     r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
     qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
     r_a = np.max(np.abs(qdd) / limits.acceleration_array)
@@ -295,8 +294,8 @@ def time_path(
     scale, refine, repairs = 1.0, 1, 0
 
     def speed_gain(s: np.ndarray) -> np.ndarray:
-        q = path.evaluate(s, 0)
-        _, v, ok = p_velocity(design, q, path.evaluate(s, 1), assembly_mode)
+        q, d1, _ = path.evaluate_all(s)
+        _, v, ok = p_velocity(design, q, d1, assembly_mode)
         return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
 
     slow_down = 1.0  # a pending uniform time scaling of the current toppra profile

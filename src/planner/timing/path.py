@@ -249,24 +249,30 @@ class BlendedPath:
         -------
         array, shape (M, 3): rad, dimensionless, 1/rad.
         """
+        if order not in (0, 1, 2):
+            raise InputError(f"order must be 0, 1 or 2, got {order}")
+        return self.evaluate_all(s, lo, hi, side)[order]
+
+    def evaluate_all(
+        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: str = "right"
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q', q'') at ``s`` in one pass, each shape (M, 3) (see :meth:`evaluate`)."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
         if self.n_pieces == 0:
-            return np.broadcast_to(self.waypoints[0] if order == 0 else 0.0 * self.waypoints[0],
-                                   (s.shape[0], 3)).copy()  # fmt: skip
+            q = np.broadcast_to(self.waypoints[0], (s.shape[0], 3)).copy()
+            return q, np.zeros_like(q), np.zeros_like(q)
         idx = self.piece_index(s, lo, hi, side)
         ds = (s - self.s0[idx])[:, None]
         o, d, nrm, r = self.origin[idx], self.direction[idx], self.normal[idx], self.radius[idx]
         arc = (self.kind[idx] == ARC)[:, None]
-        r_safe = np.where(np.isfinite(r), r, 1.0)[:, None]
-        phi = ds / r_safe
+        r_safe = np.where(arc[:, 0], r, 1.0)[:, None]
+        phi = np.where(arc, ds / r_safe, 0.0)
         c, si = np.cos(phi), np.sin(phi)
-        if order == 0:
-            return np.where(arc, o + r_safe * (d * c + nrm * si), o + d * ds)
-        if order == 1:
-            return np.where(arc, -d * si + nrm * c, d)
-        if order == 2:
-            return np.where(arc, -(d * c + nrm * si) / r_safe, 0.0)
-        raise InputError(f"order must be 0, 1 or 2, got {order}")
+        radial = d * c + nrm * si  # unit vector from the centre (arcs)
+        q = np.where(arc, o + r_safe * radial, o + d * ds)
+        d1 = np.where(arc, nrm * c - d * si, d)
+        d2 = np.where(arc, -radial / r_safe, 0.0)
+        return q, d1, d2
 
     def section_pieces(self, s_start: float, s_end: float) -> tuple[int, int]:
         """First and last piece of the section ``[s_start, s_end]``."""

@@ -59,7 +59,7 @@ class _SectionPath(AbstractGeometricPath):
         """q, q' or q'' at ``path_positions``. At a line/arc junction q'' jumps; toppra takes one
         value per grid point for the intervals on both sides, so the larger one (the arc's) is
         given: the constraint then holds on both sides of the junction."""
-        s = np.atleast_1d(path_positions)
+        s = np.atleast_1d(np.asarray(path_positions, dtype=float))
         out = self._path.evaluate(s, order, self._lo, self._hi)
         if order == 2:
             left = self._path.evaluate(s, order, self._lo, self._hi, side="left")

@@ -69,9 +69,7 @@ class ToppraCurve:
     def _at(
         self, s: np.ndarray, sd: np.ndarray, sdd: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
-        q = self.path.evaluate(s, 0)
-        d1 = self.path.evaluate(s, 1)
-        d2 = self.path.evaluate(s, 2)
+        q, d1, d2 = self.path.evaluate_all(s)
         return q, d1 * sd[:, None], d1 * sdd[:, None] + d2 * (sd**2)[:, None], None
 
     def check_path_positions(self, resolution: float) -> np.ndarray:
