@@ -158,3 +158,23 @@ def test_random_paths_with_a_box_inside_a_corner_are_never_returned_invalid():
             assert np.all(check(q))
             repaired += traj.repairs > 0
     assert repaired >= 4  # the repair path was exercised
+
+
+def test_too_many_output_samples_is_an_input_error():
+    slow = JointLimits(velocity=(1e-3,) * 3, acceleration=(1e-3,) * 3)
+    with pytest.raises(InputError, match="sample_rate_hz"):
+        time_path(DESIGN, CORNER, slow, sample_rate_hz=1000.0)
+
+
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_near_duplicate_and_tiny_segments_end_exactly(method):
+    offsets = np.array(
+        [[0, 0, 0], [1e-11, 1e-11, 1e-11], [0.5, 0, 0], [0.5, 1e-7, 0], [0.5, 0.4, 0.1],
+         [0.5, 0.4, 0.1 + 1e-10]]
+    )  # fmt: skip
+    w = np.array([0.2, 0.3, 0.4]) + offsets
+    traj = time_path(DESIGN, w, LIMITS, method=method)
+    assert np.array_equal(traj.q[0], w[0]) and np.array_equal(traj.q[-1], w[-1])
+    q, qd, _, _ = traj.at(np.array([traj.duration]))
+    np.testing.assert_allclose(q[0], w[-1], atol=1e-12)
+    np.testing.assert_allclose(qd[0], 0.0, atol=1e-9)

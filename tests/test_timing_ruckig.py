@@ -100,3 +100,20 @@ def test_ruckig_errors_become_timing_errors():
     too_fast = (np.ones(3), np.array([5.0, 0.0, 0.0]), zero)  # beyond the velocity limit
     with pytest.raises(TimingInfeasibleError, match="ruckig"):
         _solve_move(otg, inp, (zero, zero, zero), too_fast, ())
+
+
+def test_move_speed_bound_covers_the_sampled_speed_and_check_spacing():
+    w = random_walk(3, n=6)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig")
+    curve = traj.curve
+    for k, move in enumerate(curve.moves):
+        tau = np.linspace(0, move.duration, 20001)
+        qd = move.evaluate(tau)[1]
+        bound = move.speed_bound(fallback=np.inf)
+        assert np.linalg.norm(qd, axis=1).max() <= bound * (1 + 1e-9)
+        # It is the norm of each joint's peak speed, found exactly (not just a safe bound).
+        per_joint_peak = np.abs(qd).max(axis=0)
+        assert bound == pytest.approx(np.linalg.norm(per_joint_peak), rel=1e-4, abs=1e-9), k
+    t = curve.check_times(0.01)
+    q = curve.evaluate(t)[0]
+    assert np.max(np.linalg.norm(np.diff(q, axis=0), axis=1)) <= 0.01 + 1e-12

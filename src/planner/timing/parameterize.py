@@ -38,7 +38,7 @@ from planner.timing.checks import CheckReport, StateChecker, dense_check
 from planner.timing.limits import JointLimits
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
-from planner.timing.toppra_method import PathProfile, solve_toppra
+from planner.timing.toppra_method import PathProfile, min_blend_radius, solve_toppra
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -52,6 +52,7 @@ __all__ = [
     "DEFAULT_CHECK_RESOLUTION",
     "DEFAULT_MAX_DEVIATION",
     "DEFAULT_SAMPLE_RATE_HZ",
+    "MAX_OUTPUT_SAMPLES",
     "MAX_REPAIRS",
     "METHODS",
     "time_path",
@@ -66,6 +67,8 @@ DEFAULT_SAMPLE_RATE_HZ = 100.0
 DEFAULT_MAX_DEVIATION = 0.05
 #: Largest joint-space step between two postures of the dense re-check, rad.
 DEFAULT_CHECK_RESOLUTION = 0.01
+#: Most output samples of one trajectory.
+MAX_OUTPUT_SAMPLES = 1_000_000
 #: Repair rounds before giving up (3 blend shrinks per corner, and limit rescaling).
 MAX_REPAIRS = 6
 #: A corner's blend shrinks by this factor per repair; below ``max_deviation / 16`` it stops.
@@ -288,7 +291,8 @@ def time_path(
     stop = _stop_mask(stop_at, n)
     dev_in = _deviation(max_deviation, n)
 
-    path = BlendedPath.from_waypoints(w, dev_in, stop)
+    min_radius = min_blend_radius(limits)
+    path = BlendedPath.from_waypoints(w, dev_in, stop, min_radius)
     dev = np.minimum.reduceat(dev_in, np.unique(path.index_map, return_index=True)[1])
     floor = dev / _SHRINK**_SHRINK_STEPS
     scale, refine, repairs = 1.0, 1, 0
@@ -324,6 +328,11 @@ def time_path(
             curve = ToppraCurve(path, profile)
             if method == "ruckig":
                 curve = build_ruckig_curve(path, profile, lim)
+        if curve.duration * rate > MAX_OUTPUT_SAMPLES:
+            raise InputError(
+                f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
+                f"{curve.duration:.4g} s, more than {MAX_OUTPUT_SAMPLES}: lower the rate"
+            )
         t_out = sample_times(curve.duration, rate)
         _check_deadline(deadline, "before the dense re-check")
         report = dense_check(
@@ -357,7 +366,9 @@ def time_path(
                 dev[k] = 0.0 if dev[k] / _SHRINK < floor[k] * (1 - 1e-12) else dev[k] / _SHRINK
             stop_now = np.zeros(path.waypoints.shape[0], bool)
             stop_now[[k for k in blamed if dev[k] == 0.0]] = True
-            path = BlendedPath.from_waypoints(path.waypoints, dev, stop_now | _kept_stops(path))
+            path = BlendedPath.from_waypoints(
+                path.waypoints, dev, stop_now | _kept_stops(path), min_radius
+            )
             profile = None
             logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
         elif method == "toppra":

@@ -25,10 +25,12 @@ from planner.exceptions import InputError
 __all__ = ["BlendedPath", "distance_to_polyline"]
 
 #: Consecutive waypoints closer than this (rad) are one waypoint (a zero-length segment has
-#: no direction).
-DUPLICATE_TOL = 1e-12
-#: A corner turning by less than this (rad) is straight: neither blended nor stopped at.
-STRAIGHT_ANGLE = 1e-9
+#: no direction, and a nearly zero one gives a corner no trajectory can take at speed).
+DUPLICATE_TOL = 1e-9
+#: A corner turning by less than this (rad) is straight: neither blended nor stopped at (its
+#: blend radius would be ~1e6 times the segment, losing precision; the tangent jumps by at most
+#: this, so the velocity direction does too).
+STRAIGHT_ANGLE = 1e-6
 #: A corner turning by more than pi minus this (rad) is a reversal: it cannot be blended.
 REVERSAL_ANGLE = 1e-6
 
@@ -87,6 +89,7 @@ class BlendedPath:
         waypoints: np.ndarray,
         max_deviation: float | np.ndarray,
         stop_at: np.ndarray | None = None,
+        min_radius: float = 0.0,
     ) -> BlendedPath:
         """Blend the corners of a joint-space polyline.
 
@@ -99,6 +102,10 @@ class BlendedPath:
             Entries for the first and last waypoints are ignored.
         stop_at : bool array of shape (N,), optional
             Vertices where the trajectory must come to rest (no blend).
+        min_radius : float, rad
+            A corner whose blend radius would be smaller becomes a stop: the speed through
+            such a blend, ``sqrt(acceleration * radius)``, is nearly zero anyway, and the
+            solver's tolerances are absolute.
 
         The blend at a corner turning by ``alpha`` between segments of lengths ``L_in``,
         ``L_out`` has tangent length ``l = min(L_in / 2, L_out / 2,
@@ -116,6 +123,7 @@ class BlendedPath:
         keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
         index_map = np.cumsum(keep) - 1
         w = w_in[keep]
+        w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
         n = w.shape[0]
         stop = np.zeros(n, bool)
         np.logical_or.at(stop, index_map, stop_in)
@@ -150,8 +158,11 @@ class BlendedPath:
             tangent[k] = min(
                 seg_len[k - 1] / 2,
                 seg_len[k] / 2,
-                dev[k] * np.sin(half) / (1.0 - np.cos(half)),
+                dev[k] / np.tan(half / 2),  # = delta sin(a/2) / (1 - cos(a/2))
             )
+            if tangent[k] / np.tan(half) < min_radius:
+                tangent[k] = 0.0
+                is_stop[k] = True
 
         kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
         vertex_s = np.zeros(n)

@@ -36,6 +36,7 @@ from planner.exceptions import TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
 from planner.timing.toppra_method import PathProfile
+from planner.timing.trajectory import check_sample_count
 
 __all__ = ["RuckigCurve", "build_ruckig_curve"]
 
@@ -65,6 +66,20 @@ class _Move:
     corners: tuple[int, ...]
     source: RuckigTrajectory  # Ruckig's own trajectory object
     braking: bool  # a brake phase precedes the profile: evaluate with Ruckig's at_time
+
+    def speed_bound(self, fallback: float) -> float:
+        """Upper bound of |qd| during the move, rad/s: per joint, the largest |velocity| at a
+        phase boundary or where the acceleration crosses zero inside a phase (velocity is
+        quadratic in time within a constant-jerk phase); ``fallback`` for a braking move."""
+        if self.braking:
+            return fallback
+        v0, v1 = np.abs(self.v[:, :-1]), np.abs(self.v[:, 1:])
+        a0, a1 = self.a[:, :-1], self.a[:, 1:]
+        crosses = (a0 * a1 < 0) & (self.jerk != 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v_turn = np.where(crosses, np.abs(self.v[:, :-1] - a0**2 / (2 * self.jerk)), 0.0)
+        per_joint = np.max(np.maximum(np.maximum(v0, v1), v_turn), axis=1)
+        return float(np.linalg.norm(per_joint))
 
     def evaluate(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
         """q, qd, qdd, jerk at local times tau (M,) in [0, duration], shapes (M, 3)."""
@@ -173,10 +188,16 @@ class RuckigCurve:
         return out[0], out[1], out[2], out[3]
 
     def check_times(self, resolution: float) -> np.ndarray:
-        """A uniform grid with step ``resolution / speed_bound`` (so consecutive postures are
-        at most ``resolution`` apart, since |qd| <= speed_bound), plus every move boundary."""
-        n = max(2, int(np.ceil(self.duration * self.speed_bound / resolution)) + 1)
-        return np.unique(np.concatenate([np.linspace(0.0, self.duration, n), self.start]))
+        """Per move, a uniform grid with step ``resolution / V`` where V bounds |qd| during
+        that move (:meth:`_Move.speed_bound`), so consecutive postures are at most
+        ``resolution`` apart; every move boundary is included."""
+        counts = [
+            max(2, int(np.ceil(m.duration * m.speed_bound(self.speed_bound) / resolution)) + 1)
+            for m in self.moves
+        ]
+        check_sample_count(sum(counts))
+        parts = [np.linspace(self.start[k], self.start[k + 1], n) for k, n in enumerate(counts)]
+        return np.unique(np.concatenate([*parts, self.start]))
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         """A move through blends k..m stands for segments k-1..m; a rest-to-rest move

@@ -29,7 +29,7 @@ from planner.exceptions import TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
 
-__all__ = ["PathProfile", "solve_toppra"]
+__all__ = ["PathProfile", "min_blend_radius", "solve_toppra"]
 
 logger = logging.getLogger(__name__)
 
@@ -43,6 +43,8 @@ ARC_STEP = 0.2
 #: line: toppra sees the arc's curvature at the junction grid point (see ``_SectionPath``),
 #: which would needlessly slow a whole line interval; a short one costs almost nothing.
 JUNCTION_INTERVAL = 1e-3
+#: Smallest path velocity squared through a blend, in normalised units (see min_blend_radius).
+MIN_BLEND_X = 1e-3
 #: Upper bound used for sd^2 where a constraint does not bound it (toppra needs finite bounds).
 _X_UNBOUNDED = 1e12
 
@@ -181,6 +183,33 @@ def section_grid(path: BlendedPath, lo: int, hi: int, refine: int = 1) -> np.nda
     return np.concatenate(parts)
 
 
+def min_blend_radius(limits: JointLimits) -> float:
+    """Smallest corner blend worth keeping, rad: below it the path speed through the blend,
+    at most ``sqrt(a r)``, gives ``sd^2`` under ``MIN_BLEND_X`` in the solver's normalised
+    units (velocity limit 1), near toppra's absolute tolerances; such a corner is a stop."""
+    v_min = float(np.min(limits.velocity_array))
+    return MIN_BLEND_X * v_min**2 / float(np.min(limits.acceleration_array))
+
+
+def _straight_rest_to_rest(
+    s_start: float, s_end: float, direction: np.ndarray, v: np.ndarray, a: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact time-optimal profile of a straight section from rest to rest, as grid points and
+    path velocities: a trapezoid (or a triangle) under the path speed bound
+    ``min_j v_j / |u_j|`` and path acceleration bound ``min_j a_j / |u_j|``."""
+    u = np.abs(direction)
+    with np.errstate(divide="ignore"):
+        v_s = float(np.min(np.where(u > 0, v / u, np.inf)))
+        a_s = float(np.min(np.where(u > 0, a / u, np.inf)))
+    length = s_end - s_start
+    ramp = v_s**2 / (2 * a_s)
+    if 2 * ramp < length:
+        grid = np.array([s_start, s_start + ramp, s_end - ramp, s_end])
+        return grid, np.array([0.0, v_s, v_s, 0.0])
+    peak = np.sqrt(a_s * length)
+    return np.array([s_start, s_start + length / 2, s_end]), np.array([0.0, peak, 0.0])
+
+
 @functools.lru_cache(maxsize=32)
 def _joint_constraints(v: tuple[float, ...], a: tuple[float, ...]) -> tuple:
     """toppra's joint velocity and acceleration constraints (cached: their constructors
@@ -218,18 +247,31 @@ def solve_toppra(
     TimingInfeasibleError
         toppra reports a failure (uncontrollable instance, numerical failure).
     """
-    v = limits.velocity_array
-    a = limits.acceleration_array
+    # Solve in a normalised time unit where the slowest joint's velocity limit is 1: toppra's
+    # tolerances are absolute (1e-5 on sd^2), and slowing a profile by c scales velocities by
+    # c and accelerations by c^2, so the solution in real time is sd / c.
+    c = 1.0 / float(np.min(limits.velocity_array))
+    v = limits.velocity_array * c
+    a = limits.acceleration_array * c**2
+    v_cart = None if max_cartesian_speed is None else max_cartesian_speed * c
     joint_constraints = _joint_constraints(tuple(v.tolist()), tuple(a.tolist()))
     s_all, sd_all = [np.zeros(1)], [np.zeros(1)]
     for s_start, s_end in zip(path.stops[:-1], path.stops[1:], strict=True):
         if s_end - s_start <= 0.0:
             continue
         section = _SectionPath(path, float(s_start), float(s_end))
-        grid = section_grid(path, *section.pieces, refine=refine)
+        lo, hi = section.pieces
+        if lo == hi and path.kind[lo] != ARC and v_cart is None:
+            grid, sd = _straight_rest_to_rest(
+                float(s_start), float(s_end), path.direction[lo], v, a
+            )
+            s_all.append(grid[1:])
+            sd_all.append(sd[1:] / c)
+            continue
+        grid = section_grid(path, lo, hi, refine=refine)
         constraints = list(joint_constraints)
-        if max_cartesian_speed is not None and speed_gain is not None:
-            constraints.append(_SpeedAlongPathConstraint(max_cartesian_speed, speed_gain))
+        if v_cart is not None and speed_gain is not None:
+            constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))
         instance = toppra.algorithm.TOPPRA(
             constraints, section, gridpoints=grid, solver_wrapper="seidel"
         )
@@ -240,7 +282,7 @@ def solve_toppra(
                 f"toppra found no profile for the path section s in [{s_start:.4g}, "
                 f"{s_end:.4g}] rad: {code}"
             )
-        sd = np.asarray(sd, dtype=float).copy()
+        sd = np.asarray(sd, dtype=float) / c
         sd[0] = sd[-1] = 0.0
         s_all.append(grid[1:])
         sd_all.append(sd[1:])

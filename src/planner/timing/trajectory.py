@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 
 from planner.design import Design
+from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.path import BlendedPath
 from planner.timing.toppra_method import PathProfile
@@ -26,6 +27,17 @@ __all__ = ["Curve", "RestCurve", "ToppraCurve", "Trajectory", "p_velocity", "sam
 FD_STEP = 1e-6
 #: Points checked inside every toppra grid interval besides its ends.
 SUBSAMPLES = 5
+#: Most postures in one dense re-check (each costs ~100 bytes per array evaluated).
+MAX_CHECK_SAMPLES = 5_000_000
+
+
+def check_sample_count(n: int) -> None:
+    """Refuse a dense re-check of more than ``MAX_CHECK_SAMPLES`` postures (memory)."""
+    if n > MAX_CHECK_SAMPLES:
+        raise InputError(
+            f"check_resolution is too fine for this path: {n} postures to check, more than "
+            f"{MAX_CHECK_SAMPLES}"
+        )
 
 
 class Curve(Protocol):
@@ -79,6 +91,7 @@ class ToppraCurve:
         grid points only) and both sides of every grid point (the acceleration jumps there)."""
         prof = self.profile
         n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
+        check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
         s_geo = np.linspace(prof.s[0], prof.s[-1], n)
         ds = np.diff(prof.s)
         frac = np.concatenate([[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1),
