@@ -32,13 +32,18 @@ from typing import Literal
 import numpy as np
 
 from planner.design import Design
-from planner.exceptions import InputError, LimitsError, TimingDeadlineError, TrajectoryCheckError
+from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
 from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import CheckReport, StateChecker, dense_check
 from planner.timing.limits import JointLimits
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
-from planner.timing.toppra_method import PathProfile, min_blend_radius, solve_toppra
+from planner.timing.toppra_method import (
+    PathProfile,
+    check_deadline,
+    min_blend_radius,
+    solve_toppra,
+)
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -129,11 +134,6 @@ def _deviation(value: object, n: int) -> np.ndarray:
     if not np.all(np.isfinite(dev) & (dev >= 0)):
         raise InputError(f"max_deviation must be finite and >= 0, got {value!r}")
     return dev
-
-
-def _check_deadline(deadline: float | None, what: str) -> None:
-    if deadline is not None and time.monotonic() > deadline:
-        raise TimingDeadlineError(f"the deadline passed {what}")
 
 
 def _fit_time_scale(
@@ -305,7 +305,7 @@ def time_path(
     slow_down = 1.0  # a pending uniform time scaling of the current toppra profile
     profile: PathProfile | None = None
     while True:
-        _check_deadline(deadline, "while timing the path")
+        check_deadline(deadline, "while timing the path")
         curve: Curve
         lim = limits if scale == 1.0 else limits.scaled(scale)
         if path.length <= 0.0:
@@ -318,6 +318,7 @@ def time_path(
                     speed_gain=speed_gain if v_cart is not None else None,
                     max_cartesian_speed=v_cart,
                     refine=refine,
+                    deadline=deadline,
                 )
                 profile = _fit_time_scale(
                     ToppraCurve(path, profile), lim, resolution,
@@ -327,14 +328,14 @@ def time_path(
                 profile = profile.time_scaled(slow_down)
             curve = ToppraCurve(path, profile)
             if method == "ruckig":
-                curve = build_ruckig_curve(path, profile, lim)
+                curve = build_ruckig_curve(path, profile, lim, deadline=deadline)
         if curve.duration * rate > MAX_OUTPUT_SAMPLES:
             raise InputError(
                 f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
                 f"{curve.duration:.4g} s, more than {MAX_OUTPUT_SAMPLES}: lower the rate"
             )
         t_out = sample_times(curve.duration, rate)
-        _check_deadline(deadline, "before the dense re-check")
+        check_deadline(deadline, "before the dense re-check")
         report = dense_check(
             curve,
             design=design,

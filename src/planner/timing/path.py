@@ -34,6 +34,9 @@ STRAIGHT_ANGLE = 1e-6
 #: A corner turning by more than pi minus this (rad) is a reversal: it cannot be blended.
 REVERSAL_ANGLE = 1e-6
 
+#: Straight pieces shorter than this (rad) are dropped (rounding between two touching blends).
+_PIECE_TOL = 1e-12
+
 LINE, ARC = 0, 1
 
 
@@ -121,6 +124,8 @@ class BlendedPath:
         # Merge consecutive duplicates; a stop on either copy is kept.
         keep = np.ones(n_in, bool)
         keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
+        if n_in > 1 and not keep[1:].any() and not np.array_equal(w_in[0], w_in[-1]):
+            keep[-1] = True  # start and end differ (a little): keep both ends exact
         index_map = np.cumsum(keep) - 1
         w = w_in[keep]
         w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
@@ -173,7 +178,7 @@ class BlendedPath:
             length = seg_len[i] - tangent[i] - tangent[i + 1]
             if i == 0 or tangent[i] == 0.0:
                 vertex_s[i] = s
-            if length > DUPLICATE_TOL:
+            if length > _PIECE_TOL:  # not the rounding left between two blends
                 kinds.append(LINE)
                 s_len.append(length)
                 origins.append(start)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -25,11 +26,11 @@ import toppra.algorithm
 import toppra.constraint
 from toppra.interpolator import AbstractGeometricPath
 
-from planner.exceptions import TimingInfeasibleError
+from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
 
-__all__ = ["PathProfile", "min_blend_radius", "solve_toppra"]
+__all__ = ["PathProfile", "check_deadline", "min_blend_radius", "solve_toppra"]
 
 logger = logging.getLogger(__name__)
 
@@ -183,6 +184,12 @@ def section_grid(path: BlendedPath, lo: int, hi: int, refine: int = 1) -> np.nda
     return np.concatenate(parts)
 
 
+def check_deadline(deadline: float | None, what: str) -> None:
+    """:class:`TimingDeadlineError` if ``time.monotonic()`` is past ``deadline``."""
+    if deadline is not None and time.monotonic() > deadline:
+        raise TimingDeadlineError(f"the deadline passed {what}")
+
+
 def min_blend_radius(limits: JointLimits) -> float:
     """Smallest corner blend worth keeping, rad: below it the path speed through the blend,
     at most ``sqrt(a r)``, gives ``sd^2`` under ``MIN_BLEND_X`` in the solver's normalised
@@ -228,6 +235,7 @@ def solve_toppra(
     speed_gain: Callable[[np.ndarray], np.ndarray] | None = None,
     max_cartesian_speed: float | None = None,
     refine: int = 1,
+    deadline: float | None = None,
 ) -> PathProfile:
     """Time-optimal rest-to-rest profile of every section of ``path``, joined in time.
 
@@ -241,11 +249,15 @@ def solve_toppra(
     max_cartesian_speed : float, m/s, optional
     refine : int
         Grid refinement factor (repairs use 2, 4, ...).
+    deadline : float, optional
+        ``time.monotonic()`` value checked before each section.
 
     Raises
     ------
     TimingInfeasibleError
         toppra reports a failure (uncontrollable instance, numerical failure).
+    TimingDeadlineError
+        ``deadline`` passed.
     """
     # Solve in a normalised time unit where the slowest joint's velocity limit is 1: toppra's
     # tolerances are absolute (1e-5 on sd^2), and slowing a profile by c scales velocities by
@@ -257,6 +269,7 @@ def solve_toppra(
     joint_constraints = _joint_constraints(tuple(v.tolist()), tuple(a.tolist()))
     s_all, sd_all = [np.zeros(1)], [np.zeros(1)]
     for s_start, s_end in zip(path.stops[:-1], path.stops[1:], strict=True):
+        check_deadline(deadline, "while timing the path with toppra")
         if s_end - s_start <= 0.0:
             continue
         section = _SectionPath(path, float(s_start), float(s_end))
