@@ -124,7 +124,6 @@ def test_deadline_in_the_past_raises_timeout():
         ({"sample_rate_hz": 0.0}, "sample_rate_hz must be a positive"),
         ({"check_resolution": float("nan")}, "check_resolution must be a positive"),
         ({"max_cartesian_speed": -1.0}, "max_cartesian_speed must be a positive"),
-        ({"max_cartesian_speed": 1.0, "method": "ruckig"}, "'toppra' only"),
         ({"max_deviation": -0.1}, "max_deviation must be finite and >= 0"),
         ({"assembly_mode": "x"}, "assembly_mode"),
         ({"check_states": lambda q: np.ones(3, bool)}, "check_states must return"),

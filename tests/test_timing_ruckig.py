@@ -12,6 +12,7 @@ from planner import Design
 from planner.exceptions import TimingInfeasibleError
 from planner.timing import LIMIT_RTOL, JointLimits, time_path
 from planner.timing.ruckig_method import _solve_move
+from planner.timing.trajectory import TimeScaledCurve
 
 DESIGN = Design.default()
 LIMITS = JointLimits(velocity=(2.0, 1.5, 2.5), acceleration=(8.0, 6.0, 10.0), jerk=(200.0,) * 3)
@@ -117,3 +118,21 @@ def test_move_speed_bound_covers_the_sampled_speed_and_check_spacing():
     t = curve.check_times(0.01)
     q = curve.evaluate(t)[0]
     assert np.max(np.linalg.norm(np.diff(q, axis=0), axis=1)) <= 0.01 + 1e-12
+
+
+def test_cartesian_speed_bound_with_ruckig():
+    w = random_walk(9, n=6)
+    free = time_path(DESIGN, w, LIMITS, method="ruckig")
+    vmax = 0.5 * float(free.p_speed.max())
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_cartesian_speed=vmax,
+                     sample_rate_hz=500.0)  # fmt: skip
+    assert traj.p_speed.max() <= vmax * TOL
+    assert traj.duration > free.duration
+    assert isinstance(traj.curve, TimeScaledCurve)  # the chain needed the uniform slow-down
+    t = fine_times(traj.duration, 20001)
+    _, qd, qdd, jerk = traj.at(t)
+    for x, lim in ((qd, LIMITS.velocity), (qdd, LIMITS.acceleration), (jerk, LIMITS.jerk)):
+        assert np.all(np.abs(x) <= np.asarray(lim) * TOL)
+    # Independent route: finite differences of P over time on the output samples.
+    dp = np.linalg.norm(np.diff(traj.p, axis=0), axis=1) / np.diff(traj.t)
+    assert vmax * 0.95 <= dp.max() <= vmax * 1.001

@@ -34,7 +34,7 @@ import numpy as np
 from planner.design import Design
 from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
 from planner.kinematics import ASSEMBLY_MODES
-from planner.timing.checks import CheckReport, StateChecker, dense_check
+from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
 from planner.timing.limits import JointLimits
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
@@ -47,6 +47,7 @@ from planner.timing.toppra_method import (
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
+    TimeScaledCurve,
     ToppraCurve,
     Trajectory,
     p_velocity,
@@ -170,10 +171,34 @@ def _fit_time_scale(
     return prof.time_scaled(c)
 
 
+def _exceeded(report: CheckReport) -> list[str]:
+    """The limit rules a report finds exceeded."""
+    return [rule for rule, r in report.limit_ratio.items() if r > 1.0 + LIMIT_RTOL]
+
+
+def _fit_cartesian_speed(
+    curve: Curve, design: Design, assembly_mode: str, resolution: float, v_cart: float
+) -> Curve:
+    """A ruckig chain slowed uniformly in time just enough that |dP/dt| <= v_cart at the
+    check times (the through-states come from a toppra profile that meets the bound, but the
+    moves between them may not). Slowing by c scales the speed of P by c and keeps every joint
+    limit (velocity c, acceleration c^2, jerk c^3)."""
+    t = curve.check_times(resolution)
+    q, qd, _, _ = curve.evaluate(t)
+    _, v, ok = p_velocity(design, q, qd, assembly_mode)
+    peak = float(np.max(np.where(ok, np.linalg.norm(v, axis=1), 0.0)))
+    target = v_cart * (1.0 - _FIT_MARGIN)
+    if peak <= target:
+        return curve
+    return TimeScaledCurve(curve, target / peak)
+
+
 def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | None:
     """Waypoint indices (of ``path.waypoints``) of the blends holding the bad postures, or
     None when a bad posture lies on a part that follows the planned segments exactly."""
     t_bad = report.t[report.bad_state]
+    while isinstance(curve, TimeScaledCurve):
+        t_bad, curve = t_bad * curve.c, curve.base
     if isinstance(curve, ToppraCurve):
         s, _, _ = curve.profile.at_time(t_bad)
         corners = path.arc_corner_at(s)
@@ -238,7 +263,9 @@ def time_path(
     sample_rate_hz : float, Hz
         Output sample rate (the end time is always a sample).
     max_cartesian_speed : float, m/s, optional
-        Bound on |dP/dt| (toppra only).
+        Bound on |dP/dt|. toppra: a constraint of the time-optimal problem; ruckig: the
+        through-states come from that profile, and the chain is slowed uniformly if a move
+        between them still exceeds the bound.
     max_deviation : float or array (N,), rad
         Largest joint-space distance from each interior vertex to its corner blend; 0 keeps
         the vertex (the trajectory stops there). The trajectory is within this distance of
@@ -285,8 +312,6 @@ def time_path(
     resolution = _positive("check_resolution", check_resolution)
     v_cart = None
     if max_cartesian_speed is not None:
-        if method != "toppra":
-            raise InputError("max_cartesian_speed is supported by method='toppra' only")
         v_cart = _positive("max_cartesian_speed", max_cartesian_speed)
     stop = _stop_mask(stop_at, n)
     dev_in = _deviation(max_deviation, n)
@@ -304,11 +329,14 @@ def time_path(
 
     slow_down = 1.0  # a pending uniform time scaling of the current toppra profile
     profile: PathProfile | None = None
+    rescaled: Curve | None = None  # a ruckig chain slowed down by a repair, used as is
     while True:
         check_deadline(deadline, "while timing the path")
         curve: Curve
         lim = limits if scale == 1.0 else limits.scaled(scale)
-        if path.length <= 0.0:
+        if rescaled is not None:
+            curve, rescaled = rescaled, None
+        elif path.length <= 0.0:
             curve = RestCurve(path.waypoints[0])
         else:
             if profile is None:
@@ -329,6 +357,8 @@ def time_path(
             curve = ToppraCurve(path, profile)
             if method == "ruckig":
                 curve = build_ruckig_curve(path, profile, lim, deadline=deadline)
+                if v_cart is not None:
+                    curve = _fit_cartesian_speed(curve, design, assembly_mode, resolution, v_cart)
         if curve.duration * rate > MAX_OUTPUT_SAMPLES:
             raise InputError(
                 f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
@@ -372,6 +402,11 @@ def time_path(
             )
             profile = None
             logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
+        elif method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed"}:
+            # Slow the same chain down uniformly (every joint limit still holds).
+            c = (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN)
+            rescaled = TimeScaledCurve(curve, c)
+            logger.info("timing repair %d: ruckig chain slowed by %.6f", repairs, c)
         elif method == "toppra":
             # Slow the same profile down uniformly: velocities and the Cartesian speed scale by
             # c, accelerations by c^2, at the same path positions.

@@ -20,7 +20,15 @@ from planner.kinematics import forward_batch
 from planner.timing.path import BlendedPath
 from planner.timing.toppra_method import PathProfile
 
-__all__ = ["Curve", "RestCurve", "ToppraCurve", "Trajectory", "p_velocity", "sample_times"]
+__all__ = [
+    "Curve",
+    "RestCurve",
+    "TimeScaledCurve",
+    "ToppraCurve",
+    "Trajectory",
+    "p_velocity",
+    "sample_times",
+]
 
 #: Step of the central finite difference of P along a joint direction, rad. The truncation
 #: error is O(h^2 |P'''|) ~ 1e-12 m and the rounding error O(1e-16 / h) ~ 1e-10 m/rad.
@@ -193,6 +201,33 @@ class Trajectory:
     def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """(q, qd, qdd, jerk or None) at any times t (M,) in [0, duration]."""
         return self.curve.evaluate(np.atleast_1d(np.asarray(t, dtype=float)))
+
+
+@dataclass(frozen=True, eq=False)
+class TimeScaledCurve:
+    """``base`` slowed uniformly in time by ``c`` (0 < c <= 1): q(t) = base.q(c t), so
+    velocities scale by c, accelerations by c^2 and jerks by c^3, all within the base's limits;
+    the speed of P scales by c. The same postures are visited, so validity is unchanged."""
+
+    base: Curve
+    c: float
+
+    @property
+    def duration(self) -> float:
+        return self.base.duration / self.c
+
+    def evaluate(
+        self, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        q, qd, qdd, jerk = self.base.evaluate(np.asarray(t, dtype=float) * self.c)
+        c = self.c
+        return q, qd * c, qdd * c**2, None if jerk is None else jerk * c**3
+
+    def check_times(self, resolution: float) -> np.ndarray:
+        return self.base.check_times(resolution) / self.c
+
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        return self.base.plan_segments(np.asarray(t, dtype=float) * self.c)
 
 
 @dataclass(frozen=True, eq=False)
