@@ -5,16 +5,18 @@ Steps:
 1. validate the inputs (typed errors naming the field);
 2. blend the polyline's corners (:class:`~planner.timing.path.BlendedPath`) within
    ``max_deviation``, keeping the ``stop_at`` vertices as rest points;
-3. time it: toppra's time-optimal profile, and for ``ruckig`` a chain of jerk-limited moves
-   through states taken from that profile;
+3. time it: toppra's time-optimal profile, slowed uniformly just enough that the limits hold
+   between its grid points too; for ``ruckig``, a chain of jerk-limited moves through states
+   taken from that profile (slowed uniformly if the Cartesian speed bound needs it);
 4. re-check the timed trajectory densely (:func:`~planner.timing.checks.dense_check`);
 5. repair and go back to 3, at most ``MAX_REPAIRS`` times:
 
    * a posture that fails validity, joint limits or assembly near a blend: that corner's
      blend shrinks (``max_deviation / 4``, then ``/ 16``, then the corner becomes a stop,
      where the trajectory follows the planned segments exactly);
-   * a limit exceeded between toppra grid points: a finer grid and limits scaled down by the
-     measured excess (a slightly slower profile);
+   * a limit exceeded somewhere the fit did not look (an output sample): the same profile
+     (toppra) or chain (ruckig, Cartesian speed) is slowed uniformly by the measured excess;
+     any other ruckig limit excess: the limits are scaled down and everything re-solved;
 
    a failure on the planned segments themselves cannot be repaired by timing: it raises
    :class:`~planner.exceptions.TrajectoryCheckError` at once, as does a failure left after the
