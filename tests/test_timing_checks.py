@@ -177,3 +177,27 @@ def test_near_duplicate_and_tiny_segments_end_exactly(method):
     q, qd, _, _ = traj.at(np.array([traj.duration]))
     np.testing.assert_allclose(q[0], w[-1], atol=1e-12)
     np.testing.assert_allclose(qd[0], 0.0, atol=1e-9)
+
+
+def test_dense_check_flags_postures_farther_than_the_allowance():
+    path = BlendedPath.from_waypoints(CORNER, 0.05)
+    curve = ToppraCurve(path, solve_toppra(path, LIMITS))
+    common = dict(
+        design=DESIGN, assembly_mode="+", waypoints=CORNER, limits=LIMITS, resolution=0.01,
+        extra_times=np.zeros(0), check_states=None, max_cartesian_speed=None,
+    )  # fmt: skip
+    loose = dense_check(curve, deviation_limit=np.array([0.0, 0.05, 0.0]), **common)
+    assert not loose.bad_state.any()
+    # The arc's farthest point from the two segments: r (1 - cos(a/2)), r = l = 0.05 / tan(pi/8)
+    r = 0.05 / np.tan(np.pi / 8)
+    assert loose.max_deviation_q == pytest.approx(r * (1 - np.cos(np.pi / 4)), rel=1e-4)
+    tight = dense_check(curve, deviation_limit=np.array([0.0, 0.02, 0.0]), **common)
+    flagged = tight.state_rule == "deviation"
+    assert flagged.any() and np.all(tight.bad_state == flagged)
+    # Exactly the postures farther than 0.02 from the two segments are flagged.
+    q = tight.q
+    dist = np.minimum(
+        np.hypot(q[:, 1], q[:, 2] - 0.5) * (q[:, 0] <= 1) + (q[:, 0] > 1) * 9,
+        np.hypot(q[:, 0] - 1, q[:, 2] - 0.5),
+    )
+    np.testing.assert_array_equal(flagged, dist > 0.02 + 1e-9)

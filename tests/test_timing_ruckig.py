@@ -136,3 +136,13 @@ def test_cartesian_speed_bound_with_ruckig():
     # Independent route: finite differences of P over time on the output samples.
     dp = np.linalg.norm(np.diff(traj.p, axis=0), axis=1) / np.diff(traj.t)
     assert vmax * 0.95 <= dp.max() <= vmax * 1.001
+
+
+@pytest.mark.parametrize("delta", [0.02, 0.05])
+def test_deviation_is_held_to_max_deviation(delta):
+    for seed in range(3):
+        w = random_walk(10 + seed, n=8)
+        traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_deviation=delta)
+        q, _, _, _ = traj.at(fine_times(traj.duration, 2001))
+        assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= delta + 1e-3
+        assert 0.0 < traj.max_deviation_q <= delta * (1 + 1e-9)

@@ -33,6 +33,8 @@ __all__ = ["LIMIT_RTOL", "CheckReport", "StateChecker", "dense_check"]
 #: Relative tolerance on every velocity, acceleration, jerk and Cartesian-speed limit: a sample
 #: passes when |value| <= limit * (1 + LIMIT_RTOL) (solver round-off, not a slack).
 LIMIT_RTOL = 1e-6
+#: Relative tolerance on the deviation allowance.
+DEVIATION_RTOL = 1e-9
 #: Absolute tolerance on the design's joint limits, rad.
 JOINT_LIMIT_TOL = 1e-9
 
@@ -51,8 +53,8 @@ class CheckReport:
     limit_ratio : dict rule -> largest |value| / limit over the samples (velocity,
         acceleration, jerk, cartesian_speed).
     max_deviation_q, max_deviation_p : rad, m (see :class:`~planner.timing.Trajectory`).
-    first_rule : the first failing rule of a bad state ("validity", "joint_limits",
-        "assembly"), or None.
+    state_rule : shape (M,), str -- the failing rule of each bad state ("assembly",
+        "joint_limits", "validity", "deviation"), "" for a good one.
     """
 
     t: np.ndarray
@@ -88,6 +90,7 @@ def dense_check(
     extra_times: np.ndarray,
     check_states: StateChecker | None,
     max_cartesian_speed: float | None,
+    deviation_limit: np.ndarray | None = None,
 ) -> CheckReport:
     """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
 
@@ -101,6 +104,9 @@ def dense_check(
         The planner's validity rules (True = valid); joint limits and assembly are always
         checked here too.
     max_cartesian_speed : m/s, optional
+    deviation_limit : shape (N,), rad, optional
+        Largest allowed distance from the plan near each vertex (``max_deviation``); a
+        posture farther from the segments it stands for fails with rule ``"deviation"``.
     """
     t = np.unique(np.concatenate([curve.check_times(resolution), extra_times]))
     q, qd, qdd, jerk = curve.evaluate(t)
@@ -137,6 +143,17 @@ def dense_check(
     dev_q, dev_p = 0.0, 0.0
     if np.any(off):
         dist, nearest = distance_to_polyline(waypoints, q[off], segments[off])
+        if deviation_limit is not None:
+            # A posture standing for segments lo..hi is near the corners lo+1..hi: it may be
+            # as far from the plan as the smallest of their allowances.
+            lo, hi = segments[off, 0] + 1, segments[off, 1]
+            allowed = np.full(lo.shape[0], np.inf)
+            for j in range(int(np.max(hi - lo, initial=0)) + 1):
+                allowed = np.minimum(allowed, deviation_limit[np.minimum(lo + j, hi)])
+            too_far = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
+            idx = np.flatnonzero(off)[too_far]
+            rule[idx[rule[idx] == ""]] = "deviation"
+            bad = rule != ""
         p_near = forward_batch(design, nearest, assembly_mode)
         both = assembled[off] & p_near.ok
         dev_q = float(np.max(dist))

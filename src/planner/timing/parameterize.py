@@ -11,7 +11,8 @@ Steps:
 4. re-check the timed trajectory densely (:func:`~planner.timing.checks.dense_check`);
 5. repair and go back to 3, at most ``MAX_REPAIRS`` times:
 
-   * a posture that fails validity, joint limits or assembly near a blend: that corner's
+   * a posture that fails validity, joint limits or assembly near a blend, or strays farther
+     from the plan than ``max_deviation`` (ruckig): that corner's
      blend shrinks (``max_deviation / 4``, then ``/ 16``, then the corner becomes a stop,
      where the trajectory follows the planned segments exactly);
    * a limit exceeded somewhere the fit did not look (an output sample): the same profile
@@ -270,8 +271,9 @@ def time_path(
         between them still exceeds the bound.
     max_deviation : float or array (N,), rad
         Largest joint-space distance from each interior vertex to its corner blend; 0 keeps
-        the vertex (the trajectory stops there). The trajectory is within this distance of
-        the polyline for toppra; ruckig's deviation is measured and reported.
+        the vertex (the trajectory stops there). Every re-checked posture is within this
+        distance of the planned segments it stands for (toppra: by construction; ruckig:
+        enforced by the re-check, a corner whose move strays farther has its blend shrunk).
     stop_at : indices of waypoints where the trajectory comes to rest (e.g. transits).
     check_states : callable Q (M, 3) -> bool (M,), optional
         Validity rules of the planner (True = valid), applied densely to the timed
@@ -321,6 +323,7 @@ def time_path(
     min_radius = min_blend_radius(limits)
     path = BlendedPath.from_waypoints(w, dev_in, stop, min_radius)
     dev = np.minimum.reduceat(dev_in, np.unique(path.index_map, return_index=True)[1])
+    dev0 = dev.copy()  # the allowance per (merged) waypoint, rad
     floor = dev / _SHRINK**_SHRINK_STEPS
     scale, refine, repairs = 1.0, 1, 0
 
@@ -378,6 +381,7 @@ def time_path(
             extra_times=t_out,
             check_states=check_states,
             max_cartesian_speed=v_cart,
+            deviation_limit=dev0,
         )
         if report.ok:
             break
