@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from timing_factories import brute_distance_to_polyline, fine_times, random_walk
 
-from planner import Design, Manipulator
+from planner import Design, Manipulator, forward_batch
 from planner.timing import LIMIT_RTOL, JointLimits, time_path
 from planner.timing.trajectory import p_velocity
 
@@ -105,9 +105,10 @@ def test_blending_is_faster_than_stopping_and_zero_deviation_follows_the_polylin
         assert np.linalg.norm(qd[i]) < 0.2
 
 
-def test_stop_at_brings_the_trajectory_to_rest_on_the_waypoint():
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_stop_at_brings_the_trajectory_to_rest_on_the_waypoint(method):
     w = random_walk(7, n=6)
-    traj = time_path(DESIGN, w, LIMITS, stop_at=[2])
+    traj = time_path(DESIGN, w, LIMITS, method=method, stop_at=[2])
     t = fine_times(traj.duration, 20001)
     q, qd, _, _ = traj.at(t)
     i = np.argmin(np.linalg.norm(q - w[2], axis=1))
@@ -150,3 +151,13 @@ def test_single_point_path_has_zero_duration():
     traj = time_path(DESIGN, w, LIMITS)
     assert traj.duration == 0.0 and traj.t.tolist() == [0.0]
     assert np.array_equal(traj.q[0], w[0]) and np.all(traj.qd == 0)
+
+
+def test_p_follows_the_requested_assembly_mode():
+    w = random_walk(12, n=4)
+    plus = time_path(DESIGN, w, LIMITS, assembly_mode="+")
+    minus = time_path(DESIGN, w, LIMITS, assembly_mode="-")
+    np.testing.assert_allclose(minus.q, plus.q)  # timing does not depend on the branch
+    np.testing.assert_allclose(minus.p, forward_batch(DESIGN, minus.q, "-").p, atol=1e-12)
+    np.testing.assert_allclose(plus.p, forward_batch(DESIGN, plus.q, "+").p, atol=1e-12)
+    assert np.abs(minus.p - plus.p).max() > 1e-3
