@@ -9,9 +9,16 @@ one place.
     PlannerError
     ├── DesignError            (ValueError)  a design's numbers break a rule
     ├── InputError             (ValueError)  an argument has the wrong shape or a non-finite value
-    └── KinematicsError
-        ├── AssemblyError                    q does not close the five-bar loop
-        └── SingularPostureError             the asked quantity is undefined at a singularity
+    ├── KinematicsError
+    │   ├── AssemblyError                    q does not close the five-bar loop
+    │   └── SingularPostureError             the asked quantity is undefined at a singularity
+    └── TimingError                          a path could not be turned into a trajectory
+        ├── TimingInfeasibleError            the solver (toppra, ruckig) found no profile
+        ├── TrajectoryCheckError             the timed trajectory fails the dense re-check
+        └── TimingDeadlineError              the request's deadline passed during timing
+
+    InputError
+    └── LimitsError                          velocity/acceleration/jerk limits break a rule
 """
 
 from __future__ import annotations
@@ -21,8 +28,13 @@ __all__ = [
     "DesignError",
     "InputError",
     "KinematicsError",
+    "LimitsError",
     "PlannerError",
     "SingularPostureError",
+    "TimingDeadlineError",
+    "TimingError",
+    "TimingInfeasibleError",
+    "TrajectoryCheckError",
 ]
 
 
@@ -50,3 +62,51 @@ class AssemblyError(KinematicsError):
 class SingularPostureError(KinematicsError):
     """The quantity asked for is undefined at this posture (a parallel singularity for a
     Cartesian velocity, a degenerate point for inverse kinematics)."""
+
+
+class LimitsError(InputError):
+    """Joint velocity, acceleration or jerk limits break a rule: each is 3 positive finite
+    numbers (the message names the field and the rule)."""
+
+
+class TimingError(PlannerError):
+    """A joint path could not be turned into a timed trajectory."""
+
+
+class TimingInfeasibleError(TimingError):
+    """The time-parameterisation solver found no profile (toppra's return code, a ruckig
+    error code or ``RuckigError``), translated into the product's error."""
+
+
+class TrajectoryCheckError(TimingError):
+    """The timed trajectory fails the dense re-check (validity, joint limits, or a velocity,
+    acceleration, jerk or Cartesian-speed limit) and the bounded repair could not fix it.
+
+    Attributes
+    ----------
+    rule : str
+        Which check failed: ``"validity"``, ``"joint_limits"``, ``"velocity"``,
+        ``"acceleration"``, ``"jerk"``, ``"cartesian_speed"`` or ``"assembly"``.
+    time : float or None
+        Time of the first failing sample, s (None when the failure is on the planned path).
+    q : tuple of 3 floats or None
+        Joints of the first failing sample, rad.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        rule: str,
+        time: float | None = None,
+        q: tuple[float, float, float] | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.rule = rule
+        self.time = time
+        self.q = q
+
+
+class TimingDeadlineError(TimingError):
+    """The request's deadline passed before the trajectory was computed and checked (the
+    service answers with status ``timeout``)."""

@@ -1,0 +1,37 @@
+"""Time parameterisation: turn a planned joint path into a trajectory a controller can follow.
+
+The only package that imports toppra and ruckig. Entry point: :func:`time_path`.
+
+>>> import numpy as np
+>>> from planner import Design
+>>> from planner.timing import JointLimits, time_path
+>>> traj = time_path(Design.default(), np.array([[0, 0.5, 1.0], [0.4, 0.9, 1.2], [0.8, 0.6, 1.5]]),
+...                  JointLimits.default(), method="toppra")
+>>> bool(traj.duration > 0), traj.q[0].tolist() == [0.0, 0.5, 1.0]
+(True, True)
+"""
+
+from __future__ import annotations
+
+from planner.timing.checks import LIMIT_RTOL, StateChecker
+from planner.timing.limits import JointLimits
+from planner.timing.parameterize import (
+    DEFAULT_CHECK_RESOLUTION,
+    DEFAULT_MAX_DEVIATION,
+    DEFAULT_SAMPLE_RATE_HZ,
+    METHODS,
+    time_path,
+)
+from planner.timing.trajectory import Trajectory
+
+__all__ = [
+    "DEFAULT_CHECK_RESOLUTION",
+    "DEFAULT_MAX_DEVIATION",
+    "DEFAULT_SAMPLE_RATE_HZ",
+    "LIMIT_RTOL",
+    "METHODS",
+    "JointLimits",
+    "StateChecker",
+    "Trajectory",
+    "time_path",
+]

@@ -1,0 +1,170 @@
+"""Dense re-check of a timed trajectory: limits, joint limits, assembly and validity.
+
+Why dense, and how dense. The planner certified the straight segments of the polyline; the
+timed trajectory leaves them near blended corners (toppra) or between through-states (ruckig),
+and its limits are certified by the solvers only at their own grid points. So the curve is
+re-checked at *check times* chosen so that consecutive checked postures are at most
+``resolution`` apart in joint space (Euclidean, rad): every posture of the trajectory is then
+within ``resolution / 2`` of a checked one. A validity rule whose margin changes by at most
+``G`` per rad of joint motion (clearance: at most the reach ``L1 + L2`` m/rad; serial measures
+and kappa(A) are smooth away from the singular sets they guard) cannot be violated by more than
+``G * resolution / 2`` between checks. Passing the same ``resolution`` the planner's motion
+validator uses gives the timed trajectory the same guarantee as the planned path. Limits are
+checked at those times plus five points inside every toppra grid interval and both sides of
+every acceleration jump, and at the output samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.design import Design
+from planner.exceptions import InputError
+from planner.kinematics import forward_batch
+from planner.timing.limits import JointLimits
+from planner.timing.path import distance_to_polyline
+from planner.timing.trajectory import Curve, p_velocity
+
+__all__ = ["LIMIT_RTOL", "CheckReport", "StateChecker", "dense_check"]
+
+#: Relative tolerance on every velocity, acceleration, jerk and Cartesian-speed limit: a sample
+#: passes when |value| <= limit * (1 + LIMIT_RTOL) (solver round-off, not a slack).
+LIMIT_RTOL = 1e-6
+#: Relative tolerance on the deviation allowance.
+DEVIATION_RTOL = 1e-9
+#: Absolute tolerance on the design's joint limits, rad.
+JOINT_LIMIT_TOL = 1e-9
+
+#: Q (M, 3) -> valid (M,) bool, True = valid.
+StateChecker = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class CheckReport:
+    """Outcome of :func:`dense_check`.
+
+    Attributes
+    ----------
+    t, q : check times (M,), s, and postures (M, 3), rad.
+    bad_state : shape (M,), bool -- fails validity, joint limits or assembly.
+    limit_ratio : dict rule -> largest |value| / limit over the samples (velocity,
+        acceleration, jerk, cartesian_speed).
+    max_deviation_q, max_deviation_p : rad, m (see :class:`~planner.timing.Trajectory`).
+    state_rule : shape (M,), str -- the failing rule of each bad state ("assembly",
+        "joint_limits", "validity", "deviation"), "" for a good one.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    bad_state: np.ndarray
+    state_rule: np.ndarray
+    limit_ratio: dict[str, float]
+    max_deviation_q: float
+    max_deviation_p: float
+
+    @property
+    def limits_ok(self) -> bool:
+        return all(r <= 1.0 + LIMIT_RTOL for r in self.limit_ratio.values())
+
+    @property
+    def ok(self) -> bool:
+        return self.limits_ok and not bool(np.any(self.bad_state))
+
+    @property
+    def worst_limit(self) -> tuple[str, float]:
+        rule = max(self.limit_ratio, key=lambda k: self.limit_ratio[k])
+        return rule, self.limit_ratio[rule]
+
+
+def dense_check(
+    curve: Curve,
+    *,
+    design: Design,
+    assembly_mode: str,
+    waypoints: np.ndarray,
+    limits: JointLimits,
+    resolution: float,
+    extra_times: np.ndarray,
+    check_states: StateChecker | None,
+    max_cartesian_speed: float | None,
+    deviation_limit: np.ndarray | None = None,
+) -> CheckReport:
+    """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
+
+    Parameters
+    ----------
+    curve : Curve
+    waypoints : shape (N, 3), rad -- the planned polyline (for the deviation).
+    resolution : rad -- largest joint-space step between checked postures.
+    extra_times : shape (E,), s -- e.g. the output sample times.
+    check_states : Q (M, 3) -> bool (M,), optional
+        The planner's validity rules (True = valid); joint limits and assembly are always
+        checked here too.
+    max_cartesian_speed : m/s, optional
+    deviation_limit : shape (N,), rad, optional
+        Largest allowed distance from the plan near each vertex (``max_deviation``); a
+        posture farther from the segments it stands for fails with rule ``"deviation"``.
+    """
+    t = np.unique(np.concatenate([curve.check_times(resolution), extra_times]))
+    q, qd, qdd, jerk = curve.evaluate(t)
+    ratio = {
+        "velocity": float(np.max(np.abs(qd) / limits.velocity_array)),
+        "acceleration": float(np.max(np.abs(qdd) / limits.acceleration_array)),
+    }
+    if jerk is not None and limits.jerk is not None:
+        finite = np.isfinite(jerk)
+        ratio["jerk"] = float(np.max(np.where(finite, np.abs(jerk), 0.0) / limits.jerk_array))
+    p, v_p, assembled = p_velocity(design, q, qd, assembly_mode)
+    if max_cartesian_speed is not None:
+        speed = np.linalg.norm(v_p, axis=1)
+        ratio["cartesian_speed"] = float(np.max(np.where(assembled, speed, 0.0)))
+        ratio["cartesian_speed"] /= max_cartesian_speed
+
+    rule = np.full(t.shape[0], "", dtype=object)
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    outside = np.any((q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL), axis=1)
+    rule[~assembled] = "assembly"
+    rule[outside & (rule == "")] = "joint_limits"
+    if check_states is not None:
+        valid = np.asarray(check_states(q))
+        if valid.shape != (q.shape[0],) or valid.dtype != np.bool_:
+            raise InputError(
+                f"check_states must return a bool array of shape ({q.shape[0]},), "
+                f"got {valid.dtype} {valid.shape}"
+            )
+        rule[~valid & (rule == "")] = "validity"
+    bad = rule != ""
+
+    segments = curve.plan_segments(t)
+    off = segments[:, 0] >= 0
+    dev_q, dev_p = 0.0, 0.0
+    if np.any(off):
+        dist, nearest = distance_to_polyline(waypoints, q[off], segments[off])
+        if deviation_limit is not None:
+            # A posture standing for segments lo..hi is near the corners lo+1..hi: it may be
+            # as far from the plan as the smallest of their allowances.
+            lo, hi = segments[off, 0] + 1, segments[off, 1]
+            allowed = np.full(lo.shape[0], np.inf)
+            for j in range(int(np.max(hi - lo, initial=0)) + 1):
+                allowed = np.minimum(allowed, deviation_limit[np.minimum(lo + j, hi)])
+            too_far = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
+            idx = np.flatnonzero(off)[too_far]
+            rule[idx[rule[idx] == ""]] = "deviation"
+            bad = rule != ""
+        p_near = forward_batch(design, nearest, assembly_mode)
+        both = assembled[off] & p_near.ok
+        dev_q = float(np.max(dist))
+        if np.any(both):
+            dev_p = float(np.max(np.linalg.norm(p[off][both] - p_near.p[both], axis=1)))
+    return CheckReport(
+        t=t,
+        q=q,
+        bad_state=bad,
+        state_rule=rule,
+        limit_ratio=ratio,
+        max_deviation_q=dev_q,
+        max_deviation_p=dev_p,
+    )

@@ -1,0 +1,97 @@
+"""Per-joint kinematic limits of a trajectory, validated once at the boundary.
+
+Each limit is 3 positive finite numbers, one per actuated joint (theta1, theta2, theta3), and
+bounds the magnitude symmetrically: ``|qd_j| <= velocity[j]`` (rad/s),
+``|qdd_j| <= acceleration[j]`` (rad/s^2), ``|qddd_j| <= jerk[j]`` (rad/s^3).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.exceptions import LimitsError
+
+__all__ = ["JointLimits"]
+
+
+def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
+    """``value`` as 3 positive finite floats, or :class:`LimitsError` naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise LimitsError(f"limits.{name} must be 3 numbers, got {value!r}") from exc
+    if arr.shape != (3,):
+        raise LimitsError(f"limits.{name} must be 3 numbers (one per joint), got shape {arr.shape}")
+    for j, v in enumerate(arr.tolist()):
+        if not math.isfinite(v):
+            raise LimitsError(f"limits.{name}[{j}] must be finite, got {v}")
+        if v <= 0.0:
+            raise LimitsError(f"limits.{name}[{j}] must be > 0, got {v}")
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+@dataclass(frozen=True, slots=True)
+class JointLimits:
+    """Symmetric per-joint limits of velocity, acceleration and (optionally) jerk.
+
+    Parameters
+    ----------
+    velocity : 3 floats, rad/s, each > 0 and finite
+    acceleration : 3 floats, rad/s^2, each > 0 and finite
+    jerk : 3 floats, rad/s^3, each > 0 and finite, or None
+        Needed by the jerk-limited method (``ruckig``); toppra ignores it (its acceleration is
+        piecewise constant, so its jerk is not defined).
+
+    Raises
+    ------
+    LimitsError
+        A field is not 3 numbers, or a value is zero, negative, NaN or infinite; the message
+        names the field, the joint and the rule (``limits.velocity[1] must be > 0, got 0.0``).
+    """
+
+    velocity: tuple[float, float, float]
+    acceleration: tuple[float, float, float]
+    jerk: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "velocity", _positive_triple("velocity", self.velocity))
+        object.__setattr__(
+            self, "acceleration", _positive_triple("acceleration", self.acceleration)
+        )
+        if self.jerk is not None:
+            object.__setattr__(self, "jerk", _positive_triple("jerk", self.jerk))
+
+    @classmethod
+    def default(cls) -> JointLimits:
+        """Moderate limits for the reference designs: 2 rad/s, 8 rad/s^2, 200 rad/s^3 per joint
+        (the acceleration ramps up in 40 ms)."""
+        return cls(velocity=(2.0,) * 3, acceleration=(8.0,) * 3, jerk=(200.0,) * 3)
+
+    def scaled(self, factor: float) -> JointLimits:
+        """These limits with velocity and acceleration multiplied by ``factor`` (0 < f <= 1),
+        jerk unchanged: the slower profile of a repair."""
+        if not 0.0 < factor <= 1.0:
+            raise LimitsError(f"scale factor must be in (0, 1], got {factor}")
+        return JointLimits(
+            velocity=tuple(v * factor for v in self.velocity),  # type: ignore[arg-type]
+            acceleration=tuple(a * factor for a in self.acceleration),  # type: ignore[arg-type]
+            jerk=self.jerk,
+        )
+
+    @property
+    def velocity_array(self) -> np.ndarray:
+        """Shape (3,), rad/s."""
+        return np.asarray(self.velocity)
+
+    @property
+    def acceleration_array(self) -> np.ndarray:
+        """Shape (3,), rad/s^2."""
+        return np.asarray(self.acceleration)
+
+    @property
+    def jerk_array(self) -> np.ndarray | None:
+        """Shape (3,), rad/s^3, or None."""
+        return None if self.jerk is None else np.asarray(self.jerk)

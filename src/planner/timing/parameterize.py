@@ -1,0 +1,461 @@
+"""The public entry of timing: :func:`time_path`, with its bounded repair loop.
+
+Steps:
+
+1. validate the inputs (typed errors naming the field);
+2. blend the polyline's corners (:class:`~planner.timing.path.BlendedPath`) within
+   ``max_deviation``, keeping the ``stop_at`` vertices as rest points;
+3. time it: toppra's time-optimal profile, slowed uniformly just enough that the limits hold
+   between its grid points too; for ``ruckig``, a chain of jerk-limited moves through states
+   taken from that profile (slowed uniformly if the Cartesian speed bound needs it);
+4. re-check the timed trajectory densely (:func:`~planner.timing.checks.dense_check`);
+5. repair and go back to 3, at most ``MAX_REPAIRS`` times:
+
+   * a posture that fails validity, joint limits or assembly near a blend, or strays farther
+     from the plan than ``max_deviation`` (ruckig): that corner's
+     blend shrinks (``max_deviation / 4``, then ``/ 16``, then the corner becomes a stop,
+     where the trajectory follows the planned segments exactly);
+   * a limit exceeded somewhere the fit did not look (an output sample): the same profile
+     (toppra) or chain (ruckig, Cartesian speed) is slowed uniformly by the measured excess;
+     any other ruckig limit excess: the limits are scaled down and everything re-solved;
+
+   a failure on the planned segments themselves cannot be repaired by timing: it raises
+   :class:`~planner.exceptions.TrajectoryCheckError` at once, as does a failure left after the
+   last repair. A trajectory is never returned without passing the check.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterable
+from typing import Literal
+
+import numpy as np
+
+from planner.design import Design
+from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
+from planner.kinematics import ASSEMBLY_MODES
+from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
+from planner.timing.limits import JointLimits
+from planner.timing.path import BlendedPath
+from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
+from planner.timing.toppra_method import (
+    PathProfile,
+    check_deadline,
+    min_blend_radius,
+    solve_toppra,
+)
+from planner.timing.trajectory import (
+    Curve,
+    RestCurve,
+    TimeScaledCurve,
+    ToppraCurve,
+    Trajectory,
+    p_velocity,
+    sample_times,
+)
+
+__all__ = [
+    "DEFAULT_CHECK_RESOLUTION",
+    "DEFAULT_MAX_DEVIATION",
+    "DEFAULT_SAMPLE_RATE_HZ",
+    "MAX_OUTPUT_SAMPLES",
+    "MAX_REPAIRS",
+    "METHODS",
+    "time_path",
+]
+
+logger = logging.getLogger(__name__)
+
+METHODS = ("toppra", "ruckig")
+#: Output sample rate, Hz.
+DEFAULT_SAMPLE_RATE_HZ = 100.0
+#: Largest distance from a vertex to its blend, rad (joint space).
+DEFAULT_MAX_DEVIATION = 0.05
+#: Largest joint-space step between two postures of the dense re-check, rad.
+DEFAULT_CHECK_RESOLUTION = 0.01
+#: Most output samples of one trajectory.
+MAX_OUTPUT_SAMPLES = 1_000_000
+#: Repair rounds before giving up (3 blend shrinks per corner, and limit rescaling).
+MAX_REPAIRS = 6
+#: A corner's blend shrinks by this factor per repair; below ``max_deviation / 16`` it stops.
+_SHRINK = 4.0
+_SHRINK_STEPS = 2
+#: The time scaling of a toppra profile aims this far (relative) inside the limits, so the
+#: output samples, which fall between the fitted positions, pass too (the excess found there
+#: was at most 2e-4 on the benchmark paths).
+_FIT_MARGIN = 1e-3
+
+
+def _waypoints(design: Design, waypoints: object) -> np.ndarray:
+    try:
+        w = np.asarray(waypoints, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"waypoints must be numbers, got {waypoints!r}") from exc
+    if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 1:
+        raise InputError(f"waypoints must have shape (N, 3) with N >= 1, got {w.shape}")
+    if not np.all(np.isfinite(w)):
+        raise InputError("waypoints must be finite (no NaN or infinity)")
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    out = np.any((w < lo) | (w > hi), axis=1)
+    if np.any(out):
+        i = int(np.argmax(out))
+        raise InputError(
+            f"waypoints[{i}] = {w[i].tolist()} is outside the joint limits "
+            f"[{list(design.joint_min)}, {list(design.joint_max)}]"
+        )
+    return w
+
+
+def _positive(name: str, value: object) -> float:
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a number, got {value!r}") from exc
+    if not (math.isfinite(x) and x > 0):
+        raise InputError(f"{name} must be a positive finite number, got {value!r}")
+    return x
+
+
+def _stop_mask(stop_at: Iterable[int], n: int) -> np.ndarray:
+    mask = np.zeros(n, bool)
+    for i in stop_at:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
+            raise InputError(f"stop_at must hold waypoint indices in [0, {n}), got {i!r}")
+        mask[int(i)] = True
+    return mask
+
+
+def _deviation(value: object, n: int) -> np.ndarray:
+    try:
+        dev = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"max_deviation must be a number or {n} numbers (one per waypoint), got {value!r}"
+        ) from exc
+    if not np.all(np.isfinite(dev) & (dev >= 0)):
+        raise InputError(f"max_deviation must be finite and >= 0, got {value!r}")
+    return dev
+
+
+def _fit_time_scale(
+    curve: ToppraCurve,
+    limits: JointLimits,
+    resolution: float,
+    speed_gain: Callable[[np.ndarray], np.ndarray] | None,
+    v_cart: float | None,
+) -> PathProfile:
+    """The toppra profile slowed uniformly in time just enough that the limits hold at every
+    check position, not only at toppra's grid points.
+
+    Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
+    (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
+    the Cartesian speed by c and accelerations by c^2 at the same path positions, so
+    ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
+    all exactly at those positions.
+    """
+    prof = curve.profile
+    s = curve.check_path_positions(resolution)
+    _, sd, sdd = prof.at_path(s)
+    _, d1, d2 = curve.path.evaluate_all(s)
+    r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
+    qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
+    r_a = np.max(np.abs(qdd) / limits.acceleration_array)
+    target = 1.0 - _FIT_MARGIN
+    c = min(1.0, target / r_v, np.sqrt(target / r_a))
+    if speed_gain is not None and v_cart is not None:
+        gain = speed_gain(s)
+        c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
+    if c >= 1.0:
+        return prof
+    logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
+    return prof.time_scaled(c)
+
+
+def _exceeded(report: CheckReport) -> list[str]:
+    """The limit rules a report finds exceeded."""
+    return [rule for rule, r in report.limit_ratio.items() if r > 1.0 + LIMIT_RTOL]
+
+
+def _fit_cartesian_speed(
+    curve: Curve, design: Design, assembly_mode: str, resolution: float, v_cart: float
+) -> Curve:
+    """A ruckig chain slowed uniformly in time just enough that |dP/dt| <= v_cart at the
+    check times (the through-states come from a toppra profile that meets the bound, but the
+    moves between them may not). Slowing by c scales the speed of P by c and keeps every joint
+    limit (velocity c, acceleration c^2, jerk c^3)."""
+    t = curve.check_times(resolution)
+    q, qd, _, _ = curve.evaluate(t)
+    _, v, ok = p_velocity(design, q, qd, assembly_mode)
+    peak = float(np.max(np.where(ok, np.linalg.norm(v, axis=1), 0.0)))
+    target = v_cart * (1.0 - _FIT_MARGIN)
+    if peak <= target:
+        return curve
+    return TimeScaledCurve(curve, target / peak)
+
+
+def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | None:
+    """Waypoint indices (of ``path.waypoints``) of the blends holding the bad postures, or
+    None when a bad posture lies on a part that follows the planned segments exactly."""
+    t_bad = report.t[report.bad_state]
+    while isinstance(curve, TimeScaledCurve):
+        t_bad, curve = t_bad * curve.c, curve.base
+    if isinstance(curve, ToppraCurve):
+        s, _, _ = curve.profile.at_time(t_bad)
+        corners = path.arc_corner_at(s)
+        if np.any(corners < 0):
+            return None
+        return {int(c) for c in corners}
+    if isinstance(curve, RuckigCurve):
+        found: set[int] = set()
+        for corners in curve.corners_at(t_bad):
+            if not corners:
+                return None
+            found.update(corners)
+        return found
+    return None
+
+
+def _failure(report: CheckReport, where: str) -> TrajectoryCheckError:
+    i = int(np.argmax(report.bad_state))
+    rule = str(report.state_rule[i])
+    q = tuple(float(x) for x in report.q[i])
+    return TrajectoryCheckError(
+        f"the timed trajectory fails the {rule} check at t = {report.t[i]:.4f} s, "
+        f"q = {[round(x, 6) for x in q]} ({where})",
+        rule=rule,
+        time=float(report.t[i]),
+        q=q,  # type: ignore[arg-type]
+    )
+
+
+def time_path(
+    design: Design,
+    waypoints: np.ndarray,
+    limits: JointLimits,
+    *,
+    method: Literal["toppra", "ruckig"] = "toppra",
+    assembly_mode: str = "+",
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    max_cartesian_speed: float | None = None,
+    max_deviation: float | np.ndarray = DEFAULT_MAX_DEVIATION,
+    stop_at: Iterable[int] = (),
+    check_states: StateChecker | None = None,
+    check_resolution: float = DEFAULT_CHECK_RESOLUTION,
+    deadline: float | None = None,
+) -> Trajectory:
+    """Turn a planned joint path into a checked, timed trajectory from rest to rest.
+
+    Parameters
+    ----------
+    design : Design
+        Geometry (for P and its speed) and joint limits (checked along the trajectory).
+    waypoints : array, shape (N, 3), rad
+        The planned polyline: consecutive waypoints joined by straight joint-space segments,
+        values literal (never wrapped). Inside the design's joint limits.
+    limits : JointLimits
+        Per-joint velocity and acceleration limits; jerk too for ``method="ruckig"``.
+    method : "toppra" | "ruckig"
+        ``toppra``: time-optimal under velocity and acceleration limits (and the Cartesian
+        speed bound); acceleration is piecewise constant, jerk undefined. ``ruckig``:
+        jerk-limited; q, qd and qdd continuous.
+    assembly_mode : "+" | "-"
+        Assembly mode of the path (for P).
+    sample_rate_hz : float, Hz
+        Output sample rate (the end time is always a sample).
+    max_cartesian_speed : float, m/s, optional
+        Bound on |dP/dt|. toppra: a constraint of the time-optimal problem; ruckig: the
+        through-states come from that profile, and the chain is slowed uniformly if a move
+        between them still exceeds the bound.
+    max_deviation : float or array (N,), rad
+        Largest joint-space distance from each interior vertex to its corner blend; 0 keeps
+        the vertex (the trajectory stops there). Every re-checked posture is within this
+        distance of the planned segments it stands for (toppra: by construction; ruckig:
+        enforced by the re-check, a corner whose move strays farther has its blend shrunk).
+    stop_at : indices of waypoints where the trajectory comes to rest (e.g. transits).
+    check_states : callable Q (M, 3) -> bool (M,), optional
+        Validity rules of the planner (True = valid), applied densely to the timed
+        trajectory; joint limits and assembly are always checked.
+    check_resolution : float, rad
+        Largest joint-space step between two re-checked postures (see
+        :mod:`planner.timing.checks` for the argument); use the planner's resolution.
+    deadline : float, optional
+        ``time.monotonic()`` value after which the work stops with
+        :class:`~planner.exceptions.TimingDeadlineError`.
+
+    Returns
+    -------
+    Trajectory
+        Starts at ``waypoints[0]`` and ends at ``waypoints[-1]`` exactly, at rest.
+
+    Raises
+    ------
+    InputError, LimitsError
+        A bad argument (the message names it).
+    TimingInfeasibleError
+        The solver found no profile.
+    TrajectoryCheckError
+        The dense re-check fails and the repairs could not fix it.
+    TimingDeadlineError
+        ``deadline`` passed.
+    """
+    t_start = time.perf_counter()
+    if not isinstance(limits, JointLimits):
+        raise LimitsError(f"limits must be a JointLimits, got {type(limits).__name__}")
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if method == "ruckig" and limits.jerk is None:
+        raise LimitsError("limits.jerk is required for method='ruckig' (3 positive numbers)")
+    if assembly_mode not in ASSEMBLY_MODES:
+        raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
+    w = _waypoints(design, waypoints)
+    n = w.shape[0]
+    rate = _positive("sample_rate_hz", sample_rate_hz)
+    resolution = _positive("check_resolution", check_resolution)
+    v_cart = None
+    if max_cartesian_speed is not None:
+        v_cart = _positive("max_cartesian_speed", max_cartesian_speed)
+    stop = _stop_mask(stop_at, n)
+    dev_in = _deviation(max_deviation, n)
+
+    min_radius = min_blend_radius(limits)
+    path = BlendedPath.from_waypoints(w, dev_in, stop, min_radius)
+    dev = np.minimum.reduceat(dev_in, np.unique(path.index_map, return_index=True)[1])
+    dev0 = dev.copy()  # the allowance per (merged) waypoint, rad
+    floor = dev / _SHRINK**_SHRINK_STEPS
+    scale, refine, repairs = 1.0, 1, 0
+
+    def speed_gain(s: np.ndarray) -> np.ndarray:
+        q, d1, _ = path.evaluate_all(s)
+        _, v, ok = p_velocity(design, q, d1, assembly_mode)
+        return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
+
+    slow_down = 1.0  # a pending uniform time scaling of the current toppra profile
+    profile: PathProfile | None = None
+    rescaled: Curve | None = None  # a ruckig chain slowed down by a repair, used as is
+    while True:
+        check_deadline(deadline, "while timing the path")
+        curve: Curve
+        lim = limits if scale == 1.0 else limits.scaled(scale)
+        if rescaled is not None:
+            curve, rescaled = rescaled, None
+        elif path.length <= 0.0:
+            curve = RestCurve(path.waypoints[0])
+        else:
+            if profile is None:
+                profile = solve_toppra(
+                    path,
+                    lim,
+                    speed_gain=speed_gain if v_cart is not None else None,
+                    max_cartesian_speed=v_cart,
+                    refine=refine,
+                    deadline=deadline,
+                )
+                profile = _fit_time_scale(
+                    ToppraCurve(path, profile), lim, resolution,
+                    speed_gain if v_cart else None, v_cart,
+                )  # fmt: skip
+            elif slow_down < 1.0:
+                profile = profile.time_scaled(slow_down)
+            curve = ToppraCurve(path, profile)
+            if method == "ruckig":
+                curve = build_ruckig_curve(path, profile, lim, deadline=deadline)
+                if v_cart is not None:
+                    curve = _fit_cartesian_speed(curve, design, assembly_mode, resolution, v_cart)
+        if curve.duration * rate > MAX_OUTPUT_SAMPLES:
+            raise InputError(
+                f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
+                f"{curve.duration:.4g} s, more than {MAX_OUTPUT_SAMPLES}: lower the rate"
+            )
+        t_out = sample_times(curve.duration, rate)
+        check_deadline(deadline, "before the dense re-check")
+        report = dense_check(
+            curve,
+            design=design,
+            assembly_mode=assembly_mode,
+            waypoints=path.waypoints,
+            limits=limits,
+            resolution=resolution,
+            extra_times=t_out,
+            check_states=check_states,
+            max_cartesian_speed=v_cart,
+            deviation_limit=dev0,
+        )
+        if report.ok:
+            break
+        if repairs >= MAX_REPAIRS:
+            if not report.limits_ok:
+                rule, ratio = report.worst_limit
+                raise TrajectoryCheckError(
+                    f"the {rule} limit is exceeded by a factor {ratio:.6f} after {repairs} repairs",
+                    rule=rule,
+                )
+            raise _failure(report, f"after {repairs} repairs")
+        repairs += 1
+        slow_down = 1.0
+        if np.any(report.bad_state):
+            blamed = _blame(curve, path, report)
+            if blamed is None:
+                raise _failure(report, "on the planned segments: the path itself is invalid")
+            for k in blamed:
+                dev[k] = 0.0 if dev[k] / _SHRINK < floor[k] * (1 - 1e-12) else dev[k] / _SHRINK
+            stop_now = np.zeros(path.waypoints.shape[0], bool)
+            stop_now[[k for k in blamed if dev[k] == 0.0]] = True
+            path = BlendedPath.from_waypoints(
+                path.waypoints, dev, stop_now | _kept_stops(path), min_radius
+            )
+            profile = None
+            logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
+        elif method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed"}:
+            # Slow the same chain down uniformly (every joint limit still holds).
+            c = (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN)
+            rescaled = TimeScaledCurve(curve, c)
+            logger.info("timing repair %d: ruckig chain slowed by %.6f", repairs, c)
+        elif method == "toppra":
+            # Slow the same profile down uniformly: velocities and the Cartesian speed scale by
+            # c, accelerations by c^2, at the same path positions.
+            c = min(
+                (1.0 / np.sqrt(r) if rule == "acceleration" else 1.0 / r)
+                for rule, r in report.limit_ratio.items()
+            )
+            slow_down = min(c, 1.0) * (1.0 - _FIT_MARGIN)
+            logger.info("timing repair %d: profile slowed by %.6f", repairs, slow_down)
+        else:
+            rule, ratio = report.worst_limit
+            scale *= min(1.0 / ratio, 1.0 - 1e-4) * (1.0 - 1e-3)
+            refine *= 2
+            profile = None
+            logger.info("timing repair %d: %s limit x%.6f, limits scaled to %.6f", repairs,
+                        rule, ratio, scale)  # fmt: skip
+
+    q, qd, qdd, jerk = curve.evaluate(t_out)
+    # The ends are exact: the first and last planned waypoints, at rest.
+    q[0], q[-1] = path.waypoints[0], path.waypoints[-1]
+    qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0
+    if jerk is not None and not np.all(np.isfinite(jerk)):
+        jerk = None
+    p, v_p, _ = p_velocity(design, q, qd, assembly_mode)
+    return Trajectory(
+        method=method,
+        duration=curve.duration,
+        t=t_out,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        jerk=jerk,
+        p=p,
+        p_speed=np.linalg.norm(v_p, axis=1),
+        max_deviation_q=report.max_deviation_q,
+        max_deviation_p=report.max_deviation_p,
+        repairs=repairs,
+        checked_samples=int(report.t.shape[0]),
+        computation_time_s=time.perf_counter() - t_start,
+        curve=curve,
+    )
+
+
+def _kept_stops(path: BlendedPath) -> np.ndarray:
+    """Vertices of ``path`` where it comes to rest (so a rebuilt path keeps them)."""
+    return np.isin(path.vertex_s, path.stops)

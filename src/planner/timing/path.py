@@ -1,0 +1,348 @@
+"""The geometric path to be timed: the planned joint-space polyline with circular corner blends.
+
+A planned path is a polyline in joint space (``CONVENTIONS.md``: consecutive waypoints are
+joined by the straight segment between their literal joint values). A polyline has a corner at
+every interior waypoint, where a trajectory with finite acceleration has to stop. To keep
+moving, each corner ``k`` may be replaced by a circular arc tangent to both segments (the
+blend of Kunz and Stilman, RSS 2012) whose distance to the vertex is at most
+``max_deviation[k]`` (rad, joint space). The path is then C1 (continuous tangent), parameterised
+by its joint-space arc length ``s`` (rad), and made of *pieces*: straight lines (exactly on the
+polyline) and arcs (inside the corner, within ``max_deviation`` of the vertex).
+
+A corner with deviation 0, a requested stop, or a reversal (turning angle near pi) is not
+blended: the path keeps the vertex and the trajectory comes to rest there. The path is split
+into *sections* at such stops; each section is timed from rest to rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.exceptions import InputError
+
+__all__ = ["BlendedPath", "distance_to_polyline"]
+
+#: Consecutive waypoints closer than this (rad) are one waypoint (a zero-length segment has
+#: no direction, and a nearly zero one gives a corner no trajectory can take at speed).
+DUPLICATE_TOL = 1e-9
+#: A corner turning by less than this (rad) is straight: neither blended nor stopped at (its
+#: blend radius would be ~1e6 times the segment, losing precision; the tangent jumps by at most
+#: this, so the velocity direction does too).
+STRAIGHT_ANGLE = 1e-6
+#: A corner turning by more than pi minus this (rad) is a reversal: it cannot be blended.
+REVERSAL_ANGLE = 1e-6
+
+#: Straight pieces shorter than this (rad) are dropped (rounding between two touching blends).
+_PIECE_TOL = 1e-12
+
+LINE, ARC = 0, 1
+
+
+@dataclass(frozen=True, eq=False)
+class BlendedPath:
+    """A polyline with circular corner blends, parameterised by joint-space arc length.
+
+    Build it with :meth:`from_waypoints`. Piece ``i`` covers ``s in [s0[i], s0[i + 1]]``.
+
+    Attributes
+    ----------
+    waypoints : shape (N, 3), rad
+        The polyline after merging consecutive duplicates.
+    index_map : shape (N_in,), int
+        For each input waypoint, its index in ``waypoints``.
+    kind : shape (K,), int8
+        ``LINE`` (0) or ``ARC`` (1) per piece.
+    s0 : shape (K + 1,), rad
+        Start of each piece along the path; ``s0[-1]`` is the path length.
+    origin, direction, normal : shape (K, 3)
+        Line: start point, unit direction, zeros. Arc: centre ``c``, unit ``x`` (from the centre
+        to the arc's start), unit ``y`` (the incoming direction); the arc is
+        ``c + r (x cos phi + y sin phi)``, ``phi = (s - s0) / r``.
+    radius : shape (K,), rad
+        Arc radius; ``inf`` for lines.
+    corner : shape (K,), int
+        For an arc, the waypoint index of its corner; -1 for a line.
+    blend_deviation : shape (N,), rad
+        Distance from each vertex to its arc (0 where not blended).
+    stops : shape (S + 1,), rad
+        Section boundaries along ``s``: 0, every vertex where the path comes to rest, the end.
+    vertex_s : shape (N,), rad
+        Path parameter at each vertex (for a blended vertex, the middle of its arc).
+    """
+
+    waypoints: np.ndarray
+    index_map: np.ndarray
+    kind: np.ndarray
+    s0: np.ndarray
+    origin: np.ndarray
+    direction: np.ndarray
+    normal: np.ndarray
+    radius: np.ndarray
+    corner: np.ndarray
+    blend_deviation: np.ndarray
+    stops: np.ndarray
+    vertex_s: np.ndarray
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_waypoints(
+        cls,
+        waypoints: np.ndarray,
+        max_deviation: float | np.ndarray,
+        stop_at: np.ndarray | None = None,
+        min_radius: float = 0.0,
+    ) -> BlendedPath:
+        """Blend the corners of a joint-space polyline.
+
+        Parameters
+        ----------
+        waypoints : array, shape (N, 3), rad
+            Finite, N >= 2 (checked by the caller).
+        max_deviation : float or array of shape (N,), rad, >= 0
+            Largest distance from each vertex to its blend; 0 keeps the vertex (a stop).
+            Entries for the first and last waypoints are ignored.
+        stop_at : bool array of shape (N,), optional
+            Vertices where the trajectory must come to rest (no blend).
+        min_radius : float, rad
+            A corner whose blend radius would be smaller becomes a stop: the speed through
+            such a blend, ``sqrt(acceleration * radius)``, is nearly zero anyway, and the
+            solver's tolerances are absolute.
+
+        The blend at a corner turning by ``alpha`` between segments of lengths ``L_in``,
+        ``L_out`` has tangent length ``l = min(L_in / 2, L_out / 2,
+        delta sin(alpha/2) / (1 - cos(alpha/2)))`` and radius ``r = l / tan(alpha/2)``, so its
+        vertex distance ``r (1 / cos(alpha/2) - 1)`` is at most ``delta`` and neighbouring
+        blends never overlap (each takes at most half a segment).
+        """
+        w_in = np.asarray(waypoints, dtype=float)
+        n_in = w_in.shape[0]
+        dev_in = np.broadcast_to(np.asarray(max_deviation, dtype=float), (n_in,))
+        stop_in = np.zeros(n_in, bool) if stop_at is None else np.asarray(stop_at, bool)
+
+        # Merge consecutive duplicates; a stop on either copy is kept.
+        keep = np.ones(n_in, bool)
+        keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
+        if n_in > 1 and not keep[1:].any() and not np.array_equal(w_in[0], w_in[-1]):
+            keep[-1] = True  # start and end differ (a little): keep both ends exact
+        index_map = np.cumsum(keep) - 1
+        w = w_in[keep]
+        w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
+        n = w.shape[0]
+        stop = np.zeros(n, bool)
+        np.logical_or.at(stop, index_map, stop_in)
+        dev = np.full(n, np.inf)
+        np.minimum.at(dev, index_map, dev_in)
+
+        if n == 1:
+            empty3 = np.zeros((0, 3))
+            return cls(
+                w, index_map, np.zeros(0, np.int8), np.zeros(1), empty3, empty3, empty3,
+                np.zeros(0), np.zeros(0, int), np.zeros(1), np.zeros(1), np.zeros(1),
+            )  # fmt: skip
+
+        seg = np.diff(w, axis=0)
+        seg_len = np.linalg.norm(seg, axis=1)
+        seg_dir = seg / seg_len[:, None]
+
+        tangent = np.zeros(n)  # l at each vertex (0: not blended)
+        alpha = np.zeros(n)
+        is_stop = np.zeros(n, bool)
+        is_stop[0] = is_stop[-1] = True
+        for k in range(1, n - 1):
+            cos_a = float(np.clip(seg_dir[k - 1] @ seg_dir[k], -1.0, 1.0))
+            a = float(np.arccos(cos_a))
+            alpha[k] = a
+            if a < STRAIGHT_ANGLE and not stop[k]:
+                continue
+            if stop[k] or dev[k] <= 0.0 or a > np.pi - REVERSAL_ANGLE or a < STRAIGHT_ANGLE:
+                is_stop[k] = True
+                continue
+            half = a / 2
+            tangent[k] = min(
+                seg_len[k - 1] / 2,
+                seg_len[k] / 2,
+                dev[k] / np.tan(half / 2),  # = delta sin(a/2) / (1 - cos(a/2))
+            )
+            if tangent[k] / np.tan(half) < min_radius:
+                tangent[k] = 0.0
+                is_stop[k] = True
+
+        kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
+        vertex_s = np.zeros(n)
+        blend_dev = np.zeros(n)
+        s = 0.0
+        for i in range(n - 1):
+            start = w[i] + tangent[i] * seg_dir[i]
+            length = seg_len[i] - tangent[i] - tangent[i + 1]
+            if i == 0 or tangent[i] == 0.0:
+                vertex_s[i] = s
+            if length > _PIECE_TOL:  # not the rounding left between two blends
+                kinds.append(LINE)
+                s_len.append(length)
+                origins.append(start)
+                dirs.append(seg_dir[i])
+                normals.append(np.zeros(3))
+                radii.append(np.inf)
+                corners.append(-1)
+                s += length
+            k = i + 1
+            if tangent[k] > 0.0:
+                half = alpha[k] / 2
+                r = tangent[k] / np.tan(half)
+                bis = seg_dir[k] - seg_dir[k - 1]
+                bis /= np.linalg.norm(bis)
+                centre = w[k] + bis * (r / np.cos(half))
+                x = (w[k] - tangent[k] * seg_dir[k - 1] - centre) / r
+                kinds.append(ARC)
+                s_len.append(r * alpha[k])
+                origins.append(centre)
+                dirs.append(x / np.linalg.norm(x))
+                normals.append(seg_dir[k - 1])
+                radii.append(r)
+                corners.append(k)
+                blend_dev[k] = r * (1.0 / np.cos(half) - 1.0)
+                vertex_s[k] = s + r * alpha[k] / 2
+                s += r * alpha[k]
+        vertex_s[n - 1] = s
+        s0 = np.concatenate([[0.0], np.cumsum(s_len)])
+        stops = np.unique(vertex_s[is_stop])
+        return cls(
+            waypoints=w,
+            index_map=index_map,
+            kind=np.asarray(kinds, np.int8),
+            s0=s0,
+            origin=np.asarray(origins),
+            direction=np.asarray(dirs),
+            normal=np.asarray(normals),
+            radius=np.asarray(radii),
+            corner=np.asarray(corners, int),
+            blend_deviation=blend_dev,
+            stops=stops,
+            vertex_s=vertex_s,
+        )
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def length(self) -> float:
+        """Joint-space length of the blended path, rad."""
+        return float(self.s0[-1])
+
+    @property
+    def n_pieces(self) -> int:
+        return int(self.kind.shape[0])
+
+    def piece_index(
+        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: str = "right"
+    ) -> np.ndarray:
+        """Index of the piece holding each ``s``, restricted to pieces ``lo..hi`` (inclusive):
+        a piece boundary belongs to the later piece (``side="right"``) or the earlier one
+        (``"left"``)."""
+        hi = self.n_pieces - 1 if hi is None else hi
+        idx = np.searchsorted(self.s0, s, side=side) - 1
+        return np.clip(idx, lo, hi)
+
+    def evaluate(
+        self,
+        s: np.ndarray,
+        order: int = 0,
+        lo: int = 0,
+        hi: int | None = None,
+        side: str = "right",
+    ) -> np.ndarray:
+        """Path point (order 0), tangent q'(s) (1) or curvature vector q''(s) (2) at ``s``.
+
+        Parameters
+        ----------
+        s : array, shape (M,), rad
+        order : 0, 1 or 2
+        lo, hi : pieces to evaluate on (see :meth:`piece_index`); a section uses its own.
+        side : "right" or "left"
+            Which piece a boundary belongs to (q'' jumps there between line and arc).
+
+        Returns
+        -------
+        array, shape (M, 3): rad, dimensionless, 1/rad.
+        """
+        if order not in (0, 1, 2):
+            raise InputError(f"order must be 0, 1 or 2, got {order}")
+        return self.evaluate_all(s, lo, hi, side)[order]
+
+    def evaluate_all(
+        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: str = "right"
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q', q'') at ``s`` in one pass, each shape (M, 3) (see :meth:`evaluate`)."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if self.n_pieces == 0:
+            q = np.broadcast_to(self.waypoints[0], (s.shape[0], 3)).copy()
+            return q, np.zeros_like(q), np.zeros_like(q)
+        idx = self.piece_index(s, lo, hi, side)
+        ds = (s - self.s0[idx])[:, None]
+        o, d, nrm, r = self.origin[idx], self.direction[idx], self.normal[idx], self.radius[idx]
+        arc = (self.kind[idx] == ARC)[:, None]
+        r_safe = np.where(arc[:, 0], r, 1.0)[:, None]
+        phi = np.where(arc, ds / r_safe, 0.0)
+        c, si = np.cos(phi), np.sin(phi)
+        radial = d * c + nrm * si  # unit vector from the centre (arcs)
+        q = np.where(arc, o + r_safe * radial, o + d * ds)
+        d1 = np.where(arc, nrm * c - d * si, d)
+        d2 = np.where(arc, -radial / r_safe, 0.0)
+        return q, d1, d2
+
+    def section_pieces(self, s_start: float, s_end: float) -> tuple[int, int]:
+        """First and last piece of the section ``[s_start, s_end]``."""
+        lo = int(np.searchsorted(self.s0, s_start, side="right") - 1)
+        hi = int(np.searchsorted(self.s0, s_end, side="left") - 1)
+        return max(lo, 0), min(max(hi, lo), self.n_pieces - 1)
+
+    def arc_corner_at(self, s: np.ndarray) -> np.ndarray:
+        """Waypoint index of the blend holding each ``s``, or -1 on a straight piece."""
+        if self.n_pieces == 0:
+            return np.full(np.shape(s), -1)
+        return self.corner[self.piece_index(np.asarray(s, dtype=float))]
+
+
+def distance_to_polyline(
+    waypoints: np.ndarray, q: np.ndarray, segments: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Euclidean joint-space distance of each posture to a polyline, and the nearest point.
+
+    Parameters
+    ----------
+    waypoints : shape (N, 3), rad
+    q : shape (M, 3), rad
+    segments : shape (M, 2), int, optional
+        For each posture, the first and last segment (segment i joins waypoints i and i+1)
+        to measure against: the part of the plan it stands for. Default: every segment.
+
+    Returns
+    -------
+    distance : shape (M,), rad
+    nearest : shape (M, 3), rad
+        The closest point of those segments to each posture.
+    """
+    w = np.asarray(waypoints, dtype=float)
+    q = np.asarray(q, dtype=float)
+    m, n_seg = q.shape[0], max(w.shape[0] - 1, 1)
+    if w.shape[0] == 1:
+        w = np.concatenate([w, w])
+    if segments is None:
+        segments = np.tile([0, n_seg - 1], (m, 1))
+    lo = np.clip(segments[:, 0], 0, n_seg - 1)
+    hi = np.clip(segments[:, 1], lo, n_seg - 1)
+    best_d2 = np.full(m, np.inf)
+    nearest = np.empty_like(q)
+    for j in range(int(np.max(hi - lo, initial=0)) + 1):  # M-vectors per offset, no M x N x 3
+        seg = np.minimum(lo + j, hi)
+        a = w[seg]
+        ab = w[seg + 1] - a
+        rel = q - a
+        denom = np.sum(ab * ab, axis=1)
+        t = np.where(denom > 0, np.sum(rel * ab, axis=1) / np.maximum(denom, 1e-300), 0.0)
+        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+        d2 = np.sum((q - foot) ** 2, axis=1)
+        better = d2 < best_d2
+        best_d2[better] = d2[better]
+        nearest[better] = foot[better]
+    return np.sqrt(best_d2), nearest

@@ -1,0 +1,306 @@
+"""Time-optimal parameterisation of a :class:`BlendedPath` with toppra (seidel solver).
+
+toppra computes the fastest path velocity ``sd(s)`` on a grid of path positions under the
+joint velocity and acceleration limits (and optionally a bound on the speed of P). We use only
+that profile: between two grid points the path acceleration is constant (toppra's
+``ParametrizeConstAccel`` model), and we evaluate the trajectory ourselves from it
+(:class:`PathProfile`), so the times, velocities and accelerations are exactly those the
+solver certified at the grid points. Between grid points on an arc the joint velocity
+``q'(s) sd`` and acceleration ``q'(s) sdd + q''(s) sd^2`` vary with ``s``, so a limit can be
+exceeded slightly there: the caller re-checks densely and, if needed, repairs with a finer grid
+and slightly scaled limits. On straight pieces ``q'`` is constant and ``q'' = 0``, so the
+limits hold exactly at every instant.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import toppra
+import toppra.algorithm
+import toppra.constraint
+from toppra.interpolator import AbstractGeometricPath
+
+from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
+from planner.timing.limits import JointLimits
+from planner.timing.path import ARC, BlendedPath
+
+__all__ = ["PathProfile", "check_deadline", "min_blend_radius", "solve_toppra"]
+
+logger = logging.getLogger(__name__)
+
+#: Grid step on straight pieces, rad of joint-space arc length (at least LINE_MIN_INTERVALS
+#: intervals per piece: the accelerate/decelerate switch point is quantised by the grid).
+LINE_STEP = 0.1
+LINE_MIN_INTERVALS = 4
+#: Grid step on arcs, rad of turning angle (q' turns by at most this between grid points).
+ARC_STEP = 0.2
+#: Length of the short line interval next to each line/arc junction, as a fraction of the
+#: line: toppra sees the arc's curvature at the junction grid point (see ``_SectionPath``),
+#: which would needlessly slow a whole line interval; a short one costs almost nothing.
+JUNCTION_INTERVAL = 1e-3
+#: Smallest path velocity squared through a blend, in normalised units (see min_blend_radius).
+MIN_BLEND_X = 1e-3
+#: Upper bound used for sd^2 where a constraint does not bound it (toppra needs finite bounds).
+_X_UNBOUNDED = 1e12
+
+
+class _SectionPath(AbstractGeometricPath):
+    """One rest-to-rest section of a :class:`BlendedPath`, in toppra's path interface."""
+
+    def __init__(self, path: BlendedPath, s_start: float, s_end: float) -> None:
+        self._path = path
+        self._interval = np.array([s_start, s_end])
+        self._lo, self._hi = path.section_pieces(s_start, s_end)
+
+    def __call__(self, path_positions: float | np.ndarray, order: int = 0) -> np.ndarray:
+        """q, q' or q'' at ``path_positions``. At a line/arc junction q'' jumps; toppra takes one
+        value per grid point for the intervals on both sides, so the larger one (the arc's) is
+        given: the constraint then holds on both sides of the junction."""
+        s = np.atleast_1d(np.asarray(path_positions, dtype=float))
+        out = self._path.evaluate(s, order, self._lo, self._hi)
+        if order == 2:
+            left = self._path.evaluate(s, order, self._lo, self._hi, side="left")
+            use_left = np.sum(left**2, axis=1) > np.sum(out**2, axis=1)
+            out[use_left] = left[use_left]
+        return out if np.ndim(path_positions) else out[0]
+
+    @property
+    def dof(self) -> int:
+        return 3
+
+    @property
+    def path_interval(self) -> np.ndarray:
+        return self._interval
+
+    @property
+    def pieces(self) -> tuple[int, int]:
+        return self._lo, self._hi
+
+
+class _SpeedAlongPathConstraint(toppra.constraint.LinearConstraint):
+    """``|dP/ds| sd <= v_max``: a bound on the speed of P, i.e. on ``sd^2`` alone.
+
+    ``dP/ds = J(q) q'(s)`` is given by ``speed_gain(s)`` (m per rad of path), so the bound is
+    ``x = sd^2 <= (v_max / |dP/ds|)^2`` at each grid point (a velocity-type constraint).
+    """
+
+    def __init__(self, v_max: float, speed_gain: Callable[[np.ndarray], np.ndarray]) -> None:
+        super().__init__()
+        self.dof = 3
+        self._v_max = v_max
+        self._gain = speed_gain
+
+    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):  # type: ignore[override]
+        gain = self._gain(np.asarray(gridpoints, dtype=float))
+        upper = np.where(gain > 0, (self._v_max / np.maximum(gain, 1e-300)) ** 2, _X_UNBOUNDED)
+        xbound = np.stack([np.zeros_like(upper), np.minimum(upper, _X_UNBOUNDED)], axis=1)
+        return None, None, None, None, None, None, xbound
+
+
+@dataclass(frozen=True, eq=False)
+class PathProfile:
+    """Path velocity on a grid, constant path acceleration between grid points.
+
+    Attributes
+    ----------
+    s : shape (G,), rad -- grid points, increasing (sections joined at rest).
+    sd : shape (G,), rad/s -- path velocity at the grid points (0 at every stop).
+    time : shape (G,), s -- time at each grid point, ``time[0] = 0``.
+    sdd : shape (G - 1,), rad/s^2 -- path acceleration on each interval,
+        ``(sd[i+1]^2 - sd[i]^2) / (2 (s[i+1] - s[i]))``.
+    """
+
+    s: np.ndarray
+    sd: np.ndarray
+    time: np.ndarray
+    sdd: np.ndarray
+
+    @classmethod
+    def from_grid(cls, s: np.ndarray, sd: np.ndarray) -> PathProfile:
+        ds = np.diff(s)
+        x = sd**2
+        sdd = (x[1:] - x[:-1]) / (2 * ds)
+        dt = 2 * ds / np.maximum(sd[1:] + sd[:-1], 1e-300)
+        return cls(s, sd, np.concatenate([[0.0], np.cumsum(dt)]), sdd)
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1])
+
+    def time_scaled(self, c: float) -> PathProfile:
+        """The same motion slowed uniformly in time by ``c`` (0 < c <= 1): path velocities
+        times c, path accelerations times c^2, so joint velocities scale by c and joint
+        accelerations by c^2 at every path position."""
+        return PathProfile(self.s, self.sd * c, self.time / c, self.sdd * c**2)
+
+    def at_time(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(s, sd, sdd) at times ``t`` (clipped to [0, duration]), each shape (M,)."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        i = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, self.sdd.shape[0] - 1)
+        tau = t - self.time[i]
+        a = self.sdd[i]
+        s = self.s[i] + self.sd[i] * tau + 0.5 * a * tau**2
+        s = np.minimum(s, self.s[i + 1])
+        return s, self.sd[i] + a * tau, a
+
+    def at_path(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(time, sd, sdd) at path positions ``s``, each shape (M,)."""
+        s = np.clip(np.asarray(s, dtype=float), self.s[0], self.s[-1])
+        i = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, self.sdd.shape[0] - 1)
+        a = self.sdd[i]
+        sd = np.sqrt(np.maximum(self.sd[i] ** 2 + 2 * a * (s - self.s[i]), 0.0))
+        dt = 2 * (s - self.s[i]) / np.maximum(sd + self.sd[i], 1e-300)
+        return self.time[i] + dt, sd, a
+
+
+def section_grid(path: BlendedPath, lo: int, hi: int, refine: int = 1) -> np.ndarray:
+    """Grid points of the pieces ``lo..hi``: every piece boundary, lines cut every
+    ``LINE_STEP / refine`` (at least ``LINE_MIN_INTERVALS``), arcs every
+    ``ARC_STEP / refine`` of turning."""
+    parts = []
+    for k in range(lo, hi + 1):
+        a, b = path.s0[k], path.s0[k + 1]
+        if path.kind[k] == ARC:
+            turn = (b - a) / path.radius[k]
+            n = max(2, int(np.ceil(turn * refine / ARC_STEP)))
+            parts.append(np.linspace(a, b, n + 1)[:-1])
+            continue
+        n = max(LINE_MIN_INTERVALS * refine, int(np.ceil((b - a) * refine / LINE_STEP)))
+        pts = np.linspace(a, b, n + 1)[:-1]
+        eps = JUNCTION_INTERVAL * (b - a)
+        extra = []
+        if k > lo and path.kind[k - 1] == ARC:
+            extra.append(a + eps)
+        if k < hi and path.kind[k + 1] == ARC:
+            extra.append(b - eps)
+        parts.append(np.sort(np.concatenate([pts, extra])))
+    parts.append([path.s0[hi + 1]])
+    return np.concatenate(parts)
+
+
+def check_deadline(deadline: float | None, what: str) -> None:
+    """:class:`TimingDeadlineError` if ``time.monotonic()`` is past ``deadline``."""
+    if deadline is not None and time.monotonic() > deadline:
+        raise TimingDeadlineError(f"the deadline passed {what}")
+
+
+def min_blend_radius(limits: JointLimits) -> float:
+    """Smallest corner blend worth keeping, rad: below it the path speed through the blend,
+    at most ``sqrt(a r)``, gives ``sd^2`` under ``MIN_BLEND_X`` in the solver's normalised
+    units (velocity limit 1), near toppra's absolute tolerances; such a corner is a stop."""
+    v_min = float(np.min(limits.velocity_array))
+    return MIN_BLEND_X * v_min**2 / float(np.min(limits.acceleration_array))
+
+
+def _straight_rest_to_rest(
+    s_start: float, s_end: float, direction: np.ndarray, v: np.ndarray, a: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact time-optimal profile of a straight section from rest to rest, as grid points and
+    path velocities: a trapezoid (or a triangle) under the path speed bound
+    ``min_j v_j / |u_j|`` and path acceleration bound ``min_j a_j / |u_j|``."""
+    u = np.abs(direction)
+    with np.errstate(divide="ignore"):
+        v_s = float(np.min(np.where(u > 0, v / u, np.inf)))
+        a_s = float(np.min(np.where(u > 0, a / u, np.inf)))
+    length = s_end - s_start
+    ramp = v_s**2 / (2 * a_s)
+    if 2 * ramp < length:
+        grid = np.array([s_start, s_start + ramp, s_end - ramp, s_end])
+        return grid, np.array([0.0, v_s, v_s, 0.0])
+    peak = np.sqrt(a_s * length)
+    return np.array([s_start, s_start + length / 2, s_end]), np.array([0.0, peak, 0.0])
+
+
+@functools.lru_cache(maxsize=32)
+def _joint_constraints(v: tuple[float, ...], a: tuple[float, ...]) -> tuple:
+    """toppra's joint velocity and acceleration constraints (cached: their constructors
+    format the limits into strings, about 2 ms; the objects hold no path state)."""
+    v_arr, a_arr = np.asarray(v), np.asarray(a)
+    return (
+        toppra.constraint.JointVelocityConstraint(np.stack([-v_arr, v_arr], axis=1)),
+        toppra.constraint.JointAccelerationConstraint(np.stack([-a_arr, a_arr], axis=1)),
+    )
+
+
+def solve_toppra(
+    path: BlendedPath,
+    limits: JointLimits,
+    *,
+    speed_gain: Callable[[np.ndarray], np.ndarray] | None = None,
+    max_cartesian_speed: float | None = None,
+    refine: int = 1,
+    deadline: float | None = None,
+) -> PathProfile:
+    """Time-optimal rest-to-rest profile of every section of ``path``, joined in time.
+
+    Parameters
+    ----------
+    path : BlendedPath
+    limits : JointLimits
+        Velocity and acceleration bounds (jerk is ignored).
+    speed_gain : callable s (G,) -> |dP/ds| (G,), m/rad, optional
+        Needed with ``max_cartesian_speed``.
+    max_cartesian_speed : float, m/s, optional
+    refine : int
+        Grid refinement factor (repairs use 2, 4, ...).
+    deadline : float, optional
+        ``time.monotonic()`` value checked before each section.
+
+    Raises
+    ------
+    TimingInfeasibleError
+        toppra reports a failure (uncontrollable instance, numerical failure).
+    TimingDeadlineError
+        ``deadline`` passed.
+    """
+    # Solve in a normalised time unit where the slowest joint's velocity limit is 1: toppra's
+    # tolerances are absolute (1e-5 on sd^2), and slowing a profile by c scales velocities by
+    # c and accelerations by c^2, so the solution in real time is sd / c.
+    c = 1.0 / float(np.min(limits.velocity_array))
+    v = limits.velocity_array * c
+    a = limits.acceleration_array * c**2
+    v_cart = None if max_cartesian_speed is None else max_cartesian_speed * c
+    joint_constraints = _joint_constraints(tuple(v.tolist()), tuple(a.tolist()))
+    s_all, sd_all = [np.zeros(1)], [np.zeros(1)]
+    for s_start, s_end in zip(path.stops[:-1], path.stops[1:], strict=True):
+        check_deadline(deadline, "while timing the path with toppra")
+        if s_end - s_start <= 0.0:
+            continue
+        section = _SectionPath(path, float(s_start), float(s_end))
+        lo, hi = section.pieces
+        if lo == hi and path.kind[lo] != ARC and v_cart is None:
+            grid, sd = _straight_rest_to_rest(
+                float(s_start), float(s_end), path.direction[lo], v, a
+            )
+            s_all.append(grid[1:])
+            sd_all.append(sd[1:] / c)
+            continue
+        grid = section_grid(path, lo, hi, refine=refine)
+        constraints = list(joint_constraints)
+        if v_cart is not None and speed_gain is not None:
+            constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))
+        instance = toppra.algorithm.TOPPRA(
+            constraints, section, gridpoints=grid, solver_wrapper="seidel"
+        )
+        _, sd, _ = instance.compute_parameterization(0.0, 0.0)
+        code = instance.problem_data.return_code
+        if sd is None or np.any(~np.isfinite(sd)):
+            raise TimingInfeasibleError(
+                f"toppra found no profile for the path section s in [{s_start:.4g}, "
+                f"{s_end:.4g}] rad: {code}"
+            )
+        sd = np.asarray(sd, dtype=float) / c
+        sd[0] = sd[-1] = 0.0
+        s_all.append(grid[1:])
+        sd_all.append(sd[1:])
+    s = np.concatenate(s_all)
+    sd = np.concatenate(sd_all)
+    if s.shape[0] == 1:  # a path of zero length
+        s, sd = np.zeros(2), np.zeros(2)
+    return PathProfile.from_grid(s, sd)

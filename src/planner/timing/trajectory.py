@@ -1,0 +1,252 @@
+"""The timed result: a curve that can be evaluated at any time, and its sampled form.
+
+Two curves implement the same small interface (``duration``, ``evaluate(t)``,
+``check_times(resolution)``): :class:`ToppraCurve` (a path velocity profile on the blended path)
+and ``RuckigCurve`` (a chain of jerk-limited state-to-state moves, in
+:mod:`planner.timing.ruckig_method`). :class:`Trajectory` holds the samples at the requested
+rate plus the measured quality: deviation from the planned polyline in joint space and at P.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from planner.design import Design
+from planner.exceptions import InputError
+from planner.kinematics import forward_batch
+from planner.timing.path import BlendedPath
+from planner.timing.toppra_method import PathProfile
+
+__all__ = [
+    "Curve",
+    "RestCurve",
+    "TimeScaledCurve",
+    "ToppraCurve",
+    "Trajectory",
+    "p_velocity",
+    "sample_times",
+]
+
+#: Step of the central finite difference of P along a joint direction, rad. The truncation
+#: error is O(h^2 |P'''|) ~ 1e-12 m and the rounding error O(1e-16 / h) ~ 1e-10 m/rad.
+FD_STEP = 1e-6
+#: Points checked inside every toppra grid interval besides its ends.
+SUBSAMPLES = 5
+#: Most postures in one dense re-check (each costs ~100 bytes per array evaluated).
+MAX_CHECK_SAMPLES = 5_000_000
+
+
+def check_sample_count(n: int) -> None:
+    """Refuse a dense re-check of more than ``MAX_CHECK_SAMPLES`` postures (memory)."""
+    if n > MAX_CHECK_SAMPLES:
+        raise InputError(
+            f"check_resolution is too fine for this path: {n} postures to check, more than "
+            f"{MAX_CHECK_SAMPLES}"
+        )
+
+
+class Curve(Protocol):
+    """A timed joint trajectory q(t) on [0, duration]."""
+
+    @property
+    def duration(self) -> float: ...
+
+    def evaluate(
+        self, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """(q, qd, qdd, jerk or None) at times t (M,), shapes (M, 3)."""
+        ...
+
+    def check_times(self, resolution: float) -> np.ndarray:
+        """Times, increasing, at which consecutive postures are at most ``resolution`` apart
+        in joint space (Euclidean, rad), plus every instant where the acceleration jumps."""
+        ...
+
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        """Shape (M, 2), int: first and last planned segment each posture stands for, or
+        (-1, -1) where it lies on the planned polyline by construction (no deviation)."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class ToppraCurve:
+    """q(t) = path(s(t)) for a toppra profile on a blended path (jerk is not defined)."""
+
+    path: BlendedPath
+    profile: PathProfile
+
+    @property
+    def duration(self) -> float:
+        return self.profile.duration
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
+        s, sd, sdd = self.profile.at_time(t)
+        return self._at(s, sd, sdd)
+
+    def _at(
+        self, s: np.ndarray, sd: np.ndarray, sdd: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
+        q, d1, d2 = self.path.evaluate_all(s)
+        return q, d1 * sd[:, None], d1 * sdd[:, None] + d2 * (sd**2)[:, None], None
+
+    def check_path_positions(self, resolution: float) -> np.ndarray:
+        """Path positions ``resolution`` apart along s (s is the joint-space arc length, so
+        consecutive checked postures are at most ``resolution`` apart whatever the timing),
+        plus ``SUBSAMPLES`` points inside every grid interval (toppra certifies the limits at
+        grid points only) and both sides of every grid point (the acceleration jumps there)."""
+        prof = self.profile
+        n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
+        check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
+        s_geo = np.linspace(prof.s[0], prof.s[-1], n)
+        ds = np.diff(prof.s)
+        frac = np.concatenate([[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1),
+                               [1.0 - 1e-9]])  # fmt: skip
+        s_sub = (prof.s[:-1, None] + ds[:, None] * frac[None, :]).ravel()
+        return np.unique(np.concatenate([s_geo, s_sub, prof.s]))
+
+    def check_times(self, resolution: float) -> np.ndarray:
+        """Times of :meth:`check_path_positions`."""
+        t, _, _ = self.profile.at_path(self.check_path_positions(resolution))
+        return np.unique(np.clip(t, 0.0, self.profile.duration))
+
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        """On the blend of vertex k: segments k-1 and k; on a straight piece: (-1, -1)."""
+        s, _, _ = self.profile.at_time(t)
+        k = self.path.arc_corner_at(s)
+        return np.where(k[:, None] >= 0, np.stack([k - 1, k], axis=1), -1)
+
+
+def sample_times(duration: float, rate_hz: float) -> np.ndarray:
+    """0, 1/rate, 2/rate, ... and the end time exactly (the last step may be shorter), s."""
+    n = int(np.floor(duration * rate_hz + 1e-9))
+    t = np.arange(n + 1) / rate_hz
+    t = t[t < duration - 1e-12]
+    return np.append(t, duration)
+
+
+def p_velocity(
+    design: Design, q: np.ndarray, qd: np.ndarray, assembly_mode: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Point P and its velocity dP/dt = J(q) qd for postures q (M, 3) and rates qd (M, 3).
+
+    J qd is the directional derivative of P along qd, taken by a central difference of
+    :func:`planner.forward_batch` along the unit direction of qd (``FD_STEP``), times |qd|.
+
+    Returns
+    -------
+    p : shape (M, 3), m
+    v : shape (M, 3), m/s (NaN where a posture does not assemble)
+    ok : shape (M,), bool -- the posture assembles in ``assembly_mode``.
+    """
+    q = np.asarray(q, dtype=float)
+    speed = np.linalg.norm(qd, axis=1)
+    u = np.where(speed[:, None] > 0, qd / np.maximum(speed, 1e-300)[:, None], 0.0)
+    m = q.shape[0]
+    batch = forward_batch(design, np.concatenate([q, q + FD_STEP * u, q - FD_STEP * u]),
+                          assembly_mode)  # fmt: skip
+    p = batch.p[:m]
+    dp = (batch.p[m : 2 * m] - batch.p[2 * m :]) / (2 * FD_STEP)
+    ok = batch.ok[:m] & batch.ok[m : 2 * m] & batch.ok[2 * m :]
+    return p, dp * speed[:, None], ok
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A timed trajectory sampled at a fixed rate, with its measured quality.
+
+    Attributes
+    ----------
+    method : "toppra" | "ruckig"
+    duration : float, s
+    t : shape (M,), s -- 0, 1/rate, ..., duration (the last step may be shorter).
+    q, qd, qdd : shape (M, 3) -- rad, rad/s, rad/s^2.
+    jerk : shape (M, 3), rad/s^3, or None (toppra: acceleration is piecewise constant).
+    p : shape (M, 3), m -- point P.
+    p_speed : shape (M,), m/s -- |dP/dt|.
+    max_deviation_q : float, rad
+        Largest joint-space distance from the timed trajectory to the planned polyline, over
+        the dense check samples. Each posture is measured against the planned segments it
+        stands for (the two segments of its corner), not against any far part of the plan
+        that happens to pass nearby, so this is an upper bound of the distance to the plan.
+    max_deviation_p : float, m
+        Largest distance between P of a timed posture and P of its nearest planned posture
+        (the closest point of those segments in joint space), over the same samples.
+    repairs : int
+        Repair rounds taken (0: the first trajectory passed the dense re-check).
+    checked_samples : int
+        Postures in the dense re-check of the returned trajectory.
+    computation_time_s : float
+    curve : the continuous trajectory (``evaluate(t)`` at any time).
+    """
+
+    method: str
+    duration: float
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    jerk: np.ndarray | None
+    p: np.ndarray
+    p_speed: np.ndarray
+    max_deviation_q: float
+    max_deviation_p: float
+    repairs: int
+    checked_samples: int
+    computation_time_s: float
+    curve: Curve
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """(q, qd, qdd, jerk or None) at any times t (M,) in [0, duration]."""
+        return self.curve.evaluate(np.atleast_1d(np.asarray(t, dtype=float)))
+
+
+@dataclass(frozen=True, eq=False)
+class TimeScaledCurve:
+    """``base`` slowed uniformly in time by ``c`` (0 < c <= 1): q(t) = base.q(c t), so
+    velocities scale by c, accelerations by c^2 and jerks by c^3, all within the base's limits;
+    the speed of P scales by c. The same postures are visited, so validity is unchanged."""
+
+    base: Curve
+    c: float
+
+    @property
+    def duration(self) -> float:
+        return self.base.duration / self.c
+
+    def evaluate(
+        self, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        q, qd, qdd, jerk = self.base.evaluate(np.asarray(t, dtype=float) * self.c)
+        c = self.c
+        return q, qd * c, qdd * c**2, None if jerk is None else jerk * c**3
+
+    def check_times(self, resolution: float) -> np.ndarray:
+        return self.base.check_times(resolution) / self.c
+
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        return self.base.plan_segments(np.asarray(t, dtype=float) * self.c)
+
+
+@dataclass(frozen=True, eq=False)
+class RestCurve:
+    """A path of zero length: the robot stays at ``q`` (duration 0)."""
+
+    q: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        return 0.0
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
+        m = np.atleast_1d(t).shape[0]
+        zeros = np.zeros((m, 3))
+        return np.broadcast_to(self.q, (m, 3)).copy(), zeros, zeros.copy(), None
+
+    def check_times(self, resolution: float) -> np.ndarray:
+        return np.zeros(1)
+
+    def plan_segments(self, t: np.ndarray) -> np.ndarray:
+        return np.full((np.shape(t)[0], 2), -1)
