@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 import numpy as np
@@ -34,15 +35,28 @@ from planner.schemas import (
     PostureModel,
     SampledValue,
     SerialMargins,
+    TrajectoryModel,
 )
 
 __all__ = ["analyze", "as_json", "design_check", "fk", "ik", "located", "plan", "posture_model"]
 
 
-def as_json(job: Callable[[Any], BaseModel], request: Any) -> bytes:
+#: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
+#: process of the machine), set by :func:`as_json`; None: no deadline (e.g. the CLI).
+_DEADLINE: ContextVar[float | None] = ContextVar("deadline", default=None)
+
+
+def as_json(
+    job: Callable[[Any], BaseModel], request: Any, *, deadline: float | None = None
+) -> bytes:
     """``job(request)`` serialised to JSON bytes, in the worker: the event loop then only
-    forwards bytes (no re-validation, no pickling of large response models)."""
-    return job(request).model_dump_json().encode()
+    forwards bytes (no re-validation, no pickling of large response models). ``deadline`` is
+    the request's, for jobs that can stop early (timing)."""
+    token = _DEADLINE.set(deadline)
+    try:
+        return job(request).model_dump_json().encode()
+    finally:
+        _DEADLINE.reset(token)
 
 
 @contextmanager
@@ -168,11 +182,14 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
 
 
 def plan(request: PlanRequest) -> PlanResponse:
-    """``POST /v1/plan``: plan one request with :func:`planner.planning.plan`.
+    """``POST /v1/plan``: plan one request with :func:`planner.planning.plan`, then time the
+    path with :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``).
 
     The wire models are turned into the library's objects here; a library error is a 422
-    naming the field it came from. Time parameterisation (``timing``) is not wired yet
-    (issue 7): ``trajectory`` stays null and ``diagnostics.timing`` says why.
+    naming the field it came from. Timing outcomes: the request's deadline passing gives
+    status ``timeout``; a path the timing cannot turn into a checked trajectory (no profile,
+    or the dense re-check fails after the repairs) gives ``no_path`` with the reason, the
+    path kept and ``diagnostics.timing_error`` naming the failed rule.
 
     Raises
     ------
@@ -213,5 +230,83 @@ def plan(request: PlanRequest) -> PlanResponse:
     result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
     response = PlanResponse.model_validate(result.as_wire())
     if request.timing.method != "none" and response.path is not None:
-        response.diagnostics.timing = "not available in this build (trajectory omitted)"
+        _add_trajectory(request, response, design, margins, obstacles)
     return response
+
+
+def _add_trajectory(
+    request: PlanRequest, response: PlanResponse, design: Any, margins: Any, obstacles: list
+) -> None:
+    """Time ``response.path`` in place: fill ``trajectory`` and the timing diagnostics, or
+    turn the status into ``timeout`` / ``no_path`` with the reason."""
+    from planner.validity import ValidityChecker
+
+    from planner.exceptions import TimingDeadlineError, TimingError
+    from planner.timing import JointLimits, time_path
+
+    assert response.path is not None
+    path = response.path
+    wire = request.limits
+    with located("body", "limits"):
+        default = JointLimits.default()
+        limits = JointLimits(
+            velocity=wire.velocity or default.velocity,
+            acceleration=wire.acceleration or default.acceleration,
+            jerk=wire.jerk or default.jerk,
+        )
+    check = None
+    if len(path.segments) == 1:  # the planner's validity rules, in the path's one mode
+        seg = path.segments[0]
+        checker = ValidityChecker(design, margins, obstacles, seg.assembly_mode, seg.working_mode)
+
+        def check(q: np.ndarray) -> np.ndarray:
+            return checker.check_states(q).valid
+
+    options: dict[str, Any] = {}
+    if request.timing.max_deviation is not None:
+        options["max_deviation"] = request.timing.max_deviation
+    stop_at = [t.index for t in path.transits] if request.timing.stop_at_transits else []
+    try:
+        with located("body", "timing"):
+            traj = time_path(
+                design,
+                np.array(path.waypoints),
+                limits,
+                method=request.timing.method,
+                assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
+                sample_rate_hz=request.timing.sample_rate_hz,
+                max_cartesian_speed=wire.cartesian_speed,
+                stop_at=stop_at,
+                check_states=check,
+                deadline=_DEADLINE.get(),
+                **options,
+            )
+    except TimingDeadlineError as exc:
+        response.status = "timeout"
+        response.message = f"the path was found but timing ran out of time: {exc}"
+        return
+    except TimingError as exc:  # no profile, or the dense re-check failed after the repairs
+        response.status = "no_path"
+        response.message = f"the path was found but could not be timed: {exc}"
+        response.diagnostics.timing_error = {
+            "type": type(exc).__name__,
+            "rule": getattr(exc, "rule", None),
+            "time": getattr(exc, "time", None),
+            "q": list(exc.q) if getattr(exc, "q", None) is not None else None,
+        }
+        return
+    response.trajectory = TrajectoryModel(
+        method=traj.method,
+        duration=traj.duration,
+        t=traj.t.tolist(),
+        q=traj.q.tolist(),
+        qd=traj.qd.tolist(),
+        qdd=traj.qdd.tolist(),
+        jerk=traj.jerk.tolist() if traj.jerk is not None else None,
+        p=traj.p.tolist(),
+        p_speed=traj.p_speed.tolist(),
+        max_deviation_q=traj.max_deviation_q,
+        max_deviation_p=traj.max_deviation_p,
+    )
+    response.diagnostics.timing_time_s = traj.computation_time_s
+    response.diagnostics.timing_repairs = traj.repairs

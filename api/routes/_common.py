@@ -23,13 +23,15 @@ def json_response(content: bytes) -> Response:
 async def run_job(
     pool: WorkerPool, job: Callable[[Any], BaseModel], body: Any, deadline: float
 ) -> Response:
-    """``job(body)`` in a worker, serialised there; the answer as it is (the route's
-    ``response_model`` documents it, the job's return type guarantees it)."""
-    return json_response(await pool.run(partial(as_json, job), body, deadline=deadline))
+    """``job(body)`` in a worker, serialised there, with the request's ``deadline``; the
+    answer as it is (the route's ``response_model`` documents it, the job's return type
+    guarantees it)."""
+    job_json = partial(as_json, job, deadline=deadline)
+    return json_response(await pool.run(job_json, body, deadline=deadline))
 
 
 async def run_jobs(
     pool: WorkerPool, job: Callable[[Any], BaseModel], bodies: Sequence[Any], deadline: float
 ) -> list[bytes]:
     """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order."""
-    return await pool.map(partial(as_json, job), bodies, deadline=deadline)
+    return await pool.map(partial(as_json, job, deadline=deadline), bodies, deadline=deadline)

@@ -334,14 +334,23 @@ class TimingOptions(_Request):
     method: Literal["toppra", "ruckig", "none"] = "toppra"
     sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
     stop_at_transits: bool = Field(False, description="Come to rest at each mode transit.")
+    max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
+        None,
+        description="Largest joint-space distance from a waypoint to its corner blend, rad "
+        "(0: stop at every waypoint); absent: the timing default.",
+    )
 
 
 class Limits(_Request):
-    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent field takes the timing default."""
+    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent field takes the timing default
+    (:meth:`planner.timing.JointLimits.default`: 2 rad/s, 8 rad/s^2, 200 rad/s^3)."""
 
     velocity: Rates3 | None = None
     acceleration: Rates3 | None = None
     jerk: Rates3 | None = None
+    cartesian_speed: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1e3)] | None = Field(
+        None, description="Bound on the speed of P, m/s (optional)."
+    )
 
 
 # ---------------------------------------------------------------------------- plan
@@ -391,13 +400,21 @@ class PathModel(_Response):
 
 
 class TrajectoryModel(_Response):
-    """The timed trajectory: M samples of t (s), q (rad), qd (rad/s), qdd (rad/s^2)."""
+    """The timed trajectory: M samples of t (s), q (rad), qd (rad/s), qdd (rad/s^2); for
+    ruckig also the jerk (rad/s^3); P (m) and its speed (m/s); the largest deviation from the
+    planned path in joint space (rad) and at P (m)."""
 
     duration: float
     t: Annotated[list[float], Field(max_length=_MAX_SAMPLES)]
     q: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
     qd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
     qdd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    jerk: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)] | None = None
+    p: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)] | None = None
+    p_speed: Annotated[list[float], Field(max_length=_MAX_SAMPLES)] | None = None
+    method: Literal["toppra", "ruckig"] | None = None
+    max_deviation_q: float | None = None
+    max_deviation_p: float | None = None
 
 
 class Diagnostics(BaseModel):

@@ -1,0 +1,78 @@
+"""POST /v1/plan end to end (planner + timing), checked against the request's own limits and
+an independent forward kinematics. Runs once the planner (issue 5) is in the build."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("planner.planning") is None,
+    reason="the planner (planner.planning) is not in this build yet",
+)
+
+START = {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"}
+GOAL = {"q": [0.5, 1.1, 2.1], "assembly_mode": "+"}
+LIMITS = {"velocity": [1.0, 1.5, 2.0], "acceleration": [4.0, 5.0, 6.0], "jerk": [60, 80, 100]}
+RTOL = 1e-6  # the timing module's stated limit tolerance
+
+
+def _plan(api, **fields):
+    body = {"start": START, "goal": GOAL, "planner": {"seed": 1}, "limits": LIMITS, **fields}
+    r = api.post("/v1/plan", json=body)
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_solved_plan_is_timed_within_the_requested_limits(api, method):
+    body = _plan(api, timing={"method": method, "sample_rate_hz": 50})
+    assert body["status"] == "solved", body["message"]
+    traj = body["trajectory"]
+    t, q = np.array(traj["t"]), np.array(traj["q"])
+    qd, qdd = np.array(traj["qd"]), np.array(traj["qdd"])
+    waypoints = np.array(body["path"]["waypoints"])
+    # starts and ends exactly at the plan's ends, at rest
+    assert np.array_equal(q[0], START["q"]) and np.allclose(q[-1], waypoints[-1], atol=1e-12)
+    assert np.allclose(qd[[0, -1]], 0.0, atol=1e-9)
+    assert t[0] == 0 and t[-1] == pytest.approx(traj["duration"]) and np.all(np.diff(t) > 0)
+    assert np.all(np.diff(t) <= 1 / 50 + 1e-12)
+    assert np.all(np.abs(qd) <= np.array(LIMITS["velocity"]) * (1 + RTOL))
+    assert np.all(np.abs(qdd) <= np.array(LIMITS["acceleration"]) * (1 + RTOL))
+    if method == "ruckig":
+        assert np.all(np.abs(np.array(traj["jerk"])) <= np.array(LIMITS["jerk"]) * (1 + RTOL))
+    # qd is the derivative of q: trapezoid integration of qd reproduces q
+    q_int = q[0] + np.concatenate(
+        [[0 * q[0]], np.cumsum((qd[1:] + qd[:-1]) / 2 * np.diff(t)[:, None], axis=0)]
+    )
+    assert np.allclose(q_int, q, atol=2e-3)
+    # P of each sample is the forward kinematics of its q (independent route: /v1/fk)
+    for i in (0, len(t) // 2, len(t) - 1):
+        fk = api.post("/v1/fk", json={"q": q[i].tolist(), "assembly_mode": "+"}).json()
+        assert np.allclose(fk["postures"][0]["p"], traj["p"][i], atol=1e-9)
+    assert body["diagnostics"]["timing_time_s"] > 0
+
+
+def test_timing_none_returns_the_path_only(api):
+    body = _plan(api, timing={"method": "none"})
+    assert body["status"] == "solved" and body["trajectory"] is None
+    assert body["path"]["waypoints"][0] == START["q"]
+
+
+def test_cartesian_speed_bound_holds(api):
+    body = _plan(api, limits={**LIMITS, "cartesian_speed": 0.05})
+    assert body["status"] == "solved", body["message"]
+    assert max(body["trajectory"]["p_speed"]) <= 0.05 * (1 + 1e-3)
+
+
+def test_batch_of_timed_plans_in_order(api):
+    goals = [[0.3, 1.0, 2.0], [0.4, 1.05, 2.05], [0.25, 0.95, 2.1]]
+    requests = [{"start": START, "goal": {"q": g, "assembly_mode": "+"}, "planner": {"seed": 1}}
+                for g in goals]  # fmt: skip
+    r = api.post("/v1/plan/batch", json={"requests": requests})
+    assert r.status_code == 200, r.text
+    for g, result in zip(goals, r.json()["results"], strict=True):
+        assert result["status"] == "solved"
+        assert np.allclose(result["trajectory"]["q"][-1], g, atol=1e-12)
