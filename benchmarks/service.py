@@ -6,7 +6,8 @@ seeded set of requests with the async client at concurrency 1, 8 and 32, and pri
 function called directly), and their ratio (the service overhead).
 
 Endpoints: ``/v1/fk`` (the cheapest call: the overhead floor), ``/v1/analyze``, and
-``/v1/plan`` with free-space joint goals when the planner is in this build.
+``/v1/plan`` with free-space joint goals (without timing, and with toppra) when the planner
+is in this build.
 
     PYTHONPATH=src:. python benchmarks/service.py [--workers 2] [--requests 400]
 """
@@ -138,6 +139,7 @@ def main() -> None:
     endpoints = [("fk", "fk", compute.fk), ("analyze", "analyze", compute.analyze)]
     if importlib.util.find_spec("planner.planning") is not None:
         endpoints.append(("plan", "plan", compute.plan))
+        endpoints.append(("plan+toppra", "plan", compute.plan))
     proc, url = _start_server(args.workers)
     try:
         print(
@@ -145,7 +147,7 @@ def main() -> None:
             "per row; latencies in ms"
         )
         print(
-            f"{'endpoint':9} {'conc':>4} {'p50':>8} {'p95':>8} {'p99':>8} {'req/s':>8} "
+            f"{'endpoint':11} {'conc':>4} {'p50':>8} {'p95':>8} {'p99':>8} {'req/s':>8} "
             f"{'in-proc p50':>12} {'p50 ratio':>10}"
         )
         for name, method, job in endpoints:
@@ -157,7 +159,7 @@ def main() -> None:
             for concurrency in (1, 8, 32):
                 lat, wall = asyncio.run(_load(url, method, requests, concurrency))
                 print(
-                    f"{name:9} {concurrency:>4} {_pct(lat, 50):8.2f} {_pct(lat, 95):8.2f} "
+                    f"{name:11} {concurrency:>4} {_pct(lat, 50):8.2f} {_pct(lat, 95):8.2f} "
                     f"{_pct(lat, 99):8.2f} {len(lat) / wall:8.0f} {local_p50:12.3f} "
                     f"{_pct(lat, 50) / local_p50:10.1f}"
                 )
