@@ -200,7 +200,7 @@ def plan(request: PlanRequest) -> PlanResponse:
         from planner.geometry import obstacle_from_wire
         from planner.planning import CartesianTarget, JointPosture, PlanOptions
         from planner.planning import plan as plan_path
-        from planner.validity import Margins
+        from planner.validity import Margins, ValidityChecker
     except ImportError as exc:
         raise PlanningUnavailableError("planning is not available in this build yet") from exc
 
@@ -230,17 +230,23 @@ def plan(request: PlanRequest) -> PlanResponse:
     result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
     response = PlanResponse.model_validate(result.as_wire())
     if request.timing.method != "none" and response.path is not None:
-        _add_trajectory(request, response, design, margins, obstacles)
+        checker = None
+        if len(response.path.segments) == 1:  # the planner's rules, in the path's one mode
+            seg = response.path.segments[0]
+            checker = ValidityChecker(
+                design, margins, obstacles, seg.assembly_mode, seg.working_mode
+            )
+        _add_trajectory(request, response, design, checker)
     return response
 
 
 def _add_trajectory(
-    request: PlanRequest, response: PlanResponse, design: Any, margins: Any, obstacles: list
+    request: PlanRequest, response: PlanResponse, design: Any, checker: Any | None
 ) -> None:
     """Time ``response.path`` in place: fill ``trajectory`` and the timing diagnostics, or
-    turn the status into ``timeout`` / ``no_path`` with the reason."""
-    from planner.validity import ValidityChecker
-
+    turn the status into ``timeout`` / ``no_path`` with the reason. ``checker`` (a
+    :class:`planner.validity.ValidityChecker`, or None for a multi-mode path) supplies the
+    validity rules of the dense re-check; joint limits and assembly are always checked."""
     from planner.exceptions import TimingDeadlineError, TimingError
     from planner.timing import JointLimits, time_path
 
@@ -255,9 +261,7 @@ def _add_trajectory(
             jerk=wire.jerk or default.jerk,
         )
     check = None
-    if len(path.segments) == 1:  # the planner's validity rules, in the path's one mode
-        seg = path.segments[0]
-        checker = ValidityChecker(design, margins, obstacles, seg.assembly_mode, seg.working_mode)
+    if checker is not None:
 
         def check(q: np.ndarray) -> np.ndarray:
             return checker.check_states(q).valid
