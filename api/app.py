@@ -10,7 +10,9 @@ from fastapi import FastAPI
 import planner
 from api.deps import ApiKey
 from api.errors import install_error_handlers
-from api.middleware import RequestLimitsMiddleware
+from api.metrics import Metrics
+from api.metrics import router as metrics_router
+from api.middleware import RequestLimitsMiddleware, RequestObserver
 from api.routes import design, designs, kinematics, meta, plan
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
@@ -18,6 +20,8 @@ from planner.schemas import ErrorResponse
 
 #: Error answers every /v1 route may give (documented in the OpenAPI schema).
 _ERRORS = {code: {"model": ErrorResponse} for code in (401, 413, 422, 502, 503, 504)}
+#: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
+_KILL_AFTER_DRAIN_S = 2.0
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -31,14 +35,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         pool = WorkerPool(
-            settings.workers, settings.queue_size or 0, retry_after_s=settings.retry_after_s
+            settings.workers,
+            settings.queue_size or 0,
+            retry_after_s=settings.retry_after_s,
+            log_setup=(settings.log_level, settings.log_format),
         )
         await pool.start()
         app.state.pool = pool
         try:
             yield
         finally:
-            pool.shutdown()
+            # after a drain (api.server) the grace is spent: stop the workers at once
+            drained = pool.state == "stopping"
+            pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
 
     app = FastAPI(
         title="hybrid-planner",
@@ -54,7 +63,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         max_body_bytes=settings.max_body_bytes,
         timeout_s=settings.request_timeout_s,
     )
+    app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
+    app.add_middleware(RequestObserver, metrics=app.state.metrics)  # outermost: sees all
     app.include_router(meta.router)
+    if settings.metrics:
+        app.include_router(metrics_router)
     for router in (design.router, designs.router, kinematics.router, plan.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     return app

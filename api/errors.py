@@ -16,6 +16,7 @@ AuthenticationError                401     ``WWW-Authenticate: Bearer``
 body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
 PlanningUnavailableError           501
 WorkerCrashedError                 502
+ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
 PoolNotRunningError                503     the app's lifespan was not started
 DeadlineExceededError              504
@@ -42,6 +43,7 @@ from api.exceptions import (
     PlanningUnavailableError,
     PoolNotRunningError,
     PoolSaturatedError,
+    ShuttingDownError,
     WorkerCrashedError,
 )
 from planner.exceptions import (
@@ -72,6 +74,7 @@ _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     AuthenticationError: (401, "unauthorized"),
     PlanningUnavailableError: (501, "not_implemented"),
     WorkerCrashedError: (502, "worker_crashed"),
+    ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),
     PoolNotRunningError: (503, "not_running"),
     DeadlineExceededError: (504, "deadline_exceeded"),

@@ -5,6 +5,7 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
 
     ServiceError
     ├── PoolSaturatedError        503 + Retry-After: every worker busy, queue full
+    │   └── ShuttingDownError     503 + Retry-After: the process is stopping (retry elsewhere)
     ├── PoolNotRunningError       503: the worker pool was not started (no lifespan)
     ├── DeadlineExceededError     504: the request's time budget ran out
     ├── WorkerCrashedError        502: a worker process died during the job
@@ -23,6 +24,7 @@ __all__ = [
     "PoolNotRunningError",
     "PoolSaturatedError",
     "ServiceError",
+    "ShuttingDownError",
     "WorkerCrashedError",
 ]
 
@@ -41,6 +43,11 @@ class PoolSaturatedError(ServiceError):
 
     def __str__(self) -> str:
         return self.message
+
+
+class ShuttingDownError(PoolSaturatedError):
+    """The process is shutting down: the job was not taken, or its share of the shutdown
+    grace ran out and it was cancelled. Another replica can serve the retry."""
 
 
 class PoolNotRunningError(ServiceError):

@@ -1,4 +1,5 @@
-"""ASGI middleware: request size limit and the request's deadline.
+"""ASGI middleware: request size limit and the request's deadline; request id, metrics and
+the access log (:class:`RequestObserver`).
 
 Pure ASGI (no ``BaseHTTPMiddleware``): it reads the body up to ``max_body_bytes`` before the
 application sees it, answering 413 beyond (whether the client sent ``Content-Length`` or
@@ -12,11 +13,17 @@ plain-text 413, outside the exception handlers, so not in the service's ``detail
 from __future__ import annotations
 
 import json
+import logging
 import time
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-__all__ = ["RequestLimitsMiddleware"]
+from api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
+from api.metrics import CURRENT, UNMATCHED, Metrics
+
+__all__ = ["RequestLimitsMiddleware", "RequestObserver"]
+
+access_logger = logging.getLogger("api.access")
 
 
 class RequestLimitsMiddleware:
@@ -94,3 +101,80 @@ class RequestLimitsMiddleware:
             }
         )
         await send({"type": "http.response.body", "body": body})
+
+
+#: Paths whose access-log line is written at DEBUG (probes and scrapes every few seconds).
+_QUIET_PATHS = frozenset({"/v1/health", "/v1/ready", "/metrics"})
+
+
+def _route_label(scope: Scope) -> str:
+    """The matched route's path template, else the path if it is a route's (a 413 answered
+    before routing), else :data:`api.metrics.UNMATCHED`."""
+    route = scope.get("route")
+    path = getattr(route, "path", None)
+    if isinstance(path, str):
+        return path
+    app = scope.get("app")
+    raw = scope.get("path", "")
+    if app is not None and any(getattr(r, "path", None) == raw for r in app.routes):
+        return raw
+    return UNMATCHED
+
+
+class RequestObserver:
+    """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
+    sane, else a new one; echoed in the answer and set in :data:`api.logging.REQUEST_ID` for
+    every log line), records it in ``metrics`` and writes one access-log line."""
+
+    def __init__(self, app: ASGIApp, *, metrics: Metrics) -> None:
+        self.app = app
+        self.metrics = metrics
+        self._header = REQUEST_ID_HEADER.lower().encode()
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        given = next((v for k, v in scope.get("headers", ()) if k == self._header), None)
+        request_id = request_id_from(given)
+        id_token = REQUEST_ID.set(request_id)
+        metrics_token = CURRENT.set(self.metrics)
+        start = time.perf_counter()
+        status = 500  # if the app raises before answering
+        self.metrics.in_progress.inc()
+
+        async def send_with_id(message: Message) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = message["status"]
+                headers = [(k, v) for k, v in message.get("headers", ()) if k != self._header]
+                headers.append((self._header, request_id.encode()))
+                message = {**message, "headers": headers}
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_with_id)
+        finally:
+            seconds = time.perf_counter() - start
+            self.metrics.in_progress.dec()
+            route = _route_label(scope)
+            method = scope.get("method", "")
+            self.metrics.record_request(method, route, status, seconds)
+            path = scope.get("path", "")
+            access_logger.log(
+                logging.DEBUG if path in _QUIET_PATHS and status < 400 else logging.INFO,
+                "%s %s %d",
+                method,
+                path,
+                status,
+                extra={
+                    "method": method,
+                    "path": path,
+                    "route": route,
+                    "status": status,
+                    "duration_ms": round(seconds * 1000.0, 3),
+                    "client": (scope.get("client") or ("", 0))[0],
+                },
+            )
+            CURRENT.reset(metrics_token)
+            REQUEST_ID.reset(id_token)

@@ -1,25 +1,30 @@
 """Service settings, read from environment variables prefixed ``PLANNER_``.
 
-========================  ==============================  ======================================
-variable                  default                         meaning
-========================  ==============================  ======================================
-PLANNER_HOST              127.0.0.1                       interface to bind
-PLANNER_PORT              8000                            TCP port
-PLANNER_WORKERS           number of CPUs                  worker processes for CPU-bound work
-PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
-PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
-PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
-PLANNER_MAX_BATCH         64                              plan requests in one batch
-PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
-PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
-PLANNER_API_KEY           (none)                          when set, required on /v1 but health
-========================  ==============================  ======================================
+=========================== ==============================  ======================================
+variable                    default                         meaning
+=========================== ==============================  ======================================
+PLANNER_HOST                127.0.0.1                       interface to bind
+PLANNER_PORT                8000                            TCP port
+PLANNER_WORKERS             number of CPUs                  worker processes for CPU-bound work
+PLANNER_QUEUE_SIZE          4 per worker                    jobs allowed to wait; beyond: 503
+PLANNER_REQUEST_TIMEOUT_S   30                              time budget of one request, s
+PLANNER_MAX_BODY_BYTES      4 MiB                           largest request body; beyond: 413
+PLANNER_MAX_BATCH           64                              plan requests in one batch
+PLANNER_MAX_OBSTACLES       256                             obstacles in one plan request
+PLANNER_RETRY_AFTER_S       1                               Retry-After of a 503, s
+PLANNER_API_KEY             (none)                          when set, required on /v1 but health
+PLANNER_LOG_LEVEL           info                            debug, info, warning, error, critical
+PLANNER_LOG_FORMAT          json                            json (one object a line) or text
+PLANNER_SHUTDOWN_TIMEOUT_S  30                              grace for in-flight work on SIGTERM, s
+PLANNER_METRICS             true                            serve Prometheus metrics at /metrics
+=========================== ==============================  ======================================
 """
 
 from __future__ import annotations
 
 import os
 from functools import lru_cache
+from typing import Literal
 
 from pydantic import Field, SecretStr, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -70,6 +75,22 @@ class Settings(BaseSettings):
         description="When set, every /v1 route except /v1/health requires it "
         "(header X-API-Key or Authorization: Bearer).",
     )
+
+    log_level: Literal["debug", "info", "warning", "error", "critical"] = Field(
+        "info", description="Least severity of the log lines written."
+    )
+    log_format: Literal["json", "text"] = Field(
+        "json", description="json: one JSON object a line with the request id; text: for people."
+    )
+    shutdown_timeout_s: float = Field(
+        30.0,
+        ge=0.0,
+        le=3600.0,
+        allow_inf_nan=False,
+        description="On SIGTERM/SIGINT: how long in-flight requests may finish before they "
+        "are cancelled and the workers stopped, s.",
+    )
+    metrics: bool = Field(True, description="Serve Prometheus metrics at GET /metrics.")
 
     @model_validator(mode="after")
     def _fill_queue(self) -> Settings:

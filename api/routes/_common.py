@@ -9,7 +9,8 @@ from typing import Any
 from fastapi import Response
 from pydantic import BaseModel
 
-from api.compute import as_json
+from api.logging import REQUEST_ID
+from api.metrics import record_job, run_measured
 from api.workers import WorkerPool
 
 __all__ = ["json_response", "run_job", "run_jobs"]
@@ -25,13 +26,20 @@ async def run_job(
 ) -> Response:
     """``job(body)`` in a worker, serialised there, with the request's ``deadline``; the
     answer as it is (the route's ``response_model`` documents it, the job's return type
-    guarantees it)."""
-    job_json = partial(as_json, job, deadline=deadline)
-    return json_response(await pool.run(job_json, body, deadline=deadline))
+    guarantees it). The worker reports the job's durations, recorded here
+    (:mod:`api.metrics`)."""
+    job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
+    content, sample = await pool.run(job_json, body, deadline=deadline)
+    record_job(sample)
+    return json_response(content)
 
 
 async def run_jobs(
     pool: WorkerPool, job: Callable[[Any], BaseModel], bodies: Sequence[Any], deadline: float
 ) -> list[bytes]:
     """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order."""
-    return await pool.map(partial(as_json, job, deadline=deadline), bodies, deadline=deadline)
+    job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
+    answers = await pool.map(job_json, bodies, deadline=deadline)
+    for _, sample in answers:
+        record_job(sample)
+    return [content for content, _ in answers]

@@ -24,19 +24,42 @@ def serve(
         int | None,
         typer.Option(help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1),
     ] = None,
-    log_level: Annotated[str, typer.Option(help="uvicorn log level.")] = "info",
+    log_level: Annotated[
+        str | None,
+        typer.Option(help="Log level: debug, info, warning, error (env PLANNER_LOG_LEVEL)."),
+    ] = None,
+    log_format: Annotated[
+        str | None, typer.Option(help="Log format: json or text (env PLANNER_LOG_FORMAT).")
+    ] = None,
+    shutdown_timeout: Annotated[
+        float | None,
+        typer.Option(
+            help="Grace for in-flight requests on SIGTERM, s (env PLANNER_SHUTDOWN_TIMEOUT_S).",
+            min=0.0,
+        ),
+    ] = None,
 ) -> None:
     """Start the HTTP service (every setting also from PLANNER_* environment variables)."""
-    import uvicorn
+    from pydantic import ValidationError
 
-    from api.app import create_app
+    from api.server import run
     from api.settings import Settings
 
-    overrides = {
-        k: v for k, v in {"host": host, "port": port, "workers": workers}.items() if v is not None
+    given = {
+        "host": host,
+        "port": port,
+        "workers": workers,
+        "log_level": log_level.lower() if log_level else None,
+        "log_format": log_format,
+        "shutdown_timeout_s": shutdown_timeout,
     }
-    settings = Settings(**overrides)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
+    try:
+        settings = Settings(**{k: v for k, v in given.items() if v is not None})
+    except ValidationError as exc:
+        for e in exc.errors():
+            typer.echo(f"error: {'.'.join(map(str, e['loc']))}: {e['msg']}", err=True)
+        raise typer.Exit(2) from None
+    run(settings)
 
 
 _PRESETS = {

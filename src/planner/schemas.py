@@ -567,7 +567,7 @@ class VersionInfo(_Response):
 class Readiness(_Response):
     """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
 
-    status: Literal["ready", "starting", "broken"]
+    status: Literal["ready", "starting", "broken", "stopping"]
     workers: int = Field(ge=0, description="Worker processes configured.")
 
 

@@ -1,0 +1,253 @@
+"""Prometheus metrics of one service process, exposed at ``GET /metrics``.
+
+Multi-process safety: the CPU-bound work runs in the worker processes of
+:mod:`api.workers`, which record nothing. Each job is wrapped by :func:`run_measured`, which
+returns, next to the job's JSON, a small :class:`JobSample` (the job's name, its time in the
+worker, and for a plan its status and its planning and timing durations); the parent process
+records the sample (:func:`record_job`). So every metric lives in the one process that serves
+``/metrics`` and no shared-memory directory (``PROMETHEUS_MULTIPROC_DIR``) is needed. Each
+application has its own registry (several apps in one process, e.g. tests, do not mix).
+
+Metrics (``route`` is the route's path template, ``<unmatched>`` for unknown paths):
+
+=========================================  =========  ==========================================
+name                                       type       labels / meaning
+=========================================  =========  ==========================================
+planner_http_requests_total                counter    method, route, status
+planner_http_request_duration_seconds      histogram  method, route: arrival to last byte
+planner_http_requests_in_progress          gauge      requests being served
+planner_job_duration_seconds               histogram  job: time of the job in its worker
+planner_plan_outcomes_total                counter    status: solved, no_path, ..., timeout
+planner_planning_duration_seconds          histogram  the planner's search (diagnostics)
+planner_timing_duration_seconds            histogram  the time parameterisation (diagnostics)
+planner_pool_workers                       gauge      worker processes
+planner_pool_capacity                      gauge      jobs allowed in flight (workers + queue)
+planner_pool_in_flight                     gauge      jobs running or waiting
+planner_pool_busy_workers                  gauge      min(in flight, workers)
+planner_pool_queue_depth                   gauge      jobs waiting for a worker
+planner_pool_saturation                    gauge      in flight / capacity, 0..1
+planner_pool_ready                         gauge      1 once every worker answered, else 0
+planner_pool_rejected_total                counter    jobs refused with 503 (pool full)
+planner_build_info                         gauge      version; always 1
+=========================================  =========  ==========================================
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
+from prometheus_client.exposition import CONTENT_TYPE_LATEST
+from pydantic import BaseModel
+
+from api.compute import as_json
+from api.logging import REQUEST_ID
+
+__all__ = [
+    "CURRENT",
+    "JobSample",
+    "Metrics",
+    "record_job",
+    "router",
+    "run_measured",
+]
+
+#: Buckets (s) for request and job durations: 1 ms to 60 s.
+DURATION_BUCKETS = (
+    0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0,
+)  # fmt: skip
+#: The ``route`` label of a path that matches no route (keeps the label set bounded).
+UNMATCHED = "<unmatched>"
+
+
+@dataclass(frozen=True, slots=True)
+class JobSample:
+    """What a worker reports about one finished job (picklable, a few bytes).
+
+    Attributes
+    ----------
+    job : str
+        The job function's name, e.g. ``"plan"``.
+    seconds : float
+        Wall time of the job in the worker, s (serialisation included).
+    status : str or None
+        A plan's ``status``; None for other jobs.
+    planning_time_s, timing_time_s : float or None
+        A plan's ``diagnostics`` durations, s (None when absent).
+    """
+
+    job: str
+    seconds: float
+    status: str | None = None
+    planning_time_s: float | None = None
+    timing_time_s: float | None = None
+
+
+def run_measured(
+    job: Callable[[Any], BaseModel],
+    request: Any,
+    *,
+    deadline: float | None = None,
+    request_id: str | None = None,
+) -> tuple[bytes, JobSample]:
+    """In a worker: :func:`api.compute.as_json` of ``job(request)`` and its :class:`JobSample`.
+
+    ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job
+    propagate unchanged (the parent maps them to HTTP answers).
+    """
+    from planner.schemas import PlanResponse
+
+    models: list[BaseModel] = []
+
+    def keep(r: Any) -> BaseModel:
+        model = job(r)
+        models.append(model)
+        return model
+
+    token = REQUEST_ID.set(request_id)
+    start = time.perf_counter()
+    try:
+        content = as_json(keep, request, deadline=deadline)
+    finally:
+        REQUEST_ID.reset(token)
+    seconds = time.perf_counter() - start
+    name = getattr(job, "__name__", type(job).__name__)
+    model = models[0] if models else None
+    if isinstance(model, PlanResponse):
+        sample = JobSample(
+            name,
+            seconds,
+            str(model.status),
+            model.diagnostics.planning_time_s,
+            model.diagnostics.timing_time_s,
+        )
+    else:
+        sample = JobSample(name, seconds)
+    return content, sample
+
+
+class _PoolCollector:
+    """Reads the worker pool's state at scrape time (nothing to keep in sync)."""
+
+    def __init__(self, get_pool: Callable[[], Any]) -> None:
+        self._get_pool = get_pool
+
+    def collect(self) -> Iterator[Metric]:
+        pool = self._get_pool()
+        if pool is None:
+            return
+        in_flight = pool.in_flight
+        workers = pool.workers
+        capacity = pool.capacity
+        values = {
+            "planner_pool_workers": ("Worker processes.", workers),
+            "planner_pool_capacity": ("Jobs allowed in flight (workers + queue).", capacity),
+            "planner_pool_in_flight": ("Jobs running or waiting for a worker.", in_flight),
+            "planner_pool_busy_workers": ("Workers running a job.", min(in_flight, workers)),
+            "planner_pool_queue_depth": ("Jobs waiting for a worker.", max(in_flight - workers, 0)),
+            "planner_pool_saturation": ("Jobs in flight / capacity (1: the next job gets 503).",
+                                        in_flight / capacity),
+            "planner_pool_ready": ("1 once every worker answered once.",
+                                   1 if pool.state == "ready" else 0),
+        }  # fmt: skip
+        for name, (doc, value) in values.items():
+            yield GaugeMetricFamily(name, doc, value=value)
+        yield CounterMetricFamily(
+            "planner_pool_rejected", "Jobs refused because the pool was full (503).",
+            value=pool.rejected,
+        )  # fmt: skip
+
+
+class Metrics:
+    """The metrics of one application, in their own registry.
+
+    Parameters
+    ----------
+    get_pool : callable
+        Returns the application's :class:`api.workers.WorkerPool` (or None before start-up);
+        read at every scrape.
+    version : str
+        The service version, for ``planner_build_info``.
+    """
+
+    def __init__(self, get_pool: Callable[[], Any], version: str) -> None:
+        self.registry = CollectorRegistry(auto_describe=True)
+        r = self.registry
+        self.requests = Counter(
+            "planner_http_requests", "HTTP requests answered.", ["method", "route", "status"],
+            registry=r,
+        )  # fmt: skip
+        self.latency = Histogram(
+            "planner_http_request_duration_seconds",
+            "Time from a request's arrival to its last byte, s.",
+            ["method", "route"], buckets=DURATION_BUCKETS, registry=r,
+        )  # fmt: skip
+        self.in_progress = Gauge(
+            "planner_http_requests_in_progress", "Requests being served.", registry=r
+        )
+        self.job_seconds = Histogram(
+            "planner_job_duration_seconds", "Time of a job in its worker process, s.", ["job"],
+            buckets=DURATION_BUCKETS, registry=r,
+        )  # fmt: skip
+        self.plan_outcomes = Counter(
+            "planner_plan_outcomes", "Finished plans by status.", ["status"], registry=r
+        )
+        self.planning_seconds = Histogram(
+            "planner_planning_duration_seconds", "The planner's search, s.",
+            buckets=DURATION_BUCKETS, registry=r,
+        )  # fmt: skip
+        self.timing_seconds = Histogram(
+            "planner_timing_duration_seconds", "Time parameterisation of a path, s.",
+            buckets=DURATION_BUCKETS, registry=r,
+        )  # fmt: skip
+        Gauge("planner_build_info", "Service version.", ["version"], registry=r).labels(
+            version
+        ).set(1)
+        r.register(_PoolCollector(get_pool))  # type: ignore[arg-type]
+
+    def record_job(self, sample: JobSample) -> None:
+        """Record one job's :class:`JobSample` (in the process that serves /metrics)."""
+        self.job_seconds.labels(sample.job).observe(sample.seconds)
+        if sample.status is not None:
+            self.plan_outcomes.labels(sample.status).inc()
+        if sample.planning_time_s is not None:
+            self.planning_seconds.observe(sample.planning_time_s)
+        if sample.timing_time_s is not None:
+            self.timing_seconds.observe(sample.timing_time_s)
+
+    def record_request(self, method: str, route: str, status: int, seconds: float) -> None:
+        """Record one answered HTTP request."""
+        self.requests.labels(method, route, str(status)).inc()
+        self.latency.labels(method, route).observe(seconds)
+
+    def exposition(self) -> bytes:
+        """The registry in Prometheus' text format."""
+        return generate_latest(self.registry)
+
+
+#: The metrics of the application serving the current request (set by the request
+#: middleware, :class:`api.middleware.RequestObserver`), read by :func:`record_job`.
+CURRENT: ContextVar[Metrics | None] = ContextVar("metrics", default=None)
+
+
+def record_job(sample: JobSample) -> None:
+    """Record ``sample`` in the current request's application metrics (nothing outside one)."""
+    metrics = CURRENT.get()
+    if metrics is not None:
+        metrics.record_job(sample)
+
+
+router = APIRouter(tags=["meta"])
+
+
+@router.get("/metrics", include_in_schema=False)
+def metrics(request: Request) -> Response:
+    """Prometheus text exposition of this process's metrics."""
+    m: Metrics = request.app.state.metrics
+    return Response(m.exposition(), media_type=CONTENT_TYPE_LATEST)
