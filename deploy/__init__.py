@@ -1,0 +1,1 @@
+"""Deployments of the service beyond one process (Ray Serve)."""

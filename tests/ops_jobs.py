@@ -1,0 +1,52 @@
+"""Jobs and a launcher for the operations tests: module-level (picklable) plan functions that
+the worker processes can import, and a server entry point that serves one of them."""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+
+from planner.schemas import Diagnostics, PlanRequest, PlanResponse
+
+logger = logging.getLogger("tests.ops_jobs")
+
+
+def timed_outcome(request: PlanRequest) -> PlanResponse:
+    """A plan answer whose status and durations come from the request: ``planner.seed``
+    picks the status, ``planner.time_budget_s`` is reported as the planning time, a tenth of
+    it as the timing time."""
+    statuses = ("solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout")
+    budget = request.planner.time_budget_s
+    return PlanResponse(
+        status=statuses[(request.planner.seed or 0) % len(statuses)],
+        diagnostics=Diagnostics(planning_time_s=budget, timing_time_s=budget / 10),
+    )
+
+
+def sleep_pid(request: PlanRequest) -> PlanResponse:
+    """Sleep ``planner.time_budget_s`` seconds, log a line, answer with the worker's pid (also
+    written to the file named by the environment variable OPS_PID_FILE, when set)."""
+    pid_file = os.environ.get("OPS_PID_FILE")
+    if pid_file:
+        with open(pid_file, "w") as f:
+            f.write(str(os.getpid()))
+    logger.warning("sleeping %.2f s", request.planner.time_budget_s)
+    time.sleep(request.planner.time_budget_s)
+    return PlanResponse(status="timeout", message=str(os.getpid()))
+
+
+def serve(job_name: str) -> None:
+    """Serve the app of the environment's settings with the plan job ``job_name`` of this
+    module (``python -c 'import ops_jobs; ops_jobs.serve("sleep_pid")'``)."""
+    from api.app import create_app
+    from api.routes.plan import get_plan_function
+    from api.server import run
+    from api.settings import Settings
+
+    settings = Settings()
+    app = create_app(settings)
+    job = getattr(sys.modules[__name__], job_name)
+    app.dependency_overrides[get_plan_function] = lambda: job
+    run(settings, app)

@@ -1,0 +1,92 @@
+"""The Ray Serve deployment (deploy/ray_serve.py): a local Ray instance serves the same app,
+through Ray's HTTP proxy on a loopback port, with its worker pool inside the replica."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from planner import Design, forward_batch
+
+pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
+
+ROOT = Path(__file__).resolve().parents[1]
+HAS_PLANNER = importlib.util.find_spec("planner.planning") is not None
+
+
+def _wait_ready(url: str, timeout_s: float = 60.0) -> None:
+    end = time.monotonic() + timeout_s
+    while True:
+        try:
+            if httpx.get(f"{url}/v1/ready", timeout=2.0).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        assert time.monotonic() < end, "the Ray Serve replica never became ready"
+        time.sleep(0.2)
+
+
+def test_ray_serve_serves_the_app(unused_port):
+    import ray
+    from ray import serve
+
+    from deploy.ray_serve import app_builder
+
+    path = os.pathsep.join([str(ROOT / "src"), str(ROOT), os.environ.get("PYTHONPATH", "")])
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        runtime_env={"env_vars": {"PYTHONPATH": path}},
+        log_to_driver=False,
+    )
+    try:
+        serve.start(http_options={"host": "127.0.0.1", "port": unused_port})
+        app = app_builder({"workers": "1", "request_timeout_s": "20"})  # as `serve run` does
+        serve.run(app, route_prefix="/", blocking=False)
+        url = f"http://127.0.0.1:{unused_port}"
+        _wait_ready(url)
+
+        # kinematics through the replica's worker pool, checked against the library here
+        q = [0.3, 1.0, 2.1]
+        r = httpx.post(
+            f"{url}/v1/fk",
+            json={"q": q, "assembly_mode": "+"},
+            headers={"X-Request-ID": "ray-1"},
+            timeout=20,
+        )
+        assert r.status_code == 200, r.text
+        # Ray's proxy echoes the id as well (same value): one id, whoever wrote it
+        assert {v.strip() for v in r.headers["x-request-id"].split(",")} == {"ray-1"}
+        expected = forward_batch(Design.default(), np.array([q]), "+").p[0]
+        np.testing.assert_allclose(r.json()["postures"][0]["p"], expected, atol=1e-12)
+
+        # one plan through it (501 in a build without the planner)
+        plan = {
+            "start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},
+            "goal": {"q": [0.2, 1.1, 2.1], "assembly_mode": "+"},
+            "planner": {"seed": 1, "time_budget_s": 5.0},
+            "timing": {"method": "none"},
+        }
+        r = httpx.post(f"{url}/v1/plan", json=plan, timeout=30)
+        if HAS_PLANNER:
+            assert r.status_code == 200, r.text
+            body = r.json()
+            assert body["status"] == "solved", body
+            np.testing.assert_allclose(body["path"]["waypoints"][0], plan["start"]["q"])
+            np.testing.assert_allclose(body["path"]["waypoints"][-1], plan["goal"]["q"])
+        else:
+            assert r.status_code == 501
+            assert r.json()["detail"][0]["type"] == "not_implemented"
+
+        # the replica's metrics saw those requests
+        text = httpx.get(f"{url}/metrics", timeout=10).text
+        assert 'planner_http_requests_total{method="POST",route="/v1/fk",status="200"} 1.0' in text
+    finally:
+        serve.shutdown()
+        ray.shutdown()
