@@ -108,16 +108,21 @@ _QUIET_PATHS = frozenset({"/v1/health", "/v1/ready", "/metrics"})
 
 
 def _route_label(scope: Scope) -> str:
-    """The matched route's path template, else the path if it is a route's (a 413 answered
-    before routing), else :data:`api.metrics.UNMATCHED`."""
+    """The matched route's path template, else the path if it is one of the app's documented
+    paths (a 413 answered before routing), else :data:`api.metrics.UNMATCHED`."""
     route = scope.get("route")
     path = getattr(route, "path", None)
     if isinstance(path, str):
         return path
     app = scope.get("app")
     raw = scope.get("path", "")
-    if app is not None and any(getattr(r, "path", None) == raw for r in app.routes):
-        return raw
+    openapi = getattr(app, "openapi", None)
+    if callable(openapi):
+        try:
+            if raw in openapi().get("paths", {}):  # cached by FastAPI after the first call
+                return raw
+        except Exception:  # pragma: no cover - a broken schema must not break the answer
+            logging.getLogger(__name__).exception("could not read the OpenAPI paths")
     return UNMATCHED
 
 

@@ -1,0 +1,149 @@
+"""Prometheus metrics at /metrics: request counts and latencies per route, plan outcomes and
+durations reported by the worker processes, and the pool's saturation. The exposition is
+read back with prometheus_client's own text parser."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+from ops_jobs import sleep_pid, timed_outcome
+from prometheus_client.parser import text_string_to_metric_families
+
+from api.routes.plan import get_plan_function
+
+START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
+
+
+def _plan(seed: int, budget: float) -> dict:
+    return {"start": START, "goal": {"p": [0.3, 0.1, 0.2]},
+            "planner": {"seed": seed, "time_budget_s": budget}}  # fmt: skip
+
+
+def scrape(client) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
+    """Every sample of /metrics as {(name, sorted labels): value}."""
+    r = client.get("/metrics")
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/plain")
+    out = {}
+    for family in text_string_to_metric_families(r.text):
+        for s in family.samples:
+            out[(s.name, tuple(sorted(s.labels.items())))] = s.value
+    return out
+
+
+def sample(metrics, name: str, **labels: str) -> float:
+    return metrics.get((name, tuple(sorted(labels.items()))), 0.0)
+
+
+def _wait_ready(client, timeout_s: float = 60.0) -> None:
+    end = time.monotonic() + timeout_s
+    while client.get("/v1/ready").status_code != 200:
+        assert time.monotonic() < end, "workers never became ready"
+        time.sleep(0.05)
+
+
+def test_request_counts_and_latencies_per_route(client_factory):
+    with client_factory() as c:
+        for q in ([0.1, 1.0, 2.0], [0.2, 1.1, 2.1]):
+            assert c.post("/v1/fk", json={"q": q}).status_code == 200
+        assert c.post("/v1/fk", json={"q": [0.1, 1.0]}).status_code == 422
+        assert c.get("/no/such/path/123").status_code == 404
+        not_json = c.post("/v1/fk", content=b"{x", headers={"content-type": "application/json"})
+        assert not_json.status_code == 422
+        m = scrape(c)
+    fk = {"method": "POST", "route": "/v1/fk"}
+    assert sample(m, "planner_http_requests_total", **fk, status="200") == 2
+    assert sample(m, "planner_http_requests_total", **fk, status="422") == 2
+    assert sample(m, "planner_http_requests_total", method="GET", route="<unmatched>",
+                  status="404") == 1  # fmt: skip
+    # the histogram counts every answered /v1/fk request, with a positive total time
+    assert sample(m, "planner_http_request_duration_seconds_count", **fk) == 4
+    assert sample(m, "planner_http_request_duration_seconds_sum", **fk) > 0
+    assert sample(m, "planner_http_request_duration_seconds_bucket", **fk, le="+Inf") == 4
+    # jobs ran in the worker: the fk job's time was reported back (two succeeded)
+    assert sample(m, "planner_job_duration_seconds_count", job="fk") == 2
+    assert sample(m, "planner_build_info", version=__import__("planner").__version__) == 1
+
+
+def test_oversized_body_is_counted_on_its_route(client_factory):
+    with client_factory(max_body_bytes=1024) as c:
+        r = c.post("/v1/fk", content=b"[" * 2000, headers={"content-type": "application/json"})
+        assert r.status_code == 413
+        m = scrape(c)
+    assert sample(m, "planner_http_requests_total", method="POST", route="/v1/fk",
+                  status="413") == 1  # fmt: skip
+
+
+def test_plan_outcomes_and_durations_come_from_the_workers(client_factory):
+    budgets = [0.5, 0.25, 2.0, 0.125]  # reported as planning times; a tenth as timing times
+    with client_factory() as c:
+        c.app.dependency_overrides[get_plan_function] = lambda: timed_outcome
+        for seed, budget in zip((6, 1), budgets[:2], strict=True):  # solved, no_path
+            r = c.post("/v1/plan", json=_plan(seed, budget))
+            assert r.status_code == 200, r.text
+        r = c.post(
+            "/v1/plan/batch", json={"requests": [_plan(6, budgets[2]), _plan(5, budgets[3])]}
+        )
+        assert r.status_code == 200
+        assert [x["status"] for x in r.json()["results"]] == ["solved", "timeout"]
+        m = scrape(c)
+    assert sample(m, "planner_plan_outcomes_total", status="solved") == 2
+    assert sample(m, "planner_plan_outcomes_total", status="no_path") == 1
+    assert sample(m, "planner_plan_outcomes_total", status="timeout") == 1
+    assert sample(m, "planner_plan_outcomes_total", status="unreachable") == 0
+    assert sample(m, "planner_planning_duration_seconds_count") == 4
+    assert sample(m, "planner_planning_duration_seconds_sum") == pytest.approx(sum(budgets))
+    assert sample(m, "planner_timing_duration_seconds_sum") == pytest.approx(sum(budgets) / 10)
+    # 0.5 s falls in the le=0.5 bucket, 2.0 s only from le=2.5 on
+    assert sample(m, "planner_planning_duration_seconds_bucket", le="0.5") == 3
+    assert sample(m, "planner_planning_duration_seconds_bucket", le="1.0") == 3
+    assert sample(m, "planner_planning_duration_seconds_bucket", le="2.5") == 4
+    assert sample(m, "planner_job_duration_seconds_count", job="timed_outcome") == 4
+
+
+def test_pool_saturation_and_rejections(client_factory):
+    with client_factory(workers=1, queue_size=1) as c:
+        c.app.dependency_overrides[get_plan_function] = lambda: sleep_pid
+        _wait_ready(c)
+        idle = scrape(c)
+        assert sample(idle, "planner_pool_workers") == 1
+        assert sample(idle, "planner_pool_capacity") == 2
+        assert sample(idle, "planner_pool_in_flight") == 0
+        assert sample(idle, "planner_pool_saturation") == 0
+        assert sample(idle, "planner_pool_ready") == 1
+        answers: list[int] = []
+        threads = [
+            threading.Thread(target=lambda: answers.append(
+                c.post("/v1/plan", json=_plan(1, 1.0)).status_code))
+            for _ in range(2)
+        ]  # fmt: skip
+        for t in threads:
+            t.start()
+        pool = c.app.state.pool
+        end = time.monotonic() + 10
+        while pool.in_flight < 2:
+            assert time.monotonic() < end
+            time.sleep(0.01)
+        busy = scrape(c)
+        assert c.post("/v1/plan", json=_plan(1, 1.0)).status_code == 503  # the pool is full
+        after = scrape(c)
+        for t in threads:
+            t.join()
+    assert sorted(answers) == [200, 200]
+    assert sample(busy, "planner_pool_in_flight") == 2
+    assert sample(busy, "planner_pool_busy_workers") == 1
+    assert sample(busy, "planner_pool_queue_depth") == 1
+    assert sample(busy, "planner_pool_saturation") == 1.0
+    assert sample(busy, "planner_http_requests_in_progress") == 3  # two plans and the scrape
+    assert sample(busy, "planner_pool_rejected_total") == 0
+    assert sample(after, "planner_pool_rejected_total") == 1
+    assert sample(after, "planner_http_requests_total", method="POST", route="/v1/plan",
+                  status="503") == 1  # fmt: skip
+
+
+def test_metrics_can_be_switched_off(client_factory):
+    with client_factory(metrics=False) as c:
+        assert c.get("/metrics").status_code == 404
+        assert c.post("/v1/fk", json={"q": [0.1, 1.0, 2.0]}).status_code == 200
