@@ -10,7 +10,7 @@ a worker names the request as well.
 A line (``PLANNER_LOG_FORMAT=json``, the default)::
 
     {"ts": "2026-11-26T05:30:00.123Z", "level": "info", "logger": "api.access",
-     "message": "POST /v1/plan 200", "request_id": "4f1c...", "method": "POST",
+     "message": "POST /v1/plan 200", "request_id": "4f1c...", "pid": 7, "method": "POST",
      "route": "/v1/plan", "status": 200, "duration_ms": 4.1}
 
 Fields passed with ``extra=`` (JSON-serialisable values) are added to the object;
@@ -92,7 +92,7 @@ def _jsonable(value: Any) -> Any:
 
 class JsonFormatter(logging.Formatter):
     """One JSON object per record: ``ts`` (UTC, ISO 8601, ms), ``level``, ``logger``,
-    ``message``, ``request_id``, the ``extra=`` fields, and ``exc_info`` as text."""
+    ``message``, ``request_id``, ``pid``, the ``extra=`` fields, and ``exc_info`` as text."""
 
     def format(self, record: logging.LogRecord) -> str:
         ts = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(record.created))
@@ -102,6 +102,7 @@ class JsonFormatter(logging.Formatter):
             "logger": record.name,
             "message": record.getMessage(),
             "request_id": getattr(record, "request_id", None),
+            "pid": record.process,
         }
         for key, value in vars(record).items():
             if key not in _STANDARD and not key.startswith("_"):
