@@ -186,6 +186,7 @@ class WorkerPool:
                 if p.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
                     p.kill()
                     p.join()
+        executor.shutdown(wait=True)  # every worker has exited: reap the executor's thread
 
     @property
     def state(self) -> Literal["starting", "ready", "broken", "stopping"]:
