@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 from numba import njit
@@ -259,7 +260,7 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
     Algorithm and proof: :meth:`ValidityChecker.check_motion`."""
     dq0, dq1, dq2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
     length = max(abs(dq0), max(abs(dq1), abs(dq2)))
-    n = max(1, int(math.ceil(length / coarse_step)))
+    n = max(1, math.ceil(length / coarse_step))
     ts = np.empty(n + 1)
     ms = np.empty((n + 1, _N_MEASURES))
     done = np.zeros(n + 1, dtype=np.bool_)
@@ -406,7 +407,7 @@ def densify(waypoints: np.ndarray, step: float) -> np.ndarray:
     """Waypoints (N, 3) with samples added so that no max-norm step exceeds ``step`` rad."""
     w = np.asarray(waypoints, dtype=float)
     parts = [w[:1]]
-    for a, b in zip(w[:-1], w[1:], strict=True):
+    for a, b in pairwise(w):
         n = max(1, math.ceil(float(np.max(np.abs(b - a))) / step))
         parts.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
     return np.vstack(parts)

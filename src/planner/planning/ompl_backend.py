@@ -71,7 +71,7 @@ def _make_motion_validator(si, checker: ValidityChecker):
     spheres, capsules, boxes = packed
 
     class _Certified(ob.MotionValidator):
-        def checkMotion(self, s1, s2):  # noqa: N802 - OMPL's name
+        def checkMotion(self, s1, s2):
             qa = np.array((s1[0], s1[1], s1[2]))
             qb = np.array((s2[0], s2[1], s2[2]))
             return _check_motion(qa, qb, prm, spheres, capsules, boxes, step,
