@@ -10,10 +10,11 @@ random working mode, drawn with a fixed seed):
 * ``free``: no obstacles;
 * ``spheres``: 5 spheres of radius 0.06-0.12 m in the workspace;
 * ``boxes``: 12 oriented boxes of edge 0.05-0.15 m plus a floor;
-* ``narrow``: a thin plate in the plane z = 0 for x >= 0.12 m and theta1 limited to
-  [-2, 2] rad: going from theta1 > 0 to theta1 < 0 in a working mode with w > 0 needs the
-  arm folded so that every link stays within 0.09 m of the axis, a thin band of (theta2,
-  theta3) next to the serial margin.
+* ``narrow``: a thin plate in the plane z = 0 (x in [0.05, 1.3] m) with a window
+  (x < 0.45 m, |y| < 0.3 m), theta1 limited to [-2, 2] rad; queries go from theta1 > 0.3 to
+  theta1 < -0.3 in a working mode with w > 0, so the whole arm must pass through the window
+  while its plane turns through theta1 = 0: 0.2 % to 4 % of the (theta2, theta3) postures of a
+  mode fit there (against 11 % to 32 % valid in free space).
 
 The product set-up is :func:`planner.planning.plan` (straight motion first, then RRTConnect
 with the certified vectorised motion validator, simplification, final re-certification).
@@ -68,8 +69,14 @@ def build_scene(kind: str, seed: int = 7) -> tuple[Design, list, list[str]]:
         return design, obs, modes
     if kind == "narrow":
         design = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
-        plate = Box([0.62, 0.0, 0.0], [1.0, 2.4, 0.02])  # x in [0.12, 1.12], z in [-0.01, 0.01]
-        return design, [plate], [m for m in WORKING_MODES if m[0] == "+"]
+        # plate |z| <= 0.01, x in [0.05, 1.3], |y| <= 1.3 with a window x < 0.45, |y| < 0.3
+        x0, x1, y1, hx, hy, t = 0.05, 1.3, 1.3, 0.45, 0.3, 0.02
+        plate = [
+            Box([(x0 + x1) / 2, -(hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+            Box([(x0 + x1) / 2, (hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+            Box([(hx + x1) / 2, 0.0, 0.0], [x1 - hx, 2 * hy, t]),
+        ]
+        return design, plate, [m for m in WORKING_MODES if m[0] == "+"]
     raise ValueError(f"unknown scene {kind!r}")
 
 
@@ -92,7 +99,7 @@ def build_queries(kind: str, n: int, seed: int = 11) -> list[tuple[JointPosture,
     mode regions are split by the literal joint limits of theta2 and theta3 at +-pi)."""
     design, obstacles, modes = build_scene(kind)
     rng = np.random.default_rng(seed)
-    shape = (96, 128, 128)
+    shape = (128, 128, 128) if kind == "narrow" else (96, 128, 128)
     combos = []
     for asm in ("+", "-"):
         for mode in modes:

@@ -172,9 +172,33 @@ def test_check_path_diagnostics():
     w = np.array([[0.0, 2.0, 1.0], [0.3, 2.1, 1.1], [0.6, 2.2, 1.0]])
     rep = chk.check_path(w)
     assert rep.valid and rep.bad_motion == -1
-    dense = densify(w, 0.01)
+    dense = densify(w, 0.02)
     _, kappa, serial, clear = reference_measures(d, dense, "+", "+-+", chk.obstacles)
     assert rep.max_kappa_A == pytest.approx(kappa.max(), rel=1e-9)
     assert rep.min_serial_margin == pytest.approx(serial.min(), abs=1e-12)
     assert rep.min_clearance == pytest.approx(clear.min(), abs=1e-3)
     assert rep.length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
+
+
+def test_serial_rules_off_keeps_the_other_rules():
+    """A motion onto a serial singularity (leg A stretched) is certified for kappa and
+    clearance with the serial rules off, and refused with them on."""
+    from planner.kinematics import forward_batch
+
+    d = Design.default()
+    far = np.array([-np.pi / 2, 2.0, 1.0])  # the arm's plane turned to contain +z
+    chk = ValidityChecker(d, Margins(), [Sphere(forward_batch(d, far, "+").p[0], 0.05)], "+", "+-+")
+    off = chk.with_mode("+-+", serial_rules=False)
+    a = np.array([0.0, 2.0, 1.0])
+    # bisect theta2 towards the first posture whose leg-A measure vanishes
+    t2 = np.linspace(2.0, -np.pi, 20001)
+    q = np.stack([np.zeros_like(t2), t2, np.ones_like(t2)], axis=1)
+    _, _, serial, _ = reference_measures(d, q, "+", "+-+", [])
+    k = int(np.argmax(~(serial > 0)))
+    assert k > 0
+    b = q[k - 1]
+    assert chk.check_states(b).reason[0] in ("serial_min", "working_mode")
+    assert off.check_states(b).valid[0]
+    assert not chk.check_motion(a, b).valid
+    assert off.check_motion(a, b).valid
+    assert off.check_states(far).reason[0] == "clearance"

@@ -43,6 +43,7 @@ __all__ = [
     "DEFAULT_CLEARANCE",
     "DEFAULT_KAPPA_MAX",
     "DEFAULT_SERIAL_MIN",
+    "DIAGNOSTIC_STEP",
     "MIN_CERTIFIED_STEP",
     "REASONS",
     "Margins",
@@ -68,6 +69,10 @@ MIN_CERTIFIED_STEP = 1e-4
 #: Default max-norm step (rad) of the first sampling of a motion, before certification
 #: subdivides where margins are tight. Any value is sound; this one is tuned for speed.
 DEFAULT_COARSE_STEP = 0.08
+
+#: Max-norm step (rad) of the samples along a path whose extremes :meth:`ValidityChecker.
+#: check_path` reports (diagnostics only: validity is certified, not sampled).
+DIAGNOSTIC_STEP = 0.02
 
 #: Reason codes of the kernels, index -> rule name (0 means valid).
 REASONS: tuple[str, ...] = (
@@ -132,8 +137,8 @@ class Margins:
 _P_L0, _P_L1, _P_L2, _P_RAD = 0, 1, 2, 3
 _P_LO, _P_HI = 4, 7  # 3 each
 _P_BRANCH, _P_SIGNS = 10, 11  # signs: 3
-_P_KAPPA, _P_SERIAL, _P_CLEAR, _P_DLO, _P_DHI = 14, 15, 16, 17, 18
-_N_PARAMS = 19
+_P_KAPPA, _P_SERIAL, _P_CLEAR, _P_DLO, _P_DHI, _P_SERIAL_ON = 14, 15, 16, 17, 18, 19
+_N_PARAMS = 20
 # measure vector layout (per state)
 _M_REASON, _M_DMARGIN, _M_SERIAL, _M_CLEAR, _M_KAPPA, _M_SERIAL_RAW, _M_CLEAR_RAW = range(7)
 _N_MEASURES = 7
@@ -192,11 +197,14 @@ def _evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: 
     m_b = prm[_P_SIGNS + 2] * math.sin(t5 - q2)
     serial = min(m_axis, min(m_a, m_b))
     out[_M_SERIAL_RAW] = serial
-    out[_M_SERIAL] = serial - prm[_P_SERIAL]
-    if reason == 0 and serial <= 0.0:
-        reason = _R_MODE
-    elif reason == 0 and serial < prm[_P_SERIAL]:
-        reason = _R_SERIAL
+    if prm[_P_SERIAL_ON] == 0.0:
+        out[_M_SERIAL] = np.inf  # rules 4 and 5 off: nothing to certify
+    else:
+        out[_M_SERIAL] = serial - prm[_P_SERIAL]
+        if reason == 0 and serial <= 0.0:
+            reason = _R_MODE
+        elif reason == 0 and serial < prm[_P_SERIAL]:
+            reason = _R_SERIAL
     if reason and not full:
         out[_M_REASON] = reason
         return
@@ -233,17 +241,19 @@ def _evaluate_many(q, prm, spheres, capsules, boxes, full, out):  # pragma: no c
 
 
 @njit(cache=True)
-def _rates(dq0, dq1, dq2, prm):  # pragma: no cover - compiled
+def _rates_s(dq0, dq1, dq2, prm, s_min):  # pragma: no cover - compiled
     """Lipschitz bounds over the parameter t in [0, 1] of a straight motion q0 + t dq, for the
-    d-margin, serial margin and clearance margin, valid wherever kappa(A) <= kappa_max.
+    d-margin, serial margin and clearance margin, valid wherever
+    |sin(theta4 - theta5)| >= s_min > 0.
 
-    With |sin(theta4 - theta5)| >= 1 / K (K = kappa_max, from kappa = (1 + |c|) / |s|), the
-    loop closure gives |dtheta4|, |dtheta5| <= L1 (|dtheta2| + |dtheta3|) / (L2 |s|)."""
+    The loop closure C + L2 e(theta4) = D + L2 e(theta5) differentiated and projected on
+    e(theta5) gives |dtheta4| <= |dD - dC| / (L2 |sin(theta4 - theta5)|)
+    <= L1 (|dtheta2| + |dtheta3|) / (L2 s_min), and the same for theta5."""
     L1, L2 = prm[_P_L1], prm[_P_L2]
     reach = L1 + L2
     a0, a1, a2 = abs(dq0), abs(dq1), abs(dq2)
     rate_cd = L1 * (a1 + a2)
-    r45 = prm[_P_KAPPA] * rate_cd / L2
+    r45 = rate_cd / (L2 * s_min)
     rate_serial = max(max(r45 + a1, r45 + a2), (L1 * a1 + L2 * r45) / reach)
     # a point of a link moves by (distance to the axis AB) |dtheta1| + its in-plane motion
     v_c = L1 * a1
@@ -251,6 +261,27 @@ def _rates(dq0, dq1, dq2, prm):  # pragma: no cover - compiled
     v_p = min(v_c, v_d) + L2 * r45
     rate_clear = max(L1 * a0 + max(v_c, v_d), reach * a0 + max(max(v_c, v_d), v_p))
     return rate_cd, rate_serial, rate_clear
+
+
+@njit(cache=True)
+def _rates(dq0, dq1, dq2, prm):  # pragma: no cover - compiled
+    """:func:`_rates_s` valid wherever kappa(A) <= K = kappa_max: there
+    |sin(theta4 - theta5)| = (1 + |cos|) / kappa >= 1 / K."""
+    return _rates_s(dq0, dq1, dq2, prm, 1.0 / prm[_P_KAPPA])
+
+
+@njit(cache=True, inline="always")
+def _sin_apex_min(prm, lb_cd):  # pragma: no cover - compiled
+    """Least |sin(theta4 - theta5)| over postures whose |CD| lies in the kappa band shrunk by
+    ``lb_cd`` >= 0 at both ends: |CD| = 2 L2 sin(gamma / 2) with gamma the apex angle, and
+    sin(gamma) is concave in gamma on [0, pi], so its minimum is at an end of the range."""
+    two_l2 = 2.0 * prm[_P_L2]
+    lo = min(prm[_P_DLO] + lb_cd / two_l2, 1.0)
+    hi = max(prm[_P_DHI] - lb_cd / two_l2, lo)
+    # sin(gamma) = 2 sin(gamma/2) cos(gamma/2) = 2 r sqrt(1 - r^2)
+    s_lo = 2.0 * lo * math.sqrt(max(1.0 - lo * lo, 0.0))
+    s_hi = 2.0 * hi * math.sqrt(max(1.0 - hi * hi, 0.0))
+    return min(s_lo, s_hi)
 
 
 @njit(cache=True)
@@ -289,7 +320,7 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
         stride //= 2
     for k in range(n + 1):
         ts[k] = k / n
-    rate_cd, rate_serial, rate_clear = _rates(dq0, dq1, dq2, prm)
+    rate_cd = _rates(dq0, dq1, dq2, prm)[0]
     tiny = min_step / max(length, 1e-300)
     # depth-first certification with an explicit stack of intervals
     cap = n + 128
@@ -308,6 +339,11 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
         ta, tb = st_t[top, 0], st_t[top, 1]
         w = tb - ta
         lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
+        if lb_cd >= 0.0:
+            # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
+            _, rate_serial, rate_clear = _rates_s(dq0, dq1, dq2, prm, _sin_apex_min(prm, lb_cd))
+        else:
+            rate_serial = rate_clear = np.inf
         lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
         lb_cl = 0.5 * (st_m[top, 0, 2] + st_m[top, 1, 2] - rate_clear * w)
         if lb_cd >= 0.0 and lb_se >= 0.0 and lb_cl >= 0.0:
@@ -349,6 +385,41 @@ def _check_path(q, prm, spheres, capsules, boxes, coarse_step, min_step, reasons
     return -1
 
 
+@njit(cache=True)
+def _path_extremes(q, step, prm, spheres, capsules, boxes, out):  # pragma: no cover
+    """(min clearance, max kappa_A, min signed serial) over the waypoints of q (N, 3) and
+    samples every ``step`` rad (max-norm) on the motions between them, into out (3,); NaN
+    when no sample closes the loop."""
+    m = np.empty(_N_MEASURES)
+    lo_clear, hi_kappa, lo_serial = np.inf, -np.inf, np.inf
+    found = False
+    for i in range(q.shape[0]):
+        n = 1
+        if i > 0:
+            length = 0.0
+            for j in range(3):
+                length = max(length, abs(q[i, j] - q[i - 1, j]))
+            n = max(1, math.ceil(length / step))
+        for k in range(1, n + 1):
+            if i == 0:
+                a0, a1, a2 = q[0, 0], q[0, 1], q[0, 2]
+            else:
+                t = k / n
+                a0 = q[i - 1, 0] + t * (q[i, 0] - q[i - 1, 0])
+                a1 = q[i - 1, 1] + t * (q[i, 1] - q[i - 1, 1])
+                a2 = q[i - 1, 2] + t * (q[i, 2] - q[i - 1, 2])
+            _evaluate(a0, a1, a2, prm, spheres, capsules, boxes, True, m)
+            if m[_M_KAPPA] > -np.inf:
+                found = True
+                lo_clear = min(lo_clear, m[_M_CLEAR_RAW])
+                hi_kappa = max(hi_kappa, m[_M_KAPPA])
+                lo_serial = min(lo_serial, m[_M_SERIAL_RAW])
+    if not found:
+        out[0] = out[1] = out[2] = np.nan
+    else:
+        out[0], out[1], out[2] = lo_clear, hi_kappa, lo_serial
+
+
 # ----------------------------------------------------------------------------- reports
 @dataclass(frozen=True, slots=True)
 class StateReport:
@@ -386,11 +457,11 @@ class MotionReport:
 class PathReport:
     """Outcome of a certified waypoint path and measures sampled along it.
 
-    ``valid``; ``bad_motion`` (index i of the first invalid motion i -> i+1, or -1),
-    ``reason`` and ``t``; ``min_clearance``, ``max_kappa_A``, ``min_serial_margin``: extremes
-    over the waypoints and samples every ``sample_step`` rad (max-norm) along the path (the
-    certificate guarantees the margins hold in between); ``length``: sum of Euclidean joint
-    distances, rad.
+    ``valid``; ``bad_motion`` (index i of the first invalid motion i -> i+1, 0 for an invalid
+    single posture, or -1), ``reason`` and ``t``; ``min_clearance``, ``max_kappa_A``,
+    ``min_serial_margin``: extremes over the waypoints and samples every ``sample_step`` rad
+    (max-norm) along the path (the certificate guarantees the margins hold in between);
+    ``length``: sum of Euclidean joint distances, rad.
     """
 
     valid: bool
@@ -426,6 +497,10 @@ class ValidityChecker:
     working_mode : one of :data:`planner.kinematics.WORKING_MODES`, e.g. '+-+'
     coarse_step : float, rad
         First sampling step of :meth:`check_motion` (max-norm); speed only, never soundness.
+    serial_rules : bool, default True
+        False drops rules 4 and 5 (working mode and serial margin; the measures are still
+        reported). For motions that end on a serial singularity (mode-change transits), whose
+        mode signs the caller checks itself; every other rule stays certified.
 
     Examples
     --------
@@ -441,6 +516,7 @@ class ValidityChecker:
     assembly_mode: str = "+"
     working_mode: str = "+++"
     coarse_step: float = DEFAULT_COARSE_STEP
+    serial_rules: bool = True
     _warm: bool = field(default=True, repr=False)
     _packed: PackedObstacles = field(init=False, repr=False)
     _prm: np.ndarray = field(init=False, repr=False)
@@ -466,15 +542,18 @@ class ValidityChecker:
         prm[_P_SIGNS:_P_SIGNS + 3] = [1.0 if c == "+" else -1.0 for c in self.working_mode]
         prm[_P_KAPPA], prm[_P_SERIAL], prm[_P_CLEAR] = m.kappa_max, m.serial_min, m.clearance
         prm[_P_DLO], prm[_P_DHI] = lo, hi
+        prm[_P_SERIAL_ON] = 1.0 if self.serial_rules else 0.0
         prm.flags.writeable = False
         object.__setattr__(self, "_prm", prm)
         if self._warm:
             warm_up()
 
-    def with_mode(self, working_mode: str) -> ValidityChecker:
-        """The same checker for another working mode."""
-        return ValidityChecker(self.design, self.margins, self.obstacles, self.assembly_mode,
-                               working_mode, self.coarse_step)
+    def with_mode(self, working_mode: str, *, serial_rules: bool | None = None) -> ValidityChecker:
+        """The same checker for another working mode (and optionally serial rules on/off)."""
+        return ValidityChecker(
+            self.design, self.margins, self.obstacles, self.assembly_mode, working_mode,
+            self.coarse_step, self.serial_rules if serial_rules is None else serial_rules,
+        )
 
     # ------------------------------------------------------------------ states
     def _measures(self, q: np.ndarray, full: bool) -> np.ndarray:
@@ -554,9 +633,10 @@ class ValidityChecker:
         motion ``q_a + t dq``:
 
         * |CD|: C and D move by L1 |dtheta2| and L1 |dtheta3|: ``L = L1 (|dq2| + |dq3|)``,
-          valid everywhere. Certifying it first makes kappa(A) <= K on the piece, hence
-          |sin(theta4 - theta5)| >= 1 / K and the passive rates are at most
-          ``r45 = K L1 (|dq2| + |dq3|) / L2``;
+          valid everywhere. Certifying it first (lower bound ``b >= 0`` on the piece) keeps
+          |CD| at least ``b`` inside its band, hence |sin(theta4 - theta5)| >= s on the piece,
+          s the least apex sine over that shrunk band (>= 1 / K), and the passive rates are
+          at most ``r45 = L1 (|dq2| + |dq3|) / (L2 s)`` (``_rates_s``, ``_sin_apex_min``);
         * serial: ``r45 + |dq2|``, ``r45 + |dq3|`` (sin of a difference of angles) and
           ``(L1 |dq2| + L2 r45) / (L1 + L2)`` (w), the largest of the three for their minimum;
         * clearance: a link point at distance r <= L1 + L2 from the axis AB moves by at most
@@ -585,39 +665,45 @@ class ValidityChecker:
         return MotionReport(r == 0, REASONS[r], float(t))
 
     def motion_valid(self, q_a: np.ndarray, q_b: np.ndarray) -> bool:
-        """:meth:`check_motion` ends included, as a bool; arrays must be float64 (3,)."""
+        """:meth:`check_motion` ends included, as a bool, for float arrays of shape (3,)
+        (copied: numba compiles read-only arrays separately)."""
+        q_a = np.array(q_a, dtype=float)
+        q_b = np.array(q_b, dtype=float)
         return 0 == _check_motion(q_a, q_b, self._prm, *self._packed, self.coarse_step,
                                   MIN_CERTIFIED_STEP, False)[0]
 
-    def check_path(self, waypoints: np.ndarray, *, sample_step: float = 0.01) -> PathReport:
+    def check_path(
+        self, waypoints: np.ndarray, *, sample_step: float = DIAGNOSTIC_STEP, certify: bool = True
+    ) -> PathReport:
         """Certify every straight motion of a waypoint path (N, 3), rad, and measure it.
 
         Validity comes from :meth:`check_motion` on each consecutive pair (waypoints
-        included). The reported extremes are taken over the waypoints and samples every
-        ``sample_step`` rad; they are diagnostics, not the certificate.
+        included); ``certify=False`` skips it (only for motions certified already) and
+        reports the path valid. The extremes are taken over the waypoints and samples every
+        ``sample_step`` rad (max-norm); they are diagnostics, not the certificate.
         """
         q = np.ascontiguousarray(_states(waypoints))
-        if len(q) == 0:
-            raise InputError("waypoints must hold at least one posture")
-        first = self.check_states(q[:1])
-        if len(q) == 1:
-            bad = -1 if first.valid[0] else 0
-            reasons = np.array([REASONS.index(str(first.reason[0]))])
-            ts = np.zeros(1)
-        else:
+        bad, reason, t = -1, 0, 1.0
+        if certify and len(q) == 1:
+            reason = int(self._measures(q, False)[0, _M_REASON])
+            bad = 0 if reason else -1
+        elif certify:
             reasons = np.zeros(len(q) - 1, dtype=np.int64)
             ts = np.zeros(len(q) - 1)
             bad = int(_check_path(q, self._prm, *self._packed, self.coarse_step,
                                   MIN_CERTIFIED_STEP, reasons, ts))
-        dense = self.check_states(densify(q, sample_step))
+            if bad >= 0:
+                reason, t = int(reasons[bad]), float(ts[bad])
+        ext = np.empty(3)
+        _path_extremes(q, float(sample_step), self._prm, *self._packed, ext)
         return PathReport(
             valid=bad < 0,
             bad_motion=bad,
-            reason=REASONS[int(reasons[bad])] if bad >= 0 else "valid",
-            t=float(ts[bad]) if bad >= 0 else 1.0,
-            min_clearance=float(np.nanmin(dense.clearance)),
-            max_kappa_A=float(np.nanmax(dense.kappa_A)),
-            min_serial_margin=float(np.nanmin(dense.serial_margin)),
+            reason=REASONS[reason],
+            t=t,
+            min_clearance=float(ext[0]),
+            max_kappa_A=float(ext[1]),
+            min_serial_margin=float(ext[2]),
             length=float(np.sum(np.linalg.norm(np.diff(q, axis=0), axis=1))),
         )
 

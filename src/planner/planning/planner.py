@@ -127,7 +127,14 @@ def plan(
             logger.info("plan %s: %s", status.value, message)
         return PlanResult(status, message, path, d)
 
-    mode = posture_mode(design, start)
+    goal_mode = None
+    if isinstance(goal, JointPosture):  # one kinematics call for both modes
+        fb = forward_batch(design, np.stack([start.q, goal.q]),
+                           np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)]))
+        labels = [mode_label(sg) if ok else None for sg, ok in zip(fb.working_mode_signs, fb.ok, strict=True)]
+        mode, goal_mode = (lab if lab in WORKING_MODES else None for lab in labels)
+    else:
+        mode = posture_mode(design, start)
     if mode is None:
         fb = forward_batch(design, start.q, start.assembly_mode)
         why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
@@ -135,18 +142,17 @@ def plan(
                     f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})")
         return finish(PlanStatus.INVALID_START, "start " + why)
     checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, mode)
-    if not checker.check_states(start.q[None]).valid[0]:
+    if not checker.is_valid_one(*start.q):
         return finish(PlanStatus.INVALID_START, "start " + checker.explain(start.q))
 
     if isinstance(goal, JointPosture):
-        goal_mode = posture_mode(design, goal)
         goal_checker = checker if goal_mode in (None, mode) else checker.with_mode(goal_mode)
         if goal_mode is None:
             fb = forward_batch(design, goal.q, goal.assembly_mode)
             why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
                    else "working_mode: the goal lies exactly on a serial singularity")
             return finish(PlanStatus.INVALID_GOAL, "goal " + why)
-        if not goal_checker.check_states(goal.q[None]).valid[0] and goal.assembly_mode == start.assembly_mode:
+        if goal.assembly_mode == start.assembly_mode and not goal_checker.is_valid_one(*goal.q):
             return finish(PlanStatus.INVALID_GOAL, "goal " + goal_checker.explain(goal.q))
         if goal.assembly_mode != start.assembly_mode:
             return finish(PlanStatus.UNREACHABLE,
@@ -168,7 +174,7 @@ def plan(
     for q_goal in candidates:
         attempts += 1
         waypoints, name = None, ""
-        if options.try_direct and checker.check_motion(start.q, q_goal).valid:
+        if options.try_direct and checker.motion_valid(start.q, q_goal):
             waypoints, name = np.stack([start.q, q_goal]), "direct"
         else:
             budget = deadline - time.perf_counter()
@@ -181,7 +187,8 @@ def plan(
         if waypoints is None:
             continue
         waypoints[0], waypoints[-1] = start.q, q_goal  # exact ends (OMPL copies them anyway)
-        report = checker.check_path(waypoints)
+        # final re-certification (the straight motion was certified just above)
+        report = checker.check_path(waypoints, certify=name != "direct")
         if not report.valid:  # pragma: no cover - would be a validator bug
             logger.error("a found path failed re-certification at motion %d (%s)",
                          report.bad_motion, report.reason)

@@ -57,7 +57,7 @@ class PlanPath:
 @dataclass(frozen=True, slots=True)
 class Diagnostics:
     """Measures of a plan. Extremes along the path are taken over waypoints and samples every
-    0.01 rad; NaN when there is no path.
+    ``planner.validity.DIAGNOSTIC_STEP`` (0.02 rad); NaN when there is no path.
 
     Attributes
     ----------
