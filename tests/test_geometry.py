@@ -97,3 +97,20 @@ def test_closed_forms():
 def test_bad_obstacles_name_the_field(data, field):
     with pytest.raises(InputError, match=field.replace(".", r"\.")):
         obstacle_from_wire(data)
+
+
+def test_boxes_touching_and_grazing():
+    """Segments ending on a face, parallel to a face, and along an edge of a rotated box."""
+    box = Box([0.1, -0.2, 0.3], [0.4, 0.2, 0.6], [0.8, 0.3, -0.2, 0.4])
+    r, c, h = box.rotation, box.center, box.size / 2
+    local = np.array([
+        [[h[0] + 0.05, -1.0, 0.0], [h[0] + 0.05, 1.0, 0.0]],   # parallel to a face, 5 cm off
+        [[h[0], 0.0, 0.0], [h[0] + 0.5, 0.0, 0.0]],            # starts on a face
+        [[h[0] + 0.02, h[1] + 0.03, -1], [h[0] + 0.02, h[1] + 0.03, 1]],  # along an edge
+        [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],                   # through the centre
+    ])
+    a = local[:, 0] @ r.T + c
+    b = local[:, 1] @ r.T + c
+    d = segment_obstacle_distance(a, b, [box])
+    np.testing.assert_allclose(d[:3], [0.05, 0.0, np.hypot(0.02, 0.03)], atol=1e-9)
+    assert d[3] == pytest.approx(-min(h), abs=1e-9)

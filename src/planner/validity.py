@@ -150,8 +150,17 @@ def _evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: 
 
     Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
     serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
-    False the evaluation stops at the first broken rule (unset entries are -inf).
+    False the evaluation stops at the first broken rule (unset entries are -inf) and the
+    clearance is exact only below clearance + 1 m (a lower bound above: enough for rules and
+    certificates).
     """
+    _evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, np.inf, out)
+
+
+@njit(cache=True)
+def _evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upper, out):  # pragma: no cover
+    """:func:`_evaluate`; in ``full`` mode the clearance is exact only where it is below
+    ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima."""
     L0, L1, L2 = prm[_P_L0], prm[_P_L1], prm[_P_L2]
     for k in range(_N_MEASURES):
         out[k] = -np.inf
@@ -211,7 +220,7 @@ def _evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: 
     # links in 3-D: rotate in-plane (u, w) about +y by theta1
     c1, s1 = math.cos(q0), math.sin(q0)
     rad = prm[_P_RAD]
-    upper = np.inf if full else prm[_P_CLEAR] + rad + 1.0
+    upper = clear_upper + rad if full else prm[_P_CLEAR] + rad + 1.0
     best = upper
     ends_u = (-half, half, cu, du)
     ends_w = (0.0, 0.0, cw, dw)
@@ -408,7 +417,8 @@ def _path_extremes(q, step, prm, spheres, capsules, boxes, out):  # pragma: no c
                 a0 = q[i - 1, 0] + t * (q[i, 0] - q[i - 1, 0])
                 a1 = q[i - 1, 1] + t * (q[i, 1] - q[i - 1, 1])
                 a2 = q[i - 1, 2] + t * (q[i, 2] - q[i - 1, 2])
-            _evaluate(a0, a1, a2, prm, spheres, capsules, boxes, True, m)
+            # only obstacles that may lower the running minimum are measured exactly
+            _evaluate_bounded(a0, a1, a2, prm, spheres, capsules, boxes, True, lo_clear, m)
             if m[_M_KAPPA] > -np.inf:
                 found = True
                 lo_clear = min(lo_clear, m[_M_CLEAR_RAW])
