@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from planning_factories import run_check_plan
 
 from planner.design import Design
 from planner.exceptions import InputError
@@ -23,7 +24,6 @@ from planner.planning import (
     plan,
 )
 from planner.validity import Margins
-from tests.planning_factories import run_check_plan
 
 DESIGN = Design.default()
 START = JointPosture([0.0, 2.0, 1.0], "+")  # working mode +-+

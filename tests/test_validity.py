@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planning_factories import reference_measures
 
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.geometry import Box, Capsule, Sphere
 from planner.validity import Margins, ValidityChecker, densify
-from tests.planning_factories import reference_measures
 
 DESIGNS = [Design.default(), Design.paper_optimum(), Design(0.3, 0.25, 0.45, link_radius=0.03)]
 OBSTACLES = [
