@@ -185,3 +185,17 @@ def test_no_leak_warnings_or_ompl_output():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "leaked" not in proc.stderr and proc.stdout == "" and proc.stderr == ""
+
+
+def test_plan_in_region_with_goal_candidates(tmp_path):
+    """The building block of plan(): a checker, a start and goal candidates; its path passes
+    the independent check."""
+    from planner.planning import plan_in_region
+    from planner.validity import ValidityChecker
+
+    chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
+    res = plan_in_region(chk, START.q, np.stack([GOAL.q]), options=PlanOptions(seed=3))
+    assert res.solved and res.diagnostics.attempts == 1
+    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER,
+                               res.as_wire())
+    assert code == 0, out

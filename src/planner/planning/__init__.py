@@ -4,7 +4,7 @@ Entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins, op
 returning a :class:`PlanResult` whose statuses and fields are the wire vocabulary's.
 """
 
-from planner.planning.planner import goal_candidates, plan, posture_mode
+from planner.planning.planner import goal_candidates, plan, plan_in_region, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
@@ -28,5 +28,6 @@ __all__ = [
     "Transit",
     "goal_candidates",
     "plan",
+    "plan_in_region",
     "posture_mode",
 ]

@@ -30,7 +30,7 @@ ou.setLogLevel(ou.LOG_NONE)
 
 #: Default ``range`` (longest motion added at once, rad, Euclidean) of tree planners, tuned
 #: on ``benchmarks/planning.py``.
-DEFAULT_RANGE = 1.5
+DEFAULT_RANGE = 1.0
 
 _FACTORIES = {
     "rrtconnect": og.RRTConnect,

@@ -26,7 +26,7 @@ from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker
 
-__all__ = ["goal_candidates", "plan", "posture_mode"]
+__all__ = ["goal_candidates", "plan", "plan_in_region", "posture_mode"]
 
 logger = logging.getLogger(__name__)
 
@@ -168,39 +168,72 @@ def plan(
         if len(candidates) == 0:
             return finish(PlanStatus.UNREACHABLE, why)
 
+    return plan_in_region(checker, start.q, candidates, options=options, _t0=t0)
+
+
+def plan_in_region(
+    checker: ValidityChecker,
+    q_start: np.ndarray,
+    q_goals: np.ndarray,
+    *,
+    options: PlanOptions | None = None,
+    _t0: float | None = None,
+) -> PlanResult:
+    """Plan inside the region of a validity checker from ``q_start`` to the first reachable
+    of the goal candidates ``q_goals`` (K, 3), rad, tried in order.
+
+    The building block of :func:`plan` and of the mode-change planner, which plans each
+    segment between postures it chose (e.g. next to a transit) with its own checker. Start
+    and goals must be valid for ``checker`` (not re-checked here); the straight motion is
+    tried first, then OMPL within ``options.time_budget_s`` in total.
+
+    Returns
+    -------
+    PlanResult
+        ``solved`` (one segment in the checker's modes, every motion certified) or
+        ``no_path``.
+    """
+    t0 = time.perf_counter() if _t0 is None else _t0
+    options = options if options is not None else PlanOptions()
+    q_start = np.array(q_start, dtype=float)
+    q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
+    mode, asm = checker.working_mode, checker.assembly_mode
     deadline = time.perf_counter() + options.time_budget_s
     attempts = 0
     last_status = ""
-    for q_goal in candidates:
+    for q_goal in q_goals:
         attempts += 1
         waypoints, name = None, ""
-        if options.try_direct and checker.motion_valid(start.q, q_goal):
-            waypoints, name = np.stack([start.q, q_goal]), "direct"
+        if options.try_direct and checker.motion_valid(q_start, q_goal):
+            waypoints, name = np.stack([q_start, q_goal]), "direct"
         else:
             budget = deadline - time.perf_counter()
             if budget <= 0:
                 break
-            outcome = ompl_backend.search(checker, start.q, q_goal, options, budget)
+            outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
             last_status = outcome.ompl_status
             if outcome.waypoints is not None:
                 waypoints, name = outcome.waypoints, options.name
         if waypoints is None:
             continue
-        waypoints[0], waypoints[-1] = start.q, q_goal  # exact ends (OMPL copies them anyway)
+        waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
         # final re-certification (the straight motion was certified just above)
         report = checker.check_path(waypoints, certify=name != "direct")
         if not report.valid:  # pragma: no cover - would be a validator bug
             logger.error("a found path failed re-certification at motion %d (%s)",
                          report.bad_motion, report.reason)
             continue
-        path = PlanPath(waypoints, (Segment(mode, start.assembly_mode, 0, len(waypoints) - 1),), ())
-        return finish(
+        path = PlanPath(waypoints, (Segment(mode, asm, 0, len(waypoints) - 1),), ())
+        return PlanResult(
             PlanStatus.SOLVED, f"solved in working mode {mode} ({name})", path,
-            path_length=report.length, min_clearance=report.min_clearance,
-            max_kappa_A=report.max_kappa_A, min_serial_margin=report.min_serial_margin,
-            planner=name, attempts=attempts,
+            Diagnostics(
+                planning_time_s=time.perf_counter() - t0, path_length=report.length,
+                min_clearance=report.min_clearance, max_kappa_A=report.max_kappa_A,
+                min_serial_margin=report.min_serial_margin, planner=name, attempts=attempts,
+            ),
         )
-    return finish(PlanStatus.NO_PATH,
-                  f"no path found within {options.time_budget_s:g} s in working mode {mode}"
-                  + (f" (OMPL: {last_status})" if last_status else ""),
-                  attempts=attempts)
+    message = (f"no path found within {options.time_budget_s:g} s in working mode {mode}"
+               + (f" (OMPL: {last_status})" if last_status else ""))
+    logger.info("plan no_path: %s", message)
+    return PlanResult(PlanStatus.NO_PATH, message, None,
+                      Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts))
