@@ -1,6 +1,11 @@
 # hybrid-planner service image.
 #   docker build -t hybrid-planner .
 #   docker run --rm -p 8000:8000 hybrid-planner
+#   docker run --rm -p 8000:8000 -e PLANNER_WORKERS=4 -e PLANNER_API_KEY=s3cret hybrid-planner
+# Every setting is a PLANNER_* environment variable (docs/operations.md). Logs are JSON lines on
+# stderr; Prometheus metrics at /metrics. `docker stop` sends SIGTERM and kills after 10 s:
+# the image's shutdown grace (PLANNER_SHUTDOWN_TIMEOUT_S=8) fits in it; raise both together
+# (`docker stop -t 35` with PLANNER_SHUTDOWN_TIMEOUT_S=30).
 # Stage 1 installs the project and its pinned dependencies into a virtual environment and
 # compiles the numba kernels once; stage 2 copies only that environment onto a slim base and
 # runs it as an unprivileged user.
@@ -14,7 +19,8 @@ COPY pyproject.toml constraints.txt README.md ./
 COPY src ./src
 COPY api ./api
 RUN /opt/venv/bin/pip install --quiet -c constraints.txt . \
- && /opt/venv/bin/python -c "import numpy as np, planner as p; d = p.Design.default(); b = p.forward_batch(d, np.zeros((1, 3)), '+'); p.inverse_batch(d, b.p); p.conditioning(d, b.q, b.passive, b.w)"
+ && /opt/venv/bin/python -c "import numpy as np, planner as p; d = p.Design.default(); b = p.forward_batch(d, np.zeros((1, 3)), '+'); p.inverse_batch(d, b.p); p.conditioning(d, b.q, b.passive, b.w)" \
+ && /opt/venv/bin/python -c "from api.workers import _warm_up; _warm_up()"
 
 FROM python:3.11-slim
 RUN useradd --create-home --uid 10001 planner
@@ -24,10 +30,13 @@ ENV PATH=/opt/venv/bin:$PATH \
     PYTHONUNBUFFERED=1 \
     NUMBA_CACHE_DIR=/opt/numba-cache \
     PLANNER_HOST=0.0.0.0 \
-    PLANNER_PORT=8000
+    PLANNER_PORT=8000 \
+    PLANNER_LOG_FORMAT=json \
+    PLANNER_SHUTDOWN_TIMEOUT_S=8
 USER planner
 WORKDIR /home/planner
 EXPOSE 8000
+STOPSIGNAL SIGTERM
 HEALTHCHECK --interval=30s --timeout=5s --start-period=20s --retries=3 \
   CMD ["python", "-c", "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/v1/health', timeout=4)"]
 CMD ["planner", "serve", "--host", "0.0.0.0", "--port", "8000"]

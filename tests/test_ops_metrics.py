@@ -4,6 +4,7 @@ read back with prometheus_client's own text parser."""
 
 from __future__ import annotations
 
+import importlib.util
 import threading
 import time
 
@@ -147,3 +148,31 @@ def test_metrics_can_be_switched_off(client_factory):
     with client_factory(metrics=False) as c:
         assert c.get("/metrics").status_code == 404
         assert c.post("/v1/fk", json={"q": [0.1, 1.0, 2.0]}).status_code == 200
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("planner.planning") is None, reason="no planner in this build"
+)
+def test_real_plan_reports_its_diagnostics(client_factory):
+    body = {
+        "start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},
+        "goal": {"q": [0.2, 1.1, 2.1], "assembly_mode": "+"},
+        "planner": {"seed": 1, "time_budget_s": 5.0},
+        "timing": {"method": "toppra"},
+    }
+    with client_factory() as c:
+        r = c.post("/v1/plan", json=body)
+        assert r.status_code == 200, r.text
+        m = scrape(c)
+    answer = r.json()
+    assert answer["status"] == "solved"
+    d = answer["diagnostics"]
+    assert sample(m, "planner_plan_outcomes_total", status="solved") == 1
+    assert sample(m, "planner_planning_duration_seconds_sum") == pytest.approx(d["planning_time_s"])
+    assert sample(m, "planner_timing_duration_seconds_sum") == pytest.approx(d["timing_time_s"])
+    assert sample(m, "planner_job_duration_seconds_count", job="plan") == 1
+    # the job's time in the worker covers planning and timing, the request's covers the job
+    job_s = sample(m, "planner_job_duration_seconds_sum", job="plan")
+    request_s = sample(m, "planner_http_request_duration_seconds_sum", method="POST",
+                       route="/v1/plan")  # fmt: skip
+    assert d["planning_time_s"] + d["timing_time_s"] <= job_s <= request_s
