@@ -1,0 +1,107 @@
+"""Cost of the observability layer per request: the request-id / metrics / access-log
+middleware (:class:`api.middleware.RequestObserver`) and the job sample returned by the
+workers (:func:`api.metrics.run_measured` against :func:`api.compute.as_json`).
+
+Both are timed in-process, with and without the layer, in the same run, on the same inputs
+(medians of batches; the ratio is of those medians):
+
+- middleware: one ASGI request through a trivial endpoint app, bare vs wrapped by the
+  observer (access log at INFO to a discarded stream, as in production);
+- job wrapper: the fk job serialised by ``as_json`` vs by ``run_measured``.
+
+    PYTHONPATH=src:. python benchmarks/ops_overhead.py [--n 20000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import io
+import logging
+import statistics
+import time
+from collections.abc import Awaitable, Callable
+
+from api import compute
+from api.logging import JsonFormatter, RequestIdFilter
+from api.metrics import Metrics, run_measured
+from api.middleware import RequestObserver
+from planner.schemas import FKRequest
+
+
+async def _endpoint(scope, receive, send) -> None:  # type: ignore[no-untyped-def]
+    await send({"type": "http.response.start", "status": 200,
+                "headers": [(b"content-type", b"application/json")]})  # fmt: skip
+    await send({"type": "http.response.body", "body": b"{}"})
+
+
+def _time_asgi(app: Callable[..., Awaitable[None]], n: int, batch: int = 500) -> float:
+    scope = {"type": "http", "method": "POST", "path": "/v1/fk", "headers": [
+        (b"x-request-id", b"bench-1")], "client": ("127.0.0.1", 1)}  # fmt: skip
+
+    async def receive() -> dict:
+        return {"type": "http.request", "body": b"", "more_body": False}
+
+    async def send(_message: dict) -> None:
+        return None
+
+    async def run() -> list[float]:
+        per_call = []
+        for _ in range(n // batch):
+            start = time.perf_counter()
+            for _ in range(batch):
+                await app(dict(scope), receive, send)
+            per_call.append((time.perf_counter() - start) / batch)
+        return per_call
+
+    return statistics.median(asyncio.run(run()))
+
+
+def _time_pair(
+    a: Callable[[], object], b: Callable[[], object], n: int, batch: int = 200
+) -> tuple[float, float]:
+    """Median per-call time of ``a`` and of ``b``, measured in alternating batches."""
+    per_call: tuple[list[float], list[float]] = ([], [])
+    for _ in range(max(n // batch, 5)):
+        for fn, out in ((a, per_call[0]), (b, per_call[1])):
+            start = time.perf_counter()
+            for _ in range(batch):
+                fn()
+            out.append((time.perf_counter() - start) / batch)
+    return statistics.median(per_call[0]), statistics.median(per_call[1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=20000, help="requests per variant")
+    args = parser.parse_args()
+
+    handler = logging.StreamHandler(io.StringIO())
+    handler.setFormatter(JsonFormatter())
+    handler.addFilter(RequestIdFilter())
+    logging.getLogger().addHandler(handler)
+    logging.getLogger("api.access").setLevel(logging.INFO)
+
+    observed = RequestObserver(_endpoint, metrics=Metrics(lambda: None, "bench"))
+    _time_asgi(_endpoint, 2000), _time_asgi(observed, 2000)  # warm up
+    bare = _time_asgi(_endpoint, args.n)
+    wrapped = _time_asgi(observed, args.n)
+
+    request = FKRequest(q=[0.2, 1.0, 2.0])
+    compute.fk(request)
+    plain_job, measured_job = _time_pair(
+        lambda: compute.as_json(compute.fk, request),
+        lambda: run_measured(compute.fk, request, request_id="bench-1"),
+        args.n // 10,
+    )
+
+    print(f"{'layer':<34} {'without us':>11} {'with us':>9} {'added us':>9} {'ratio':>6}")
+    for name, a, b in [
+        ("RequestObserver (ASGI, per req)", bare, wrapped),
+        ("run_measured vs as_json (fk job)", plain_job, measured_job),
+    ]:
+        print(f"{name:<34} {a * 1e6:>11.2f} {b * 1e6:>9.2f} {(b - a) * 1e6:>9.2f} {b / a:>6.2f}")
+
+
+if __name__ == "__main__":
+    main()
