@@ -1,23 +1,23 @@
 """Service settings, read from environment variables prefixed ``PLANNER_``.
 
-=========================== ==============================  ======================================
-variable                    default                         meaning
-=========================== ==============================  ======================================
-PLANNER_HOST                127.0.0.1                       interface to bind
-PLANNER_PORT                8000                            TCP port
-PLANNER_WORKERS             number of CPUs                  worker processes for CPU-bound work
-PLANNER_QUEUE_SIZE          4 per worker                    jobs allowed to wait; beyond: 503
-PLANNER_REQUEST_TIMEOUT_S   30                              time budget of one request, s
-PLANNER_MAX_BODY_BYTES      4 MiB                           largest request body; beyond: 413
-PLANNER_MAX_BATCH           64                              plan requests in one batch
-PLANNER_MAX_OBSTACLES       256                             obstacles in one plan request
-PLANNER_RETRY_AFTER_S       1                               Retry-After of a 503, s
-PLANNER_API_KEY             (none)                          when set, required on /v1 but health
-PLANNER_LOG_LEVEL           info                            debug, info, warning, error, critical
-PLANNER_LOG_FORMAT          json                            json (one object a line) or text
-PLANNER_SHUTDOWN_TIMEOUT_S  30                              grace for in-flight work on SIGTERM, s
-PLANNER_METRICS             true                            serve Prometheus metrics at /metrics
-=========================== ==============================  ======================================
+========================  ==============================  ======================================
+variable                  default                         meaning
+========================  ==============================  ======================================
+PLANNER_HOST              127.0.0.1                       interface to bind
+PLANNER_PORT              8000                            TCP port
+PLANNER_WORKERS           number of CPUs                  worker processes for CPU-bound work
+PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
+PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
+PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
+PLANNER_MAX_BATCH         64                              plan requests in one batch
+PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
+PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
+PLANNER_API_KEY           (none)                          when set, required on /v1 but health
+PLANNER_LOG_LEVEL         info                            debug, info, warning, error, critical
+PLANNER_LOG_FORMAT        json                            json (one object a line) or text
+PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight work on SIGTERM, s
+PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
+========================  ==============================  ======================================
 """
 
 from __future__ import annotations
