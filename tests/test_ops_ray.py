@@ -32,7 +32,8 @@ def _wait_ready(url: str, timeout_s: float = 60.0) -> None:
         time.sleep(0.2)
 
 
-def test_ray_serve_serves_the_app(unused_port):
+def test_ray_serve_serves_the_app(unused_port, monkeypatch):
+    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")  # no telemetry: loopback only
     import ray
     from ray import serve
 
@@ -42,6 +43,7 @@ def test_ray_serve_serves_the_app(unused_port):
     ray.init(
         num_cpus=2,
         include_dashboard=False,
+        _node_ip_address="127.0.0.1",  # every Ray socket on loopback
         runtime_env={"env_vars": {"PYTHONPATH": path}},
         log_to_driver=False,
     )
