@@ -14,6 +14,10 @@ import pytest
 
 from planner import Design, forward_batch
 
+# Ray's node address on loopback (read when ray is imported; on Linux Ray otherwise uses the
+# machine's own address for its internal services) and no usage telemetry.
+os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,8 +36,7 @@ def _wait_ready(url: str, timeout_s: float = 60.0) -> None:
         time.sleep(0.2)
 
 
-def test_ray_serve_serves_the_app(unused_port, monkeypatch):
-    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")  # no telemetry: loopback only
+def test_ray_serve_serves_the_app(unused_port):
     import ray
     from ray import serve
 
@@ -43,7 +46,6 @@ def test_ray_serve_serves_the_app(unused_port, monkeypatch):
     ray.init(
         num_cpus=2,
         include_dashboard=False,
-        _node_ip_address="127.0.0.1",  # every Ray socket on loopback
         runtime_env={"env_vars": {"PYTHONPATH": path}},
         log_to_driver=False,
     )
