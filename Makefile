@@ -28,8 +28,8 @@ bench: $(STAMP)
 	@for f in benchmarks/*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
 
 lint: $(STAMP)
-	$(BIN)/ruff check src api tests benchmarks examples
-	$(BIN)/ruff format --check src api tests benchmarks examples
+	$(BIN)/ruff check src api tests benchmarks examples deploy
+	$(BIN)/ruff format --check src api tests benchmarks examples deploy
 
 # Re-pin constraints.txt from the current environment (after changing pyproject.toml).
 lock: $(STAMP)
