@@ -12,6 +12,8 @@ from api.deps import ApiKey
 from api.errors import install_error_handlers
 from api.middleware import RequestLimitsMiddleware
 from api.routes import design, designs, kinematics, meta, plan
+from api.routes import timing as timing_routes
+from api.routes import workspace as workspace_routes
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
@@ -56,5 +58,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.include_router(meta.router)
     for router in (design.router, designs.router, kinematics.router, plan.router):
+        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+    for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     return app

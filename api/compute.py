@@ -38,7 +38,18 @@ from planner.schemas import (
     TrajectoryModel,
 )
 
-__all__ = ["analyze", "as_json", "design_check", "fk", "ik", "located", "plan", "posture_model"]
+__all__ = [
+    "analyze",
+    "as_json",
+    "design_check",
+    "fk",
+    "ik",
+    "located",
+    "plan",
+    "posture_model",
+    "timing_error",
+    "trajectory_model",
+]
 
 
 #: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
@@ -292,14 +303,16 @@ def _add_trajectory(
     except TimingError as exc:  # no profile, or the dense re-check failed after the repairs
         response.status = "no_path"
         response.message = f"the path was found but could not be timed: {exc}"
-        response.diagnostics.timing_error = {
-            "type": type(exc).__name__,
-            "rule": getattr(exc, "rule", None),
-            "time": getattr(exc, "time", None),
-            "q": list(exc.q) if getattr(exc, "q", None) is not None else None,
-        }
+        response.diagnostics.timing_error = timing_error(exc)
         return
-    response.trajectory = TrajectoryModel(
+    response.trajectory = trajectory_model(traj)
+    response.diagnostics.timing_time_s = traj.computation_time_s
+    response.diagnostics.timing_repairs = traj.repairs
+
+
+def trajectory_model(traj: Any) -> TrajectoryModel:
+    """The wire form of a :class:`planner.timing.Trajectory`."""
+    return TrajectoryModel(
         method=traj.method,
         duration=traj.duration,
         t=traj.t.tolist(),
@@ -312,5 +325,15 @@ def _add_trajectory(
         max_deviation_q=traj.max_deviation_q,
         max_deviation_p=traj.max_deviation_p,
     )
-    response.diagnostics.timing_time_s = traj.computation_time_s
-    response.diagnostics.timing_repairs = traj.repairs
+
+
+def timing_error(exc: Exception) -> dict[str, Any]:
+    """``diagnostics.timing_error`` of a failed timing: the error's type, and the rule, time
+    and posture of a failed dense re-check."""
+    q = getattr(exc, "q", None)
+    return {
+        "type": type(exc).__name__,
+        "rule": getattr(exc, "rule", None),
+        "time": getattr(exc, "time", None),
+        "q": list(q) if q is not None else None,
+    }
