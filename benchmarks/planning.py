@@ -1,0 +1,222 @@
+"""Single-mode planning: success, time and path length on a fixed seeded suite, and the same
+suite with a naive OMPL set-up in the same run.
+
+    PYTHONPATH=src .venv/bin/python benchmarks/planning.py [--queries 100] [--budget 1.0]
+        [--naive-queries 100] [--naive-resolution 0.01] [--planner rrtconnect] [--range R]
+
+Scene types (default design ``Design.default()``; queries are pairs of valid postures in one
+random working mode, drawn with a fixed seed):
+
+* ``free``: no obstacles;
+* ``spheres``: 5 spheres of radius 0.06-0.12 m in the workspace;
+* ``boxes``: 12 oriented boxes of edge 0.05-0.15 m plus a floor;
+* ``narrow``: a thin plate in the plane z = 0 (x in [0.05, 1.3] m) with a window
+  (x < 0.45 m, |y| < 0.3 m), theta1 limited to [-2, 2] rad; queries go from theta1 > 0.3 to
+  theta1 < -0.3 in a working mode with w > 0, so the whole arm must pass through the window
+  while its plane turns through theta1 = 0: 0.2 % to 4 % of the (theta2, theta3) postures of a
+  mode fit there (against 11 % to 32 % valid in free space).
+
+The product set-up is :func:`planner.planning.plan` (straight motion first, then RRTConnect
+with the certified vectorised motion validator, rope shortcutting and vertex reduction, final
+re-certification). Two naive set-ups run on the same queries, both with OMPL's default
+discrete motion validator at ``--naive-resolution`` rad calling a per-state Python checker,
+no straight-motion shortcut and paths that are *not* certified (a resolution is not a proof):
+
+* ``naive``: OMPL's defaults otherwise (RRTConnect at its own range, ``simplifyMax`` as
+  ``SimpleSetup.simplifySolution()`` does): what a first set-up looks like;
+* ``naive-tuned``: our planner settings (range, seed, simplification), so that the ratio
+  isolates the validity checking.
+
+Ratios are naive time / product time over the same queries (median and mean).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from planner import Design
+from planner.geometry import Box, Sphere
+from planner.kinematics import WORKING_MODES
+from planner.planning import JointPosture, PlanOptions, ompl_backend, plan
+from planner.validity import Margins, ValidityChecker
+
+SCENES = ("free", "spheres", "boxes", "narrow")
+
+
+def _quaternion(rng: np.random.Generator) -> list[float]:
+    q = rng.normal(size=4)
+    return (q / np.linalg.norm(q)).tolist()
+
+
+def build_scene(kind: str, seed: int = 7) -> tuple[Design, list, list[str]]:
+    """(design, obstacles, allowed working modes) of one scene type."""
+    rng = np.random.default_rng(seed)
+    design = Design.default()
+    modes = list(WORKING_MODES)
+    if kind == "free":
+        return design, [], modes
+    if kind == "spheres":
+        obs = []
+        while len(obs) < 5:
+            c = rng.uniform(-0.7, 0.7, 3)
+            if 0.35 < np.linalg.norm(c) < 0.75:
+                obs.append(Sphere(c, rng.uniform(0.06, 0.12)))
+        return design, obs, modes
+    if kind == "boxes":
+        obs = [Box([0.0, 0.0, -0.85], [3.0, 3.0, 0.1])]  # floor
+        while len(obs) < 13:
+            c = rng.uniform(-0.75, 0.75, 3)
+            if 0.4 < np.linalg.norm(c) < 0.8:
+                obs.append(Box(c, rng.uniform(0.05, 0.15, 3), _quaternion(rng)))
+        return design, obs, modes
+    if kind == "narrow":
+        design = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
+        # plate |z| <= 0.01, x in [0.05, 1.3], |y| <= 1.3 with a window x < 0.45, |y| < 0.3
+        x0, x1, y1, hx, hy, t = 0.05, 1.3, 1.3, 0.45, 0.3, 0.02
+        plate = [
+            Box([(x0 + x1) / 2, -(hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+            Box([(x0 + x1) / 2, (hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+            Box([(hx + x1) / 2, 0.0, 0.0], [x1 - hx, 2 * hy, t]),
+        ]
+        return design, plate, [m for m in WORKING_MODES if m[0] == "+"]
+    raise ValueError(f"unknown scene {kind!r}")
+
+
+def _components(design: Design, obstacles, asm: str, mode: str, shape) -> tuple[np.ndarray, list]:
+    """Valid-state grid of one mode, labelled by 6-connected components (scipy.ndimage)."""
+    from scipy import ndimage
+
+    axes = [np.linspace(lo, hi, n) for lo, hi, n in zip(design.joint_min, design.joint_max, shape, strict=True)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    chk = ValidityChecker(design, Margins(), obstacles, asm, mode)
+    valid = chk.is_valid(grid).reshape(shape)
+    labels, _ = ndimage.label(valid)
+    return labels, axes
+
+
+def build_queries(kind: str, n: int, seed: int = 11) -> list[tuple[JointPosture, JointPosture]]:
+    """n (start, goal) pairs, valid in the same working and assembly mode under default
+    margins and in the same connected component of a grid of valid states (96 x 128 x 128
+    cells over the joint limits), so that a path exists up to the grid's resolution (the
+    mode regions are split by the literal joint limits of theta2 and theta3 at +-pi)."""
+    design, obstacles, modes = build_scene(kind)
+    rng = np.random.default_rng(seed)
+    shape = (128, 128, 128) if kind == "narrow" else (96, 128, 128)
+    combos = []
+    for asm in ("+", "-"):
+        for mode in modes:
+            labels, axes = _components(design, obstacles, asm, mode, shape)
+            if labels.max() > 0:
+                combos.append((asm, mode, labels, axes))
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    step = (hi - lo) / (np.asarray(shape) - 1)
+    out = []
+    while len(out) < n:
+        asm, mode, labels, axes = combos[rng.integers(len(combos))]
+        chk = ValidityChecker(design, Margins(), obstacles, asm, mode)
+        q = rng.uniform(lo, hi, (4000, 3))
+        if kind == "narrow":
+            q[:2000, 0] = rng.uniform(0.3, 1.8, 2000)
+            q[2000:, 0] = rng.uniform(-1.8, -0.3, 2000)
+        idx = np.clip(np.rint((q - lo) / step).astype(int), 0, np.asarray(shape) - 1)
+        lab = labels[idx[:, 0], idx[:, 1], idx[:, 2]]
+        ok = chk.is_valid(q) & (lab > 0)
+        a = np.flatnonzero(ok[:2000])
+        if len(a) == 0:
+            continue
+        same = np.flatnonzero(ok[2000:] & (lab[2000:] == lab[a[0]]))
+        if len(same):
+            out.append((JointPosture(q[a[0]], asm), JointPosture(q[2000 + same[0]], asm)))
+    return out
+
+
+def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict:
+    design, obstacles, _ = build_scene(kind)
+    times, lengths, solved, direct = [], [], 0, 0
+    for start, goal in queries:
+        t0 = time.perf_counter()
+        res = plan(design, start, goal, obstacles=obstacles, margins=Margins(),
+                   options=options)
+        times.append(time.perf_counter() - t0)
+        if res.solved:
+            solved += 1
+            lengths.append(res.diagnostics.path_length)
+            direct += res.diagnostics.planner == "direct"
+    return dict(times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries))
+
+
+def run_naive(kind: str, queries, budget: float, resolution: float, defaults: bool) -> dict:
+    design, obstacles, _ = build_scene(kind)
+    opts = PlanOptions(time_budget_s=budget, range=None)
+    times, lengths, solved = [], [], 0
+    for start, goal in queries:
+        chk = ValidityChecker(design, Margins(), obstacles, start.assembly_mode,
+                              _mode_of(design, start))
+        t0 = time.perf_counter()
+        out = ompl_backend.search(chk, start.q, goal.q, opts, budget, naive_resolution=resolution,
+                                  naive_defaults=defaults)
+        times.append(time.perf_counter() - t0)
+        if out.waypoints is not None:
+            solved += 1
+            lengths.append(float(np.sum(np.linalg.norm(np.diff(out.waypoints, axis=0), axis=1))))
+    return dict(times=times, lengths=lengths, solved=solved, direct=0, n=len(queries))
+
+
+def _mode_of(design: Design, posture: JointPosture) -> str:
+    from planner.planning import posture_mode
+
+    mode = posture_mode(design, posture)
+    assert mode is not None
+    return mode
+
+
+def _row(label: str, r: dict) -> str:
+    t = np.asarray(r["times"]) * 1e3
+    length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
+    return (f"{label:<18} {r['n']:>5} {100 * r['solved'] / r['n']:>8.1f} {r['direct']:>7} "
+            f"{np.percentile(t, 50):>9.2f} {np.percentile(t, 95):>9.2f} {t.max():>9.1f} {length:>8.3f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--queries", type=int, default=100)
+    parser.add_argument("--naive-queries", type=int, default=100)
+    parser.add_argument("--budget", type=float, default=1.0)
+    parser.add_argument("--naive-resolution", type=float, default=0.01)
+    parser.add_argument("--planner", default="rrtconnect")
+    parser.add_argument("--range", type=float, default=None)
+    parser.add_argument("--scenes", default=",".join(SCENES))
+    args = parser.parse_args()
+
+    options = PlanOptions(name=args.planner, time_budget_s=args.budget, range=args.range)
+    # warm up numba and OMPL outside the measurements
+    d0, o0, _ = build_scene("free")
+    q0 = build_queries("free", 1)[0]
+    plan(d0, q0[0], q0[1], obstacles=o0, options=PlanOptions(try_direct=False))
+
+    print(f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "
+          f"budget={args.budget}s naive_resolution={args.naive_resolution} rad")
+    header = f"{'scene / set-up':<18} {'n':>5} {'success%':>8} {'direct':>7} {'p50 ms':>9} {'p95 ms':>9} {'max ms':>9} {'len rad':>8}"
+    print(header)
+    print("-" * len(header))
+    for kind in args.scenes.split(","):
+        queries = build_queries(kind, max(args.queries, args.naive_queries))
+        prod = run_product(kind, queries[: args.queries], args.budget, options)
+        print(_row(f"{kind} product", prod))
+        if args.naive_queries > 0:
+            sub = queries[: args.naive_queries]
+            prod_sub = dict(prod, times=prod["times"][: args.naive_queries])
+            for label, defaults in (("naive", True), ("naive-tuned", False)):
+                naive = run_naive(kind, sub, args.budget, args.naive_resolution, defaults)
+                print(_row(f"{kind} {label}", naive))
+                ratio50 = np.median(naive["times"]) / np.median(prod_sub["times"])
+                ratio_mean = np.mean(naive["times"]) / np.mean(prod_sub["times"])
+                print(f"{'  ratio':<18} {label}/product time: median {ratio50:.0f}x, mean {ratio_mean:.0f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,239 @@
+"""Single-mode planning: the library entry point :func:`plan`.
+
+A plan lives in one working mode and one assembly mode, both taken from the start posture.
+Steps: check start and goal (a broken rule gives ``invalid_start`` / ``invalid_goal`` with the
+rule and the measured value); turn a Cartesian goal into joint candidates (inverse kinematics
+in the start's modes, every 2 pi shift inside the joint limits, valid ones ordered by joint
+distance); try the straight motion; otherwise search with OMPL, simplify, and re-certify the
+final path with :meth:`ValidityChecker.check_path`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Sequence
+from itertools import product
+
+import numpy as np
+
+from planner.design import Design
+from planner.geometry import Obstacle
+from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
+from planner.planning import ompl_backend
+from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
+from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
+from planner.validity import Margins, ValidityChecker
+
+__all__ = ["goal_candidates", "plan", "plan_in_region", "posture_mode"]
+
+logger = logging.getLogger(__name__)
+
+
+def posture_mode(design: Design, posture: JointPosture) -> str | None:
+    """Working mode label of a joint posture in its assembly mode, or None when the loop does
+    not close or a serial measure is exactly zero (the mode is undefined there)."""
+    fb = forward_batch(design, posture.q, posture.assembly_mode)
+    if not fb.ok[0]:
+        return None
+    label = mode_label(fb.working_mode_signs[0])
+    return label if label in WORKING_MODES else None
+
+
+def goal_candidates(
+    design: Design, target: CartesianTarget, checker: ValidityChecker, q_start: np.ndarray
+) -> tuple[np.ndarray, str]:
+    """Valid joint goals for a Cartesian target in the checker's working and assembly mode.
+
+    Returns
+    -------
+    candidates : array (K, 3), rad, ordered by Euclidean joint distance to ``q_start``; K may
+        be 0.
+    why : when K = 0, the reason (for the ``unreachable`` message).
+    """
+    mode = checker.working_mode
+    if target.working_mode not in ("any", mode):
+        return np.empty((0, 3)), (
+            f"the goal's working mode {target.working_mode} differs from the start's {mode}: "
+            "a single-mode plan cannot change working mode"
+        )
+    ik = inverse_batch(design, target.p)
+    if ik.degenerate[0]:
+        return np.empty((0, 3)), "the goal point is degenerate (P on a pivot with L1 = L2)"
+    slot = WORKING_MODES.index(mode)
+    if not ik.ok[0, slot]:
+        return np.empty((0, 3)), f"the goal point is out of reach in working mode {mode}"
+    q = ik.q[0, slot]
+    asm = int(ik.assembly_mode_signs[0, slot])
+    want = 1 if checker.assembly_mode == "+" else -1
+    if asm != want:
+        return np.empty((0, 3)), (
+            f"in working mode {mode} the goal point is only reached in assembly mode "
+            f"{'+' if asm > 0 else '-'}, not the start's {checker.assembly_mode}"
+        )
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    shifts = []
+    for j in range(3):
+        k_lo = math.ceil((lo[j] - q[j]) / (2 * math.pi) - 1e-12)
+        k_hi = math.floor((hi[j] - q[j]) / (2 * math.pi) + 1e-12)
+        shifts.append([q[j] + 2 * math.pi * k for k in range(k_lo, k_hi + 1)])
+    cands = np.array(list(product(*shifts)), dtype=float).reshape(-1, 3)
+    if len(cands) == 0:
+        return cands, f"the inverse-kinematics solution in working mode {mode} breaks the joint limits"
+    report = checker.check_states(cands)
+    if not report.valid.any():
+        return np.empty((0, 3)), "the goal posture breaks a rule: " + checker.explain(cands[0])
+    cands = cands[report.valid]
+    order = np.argsort(np.linalg.norm(cands - q_start, axis=1), kind="stable")
+    return cands[order], ""
+
+
+def plan(
+    design: Design,
+    start: JointPosture,
+    goal: JointPosture | CartesianTarget,
+    *,
+    obstacles: Sequence[Obstacle] = (),
+    margins: Margins | None = None,
+    options: PlanOptions | None = None,
+) -> PlanResult:
+    """Plan a valid joint path from ``start`` to ``goal`` inside the start's working mode.
+
+    Parameters
+    ----------
+    design : the manipulator.
+    start : joint posture; its working mode (from its signs) and assembly mode are the plan's.
+    goal : joint posture, or Cartesian target (``working_mode`` 'any' or the start's).
+    obstacles : spheres, boxes, capsules (or wire dictionaries).
+    margins : default :class:`Margins`.
+    options : default :class:`PlanOptions`.
+
+    Returns
+    -------
+    PlanResult
+        ``solved`` with a path whose every motion is certified; ``invalid_start`` /
+        ``invalid_goal`` naming the broken rule and its value; ``unreachable`` when a goal
+        lies in another working or assembly mode, out of reach, or breaks a rule in every
+        joint solution; ``no_path`` when the search budget ran out.
+    """
+    t0 = time.perf_counter()
+    margins = margins if margins is not None else Margins()
+    options = options if options is not None else PlanOptions()
+
+    def finish(status: PlanStatus, message: str, path=None, **diag) -> PlanResult:
+        d = Diagnostics(planning_time_s=time.perf_counter() - t0, **diag)
+        if status is not PlanStatus.SOLVED:
+            logger.info("plan %s: %s", status.value, message)
+        return PlanResult(status, message, path, d)
+
+    goal_mode = None
+    if isinstance(goal, JointPosture):  # one kinematics call for both modes
+        fb = forward_batch(design, np.stack([start.q, goal.q]),
+                           np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)]))
+        labels = [mode_label(sg) if ok else None for sg, ok in zip(fb.working_mode_signs, fb.ok, strict=True)]
+        mode, goal_mode = (lab if lab in WORKING_MODES else None for lab in labels)
+    else:
+        mode = posture_mode(design, start)
+    if mode is None:
+        fb = forward_batch(design, start.q, start.assembly_mode)
+        why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
+               else "working_mode: the start lies exactly on a serial singularity "
+                    f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})")
+        return finish(PlanStatus.INVALID_START, "start " + why)
+    checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, mode)
+    if not checker.is_valid_one(*start.q):
+        return finish(PlanStatus.INVALID_START, "start " + checker.explain(start.q))
+
+    if isinstance(goal, JointPosture):
+        goal_checker = checker if goal_mode in (None, mode) else checker.with_mode(goal_mode)
+        if goal_mode is None:
+            fb = forward_batch(design, goal.q, goal.assembly_mode)
+            why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
+                   else "working_mode: the goal lies exactly on a serial singularity")
+            return finish(PlanStatus.INVALID_GOAL, "goal " + why)
+        if goal.assembly_mode == start.assembly_mode and not goal_checker.is_valid_one(*goal.q):
+            return finish(PlanStatus.INVALID_GOAL, "goal " + goal_checker.explain(goal.q))
+        if goal.assembly_mode != start.assembly_mode:
+            return finish(PlanStatus.UNREACHABLE,
+                          f"the goal is in assembly mode {goal.assembly_mode}, the start in "
+                          f"{start.assembly_mode}: changing assembly mode crosses a parallel singularity")
+        if goal_mode != mode:
+            return finish(PlanStatus.UNREACHABLE,
+                          f"the goal is in working mode {goal_mode}, the start in {mode}: "
+                          "a single-mode plan cannot change working mode")
+        candidates = goal.q[None].copy()
+    else:
+        candidates, why = goal_candidates(design, goal, checker, start.q)
+        if len(candidates) == 0:
+            return finish(PlanStatus.UNREACHABLE, why)
+
+    return plan_in_region(checker, start.q, candidates, options=options, _t0=t0)
+
+
+def plan_in_region(
+    checker: ValidityChecker,
+    q_start: np.ndarray,
+    q_goals: np.ndarray,
+    *,
+    options: PlanOptions | None = None,
+    _t0: float | None = None,
+) -> PlanResult:
+    """Plan inside the region of a validity checker from ``q_start`` to the first reachable
+    of the goal candidates ``q_goals`` (K, 3), rad, tried in order.
+
+    The building block of :func:`plan` and of the mode-change planner, which plans each
+    segment between postures it chose (e.g. next to a transit) with its own checker. Start
+    and goals must be valid for ``checker`` (not re-checked here); the straight motion is
+    tried first, then OMPL within ``options.time_budget_s`` in total.
+
+    Returns
+    -------
+    PlanResult
+        ``solved`` (one segment in the checker's modes, every motion certified) or
+        ``no_path``.
+    """
+    t0 = time.perf_counter() if _t0 is None else _t0
+    options = options if options is not None else PlanOptions()
+    q_start = np.array(q_start, dtype=float)
+    q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
+    mode, asm = checker.working_mode, checker.assembly_mode
+    deadline = time.perf_counter() + options.time_budget_s
+    attempts = 0
+    last_status = ""
+    for q_goal in q_goals:
+        attempts += 1
+        waypoints, name = None, ""
+        if options.try_direct and checker.motion_valid(q_start, q_goal):
+            waypoints, name = np.stack([q_start, q_goal]), "direct"
+        else:
+            budget = deadline - time.perf_counter()
+            if budget <= 0:
+                break
+            outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
+            last_status = outcome.ompl_status
+            if outcome.waypoints is not None:
+                waypoints, name = outcome.waypoints, options.name
+        if waypoints is None:
+            continue
+        waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
+        # final re-certification (the straight motion was certified just above)
+        report = checker.check_path(waypoints, certify=name != "direct")
+        if not report.valid:  # pragma: no cover - would be a validator bug
+            logger.error("a found path failed re-certification at motion %d (%s)",
+                         report.bad_motion, report.reason)
+            continue
+        path = PlanPath(waypoints, (Segment(mode, asm, 0, len(waypoints) - 1),), ())
+        return PlanResult(
+            PlanStatus.SOLVED, f"solved in working mode {mode} ({name})", path,
+            Diagnostics(
+                planning_time_s=time.perf_counter() - t0, path_length=report.length,
+                min_clearance=report.min_clearance, max_kappa_A=report.max_kappa_A,
+                min_serial_margin=report.min_serial_margin, planner=name, attempts=attempts,
+            ),
+        )
+    message = (f"no path found within {options.time_budget_s:g} s in working mode {mode}"
+               + (f" (OMPL: {last_status})" if last_status else ""))
+    logger.info("plan no_path: %s", message)
+    return PlanResult(PlanStatus.NO_PATH, message, None,
+                      Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts))

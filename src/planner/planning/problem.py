@@ -1,0 +1,92 @@
+"""Start and goal of a plan request (pure data, no OMPL): a joint posture or a Cartesian
+target (``CONVENTIONS.md``), and the options of the planner."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.exceptions import InputError
+from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
+
+__all__ = ["PLANNERS", "CartesianTarget", "JointPosture", "PlanOptions"]
+
+#: Planner names accepted by :class:`PlanOptions` (each works with a motion validator that
+#: answers the two-state ``checkMotion`` only, the one the ompl wheel honours from Python).
+PLANNERS: tuple[str, ...] = ("rrtconnect", "rrt", "rrtstar", "prmstar", "bitstar", "aorrtc", "lbkpiece")
+
+
+def _triple(name: str, value: object) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be 3 numbers, got {value!r}") from exc
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must be 3 finite numbers, got {value!r}")
+    arr = arr.copy()
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class JointPosture:
+    """``q`` (3,) rad and ``assembly_mode`` '+' | '-' (wire: ``{"q": [...], "assembly_mode"}``)."""
+
+    q: np.ndarray
+    assembly_mode: str = "+"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", _triple("q", self.q))
+        if self.assembly_mode not in ASSEMBLY_MODES:
+            raise InputError(f"assembly_mode must be '+' or '-', got {self.assembly_mode!r}")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CartesianTarget:
+    """Point ``p`` (3,) m to bring P to, in ``working_mode`` ('+-+'-style or 'any')."""
+
+    p: np.ndarray
+    working_mode: str = "any"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "p", _triple("p", self.p))
+        if self.working_mode != "any" and self.working_mode not in WORKING_MODES:
+            raise InputError(
+                f"working_mode must be 'any' or one of {', '.join(WORKING_MODES)}, "
+                f"got {self.working_mode!r}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class PlanOptions:
+    """Options of :func:`planner.planning.plan` (wire field ``planner``).
+
+    Parameters
+    ----------
+    name : one of :data:`PLANNERS`, default 'rrtconnect'.
+    time_budget_s : search budget, s (> 0), default 1.
+    seed : OMPL random seed (reproducible results); default 1. OMPL seeds must be > 0.
+    simplify : shorten the path with OMPL's PathSimplifier (re-certified afterwards).
+    range : longest motion the tree-growing planners add at once, rad; None: tuned default.
+    try_direct : first try the straight joint-space motion start -> goal.
+    """
+
+    name: str = "rrtconnect"
+    time_budget_s: float = 1.0
+    seed: int = 1
+    simplify: bool = True
+    range: float | None = None
+    try_direct: bool = True
+
+    def __post_init__(self) -> None:
+        if self.name not in PLANNERS:
+            raise InputError(f"planner.name must be one of {', '.join(PLANNERS)}, got {self.name!r}")
+        if not (isinstance(self.time_budget_s, int | float) and math.isfinite(self.time_budget_s)
+                and self.time_budget_s > 0):
+            raise InputError(f"planner.time_budget_s must be > 0, got {self.time_budget_s!r}")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed <= 0:
+            raise InputError(f"planner.seed must be a positive integer, got {self.seed!r}")
+        if self.range is not None and not (math.isfinite(self.range) and self.range > 0):
+            raise InputError(f"planner.range must be > 0, got {self.range!r}")

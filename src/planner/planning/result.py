@@ -1,0 +1,129 @@
+"""Plan results: statuses and fields of the wire vocabulary (``CONVENTIONS.md``, /v1/plan).
+
+Pure data, no OMPL. :meth:`PlanResult.as_wire` gives the response's ``status``, ``message``,
+``path`` and ``diagnostics`` as a JSON-ready dictionary, one field per wire field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+__all__ = ["Diagnostics", "PlanPath", "PlanResult", "PlanStatus", "Segment", "Transit"]
+
+
+class PlanStatus(StrEnum):
+    """Outcome of a plan request; the values are the wire statuses."""
+
+    SOLVED = "solved"
+    NO_PATH = "no_path"
+    UNREACHABLE = "unreachable"
+    INVALID_START = "invalid_start"
+    INVALID_GOAL = "invalid_goal"
+    TIMEOUT = "timeout"
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """Waypoints ``start_index..end_index`` (inclusive) lie in one working and assembly mode."""
+
+    working_mode: str
+    assembly_mode: str
+    start_index: int
+    end_index: int
+
+
+@dataclass(frozen=True, slots=True)
+class Transit:
+    """A serial-singularity crossing at waypoint ``index`` (filled by mode-change plans)."""
+
+    index: int
+    q: tuple[float, float, float]
+    kind: str
+    flipped: str
+
+
+@dataclass(frozen=True, slots=True)
+class PlanPath:
+    """``waypoints`` (N, 3) rad; motions between consecutive ones are straight in joint space."""
+
+    waypoints: np.ndarray
+    segments: tuple[Segment, ...] = ()
+    transits: tuple[Transit, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnostics:
+    """Measures of a plan. Extremes along the path are taken over waypoints and samples every
+    ``planner.validity.DIAGNOSTIC_STEP`` (0.02 rad); NaN when there is no path.
+
+    Attributes
+    ----------
+    planning_time_s : wall time of the whole request, s.
+    path_length : sum of Euclidean joint-space distances between waypoints, rad.
+    min_clearance : least link-obstacle distance, m (inf without obstacles).
+    max_kappa_A : largest kappa(A).
+    min_serial_margin : smallest serial measure (signed by the working mode).
+    planner : name of the planner that found the path ('direct' for the straight motion).
+    attempts : number of goal candidates tried.
+    """
+
+    planning_time_s: float
+    path_length: float = float("nan")
+    min_clearance: float = float("nan")
+    max_kappa_A: float = float("nan")
+    min_serial_margin: float = float("nan")
+    planner: str = ""
+    attempts: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class PlanResult:
+    """Result of :func:`planner.planning.plan`: ``status``, ``message`` (for invalid start or
+    goal: the rule and the measured value), ``path`` (None unless solved), ``diagnostics``."""
+
+    status: PlanStatus
+    message: str
+    path: PlanPath | None
+    diagnostics: Diagnostics = field(default_factory=lambda: Diagnostics(float("nan")))
+
+    @property
+    def solved(self) -> bool:
+        return self.status is PlanStatus.SOLVED
+
+    def as_wire(self) -> dict:
+        """The wire response fields ``status``, ``message``, ``path``, ``diagnostics``."""
+
+        def num(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+
+        d = self.diagnostics
+        out: dict = {
+            "status": self.status.value,
+            "message": self.message,
+            "path": None,
+            "diagnostics": {
+                "planning_time_s": d.planning_time_s,
+                "path_length": num(d.path_length),
+                "min_clearance": num(d.min_clearance),
+                "max_kappa_A": num(d.max_kappa_A),
+                "min_serial_margin": num(d.min_serial_margin),
+                "planner": d.planner,
+            },
+        }
+        if self.path is not None:
+            out["path"] = {
+                "waypoints": np.asarray(self.path.waypoints, dtype=float).tolist(),
+                "segments": [
+                    {"working_mode": s.working_mode, "assembly_mode": s.assembly_mode,
+                     "start_index": s.start_index, "end_index": s.end_index}
+                    for s in self.path.segments
+                ],
+                "transits": [
+                    {"index": t.index, "q": list(t.q), "kind": t.kind, "flipped": t.flipped}
+                    for t in self.path.transits
+                ],
+            }
+        return out

@@ -1,0 +1,91 @@
+"""Shared factories of the validity and planning tests: an independent reference of the
+validity rules (from planner.kinematics and dense point sampling, not the validity kernels),
+scenes, and wire conversion for /work/shared/tools/check-plan."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from planner.design import Design
+from planner.geometry import Capsule, Sphere, segment_obstacle_distance
+from planner.kinematics import conditioning, forward_batch, link_points
+
+CHECK_PLAN = Path("/work/shared/tools/check-plan")
+LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
+
+
+def point_distance(x: np.ndarray, ob) -> np.ndarray:
+    """Signed distance of points (M, 3) to an obstacle, from the definitions."""
+    if isinstance(ob, Sphere):
+        return np.linalg.norm(x - ob.center, axis=1) - ob.radius
+    if isinstance(ob, Capsule):
+        ab = ob.b - ob.a
+        t = np.clip((x - ob.a) @ ab / (ab @ ab), 0, 1)
+        return np.linalg.norm(ob.a + t[:, None] * ab - x, axis=1) - ob.radius
+    local = (x - ob.center) @ ob.rotation
+    q = np.abs(local) - ob.size / 2
+    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+
+
+def reference_measures(design: Design, q: np.ndarray, assembly_mode: str, mode: str, obstacles, k=400):
+    """(ok, kappa_A, signed serial min, clearance) of postures q (N, 3) from kinematics and
+    link sampling every 1/k of each link (k = 0: exact segment distances of planner.geometry,
+    itself tested against sampling)."""
+    fb = forward_batch(design, q, assembly_mode)
+    c = conditioning(design, fb.q, fb.passive, fb.w)
+    signs = np.array([1.0 if ch == "+" else -1.0 for ch in mode])
+    serial = np.min(fb.serial_measures * signs, axis=1)
+    pts = link_points(design, fb.q, fb.passive)
+    clear = np.full(len(q), np.inf)
+    if k == 0:
+        for i, j in LINKS:
+            good = fb.ok
+            d = np.full(len(q), np.nan)
+            d[good] = segment_obstacle_distance(pts[good, i], pts[good, j], obstacles)
+            clear = np.minimum(clear, d - design.link_radius)
+        return fb.ok, c.kappa_A, serial, clear
+    s = np.linspace(0, 1, k + 1)
+    for i, j in LINKS:
+        x = pts[:, i, None, :] + s[None, :, None] * (pts[:, j] - pts[:, i])[:, None, :]
+        for ob in obstacles:
+            d = point_distance(x.reshape(-1, 3), ob).reshape(len(q), -1).min(axis=1)
+            clear = np.minimum(clear, d - design.link_radius)
+    return fb.ok, c.kappa_A, serial, clear
+
+
+def wire_obstacle(ob) -> dict:
+    if isinstance(ob, Sphere):
+        return {"type": "sphere", "center": ob.center.tolist(), "radius": ob.radius}
+    if isinstance(ob, Capsule):
+        return {"type": "capsule", "a": ob.a.tolist(), "b": ob.b.tolist(), "radius": ob.radius}
+    return {"type": "box", "center": ob.center.tolist(), "size": ob.size.tolist(),
+            "quaternion": ob.quaternion.tolist()}
+
+
+def wire_design(d: Design) -> dict:
+    return {"L0": d.L0, "L1": d.L1, "L2": d.L2, "link_radius": d.link_radius,
+            "joint_min": list(d.joint_min), "joint_max": list(d.joint_max)}
+
+
+def run_check_plan(tmp_path: Path, design, start, goal_wire: dict, margins, obstacles, response: dict):
+    """Run the independent checker on a plan; returns (exit code, output)."""
+    req = {
+        "design": wire_design(design),
+        "start": {"q": start.q.tolist(), "assembly_mode": start.assembly_mode},
+        "goal": goal_wire,
+        "margins": {"kappa_max": margins.kappa_max, "serial_min": margins.serial_min,
+                    "clearance": margins.clearance},
+        "obstacles": [wire_obstacle(o) for o in obstacles],
+    }
+    (tmp_path / "req.json").write_text(json.dumps(req))
+    (tmp_path / "resp.json").write_text(json.dumps(response))
+    proc = subprocess.run(
+        [sys.executable, str(CHECK_PLAN), str(tmp_path / "req.json"), str(tmp_path / "resp.json")],
+        capture_output=True, text=True, timeout=120,
+    )
+    return proc.returncode, proc.stdout + proc.stderr

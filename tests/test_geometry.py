@@ -1,0 +1,116 @@
+"""Obstacle distances against an independent route: dense point sampling of the segment with
+numpy point-obstacle distances written from the definitions (as /work/shared/tools/check-plan)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.exceptions import InputError
+from planner.geometry import Box, Capsule, Sphere, obstacle_from_wire, segment_obstacle_distance
+
+
+def _rotation(quat: np.ndarray) -> np.ndarray:
+    # independent route: quaternion -> matrix through the rotation of the basis vectors
+    w, v = quat[0], quat[1:]
+    cols = []
+    for e in np.eye(3):
+        t = 2 * np.cross(v, e)
+        cols.append(e + w * t + np.cross(v, t))
+    return np.stack(cols, axis=1)
+
+
+def _point_distance(x: np.ndarray, ob) -> np.ndarray:
+    if isinstance(ob, Sphere):
+        return np.linalg.norm(x - ob.center, axis=1) - ob.radius
+    if isinstance(ob, Capsule):
+        ab = ob.b - ob.a
+        t = np.clip((x - ob.a) @ ab / (ab @ ab), 0, 1)
+        return np.linalg.norm(ob.a + t[:, None] * ab - x, axis=1) - ob.radius
+    local = (x - ob.center) @ _rotation(ob.quaternion)
+    q = np.abs(local) - ob.size / 2
+    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+
+
+def _sampled(a, b, ob, k=4001):
+    s = np.linspace(0, 1, k)
+    return np.array([_point_distance(a[i] + s[:, None] * (b[i] - a[i]), ob).min() for i in range(len(a))])
+
+
+def _random_obstacles(rng):
+    return [
+        Sphere(rng.uniform(-0.3, 0.3, 3), rng.uniform(0.0, 0.2)),
+        Capsule(rng.uniform(-0.4, 0.4, 3), rng.uniform(-0.4, 0.4, 3), rng.uniform(0.0, 0.1)),
+        Box(rng.uniform(-0.3, 0.3, 3), rng.uniform(0.05, 0.4, 3), rng.normal(size=4)),
+    ]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_segment_distances_match_dense_sampling(seed):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-0.6, 0.6, (40, 3))
+    b = rng.uniform(-0.6, 0.6, (40, 3))
+    for ob in _random_obstacles(rng):
+        exact = segment_obstacle_distance(a, b, [ob])
+        sampled = _sampled(a, b, ob)
+        # the sampled minimum is above the true one by at most half a sampling step
+        step = np.linalg.norm(b - a, axis=1) / 4000
+        assert np.all(exact <= sampled + 1e-9)
+        assert np.all(sampled - exact <= step / 2 + 1e-9), type(ob).__name__
+
+
+def test_distance_to_several_obstacles_is_the_nearest():
+    rng = np.random.default_rng(5)
+    obs = _random_obstacles(rng)
+    a = rng.uniform(-0.6, 0.6, (20, 3))
+    b = rng.uniform(-0.6, 0.6, (20, 3))
+    each = np.stack([segment_obstacle_distance(a, b, [ob]) for ob in obs])
+    np.testing.assert_allclose(segment_obstacle_distance(a, b, obs), each.min(axis=0), atol=1e-12)
+    assert np.all(np.isinf(segment_obstacle_distance(a, b, [])))
+
+
+def test_closed_forms():
+    # segment along x at height 1 above a unit sphere at the origin: distance 0
+    d = segment_obstacle_distance([[-1, 0, 2.0]], [[1, 0, 2.0]], [Sphere([0, 0, 0], 1.0)])
+    assert d[0] == pytest.approx(1.0)
+    # through a box rotated 45 deg about z: deepest point is the centre, depth = half of 0.2
+    quat = [np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)]
+    d = segment_obstacle_distance([[-1, 0, 0.0]], [[1, 0, 0.0]], [Box([0, 0, 0], [1, 1, 0.2], quat)])
+    assert d[0] == pytest.approx(-0.1)
+    # skew capsule axes 0.5 apart
+    d = segment_obstacle_distance([[-1, 0, 0.0]], [[1, 0, 0.0]], [Capsule([0, -1, 0.5], [0, 1, 0.5], 0.1)])
+    assert d[0] == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize(
+    ("data", "field"),
+    [
+        ({"type": "sphere", "center": [0, 0], "radius": 1}, "sphere.center"),
+        ({"type": "sphere", "center": [0, 0, 0], "radius": -1}, "sphere.radius"),
+        ({"type": "box", "center": [0, 0, 0], "size": [1, 0, 1]}, "box.size"),
+        ({"type": "box", "center": [0, 0, 0], "size": [1, 1, 1], "quaternion": [0, 0, 0, 0]}, "box.quaternion"),
+        ({"type": "capsule", "a": [0, 0, 0], "b": [0, 0, float("nan")], "radius": 1}, "capsule.b"),
+        ({"type": "cone"}, "type"),
+        ({"type": "sphere", "radius": 1}, "center"),
+    ],
+)
+def test_bad_obstacles_name_the_field(data, field):
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        obstacle_from_wire(data)
+
+
+def test_boxes_touching_and_grazing():
+    """Segments ending on a face, parallel to a face, and along an edge of a rotated box."""
+    box = Box([0.1, -0.2, 0.3], [0.4, 0.2, 0.6], [0.8, 0.3, -0.2, 0.4])
+    r, c, h = box.rotation, box.center, box.size / 2
+    local = np.array([
+        [[h[0] + 0.05, -1.0, 0.0], [h[0] + 0.05, 1.0, 0.0]],   # parallel to a face, 5 cm off
+        [[h[0], 0.0, 0.0], [h[0] + 0.5, 0.0, 0.0]],            # starts on a face
+        [[h[0] + 0.02, h[1] + 0.03, -1], [h[0] + 0.02, h[1] + 0.03, 1]],  # along an edge
+        [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],                   # through the centre
+    ])
+    a = local[:, 0] @ r.T + c
+    b = local[:, 1] @ r.T + c
+    d = segment_obstacle_distance(a, b, [box])
+    np.testing.assert_allclose(d[:3], [0.05, 0.0, np.hypot(0.02, 0.03)], atol=1e-9)
+    assert d[3] == pytest.approx(-min(h), abs=1e-9)

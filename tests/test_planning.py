@@ -1,0 +1,201 @@
+"""Single-mode planning: solved scenes checked by the independent /work/shared/tools/check-plan,
+clean failures (no path, invalid start/goal, unreachable), seeds, planners, wire fields."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from planning_factories import run_check_plan
+
+from planner.design import Design
+from planner.exceptions import InputError
+from planner.geometry import Box, Sphere
+from planner.kinematics import forward_batch
+from planner.planning import (
+    PLANNERS,
+    CartesianTarget,
+    JointPosture,
+    PlanOptions,
+    PlanStatus,
+    plan,
+)
+from planner.validity import Margins
+
+DESIGN = Design.default()
+START = JointPosture([0.0, 2.0, 1.0], "+")  # working mode +-+
+# a sphere on the straight motion to GOAL: the direct motion is blocked
+BLOCKER = [Sphere([0.549, -0.025, -0.376], 0.1)]
+GOAL = JointPosture([1.2, 2.3, 1.3], "+")
+
+
+def _goal_wire(goal):
+    if isinstance(goal, JointPosture):
+        return {"q": goal.q.tolist(), "assembly_mode": goal.assembly_mode}
+    return {"p": goal.p.tolist(), "working_mode": goal.working_mode}
+
+
+def test_blocker_blocks_the_direct_motion():
+    from planner.validity import ValidityChecker
+
+    chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
+    assert chk.check_states(np.stack([START.q, GOAL.q])).valid.all()
+    assert not chk.check_motion(START.q, GOAL.q).valid
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_solved_paths_pass_the_independent_check(tmp_path, seed):
+    margins = Margins()
+    res = plan(DESIGN, START, GOAL, obstacles=BLOCKER, margins=margins,
+               options=PlanOptions(seed=seed, time_budget_s=2.0))
+    assert res.status is PlanStatus.SOLVED, res.message
+    w = res.path.waypoints
+    assert len(w) > 2 and np.array_equal(w[0], START.q) and np.array_equal(w[-1], GOAL.q)
+    seg = res.path.segments
+    assert [(s.working_mode, s.assembly_mode, s.start_index, s.end_index) for s in seg] == [
+        ("+-+", "+", 0, len(w) - 1)]
+    assert res.path.transits == ()
+    d = res.diagnostics
+    assert d.min_clearance >= margins.clearance and d.max_kappa_A <= margins.kappa_max
+    assert d.min_serial_margin >= margins.serial_min
+    assert d.path_length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
+    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), margins, BLOCKER,
+                               res.as_wire())
+    assert code == 0, out
+
+
+def test_seed_reproduces_the_path():
+    opts = PlanOptions(seed=5, simplify=False)
+    a = plan(DESIGN, START, GOAL, obstacles=BLOCKER, options=opts)
+    b = plan(DESIGN, START, GOAL, obstacles=BLOCKER, options=opts)
+    assert a.solved and b.solved
+    np.testing.assert_array_equal(a.path.waypoints, b.path.waypoints)
+
+
+@pytest.mark.parametrize("name", PLANNERS)
+def test_every_planner_solves_a_blocked_query(name, tmp_path):
+    res = plan(DESIGN, START, GOAL, obstacles=BLOCKER,
+               options=PlanOptions(name=name, time_budget_s=1.0))
+    assert res.status is PlanStatus.SOLVED, (name, res.message)
+    assert res.diagnostics.planner == name
+    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER,
+                               res.as_wire())
+    assert code == 0, out
+
+
+def test_free_space_takes_the_straight_motion():
+    res = plan(DESIGN, START, JointPosture([0.5, 2.2, 1.1], "+"))
+    assert res.solved and res.diagnostics.planner == "direct" and len(res.path.waypoints) == 2
+
+
+def test_wall_gives_no_path_within_budget():
+    """theta1 limited to [-2, 2] and a plate at z = 0 for x >= 0.05: in a mode with w > 0 the
+    arm cannot pass theta1 = 0 (every link would need to stay within 0.02 m of the axis while
+    |w| >= serial_min (L1 + L2) = 0.04 m)."""
+    design = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
+    wall = [Box([0.65, 0.0, 0.0], [1.2, 3.0, 0.02])]
+    start = JointPosture([1.0, 2.0, 1.0], "+")
+    goal = JointPosture([-1.0, 2.0, 1.0], "+")
+    budget = 0.3
+    t0 = time.perf_counter()
+    res = plan(design, start, goal, obstacles=wall, options=PlanOptions(time_budget_s=budget))
+    elapsed = time.perf_counter() - t0
+    assert res.status is PlanStatus.NO_PATH and res.path is None
+    assert "no path" in res.message
+    assert elapsed < budget * 1.25 + 1.0  # budget plus overhead (generous: not a speed test)
+
+
+def test_invalid_start_and_goal_name_rule_and_value():
+    res = plan(DESIGN, START, GOAL, obstacles=[Sphere([0.0, 0.0, 0.0], 0.3)])
+    assert res.status is PlanStatus.INVALID_START
+    assert res.message.startswith("start clearance:") and " m < margins.clearance" in res.message
+    lim = Design(0.5, 0.2, 0.6, joint_min=(-1, -np.pi, -np.pi), joint_max=(1, np.pi, np.pi))
+    res = plan(lim, START, JointPosture([1.2, 2.3, 1.3], "+"))
+    assert res.status is PlanStatus.INVALID_GOAL
+    assert "joint_limits: q[0] = 1.2 rad" in res.message
+    res = plan(DESIGN, START, GOAL, margins=Margins(kappa_max=1.05))
+    assert res.status is PlanStatus.INVALID_START and "kappa_max: kappa_A = " in res.message
+    fb = forward_batch(DESIGN, START.q, "+")
+    serial = float(np.min(np.abs(fb.serial_measures[0])))
+    res = plan(DESIGN, START, GOAL, margins=Margins(serial_min=min(0.99, serial + 0.05)))
+    assert res.status is PlanStatus.INVALID_START
+    assert f"serial measure {serial:.6g}" in res.message
+
+
+def test_other_mode_or_assembly_is_unreachable_for_a_single_mode_plan():
+    from planner.kinematics import WORKING_MODES, inverse_batch
+
+    ik = inverse_batch(DESIGN, forward_batch(DESIGN, START.q, "+").p)
+    slot = WORKING_MODES.index("++-")
+    assert ik.ok[0, slot] and ik.assembly_mode_signs[0, slot] == 1
+    res = plan(DESIGN, START, JointPosture(ik.q[0, slot], "+"))  # another working mode
+    assert res.status is PlanStatus.UNREACHABLE and "working mode ++-" in res.message
+    res = plan(DESIGN, START, JointPosture(START.q, "-"))
+    assert res.status is PlanStatus.UNREACHABLE and "assembly mode" in res.message
+    res = plan(DESIGN, START, CartesianTarget([3.0, 0.0, 0.0], "any"))
+    assert res.status is PlanStatus.UNREACHABLE and "out of reach" in res.message
+
+
+def test_cartesian_goal_any_mode(tmp_path):
+    q_goal = np.array([0.8, 2.3, 1.2])
+    p = forward_batch(DESIGN, q_goal, "+").p[0]
+    target = CartesianTarget(p, "any")
+    res = plan(DESIGN, START, target, obstacles=BLOCKER)
+    assert res.solved, res.message
+    end = forward_batch(DESIGN, res.path.waypoints[-1], "+").p[0]
+    np.testing.assert_allclose(end, p, atol=1e-9)
+    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(target), Margins(), BLOCKER,
+                               res.as_wire())
+    assert code == 0, out
+
+
+def test_wire_fields():
+    res = plan(DESIGN, START, GOAL, obstacles=BLOCKER)
+    wire = res.as_wire()
+    assert wire["status"] == "solved"
+    assert set(wire["path"]) == {"waypoints", "segments", "transits"}
+    assert set(wire["path"]["segments"][0]) == {"working_mode", "assembly_mode", "start_index", "end_index"}
+    assert {"planning_time_s", "min_clearance", "max_kappa_A", "min_serial_margin",
+            "path_length"} <= set(wire["diagnostics"])
+    assert {s.value for s in PlanStatus} == {"solved", "no_path", "unreachable", "invalid_start",
+                                            "invalid_goal", "timeout"}
+
+
+@pytest.mark.parametrize("kwargs", [dict(name="kpiece"), dict(time_budget_s=0), dict(seed=0),
+                                    dict(range=-1.0)])
+def test_bad_options(kwargs):
+    with pytest.raises(InputError, match=r"planner\."):
+        PlanOptions(**kwargs)
+
+
+def test_no_leak_warnings_or_ompl_output():
+    code = (
+        "import numpy as np\n"
+        "from planner.design import Design\n"
+        "from planner.geometry import Sphere\n"
+        "from planner.planning import plan, JointPosture, PlanOptions\n"
+        "for name in ('rrtconnect', 'aorrtc'):\n"
+        "    r = plan(Design.default(), JointPosture([0.0, 2.0, 1.0]), JointPosture([1.2, 2.3, 1.3]),\n"
+        "             obstacles=[Sphere([0.549, -0.025, -0.376], 0.1)], options=PlanOptions(name=name))\n"
+        "    assert r.solved\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "leaked" not in proc.stderr and proc.stdout == "" and proc.stderr == ""
+
+
+def test_plan_in_region_with_goal_candidates(tmp_path):
+    """The building block of plan(): a checker, a start and goal candidates; its path passes
+    the independent check."""
+    from planner.planning import plan_in_region
+    from planner.validity import ValidityChecker
+
+    chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
+    res = plan_in_region(chk, START.q, np.stack([GOAL.q]), options=PlanOptions(seed=3))
+    assert res.solved and res.diagnostics.attempts == 1
+    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER,
+                               res.as_wire())
+    assert code == 0, out

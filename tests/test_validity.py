@@ -1,0 +1,204 @@
+"""The validity checker against independent routes: kinematics.conditioning and
+serial_measures for the margins, dense link sampling for clearance, dense sampling of motions
+for the motion certificate, and finite differences for its Lipschitz constants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from planning_factories import reference_measures
+
+from planner.design import Design
+from planner.exceptions import InputError
+from planner.geometry import Box, Capsule, Sphere
+from planner.validity import Margins, ValidityChecker, densify
+
+DESIGNS = [Design.default(), Design.paper_optimum(), Design(0.3, 0.25, 0.45, link_radius=0.03)]
+OBSTACLES = [
+    Sphere([0.35, 0.1, 0.3], 0.12),
+    Box([0.0, 0.0, -0.6], [2.0, 2.0, 0.1], [0.9, 0.1, 0.2, 0.0]),
+    Capsule([-0.4, -0.3, 0.2], [-0.2, 0.4, 0.5], 0.05),
+]
+
+
+def _reference_valid(design, q, asm, mode, margins, obstacles, k=400):
+    ok, kappa, serial, clear = reference_measures(design, q, asm, mode, obstacles, k)
+    lim = np.all((q >= design.joint_min) & (q <= design.joint_max), axis=1)
+    with np.errstate(invalid="ignore"):
+        return (lim & ok & (kappa <= margins.kappa_max) & (serial >= margins.serial_min)
+                & (clear >= margins.clearance))
+
+
+@pytest.mark.parametrize("design", DESIGNS, ids=["sing-free", "paper", "other"])
+@pytest.mark.parametrize(("asm", "mode"), [("+", "+-+"), ("+", "+++"), ("-", "-+-"), ("-", "+-+")])
+def test_state_measures_match_kinematics_and_sampling(design, asm, mode):
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-np.pi, np.pi, (300, 3))
+    margins = Margins(kappa_max=6.0, serial_min=0.1, clearance=0.02)
+    chk = ValidityChecker(design, margins, OBSTACLES, asm, mode)
+    rep = chk.check_states(q)
+    ok, kappa, serial, clear = reference_measures(design, q, asm, mode, OBSTACLES)
+    np.testing.assert_allclose(rep.kappa_A[ok], kappa[ok], rtol=1e-9)
+    np.testing.assert_allclose(rep.serial_margin[ok], serial[ok], atol=1e-12)
+    # link sampling at 1/400 of a link overestimates the clearance by < link/800
+    assert np.all(rep.clearance[ok] <= clear[ok] + 1e-9)
+    assert np.all(clear[ok] - rep.clearance[ok] <= max(design.L1, design.L2) / 800 + 1e-9)
+    ref = _reference_valid(design, q, asm, mode, margins, OBSTACLES)
+    near = np.abs(rep.clearance - margins.clearance) < 2e-3  # sampling can flip these
+    assert np.array_equal(rep.valid[~near], ref[~near])
+    assert np.array_equal(chk.is_valid(q), rep.valid)
+
+
+def test_reasons_are_the_first_broken_rule():
+    d = Design(0.5, 0.2, 0.6, joint_min=(-1, -np.pi, -np.pi), joint_max=(1, np.pi, np.pi))
+    chk = ValidityChecker(d, Margins(), [Sphere([0.0, 0.0, 0.6], 0.1)], "+", "+-+")
+    q_ok = np.array([0.5, 2.0, 1.0])
+    assert chk.check_states(q_ok).reason.tolist() == ["valid"]
+    assert chk.check_states([1.5, 2.0, 1.0]).reason.tolist() == ["joint_limits"]
+    assert chk.explain([1.5, 2.0, 1.0]).startswith("joint_limits: q[0] = 1.5 rad")
+    assert chk.with_mode("+++").check_states(q_ok).reason.tolist() == ["working_mode"]
+    # rotating the plane onto the sphere at +z: theta1 = -pi/2 puts w along +z
+    chk2 = ValidityChecker(Design.default(), Margins(), [Sphere([0.0, 0.0, 0.6], 0.1)], "+", "+-+")
+    r = chk2.check_states([-np.pi / 2 + 0.05, 2.0, 1.0])
+    assert r.reason.tolist() == ["clearance"] and r.clearance[0] < 0.01
+    assert "clearance" in chk2.explain([-np.pi / 2 + 0.05, 2.0, 1.0])
+
+
+def test_kappa_band_is_the_kappa_margin():
+    # states sweeping through C = D region: the reason kappa_max appears exactly where the
+    # kinematics' kappa_A exceeds the bound
+    d = Design.paper_optimum()
+    chk = ValidityChecker(d, Margins(kappa_max=4.0, serial_min=0.01), [], "+", "+-+")
+    t3 = np.linspace(-np.pi, np.pi, 5001)
+    q = np.stack([np.zeros_like(t3), np.full_like(t3, 2.0), t3], axis=1)
+    rep = chk.check_states(q)
+    ok, kappa, _, _ = reference_measures(d, q, "+", "+-+", [])
+    assert np.any(rep.reason == "kappa_max")
+    np.testing.assert_array_equal(rep.reason[ok] == "kappa_max", kappa[ok] > 4.0)
+
+
+@pytest.mark.parametrize("kwargs", [dict(kappa_max=1.0), dict(serial_min=0.0), dict(serial_min=1.0),
+                                    dict(clearance=-0.1), dict(kappa_max=float("nan")),
+                                    dict(clearance="x")])
+def test_bad_margins_name_the_field(kwargs):
+    field = next(iter(kwargs))
+    with pytest.raises(InputError, match=f"margins.{field}"):
+        Margins(**kwargs)
+
+
+def test_bad_checker_arguments():
+    with pytest.raises(InputError, match="working_mode"):
+        ValidityChecker(Design.default(), Margins(), [], "+", "+x+")
+    with pytest.raises(InputError, match="assembly_mode"):
+        ValidityChecker(Design.default(), Margins(), [], "0", "+-+")
+    chk = ValidityChecker(Design.default(), Margins(), [], "+", "+-+")
+    with pytest.raises(InputError, match="q must"):
+        chk.check_states([[0.0, np.nan, 1.0]])
+    with pytest.raises(InputError, match="shape"):
+        chk.is_valid([0.0, 1.0])
+
+
+@pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
+def test_certified_motions_are_valid_when_sampled_densely(design):
+    """Every motion the certificate accepts is valid at a 1e-3 rad sampling by the
+    independent reference; with a coarse step far above every feature the certificate still
+    rejects motions through obstacles (it is not a sampling)."""
+    rng = np.random.default_rng(8)
+    margins = Margins(kappa_max=8.0, serial_min=0.05, clearance=0.01)
+    accepted = rejected = 0
+    for asm, mode in [("+", "+-+"), ("-", "-+-"), ("+", "+++")]:
+        for coarse in (0.05, 10.0):
+            chk = ValidityChecker(design, margins, OBSTACLES, asm, mode, coarse_step=coarse)
+            q = rng.uniform(-np.pi, np.pi, (3000, 3))
+            good = q[chk.is_valid(q)]
+            for a, b in zip(good[:-1:2][:12], good[1::2][:12], strict=False):
+                b = a + 1.2 * (b - a) / max(np.abs(b - a).max(), 1.2)  # motions up to 1.2 rad
+                if not chk.check_states(b).valid[0]:
+                    continue
+                if chk.check_motion(a, b).valid:
+                    accepted += 1
+                    dense = densify(np.stack([a, b]), 1e-3)
+                    assert _reference_valid(design, dense, asm, mode, margins, OBSTACLES, 0).all()
+                else:
+                    rejected += 1
+    assert accepted > 10 and rejected >= 3
+
+
+def test_motion_into_an_obstacle_between_samples_is_rejected():
+    d = Design.default()
+    chk = ValidityChecker(d, Margins(), [Sphere([0.0, 0.0, -0.55], 0.03)], "+", "+-+",
+                          coarse_step=100.0)
+    a = np.array([1.2, 2.0, 1.0])
+    b = np.array([1.9, 2.0, 1.0])
+    assert chk.check_states(np.stack([a, b])).valid.all()
+    mid = np.array([np.pi / 2, 2.0, 1.0])  # the plane passes the sphere on its way
+    assert not chk.check_states(mid).valid[0]
+    rep = chk.check_motion(a, b)
+    assert not rep.valid and rep.reason == "clearance"
+    assert chk.check_path(np.stack([a, b])).bad_motion == 0
+
+
+@pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
+def test_lipschitz_rates_bound_finite_differences(design):
+    """The constants of the certificate bound the measured change of each margin."""
+    from planner.validity import _evaluate_many, _rates
+
+    rng = np.random.default_rng(2)
+    margins = Margins(kappa_max=6.0)
+    chk = ValidityChecker(design, margins, OBSTACLES, "+", "+-+")
+    worst = 0.0
+    for _ in range(60):
+        a = rng.uniform(-np.pi, np.pi, 3)
+        dq = rng.normal(size=3) * 0.5
+        t = np.linspace(0, 1, 2001)
+        q = a + t[:, None] * dq
+        out = np.empty((len(q), 7))
+        _evaluate_many(q, chk._prm, *chk._packed, True, out)
+        inside = out[:, 1] >= 0  # kappa band holds: the rates apply
+        rates = _rates(dq[0], dq[1], dq[2], chk._prm)
+        for j, rate in zip((1, 2, 3), rates, strict=True):
+            g = out[:, j]
+            both = inside[1:] & inside[:-1] & np.isfinite(g[1:]) & np.isfinite(g[:-1])
+            if both.any():
+                slope = np.abs(np.diff(g))[both] / (t[1] - t[0])
+                worst = max(worst, float((slope / rate).max()))
+                assert np.all(slope <= rate * (1 + 1e-6) + 1e-9)
+    assert worst > 0.05  # the bounds are not vacuous
+
+
+def test_check_path_diagnostics():
+    d = Design.default()
+    chk = ValidityChecker(d, Margins(), [Sphere([0.3, 0.3, 0.3], 0.1)], "+", "+-+")
+    w = np.array([[0.0, 2.0, 1.0], [0.3, 2.1, 1.1], [0.6, 2.2, 1.0]])
+    rep = chk.check_path(w)
+    assert rep.valid and rep.bad_motion == -1
+    dense = densify(w, 0.02)
+    _, kappa, serial, clear = reference_measures(d, dense, "+", "+-+", chk.obstacles)
+    assert rep.max_kappa_A == pytest.approx(kappa.max(), rel=1e-9)
+    assert rep.min_serial_margin == pytest.approx(serial.min(), abs=1e-12)
+    assert rep.min_clearance == pytest.approx(clear.min(), abs=1e-3)
+    assert rep.length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
+
+
+def test_serial_rules_off_keeps_the_other_rules():
+    """A motion onto a serial singularity (leg A stretched) is certified for kappa and
+    clearance with the serial rules off, and refused with them on."""
+    from planner.kinematics import forward_batch
+
+    d = Design.default()
+    far = np.array([-np.pi / 2, 2.0, 1.0])  # the arm's plane turned to contain +z
+    chk = ValidityChecker(d, Margins(), [Sphere(forward_batch(d, far, "+").p[0], 0.05)], "+", "+-+")
+    off = chk.with_mode("+-+", serial_rules=False)
+    a = np.array([0.0, 2.0, 1.0])
+    # bisect theta2 towards the first posture whose leg-A measure vanishes
+    t2 = np.linspace(2.0, -np.pi, 20001)
+    q = np.stack([np.zeros_like(t2), t2, np.ones_like(t2)], axis=1)
+    _, _, serial, _ = reference_measures(d, q, "+", "+-+", [])
+    k = int(np.argmax(~(serial > 0)))
+    assert k > 0
+    b = q[k - 1]
+    assert chk.check_states(b).reason[0] in ("serial_min", "working_mode")
+    assert off.check_states(b).valid[0]
+    assert not chk.check_motion(a, b).valid
+    assert off.check_motion(a, b).valid
+    assert off.check_states(far).reason[0] == "clearance"
