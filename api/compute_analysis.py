@@ -229,6 +229,7 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     def check(q: np.ndarray) -> np.ndarray:
         return checker.check_states(q).valid
 
+    check.explain = checker.explain  # type: ignore[attr-defined]
     return check
 
 
@@ -265,6 +266,23 @@ def timing(request: TimingRequest) -> TimingResponse:
     q = np.asarray(request.waypoints, dtype=float)
     _check_waypoints(design, q, request.assembly_mode)
     check = _validity_check(request, design, q[0])
+    if check is not None:
+        bad = np.nonzero(~check(q))[0]
+        if bad.size:
+            i = int(bad[0])
+            diagnostics = Diagnostics()
+            diagnostics.timing_error = {  # type: ignore[attr-defined]
+                "type": "InvalidWaypoint",
+                "rule": "validity",
+                "time": None,
+                "q": q[i].tolist(),
+                "index": i,
+            }
+            return TimingResponse(
+                status="invalid_path",
+                message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
+                diagnostics=diagnostics,
+            )
     wire = request.limits
     default = JointLimits.default()
     try:
