@@ -825,9 +825,9 @@ class DesignOptimizeRequest(_Request):
     )
     kappa_max: float = Field(10.0, ge=1.0, le=1e12, allow_inf_nan=False)
     n_samples: int = Field(
-        2048, ge=64, le=16_384, description="Quasi-random points per sampled evaluation."
+        2048, ge=64, le=8192, description="Quasi-random points per sampled evaluation."
     )
-    maxiter: int = Field(10, ge=1, le=50, description="Generations of differential evolution.")
+    maxiter: int = Field(10, ge=1, le=30, description="Generations of differential evolution.")
     seed: int = Field(0, ge=0, le=2**32 - 1)
 
     @field_validator("L0_bounds", "L1_bounds", "L2_bounds")
