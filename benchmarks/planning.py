@@ -74,7 +74,9 @@ def build_scene(kind: str, seed: int = 7) -> tuple[Design, list, list[str]]:
                 obs.append(Box(c, rng.uniform(0.05, 0.15, 3), _quaternion(rng)))
         return design, obs, modes
     if kind == "narrow":
-        design = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
+        design = Design(
+            0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi)
+        )
         # plate |z| <= 0.01, x in [0.05, 1.3], |y| <= 1.3 with a window x < 0.45, |y| < 0.3
         x0, x1, y1, hx, hy, t = 0.05, 1.3, 1.3, 0.45, 0.3, 0.02
         plate = [
@@ -90,7 +92,10 @@ def _components(design: Design, obstacles, asm: str, mode: str, shape) -> tuple[
     """Valid-state grid of one mode, labelled by 6-connected components (scipy.ndimage)."""
     from scipy import ndimage
 
-    axes = [np.linspace(lo, hi, n) for lo, hi, n in zip(design.joint_min, design.joint_max, shape, strict=True)]
+    axes = [
+        np.linspace(lo, hi, n)
+        for lo, hi, n in zip(design.joint_min, design.joint_max, shape, strict=True)
+    ]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     chk = ValidityChecker(design, Margins(), obstacles, asm, mode)
     valid = chk.is_valid(grid).reshape(shape)
@@ -139,8 +144,7 @@ def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict
     times, lengths, solved, direct = [], [], 0, 0
     for start, goal in queries:
         t0 = time.perf_counter()
-        res = plan(design, start, goal, obstacles=obstacles, margins=Margins(),
-                   options=options)
+        res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
         times.append(time.perf_counter() - t0)
         if res.solved:
             solved += 1
@@ -154,11 +158,13 @@ def run_naive(kind: str, queries, budget: float, resolution: float, defaults: bo
     opts = PlanOptions(time_budget_s=budget, range=None)
     times, lengths, solved = [], [], 0
     for start, goal in queries:
-        chk = ValidityChecker(design, Margins(), obstacles, start.assembly_mode,
-                              _mode_of(design, start))
+        chk = ValidityChecker(
+            design, Margins(), obstacles, start.assembly_mode, _mode_of(design, start)
+        )
         t0 = time.perf_counter()
-        out = ompl_backend.search(chk, start.q, goal.q, opts, budget, naive_resolution=resolution,
-                                  naive_defaults=defaults)
+        out = ompl_backend.search(
+            chk, start.q, goal.q, opts, budget, naive_resolution=resolution, naive_defaults=defaults
+        )
         times.append(time.perf_counter() - t0)
         if out.waypoints is not None:
             solved += 1
@@ -177,8 +183,10 @@ def _mode_of(design: Design, posture: JointPosture) -> str:
 def _row(label: str, r: dict) -> str:
     t = np.asarray(r["times"]) * 1e3
     length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
-    return (f"{label:<18} {r['n']:>5} {100 * r['solved'] / r['n']:>8.1f} {r['direct']:>7} "
-            f"{np.percentile(t, 50):>9.2f} {np.percentile(t, 95):>9.2f} {t.max():>9.1f} {length:>8.3f}")
+    return (
+        f"{label:<18} {r['n']:>5} {100 * r['solved'] / r['n']:>8.1f} {r['direct']:>7} "
+        f"{np.percentile(t, 50):>9.2f} {np.percentile(t, 95):>9.2f} {t.max():>9.1f} {length:>8.3f}"
+    )
 
 
 def main() -> None:
@@ -198,8 +206,10 @@ def main() -> None:
     q0 = build_queries("free", 1)[0]
     plan(d0, q0[0], q0[1], obstacles=o0, options=PlanOptions(try_direct=False))
 
-    print(f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "
-          f"budget={args.budget}s naive_resolution={args.naive_resolution} rad")
+    print(
+        f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "
+        f"budget={args.budget}s naive_resolution={args.naive_resolution} rad"
+    )
     header = f"{'scene / set-up':<18} {'n':>5} {'success%':>8} {'direct':>7} {'p50 ms':>9} {'p95 ms':>9} {'max ms':>9} {'len rad':>8}"
     print(header)
     print("-" * len(header))
@@ -215,7 +225,9 @@ def main() -> None:
                 print(_row(f"{kind} {label}", naive))
                 ratio50 = np.median(naive["times"]) / np.median(prod_sub["times"])
                 ratio_mean = np.mean(naive["times"]) / np.mean(prod_sub["times"])
-                print(f"{'  ratio':<18} {label}/product time: median {ratio50:.0f}x, mean {ratio_mean:.0f}x")
+                print(
+                    f"{'  ratio':<18} {label}/product time: median {ratio50:.0f}x, mean {ratio_mean:.0f}x"
+                )
 
 
 if __name__ == "__main__":

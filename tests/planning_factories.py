@@ -32,7 +32,9 @@ def point_distance(x: np.ndarray, ob) -> np.ndarray:
     return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
 
 
-def reference_measures(design: Design, q: np.ndarray, assembly_mode: str, mode: str, obstacles, k=400):
+def reference_measures(
+    design: Design, q: np.ndarray, assembly_mode: str, mode: str, obstacles, k=400
+):
     """(ok, kappa_A, signed serial min, clearance) of postures q (N, 3) from kinematics and
     link sampling every 1/k of each link (k = 0: exact segment distances of planner.geometry,
     itself tested against sampling)."""
@@ -63,29 +65,46 @@ def wire_obstacle(ob) -> dict:
         return {"type": "sphere", "center": ob.center.tolist(), "radius": ob.radius}
     if isinstance(ob, Capsule):
         return {"type": "capsule", "a": ob.a.tolist(), "b": ob.b.tolist(), "radius": ob.radius}
-    return {"type": "box", "center": ob.center.tolist(), "size": ob.size.tolist(),
-            "quaternion": ob.quaternion.tolist()}
+    return {
+        "type": "box",
+        "center": ob.center.tolist(),
+        "size": ob.size.tolist(),
+        "quaternion": ob.quaternion.tolist(),
+    }
 
 
 def wire_design(d: Design) -> dict:
-    return {"L0": d.L0, "L1": d.L1, "L2": d.L2, "link_radius": d.link_radius,
-            "joint_min": list(d.joint_min), "joint_max": list(d.joint_max)}
+    return {
+        "L0": d.L0,
+        "L1": d.L1,
+        "L2": d.L2,
+        "link_radius": d.link_radius,
+        "joint_min": list(d.joint_min),
+        "joint_max": list(d.joint_max),
+    }
 
 
-def run_check_plan(tmp_path: Path, design, start, goal_wire: dict, margins, obstacles, response: dict):
+def run_check_plan(
+    tmp_path: Path, design, start, goal_wire: dict, margins, obstacles, response: dict
+):
     """Run the independent checker on a plan; returns (exit code, output)."""
     req = {
         "design": wire_design(design),
         "start": {"q": start.q.tolist(), "assembly_mode": start.assembly_mode},
         "goal": goal_wire,
-        "margins": {"kappa_max": margins.kappa_max, "serial_min": margins.serial_min,
-                    "clearance": margins.clearance},
+        "margins": {
+            "kappa_max": margins.kappa_max,
+            "serial_min": margins.serial_min,
+            "clearance": margins.clearance,
+        },
         "obstacles": [wire_obstacle(o) for o in obstacles],
     }
     (tmp_path / "req.json").write_text(json.dumps(req))
     (tmp_path / "resp.json").write_text(json.dumps(response))
     proc = subprocess.run(
         [sys.executable, str(CHECK_PLAN), str(tmp_path / "req.json"), str(tmp_path / "resp.json")],
-        capture_output=True, text=True, timeout=120,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     return proc.returncode, proc.stdout + proc.stderr

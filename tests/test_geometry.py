@@ -34,7 +34,9 @@ def _point_distance(x: np.ndarray, ob) -> np.ndarray:
 
 def _sampled(a, b, ob, k=4001):
     s = np.linspace(0, 1, k)
-    return np.array([_point_distance(a[i] + s[:, None] * (b[i] - a[i]), ob).min() for i in range(len(a))])
+    return np.array(
+        [_point_distance(a[i] + s[:, None] * (b[i] - a[i]), ob).min() for i in range(len(a))]
+    )
 
 
 def _random_obstacles(rng):
@@ -75,10 +77,14 @@ def test_closed_forms():
     assert d[0] == pytest.approx(1.0)
     # through a box rotated 45 deg about z: deepest point is the centre, depth = half of 0.2
     quat = [np.cos(np.pi / 8), 0, 0, np.sin(np.pi / 8)]
-    d = segment_obstacle_distance([[-1, 0, 0.0]], [[1, 0, 0.0]], [Box([0, 0, 0], [1, 1, 0.2], quat)])
+    d = segment_obstacle_distance(
+        [[-1, 0, 0.0]], [[1, 0, 0.0]], [Box([0, 0, 0], [1, 1, 0.2], quat)]
+    )
     assert d[0] == pytest.approx(-0.1)
     # skew capsule axes 0.5 apart
-    d = segment_obstacle_distance([[-1, 0, 0.0]], [[1, 0, 0.0]], [Capsule([0, -1, 0.5], [0, 1, 0.5], 0.1)])
+    d = segment_obstacle_distance(
+        [[-1, 0, 0.0]], [[1, 0, 0.0]], [Capsule([0, -1, 0.5], [0, 1, 0.5], 0.1)]
+    )
     assert d[0] == pytest.approx(0.4)
 
 
@@ -88,7 +94,10 @@ def test_closed_forms():
         ({"type": "sphere", "center": [0, 0], "radius": 1}, "sphere.center"),
         ({"type": "sphere", "center": [0, 0, 0], "radius": -1}, "sphere.radius"),
         ({"type": "box", "center": [0, 0, 0], "size": [1, 0, 1]}, "box.size"),
-        ({"type": "box", "center": [0, 0, 0], "size": [1, 1, 1], "quaternion": [0, 0, 0, 0]}, "box.quaternion"),
+        (
+            {"type": "box", "center": [0, 0, 0], "size": [1, 1, 1], "quaternion": [0, 0, 0, 0]},
+            "box.quaternion",
+        ),
         ({"type": "capsule", "a": [0, 0, 0], "b": [0, 0, float("nan")], "radius": 1}, "capsule.b"),
         ({"type": "cone"}, "type"),
         ({"type": "sphere", "radius": 1}, "center"),
@@ -103,12 +112,14 @@ def test_boxes_touching_and_grazing():
     """Segments ending on a face, parallel to a face, and along an edge of a rotated box."""
     box = Box([0.1, -0.2, 0.3], [0.4, 0.2, 0.6], [0.8, 0.3, -0.2, 0.4])
     r, c, h = box.rotation, box.center, box.size / 2
-    local = np.array([
-        [[h[0] + 0.05, -1.0, 0.0], [h[0] + 0.05, 1.0, 0.0]],   # parallel to a face, 5 cm off
-        [[h[0], 0.0, 0.0], [h[0] + 0.5, 0.0, 0.0]],            # starts on a face
-        [[h[0] + 0.02, h[1] + 0.03, -1], [h[0] + 0.02, h[1] + 0.03, 1]],  # along an edge
-        [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],                   # through the centre
-    ])
+    local = np.array(
+        [
+            [[h[0] + 0.05, -1.0, 0.0], [h[0] + 0.05, 1.0, 0.0]],  # parallel to a face, 5 cm off
+            [[h[0], 0.0, 0.0], [h[0] + 0.5, 0.0, 0.0]],  # starts on a face
+            [[h[0] + 0.02, h[1] + 0.03, -1], [h[0] + 0.02, h[1] + 0.03, 1]],  # along an edge
+            [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],  # through the centre
+        ]
+    )
     a = local[:, 0] @ r.T + c
     b = local[:, 1] @ r.T + c
     d = segment_obstacle_distance(a, b, [box])

@@ -49,21 +49,29 @@ def test_blocker_blocks_the_direct_motion():
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_solved_paths_pass_the_independent_check(tmp_path, seed):
     margins = Margins()
-    res = plan(DESIGN, START, GOAL, obstacles=BLOCKER, margins=margins,
-               options=PlanOptions(seed=seed, time_budget_s=2.0))
+    res = plan(
+        DESIGN,
+        START,
+        GOAL,
+        obstacles=BLOCKER,
+        margins=margins,
+        options=PlanOptions(seed=seed, time_budget_s=2.0),
+    )
     assert res.status is PlanStatus.SOLVED, res.message
     w = res.path.waypoints
     assert len(w) > 2 and np.array_equal(w[0], START.q) and np.array_equal(w[-1], GOAL.q)
     seg = res.path.segments
     assert [(s.working_mode, s.assembly_mode, s.start_index, s.end_index) for s in seg] == [
-        ("+-+", "+", 0, len(w) - 1)]
+        ("+-+", "+", 0, len(w) - 1)
+    ]
     assert res.path.transits == ()
     d = res.diagnostics
     assert d.min_clearance >= margins.clearance and d.max_kappa_A <= margins.kappa_max
     assert d.min_serial_margin >= margins.serial_min
     assert d.path_length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
-    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), margins, BLOCKER,
-                               res.as_wire())
+    code, out = run_check_plan(
+        tmp_path, DESIGN, START, _goal_wire(GOAL), margins, BLOCKER, res.as_wire()
+    )
     assert code == 0, out
 
 
@@ -77,12 +85,14 @@ def test_seed_reproduces_the_path():
 
 @pytest.mark.parametrize("name", PLANNERS)
 def test_every_planner_solves_a_blocked_query(name, tmp_path):
-    res = plan(DESIGN, START, GOAL, obstacles=BLOCKER,
-               options=PlanOptions(name=name, time_budget_s=1.0))
+    res = plan(
+        DESIGN, START, GOAL, obstacles=BLOCKER, options=PlanOptions(name=name, time_budget_s=1.0)
+    )
     assert res.status is PlanStatus.SOLVED, (name, res.message)
     assert res.diagnostics.planner == name
-    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER,
-                               res.as_wire())
+    code, out = run_check_plan(
+        tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire()
+    )
     assert code == 0, out
 
 
@@ -147,8 +157,9 @@ def test_cartesian_goal_any_mode(tmp_path):
     assert res.solved, res.message
     end = forward_batch(DESIGN, res.path.waypoints[-1], "+").p[0]
     np.testing.assert_allclose(end, p, atol=1e-9)
-    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(target), Margins(), BLOCKER,
-                               res.as_wire())
+    code, out = run_check_plan(
+        tmp_path, DESIGN, START, _goal_wire(target), Margins(), BLOCKER, res.as_wire()
+    )
     assert code == 0, out
 
 
@@ -157,15 +168,32 @@ def test_wire_fields():
     wire = res.as_wire()
     assert wire["status"] == "solved"
     assert set(wire["path"]) == {"waypoints", "segments", "transits"}
-    assert set(wire["path"]["segments"][0]) == {"working_mode", "assembly_mode", "start_index", "end_index"}
-    assert {"planning_time_s", "min_clearance", "max_kappa_A", "min_serial_margin",
-            "path_length"} <= set(wire["diagnostics"])
-    assert {s.value for s in PlanStatus} == {"solved", "no_path", "unreachable", "invalid_start",
-                                            "invalid_goal", "timeout"}
+    assert set(wire["path"]["segments"][0]) == {
+        "working_mode",
+        "assembly_mode",
+        "start_index",
+        "end_index",
+    }
+    assert {
+        "planning_time_s",
+        "min_clearance",
+        "max_kappa_A",
+        "min_serial_margin",
+        "path_length",
+    } <= set(wire["diagnostics"])
+    assert {s.value for s in PlanStatus} == {
+        "solved",
+        "no_path",
+        "unreachable",
+        "invalid_start",
+        "invalid_goal",
+        "timeout",
+    }
 
 
-@pytest.mark.parametrize("kwargs", [dict(name="kpiece"), dict(time_budget_s=0), dict(seed=0),
-                                    dict(range=-1.0)])
+@pytest.mark.parametrize(
+    "kwargs", [dict(name="kpiece"), dict(time_budget_s=0), dict(seed=0), dict(range=-1.0)]
+)
 def test_bad_options(kwargs):
     with pytest.raises(InputError, match=r"planner\."):
         PlanOptions(**kwargs)
@@ -196,6 +224,7 @@ def test_plan_in_region_with_goal_candidates(tmp_path):
     chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
     res = plan_in_region(chk, START.q, np.stack([GOAL.q]), options=PlanOptions(seed=3))
     assert res.solved and res.diagnostics.attempts == 1
-    code, out = run_check_plan(tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER,
-                               res.as_wire())
+    code, out = run_check_plan(
+        tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire()
+    )
     assert code == 0, out

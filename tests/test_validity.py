@@ -25,8 +25,13 @@ def _reference_valid(design, q, asm, mode, margins, obstacles, k=400):
     ok, kappa, serial, clear = reference_measures(design, q, asm, mode, obstacles, k)
     lim = np.all((q >= design.joint_min) & (q <= design.joint_max), axis=1)
     with np.errstate(invalid="ignore"):
-        return (lim & ok & (kappa <= margins.kappa_max) & (serial >= margins.serial_min)
-                & (clear >= margins.clearance))
+        return (
+            lim
+            & ok
+            & (kappa <= margins.kappa_max)
+            & (serial >= margins.serial_min)
+            & (clear >= margins.clearance)
+        )
 
 
 @pytest.mark.parametrize("design", DESIGNS, ids=["sing-free", "paper", "other"])
@@ -77,9 +82,17 @@ def test_kappa_band_is_the_kappa_margin():
     np.testing.assert_array_equal(rep.reason[ok] == "kappa_max", kappa[ok] > 4.0)
 
 
-@pytest.mark.parametrize("kwargs", [dict(kappa_max=1.0), dict(serial_min=0.0), dict(serial_min=1.0),
-                                    dict(clearance=-0.1), dict(kappa_max=float("nan")),
-                                    dict(clearance="x")])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(kappa_max=1.0),
+        dict(serial_min=0.0),
+        dict(serial_min=1.0),
+        dict(clearance=-0.1),
+        dict(kappa_max=float("nan")),
+        dict(clearance="x"),
+    ],
+)
 def test_bad_margins_name_the_field(kwargs):
     field = next(iter(kwargs))
     with pytest.raises(InputError, match=f"margins.{field}"):
@@ -126,8 +139,9 @@ def test_certified_motions_are_valid_when_sampled_densely(design):
 
 def test_motion_into_an_obstacle_between_samples_is_rejected():
     d = Design.default()
-    chk = ValidityChecker(d, Margins(), [Sphere([0.0, 0.0, -0.55], 0.03)], "+", "+-+",
-                          coarse_step=100.0)
+    chk = ValidityChecker(
+        d, Margins(), [Sphere([0.0, 0.0, -0.55], 0.03)], "+", "+-+", coarse_step=100.0
+    )
     a = np.array([1.2, 2.0, 1.0])
     b = np.array([1.9, 2.0, 1.0])
     assert chk.check_states(np.stack([a, b])).valid.all()

@@ -196,7 +196,9 @@ def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
         elif isinstance(ob, Box):
             boxes.append([*ob.center, *ob.rotation.ravel(), *(ob.size / 2)])
         else:
-            raise InputError(f"obstacles[{i}] must be a Sphere, Box or Capsule, got {type(ob).__name__}")
+            raise InputError(
+                f"obstacles[{i}] must be a Sphere, Box or Capsule, got {type(ob).__name__}"
+            )
     return PackedObstacles(
         np.array(spheres, dtype=float).reshape(-1, 4),
         np.array(capsules, dtype=float).reshape(-1, 7),
@@ -236,7 +238,10 @@ def box_sdf(px, py, pz, box):  # pragma: no cover - compiled
 def _seg_to_row(kind, t, ax, ay, az, bx, by, bz, row):  # pragma: no cover - compiled
     px, py, pz = ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)
     if kind == 1:
-        return point_segment_distance(px, py, pz, row[0], row[1], row[2], row[3], row[4], row[5]) - row[6]
+        return (
+            point_segment_distance(px, py, pz, row[0], row[1], row[2], row[3], row[4], row[5])
+            - row[6]
+        )
     return box_sdf(px, py, pz, row)
 
 
@@ -328,7 +333,9 @@ def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - com
 
 
 @njit(cache=True)
-def segment_min_distance(ax, ay, az, bx, by, bz, spheres, capsules, boxes, upper):  # pragma: no cover
+def segment_min_distance(
+    ax, ay, az, bx, by, bz, spheres, capsules, boxes, upper
+):  # pragma: no cover
     """Smallest signed distance from segment a-b to every obstacle, or a value >= ``upper``
     when every obstacle is at least ``upper`` away (pairs whose cheap lower bound, the
     distance from the segment midpoint minus half its length, already reaches the best value
@@ -366,7 +373,9 @@ def _segments_distance(a, b, spheres, capsules, boxes, out):  # pragma: no cover
         )
 
 
-def segment_obstacle_distance(a: np.ndarray, b: np.ndarray, obstacles: Sequence[Obstacle]) -> np.ndarray:
+def segment_obstacle_distance(
+    a: np.ndarray, b: np.ndarray, obstacles: Sequence[Obstacle]
+) -> np.ndarray:
     """Signed distance from N segments to the nearest of the obstacles.
 
     Parameters

@@ -158,7 +158,9 @@ def _evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: 
 
 
 @njit(cache=True)
-def _evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upper, out):  # pragma: no cover
+def _evaluate_bounded(
+    q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upper, out
+):  # pragma: no cover
     """:func:`_evaluate`; in ``full`` mode the clearance is exact only where it is below
     ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima."""
     L0, L1, L2 = prm[_P_L0], prm[_P_L1], prm[_P_L2]
@@ -166,8 +168,14 @@ def _evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upp
         out[k] = -np.inf
     out[_M_REASON] = 0.0
     reason = 0
-    if not (q0 >= prm[_P_LO] and q1 >= prm[_P_LO + 1] and q2 >= prm[_P_LO + 2]
-            and q0 <= prm[_P_HI] and q1 <= prm[_P_HI + 1] and q2 <= prm[_P_HI + 2]):
+    if not (
+        q0 >= prm[_P_LO]
+        and q1 >= prm[_P_LO + 1]
+        and q2 >= prm[_P_LO + 2]
+        and q0 <= prm[_P_HI]
+        and q1 <= prm[_P_HI + 1]
+        and q2 <= prm[_P_HI + 2]
+    ):
         reason = _R_LIMITS
         if not full:
             out[_M_REASON] = reason
@@ -294,7 +302,9 @@ def _sin_apex_min(prm, lb_cd):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, skip_ends):  # pragma: no cover
+def _check_motion(
+    qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, skip_ends
+):  # pragma: no cover
     """Certify the straight motion qa -> qb. Returns (reason, t): reason 0 when every posture
     of the motion is valid, else the rule found broken (or not certifiable) near parameter t.
     Algorithm and proof: :meth:`ValidityChecker.check_motion`."""
@@ -322,8 +332,17 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
             done[k] = True
             t = k / n
             ts[k] = t
-            _evaluate(qa[0] + t * dq0, qa[1] + t * dq1, qa[2] + t * dq2, prm, spheres, capsules,
-                      boxes, False, ms[k])
+            _evaluate(
+                qa[0] + t * dq0,
+                qa[1] + t * dq1,
+                qa[2] + t * dq2,
+                prm,
+                spheres,
+                capsules,
+                boxes,
+                False,
+                ms[k],
+            )
             if ms[k, _M_REASON] != 0.0:
                 return int(ms[k, _M_REASON]), t
         stride //= 2
@@ -364,8 +383,17 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
             if lb_se < 0.0:
                 return _R_SERIAL, tm
             return _R_CLEAR, tm
-        _evaluate(qa[0] + tm * dq0, qa[1] + tm * dq1, qa[2] + tm * dq2, prm, spheres, capsules,
-                  boxes, False, mid)
+        _evaluate(
+            qa[0] + tm * dq0,
+            qa[1] + tm * dq1,
+            qa[2] + tm * dq2,
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            False,
+            mid,
+        )
         if mid[_M_REASON] != 0.0:
             return int(mid[_M_REASON]), tm
         ma = st_m[top, 0].copy()
@@ -382,11 +410,14 @@ def _check_motion(qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, 
 
 
 @njit(cache=True)
-def _check_path(q, prm, spheres, capsules, boxes, coarse_step, min_step, reasons, ts):  # pragma: no cover
+def _check_path(
+    q, prm, spheres, capsules, boxes, coarse_step, min_step, reasons, ts
+):  # pragma: no cover
     """Certify every motion of a waypoint path (N, 3); stops at the first broken motion."""
     for i in range(q.shape[0] - 1):
-        r, t = _check_motion(q[i], q[i + 1], prm, spheres, capsules, boxes, coarse_step,
-                             min_step, False)
+        r, t = _check_motion(
+            q[i], q[i + 1], prm, spheres, capsules, boxes, coarse_step, min_step, False
+        )
         reasons[i] = r
         ts[i] = t
         if r != 0:
@@ -546,10 +577,10 @@ class ValidityChecker:
         lo, hi = m.cd_range
         prm = np.empty(_N_PARAMS)
         prm[_P_L0], prm[_P_L1], prm[_P_L2], prm[_P_RAD] = d.L0, d.L1, d.L2, d.link_radius
-        prm[_P_LO:_P_LO + 3] = d.joint_min
-        prm[_P_HI:_P_HI + 3] = d.joint_max
+        prm[_P_LO : _P_LO + 3] = d.joint_min
+        prm[_P_HI : _P_HI + 3] = d.joint_max
         prm[_P_BRANCH] = 1.0 if self.assembly_mode == "+" else -1.0
-        prm[_P_SIGNS:_P_SIGNS + 3] = [1.0 if c == "+" else -1.0 for c in self.working_mode]
+        prm[_P_SIGNS : _P_SIGNS + 3] = [1.0 if c == "+" else -1.0 for c in self.working_mode]
         prm[_P_KAPPA], prm[_P_SERIAL], prm[_P_CLEAR] = m.kappa_max, m.serial_min, m.clearance
         prm[_P_DLO], prm[_P_DHI] = lo, hi
         prm[_P_SERIAL_ON] = 1.0 if self.serial_rules else 0.0
@@ -561,8 +592,13 @@ class ValidityChecker:
     def with_mode(self, working_mode: str, *, serial_rules: bool | None = None) -> ValidityChecker:
         """The same checker for another working mode (and optionally serial rules on/off)."""
         return ValidityChecker(
-            self.design, self.margins, self.obstacles, self.assembly_mode, working_mode,
-            self.coarse_step, self.serial_rules if serial_rules is None else serial_rules,
+            self.design,
+            self.margins,
+            self.obstacles,
+            self.assembly_mode,
+            working_mode,
+            self.coarse_step,
+            self.serial_rules if serial_rules is None else serial_rules,
         )
 
     # ------------------------------------------------------------------ states
@@ -609,23 +645,32 @@ class ValidityChecker:
         if reason == "joint_limits":
             lo, hi = np.asarray(d.joint_min), np.asarray(d.joint_max)
             i = int(np.argmax(np.maximum(lo - q, q - hi)))
-            return (f"joint_limits: q[{i}] = {q[i]:.6g} rad lies outside "
-                    f"[{lo[i]:.6g}, {hi[i]:.6g}]")
+            return f"joint_limits: q[{i}] = {q[i]:.6g} rad lies outside [{lo[i]:.6g}, {hi[i]:.6g}]"
         if reason == "assembly":
             return "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
         if reason == "kappa_max":
-            return f"kappa_max: kappa_A = {r.kappa_A[0]:.6g} > margins.kappa_max = {m.kappa_max:.6g}"
+            return (
+                f"kappa_max: kappa_A = {r.kappa_A[0]:.6g} > margins.kappa_max = {m.kappa_max:.6g}"
+            )
         if reason == "working_mode":
-            return (f"working_mode: the posture is not in working mode {self.working_mode} "
-                    f"(signed serial measure {r.serial_margin[0]:.6g})")
+            return (
+                f"working_mode: the posture is not in working mode {self.working_mode} "
+                f"(signed serial measure {r.serial_margin[0]:.6g})"
+            )
         if reason == "serial_min":
-            return (f"serial_min: serial measure {r.serial_margin[0]:.6g} < "
-                    f"margins.serial_min = {m.serial_min:.6g}")
-        return (f"clearance: link clearance {r.clearance[0]:.6g} m < "
-                f"margins.clearance = {m.clearance:.6g} m")
+            return (
+                f"serial_min: serial measure {r.serial_margin[0]:.6g} < "
+                f"margins.serial_min = {m.serial_min:.6g}"
+            )
+        return (
+            f"clearance: link clearance {r.clearance[0]:.6g} m < "
+            f"margins.clearance = {m.clearance:.6g} m"
+        )
 
     # ------------------------------------------------------------------ motions
-    def check_motion(self, q_a: np.ndarray, q_b: np.ndarray, *, ends_known_valid: bool = False) -> MotionReport:
+    def check_motion(
+        self, q_a: np.ndarray, q_b: np.ndarray, *, ends_known_valid: bool = False
+    ) -> MotionReport:
         """Certify the straight joint-space motion ``q_a -> q_b`` (every posture on it valid).
 
         Algorithm: sample the motion every ``coarse_step`` (max-norm, rad) and reject it at
@@ -670,8 +715,9 @@ class ValidityChecker:
         """
         qa = np.ascontiguousarray(_states(q_a)[0])
         qb = np.ascontiguousarray(_states(q_b)[0])
-        r, t = _check_motion(qa, qb, self._prm, *self._packed, self.coarse_step,
-                             MIN_CERTIFIED_STEP, ends_known_valid)
+        r, t = _check_motion(
+            qa, qb, self._prm, *self._packed, self.coarse_step, MIN_CERTIFIED_STEP, ends_known_valid
+        )
         return MotionReport(r == 0, REASONS[r], float(t))
 
     def motion_valid(self, q_a: np.ndarray, q_b: np.ndarray) -> bool:
@@ -679,8 +725,12 @@ class ValidityChecker:
         (copied: numba compiles read-only arrays separately)."""
         q_a = np.array(q_a, dtype=float)
         q_b = np.array(q_b, dtype=float)
-        return 0 == _check_motion(q_a, q_b, self._prm, *self._packed, self.coarse_step,
-                                  MIN_CERTIFIED_STEP, False)[0]
+        return (
+            0
+            == _check_motion(
+                q_a, q_b, self._prm, *self._packed, self.coarse_step, MIN_CERTIFIED_STEP, False
+            )[0]
+        )
 
     def check_path(
         self, waypoints: np.ndarray, *, sample_step: float = DIAGNOSTIC_STEP, certify: bool = True
@@ -700,8 +750,11 @@ class ValidityChecker:
         elif certify:
             reasons = np.zeros(len(q) - 1, dtype=np.int64)
             ts = np.zeros(len(q) - 1)
-            bad = int(_check_path(q, self._prm, *self._packed, self.coarse_step,
-                                  MIN_CERTIFIED_STEP, reasons, ts))
+            bad = int(
+                _check_path(
+                    q, self._prm, *self._packed, self.coarse_step, MIN_CERTIFIED_STEP, reasons, ts
+                )
+            )
             if bad >= 0:
                 reason, t = int(reasons[bad]), float(ts[bad])
         ext = np.empty(3)

@@ -74,8 +74,12 @@ def _make_motion_validator(si, checker: ValidityChecker):
         def checkMotion(self, s1, s2):
             qa = np.array((s1[0], s1[1], s1[2]))
             qb = np.array((s2[0], s2[1], s2[2]))
-            return _check_motion(qa, qb, prm, spheres, capsules, boxes, step,
-                                 MIN_CERTIFIED_STEP, False)[0] == 0
+            return (
+                _check_motion(
+                    qa, qb, prm, spheres, capsules, boxes, step, MIN_CERTIFIED_STEP, False
+                )[0]
+                == 0
+            )
 
     return _Certified(si)
 

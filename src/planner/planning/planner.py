@@ -80,7 +80,10 @@ def goal_candidates(
         shifts.append([q[j] + 2 * math.pi * k for k in range(k_lo, k_hi + 1)])
     cands = np.array(list(product(*shifts)), dtype=float).reshape(-1, 3)
     if len(cands) == 0:
-        return cands, f"the inverse-kinematics solution in working mode {mode} breaks the joint limits"
+        return (
+            cands,
+            f"the inverse-kinematics solution in working mode {mode} breaks the joint limits",
+        )
     report = checker.check_states(cands)
     if not report.valid.any():
         return np.empty((0, 3)), "the goal posture breaks a rule: " + checker.explain(cands[0])
@@ -129,17 +132,26 @@ def plan(
 
     goal_mode = None
     if isinstance(goal, JointPosture):  # one kinematics call for both modes
-        fb = forward_batch(design, np.stack([start.q, goal.q]),
-                           np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)]))
-        labels = [mode_label(sg) if ok else None for sg, ok in zip(fb.working_mode_signs, fb.ok, strict=True)]
+        fb = forward_batch(
+            design,
+            np.stack([start.q, goal.q]),
+            np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)]),
+        )
+        labels = [
+            mode_label(sg) if ok else None
+            for sg, ok in zip(fb.working_mode_signs, fb.ok, strict=True)
+        ]
         mode, goal_mode = (lab if lab in WORKING_MODES else None for lab in labels)
     else:
         mode = posture_mode(design, start)
     if mode is None:
         fb = forward_batch(design, start.q, start.assembly_mode)
-        why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
-               else "working_mode: the start lies exactly on a serial singularity "
-                    f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})")
+        why = (
+            "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
+            if not fb.ok[0]
+            else "working_mode: the start lies exactly on a serial singularity "
+            f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
+        )
         return finish(PlanStatus.INVALID_START, "start " + why)
     checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, mode)
     if not checker.is_valid_one(*start.q):
@@ -149,19 +161,26 @@ def plan(
         goal_checker = checker if goal_mode in (None, mode) else checker.with_mode(goal_mode)
         if goal_mode is None:
             fb = forward_batch(design, goal.q, goal.assembly_mode)
-            why = ("assembly: the loop does not close (|CD| > 2 L2 or C = D)" if not fb.ok[0]
-                   else "working_mode: the goal lies exactly on a serial singularity")
+            why = (
+                "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
+                if not fb.ok[0]
+                else "working_mode: the goal lies exactly on a serial singularity"
+            )
             return finish(PlanStatus.INVALID_GOAL, "goal " + why)
         if goal.assembly_mode == start.assembly_mode and not goal_checker.is_valid_one(*goal.q):
             return finish(PlanStatus.INVALID_GOAL, "goal " + goal_checker.explain(goal.q))
         if goal.assembly_mode != start.assembly_mode:
-            return finish(PlanStatus.UNREACHABLE,
-                          f"the goal is in assembly mode {goal.assembly_mode}, the start in "
-                          f"{start.assembly_mode}: changing assembly mode crosses a parallel singularity")
+            return finish(
+                PlanStatus.UNREACHABLE,
+                f"the goal is in assembly mode {goal.assembly_mode}, the start in "
+                f"{start.assembly_mode}: changing assembly mode crosses a parallel singularity",
+            )
         if goal_mode != mode:
-            return finish(PlanStatus.UNREACHABLE,
-                          f"the goal is in working mode {goal_mode}, the start in {mode}: "
-                          "a single-mode plan cannot change working mode")
+            return finish(
+                PlanStatus.UNREACHABLE,
+                f"the goal is in working mode {goal_mode}, the start in {mode}: "
+                "a single-mode plan cannot change working mode",
+            )
         candidates = goal.q[None].copy()
     else:
         candidates, why = goal_candidates(design, goal, checker, start.q)
@@ -220,20 +239,34 @@ def plan_in_region(
         # final re-certification (the straight motion was certified just above)
         report = checker.check_path(waypoints, certify=name != "direct")
         if not report.valid:  # pragma: no cover - would be a validator bug
-            logger.error("a found path failed re-certification at motion %d (%s)",
-                         report.bad_motion, report.reason)
+            logger.error(
+                "a found path failed re-certification at motion %d (%s)",
+                report.bad_motion,
+                report.reason,
+            )
             continue
         path = PlanPath(waypoints, (Segment(mode, asm, 0, len(waypoints) - 1),), ())
         return PlanResult(
-            PlanStatus.SOLVED, f"solved in working mode {mode} ({name})", path,
+            PlanStatus.SOLVED,
+            f"solved in working mode {mode} ({name})",
+            path,
             Diagnostics(
-                planning_time_s=time.perf_counter() - t0, path_length=report.length,
-                min_clearance=report.min_clearance, max_kappa_A=report.max_kappa_A,
-                min_serial_margin=report.min_serial_margin, planner=name, attempts=attempts,
+                planning_time_s=time.perf_counter() - t0,
+                path_length=report.length,
+                min_clearance=report.min_clearance,
+                max_kappa_A=report.max_kappa_A,
+                min_serial_margin=report.min_serial_margin,
+                planner=name,
+                attempts=attempts,
             ),
         )
-    message = (f"no path found within {options.time_budget_s:g} s in working mode {mode}"
-               + (f" (OMPL: {last_status})" if last_status else ""))
+    message = f"no path found within {options.time_budget_s:g} s in working mode {mode}" + (
+        f" (OMPL: {last_status})" if last_status else ""
+    )
     logger.info("plan no_path: %s", message)
-    return PlanResult(PlanStatus.NO_PATH, message, None,
-                      Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts))
+    return PlanResult(
+        PlanStatus.NO_PATH,
+        message,
+        None,
+        Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts),
+    )

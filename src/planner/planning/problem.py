@@ -15,7 +15,15 @@ __all__ = ["PLANNERS", "CartesianTarget", "JointPosture", "PlanOptions"]
 
 #: Planner names accepted by :class:`PlanOptions` (each works with a motion validator that
 #: answers the two-state ``checkMotion`` only, the one the ompl wheel honours from Python).
-PLANNERS: tuple[str, ...] = ("rrtconnect", "rrt", "rrtstar", "prmstar", "bitstar", "aorrtc", "lbkpiece")
+PLANNERS: tuple[str, ...] = (
+    "rrtconnect",
+    "rrt",
+    "rrtstar",
+    "prmstar",
+    "bitstar",
+    "aorrtc",
+    "lbkpiece",
+)
 
 
 def _triple(name: str, value: object) -> np.ndarray:
@@ -82,9 +90,14 @@ class PlanOptions:
 
     def __post_init__(self) -> None:
         if self.name not in PLANNERS:
-            raise InputError(f"planner.name must be one of {', '.join(PLANNERS)}, got {self.name!r}")
-        if not (isinstance(self.time_budget_s, int | float) and math.isfinite(self.time_budget_s)
-                and self.time_budget_s > 0):
+            raise InputError(
+                f"planner.name must be one of {', '.join(PLANNERS)}, got {self.name!r}"
+            )
+        if not (
+            isinstance(self.time_budget_s, int | float)
+            and math.isfinite(self.time_budget_s)
+            and self.time_budget_s > 0
+        ):
             raise InputError(f"planner.time_budget_s must be > 0, got {self.time_budget_s!r}")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed <= 0:
             raise InputError(f"planner.seed must be a positive integer, got {self.seed!r}")

@@ -117,8 +117,12 @@ class PlanResult:
             out["path"] = {
                 "waypoints": np.asarray(self.path.waypoints, dtype=float).tolist(),
                 "segments": [
-                    {"working_mode": s.working_mode, "assembly_mode": s.assembly_mode,
-                     "start_index": s.start_index, "end_index": s.end_index}
+                    {
+                        "working_mode": s.working_mode,
+                        "assembly_mode": s.assembly_mode,
+                        "start_index": s.start_index,
+                        "end_index": s.end_index,
+                    }
                     for s in self.path.segments
                 ],
                 "transits": [
