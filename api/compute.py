@@ -47,6 +47,7 @@ __all__ = [
     "located",
     "plan",
     "posture_model",
+    "sampled_value",
     "timing_error",
     "trajectory_model",
 ]
@@ -175,9 +176,6 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
         design, kappa_max=request.kappa_max, rel_se=request.rel_se, seed=request.seed
     )
 
-    def sampled(e: Any) -> SampledValue:
-        return SampledValue(value=e.value, standard_error=e.standard_error, n_samples=e.n_samples)
-
     return DesignCheckResponse(
         design=DesignModel.from_design(check.design),
         volume=check.volume,
@@ -185,10 +183,10 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
         singularity_free=check.singularity_free,
         reasons=check.reasons,
         operative_working_modes=list(check.operative_working_modes),
-        sampled_volume=sampled(check.sampled_volume),
+        sampled_volume=sampled_value(check.sampled_volume),
         kappa_max=check.kappa_max,
-        well_conditioned_fraction=sampled(check.well_conditioned_fraction),
-        gci=sampled(check.gci),
+        well_conditioned_fraction=sampled_value(check.well_conditioned_fraction),
+        gci=sampled_value(check.gci),
     )
 
 
@@ -308,6 +306,16 @@ def _add_trajectory(
     response.trajectory = trajectory_model(traj)
     response.diagnostics.timing_time_s = traj.computation_time_s
     response.diagnostics.timing_repairs = traj.repairs
+
+
+def sampled_value(estimate: Any) -> SampledValue:
+    """The wire form of an :class:`planner.analysis.workspace.Estimate` (None: zero, no
+    samples)."""
+    if estimate is None:
+        return SampledValue(value=0.0, standard_error=0.0, n_samples=0)
+    return SampledValue(
+        value=estimate.value, standard_error=estimate.standard_error, n_samples=estimate.n_samples
+    )
 
 
 def trajectory_model(traj: Any) -> TrajectoryModel:

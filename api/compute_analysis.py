@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import _DEADLINE, located, timing_error, trajectory_model
+from api.compute import _DEADLINE, located, sampled_value, timing_error, trajectory_model
 from api.exceptions import PlanningUnavailableError
 from planner.exceptions import AssemblyError, InputError, LimitsError
 from planner.kinematics import forward_batch, mode_label
@@ -20,7 +20,6 @@ from planner.schemas import (
     DesignOptimizeResponse,
     Diagnostics,
     FigureQuery,
-    SampledValue,
     SectionGrid,
     TimingRequest,
     TimingResponse,
@@ -29,13 +28,6 @@ from planner.schemas import (
 )
 
 __all__ = ["figure", "optimize_design", "timing", "workspace"]
-
-
-def _sampled(e: Any) -> SampledValue:
-    """The wire form of an :class:`planner.analysis.workspace.Estimate` (None: zero)."""
-    if e is None:
-        return SampledValue(value=0.0, standard_error=0.0, n_samples=0)
-    return SampledValue(value=e.value, standard_error=e.standard_error, n_samples=e.n_samples)
 
 
 def _bits(mask: np.ndarray) -> list[list[int]]:
@@ -105,12 +97,12 @@ def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
     return WorkspaceResponse(
         design=DesignModel.from_design(design),
         volume=closed_form_volume(design),
-        sampled_volume=_sampled(sample.volume),
-        per_mode={label: _sampled(e) for label, e in sample.per_mode.items()},
+        sampled_volume=sampled_value(sample.volume),
+        per_mode={label: sampled_value(e) for label, e in sample.per_mode.items()},
         kappa_max=request.kappa_max,
-        well_conditioned_volume=_sampled(sample.well_conditioned),
-        well_conditioned_fraction=_sampled(sample.well_conditioned_fraction),
-        gci=_sampled(sample.gci),
+        well_conditioned_volume=sampled_value(sample.well_conditioned),
+        well_conditioned_fraction=sampled_value(sample.well_conditioned_fraction),
+        gci=sampled_value(sample.gci),
         cartesian_section=cart,
         joint_section=joint,
     )
