@@ -227,3 +227,22 @@ def test_bad_figure_query_is_422_naming_the_parameter(api, query, loc):
     r = api.get("/v1/figures/cartesian_section.png", params=query)
     assert r.status_code == 422, r.text
     assert loc in [item["loc"] for item in r.json()["detail"]]
+
+
+def test_every_v1_route_but_health_needs_the_api_key(client_factory):
+    with client_factory(api_key="s3cret") as c:
+        routes = [
+            (method.upper(), path)
+            for path, operations in c.app.openapi()["paths"].items()
+            if path.startswith("/v1/") and path != "/v1/health"
+            for method in operations
+        ]
+        paths = {p for _, p in routes}
+        assert {"/v1/workspace", "/v1/timing", "/v1/design/optimize"} <= paths
+        assert "/v1/figures/{filename}" in paths
+        for method, path in routes:
+            url = path.replace("{filename}", "cartesian_section.png")
+            r = c.request(method, url, json={} if method == "POST" else None)
+            assert r.status_code == 401, (method, path)
+        r = c.get("/v1/figures/working_modes.svg", headers={"X-API-Key": "s3cret"})
+        assert r.status_code == 200
