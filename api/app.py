@@ -14,6 +14,8 @@ from api.metrics import Metrics
 from api.metrics import router as metrics_router
 from api.middleware import RequestLimitsMiddleware, RequestObserver
 from api.routes import design, designs, kinematics, meta, plan
+from api.routes import timing as timing_routes
+from api.routes import workspace as workspace_routes
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
@@ -69,5 +71,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     if settings.metrics:
         app.include_router(metrics_router)
     for router in (design.router, designs.router, kinematics.router, plan.router):
+        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+    for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     return app

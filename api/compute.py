@@ -38,7 +38,19 @@ from planner.schemas import (
     TrajectoryModel,
 )
 
-__all__ = ["analyze", "as_json", "design_check", "fk", "ik", "located", "plan", "posture_model"]
+__all__ = [
+    "analyze",
+    "as_json",
+    "design_check",
+    "fk",
+    "ik",
+    "located",
+    "plan",
+    "posture_model",
+    "sampled_value",
+    "timing_error",
+    "trajectory_model",
+]
 
 
 #: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
@@ -164,9 +176,6 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
         design, kappa_max=request.kappa_max, rel_se=request.rel_se, seed=request.seed
     )
 
-    def sampled(e: Any) -> SampledValue:
-        return SampledValue(value=e.value, standard_error=e.standard_error, n_samples=e.n_samples)
-
     return DesignCheckResponse(
         design=DesignModel.from_design(check.design),
         volume=check.volume,
@@ -174,10 +183,10 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
         singularity_free=check.singularity_free,
         reasons=check.reasons,
         operative_working_modes=list(check.operative_working_modes),
-        sampled_volume=sampled(check.sampled_volume),
+        sampled_volume=sampled_value(check.sampled_volume),
         kappa_max=check.kappa_max,
-        well_conditioned_fraction=sampled(check.well_conditioned_fraction),
-        gci=sampled(check.gci),
+        well_conditioned_fraction=sampled_value(check.well_conditioned_fraction),
+        gci=sampled_value(check.gci),
     )
 
 
@@ -292,14 +301,26 @@ def _add_trajectory(
     except TimingError as exc:  # no profile, or the dense re-check failed after the repairs
         response.status = "no_path"
         response.message = f"the path was found but could not be timed: {exc}"
-        response.diagnostics.timing_error = {
-            "type": type(exc).__name__,
-            "rule": getattr(exc, "rule", None),
-            "time": getattr(exc, "time", None),
-            "q": list(exc.q) if getattr(exc, "q", None) is not None else None,
-        }
+        response.diagnostics.timing_error = timing_error(exc)
         return
-    response.trajectory = TrajectoryModel(
+    response.trajectory = trajectory_model(traj)
+    response.diagnostics.timing_time_s = traj.computation_time_s
+    response.diagnostics.timing_repairs = traj.repairs
+
+
+def sampled_value(estimate: Any) -> SampledValue:
+    """The wire form of an :class:`planner.analysis.workspace.Estimate` (None: zero, no
+    samples)."""
+    if estimate is None:
+        return SampledValue(value=0.0, standard_error=0.0, n_samples=0)
+    return SampledValue(
+        value=estimate.value, standard_error=estimate.standard_error, n_samples=estimate.n_samples
+    )
+
+
+def trajectory_model(traj: Any) -> TrajectoryModel:
+    """The wire form of a :class:`planner.timing.Trajectory`."""
+    return TrajectoryModel(
         method=traj.method,
         duration=traj.duration,
         t=traj.t.tolist(),
@@ -312,5 +333,15 @@ def _add_trajectory(
         max_deviation_q=traj.max_deviation_q,
         max_deviation_p=traj.max_deviation_p,
     )
-    response.diagnostics.timing_time_s = traj.computation_time_s
-    response.diagnostics.timing_repairs = traj.repairs
+
+
+def timing_error(exc: Exception) -> dict[str, Any]:
+    """``diagnostics.timing_error`` of a failed timing: the error's type, and the rule, time
+    and posture of a failed dense re-check."""
+    q = getattr(exc, "q", None)
+    return {
+        "type": type(exc).__name__,
+        "rule": getattr(exc, "rule", None),
+        "time": getattr(exc, "time", None),
+        "q": list(q) if q is not None else None,
+    }

@@ -12,6 +12,7 @@ PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; 
 PLANNER_MAX_BATCH         64                              plan requests in one batch
 PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
 PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
+PLANNER_MAX_SECTION_RESOLUTION 256                        cells per axis of a section or figure
 PLANNER_API_KEY           (none)                          when set, required on /v1 but health
 PLANNER_LOG_LEVEL         info                            debug, info, warning, error, critical
 PLANNER_LOG_FORMAT        json                            json (one object a line) or text
@@ -29,7 +30,7 @@ from typing import Literal
 from pydantic import Field, SecretStr, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from planner.schemas import MAX_BATCH_REQUESTS, MAX_OBSTACLES
+from planner.schemas import MAX_BATCH_REQUESTS, MAX_OBSTACLES, MAX_SECTION_RESOLUTION
 
 
 def _cpu_count() -> int:
@@ -70,6 +71,12 @@ class Settings(BaseSettings):
         256, ge=0, le=MAX_OBSTACLES, description="Obstacles in one plan request."
     )
     retry_after_s: int = Field(1, ge=1, le=3600, description="Retry-After of a 503, s.")
+    max_section_resolution: int = Field(
+        256,
+        ge=2,
+        le=MAX_SECTION_RESOLUTION,
+        description="Cells per axis of a workspace section or a figure's grid (beyond: 422).",
+    )
     api_key: SecretStr | None = Field(
         None,
         description="When set, every /v1 route except /v1/health requires it "

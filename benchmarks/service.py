@@ -7,7 +7,7 @@ function called directly), and their ratio (the service overhead).
 
 Endpoints: ``/v1/fk`` (the cheapest call: the overhead floor), ``/v1/analyze``, and
 ``/v1/plan`` with free-space joint goals (without timing, and with toppra) when the planner
-is in this build.
+is in this build, and ``/v1/timing`` (toppra on 5-waypoint joint paths).
 
     PYTHONPATH=src:. python benchmarks/service.py [--workers 2] [--requests 400]
 """
@@ -29,9 +29,9 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-from api import compute
+from api import compute, compute_analysis
 from planner.client import AsyncPlannerClient
-from planner.schemas import AnalyzeRequest, FKRequest, PlanRequest
+from planner.schemas import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,6 +83,10 @@ def _requests(kind: str, n: int, rng: np.random.Generator) -> list:
         return [FKRequest(q=row.tolist(), assembly_mode="+") for row in q]
     if kind == "analyze":
         return [AnalyzeRequest(q=row.tolist(), assembly_mode="+") for row in q]
+    if kind == "timing":
+        steps = rng.uniform(-0.15, 0.15, (n, 4, 3))
+        paths = np.concatenate([q[:, None, :], q[:, None, :] + np.cumsum(steps, axis=1)], axis=1)
+        return [TimingRequest(waypoints=w.tolist()) for w in paths]
     goal = q + rng.uniform(-0.1, 0.1, q.shape)
     method = "toppra" if kind == "plan+toppra" else "none"
     return [
@@ -116,6 +120,8 @@ async def _load(url: str, method: str, requests: list, concurrency: int) -> tupl
             t0 = time.perf_counter()
             if method == "plan":
                 await call(body)
+            elif method == "timing":
+                await call(body.waypoints)
             else:
                 await call(body.q, body.assembly_mode)
             latencies.append(time.perf_counter() - t0)
@@ -146,7 +152,11 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=400)
     args = parser.parse_args()
     rng = np.random.default_rng(0)
-    endpoints = [("fk", "fk", compute.fk), ("analyze", "analyze", compute.analyze)]
+    endpoints = [
+        ("fk", "fk", compute.fk),
+        ("analyze", "analyze", compute.analyze),
+        ("timing", "timing", compute_analysis.timing),
+    ]
     if importlib.util.find_spec("planner.planning") is not None:
         endpoints.append(("plan", "plan", compute.plan))
         endpoints.append(("plan+toppra", "plan", compute.plan))

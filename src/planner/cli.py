@@ -206,5 +206,203 @@ def check_design_command(
     )
 
 
+# ---------------------------------------------------------------------------- plan
+#: Exit statuses of ``planner plan``.
+EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT, EXIT_NO_PLANNER = 0, 1, 2, 3
+
+
+def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
+    """One screen of text about a :class:`planner.schemas.PlanResponse`."""
+    lines = [f"status: {response.status}"]
+    if response.message:
+        lines.append(f"message: {response.message}")
+    path = response.path
+    if path is not None:
+        lines.append(f"waypoints: {len(path.waypoints)}")
+        lines.append(f"segments: {len(path.segments)}")
+        for seg in path.segments:
+            lines.append(
+                f"  working mode {seg.working_mode}, assembly mode {seg.assembly_mode}: "
+                f"waypoints {seg.start_index}..{seg.end_index}"
+            )
+        lines.append(f"transits: {len(path.transits)}")
+        for tr in path.transits:
+            q = ", ".join(f"{x:.4f}" for x in tr.q)
+            lines.append(f"  #{tr.index} {tr.kind} (flips {tr.flipped}) at q = [{q}]")
+    traj = response.trajectory
+    if traj is not None:
+        lines.append(f"duration: {traj.duration:.4f} s ({traj.method}, {len(traj.t)} samples)")
+    else:
+        lines.append("duration: none (no trajectory)")
+    diag = response.diagnostics.model_dump(exclude_none=True)
+    if diag:
+        lines.append("diagnostics:")
+        for key, value in diag.items():
+            shown = f"{value:.6g}" if isinstance(value, float) else value
+            lines.append(f"  {key}: {shown}")
+    return lines
+
+
+@app.command()
+def plan(
+    request: Annotated[
+        Path, typer.Argument(help="A PlanRequest as JSON (the body of POST /v1/plan).")
+    ],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Write the full PlanResponse JSON here.")
+    ] = None,
+) -> None:
+    """Plan (and time) a motion in-process and print a summary: status, waypoints, segments,
+    transits, duration and diagnostics. Exit status: 0 solved, 1 another status (no_path,
+    unreachable, ...), 2 an invalid request, 3 no planner in this build."""
+    from pydantic import ValidationError
+
+    from api import compute
+    from api.exceptions import PlanningUnavailableError
+    from planner.exceptions import PlannerError
+    from planner.schemas import PlanRequest
+
+    try:
+        body = PlanRequest.model_validate_json(request.read_bytes())
+    except OSError as exc:
+        typer.echo(f"error: cannot read {request}: {exc}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    except ValidationError as exc:
+        for e in exc.errors():
+            typer.echo(f"error: {'.'.join(map(str, e['loc'])) or 'body'}: {e['msg']}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    try:
+        response = compute.plan(body)
+    except PlanningUnavailableError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(EXIT_NO_PLANNER) from None
+    except PlannerError as exc:
+        where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
+        typer.echo(f"error: {where + ': ' if where else ''}{exc}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    for line in _plan_summary(response):
+        typer.echo(line)
+    if out is not None:
+        out.write_text(response.model_dump_json(indent=2))
+        typer.echo(f"full result: {out}")
+    raise typer.Exit(EXIT_SOLVED if response.status == "solved" else EXIT_NOT_SOLVED)
+
+
+# ---------------------------------------------------------------------------- bench
+#: Arguments of each benchmark script for ``planner bench --quick`` (small sizes).
+QUICK_BENCH_ARGS: dict[str, list[str]] = {
+    "kinematics": ["--n", "100000", "--loop-n", "200", "--repeat", "3"],
+    "analysis": ["--n", "64", "--rel-se", "0.02", "--repeat", "3"],
+    "timing": ["--paths", "10"],
+    "service": ["--workers", "2", "--requests", "60"],
+}
+
+
+def _benchmarks_dir() -> Path | None:
+    """The repository's ``benchmarks/`` (next to ``src/``), if this is a source checkout."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "benchmarks"
+        if candidate.is_dir() and (parent / "src" / "planner").is_dir():
+            return candidate
+    return None
+
+
+def _median_ms(fn, repeat: int = 5) -> float:  # type: ignore[no-untyped-def]
+    import statistics
+    import time
+
+    fn()  # warm-up (numba compilation, imports)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times)
+
+
+def builtin_bench_rows() -> list[tuple[str, float]]:
+    """The quick built-in subset: (task, median ms) of the core operations, in-process."""
+    import numpy as np
+
+    from planner.analysis.workspace import sample_workspace
+    from planner.design import Design
+    from planner.kinematics import forward_batch, inverse_batch
+    from planner.timing import JointLimits, time_path
+
+    design = Design.default()
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-np.pi, np.pi, (100_000, 3))
+    p = forward_batch(design, q, "+").p
+    p = p[np.all(np.isfinite(p), axis=1)]
+    path = np.cumsum(rng.uniform(-0.15, 0.15, (20, 3)), axis=0) + np.array([0.0, 0.5, 1.5])
+    limits = JointLimits.default()
+    return [
+        ("forward_batch, 100k postures", _median_ms(lambda: forward_batch(design, q, "+"))),
+        (
+            f"inverse_batch, {len(p) // 1000}k points x 8 modes",
+            _median_ms(lambda: inverse_batch(design, p)),
+        ),
+        (
+            "sample_workspace, 1 % relative error",
+            _median_ms(lambda: sample_workspace(design, rel_se=0.01, kappa_max=10.0)),
+        ),
+        ("time_path toppra, 20 waypoints", _median_ms(lambda: time_path(design, path, limits))),
+    ]
+
+
+@app.command()
+def bench(
+    names: Annotated[
+        list[str] | None,
+        typer.Argument(
+            help="Benchmarks to run: kinematics, analysis, timing, service (default: all).",
+            show_default=False,
+        ),
+    ] = None,
+    quick: Annotated[bool, typer.Option(help="Small sizes (a minute or so in all).")] = False,
+    builtin: Annotated[
+        bool, typer.Option(help="Only the built-in in-process subset (no scripts).")
+    ] = False,
+) -> None:
+    """Run the benchmarks/ scripts (each prints its table), or the built-in quick subset when
+    asked or when there is no benchmarks/ directory (an installed package)."""
+    import os
+    import subprocess
+    import sys
+
+    folder = None if builtin else _benchmarks_dir()
+    if folder is None:
+        typer.echo("built-in benchmark (median of 5 runs after a warm-up, one process):")
+        typer.echo(f"{'task':<45} {'median ms':>10}")
+        for task, ms in builtin_bench_rows():
+            typer.echo(f"{task:<45} {ms:>10.3f}")
+        return
+    available = sorted(f.stem for f in folder.glob("*.py") if not f.stem.startswith("_"))
+    chosen = names or available
+    unknown = [n for n in chosen if n not in available]
+    if unknown:
+        raise typer.BadParameter(
+            f"unknown benchmark {', '.join(unknown)}; one of {', '.join(available)}",
+            param_hint="NAMES",
+        )
+    root = folder.parent
+    env = {**os.environ}
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(root / "src"), str(root), *filter(None, [env.get("PYTHONPATH")])]
+    )
+    failed = []
+    for name in chosen:
+        args = QUICK_BENCH_ARGS.get(name, []) if quick else []
+        typer.echo(f"== {name} ({' '.join(['benchmarks/' + name + '.py', *args])})")
+        code = subprocess.call([sys.executable, str(folder / f"{name}.py"), *args], cwd=root,
+                               env=env)  # fmt: skip
+        if code != 0:
+            failed.append(name)
+    if failed:
+        typer.echo(f"failed: {', '.join(failed)}", err=True)
+        raise typer.Exit(1)
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

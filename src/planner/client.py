@@ -56,7 +56,10 @@ from planner.schemas import (
     DesignCheckRequest,
     DesignCheckResponse,
     DesignModel,
+    DesignOptimizeRequest,
+    DesignOptimizeResponse,
     DesignsResponse,
+    FigureQuery,
     FKRequest,
     FKResponse,
     Health,
@@ -67,7 +70,11 @@ from planner.schemas import (
     PlanRequest,
     PlanResponse,
     Readiness,
+    TimingRequest,
+    TimingResponse,
     VersionInfo,
+    WorkspaceRequest,
+    WorkspaceResponse,
 )
 
 __all__ = [
@@ -243,12 +250,13 @@ def _describe_item(item: Any) -> str:
 
 
 # ---------------------------------------------------------------------------- requests
-M = TypeVar("M", bound=BaseModel)
+M = TypeVar("M", bound=BaseModel | bytes)
 
 
 @dataclass(frozen=True, slots=True)
 class _Call(Generic[M]):
-    """One API call: what to send and what to parse the answer into."""
+    """One API call: what to send and what to parse the answer into (``bytes``: the raw
+    body, e.g. an image)."""
 
     method: str
     path: str
@@ -256,6 +264,7 @@ class _Call(Generic[M]):
     model: type[M]
     ok_statuses: frozenset[int] = frozenset({200})
     retry: bool = True
+    params: Mapping[str, Any] | None = None
 
 
 DesignLike = DesignModel | Design | Mapping[str, Any] | None
@@ -338,6 +347,8 @@ class _BaseClient:
     def _parse(call: _Call[M], response: httpx.Response) -> M:
         if response.status_code not in call.ok_statuses:
             raise _error_from(response)
+        if call.model is bytes:
+            return response.content  # type: ignore[return-value]
         try:
             return call.model.model_validate_json(response.content)
         except ValidationError as exc:
@@ -348,6 +359,8 @@ class _BaseClient:
     @staticmethod
     def _request_args(call: _Call[Any]) -> dict[str, Any]:
         args: dict[str, Any] = {"method": call.method, "url": call.path}
+        if call.params:
+            args["params"] = dict(call.params)
         if call.body is not None:
             args["content"] = call.body.model_dump_json(exclude_unset=True).encode()
             args["headers"] = {"content-type": "application/json"}
@@ -464,6 +477,99 @@ class _BaseClient:
         )
         return _Call("POST", "/v1/plan/batch", body, PlanBatchResponse)
 
+    def _workspace(
+        self,
+        design: DesignLike = None,
+        *,
+        resolution: int | None = None,
+        theta1: float | None = None,
+        cartesian: bool | None = None,
+        joint: bool | None = None,
+        **options: Any,
+    ) -> _Call[WorkspaceResponse]:
+        """Workspace of a design: closed-form and sampled volumes (per working mode, well
+        conditioned, GCI, with standard errors) and the Cartesian (u, w) and joint
+        (theta2, theta3) sections as grids of ``resolution`` cells per axis. ``options``:
+        ``rel_se``, ``kappa_max``, ``working_modes``, ``joint_limits``, ``seed``."""
+        sections = {
+            k: v
+            for k, v in (
+                ("resolution", resolution),
+                ("theta1", theta1),
+                ("cartesian", cartesian),
+                ("joint", joint),
+            )
+            if v is not None
+        }
+        data: dict[str, Any] = {"design": _design(design), **options}
+        if sections:
+            data["sections"] = sections
+        return _Call("POST", "/v1/workspace", _validated(WorkspaceRequest, data), WorkspaceResponse)
+
+    def _figure(
+        self,
+        name: str,
+        fmt: str = "png",
+        *,
+        design: DesignLike = None,
+        resolution: int | None = None,
+        dpi: int | None = None,
+    ) -> _Call[bytes]:
+        """A figure of a design as PNG or SVG bytes (``name``: e.g. ``"cartesian_section"``,
+        ``"joint_section"``, ``"isoconditioning"``; an unknown name raises NotFoundError
+        listing the names). Only L0, L1 and L2 of ``design`` are drawn."""
+        d = _design(design)
+        d = d.model_dump() if isinstance(d, DesignModel) else d
+        data = {k: d[k] for k in ("L0", "L1", "L2") if k in d}
+        for k, v in (("resolution", resolution), ("dpi", dpi)):
+            if v is not None:
+                data[k] = v
+        query = _validated(FigureQuery, data)
+        if fmt not in ("png", "svg") or not name or "/" in name:
+            raise InvalidRequestError(
+                f"figure: fmt must be 'png' or 'svg' and name a figure name, got {name!r}.{fmt!r}",
+                status_code=None,
+            )
+        params = query.model_dump(exclude_unset=True)
+        return _Call("GET", f"/v1/figures/{name}.{fmt}", None, bytes, params=params)
+
+    def _timing(
+        self,
+        waypoints: Any,
+        *,
+        design: DesignLike = None,
+        method: str = "toppra",
+        limits: Mapping[str, Any] | None = None,
+        **options: Any,
+    ) -> _Call[TimingResponse]:
+        """Time-parameterise a joint path (N x 3 waypoints, rad) from rest to rest with
+        ``method`` ('toppra' or 'ruckig') under ``limits`` (``velocity``, ``acceleration``,
+        ``jerk``, ``cartesian_speed``). ``options``: ``assembly_mode``, ``sample_rate_hz``,
+        ``max_deviation``, ``stop_at``, ``margins``, ``obstacles``, ``working_mode``. The
+        answer's ``status`` is ``solved`` with a ``trajectory``, or why not."""
+        data: dict[str, Any] = {
+            "waypoints": [_floats(w) for w in waypoints],
+            "design": _design(design),
+            "method": method,
+            **options,
+        }
+        if limits is not None:
+            data["limits"] = {
+                k: (_floats(v) if k != "cartesian_speed" else v) for k, v in dict(limits).items()
+            }
+        return _Call("POST", "/v1/timing", _validated(TimingRequest, data), TimingResponse)
+
+    def _optimize_design(
+        self, objective: str = "volume", *, design: DesignLike = None, **options: Any
+    ) -> _Call[DesignOptimizeResponse]:
+        """Maximise ``objective`` ('volume', 'well_conditioned_volume' or 'gci') over the link
+        lengths; ``design`` is the template (link radius, joint limits) of the candidates.
+        ``options``: ``reach``, ``L0_bounds``, ``L1_bounds``, ``L2_bounds``, ``kappa_max``,
+        ``n_samples``, ``maxiter``, ``seed``."""
+        data = {"objective": objective, "design": _design(design), **options}
+        body = _validated(DesignOptimizeRequest, data)
+        return _Call("POST", "/v1/design/optimize", body, DesignOptimizeResponse)
+
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -562,6 +668,10 @@ class PlannerClient(_BaseClient):
     check_design = _sync(_BaseClient._check_design)
     plan = _sync(_BaseClient._plan)
     plan_batch = _sync(_BaseClient._plan_batch)
+    workspace = _sync(_BaseClient._workspace)
+    figure = _sync(_BaseClient._figure)
+    timing = _sync(_BaseClient._timing)
+    optimize_design = _sync(_BaseClient._optimize_design)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -611,3 +721,7 @@ class AsyncPlannerClient(_BaseClient):
     check_design = _async(_BaseClient._check_design)
     plan = _async(_BaseClient._plan)
     plan_batch = _async(_BaseClient._plan_batch)
+    workspace = _async(_BaseClient._workspace)
+    figure = _async(_BaseClient._figure)
+    timing = _async(_BaseClient._timing)
+    optimize_design = _async(_BaseClient._optimize_design)

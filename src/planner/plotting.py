@@ -32,10 +32,13 @@ from planner.kinematics import WORKING_MODES, conditioning, inverse_batch, link_
 
 __all__ = [
     "FIGURES",
+    "FIGURE_FORMATS",
     "GENERAL_DESIGN",
     "MODE_CHANGE_DESIGN",
+    "NAMED_FIGURES",
     "draw_posture",
     "plot_loci",
+    "render_figure",
     "write_figures",
 ]
 
@@ -487,3 +490,107 @@ def write_figures(
             written.append(path)
         logger.info("figure %d written: %s", number, stem)
     return written
+
+
+# ---------------------------------------------------------------------------- figures by name
+def _needs_parallel(design: Design, kind: str, name: str) -> None:
+    """Refuse a figure about a parallel singularity the design does not have."""
+    from planner.analysis.design_check import parallel_singularity_kinds
+    from planner.exceptions import DesignError
+
+    kinds, reasons = parallel_singularity_kinds(design)
+    if kind not in kinds:
+        raise DesignError(f"figure {name!r} needs a {kind} parallel singularity: {reasons[kind]}")
+
+
+def _named_cartesian_section(design: Design, n: int) -> Figure:
+    return _cartesian_section_figure(
+        "Cross-section of the Cartesian workspace (best kappa(A) over the working modes)",
+        design, n, "Lines: serial and parallel singularity loci.",
+    )  # fmt: skip
+
+
+def _named_joint_section(design: Design, n: int) -> Figure:
+    return _joint_section_figure(
+        "Cross-section of the joint space (working mode per cell; black: singular)", design, n
+    )
+
+
+def _checked(kind: str, name: str, build: Callable[[Design], Figure]) -> Callable[..., Figure]:
+    def make(design: Design, n: int) -> Figure:
+        _needs_parallel(design, kind, name)
+        return build(design)
+
+    return make
+
+
+#: Figures drawn for any design, by name: name -> builder(design, n). The paper's figure of
+#: each is in :data:`FIGURES`; these have titles that do not assume the paper's designs.
+NAMED_FIGURES: dict[str, Callable[[Design, int], Figure]] = {
+    "working_modes": lambda d, n: figure_04(d),
+    "parallel_cd_stretched": _checked("CD_stretched", "parallel_cd_stretched", figure_05),
+    "parallel_c_equals_d": _checked("C=D", "parallel_c_equals_d", figure_06),
+    "serial_singularity": lambda d, n: figure_07(d),
+    "cartesian_section": _named_cartesian_section,
+    "joint_section": _named_joint_section,
+    "working_mode_and_parallel_singularity": _checked(
+        "CD_stretched", "working_mode_and_parallel_singularity", figure_12
+    ),
+    "workspace_convex_mode": lambda d, n: figure_13(d, n),
+    "workspace_nonconvex_mode": lambda d, n: figure_14(d, n),
+    "isoconditioning": lambda d, n: figure_15(d, n),
+}
+
+#: Formats :func:`render_figure` writes.
+FIGURE_FORMATS: tuple[str, ...] = ("png", "svg")
+
+
+def render_figure(
+    name: str, design: Design, *, n: int = 96, fmt: str = "png", dpi: int = 80
+) -> bytes:
+    """One figure of :data:`NAMED_FIGURES` for ``design``, as PNG or SVG bytes.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`NAMED_FIGURES`.
+    design : Design
+    n : int
+        Cells per axis of the section grids.
+    fmt : 'png' | 'svg'
+    dpi : int
+        Resolution of a PNG.
+
+    Raises
+    ------
+    InputError
+        Unknown name or format.
+    DesignError
+        The figure shows something this design does not have (e.g. a stretched-CD
+        singularity of a singularity-free design), or it cannot be drawn for it.
+    """
+    import io
+
+    from planner.exceptions import DesignError, InputError, PlannerError
+
+    if name not in NAMED_FIGURES:
+        raise InputError(f"name must be one of {sorted(NAMED_FIGURES)}, got {name!r}")
+    if fmt not in FIGURE_FORMATS:
+        raise InputError(f"format must be one of {FIGURE_FORMATS}, got {fmt!r}")
+    from planner.analysis.workspace import closed_form_volume
+
+    if closed_form_volume(design) <= 0.0:
+        raise DesignError(
+            f"figure {name!r}: the workspace is empty (L0 = {design.L0:g} m >= 2 (L1 + L2) = "
+            f"{2 * design.reach:g} m)"
+        )
+    try:
+        fig = NAMED_FIGURES[name](design, n)
+        fig.tight_layout()
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=fmt, dpi=dpi, bbox_inches="tight")
+    except DesignError:
+        raise
+    except (PlannerError, ValueError, IndexError, KeyError) as exc:  # a locus it lacks
+        raise DesignError(f"figure {name!r} cannot be drawn for this design: {exc}") from exc
+    return buffer.getvalue()

@@ -33,6 +33,8 @@ __all__ = [
     "MAX_BATCH_REQUESTS",
     "MAX_COORDINATE",
     "MAX_OBSTACLES",
+    "MAX_SECTION_RESOLUTION",
+    "MAX_TIMING_WAYPOINTS",
     "AnalyzeRequest",
     "AnalyzeResponse",
     "BoxObstacle",
@@ -41,6 +43,8 @@ __all__ = [
     "DesignCheckRequest",
     "DesignCheckResponse",
     "DesignModel",
+    "DesignOptimizeRequest",
+    "DesignOptimizeResponse",
     "DesignPreset",
     "DesignsResponse",
     "Diagnostics",
@@ -48,6 +52,7 @@ __all__ = [
     "ErrorResponse",
     "FKRequest",
     "FKResponse",
+    "FigureQuery",
     "Goal",
     "Health",
     "IKRequest",
@@ -66,13 +71,20 @@ __all__ = [
     "PostureModel",
     "Readiness",
     "SampledValue",
+    "SectionGrid",
+    "SectionOptions",
     "SegmentModel",
     "SerialMargins",
     "SphereObstacle",
     "TimingOptions",
+    "TimingRequest",
+    "TimingResponse",
+    "TimingStatus",
     "TrajectoryModel",
     "TransitModel",
     "VersionInfo",
+    "WorkspaceRequest",
+    "WorkspaceResponse",
 ]
 
 #: Largest |coordinate| of a point on the wire, m: a sanity bound far above any workcell.
@@ -635,3 +647,230 @@ class DesignCheckResponse(_Response):
         description="Fraction of the sampled volume where some posture has kappa(A) <= kappa_max."
     )
     gci: SampledValue = Field(description="Global conditioning index (mean 1/kappa(A)).")
+
+
+# ---------------------------------------------------------------------------- workspace
+#: Hard cap on the cells per axis of a section grid (the service's own, lower cap is the
+#: setting ``max_section_resolution``); the library's bound (``analysis.sections.MAX_GRID``).
+MAX_SECTION_RESOLUTION = 2048
+
+
+class SectionOptions(_Request):
+    """Which sections of ``POST /v1/workspace`` to compute, and how fine."""
+
+    resolution: int = Field(
+        64,
+        ge=2,
+        le=MAX_SECTION_RESOLUTION,
+        description="Cells per axis of each grid (the service caps it with a setting).",
+    )
+    theta1: Angle = Field(0.0, description="Plane of the Cartesian section, rad.")
+    cartesian: bool = Field(True, description="Compute the (u, w) section of the linkage plane.")
+    joint: bool = Field(True, description="Compute the (theta2, theta3) section.")
+
+
+class WorkspaceRequest(_Request):
+    """Body of ``POST /v1/workspace``: volumes (closed form and sampled) and sections."""
+
+    design: DesignModel = _DesignField
+    rel_se: float = Field(
+        0.01,
+        ge=1e-3,
+        le=0.5,
+        allow_inf_nan=False,
+        description="Relative standard error asked of the sampled volume.",
+    )
+    kappa_max: float = Field(
+        10.0,
+        ge=1.0,
+        le=1e12,
+        allow_inf_nan=False,
+        description="Bound on kappa(A) of the well-conditioned volume.",
+    )
+    working_modes: list[WorkingModeLabel] | None = Field(
+        None,
+        min_length=1,
+        max_length=8,
+        description="Working modes counted in the sampled volume (absent: all eight).",
+    )
+    joint_limits: bool = Field(True, description="Apply the design's joint limits.")
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
+    sections: SectionOptions = Field(default_factory=SectionOptions)
+
+
+class SectionGrid(_Response):
+    """One labelled section as grids of ny x nx cells (row j: ``y[j]``, column i: ``x[i]``).
+
+    Per cell, ``reached`` and ``singular`` are bit masks over ``labels`` (bit k set: slot
+    ``labels[k]``); ``best_kappa`` is the smallest kappa(A) over the reaching slots (null where
+    none reaches, or all reaching postures are parallel-singular). A joint section also gives
+    the working mode of each assembly mode's posture (null where it does not assemble)."""
+
+    kind: Literal["cartesian", "joint"]
+    x: list[float] = Field(description="Cell centres: u (m) or theta2 (rad).")
+    y: list[float] = Field(description="Cell centres: w (m) or theta3 (rad).")
+    theta1: float = Field(description="The section's theta1, rad.")
+    labels: list[str] = Field(description="Slots: the 8 working modes or the 2 assembly modes.")
+    reached: list[list[int]] = Field(description="ny x nx bit masks of the reaching slots.")
+    singular: list[list[int]] = Field(description="ny x nx bit masks of the singular slots.")
+    best_kappa: list[list[float | None]] = Field(description="ny x nx smallest kappa(A).")
+    working_mode: list[list[list[str | None]]] | None = Field(
+        None, description="Joint section: ny x nx x 2 working-mode labels ('0': singular sign)."
+    )
+
+
+class WorkspaceResponse(_Response):
+    """Answer of ``POST /v1/workspace``."""
+
+    design: DesignModel
+    volume: float = Field(description="Closed-form workspace volume without joint limits, m^3.")
+    sampled_volume: SampledValue = Field(
+        description="Volume reached by an allowed working mode (within the joint limits), m^3."
+    )
+    per_mode: dict[str, SampledValue] = Field(description="Volume reached by each mode, m^3.")
+    kappa_max: float
+    well_conditioned_volume: SampledValue = Field(
+        description="Volume where some allowed posture has kappa(A) <= kappa_max, m^3."
+    )
+    well_conditioned_fraction: SampledValue
+    gci: SampledValue = Field(description="Global conditioning index (mean 1/kappa(A)).")
+    cartesian_section: SectionGrid | None = None
+    joint_section: SectionGrid | None = None
+
+
+# ---------------------------------------------------------------------------- timing
+#: Hard cap on the waypoints of a path sent to ``POST /v1/timing``.
+MAX_TIMING_WAYPOINTS = 10_000
+
+
+class TimingRequest(_Request):
+    """Body of ``POST /v1/timing``: time-parameterise a joint path (N x 3 waypoints, rad,
+    joined by straight joint-space segments, literal values) from rest to rest, checked
+    densely against the design's joint limits, the assembly mode and, when ``margins`` or
+    ``obstacles`` are given, the planner's validity rules."""
+
+    design: DesignModel = _DesignField
+    waypoints: Annotated[list[Angles3], Field(min_length=2, max_length=MAX_TIMING_WAYPOINTS)] = (
+        Field(description="N x 3 joint waypoints, rad, N >= 2.")
+    )
+    assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the path.")
+    method: Literal["toppra", "ruckig"] = "toppra"
+    sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
+    limits: Limits = Field(default_factory=Limits)
+    max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
+        None, description="Largest distance from a waypoint to its corner blend, rad."
+    )
+    stop_at: list[Annotated[int, Field(ge=0)]] = Field(
+        default_factory=list,
+        max_length=MAX_TIMING_WAYPOINTS,
+        description="Waypoint indices where the trajectory comes to rest.",
+    )
+    margins: Margins | None = Field(
+        None, description="Validity margins of the dense re-check (the planner's rules)."
+    )
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    working_mode: WorkingModeLabel | None = Field(
+        None,
+        description="Working mode the validity rules hold the path to (absent: that of the "
+        "first waypoint); used with margins or obstacles.",
+    )
+
+    @field_validator("stop_at")
+    @classmethod
+    def _stop_at_in_range(cls, value: list[int], info: ValidationInfo) -> list[int]:
+        waypoints = info.data.get("waypoints")
+        n = len(waypoints) if waypoints is not None else None
+        for i in value if n is not None else ():
+            if i >= n:
+                raise ValueError(f"stop_at holds waypoint indices in [0, {n}), got {i}")
+        return value
+
+
+TimingStatus = Literal["solved", "invalid_path", "infeasible", "timeout"]
+
+
+class TimingResponse(_Response):
+    """Answer of ``POST /v1/timing``. ``solved``: ``trajectory`` passed the dense re-check;
+    ``invalid_path``: the path itself breaks a rule between its waypoints, or no repair kept
+    the trajectory valid (``diagnostics.timing_error`` names the rule, time and posture);
+    ``infeasible``: the solver found no profile; ``timeout``: the request's deadline passed."""
+
+    status: TimingStatus
+    message: str = ""
+    trajectory: TrajectoryModel | None = None
+    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+
+
+# ---------------------------------------------------------------------------- optimisation
+#: Bounds (low, high) of one link length, m.
+LengthBounds = Annotated[list[Length], Field(min_length=2, max_length=2)]
+
+
+class DesignOptimizeRequest(_Request):
+    """Body of ``POST /v1/design/optimize``: maximise an objective over the link lengths
+    (:func:`planner.analysis.optimize.optimize_design`), with a bounded budget."""
+
+    objective: Literal["volume", "well_conditioned_volume", "gci"] = "volume"
+    reach: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=MAX_LENGTH)] | None = Field(
+        0.8, description="Fixed L1 + L2, m; null: L0, L1, L2 vary inside their bounds."
+    )
+    L0_bounds: LengthBounds | None = Field(None, description="[low, high] of L0, m.")
+    L1_bounds: LengthBounds | None = Field(None, description="[low, high] of L1, m.")
+    L2_bounds: LengthBounds | None = Field(
+        None, description="[low, high] of L2, m (L1_bounds and L2_bounds required without reach)."
+    )
+    design: DesignModel = Field(
+        default_factory=DesignModel,
+        description="Template of the candidates: their link_radius and joint limits.",
+    )
+    kappa_max: float = Field(10.0, ge=1.0, le=1e12, allow_inf_nan=False)
+    n_samples: int = Field(
+        2048, ge=64, le=8192, description="Quasi-random points per sampled evaluation."
+    )
+    maxiter: int = Field(10, ge=1, le=30, description="Generations of differential evolution.")
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+
+    @field_validator("L0_bounds", "L1_bounds", "L2_bounds")
+    @classmethod
+    def _ordered(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not value[0] <= value[1]:
+            raise ValueError(f"bounds must be [low, high] with low <= high, got {value}")
+        return value
+
+
+class DesignOptimizeResponse(_Response):
+    """Answer of ``POST /v1/design/optimize``."""
+
+    design: DesignModel = Field(description="The best design found.")
+    objective: str
+    value: float = Field(description="Objective at the design (m^3 for volumes).")
+    volume: float = Field(description="Closed-form workspace volume of the design, m^3.")
+    success: bool = Field(description="The optimiser reported convergence.")
+    message: str
+    evaluations: int
+
+
+# ---------------------------------------------------------------------------- figures
+class FigureQuery(_Request):
+    """Query parameters of ``GET /v1/figures/{name}.png|svg``: the design (absent fields: the
+    default robot) and the rendering."""
+
+    L0: Length = Field(_DEFAULT.L0, description="|AB|, m.")
+    L1: LinkLength = Field(_DEFAULT.L1, description="|AC| = |BD|, m.")
+    L2: LinkLength = Field(_DEFAULT.L2, description="|CP| = |DP|, m.")
+    resolution: int = Field(
+        96, ge=16, le=MAX_SECTION_RESOLUTION, description="Cells per axis of section grids."
+    )
+    dpi: int = Field(80, ge=20, le=300, description="Resolution of a PNG.")
+
+    @model_validator(mode="after")
+    def _check_design(self) -> FigureQuery:
+        try:
+            self.design()
+        except DesignError as exc:
+            raise ValueError(str(exc)) from exc
+        return self
+
+    def design(self) -> Design:
+        """The library design drawn (full joint turns, default link radius)."""
+        return Design(L0=self.L0, L1=self.L1, L2=self.L2)

@@ -1,0 +1,326 @@
+"""Jobs of the analysis and timing endpoints (``/v1/workspace``, ``/v1/figures``,
+``/v1/design/optimize``, ``/v1/timing``): request model in, response model (or bytes) out, run
+in a worker process like the jobs of :mod:`api.compute`. No FastAPI here.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from api.compute import _DEADLINE, located, sampled_value, timing_error, trajectory_model
+from api.exceptions import PlanningUnavailableError
+from planner.exceptions import AssemblyError, InputError, LimitsError
+from planner.kinematics import forward_batch, mode_label
+from planner.schemas import (
+    DesignModel,
+    DesignOptimizeRequest,
+    DesignOptimizeResponse,
+    Diagnostics,
+    FigureQuery,
+    SectionGrid,
+    TimingRequest,
+    TimingResponse,
+    WorkspaceRequest,
+    WorkspaceResponse,
+)
+
+__all__ = ["figure", "optimize_design", "timing", "workspace"]
+
+
+def _bits(mask: np.ndarray) -> list[list[int]]:
+    """(ny, nx, K) bool -> (ny, nx) int bit masks, bit k for slot k."""
+    weights = 1 << np.arange(mask.shape[-1], dtype=np.int64)
+    return (mask.astype(np.int64) * weights).sum(axis=-1).tolist()
+
+
+def section_grid(section: Any) -> SectionGrid:
+    """The wire form of a :class:`planner.analysis.sections.Section`."""
+    best = section.best_kappa
+    best_list = [[float(v) if math.isfinite(v) else None for v in row] for row in best]
+    working_mode = None
+    if section.kind == "joint":
+        wm = section.working_mode
+        working_mode = [
+            [
+                [mode_label(wm[j, i, k]) if section.reached[j, i, k] else None for k in range(2)]
+                for i in range(wm.shape[1])
+            ]
+            for j in range(wm.shape[0])
+        ]
+    return SectionGrid(
+        kind=section.kind,
+        x=section.x.tolist(),
+        y=section.y.tolist(),
+        theta1=section.theta1,
+        labels=list(section.labels),
+        reached=_bits(section.reached),
+        singular=_bits(section.singular),
+        best_kappa=best_list,
+        working_mode=working_mode,
+    )
+
+
+def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
+    """``POST /v1/workspace``: closed-form and sampled volumes (per working mode, well
+    conditioned, GCI) and the Cartesian and joint sections as grids."""
+    from planner.analysis.sections import cartesian_section, joint_section
+    from planner.analysis.workspace import closed_form_volume, sample_workspace
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    sample = sample_workspace(
+        design,
+        rel_se=request.rel_se,
+        kappa_max=request.kappa_max,
+        working_modes=request.working_modes,
+        joint_limits=request.joint_limits,
+        seed=request.seed,
+    )
+    opts = request.sections
+    cart = joint = None
+    with located("body", "sections"):
+        if opts.cartesian:
+            cart = section_grid(
+                cartesian_section(
+                    design, opts.resolution, theta1=opts.theta1, joint_limits=request.joint_limits
+                )
+            )
+        if opts.joint:
+            joint = section_grid(
+                joint_section(
+                    design, opts.resolution, theta1=opts.theta1, joint_limits=request.joint_limits
+                )
+            )
+    return WorkspaceResponse(
+        design=DesignModel.from_design(design),
+        volume=closed_form_volume(design),
+        sampled_volume=sampled_value(sample.volume),
+        per_mode={label: sampled_value(e) for label, e in sample.per_mode.items()},
+        kappa_max=request.kappa_max,
+        well_conditioned_volume=sampled_value(sample.well_conditioned),
+        well_conditioned_fraction=sampled_value(sample.well_conditioned_fraction),
+        gci=sampled_value(sample.gci),
+        cartesian_section=cart,
+        joint_section=joint,
+    )
+
+
+def figure(args: tuple[str, str, FigureQuery]) -> bytes:
+    """``GET /v1/figures/{name}.{fmt}``: the image bytes (``args`` = name, format, query)."""
+    from planner.plotting import render_figure
+
+    name, fmt, query = args
+    with located("query"):
+        return render_figure(name, query.design(), n=query.resolution, fmt=fmt, dpi=query.dpi)
+
+
+def optimize_design(request: DesignOptimizeRequest) -> DesignOptimizeResponse:
+    """``POST /v1/design/optimize``: :func:`planner.analysis.optimize.optimize_design` with the
+    request's (bounded) sample size and generations."""
+    from planner.analysis.optimize import optimize_design as optimize
+    from planner.analysis.workspace import closed_form_volume
+
+    if request.reach is None:
+        for name in ("L1_bounds", "L2_bounds"):
+            if getattr(request, name) is None:
+                err = InputError(f"{name} is required when reach is null")
+                err.loc = ("body", name)  # type: ignore[attr-defined]
+                raise err
+    if request.reach is not None and request.L1_bounds is not None:
+        lo, hi = request.L1_bounds
+        if max(lo, 1e-6) > min(hi, request.reach - 1e-6):
+            err = InputError(f"L1_bounds {request.L1_bounds} leave no room below reach")
+            err.loc = ("body", "L1_bounds")  # type: ignore[attr-defined]
+            raise err
+    with located("body", "design"):
+        template = request.design.to_design()
+
+    def bounds(b: list[float] | None) -> tuple[float, float] | None:
+        return None if b is None else (b[0], b[1])
+
+    with located("body"):
+        best = optimize(
+            request.objective,
+            reach=request.reach,
+            L0_bounds=bounds(request.L0_bounds),
+            L1_bounds=bounds(request.L1_bounds),
+            L2_bounds=bounds(request.L2_bounds),
+            template=template,
+            kappa_max=request.kappa_max,
+            n_samples=request.n_samples,
+            maxiter=request.maxiter,
+            seed=request.seed,
+        )
+    return DesignOptimizeResponse(
+        design=DesignModel.from_design(best.design),
+        objective=best.objective,
+        value=best.value,
+        volume=closed_form_volume(best.design),
+        success=best.success,
+        message=best.message,
+        evaluations=best.evaluations,
+    )
+
+
+# ---------------------------------------------------------------------------- timing
+def _check_waypoints(design: Any, q: np.ndarray, assembly_mode: str) -> None:
+    """Each waypoint inside the literal joint limits and assembling in ``assembly_mode``
+    (a 422 naming ``waypoints[i]`` otherwise)."""
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    outside = np.nonzero(np.any((q < lo) | (q > hi), axis=1))[0]
+    if outside.size:
+        i = int(outside[0])
+        j = int(np.argmax((q[i] < lo) | (q[i] > hi)))
+        err = InputError(
+            f"waypoints[{i}] is outside the joint limits: theta{j + 1} = {q[i, j]:.6g} rad not "
+            f"in [{lo[j]:.6g}, {hi[j]:.6g}]"
+        )
+        err.loc = ("body", "waypoints", i, j)  # type: ignore[attr-defined]
+        raise err
+    batch = forward_batch(design, q, assembly_mode)
+    bad = np.nonzero(~batch.ok | (batch.assembly_mode_signs == 0))[0]
+    if bad.size:
+        i = int(bad[0])
+        err2 = AssemblyError(
+            f"waypoints[{i}] = {q[i].tolist()} does not assemble in assembly mode "
+            f"{assembly_mode!r} (the loop does not close, or it is a parallel singularity)"
+        )
+        err2.loc = ("body", "waypoints", i)  # type: ignore[attr-defined]
+        raise err2
+
+
+def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
+    """The planner's validity rules as a ``check_states`` callable, or None when the request
+    asks for none (no margins, no obstacles)."""
+    if request.margins is None and not request.obstacles:
+        return None
+    try:
+        from planner.geometry import obstacle_from_wire
+        from planner.validity import Margins, ValidityChecker
+    except ImportError as exc:
+        raise PlanningUnavailableError(
+            "margins and obstacles need the planner's validity rules, not in this build yet"
+        ) from exc
+    obstacles = []
+    for i, o in enumerate(request.obstacles):
+        with located("body", "obstacles", i):
+            obstacles.append(obstacle_from_wire(o.model_dump()))
+    with located("body", "margins"):
+        wire = request.margins.model_dump(exclude_none=True) if request.margins else {}
+        margins = Margins(**wire)
+    working_mode = request.working_mode
+    if working_mode is None:
+        working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
+                                  .working_mode_signs[0])  # fmt: skip
+    with located("body", "working_mode"):
+        checker = ValidityChecker(design, margins, obstacles, request.assembly_mode, working_mode)
+
+    def check(q: np.ndarray) -> np.ndarray:
+        return checker.check_states(q).valid
+
+    check.explain = checker.explain  # type: ignore[attr-defined]
+    return check
+
+
+def _limits_loc(exc: LimitsError) -> tuple[str | int, ...]:
+    for name in ("velocity", "acceleration", "jerk"):
+        if f"limits.{name}" in str(exc):
+            return ("body", "limits", name)
+    return ("body", "limits")
+
+
+def _input_loc(exc: InputError) -> tuple[str | int, ...]:
+    text = str(exc)
+    for name in ("sample_rate_hz", "max_deviation", "stop_at", "waypoints", "method"):
+        if text.startswith(name) or f" {name}" in text:
+            return ("body", name)
+    return ("body",)
+
+
+def timing(request: TimingRequest) -> TimingResponse:
+    """``POST /v1/timing``: :func:`planner.timing.time_path` on the client's joint path,
+    checked densely (joint limits, assembly, and the planner's rules when asked).
+
+    Bad input (a waypoint outside the joint limits or not assembling, bad limits) is a 422
+    naming the field; an outcome of the timing itself is a 200 with a ``status``."""
+    from planner.exceptions import (
+        TimingDeadlineError,
+        TimingInfeasibleError,
+        TrajectoryCheckError,
+    )
+    from planner.timing import JointLimits, time_path
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    q = np.asarray(request.waypoints, dtype=float)
+    _check_waypoints(design, q, request.assembly_mode)
+    check = _validity_check(request, design, q[0])
+    if check is not None:
+        bad = np.nonzero(~check(q))[0]
+        if bad.size:
+            i = int(bad[0])
+            diagnostics = Diagnostics()
+            diagnostics.timing_error = {  # type: ignore[attr-defined]
+                "type": "InvalidWaypoint",
+                "rule": "validity",
+                "time": None,
+                "q": q[i].tolist(),
+                "index": i,
+            }
+            return TimingResponse(
+                status="invalid_path",
+                message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
+                diagnostics=diagnostics,
+            )
+    wire = request.limits
+    default = JointLimits.default()
+    try:
+        limits = JointLimits(
+            velocity=wire.velocity or default.velocity,
+            acceleration=wire.acceleration or default.acceleration,
+            jerk=wire.jerk or default.jerk,
+        )
+    except LimitsError as exc:
+        exc.loc = _limits_loc(exc)  # type: ignore[attr-defined]
+        raise
+    options: dict[str, Any] = {}
+    if request.max_deviation is not None:
+        options["max_deviation"] = request.max_deviation
+    try:
+        traj = time_path(
+            design,
+            q,
+            limits,
+            method=request.method,
+            assembly_mode=request.assembly_mode,
+            sample_rate_hz=request.sample_rate_hz,
+            max_cartesian_speed=wire.cartesian_speed,
+            stop_at=request.stop_at,
+            check_states=check,
+            deadline=_DEADLINE.get(),
+            **options,
+        )
+    except TimingDeadlineError as exc:
+        return TimingResponse(status="timeout", message=f"timing ran out of time: {exc}")
+    except TimingInfeasibleError as exc:
+        return TimingResponse(status="infeasible", message=f"no time profile found: {exc}")
+    except TrajectoryCheckError as exc:
+        diagnostics = Diagnostics()
+        diagnostics.timing_error = timing_error(exc)  # type: ignore[attr-defined]
+        return TimingResponse(
+            status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
+        )
+    except LimitsError as exc:
+        exc.loc = _limits_loc(exc)  # type: ignore[attr-defined]
+        raise
+    except InputError as exc:
+        if not hasattr(exc, "loc"):
+            exc.loc = _input_loc(exc)  # type: ignore[attr-defined]
+        raise
+    trajectory = trajectory_model(traj)
+    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s)
+    diagnostics.timing_repairs = traj.repairs  # type: ignore[attr-defined]
+    return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

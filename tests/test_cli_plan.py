@@ -1,0 +1,96 @@
+"""``planner plan request.json`` (in-process planning, summary, --out) and ``planner bench``."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from planner.cli import app
+from planner.schemas import PlanResponse
+
+ROOT = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+
+REQUEST = {
+    "start": {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"},
+    "goal": {"q": [1.0, 1.0, 2.0], "assembly_mode": "+"},
+    "obstacles": [{"type": "sphere", "center": [0.623, -0.013, -0.426], "radius": 0.08}],
+    "margins": {"clearance": 0.01},
+    "planner": {"seed": 1},
+}
+
+
+def _write(tmp_path: Path, body: object, name: str = "request.json") -> Path:
+    path = tmp_path / name
+    path.write_text(json.dumps(body) if not isinstance(body, str) else body)
+    return path
+
+
+def test_plan_prints_a_summary_and_writes_the_full_response(api, tmp_path):
+    out = tmp_path / "result.json"
+    r = runner.invoke(app, ["plan", str(_write(tmp_path, REQUEST)), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    full = PlanResponse.model_validate_json(out.read_text())
+    assert full.status == "solved"
+    lines = r.output.splitlines()
+    assert lines[0] == "status: solved"
+    assert f"waypoints: {len(full.path.waypoints)}" in lines
+    assert f"segments: {len(full.path.segments)}" in lines
+    assert f"transits: {len(full.path.transits)}" in lines
+    assert any(line.startswith(f"duration: {full.trajectory.duration:.4f} s") for line in lines)
+    assert any(line.startswith("  min_clearance: ") for line in lines)
+    assert len(lines) <= 40  # one screen
+    # the same request through the service gives the same path (seeded planner)
+    served = api.post("/v1/plan", json=REQUEST).json()
+    assert served["status"] == "solved"
+    assert served["path"]["waypoints"] == full.path.waypoints
+    assert full.diagnostics.min_clearance >= 0.01 - 1e-9
+
+
+def test_plan_other_status_exits_1(tmp_path):
+    # P beyond the reach L1 + L2 of both legs: no posture reaches it
+    body = {**REQUEST, "goal": {"p": [1.5, 0.0, 0.0], "working_mode": "any"}}
+    r = runner.invoke(app, ["plan", str(_write(tmp_path, body))])
+    assert r.exit_code == 1
+    assert r.output.splitlines()[0] == "status: unreachable"
+    assert "duration: none" in r.output
+
+
+def test_plan_bad_request_names_the_field_and_exits_2(tmp_path):
+    body = {**REQUEST, "start": {"q": [0.2, 1.0], "assembly_mode": "+"}}
+    r = runner.invoke(app, ["plan", str(_write(tmp_path, body))])
+    assert r.exit_code == 2 and "start.q" in r.output
+    r = runner.invoke(app, ["plan", str(_write(tmp_path, "{not json", "broken.json"))])
+    assert r.exit_code == 2 and "error" in r.output
+    r = runner.invoke(app, ["plan", str(tmp_path / "missing.json")])
+    assert r.exit_code == 2 and "cannot read" in r.output
+    body = {**REQUEST, "margins": {"kappa_max": 0.5}}
+    r = runner.invoke(app, ["plan", str(_write(tmp_path, body))])
+    assert r.exit_code == 2 and "margins.kappa_max" in r.output
+
+
+def test_bench_builtin_prints_its_table():
+    r = runner.invoke(app, ["bench", "--builtin"])
+    assert r.exit_code == 0, r.output
+    rows = [line for line in r.output.splitlines() if line[:1].isalpha()]
+    assert any(line.startswith("forward_batch") for line in rows)
+    assert any(line.startswith("time_path toppra") for line in rows)
+    for line in r.output.splitlines()[2:]:
+        assert float(line.split()[-1]) > 0
+
+
+def test_bench_runs_a_script_and_refuses_unknown_names():
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
+    done = subprocess.run(
+        [sys.executable, "-m", "planner.cli", "bench", "kinematics", "--quick"],
+        capture_output=True, text=True, timeout=300, env=env, cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "== kinematics" in done.stdout and "forward" in done.stdout
+    r = runner.invoke(app, ["bench", "nope"])
+    assert r.exit_code == 2 and "kinematics" in r.output
