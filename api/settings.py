@@ -18,19 +18,36 @@ PLANNER_LOG_LEVEL         info                            debug, info, warning, 
 PLANNER_LOG_FORMAT        json                            json (one object a line) or text
 PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight work on SIGTERM, s
 PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
+PLANNER_DEFAULT_DESIGN    default                         design of a request without one: a
+                                                          preset name or a JSON design object
 ========================  ==============================  ======================================
 """
 
 from __future__ import annotations
 
+import json
 import os
 from functools import lru_cache
 from typing import Literal
 
-from pydantic import Field, SecretStr, model_validator
+from pydantic import (
+    Field,
+    PrivateAttr,
+    SecretStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from planner.schemas import MAX_BATCH_REQUESTS, MAX_OBSTACLES, MAX_SECTION_RESOLUTION
+from planner.design import PRESET_NAMES, Design
+from planner.exceptions import DesignError
+from planner.schemas import (
+    MAX_BATCH_REQUESTS,
+    MAX_OBSTACLES,
+    MAX_SECTION_RESOLUTION,
+    DesignModel,
+)
 
 
 def _cpu_count() -> int:
@@ -98,6 +115,20 @@ class Settings(BaseSettings):
         "are cancelled and the workers stopped, s.",
     )
     metrics: bool = Field(True, description="Serve Prometheus metrics at GET /metrics.")
+    default_design: str = Field(
+        "default",
+        description="The robot of a request that sends no design: a preset name "
+        f"({', '.join(PRESET_NAMES)}) or a JSON design object such as "
+        '{"L0": 0, "L1": 0.4, "L2": 0.4}. A request\'s partial design takes its missing '
+        "fields from it.",
+    )
+    _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
+
+    @field_validator("default_design")
+    @classmethod
+    def _known_design(cls, value: str) -> str:
+        _parse_design(value)
+        return value
 
     @model_validator(mode="after")
     def _fill_queue(self) -> Settings:
@@ -105,7 +136,27 @@ class Settings(BaseSettings):
             self.queue_size = 4 * self.workers
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
+        self._design_defaults = _parse_design(self.default_design)
         return self
+
+    @property
+    def design_defaults(self) -> DesignModel:
+        """The parsed ``default_design``: what a request's absent design fields take."""
+        return self._design_defaults
+
+
+def _parse_design(value: str) -> DesignModel:
+    """A preset name or a JSON design object as a wire design; ValueError naming the rule."""
+    text = value.strip()
+    if not text.startswith("{"):
+        try:
+            return DesignModel.from_design(Design.preset(text))
+        except DesignError as exc:
+            raise ValueError(f"{exc}, or a JSON design object") from exc
+    try:
+        return DesignModel.model_validate(json.loads(text))
+    except (json.JSONDecodeError, ValidationError) as exc:
+        raise ValueError(f"not a valid JSON design object: {exc}") from exc
 
 
 @lru_cache(maxsize=1)

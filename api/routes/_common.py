@@ -7,13 +7,47 @@ from functools import partial
 from typing import Any
 
 from fastapi import Response
-from pydantic import BaseModel
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ValidationError
 
 from api.logging import REQUEST_ID
 from api.metrics import record_job, run_measured
 from api.workers import WorkerPool
+from planner.schemas import DesignModel
 
-__all__ = ["json_response", "run_job", "run_jobs"]
+__all__ = ["json_response", "run_job", "run_jobs", "with_design_defaults"]
+
+_BUILT_IN = DesignModel()
+
+
+def with_design_defaults(body: Any, defaults: DesignModel, loc: tuple = ("body",)) -> Any:
+    """``body`` with its ``design`` (and each batch request's) completed from ``defaults``,
+    the service's ``PLANNER_DEFAULT_DESIGN``: absent fields take the configured robot's values,
+    not the built-in default robot's. A no-op when the two are the same robot.
+
+    Raises ``RequestValidationError`` (a 422 naming ``body.design``) when the merged design
+    breaks a rule, e.g. a given ``joint_min`` above the configured ``joint_max``.
+    """
+    if defaults == _BUILT_IN or not isinstance(body, BaseModel):
+        return body
+    fields = type(body).model_fields
+    update: dict[str, Any] = {}
+    if "design" in fields:
+        given = (
+            body.design.model_dump(exclude_unset=True) if "design" in body.model_fields_set else {}
+        )
+        try:
+            update["design"] = DesignModel.model_validate({**defaults.model_dump(), **given})
+        except ValidationError as exc:
+            raise RequestValidationError(
+                [{**e, "loc": (*loc, "design", *e["loc"])} for e in exc.errors(include_url=False)]
+            ) from exc
+    if "requests" in fields:
+        update["requests"] = [
+            with_design_defaults(r, defaults, (*loc, "requests", i))
+            for i, r in enumerate(body.requests)
+        ]
+    return body.model_copy(update=update) if update else body
 
 
 def json_response(content: bytes) -> Response:
@@ -22,12 +56,19 @@ def json_response(content: bytes) -> Response:
 
 
 async def run_job(
-    pool: WorkerPool, job: Callable[[Any], BaseModel], body: Any, deadline: float
+    pool: WorkerPool,
+    job: Callable[[Any], BaseModel],
+    body: Any,
+    deadline: float,
+    *,
+    design_defaults: DesignModel = _BUILT_IN,
 ) -> Response:
     """``job(body)`` in a worker, serialised there, with the request's ``deadline``; the
     answer as it is (the route's ``response_model`` documents it, the job's return type
     guarantees it). The worker reports the job's durations, recorded here
-    (:mod:`api.metrics`)."""
+    (:mod:`api.metrics`). The body's design is completed from ``design_defaults`` first
+    (:func:`with_design_defaults`)."""
+    body = with_design_defaults(body, design_defaults)
     job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
     content, sample = await pool.run(job_json, body, deadline=deadline)
     record_job(sample)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from api import compute, compute_analysis
-from api.deps import Deadline, Pool
+from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import run_job
 from planner.schemas import (
     DesignCheckRequest,
@@ -19,15 +19,27 @@ router = APIRouter(prefix="/v1/design", tags=["design"])
 
 
 @router.post("/check", response_model=DesignCheckResponse)
-async def design_check(body: DesignCheckRequest, pool: Pool, deadline: Deadline) -> Response:
+async def design_check(
+    body: DesignCheckRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
     """Check a design: which parallel singularities can occur and why, which working modes are
     operative, the closed-form and sampled workspace volumes, the well-conditioned fraction."""
-    return await run_job(pool, compute.design_check, body, deadline)
+    return await run_job(
+        pool, compute.design_check, body, deadline, design_defaults=settings.design_defaults
+    )
 
 
 @router.post("/optimize", response_model=DesignOptimizeResponse)
-async def design_optimize(body: DesignOptimizeRequest, pool: Pool, deadline: Deadline) -> Response:
+async def design_optimize(
+    body: DesignOptimizeRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
     """Maximise the workspace volume, the well-conditioned volume or the global conditioning
     index over the link lengths (fixed ``reach = L1 + L2``, or bounds on each length). The
     budget is bounded by ``n_samples`` and ``maxiter`` (both capped)."""
-    return await run_job(pool, compute_analysis.optimize_design, body, deadline)
+    return await run_job(
+        pool,
+        compute_analysis.optimize_design,
+        body,
+        deadline,
+        design_defaults=settings.design_defaults,
+    )

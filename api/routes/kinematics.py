@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from api import compute
-from api.deps import Deadline, Pool
+from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import run_job
 from planner.schemas import (
     AnalyzeRequest,
@@ -20,19 +20,23 @@ router = APIRouter(prefix="/v1", tags=["kinematics"])
 
 
 @router.post("/fk", response_model=FKResponse)
-async def fk(body: FKRequest, pool: Pool, deadline: Deadline) -> Response:
+async def fk(body: FKRequest, pool: Pool, deadline: Deadline, settings: SettingsDep) -> Response:
     """Direct kinematics: the postures of the actuated joints ``q`` (both assembly modes
     unless one is asked; none when q does not close the loop)."""
-    return await run_job(pool, compute.fk, body, deadline)
+    return await run_job(pool, compute.fk, body, deadline, design_defaults=settings.design_defaults)
 
 
 @router.post("/ik", response_model=IKResponse)
-async def ik(body: IKRequest, pool: Pool, deadline: Deadline) -> Response:
+async def ik(body: IKRequest, pool: Pool, deadline: Deadline, settings: SettingsDep) -> Response:
     """Inverse kinematics: one posture per working mode reaching ``p``."""
-    return await run_job(pool, compute.ik, body, deadline)
+    return await run_job(pool, compute.ik, body, deadline, design_defaults=settings.design_defaults)
 
 
 @router.post("/analyze", response_model=AnalyzeResponse)
-async def analyze(body: AnalyzeRequest, pool: Pool, deadline: Deadline) -> Response:
+async def analyze(
+    body: AnalyzeRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
     """Jacobians A and B, kappa(A), kappa(B), singularity margins and modes of a posture."""
-    return await run_job(pool, compute.analyze, body, deadline)
+    return await run_job(
+        pool, compute.analyze, body, deadline, design_defaults=settings.design_defaults
+    )

@@ -15,7 +15,7 @@ from fastapi import APIRouter, Depends, Response
 from api import compute
 from api.deps import Deadline, Pool, SettingsDep
 from api.exceptions import LimitExceededError
-from api.routes._common import json_response, run_job, run_jobs
+from api.routes._common import json_response, run_job, run_jobs, with_design_defaults
 from api.settings import Settings
 from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 
@@ -53,7 +53,7 @@ async def plan(
 ) -> Response:
     """Plan (and time) a motion from ``start`` to ``goal``."""
     check_limits(body, settings, ("body",))
-    return await run_job(pool, job, body, deadline)
+    return await run_job(pool, job, body, deadline, design_defaults=settings.design_defaults)
 
 
 @router.post("/plan/batch", response_model=PlanBatchResponse)
@@ -68,5 +68,6 @@ async def plan_batch(
         )
     for i, request in enumerate(body.requests):
         check_limits(request, settings, ("body", "requests", i))
+    body = with_design_defaults(body, settings.design_defaults)
     results = await run_jobs(pool, job, body.requests, deadline)
     return json_response(b'{"results":[' + b",".join(results) + b"]}")

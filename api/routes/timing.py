@@ -26,4 +26,6 @@ async def timing(
             f"at most {settings.max_obstacles} obstacles per request, got {len(body.obstacles)}",
             ("body", "obstacles"),
         )
-    return await run_job(pool, compute_analysis.timing, body, deadline)
+    return await run_job(
+        pool, compute_analysis.timing, body, deadline, design_defaults=settings.design_defaults
+    )

@@ -54,7 +54,13 @@ async def workspace(
         settings.max_section_resolution,
         ("body", "sections", "resolution"),
     )
-    return await run_job(pool, compute_analysis.workspace, body, deadline)
+    return await run_job(
+        pool,
+        compute_analysis.workspace,
+        body,
+        deadline,
+        design_defaults=settings.design_defaults,
+    )
 
 
 @router.get(
@@ -73,7 +79,7 @@ async def figure(
     settings: SettingsDep,
 ) -> Response:
     """A figure of the design given by the query parameters (``L0``, ``L1``, ``L2``; absent:
-    the default robot), as ``{name}.png`` or ``{name}.svg``. Names: ``working_modes``,
+    the service's default robot, ``PLANNER_DEFAULT_DESIGN``), as ``{name}.png`` or ``{name}.svg``. Names: ``working_modes``,
     ``parallel_cd_stretched``, ``parallel_c_equals_d``, ``serial_singularity``,
     ``cartesian_section``, ``joint_section``, ``working_mode_and_parallel_singularity``,
     ``workspace_convex_mode``, ``workspace_nonconvex_mode``, ``isoconditioning``. A figure
@@ -88,5 +94,9 @@ async def figure(
             ("path", "filename"),
         )
     _cap(query.resolution, settings.max_section_resolution, ("query", "resolution"))
+    absent = {"L0", "L1", "L2"} - query.model_fields_set
+    if absent:  # absent lengths: the configured default robot's
+        defaults = settings.design_defaults
+        query = query.model_copy(update={k: getattr(defaults, k) for k in absent})
     content = await pool.run(compute_analysis.figure, (name, fmt, query), deadline=deadline)
     return Response(content=content, media_type=MEDIA_TYPES[fmt])

@@ -13,7 +13,7 @@ import numpy as np
 
 from planner.exceptions import DesignError
 
-__all__ = ["MAX_JOINT_TRAVEL", "MAX_LENGTH", "MIN_LENGTH", "Design"]
+__all__ = ["MAX_JOINT_TRAVEL", "MAX_LENGTH", "MIN_LENGTH", "PRESET_NAMES", "Design"]
 
 #: Shortest link accepted, m. Shorter links make every squared length underflow-prone.
 MIN_LENGTH = 1e-6
@@ -21,6 +21,9 @@ MIN_LENGTH = 1e-6
 MAX_LENGTH = 1e3
 #: Joint limits must lie in [-MAX_JOINT_TRAVEL, MAX_JOINT_TRAVEL], rad (two turns each way).
 MAX_JOINT_TRAVEL = 4 * math.pi
+
+#: Names accepted by :meth:`Design.preset` (and the service's ``PLANNER_DEFAULT_DESIGN``).
+PRESET_NAMES: tuple[str, ...] = ("default", "singularity-free", "paper-optimum")
 
 _FULL_TURN = (-math.pi, -math.pi, -math.pi), (math.pi, math.pi, math.pi)
 
@@ -131,6 +134,18 @@ class Design:
         larger workspace for its size, but half of its working modes are unusable.
         """
         return cls.singularity_free()
+
+    @classmethod
+    def preset(cls, name: str) -> Design:
+        """The preset called ``name``: one of :data:`PRESET_NAMES`."""
+        makers = {
+            "default": cls.default,
+            "singularity-free": cls.singularity_free,
+            "paper-optimum": cls.paper_optimum,
+        }
+        if name not in makers:
+            raise DesignError(f"no preset {name!r}: presets are {', '.join(PRESET_NAMES)}")
+        return makers[name]()
 
     # ------------------------------------------------------------------ derived
     @property
