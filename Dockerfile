@@ -19,8 +19,7 @@ COPY pyproject.toml constraints.txt README.md ./
 COPY src ./src
 COPY api ./api
 RUN /opt/venv/bin/pip install --quiet -c constraints.txt . \
- && /opt/venv/bin/python -c "import numpy as np, planner as p; d = p.Design.default(); b = p.forward_batch(d, np.zeros((1, 3)), '+'); p.inverse_batch(d, b.p); p.conditioning(d, b.q, b.passive, b.w)" \
- && /opt/venv/bin/python -c "from api.workers import _warm_up; _warm_up()"
+ && /opt/venv/bin/planner warm-up
 
 FROM python:3.11-slim
 RUN useradd --create-home --uid 10001 planner

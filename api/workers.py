@@ -58,26 +58,12 @@ def _init_worker(log_setup: tuple[str, str] | None = None) -> None:
         configure_logging(*log_setup)  # type: ignore[arg-type]
 
 
-#: ``(module, function)`` pairs a worker calls at start-up when the module exists, so that
-#: numba kernels are compiled (or loaded from cache) before the first request, not during it.
-WARM_UPS: tuple[tuple[str, str], ...] = (("planner.validity", "warm_up"),)
-
-
 def _warm_up() -> bool:
-    """Import the library, run one forward-kinematics call and every :data:`WARM_UPS`."""
-    import importlib
+    """Compile or load every numba kernel (:func:`planner.warmup.warm_up`), so that the first
+    request's budget is not spent compiling."""
+    from planner.warmup import warm_up
 
-    import numpy as np
-
-    from planner import Design, forward_batch
-
-    forward_batch(Design.default(), np.zeros((1, 3)), "+")
-    for module_name, function in WARM_UPS:
-        try:
-            module = importlib.import_module(module_name)
-        except ImportError:
-            continue
-        getattr(module, function)()
+    warm_up()
     return True
 
 

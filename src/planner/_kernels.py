@@ -15,15 +15,6 @@ import math
 import numpy as np
 from numba import njit
 
-_PI = math.pi
-_TWO_PI = 2.0 * math.pi
-
-
-@njit(cache=True, inline="always")
-def _wrap(x: float) -> float:
-    """Angle in (-pi, pi]."""
-    return _PI - ((_PI - x) % _TWO_PI)
-
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def forward_kernel(

@@ -148,6 +148,14 @@ def ik(
     )
 
 
+@app.command("warm-up")
+def warm_up_command() -> None:
+    """Compile (or load from cache) every numba kernel; about 10 s the first time."""
+    from planner.warmup import warm_up
+
+    typer.echo(f"kernels ready in {warm_up():.1f} s")
+
+
 @app.command()
 def version() -> None:
     """Print the package version."""

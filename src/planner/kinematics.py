@@ -107,7 +107,7 @@ def _branch(assembly_mode: object, n: int) -> np.ndarray:
     arr = np.broadcast_to(np.asarray(assembly_mode, dtype=float), (n,))
     if not np.all(np.abs(arr) == 1):
         raise InputError("assembly_mode must be '+'/'-' or +1/-1 per posture")
-    return np.ascontiguousarray(arr, dtype=np.float64)
+    return np.array(arr, dtype=np.float64)  # a writable copy: one compiled signature
 
 
 # ---------------------------------------------------------------------------- batches
