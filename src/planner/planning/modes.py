@@ -82,8 +82,12 @@ CROSSING_CHECK_STEP = 0.002
 #: "any" goal: a mode change is tried when its estimated length is below this fraction of
 #: the single-mode path's length.
 BETTER_RATIO = 0.7
-#: Share of the remaining budget one segment search may use (the rest is for fallbacks).
-SEGMENT_BUDGET_SHARE = 0.5
+#: Rounds of the search: in round r each segment search may use this share of
+#: ``time_budget_s`` (capped by what remains). Most segments are straight motions or short
+#: searches; a segment between two disconnected components of a mode region (split by the
+#: literal joint limits or by parallel singularities) can never succeed, so short rounds over
+#: every candidate and mode sequence come first, longer searches after.
+ROUND_SHARES = (0.01, 0.1, 1.0)
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
@@ -147,6 +151,9 @@ class _ModeChangeSearch:
         self.free = ValidityChecker(design, margins, self.obstacles, asm, "+++", serial_rules=False)
         self._pools: dict[tuple[str, str], tuple[np.ndarray, list[str]]] = {}
         self.pool_reasons: dict[tuple[str, str], str] = {}
+        self.share = ROUND_SHARES[0]
+        self._failed: dict[bytes, float] = {}  # segment key -> largest budget that failed
+        self._crossings: dict[bytes, list[_Candidate]] = {}
 
     def checker(self, mode: str) -> ValidityChecker:
         if mode not in self._checkers:
@@ -258,16 +265,19 @@ class _ModeChangeSearch:
 
     def segment(self, mode: str, q_from: np.ndarray, q_goals: np.ndarray) -> PlanResult:
         remaining = self.deadline - time.perf_counter()
-        if remaining <= 0:
-            return PlanResult(PlanStatus.NO_PATH, "budget exhausted", None)
-        budget = max(min(remaining, self.options.time_budget_s * SEGMENT_BUDGET_SHARE), 1e-3)
-        budget = min(budget, remaining)
-        return plan_in_region(
+        budget = min(remaining, self.options.time_budget_s * self.share)
+        key = mode.encode() + q_from.tobytes() + q_goals.tobytes()
+        if budget <= 0 or self._failed.get(key, -1.0) >= budget:
+            return PlanResult(PlanStatus.NO_PATH, "skipped", None)
+        res = plan_in_region(
             self.checker(mode),
             q_from,
             q_goals,
-            options=replace(self.options, time_budget_s=budget),
+            options=replace(self.options, time_budget_s=max(budget, 1e-3)),
         )
+        if not res.solved:
+            self._failed[key] = budget
+        return res
 
     def run(
         self, seq: tuple[str, ...], q_start: np.ndarray, q_goals: np.ndarray
@@ -282,7 +292,10 @@ class _ModeChangeSearch:
             if i == len(seq) - 1:
                 res = self.segment(seq[i], q_from, q_goals)
                 return ([res], []) if res.solved else None
-            for cand in self.crossings(seq[i], seq[i + 1], q_from, q_goal):
+            key = (seq[i] + seq[i + 1]).encode() + q_from.tobytes() + q_goal.tobytes()
+            if key not in self._crossings:
+                self._crossings[key] = self.crossings(seq[i], seq[i + 1], q_from, q_goal)
+            for cand in self._crossings[key]:
                 res = self.segment(seq[i], q_from, cand.crossing.q_in[None])
                 if not res.solved:
                     continue
@@ -414,27 +427,29 @@ def plan_mode_change(
             None,
             Diagnostics(planning_time_s=time.perf_counter() - t0),
         )
-    tried = 0
-    for _, _, seq in ranked:
-        if time.perf_counter() > deadline:
-            break
-        tried += 1
-        out = search.run(seq, start.q, targets[seq[-1]])
-        if out is None:
-            continue
-        path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-        diag = replace(diag, planning_time_s=time.perf_counter() - t0)
-        modes = " -> ".join(seq)
-        return PlanResult(
-            PlanStatus.SOLVED,
-            f"solved through {len(seq) - 1} transit(s): {modes}",
-            path,
-            diag,
-        )
+    tried: set[tuple[str, ...]] = set()
+    for share in ROUND_SHARES:
+        search.share = share
+        for _, _, seq in ranked:
+            if time.perf_counter() > deadline:
+                break
+            tried.add(seq)
+            out = search.run(seq, start.q, targets[seq[-1]])
+            if out is None:
+                continue
+            path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
+            diag = replace(diag, planning_time_s=time.perf_counter() - t0)
+            modes = " -> ".join(seq)
+            return PlanResult(
+                PlanStatus.SOLVED,
+                f"solved through {len(seq) - 1} transit(s): {modes}",
+                path,
+                diag,
+            )
     return PlanResult(
         PlanStatus.NO_PATH,
         f"no path found within {options.time_budget_s:g} s through transits "
-        f"({tried} of {len(ranked)} mode sequences tried)",
+        f"({len(tried)} of {len(ranked)} mode sequences tried)",
         None,
         Diagnostics(planning_time_s=time.perf_counter() - t0),
     )
