@@ -7,6 +7,10 @@ parallel singularity; /work/shared/tools/check-plan accepts every plan; /v1/plan
 from __future__ import annotations
 
 import itertools
+import json
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -279,17 +283,48 @@ def test_obstacle_next_to_the_transit_still_solved(tmp_path):
 
 
 def test_path_state_checker_accepts_the_crossing_only_near_it():
+    from planner.transits import sample_transits
+
     design = DESIGNS["free"]
     start = JointPosture([0.0, 2.0, 1.0], "+")
     goal = JointPosture(_valid_postures(design, "+", "+++", 5)[0], "+")
     res = plan(design, start, goal, options=OPTIONS)
+    assert res.solved
     check = path_state_checker(design, MARGINS, (), res.path, near=0.0)
     dense = np.vstack(_dense(res.path.waypoints))
     assert check(dense).all()  # the whole planned path is valid piece by piece
     t = res.path.transits[0]
-    # the transit posture itself is valid only as part of the crossing
-    far = path_state_checker(design, MARGINS, (), res.path.__class__(res.path.waypoints[:1]))
-    assert not far(np.array([t.q]))[0]
+    # other postures on the same singular surface, far from this crossing, are not valid
+    others = sample_transits(
+        design, t.kind, working_mode=res.path.segments[0].working_mode, assembly_mode="+",
+        n=200, rng=np.random.default_rng(0),
+    )  # fmt: skip
+    far = others[np.linalg.norm(others - np.array(t.q), axis=1) > 0.3]
+    assert len(far) > 10 and not check(far).any()
+    # a valid posture of a mode the path does not visit is not valid either
+    unvisited = {"+++", "++-", "+-+", "+--"} - {s.working_mode for s in res.path.segments}
+    q_other = _valid_postures(design, "+", sorted(unvisited)[0], 7)[:20]
+    assert not check(q_other).any()
+
+
+def test_no_transit_on_a_walk_is_unreachable_with_the_reason():
+    """Paper optimum: +-+ -> +-- would flip B, but a stretched leg stretches both legs
+    (C = D) and a folded one puts P on the base point (tests/test_transits.py checks that no
+    such posture assembles regularly), and +++ is parallel-singular everywhere."""
+    from planner.planning.modes import plan_mode_change
+
+    design = DESIGNS["paper"]
+    start = JointPosture(_valid_postures(design, "+", "+-+", 1)[0], "+")
+    assert not len(_valid_postures(design, "+", "+++")) and not len(
+        _valid_postures(design, "+", "+--")
+    )
+    t0 = time.perf_counter()
+    res = plan_mode_change(
+        design, start, "+-+", {"+--": np.array([[0.0, 1.0, -1.0]])}, obstacles=(),
+        margins=MARGINS, options=OPTIONS, t0=t0, deadline=t0 + 1.0,
+    )  # fmt: skip
+    assert res.status is PlanStatus.UNREACHABLE
+    assert "leg_B_stretched or leg_B_folded" in res.message
 
 
 @pytest.mark.parametrize("stop", [False, True])
@@ -319,10 +354,6 @@ def test_v1_plan_end_to_end_with_a_mode_change(api, tmp_path, stop):
     k = int(np.argmin(d))
     if stop:
         assert d[k] < 0.02 and np.abs(qd[k]).max() < 0.2
-    import json
-    import subprocess
-    import sys
-
     (tmp_path / "req.json").write_text(json.dumps(body))
     (tmp_path / "resp.json").write_text(json.dumps(out))
     proc = subprocess.run(

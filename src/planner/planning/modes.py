@@ -547,6 +547,11 @@ def plan(
                 f"{first.message}; " + "; ".join(f"in {m} {w}" for m, w in whys.items()),
             )
         if first.solved:
+            # a path is never shorter than the straight distance to its goal: skip the
+            # transit sampling when no goal candidate of another mode is close enough
+            bound = min(float(np.linalg.norm(c[0] - start.q)) for c in targets.values())
+            if not bound < BETTER_RATIO * first.diagnostics.path_length:
+                return first
             search = _ModeChangeSearch(design, asm, margins, obstacles, options, deadline)
             best = min(
                 search.estimate(seq, start.q, targets[seq[-1]][0])
