@@ -23,7 +23,9 @@ parallel singularity). For a goal in another working mode than the start:
 3. *Segments*: each planned with :func:`planner.planning.planner.plan_in_region` in its own
    mode's checker (every rule, serial margin included), from the previous q_out to the next
    q_in (the last one to the goal candidates); a segment that fails falls back to the next
-   transit candidate, then to the next mode sequence, all within ``options.time_budget_s``.
+   transit candidate, then to the next mode sequence, all within ``options.time_budget_s``,
+   in rounds of growing per-segment budgets (:data:`ROUND_SHARES`): a segment between two
+   disconnected components of a mode region fails cheaply before detours are tried.
 
 Goals in the start's own mode go to the single-mode planner unchanged. A Cartesian target
 with ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
@@ -62,9 +64,12 @@ __all__ = [
     "BETTER_RATIO",
     "CROSSING_CHECK_STEP",
     "MAX_DETOUR",
+    "ROUND_SHARES",
+    "crossing_signs_hold",
     "mode_sequences",
     "path_state_checker",
     "plan",
+    "plan_mode_change",
 ]
 
 logger = logging.getLogger(__name__)
@@ -91,6 +96,11 @@ ROUND_SHARES = (0.01, 0.1, 1.0)
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
+
+
+def _mode_code(mode: str) -> int:
+    """The integer of :func:`path_state_checker`'s sign-triple encoding for a mode label."""
+    return sum((2 if ch == "+" else 0) * f for ch, f in zip(mode, (9, 3, 1), strict=True))
 
 
 def _flip(mode: str, j: int) -> str:
@@ -620,11 +630,9 @@ def path_state_checker(
         fb = forward_batch(design, q, asm)
         signs = fb.working_mode_signs
         valid = np.zeros(len(q), dtype=bool)
-        labels = np.array(
-            ["".join("+" if s > 0 else "-" if s < 0 else "0" for s in r) for r in signs]
-        )
+        code = (signs.astype(np.int64) + 1) @ np.array([9, 3, 1])  # one integer per sign triple
         for mode, chk in checkers.items():
-            sel = labels == mode
+            sel = code == _mode_code(mode)
             if sel.any():
                 valid[sel] = chk.is_valid(q[sel])
         rest = ~valid
