@@ -510,28 +510,36 @@ def plan(
         logger.info("plan %s: %s", status.value, message)
         return PlanResult(status, message, None, Diagnostics(time.perf_counter() - t0))
 
-    start_mode = posture_mode(design, start)
-    if start_mode is None:
-        return single()
-    checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, start_mode)
-    if not checker.is_valid_one(*start.q):
-        return single()
     asm = start.assembly_mode
+    if isinstance(goal, JointPosture) or goal.working_mode != "any":
+        # the single-mode planner first: it answers every request that needs no mode change
+        # (checks, messages) at no extra cost, and 'unreachable' for the others
+        first = single()
+        if first.status is not PlanStatus.UNREACHABLE:
+            return first
+        start_mode = posture_mode(design, start)
+        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+            return first
+        if isinstance(goal, JointPosture):
+            goal_mode = posture_mode(design, goal)
+            if goal.assembly_mode != asm or goal_mode in (None, start_mode):
+                return first
+            # the single-mode planner checked the goal in its own mode already
+            return plan_mode_change(
+                design, start, start_mode, {goal_mode: goal.q[None].copy()},
+                obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+            )  # fmt: skip
+        if goal.working_mode == start_mode:
+            return first
+    else:  # 'any': the start's mode first, with half the budget
+        first = single(replace(options, time_budget_s=options.time_budget_s * 0.5))
+        if first.status is PlanStatus.INVALID_START:
+            return first
+        start_mode = posture_mode(design, start)
+        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+            return first
+    checker = ValidityChecker(design, margins, obstacles, asm, start_mode)
 
-    if isinstance(goal, JointPosture):
-        goal_mode = posture_mode(design, goal)
-        if goal_mode is None or goal_mode == start_mode or goal.assembly_mode != asm:
-            return single()
-        goal_checker = checker.with_mode(goal_mode)
-        if not goal_checker.is_valid_one(*goal.q):
-            return finish(PlanStatus.INVALID_GOAL, "goal " + goal_checker.explain(goal.q))
-        return plan_mode_change(
-            design, start, start_mode, {goal_mode: goal.q[None].copy()},
-            obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
-        )  # fmt: skip
-
-    if goal.working_mode == start_mode:
-        return single()
     modes = [m for m in WORKING_MODES if m != start_mode]
     if goal.working_mode != "any":
         modes = [goal.working_mode]
@@ -547,7 +555,6 @@ def plan(
             whys[m] = why
 
     if goal.working_mode == "any":
-        first = single(replace(options, time_budget_s=options.time_budget_s * 0.5))
         if not targets:
             if first.solved or first.status is not PlanStatus.UNREACHABLE:
                 return first
