@@ -260,6 +260,30 @@ def test_any_mode_changes_mode_when_the_start_mode_cannot_reach(tmp_path):
     assert code == 0, out
 
 
+def test_any_mode_changes_mode_when_the_start_region_is_cut_off(tmp_path):
+    """The goal point's solution in the start's mode lies in another component of that mode's
+    region (joint limits at +-pi split it): the single-mode search finds no path, 'any'
+    reaches the point in another mode through a transit."""
+    from planner.planning.planner import plan as plan_single_mode
+
+    design = DESIGNS["free"]
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-np.pi, np.pi, (4000, 3))
+    s_q = q[ValidityChecker(design, MARGINS, (), "+", "+-+").is_valid(q)][2]
+    g_q = q[ValidityChecker(design, MARGINS, (), "+", "+++").is_valid(q)][2]
+    start, p = JointPosture(s_q, "+"), forward_batch(design, g_q, "+").p[0]
+    opts = PlanOptions(time_budget_s=0.6, seed=1)
+    alone = plan_single_mode(design, start, CartesianTarget(p, "any"), options=opts)
+    assert alone.status is PlanStatus.NO_PATH
+    res = plan(design, start, CartesianTarget(p, "any"), options=opts)
+    assert res.solved, res.message
+    assert res.path.segments[-1].working_mode != "+-+"
+    check_mode_path(design, start, res, goal_p=p)
+    goal_wire = {"p": p.tolist(), "working_mode": "any"}
+    code, out = run_check_plan(tmp_path, design, start, goal_wire, MARGINS, [], res.as_wire())
+    assert code == 0, out
+
+
 def test_obstacle_next_to_the_transit_still_solved(tmp_path):
     """A sphere on the first choice of transit: the plan uses another one or goes around."""
     from planner.geometry import Sphere
