@@ -207,9 +207,9 @@ def plan(request: PlanRequest) -> PlanResponse:
     """
     try:
         from planner.geometry import obstacle_from_wire
-        from planner.planning import CartesianTarget, JointPosture, PlanOptions
+        from planner.planning import CartesianTarget, JointPosture, PlanOptions, path_state_checker
         from planner.planning import plan as plan_path
-        from planner.validity import Margins, ValidityChecker
+        from planner.validity import Margins
     except ImportError as exc:
         raise PlanningUnavailableError("planning is not available in this build yet") from exc
 
@@ -233,29 +233,31 @@ def plan(request: PlanRequest) -> PlanResponse:
     with located("body", "planner"):
         options = PlanOptions(
             **request.planner.model_dump(
-                exclude_none=True, include={"name", "time_budget_s", "seed", "simplify"}
+                exclude_none=True,
+                include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
             )
         )
     result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
     response = PlanResponse.model_validate(result.as_wire())
-    if request.timing.method != "none" and response.path is not None:
-        checker = None
-        if len(response.path.segments) == 1:  # the planner's rules, in the path's one mode
-            seg = response.path.segments[0]
-            checker = ValidityChecker(
-                design, margins, obstacles, seg.assembly_mode, seg.working_mode
-            )
-        _add_trajectory(request, response, design, checker)
+    if request.timing.method != "none" and result.path is not None:
+        # the planner's rules per piece: each segment's mode, serial rules off near transits
+        from planner.timing import DEFAULT_MAX_DEVIATION
+
+        deviation = request.timing.max_deviation
+        near = DEFAULT_MAX_DEVIATION if deviation is None else deviation
+        check = path_state_checker(design, margins, obstacles, result.path, near=near)
+        _add_trajectory(request, response, design, check)
     return response
 
 
 def _add_trajectory(
-    request: PlanRequest, response: PlanResponse, design: Any, checker: Any | None
+    request: PlanRequest, response: PlanResponse, design: Any, check: Any | None
 ) -> None:
     """Time ``response.path`` in place: fill ``trajectory`` and the timing diagnostics, or
-    turn the status into ``timeout`` / ``no_path`` with the reason. ``checker`` (a
-    :class:`planner.validity.ValidityChecker`, or None for a multi-mode path) supplies the
-    validity rules of the dense re-check; joint limits and assembly are always checked."""
+    turn the status into ``timeout`` / ``no_path`` with the reason. ``check`` (Q -> valid,
+    :func:`planner.planning.path_state_checker`: each segment's rules, serial rules off near
+    transits) supplies the validity rules of the dense re-check; joint limits and assembly
+    are always checked."""
     from planner.exceptions import TimingDeadlineError, TimingError
     from planner.timing import JointLimits, time_path
 
@@ -269,16 +271,11 @@ def _add_trajectory(
             acceleration=wire.acceleration or default.acceleration,
             jerk=wire.jerk or default.jerk,
         )
-    check = None
-    if checker is not None:
-
-        def check(q: np.ndarray) -> np.ndarray:
-            return checker.check_states(q).valid
-
     options: dict[str, Any] = {}
     if request.timing.max_deviation is not None:
         options["max_deviation"] = request.timing.max_deviation
-    stop_at = [t.index for t in path.transits] if request.timing.stop_at_transits else []
+    stop = request.planner.stop_at_transits or request.timing.stop_at_transits
+    stop_at = [t.index for t in path.transits] if stop else []
     try:
         with located("body", "timing"):
             traj = time_path(

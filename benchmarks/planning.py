@@ -10,6 +10,11 @@ random working mode, drawn with a fixed seed):
 * ``free``: no obstacles;
 * ``spheres``: 5 spheres of radius 0.06-0.12 m in the workspace;
 * ``boxes``: 12 oriented boxes of edge 0.05-0.15 m plus a floor;
+* ``modes``: working-mode changes (no obstacles): start and goal in two different working
+  modes of one assembly mode, connected through transits (checked on the grid of valid
+  states: grid components of each mode linked by valid crossings of sampled transit
+  postures); 2 s budget by default for this scene (``--modes-budget``);
+* ``modes_spheres``: the same with the 5 spheres of ``spheres``;
 * ``narrow``: a thin plate in the plane z = 0 (x in [0.05, 1.3] m) with a window
   (x < 0.45 m, |y| < 0.3 m), theta1 limited to [-2, 2] rad; queries go from theta1 > 0.3 to
   theta1 < -0.3 in a working mode with w > 0, so the whole arm must pass through the window
@@ -35,6 +40,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -42,9 +48,11 @@ from planner import Design
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES
 from planner.planning import JointPosture, PlanOptions, ompl_backend, plan
+from planner.transits import sample_transits
 from planner.validity import Margins, ValidityChecker
 
-SCENES = ("free", "spheres", "boxes", "narrow")
+SCENES = ("free", "spheres", "boxes", "narrow", "modes", "modes_spheres")
+MODE_SCENES = ("modes", "modes_spheres")
 
 
 def _quaternion(rng: np.random.Generator) -> list[float]:
@@ -57,6 +65,10 @@ def build_scene(kind: str, seed: int = 7) -> tuple[Design, list, list[str]]:
     rng = np.random.default_rng(seed)
     design = Design.default()
     modes = list(WORKING_MODES)
+    if kind == "modes":
+        return build_scene("free", seed)
+    if kind == "modes_spheres":
+        return build_scene("spheres", seed)
     if kind == "free":
         return design, [], modes
     if kind == "spheres":
@@ -139,9 +151,95 @@ def build_queries(kind: str, n: int, seed: int = 11) -> list[tuple[JointPosture,
     return out
 
 
+def build_mode_change_queries(
+    kind: str, n: int, seed: int = 13, shape=(64, 96, 96)
+) -> list[tuple[JointPosture, JointPosture]]:
+    """n (start, goal) pairs in different working modes of one assembly mode, such that a
+    mode-change path exists up to the grid's resolution: the grid components of the valid
+    states of each mode are the nodes of a graph whose edges are valid crossings (transit
+    postures sampled with :func:`planner.transits.sample_transits`, crossed with
+    :func:`planner.transits.crossing_through`, both ends valid and both motions certified
+    with serial rules off); start and goal are drawn in linked components."""
+    from planner.transits import crossing_through, kinds_flipping
+
+    design, obstacles, _ = build_scene(kind)
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    step = (hi - lo) / (np.asarray(shape) - 1)
+    out = []
+    per_asm = {}
+    for asm in ("+", "-"):
+        labels = {}
+        for mode in WORKING_MODES:
+            lab, _ = _components(design, obstacles, asm, mode, shape)
+            if lab.max() > 0:
+                labels[mode] = lab
+        parent: dict = {}
+
+        def find(x, parent=parent):
+            while parent.setdefault(x, x) != x:
+                x = parent[x]
+            return x
+
+        def label(mode, q, labels=labels):
+            i = np.clip(np.rint((q - lo) / step).astype(int), 0, np.asarray(shape) - 1)
+            return int(labels[mode][i[0], i[1], i[2]])
+
+        free = ValidityChecker(design, Margins(), obstacles, asm, "+++", serial_rules=False)
+        for before in labels:
+            for j, flipped in enumerate(("axis", "A", "B")):
+                after = before[:j] + ("-" if before[j] == "+" else "+") + before[j + 1 :]
+                if after not in labels:
+                    continue
+                chk_b, chk_a = (
+                    free.with_mode(before, serial_rules=True),
+                    free.with_mode(after, serial_rules=True),
+                )
+                for tkind in kinds_flipping(flipped):
+                    qs = sample_transits(
+                        design, tkind, working_mode=before, assembly_mode=asm, n=300, rng=rng
+                    )
+                    for qt in qs[free.is_valid(qs)] if len(qs) else []:
+                        c = crossing_through(
+                            design, qt, assembly_mode=asm, flipped=flipped,
+                            sign_before=1 if before[j] == "+" else -1, margin=0.0525,
+                        )  # fmt: skip
+                        if c is None or not (
+                            chk_b.is_valid_one(*c.q_in) and chk_a.is_valid_one(*c.q_out)
+                        ):
+                            continue
+                        if not (free.motion_valid(c.q_in, qt) and free.motion_valid(qt, c.q_out)):
+                            continue
+                        la, lb = label(before, c.q_in), label(after, c.q_out)
+                        if la and lb:
+                            parent[find((before, la))] = find((after, lb))
+        per_asm[asm] = (labels, find, label)
+    tries = 0
+    while len(out) < n and tries < 100 * n:
+        tries += 1
+        asm = "+-"[rng.integers(2)]
+        labels, find, label = per_asm[asm]
+        modes = list(labels)
+        m0, m1 = rng.choice(modes, 2, replace=False)
+        q0 = rng.uniform(lo, hi, (200, 3))
+        q1 = rng.uniform(lo, hi, (200, 3))
+        v0 = q0[ValidityChecker(design, Margins(), obstacles, asm, m0).is_valid(q0)]
+        v1 = q1[ValidityChecker(design, Margins(), obstacles, asm, m1).is_valid(q1)]
+        if not len(v0) or not len(v1):
+            continue
+        a = next((q for q in v0 if label(m0, q)), None)
+        if a is None:
+            continue
+        root = find((m0, label(m0, a)))
+        b = next((q for q in v1 if label(m1, q) and find((m1, label(m1, q))) == root), None)
+        if b is not None:
+            out.append((JointPosture(a, asm), JointPosture(b, asm)))
+    return out
+
+
 def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict:
     design, obstacles, _ = build_scene(kind)
-    times, lengths, solved, direct = [], [], 0, 0
+    times, lengths, solved, direct, transits = [], [], 0, 0, []
     for start, goal in queries:
         t0 = time.perf_counter()
         res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
@@ -150,7 +248,11 @@ def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict
             solved += 1
             lengths.append(res.diagnostics.path_length)
             direct += res.diagnostics.planner == "direct"
-    return dict(times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries))
+            transits.append(len(res.path.transits))
+    return dict(
+        times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries),
+        transits=transits,
+    )  # fmt: skip
 
 
 def run_naive(kind: str, queries, budget: float, resolution: float, defaults: bool) -> dict:
@@ -197,6 +299,7 @@ def main() -> None:
     parser.add_argument("--naive-resolution", type=float, default=0.01)
     parser.add_argument("--planner", default="rrtconnect")
     parser.add_argument("--range", type=float, default=None)
+    parser.add_argument("--modes-budget", type=float, default=2.0)
     parser.add_argument("--scenes", default=",".join(SCENES))
     args = parser.parse_args()
 
@@ -214,6 +317,18 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     for kind in args.scenes.split(","):
+        if kind in MODE_SCENES:  # no naive set-up: no general-purpose planner changes mode
+            queries = build_mode_change_queries(kind, args.queries)
+            opts = replace(options, time_budget_s=args.modes_budget)
+            prod = run_product(kind, queries, args.modes_budget, opts)
+            print(_row(f"{kind} product", prod))
+            t = np.asarray(prod["transits"])
+            solved_fast = sum(x <= args.modes_budget for x in prod["times"])
+            print(
+                f"{'  transits':<18} mean {t.mean():.2f}, max {t.max()}; solved within "
+                f"{args.modes_budget:g} s: {solved_fast}/{prod['n']} (solved {prod['solved']})"
+            )
+            continue
         queries = build_queries(kind, max(args.queries, args.naive_queries))
         prod = run_product(kind, queries[: args.queries], args.budget, options)
         print(_row(f"{kind} product", prod))

@@ -137,11 +137,12 @@ def test_invalid_start_and_goal_name_rule_and_value():
 
 def test_other_mode_or_assembly_is_unreachable_for_a_single_mode_plan():
     from planner.kinematics import WORKING_MODES, inverse_batch
+    from planner.planning.planner import plan as plan_single_mode  # plan() changes mode
 
     ik = inverse_batch(DESIGN, forward_batch(DESIGN, START.q, "+").p)
     slot = WORKING_MODES.index("++-")
     assert ik.ok[0, slot] and ik.assembly_mode_signs[0, slot] == 1
-    res = plan(DESIGN, START, JointPosture(ik.q[0, slot], "+"))  # another working mode
+    res = plan_single_mode(DESIGN, START, JointPosture(ik.q[0, slot], "+"))  # another mode
     assert res.status is PlanStatus.UNREACHABLE and "working mode ++-" in res.message
     res = plan(DESIGN, START, JointPosture(START.q, "-"))
     assert res.status is PlanStatus.UNREACHABLE and "assembly mode" in res.message

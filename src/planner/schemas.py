@@ -333,6 +333,11 @@ class PlannerOptions(_Request):
         "absent: the planner's default seed.",
     )
     simplify: bool = Field(True, description="Shorten and smooth the path (OMPL simplifier).")
+    stop_at_transits: bool = Field(
+        False,
+        description="Come to rest at each working-mode transit (the timed trajectory stops "
+        "on the serial-singularity posture); default: pass it at speed.",
+    )
 
     @field_validator("name")
     @classmethod

@@ -1,10 +1,12 @@
-"""Joint-space planning with OMPL inside one working mode (the only package importing OMPL).
+"""Joint-space planning with OMPL (the only package importing OMPL): single-mode segments
+and working-mode changes through serial-singularity transits.
 
 Entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins, options)``),
 returning a :class:`PlanResult` whose statuses and fields are the wire vocabulary's.
 """
 
-from planner.planning.planner import goal_candidates, plan, plan_in_region, posture_mode
+from planner.planning.modes import mode_sequences, path_state_checker, plan
+from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
@@ -27,6 +29,8 @@ __all__ = [
     "Segment",
     "Transit",
     "goal_candidates",
+    "mode_sequences",
+    "path_state_checker",
     "plan",
     "plan_in_region",
     "posture_mode",

@@ -79,6 +79,10 @@ class PlanOptions:
     simplify : shorten the path with OMPL's PathSimplifier (re-certified afterwards).
     range : longest motion the tree-growing planners add at once, rad; None: tuned default.
     try_direct : first try the straight joint-space motion start -> goal.
+    stop_at_transits : the timed trajectory comes to rest at each working-mode transit
+        (the planner ignores it; the service passes the transit indices to
+        :func:`planner.timing.time_path` as ``stop_at``). Default False: a transit is
+        passed at speed (the crossing is straight, so it is no corner).
     """
 
     name: str = "rrtconnect"
@@ -87,6 +91,7 @@ class PlanOptions:
     simplify: bool = True
     range: float | None = None
     try_direct: bool = True
+    stop_at_transits: bool = False
 
     def __post_init__(self) -> None:
         if self.name not in PLANNERS:

@@ -1,0 +1,659 @@
+"""Working-mode changes: plans made of single-mode segments joined by serial-singularity
+transits. The library entry point :func:`plan` (re-exported as ``planner.planning.plan``).
+
+A working mode changes only by crossing a serial singularity, which flips exactly one sign of
+(s_axis, s_A, s_B) (``CONVENTIONS.md``); the assembly mode never changes (that would cross a
+parallel singularity). For a goal in another working mode than the start:
+
+1. *Mode sequences*: walks over the 8-mode graph (one sign flipped per edge) from the start's
+   mode to a mode where the goal is valid, without revisiting a mode, with at most
+   :data:`MAX_DETOUR` flips more than the signs that differ. They are ordered by number of
+   transits, then by an estimated cost (the straight joint-space length start -> transit
+   postures -> goal through the best sampled transits); every order of the flips is a walk.
+2. *Transit postures*: sampled on each singular surface of the right kind
+   (:func:`planner.transits.sample_transits`, seeded with ``options.seed``) and kept when valid
+   for every non-serial rule (joint limits, assembly, kappa(A), clearance), nearest first to
+   the straight line from the segment's start to the goal. Each is crossed by the straight
+   motion q_in -> q_transit -> q_out along the gradient of the serial measure
+   (:func:`planner.transits.crossing_through`); a crossing is kept when q_in and q_out are valid
+   in their segments' checkers, both motions are certified by a ``serial_rules=False`` checker,
+   and a dense walk (every :data:`CROSSING_CHECK_STEP` rad) finds the flipped measure with its
+   'before' sign up to the transit and the other sign after it, and the two other measures
+   >= ``margins.serial_min`` all along.
+3. *Segments*: each planned with :func:`planner.planning.planner.plan_in_region` in its own
+   mode's checker (every rule, serial margin included), from the previous q_out to the next
+   q_in (the last one to the goal candidates); a segment that fails falls back to the next
+   transit candidate, then to the next mode sequence, all within ``options.time_budget_s``,
+   in rounds of growing per-segment budgets (:data:`ROUND_SHARES`): a segment between two
+   disconnected components of a mode region fails cheaply before detours are tried.
+
+Goals in the start's own mode go to the single-mode planner unchanged. A Cartesian target
+with ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
+that fails, or when its estimate is shorter than :data:`BETTER_RATIO` times the single-mode
+path (the shorter solved path wins).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from itertools import pairwise
+
+import numpy as np
+
+from planner.design import Design
+from planner.geometry import Obstacle
+from planner.kinematics import WORKING_MODES, forward_batch
+from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
+from planner.planning.planner import plan as plan_single_mode
+from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
+from planner.planning.result import (
+    Diagnostics,
+    PlanPath,
+    PlanResult,
+    PlanStatus,
+    Segment,
+    Transit,
+)
+from planner.transits import Crossing, crossing_through, kinds_flipping, sample_transits
+from planner.validity import Margins, ValidityChecker, densify
+
+__all__ = [
+    "BETTER_RATIO",
+    "CROSSING_CHECK_STEP",
+    "MAX_DETOUR",
+    "ROUND_SHARES",
+    "crossing_signs_hold",
+    "mode_sequences",
+    "path_state_checker",
+    "plan",
+    "plan_mode_change",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Extra flips allowed beyond the signs that differ (a sign flipped there and back).
+MAX_DETOUR = 2
+#: Surface points drawn per transit kind and mode (before the validity filter).
+TRANSIT_SAMPLES = 256
+#: Valid crossings kept per transit step (the fallbacks when a segment fails).
+CROSSINGS_PER_STEP = 6
+#: Transit postures examined per step to find those crossings (nearest first).
+CROSSING_TRIES = 40
+#: Joint-space step (max-norm, rad) of the dense sign walk along a crossing.
+CROSSING_CHECK_STEP = 0.002
+#: "any" goal: a mode change is tried when its estimated length is below this fraction of
+#: the single-mode path's length.
+BETTER_RATIO = 0.7
+#: Rounds of the search: in round r each segment search may use this share of
+#: ``time_budget_s`` (capped by what remains). Most segments are straight motions or short
+#: searches; a segment between two disconnected components of a mode region (split by the
+#: literal joint limits or by parallel singularities) can never succeed, so short rounds over
+#: every candidate and mode sequence come first, longer searches after.
+ROUND_SHARES = (0.01, 0.1, 1.0)
+
+_INDEX = {"axis": 0, "A": 1, "B": 2}
+_FLIP_NAMES = ("axis", "A", "B")
+
+
+def _mode_code(mode: str) -> int:
+    """The integer of :func:`path_state_checker`'s sign-triple encoding for a mode label."""
+    return sum((2 if ch == "+" else 0) * f for ch, f in zip(mode, (9, 3, 1), strict=True))
+
+
+def _flip(mode: str, j: int) -> str:
+    return mode[:j] + ("-" if mode[j] == "+" else "+") + mode[j + 1 :]
+
+
+def mode_sequences(start_mode: str, goal_modes: Sequence[str], *, detour: int = MAX_DETOUR):
+    """Walks over the mode graph from ``start_mode`` to any of ``goal_modes``.
+
+    Each walk is a tuple of modes (start first) in which consecutive modes differ by one sign
+    and no mode repeats; at most ``hamming + detour`` flips. Ordered by number of flips
+    (fewest first), then lexicographically (the planner re-orders equal lengths by cost).
+    """
+    goals = set(goal_modes)
+    out: list[tuple[str, ...]] = []
+
+    def walk(path: tuple[str, ...], limit: int) -> None:
+        if path[-1] in goals and len(path) > 1:
+            out.append(path)
+        if len(path) - 1 >= limit:
+            return
+        for j in range(3):
+            nxt = _flip(path[-1], j)
+            if nxt not in path:
+                walk((*path, nxt), limit)
+
+    for g in goals:
+        hamming = sum(a != b for a, b in zip(start_mode, g, strict=True))
+        walk((start_mode,), hamming + detour)
+    unique = sorted(set(out), key=lambda p: (len(p), p))
+    return [p for p in unique if p[-1] in goals]
+
+
+@dataclass(frozen=True, slots=True)
+class _Candidate:
+    crossing: Crossing
+    before: str
+    after: str
+
+
+class _ModeChangeSearch:
+    """One request's search state: checkers, transit pools and crossings (cached)."""
+
+    def __init__(
+        self,
+        design: Design,
+        asm: str,
+        margins: Margins,
+        obstacles: Sequence[Obstacle],
+        options: PlanOptions,
+        deadline: float,
+    ) -> None:
+        self.design, self.asm, self.margins = design, asm, margins
+        self.obstacles = tuple(obstacles)
+        self.options, self.deadline = options, deadline
+        self.rng = np.random.default_rng(options.seed)
+        self._checkers: dict[str, ValidityChecker] = {}
+        self.free = ValidityChecker(design, margins, self.obstacles, asm, "+++", serial_rules=False)
+        self._pools: dict[tuple[str, str], tuple[np.ndarray, list[str]]] = {}
+        self.pool_reasons: dict[tuple[str, str], str] = {}
+        self.share = ROUND_SHARES[0]
+        self._failed: dict[bytes, float] = {}  # segment key -> largest budget that failed
+        self._crossings: dict[bytes, list[_Candidate]] = {}
+
+    def checker(self, mode: str) -> ValidityChecker:
+        if mode not in self._checkers:
+            self._checkers[mode] = self.free.with_mode(mode, serial_rules=True)
+        return self._checkers[mode]
+
+    def pool(self, before: str, after: str) -> tuple[np.ndarray, list[str]]:
+        """Transit postures (M, 3) between two adjacent modes, valid for the non-serial
+        rules, and their kinds."""
+        key = (before, after)
+        if key in self._pools:
+            return self._pools[key]
+        j = next(i for i in range(3) if before[i] != after[i])
+        qs, kinds, drawn = [], [], 0
+        for kind in kinds_flipping(_FLIP_NAMES[j]):
+            q = sample_transits(
+                self.design,
+                kind,
+                working_mode=before,
+                assembly_mode=self.asm,
+                n=TRANSIT_SAMPLES,
+                rng=self.rng,
+            )
+            drawn += len(q)
+            if len(q):
+                q = q[self.free.is_valid(q)]
+            qs.append(q)
+            kinds += [kind] * len(q)
+        q = np.vstack(qs) if qs else np.empty((0, 3))
+        if len(q) == 0:
+            kinds_txt = " or ".join(kinds_flipping(_FLIP_NAMES[j]))
+            self.pool_reasons[key] = (
+                f"{before} -> {after}: no posture on the {kinds_txt} surface exists in "
+                f"assembly mode {self.asm} within the joint limits"
+                if drawn == 0
+                else f"{before} -> {after}: no {kinds_txt} posture is valid "
+                "(joint limits, kappa_max, clearance)"
+            )
+        self._pools[key] = (q, kinds)
+        return q, kinds
+
+    def estimate(self, seq: tuple[str, ...], q_start: np.ndarray, q_goal: np.ndarray) -> float:
+        """Straight joint-space length start -> best transits -> goal (greedy), inf when a
+        step has no transit posture."""
+        prev, total = q_start, 0.0
+        for before, after in pairwise(seq):
+            q, _ = self.pool(before, after)
+            if len(q) == 0:
+                return float("inf")
+            score = np.linalg.norm(q - prev, axis=1) + np.linalg.norm(q - q_goal, axis=1)
+            k = int(np.argmin(score))
+            total += float(np.linalg.norm(q[k] - prev))
+            prev = q[k]
+        return total + float(np.linalg.norm(q_goal - prev))
+
+    def crossings(
+        self, before: str, after: str, q_from: np.ndarray, q_goal: np.ndarray
+    ) -> list[_Candidate]:
+        """Up to :data:`CROSSINGS_PER_STEP` valid crossings before -> after, nearest first to
+        the straight line q_from -> q_goal."""
+        q, _ = self.pool(before, after)
+        if len(q) == 0:
+            return []
+        j = next(i for i in range(3) if before[i] != after[i])
+        d_from = np.linalg.norm(q - q_from, axis=1)
+        d_goal = np.linalg.norm(q - q_goal, axis=1)
+        # nearest to the straight line first, interleaved with nearest to each end: the mode
+        # regions are split (joint limits, parallel singularities), and a transit near the
+        # start (or the goal) is more likely in its connected component
+        rankings = [np.argsort(r, kind="stable") for r in (d_from + d_goal, d_from, d_goal)]
+        order = list(dict.fromkeys(int(k) for k in np.stack(rankings, axis=1).ravel()))
+        out: list[tuple[bool, float, _Candidate]] = []
+        for k in order[:CROSSING_TRIES]:
+            if time.perf_counter() > self.deadline:
+                break
+            c = crossing_through(
+                self.design,
+                q[k],
+                assembly_mode=self.asm,
+                flipped=_FLIP_NAMES[j],
+                sign_before=1 if before[j] == "+" else -1,
+                margin=self.margins.serial_min * 1.05,
+            )
+            if c is None or not self._crossing_valid(c, before, after, j):
+                continue
+            cost = float(np.linalg.norm(c.q_in - q_from) + np.linalg.norm(c.q_out - q_goal))
+            # a straight first segment is a strong hint of the same connected component
+            direct = self.checker(before).motion_valid(q_from, c.q_in)
+            out.append((not direct, cost, _Candidate(c, before, after)))
+            if len(out) >= CROSSINGS_PER_STEP:
+                break
+        out.sort(key=lambda x: (x[0], x[1]))
+        return [c for _, _, c in out]
+
+    def _crossing_valid(self, c: Crossing, before: str, after: str, j: int) -> bool:
+        if not (
+            self.checker(before).is_valid_one(*c.q_in)
+            and self.checker(after).is_valid_one(*c.q_out)
+        ):
+            return False
+        if not (
+            self.free.motion_valid(c.q_in, c.q_transit)
+            and self.free.motion_valid(c.q_transit, c.q_out)
+        ):
+            return False
+        return crossing_signs_hold(
+            self.design, c, before, after, j, self.asm, self.margins.serial_min
+        )
+
+    def segment(self, mode: str, q_from: np.ndarray, q_goals: np.ndarray) -> PlanResult:
+        remaining = self.deadline - time.perf_counter()
+        budget = min(remaining, self.options.time_budget_s * self.share)
+        key = mode.encode() + q_from.tobytes() + q_goals.tobytes()
+        if budget <= 0 or self._failed.get(key, -1.0) >= budget:
+            return PlanResult(PlanStatus.NO_PATH, "skipped", None)
+        res = plan_in_region(
+            self.checker(mode),
+            q_from,
+            q_goals,
+            options=replace(self.options, time_budget_s=max(budget, 1e-3)),
+        )
+        if not res.solved:
+            self._failed[key] = budget
+        return res
+
+    def run(
+        self, seq: tuple[str, ...], q_start: np.ndarray, q_goals: np.ndarray
+    ) -> tuple[list[PlanResult], list[_Candidate]] | None:
+        """Plan the walk ``seq`` (depth first over transit candidates); the segment results
+        and the crossings used, or None."""
+        q_goal = q_goals[0]
+
+        def step(i: int, q_from: np.ndarray) -> tuple[list[PlanResult], list[_Candidate]] | None:
+            if time.perf_counter() > self.deadline:
+                return None
+            if i == len(seq) - 1:
+                res = self.segment(seq[i], q_from, q_goals)
+                return ([res], []) if res.solved else None
+            key = (seq[i] + seq[i + 1]).encode() + q_from.tobytes() + q_goal.tobytes()
+            if key not in self._crossings:
+                self._crossings[key] = self.crossings(seq[i], seq[i + 1], q_from, q_goal)
+            for cand in self._crossings[key]:
+                res = self.segment(seq[i], q_from, cand.crossing.q_in[None])
+                if not res.solved:
+                    continue
+                rest = step(i + 1, cand.crossing.q_out)
+                if rest is not None:
+                    return [res, *rest[0]], [cand, *rest[1]]
+                if time.perf_counter() > self.deadline:
+                    return None
+            return None
+
+        return step(0, q_start)
+
+
+def crossing_signs_hold(
+    design: Design,
+    c: Crossing,
+    before: str,
+    after: str,
+    j: int,
+    asm: str,
+    serial_min: float,
+    *,
+    step: float = CROSSING_CHECK_STEP,
+) -> bool:
+    """Dense walk along a crossing: the flipped measure j has ``before``'s sign strictly
+    before the transit and ``after``'s strictly after it; the two others keep their (shared)
+    signs with magnitude >= ``serial_min``; every posture assembles."""
+    halves = (
+        densify(np.stack([c.q_in, c.q_transit]), step)[:-1],
+        densify(np.stack([c.q_transit, c.q_out]), step)[1:],
+    )
+    for line, mode in zip(halves, (before, after), strict=True):
+        b = forward_batch(design, line, asm)
+        if not b.ok.all():
+            return False
+        signs = np.array([1.0 if ch == "+" else -1.0 for ch in mode])
+        m = b.serial_measures * signs
+        if not np.all(m[:, j] > 0):
+            return False
+        others = [k for k in range(3) if k != j]
+        if not np.all(m[:, others] >= serial_min):
+            return False
+    return True
+
+
+def _assemble(
+    segments: list[PlanResult], cands: list[_Candidate], free: ValidityChecker, asm: str
+) -> tuple[PlanPath, Diagnostics]:
+    """Join segment paths and crossings into one path: q_in, q_transit, q_out consecutive."""
+    parts: list[np.ndarray] = []
+    segs: list[Segment] = []
+    transits: list[Transit] = []
+    start_index = 0
+    min_clear, max_kappa, min_serial, length = np.inf, -np.inf, np.inf, 0.0
+    for i, res in enumerate(segments):
+        assert res.path is not None
+        w = res.path.waypoints
+        d = res.diagnostics
+        min_clear = min(min_clear, d.min_clearance)
+        max_kappa = max(max_kappa, d.max_kappa_A)
+        min_serial = min(min_serial, d.min_serial_margin)
+        length += d.path_length
+        mode = res.path.segments[0].working_mode
+        if i == 0:
+            parts.append(w)
+        else:  # starts at the previous crossing's q_out, already appended
+            parts.append(w[1:])
+        n_so_far = sum(len(p) for p in parts)
+        if i < len(cands):
+            c = cands[i].crossing
+            parts.append(c.q_transit[None])
+            parts.append(c.q_out[None])
+            t_index = n_so_far  # index of q_transit
+            segs.append(Segment(mode, asm, start_index, t_index))
+            transits.append(
+                Transit(t_index, tuple(float(x) for x in c.q_transit), c.kind, c.flipped)
+            )
+            start_index = t_index
+            rep = free.check_path(np.stack([c.q_in, c.q_transit, c.q_out]), certify=False)
+            min_clear = min(min_clear, rep.min_clearance)
+            max_kappa = max(max_kappa, rep.max_kappa_A)
+            length += rep.length
+        else:
+            segs.append(Segment(mode, asm, start_index, n_so_far - 1))
+    waypoints = np.vstack(parts)
+    path = PlanPath(waypoints, tuple(segs), tuple(transits))
+    diag = Diagnostics(
+        planning_time_s=0.0,
+        path_length=length,
+        min_clearance=min_clear,
+        max_kappa_A=max_kappa,
+        min_serial_margin=min_serial,
+        planner="+".join(dict.fromkeys(r.diagnostics.planner for r in segments)),
+        attempts=sum(r.diagnostics.attempts for r in segments),
+    )
+    return path, diag
+
+
+def plan_mode_change(
+    design: Design,
+    start: JointPosture,
+    start_mode: str,
+    targets: dict[str, np.ndarray],
+    *,
+    obstacles: Sequence[Obstacle],
+    margins: Margins,
+    options: PlanOptions,
+    t0: float,
+    deadline: float,
+) -> PlanResult:
+    """Plan from ``start`` (in ``start_mode``) to the goal candidates ``targets`` (mode ->
+    (K, 3) valid joint goals in that mode) through transits; see the module docstring."""
+    search = _ModeChangeSearch(design, start.assembly_mode, margins, obstacles, options, deadline)
+    seqs = mode_sequences(start_mode, list(targets))
+    ranked = []
+    for seq in seqs:
+        est = search.estimate(seq, start.q, targets[seq[-1]][0])
+        if np.isfinite(est):
+            ranked.append((len(seq), est, seq))
+    ranked.sort(key=lambda x: (x[0], x[1]))
+    if not ranked:
+        reasons = sorted(set(search.pool_reasons.values()))
+        return PlanResult(
+            PlanStatus.UNREACHABLE,
+            f"working mode {' or '.join(sorted(targets))} cannot be reached from {start_mode} "
+            f"in assembly mode {start.assembly_mode}: no transit exists on any mode sequence ("
+            + "; ".join(reasons)
+            + ")",
+            None,
+            Diagnostics(planning_time_s=time.perf_counter() - t0),
+        )
+    tried: set[tuple[str, ...]] = set()
+    for share in ROUND_SHARES:
+        search.share = share
+        for _, _, seq in ranked:
+            if time.perf_counter() > deadline:
+                break
+            tried.add(seq)
+            out = search.run(seq, start.q, targets[seq[-1]])
+            if out is None:
+                continue
+            path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
+            diag = replace(diag, planning_time_s=time.perf_counter() - t0)
+            modes = " -> ".join(seq)
+            return PlanResult(
+                PlanStatus.SOLVED,
+                f"solved through {len(seq) - 1} transit(s): {modes}",
+                path,
+                diag,
+            )
+    return PlanResult(
+        PlanStatus.NO_PATH,
+        f"no path found within {options.time_budget_s:g} s through transits "
+        f"({len(tried)} of {len(ranked)} mode sequences tried)",
+        None,
+        Diagnostics(planning_time_s=time.perf_counter() - t0),
+    )
+
+
+def plan(
+    design: Design,
+    start: JointPosture,
+    goal: JointPosture | CartesianTarget,
+    *,
+    obstacles: Sequence[Obstacle] = (),
+    margins: Margins | None = None,
+    options: PlanOptions | None = None,
+) -> PlanResult:
+    """Plan a valid joint path from ``start`` to ``goal``, changing working mode through serial
+    singularities where the goal needs it (the assembly mode never changes).
+
+    Parameters
+    ----------
+    design : the manipulator.
+    start : joint posture (its working and assembly modes come from it).
+    goal : joint posture (in any working mode of the start's assembly mode), or Cartesian
+        target (a specific working mode, or 'any').
+    obstacles, margins, options : as :func:`planner.planning.planner.plan`;
+        ``options.time_budget_s`` bounds the whole search (every segment and fallback).
+
+    Returns
+    -------
+    PlanResult
+        ``solved`` with ``path.segments`` (one per working mode visited) and
+        ``path.transits`` (one per sign flip; consecutive segments share the transit
+        waypoint); ``unreachable`` when the goal's mode is in the other assembly mode or no
+        mode sequence has a transit posture (the message says why); ``no_path`` when the
+        budget ran out; ``invalid_start`` / ``invalid_goal`` as for single-mode plans.
+    """
+    t0 = time.perf_counter()
+    margins = margins if margins is not None else Margins()
+    options = options if options is not None else PlanOptions()
+    deadline = t0 + options.time_budget_s
+    obstacles = tuple(obstacles)
+
+    def single(opts: PlanOptions = options) -> PlanResult:
+        return plan_single_mode(
+            design, start, goal, obstacles=obstacles, margins=margins, options=opts
+        )
+
+    def finish(status: PlanStatus, message: str) -> PlanResult:
+        logger.info("plan %s: %s", status.value, message)
+        return PlanResult(status, message, None, Diagnostics(time.perf_counter() - t0))
+
+    asm = start.assembly_mode
+    if isinstance(goal, JointPosture) or goal.working_mode != "any":
+        # the single-mode planner first: it answers every request that needs no mode change
+        # (checks, messages) at no extra cost, and 'unreachable' for the others
+        first = single()
+        if first.status is not PlanStatus.UNREACHABLE:
+            return first
+        start_mode = posture_mode(design, start)
+        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+            return first
+        if isinstance(goal, JointPosture):
+            goal_mode = posture_mode(design, goal)
+            if goal.assembly_mode != asm or goal_mode in (None, start_mode):
+                return first
+            # the single-mode planner checked the goal in its own mode already
+            return plan_mode_change(
+                design, start, start_mode, {goal_mode: goal.q[None].copy()},
+                obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+            )  # fmt: skip
+        if goal.working_mode == start_mode:
+            return first
+    else:  # 'any': the start's mode first, with half the budget
+        first = single(replace(options, time_budget_s=options.time_budget_s * 0.5))
+        if first.status is PlanStatus.INVALID_START:
+            return first
+        start_mode = posture_mode(design, start)
+        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+            return first
+    checker = ValidityChecker(design, margins, obstacles, asm, start_mode)
+
+    modes = [m for m in WORKING_MODES if m != start_mode]
+    if goal.working_mode != "any":
+        modes = [goal.working_mode]
+    targets: dict[str, np.ndarray] = {}
+    whys: dict[str, str] = {}
+    for m in modes:
+        cands, why = goal_candidates(
+            design, CartesianTarget(goal.p, m), checker.with_mode(m), start.q
+        )
+        if len(cands):
+            targets[m] = cands
+        else:
+            whys[m] = why
+
+    if goal.working_mode == "any":
+        if not targets:
+            if first.solved or first.status is not PlanStatus.UNREACHABLE:
+                return first
+            return finish(
+                PlanStatus.UNREACHABLE,
+                f"the goal point is unreachable in every working mode: in {start_mode} "
+                f"{first.message}; " + "; ".join(f"in {m} {w}" for m, w in whys.items()),
+            )
+        if first.solved:
+            # a path is never shorter than the straight distance to its goal: skip the
+            # transit sampling when no goal candidate of another mode is close enough
+            bound = min(float(np.linalg.norm(c[0] - start.q)) for c in targets.values())
+            if not bound < BETTER_RATIO * first.diagnostics.path_length:
+                return first
+            search = _ModeChangeSearch(design, asm, margins, obstacles, options, deadline)
+            best = min(
+                search.estimate(seq, start.q, targets[seq[-1]][0])
+                for seq in mode_sequences(start_mode, list(targets))
+            )
+            if not best < BETTER_RATIO * first.diagnostics.path_length:
+                return first
+            other = plan_mode_change(
+                design, start, start_mode, targets,
+                obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+            )  # fmt: skip
+            if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
+                return other
+            return replace(
+                first,
+                diagnostics=replace(first.diagnostics, planning_time_s=time.perf_counter() - t0),
+            )
+        other = plan_mode_change(
+            design, start, start_mode, targets,
+            obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+        )  # fmt: skip
+        if other.solved or first.status is PlanStatus.UNREACHABLE:
+            return other
+        return other if other.status is PlanStatus.NO_PATH else first
+
+    m = goal.working_mode
+    if m not in targets:
+        return finish(PlanStatus.UNREACHABLE, whys[m])
+    return plan_mode_change(
+        design, start, start_mode, targets,
+        obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+    )  # fmt: skip
+
+
+def path_state_checker(
+    design: Design,
+    margins: Margins,
+    obstacles: Sequence[Obstacle],
+    path: PlanPath,
+    *,
+    near: float = 0.0,
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The validity rules of a planned path for a timed trajectory near it: Q (M, 3) ->
+    valid (M,) bool.
+
+    A posture is valid when it satisfies every rule of the checker of its own working mode,
+    that mode being one of the path's segments'; or when it lies within ``near`` + 1e-9 rad
+    (joint space) of a crossing (the motions q_in -> q_transit -> q_out of a transit), keeps
+    the two working-mode signs that the transit does not flip, and satisfies every
+    non-serial rule (``serial_rules=False``). ``near`` is the timing's corner allowance
+    (``max_deviation``).
+    """
+    segs = path.segments
+    asm = segs[0].assembly_mode if segs else "+"
+    free = ValidityChecker(design, margins, obstacles, asm, "+++", serial_rules=False)
+    checkers = {s.working_mode: free.with_mode(s.working_mode, serial_rules=True) for s in segs}
+    w = np.asarray(path.waypoints, dtype=float)
+    crossings = []
+    for t in path.transits:
+        if 0 < t.index < len(w) - 1:
+            before = next(s.working_mode for s in segs if s.end_index == t.index)
+            crossings.append((w[t.index - 1], w[t.index + 1], _INDEX[t.flipped], before))
+
+    def check(q: np.ndarray) -> np.ndarray:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        fb = forward_batch(design, q, asm)
+        signs = fb.working_mode_signs
+        valid = np.zeros(len(q), dtype=bool)
+        code = (signs.astype(np.int64) + 1) @ np.array([9, 3, 1])  # one integer per sign triple
+        for mode, chk in checkers.items():
+            sel = code == _mode_code(mode)
+            if sel.any():
+                valid[sel] = chk.is_valid(q[sel])
+        rest = ~valid
+        if crossings and rest.any():
+            free_ok = np.zeros(len(q), dtype=bool)
+            free_ok[rest] = free.is_valid(q[rest])
+            for a, b, j, before in crossings:
+                ab = b - a
+                t = np.clip((q - a) @ ab / float(ab @ ab), 0.0, 1.0)
+                dist = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
+                others = [k for k in range(3) if k != j]
+                want = np.array([1 if before[k] == "+" else -1 for k in others])
+                keep = np.all(signs[:, others] == want, axis=1)
+                valid |= rest & free_ok & keep & (dist <= near + 1e-9)
+        return valid
+
+    return check
