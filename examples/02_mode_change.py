@@ -22,7 +22,7 @@ from planner.client import PlannerClient
 URL = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("PLANNER_URL", "http://127.0.0.1:8000")
 
 START = {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"}  # working mode ++-
-GOAL = {"p": [0.463, 0.043, -0.583], "working_mode": "+--"}  # leg A's sign flips
+GOAL = {"p": [0.449, 0.042, -0.566], "working_mode": "+--"}  # leg A's sign flips
 SIGN_INDEX = {"axis": 0, "A": 1, "B": 2}
 
 

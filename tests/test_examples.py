@@ -20,8 +20,6 @@ EXPECTED = {
     "03_obstacles.py": ["status: solved", "check: smallest link-to-ball gap", "obstacles: ok"],
     "04_design_study.py": ["paper-optimum", "C=D, CD_stretched", "figure:", "design study: ok"],
 }
-#: Examples of features not merged yet (the planner plans in one working mode for now).
-PENDING = {"02_mode_change.py": "working-mode changes are not in the planner yet"}
 
 
 def _run(name: str, url: str, *args: str) -> subprocess.CompletedProcess[str]:
@@ -41,15 +39,7 @@ def test_every_example_is_listed():
     assert sorted(p.name for p in EXAMPLES.glob("[0-9]*.py")) == sorted(EXPECTED)
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(reason=PENDING[n], strict=False))
-        if n in PENDING
-        else n
-        for n in sorted(EXPECTED)
-    ],
-)
+@pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_example_runs_against_the_live_server(live_server, tmp_path, name):
     result = _run(name, live_server, str(tmp_path))
     assert result.returncode == 0, result.stdout + result.stderr
