@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from api.exceptions import PlanningUnavailableError
 from planner.constants import KAPPA_SOLVABLE
 from planner.exceptions import AssemblyError, PlannerError
 from planner.kinematics import SERIAL_KINDS, Manipulator, Posture
@@ -199,19 +198,11 @@ def plan(request: PlanRequest) -> PlanResponse:
     status ``timeout``; a path the timing cannot turn into a checked trajectory (no profile,
     or the dense re-check fails after the repairs) gives ``no_path`` with the reason, the
     path kept and ``diagnostics.timing_error`` naming the failed rule.
-
-    Raises
-    ------
-    PlanningUnavailableError
-        This build has no planner (``planner.planning``): HTTP 501.
     """
-    try:
-        from planner.geometry import obstacle_from_wire
-        from planner.planning import CartesianTarget, JointPosture, PlanOptions, path_state_checker
-        from planner.planning import plan as plan_path
-        from planner.validity import Margins
-    except ImportError as exc:
-        raise PlanningUnavailableError("planning is not available in this build yet") from exc
+    from planner.geometry import obstacle_from_wire
+    from planner.planning import CartesianTarget, JointPosture, PlanOptions, path_state_checker
+    from planner.planning import plan as plan_path
+    from planner.validity import Margins
 
     with located("body", "design"):
         design = request.design.to_design()

@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 
 from api.compute import _DEADLINE, located, sampled_value, timing_error, trajectory_model
-from api.exceptions import PlanningUnavailableError
 from planner.exceptions import AssemblyError, InputError, LimitsError
 from planner.kinematics import forward_batch, mode_label
 from planner.schemas import (
@@ -197,13 +196,9 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     asks for none (no margins, no obstacles)."""
     if request.margins is None and not request.obstacles:
         return None
-    try:
-        from planner.geometry import obstacle_from_wire
-        from planner.validity import Margins, ValidityChecker
-    except ImportError as exc:
-        raise PlanningUnavailableError(
-            "margins and obstacles need the planner's validity rules, not in this build yet"
-        ) from exc
+    from planner.geometry import obstacle_from_wire
+    from planner.validity import Margins, ValidityChecker
+
     obstacles = []
     for i, o in enumerate(request.obstacles):
         with located("body", "obstacles", i):

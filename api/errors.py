@@ -14,7 +14,6 @@ DesignError, InputError,           422     library errors; ``loc`` from :func:`a
 KinematicsError, other PlannerError
 AuthenticationError                401     ``WWW-Authenticate: Bearer``
 body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
-PlanningUnavailableError           501
 WorkerCrashedError                 502
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
@@ -40,7 +39,6 @@ from api.exceptions import (
     AuthenticationError,
     DeadlineExceededError,
     LimitExceededError,
-    PlanningUnavailableError,
     PoolNotRunningError,
     PoolSaturatedError,
     ShuttingDownError,
@@ -72,7 +70,6 @@ _LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]
 #: Service errors: (HTTP status, error type).
 _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     AuthenticationError: (401, "unauthorized"),
-    PlanningUnavailableError: (501, "not_implemented"),
     WorkerCrashedError: (502, "worker_crashed"),
     ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),

@@ -9,7 +9,6 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
     ├── PoolNotRunningError       503: the worker pool was not started (no lifespan)
     ├── DeadlineExceededError     504: the request's time budget ran out
     ├── WorkerCrashedError        502: a worker process died during the job
-    ├── PlanningUnavailableError  501: this build has no planner yet
     ├── LimitExceededError        422: a request exceeds a size limit of the service settings
     └── AuthenticationError       401: missing or wrong API key
 """
@@ -20,7 +19,6 @@ __all__ = [
     "AuthenticationError",
     "DeadlineExceededError",
     "LimitExceededError",
-    "PlanningUnavailableError",
     "PoolNotRunningError",
     "PoolSaturatedError",
     "ServiceError",
@@ -61,10 +59,6 @@ class DeadlineExceededError(ServiceError):
 
 class WorkerCrashedError(ServiceError):
     """A worker process died while the job ran; the pool was rebuilt."""
-
-
-class PlanningUnavailableError(ServiceError):
-    """This build has no planner (``planner.planning.plan``) yet."""
 
 
 class LimitExceededError(ServiceError):

@@ -3,15 +3,8 @@ an independent forward kinematics. Runs once the planner (issue 5) is in the bui
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
-
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("planner.planning") is None,
-    reason="the planner (planner.planning) is not in this build yet",
-)
 
 START = {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"}
 GOAL = {"q": [0.5, 1.1, 2.1], "assembly_mode": "+"}

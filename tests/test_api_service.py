@@ -5,11 +5,10 @@ wiring, and the OpenAPI document."""
 from __future__ import annotations
 
 import asyncio
-import importlib.util
+import math
 import os
 import threading
 import time
-import typing
 
 import pytest
 from pydantic import ValidationError
@@ -18,10 +17,7 @@ from api.exceptions import PoolSaturatedError
 from api.routes.plan import get_plan_function
 from api.settings import Settings
 from api.workers import WorkerPool
-from planner.schemas import PlanRequest, PlanResponse, PlanStatus
-
-#: Whether this build has the planner of issue 5 (before the merge, /v1/plan answers 501).
-HAS_PLANNER = importlib.util.find_spec("planner.planning") is not None
+from planner.schemas import PlanRequest, PlanResponse
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}
@@ -172,14 +168,14 @@ def two_workers(client_factory):
         c.app.dependency_overrides.clear()
 
 
-def test_plan_route_runs_the_planner_or_says_it_is_missing(two_workers):
+def test_plan_route_runs_the_planner(two_workers):
+    """PLAN's goal P = (0.3, 0.1, 0.2) is 0.39 m from B = (0, 0.25, 0), inside leg B's inner
+    shell |BP| >= L2 - L1 = 0.4 m of the default robot: the planner must say unreachable."""
+    x, y, z = PLAN["goal"]["p"]
+    assert math.dist((x, y, z), (0.0, 0.25, 0.0)) < 0.6 - 0.2
     r = two_workers.post("/v1/plan", json={**PLAN, "planner": {"seed": 1}})
-    if HAS_PLANNER:
-        assert r.status_code == 200, r.text
-        assert r.json()["status"] in typing.get_args(PlanStatus)
-    else:
-        assert r.status_code == 501
-        assert r.json()["detail"][0]["type"] == "not_implemented"
+    assert r.status_code == 200, r.text
+    assert r.json()["status"] == "unreachable", r.json()["message"]
 
 
 def test_batch_answers_in_request_order(two_workers):
@@ -193,6 +189,18 @@ def test_batch_answers_in_request_order(two_workers):
     assert {x["status"] for x in results} == {"no_path"}
     r = two_workers.post("/v1/plan", json={**PLAN, "planner": {"seed": 9}})
     assert r.status_code == 200 and r.json()["message"] == "9"
+
+
+def test_batch_larger_than_the_pool_capacity_is_served_in_rounds(client_factory):
+    """workers=1, queue_size=1: capacity 2, yet an idle service answers a batch of 5."""
+    with client_factory(workers=1, queue_size=1) as c:
+        _wait_ready(c)
+        c.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
+        seeds = [5, 3, 9, 1, 7]
+        body = {"requests": [{**PLAN, "planner": {"seed": s}} for s in seeds]}
+        r = c.post("/v1/plan/batch", json=body)
+        assert r.status_code == 200, r.text
+        assert [int(x["message"]) for x in r.json()["results"]] == seeds
 
 
 def test_batch_runs_on_several_processes_without_blocking_the_loop(two_workers):

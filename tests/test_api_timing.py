@@ -130,6 +130,8 @@ def test_bad_validity_fields_are_422(api):
     ("change", "loc"),
     [
         ({"limits": {"velocity": [1, 0, 1]}}, ["body", "limits", "velocity", 1]),
+        ({"limits": {"velocity": [1e-300, 1, 1]}}, ["body", "limits", "velocity", 0]),
+        ({"limits": {"cartesian_speed": 1e-200}}, ["body", "limits", "cartesian_speed"]),
         ({"limits": {"velocity": [1, 1]}}, ["body", "limits", "velocity"]),
         ({"limits": {"acceleration": [1, -2, 1]}}, ["body", "limits", "acceleration", 1]),
         ({"limits": {"jerk": [1, 1, "NaN"]}}, ["body", "limits", "jerk", 2]),

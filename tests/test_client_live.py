@@ -4,7 +4,6 @@ workers, on a free loopback port: the ``live_server`` fixture)."""
 from __future__ import annotations
 
 import asyncio
-import importlib.util
 
 import numpy as np
 import pytest
@@ -14,7 +13,6 @@ from planner.client import (
     AsyncPlannerClient,
     InvalidRequestError,
     PlannerClient,
-    ServerError,
 )
 from planner.schemas import AnalyzeResponse, DesignsResponse, FKResponse, IKResponse
 
@@ -49,17 +47,12 @@ def test_sync_client_server_errors(live_server):
             c.analyze([0.0, 0.7, 0.7], "+", design={"L0": 0.0, "L1": 0.4, "L2": 0.4})
         assert info.value.status_code == 422
         assert info.value.detail[0]["loc"] == ["body", "q"]
-        if importlib.util.find_spec("planner.planning") is None:
-            with pytest.raises(ServerError) as info:  # no planner in this build yet: 501
-                c.plan(start=START, goal={"p": [0.3, 0.1, 0.2]})
-            assert info.value.status_code == 501
-        else:
-            result = c.plan(
-                start=START, goal={"q": [0.3, 1.1, 2.1], "assembly_mode": "+"}, planner={"seed": 1}
-            )
-            assert result.status == "solved", result.message
-            assert result.path.waypoints[0] == pytest.approx(START["q"])
-            assert result.path.waypoints[-1] == pytest.approx([0.3, 1.1, 2.1])
+        result = c.plan(
+            start=START, goal={"q": [0.3, 1.1, 2.1], "assembly_mode": "+"}, planner={"seed": 1}
+        )
+        assert result.status == "solved", result.message
+        assert result.path.waypoints[0] == pytest.approx(START["q"])
+        assert result.path.waypoints[-1] == pytest.approx([0.3, 1.1, 2.1])
 
 
 def test_async_client_concurrent_requests(live_server):

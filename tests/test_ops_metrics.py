@@ -4,7 +4,6 @@ read back with prometheus_client's own text parser."""
 
 from __future__ import annotations
 
-import importlib.util
 import threading
 import time
 
@@ -150,9 +149,6 @@ def test_metrics_can_be_switched_off(client_factory):
         assert c.post("/v1/fk", json={"q": [0.1, 1.0, 2.0]}).status_code == 200
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("planner.planning") is None, reason="no planner in this build"
-)
 def test_real_plan_reports_its_diagnostics(client_factory):
     body = {
         "start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},

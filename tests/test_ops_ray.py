@@ -3,7 +3,6 @@ through Ray's HTTP proxy on a loopback port, with its worker pool inside the rep
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import time
 from pathlib import Path
@@ -21,7 +20,6 @@ os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
 
 ROOT = Path(__file__).resolve().parents[1]
-HAS_PLANNER = importlib.util.find_spec("planner.planning") is not None
 
 
 def _wait_ready(url: str, timeout_s: float = 60.0) -> None:
@@ -70,7 +68,7 @@ def test_ray_serve_serves_the_app(unused_port):
         expected = forward_batch(Design.default(), np.array([q]), "+").p[0]
         np.testing.assert_allclose(r.json()["postures"][0]["p"], expected, atol=1e-12)
 
-        # one plan through it (501 in a build without the planner)
+        # one plan through it
         plan = {
             "start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},
             "goal": {"q": [0.2, 1.1, 2.1], "assembly_mode": "+"},
@@ -78,15 +76,11 @@ def test_ray_serve_serves_the_app(unused_port):
             "timing": {"method": "none"},
         }
         r = httpx.post(f"{url}/v1/plan", json=plan, timeout=30)
-        if HAS_PLANNER:
-            assert r.status_code == 200, r.text
-            body = r.json()
-            assert body["status"] == "solved", body
-            np.testing.assert_allclose(body["path"]["waypoints"][0], plan["start"]["q"])
-            np.testing.assert_allclose(body["path"]["waypoints"][-1], plan["goal"]["q"])
-        else:
-            assert r.status_code == 501
-            assert r.json()["detail"][0]["type"] == "not_implemented"
+        assert r.status_code == 200, r.text
+        body = r.json()
+        assert body["status"] == "solved", body
+        np.testing.assert_allclose(body["path"]["waypoints"][0], plan["start"]["q"])
+        np.testing.assert_allclose(body["path"]["waypoints"][-1], plan["goal"]["q"])
 
         # the replica's metrics saw those requests
         text = httpx.get(f"{url}/metrics", timeout=10).text

@@ -26,8 +26,10 @@ def test_valid_limits_are_stored_as_float_triples():
 @pytest.mark.parametrize(
     ("value", "rule"),
     [
-        ((1.0, 0.0, 1.0), "limits.{f}[1] must be > 0"),
-        ((1.0, 1.0, -2.0), "limits.{f}[2] must be > 0"),
+        ((1.0, 0.0, 1.0), "limits.{f}[1] must lie in [1e-06, 1e+06]"),
+        ((1.0, 1.0, -2.0), "limits.{f}[2] must lie in [1e-06, 1e+06]"),
+        ((1e-300, 1.0, 1.0), "limits.{f}[0] must lie in [1e-06, 1e+06]"),  # squares underflow
+        ((1.0, 1e9, 1.0), "limits.{f}[1] must lie in [1e-06, 1e+06]"),
         ((math.nan, 1.0, 1.0), "limits.{f}[0] must be finite"),
         ((1.0, math.inf, 1.0), "limits.{f}[1] must be finite"),
         ((1.0, 1.0), "limits.{f} must be 3 numbers"),

@@ -78,9 +78,17 @@ async def run_job(
 async def run_jobs(
     pool: WorkerPool, job: Callable[[Any], BaseModel], bodies: Sequence[Any], deadline: float
 ) -> list[bytes]:
-    """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order."""
+    """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order.
+
+    Submitted in chunks of at most one job per worker, so that a batch larger than the pool's
+    capacity (workers + queue) is served in rounds instead of being refused whole; a 503
+    still answers a pool that is saturated by other requests.
+    """
     job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
-    answers = await pool.map(job_json, bodies, deadline=deadline)
-    for _, sample in answers:
-        record_job(sample)
-    return [content for content, _ in answers]
+    contents: list[bytes] = []
+    for start in range(0, len(bodies), pool.workers):
+        answers = await pool.map(job_json, bodies[start : start + pool.workers], deadline=deadline)
+        for content, sample in answers:
+            record_job(sample)
+            contents.append(content)
+    return contents

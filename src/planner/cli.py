@@ -216,7 +216,7 @@ def check_design_command(
 
 # ---------------------------------------------------------------------------- plan
 #: Exit statuses of ``planner plan``.
-EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT, EXIT_NO_PLANNER = 0, 1, 2, 3
+EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
@@ -262,11 +262,10 @@ def plan(
 ) -> None:
     """Plan (and time) a motion in-process and print a summary: status, waypoints, segments,
     transits, duration and diagnostics. Exit status: 0 solved, 1 another status (no_path,
-    unreachable, ...), 2 an invalid request, 3 no planner in this build."""
+    unreachable, ...), 2 an invalid request."""
     from pydantic import ValidationError
 
     from api import compute
-    from api.exceptions import PlanningUnavailableError
     from planner.exceptions import PlannerError
     from planner.schemas import PlanRequest
 
@@ -281,9 +280,6 @@ def plan(
         raise typer.Exit(EXIT_BAD_INPUT) from None
     try:
         response = compute.plan(body)
-    except PlanningUnavailableError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(EXIT_NO_PLANNER) from None
     except PlannerError as exc:
         where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
         typer.echo(f"error: {where + ': ' if where else ''}{exc}", err=True)

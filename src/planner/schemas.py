@@ -115,7 +115,7 @@ Angles3 = Annotated[list[Angle], Field(min_length=3, max_length=3)]
 Point3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 #: Three positive rates (one per joint).
 Rates3 = Annotated[
-    list[Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1e6)]],
+    list[Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e6)]],  # = timing MIN/MAX_RATE
     Field(min_length=3, max_length=3),
 ]
 #: A 3-vector of any finite numbers (responses).
@@ -365,7 +365,7 @@ class Limits(_Request):
     velocity: Rates3 | None = None
     acceleration: Rates3 | None = None
     jerk: Rates3 | None = None
-    cartesian_speed: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1e3)] | None = Field(
+    cartesian_speed: Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e3)] | None = Field(
         None, description="Bound on the speed of P, m/s (optional)."
     )
 

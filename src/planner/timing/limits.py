@@ -14,7 +14,13 @@ import numpy as np
 
 from planner.exceptions import LimitsError
 
-__all__ = ["JointLimits"]
+__all__ = ["MAX_RATE", "MIN_RATE", "JointLimits"]
+
+#: Smallest limit accepted (rad/s, rad/s^2 or rad/s^3): below it a move would take ages and
+#: squares of the profile underflow; a robot that slow is not being timed.
+MIN_RATE = 1e-6
+#: Largest limit accepted: far above any actuator, and safe to square and cube.
+MAX_RATE = 1e6
 
 
 def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
@@ -28,8 +34,10 @@ def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
     for j, v in enumerate(arr.tolist()):
         if not math.isfinite(v):
             raise LimitsError(f"limits.{name}[{j}] must be finite, got {v}")
-        if v <= 0.0:
-            raise LimitsError(f"limits.{name}[{j}] must be > 0, got {v}")
+        if not MIN_RATE <= v <= MAX_RATE:
+            raise LimitsError(
+                f"limits.{name}[{j}] must lie in [{MIN_RATE:g}, {MAX_RATE:g}], got {v}"
+            )
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 

@@ -38,7 +38,7 @@ from planner.design import Design
 from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
 from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
-from planner.timing.limits import JointLimits
+from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
 from planner.timing.toppra_method import (
@@ -317,6 +317,10 @@ def time_path(
     v_cart = None
     if max_cartesian_speed is not None:
         v_cart = _positive("max_cartesian_speed", max_cartesian_speed)
+        if not MIN_RATE <= v_cart <= MAX_RATE:
+            raise InputError(
+                f"max_cartesian_speed must lie in [{MIN_RATE:g}, {MAX_RATE:g}] m/s, got {v_cart}"
+            )
     stop = _stop_mask(stop_at, n)
     dev_in = _deviation(max_deviation, n)
 
