@@ -37,5 +37,7 @@ WORKDIR /home/planner
 EXPOSE 8000
 STOPSIGNAL SIGTERM
 HEALTHCHECK --interval=30s --timeout=5s --start-period=20s --retries=3 \
-  CMD ["python", "-c", "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/v1/health', timeout=4)"]
-CMD ["planner", "serve", "--host", "0.0.0.0", "--port", "8000"]
+  CMD ["python", "-c", "import os, urllib.request; urllib.request.urlopen('http://127.0.0.1:%s/v1/health' % os.environ.get('PLANNER_PORT', '8000'), timeout=4)"]
+# host and port come from PLANNER_HOST / PLANNER_PORT (0.0.0.0:8000 above), so that
+# `docker run -e PLANNER_PORT=9000 ...` works like every other setting
+CMD ["planner", "serve"]

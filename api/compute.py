@@ -8,9 +8,11 @@ request body) attached, so :mod:`api.errors` can name the field in its 422 answe
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +57,8 @@ __all__ = [
 #: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
 #: process of the machine), set by :func:`as_json`; None: no deadline (e.g. the CLI).
 _DEADLINE: ContextVar[float | None] = ContextVar("deadline", default=None)
+#: Time kept back from a plan's search for timing and answering before the deadline, s.
+_ANSWER_RESERVE_S = 0.25
 
 
 def as_json(
@@ -228,6 +232,13 @@ def plan(request: PlanRequest) -> PlanResponse:
                 include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
             )
         )
+    deadline = _DEADLINE.get()
+    if deadline is not None:
+        # the search may not outlive the request: it gets what is left of the request's budget
+        # (minus a reserve for timing and the answer), so that it ends as no_path, not a 504
+        left = deadline - time.monotonic() - _ANSWER_RESERVE_S
+        if left < options.time_budget_s:
+            options = replace(options, time_budget_s=max(left, 0.01))
     result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
     response = PlanResponse.model_validate(result.as_wire())
     if request.timing.method != "none" and result.path is not None:

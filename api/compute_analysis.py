@@ -12,7 +12,7 @@ import numpy as np
 
 from api.compute import _DEADLINE, located, sampled_value, timing_error, trajectory_model
 from planner.exceptions import AssemblyError, InputError, LimitsError
-from planner.kinematics import forward_batch, mode_label
+from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.schemas import (
     DesignModel,
     DesignOptimizeRequest,
@@ -210,11 +210,17 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     if working_mode is None:
         working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
                                   .working_mode_signs[0])  # fmt: skip
+        if working_mode not in WORKING_MODES:  # the first waypoint sits on a serial singularity
+            with located("body", "waypoints", 0):
+                raise InputError(
+                    f"the first waypoint is on a serial singularity (working mode "
+                    f"{working_mode!r}): give working_mode explicitly"
+                )
     with located("body", "working_mode"):
         checker = ValidityChecker(design, margins, obstacles, request.assembly_mode, working_mode)
 
     def check(q: np.ndarray) -> np.ndarray:
-        return checker.check_states(q).valid
+        return checker.is_valid(q)
 
     check.explain = checker.explain  # type: ignore[attr-defined]
     return check

@@ -69,3 +69,25 @@ def test_batch_of_timed_plans_in_order(api):
     for g, result in zip(goals, r.json()["results"], strict=True):
         assert result["status"] == "solved"
         assert np.allclose(result["trajectory"]["q"][-1], g, atol=1e-12)
+
+
+def test_search_as_long_as_the_request_budget_ends_as_no_path_not_504(client_factory):
+    """time_budget_s equal to the service's request budget: the search gets what is left of
+    the request's deadline, so the answer is a 200 no_path, not a 504 (wall scene of
+    tests/test_planning.py: theta1 cannot pass a plate at z = 0)."""
+    body = {
+        "design": {
+            "L0": 0.5, "L1": 0.2, "L2": 0.6,
+            "joint_min": [-2.0, -3.141592653589793, -3.141592653589793],
+            "joint_max": [2.0, 3.141592653589793, 3.141592653589793],
+        },
+        "start": {"q": [1.0, 2.0, 1.0], "assembly_mode": "+"},
+        "goal": {"q": [-1.0, 2.0, 1.0], "assembly_mode": "+"},
+        "obstacles": [{"type": "box", "center": [0.65, 0.0, 0.0], "size": [1.2, 3.0, 0.02]}],
+        "planner": {"time_budget_s": 1.5, "seed": 1},
+        "timing": {"method": "none"},
+    }  # fmt: skip
+    with client_factory(workers=1, request_timeout_s=1.5) as client:
+        r = client.post("/v1/plan", json=body)
+    assert r.status_code == 200, r.text
+    assert r.json()["status"] == "no_path"

@@ -175,3 +175,34 @@ def test_too_many_samples_is_422_naming_the_rate(api):
     r = api.post("/v1/timing", json=body)
     assert r.status_code == 422
     assert r.json()["detail"][0]["loc"] == ["body", "sample_rate_hz"]
+
+
+def test_first_waypoint_on_a_serial_singularity_names_the_waypoint(api):
+    """Leg A stretched (|AP| = L1 + L2, built from the conventions' formulas): the working mode
+    to check against is undetermined, and the 422 names waypoints[0], not working_mode."""
+    l0, l1, l2 = 0.5, 0.2, 0.6
+    t2 = 1.2  # C and P on the ray from A at angle t2
+    pu, pw = -l0 / 2 + (l1 + l2) * math.cos(t2), (l1 + l2) * math.sin(t2)
+    du = pu - l0 / 2
+    dist_b = math.hypot(du, pw)  # leg B reaches P: |BP| between L2 - L1 and L1 + L2
+    assert l2 - l1 < dist_b < l1 + l2
+    phi = math.atan2(pw, du)
+    alpha = math.acos((l1**2 + dist_b**2 - l2**2) / (2 * l1 * dist_b))
+    t3 = phi + alpha
+    q0 = [0.0, t2, t3]
+    assembly = (
+        "+"
+        if math.sin(math.atan2(pw - l1 * math.sin(t3), pu - l0 / 2 - l1 * math.cos(t3)) - t2) > 0
+        else "-"
+    )
+    r = api.post(
+        "/v1/timing",
+        json={
+            "waypoints": [q0, [0.1, t2 - 0.1, t3]],
+            "assembly_mode": assembly,
+            "margins": {"kappa_max": 100},
+        },
+    )
+    assert r.status_code == 422, r.text
+    assert ["body", "waypoints", 0] in [d["loc"] for d in r.json()["detail"]], r.text
+    assert "serial singularity" in r.text
