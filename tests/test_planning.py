@@ -229,3 +229,12 @@ def test_plan_in_region_with_goal_candidates(tmp_path):
         tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire()
     )
     assert code == 0, out
+
+
+def test_start_that_does_not_assemble_names_the_measured_cd():
+    """|CD| for q = (0, pi, 0) on (0.5, 0.2, 0.6) is L0 + 2 L1 = 0.9 m, and 2 L2 = 1.2 m: it
+    assembles; with L2 = 0.4 (2 L2 = 0.8 m) it does not, and the message gives 0.9 m."""
+    design = Design(0.5, 0.2, 0.4)
+    res = plan(design, JointPosture([0.0, np.pi, 0.0], "+"), JointPosture([0.1, 2.0, 1.0], "+"))
+    assert res.status is PlanStatus.INVALID_START
+    assert "assembly" in res.message and "|CD| = 0.9 m > 2 L2 = 0.8 m" in res.message

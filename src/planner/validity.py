@@ -51,6 +51,7 @@ __all__ = [
     "PathReport",
     "StateReport",
     "ValidityChecker",
+    "assembly_reason",
     "densify",
     "warm_up",
 ]
@@ -645,26 +646,28 @@ class ValidityChecker:
         if reason == "joint_limits":
             lo, hi = np.asarray(d.joint_min), np.asarray(d.joint_max)
             i = int(np.argmax(np.maximum(lo - q, q - hi)))
-            return f"joint_limits: q[{i}] = {q[i]:.6g} rad lies outside [{lo[i]:.6g}, {hi[i]:.6g}]"
+            return (
+                f"joint_limits: q[{i}] = {q[i]:.10g} rad lies outside [{lo[i]:.10g}, {hi[i]:.10g}]"
+            )
         if reason == "assembly":
-            return "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
+            return assembly_reason(d, q)
         if reason == "kappa_max":
             return (
-                f"kappa_max: kappa_A = {r.kappa_A[0]:.6g} > margins.kappa_max = {m.kappa_max:.6g}"
+                f"kappa_max: kappa_A = {r.kappa_A[0]:.10g} > margins.kappa_max = {m.kappa_max:.10g}"
             )
         if reason == "working_mode":
             return (
                 f"working_mode: the posture is not in working mode {self.working_mode} "
-                f"(signed serial measure {r.serial_margin[0]:.6g})"
+                f"(signed serial measure {r.serial_margin[0]:.10g})"
             )
         if reason == "serial_min":
             return (
-                f"serial_min: serial measure {r.serial_margin[0]:.6g} < "
-                f"margins.serial_min = {m.serial_min:.6g}"
+                f"serial_min: serial measure {r.serial_margin[0]:.10g} < "
+                f"margins.serial_min = {m.serial_min:.10g}"
             )
         return (
-            f"clearance: link clearance {r.clearance[0]:.6g} m < "
-            f"margins.clearance = {m.clearance:.6g} m"
+            f"clearance: link clearance {r.clearance[0]:.10g} m < "
+            f"margins.clearance = {m.clearance:.10g} m"
         )
 
     # ------------------------------------------------------------------ motions
@@ -789,6 +792,18 @@ def warm_up() -> None:
     chk.check_motion(q[0], q[1])
     chk.motion_valid(q[0], q[1])
     chk.check_path(q)
+
+
+def assembly_reason(design: Design, q: np.ndarray) -> str:
+    """Why posture q (3,) does not assemble, with the measured |CD| (the loop closes only for
+    0 < |CD| <= 2 L2)."""
+    q = np.asarray(q, dtype=float)
+    c = np.array([-design.L0 / 2 + design.L1 * np.cos(q[1]), design.L1 * np.sin(q[1])])
+    d = np.array([design.L0 / 2 + design.L1 * np.cos(q[2]), design.L1 * np.sin(q[2])])
+    cd = float(np.hypot(*(d - c)))
+    if cd == 0.0:
+        return "assembly: C = D (|CD| = 0 m), P is undetermined"
+    return f"assembly: the loop does not close, |CD| = {cd:.10g} m > 2 L2 = {2 * design.L2:.10g} m"
 
 
 def _states(q: object) -> np.ndarray:

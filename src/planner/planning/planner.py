@@ -24,7 +24,7 @@ from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode
 from planner.planning import ompl_backend
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
-from planner.validity import Margins, ValidityChecker
+from planner.validity import Margins, ValidityChecker, assembly_reason
 
 __all__ = ["goal_candidates", "plan", "plan_in_region", "posture_mode"]
 
@@ -147,7 +147,7 @@ def plan(
     if mode is None:
         fb = forward_batch(design, start.q, start.assembly_mode)
         why = (
-            "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
+            assembly_reason(design, start.q)
             if not fb.ok[0]
             else "working_mode: the start lies exactly on a serial singularity "
             f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
@@ -162,9 +162,10 @@ def plan(
         if goal_mode is None:
             fb = forward_batch(design, goal.q, goal.assembly_mode)
             why = (
-                "assembly: the loop does not close (|CD| > 2 L2 or C = D)"
+                assembly_reason(design, goal.q)
                 if not fb.ok[0]
-                else "working_mode: the goal lies exactly on a serial singularity"
+                else "working_mode: the goal lies exactly on a serial singularity "
+                f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
             )
             return finish(PlanStatus.INVALID_GOAL, "goal " + why)
         if goal.assembly_mode == start.assembly_mode and not goal_checker.is_valid_one(*goal.q):
