@@ -15,7 +15,9 @@ from planner.design import Design
 from planner.geometry import Capsule, Sphere, segment_obstacle_distance
 from planner.kinematics import conditioning, forward_batch, link_points
 
-CHECK_PLAN = Path("/work/shared/tools/check-plan")
+#: The independent plan checker of the shared folder, which lies beside the repository (in CI
+#: too: a clean clone with a copy of shared/ beside it).
+CHECK_PLAN = Path(__file__).resolve().parents[2] / "shared" / "tools" / "check-plan"
 LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
 
 

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from planning_factories import run_check_plan, wire_design
+from planning_factories import CHECK_PLAN, run_check_plan, wire_design
 
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch
@@ -373,15 +373,18 @@ def test_v1_plan_end_to_end_with_a_mode_change(api, tmp_path, stop):
     assert segs[0]["end_index"] == trs[0]["index"] == segs[1]["start_index"]
     traj = out["trajectory"]
     q, qd = np.array(traj["q"]), np.array(traj["qd"])
-    # the trajectory passes (near) the transit posture; with stops it rests there
+    # with stops the trajectory rests exactly on the transit posture, at a sample; without,
+    # its corner blend passes within the blend deviation (0.05 rad)
     d = np.linalg.norm(q - np.array(trs[0]["q"]), axis=1)
     k = int(np.argmin(d))
     if stop:
-        assert d[k] < 0.02 and np.abs(qd[k]).max() < 0.2
+        assert d[k] < 1e-9 and np.abs(qd[k]).max() < 1e-9
+    else:
+        assert d[k] < 0.05
     (tmp_path / "req.json").write_text(json.dumps(body))
     (tmp_path / "resp.json").write_text(json.dumps(out))
     proc = subprocess.run(
-        [sys.executable, "/work/shared/tools/check-plan", str(tmp_path / "req.json"),
+        [sys.executable, str(CHECK_PLAN), str(tmp_path / "req.json"),
          str(tmp_path / "resp.json")],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip

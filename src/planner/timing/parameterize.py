@@ -373,7 +373,8 @@ def time_path(
                 f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
                 f"{curve.duration:.4g} s, more than {MAX_OUTPUT_SAMPLES}: lower the rate"
             )
-        t_out = sample_times(curve.duration, rate)
+        # the output rate's samples, plus every instant the motion rests (stop_at, transits)
+        t_out = np.union1d(sample_times(curve.duration, rate), curve.rest_times())
         check_deadline(deadline, "before the dense re-check")
         report = dense_check(
             curve,

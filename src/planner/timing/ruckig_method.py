@@ -187,6 +187,14 @@ class RuckigCurve:
                 o[sel] = v
         return out[0], out[1], out[2], out[3]
 
+    def rest_times(self) -> np.ndarray:
+        """Move boundaries strictly inside the motion where it is at rest (the stops), s."""
+        inner = self.start[1:-1]
+        if inner.size == 0:
+            return inner
+        _, qd, _, _ = self.evaluate(inner)
+        return inner[np.all(np.abs(qd) <= 1e-12, axis=1)]
+
     def check_times(self, resolution: float) -> np.ndarray:
         """Per move, a uniform grid with step ``resolution / V`` where V bounds |qd| during
         that move (:meth:`_Move.speed_bound`), so consecutive postures are at most

@@ -60,6 +60,11 @@ class Curve(Protocol):
         """(q, qd, qdd, jerk or None) at times t (M,), shapes (M, 3)."""
         ...
 
+    def rest_times(self) -> np.ndarray:
+        """Times strictly inside (0, duration) where the motion is at rest (its stops), s:
+        output samples include them, so a client sees every rest posture."""
+        ...
+
     def check_times(self, resolution: float) -> np.ndarray:
         """Times, increasing, at which consecutive postures are at most ``resolution`` apart
         in joint space (Euclidean, rad), plus every instant where the acceleration jumps."""
@@ -85,6 +90,11 @@ class ToppraCurve:
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
         s, sd, sdd = self.profile.at_time(t)
         return self._at(s, sd, sdd)
+
+    def rest_times(self) -> np.ndarray:
+        """Times strictly inside the motion where it comes to rest (the stops), s."""
+        inner = self.profile.sd[1:-1] == 0.0
+        return self.profile.time[1:-1][inner]
 
     def _at(
         self, s: np.ndarray, sd: np.ndarray, sdd: np.ndarray
@@ -226,6 +236,9 @@ class TimeScaledCurve:
     def check_times(self, resolution: float) -> np.ndarray:
         return self.base.check_times(resolution) / self.c
 
+    def rest_times(self) -> np.ndarray:
+        return self.base.rest_times() / self.c
+
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         return self.base.plan_segments(np.asarray(t, dtype=float) * self.c)
 
@@ -247,6 +260,9 @@ class RestCurve:
 
     def check_times(self, resolution: float) -> np.ndarray:
         return np.zeros(1)
+
+    def rest_times(self) -> np.ndarray:
+        return np.empty(0)
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         return np.full((np.shape(t)[0], 2), -1)
