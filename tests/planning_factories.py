@@ -21,15 +21,26 @@ CHECK_PLAN = Path(__file__).resolve().parents[2] / "shared" / "tools" / "check-p
 LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
 
 
+def rotation_matrix(quat: np.ndarray) -> np.ndarray:
+    # independent route: quaternion -> matrix through the rotation of the basis vectors
+    w, v = quat[0], quat[1:]
+    cols = []
+    for e in np.eye(3):
+        t = 2 * np.cross(v, e)
+        cols.append(e + w * t + np.cross(v, t))
+    return np.stack(cols, axis=1)
+
+
 def point_distance(x: np.ndarray, ob) -> np.ndarray:
-    """Signed distance of points (M, 3) to an obstacle, from the definitions."""
+    """Signed distance of points (M, 3) to an obstacle, from the definitions (the box frame
+    from :func:`rotation_matrix`, not the library's own rotation)."""
     if isinstance(ob, Sphere):
         return np.linalg.norm(x - ob.center, axis=1) - ob.radius
     if isinstance(ob, Capsule):
         ab = ob.b - ob.a
         t = np.clip((x - ob.a) @ ab / (ab @ ab), 0, 1)
         return np.linalg.norm(ob.a + t[:, None] * ab - x, axis=1) - ob.radius
-    local = (x - ob.center) @ ob.rotation
+    local = (x - ob.center) @ rotation_matrix(ob.quaternion)
     q = np.abs(local) - ob.size / 2
     return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
 

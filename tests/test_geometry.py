@@ -5,37 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planning_factories import point_distance
 
 from planner.exceptions import InputError
 from planner.geometry import Box, Capsule, Sphere, obstacle_from_wire, segment_obstacle_distance
 
 
-def _rotation(quat: np.ndarray) -> np.ndarray:
-    # independent route: quaternion -> matrix through the rotation of the basis vectors
-    w, v = quat[0], quat[1:]
-    cols = []
-    for e in np.eye(3):
-        t = 2 * np.cross(v, e)
-        cols.append(e + w * t + np.cross(v, t))
-    return np.stack(cols, axis=1)
-
-
-def _point_distance(x: np.ndarray, ob) -> np.ndarray:
-    if isinstance(ob, Sphere):
-        return np.linalg.norm(x - ob.center, axis=1) - ob.radius
-    if isinstance(ob, Capsule):
-        ab = ob.b - ob.a
-        t = np.clip((x - ob.a) @ ab / (ab @ ab), 0, 1)
-        return np.linalg.norm(ob.a + t[:, None] * ab - x, axis=1) - ob.radius
-    local = (x - ob.center) @ _rotation(ob.quaternion)
-    q = np.abs(local) - ob.size / 2
-    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
-
-
 def _sampled(a, b, ob, k=4001):
     s = np.linspace(0, 1, k)
     return np.array(
-        [_point_distance(a[i] + s[:, None] * (b[i] - a[i]), ob).min() for i in range(len(a))]
+        [point_distance(a[i] + s[:, None] * (b[i] - a[i]), ob).min() for i in range(len(a))]
     )
 
 
