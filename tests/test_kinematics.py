@@ -416,3 +416,11 @@ def test_batch_inputs_are_validated():
         inverse_batch(d, np.array([[0.0, np.inf, 0.0]]))
     with pytest.raises(InputError, match="assembly_mode"):
         forward_batch(d, np.zeros((2, 3)), np.array([1, 0]))
+
+
+def test_mode_signs_inverts_mode_label():
+    from planner.kinematics import mode_label, mode_signs
+
+    for label in [*WORKING_MODES, "0+-", "000", "+", "-"]:
+        assert mode_label(mode_signs(label)) == label
+    np.testing.assert_array_equal(mode_signs("+-0"), [1, -1, 0])

@@ -52,6 +52,7 @@ __all__ = [
     "inverse_batch",
     "link_points",
     "mode_label",
+    "mode_signs",
     "wrap_angle",
 ]
 
@@ -78,6 +79,12 @@ def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
 def mode_label(signs: np.ndarray) -> str:
     """'+-+'-style label of a sign vector; a 0 sign (exactly on a singularity) is written '0'."""
     return "".join(_SIGN_CHAR[int(s)] for s in np.asarray(signs).ravel())
+
+
+def mode_signs(label: str) -> np.ndarray:
+    """Signs (int8, +1/-1/0) of a '+-+'-style working-mode or '+'/'-' assembly-mode label:
+    the inverse of :func:`mode_label`."""
+    return np.array([{"+": 1, "-": -1, "0": 0}[c] for c in label], dtype=np.int8)
 
 
 def _sign(x: np.ndarray) -> np.ndarray:

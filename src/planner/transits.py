@@ -30,7 +30,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import forward_batch, inverse_batch
+from planner.kinematics import forward_batch, inverse_batch, mode_signs
 
 __all__ = [
     "FLIPPED_SIGN",
@@ -161,10 +161,11 @@ def sample_transits(
     keep = batch.ok & np.all((q >= lo) & (q <= hi), axis=1)
     signs = batch.working_mode_signs
     idx = _SIGN_INDEX[flipped]
+    want = mode_signs(working_mode)
     for j in range(3):
         if j != idx:
-            keep &= signs[:, j] == (1 if working_mode[j] == "+" else -1)
-    keep &= batch.assembly_mode_signs == (1 if assembly_mode == "+" else -1)
+            keep &= signs[:, j] == want[j]
+    keep &= batch.assembly_mode_signs == mode_signs(assembly_mode)[0]
     return q[keep]
 
 

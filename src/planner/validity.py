@@ -37,7 +37,7 @@ from numba import njit
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.geometry import Obstacle, PackedObstacles, pack_obstacles, segment_min_distance
-from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
+from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES, mode_signs
 
 __all__ = [
     "DEFAULT_CLEARANCE",
@@ -580,8 +580,8 @@ class ValidityChecker:
         prm[_P_L0], prm[_P_L1], prm[_P_L2], prm[_P_RAD] = d.L0, d.L1, d.L2, d.link_radius
         prm[_P_LO : _P_LO + 3] = d.joint_min
         prm[_P_HI : _P_HI + 3] = d.joint_max
-        prm[_P_BRANCH] = 1.0 if self.assembly_mode == "+" else -1.0
-        prm[_P_SIGNS : _P_SIGNS + 3] = [1.0 if c == "+" else -1.0 for c in self.working_mode]
+        prm[_P_BRANCH] = mode_signs(self.assembly_mode)[0]
+        prm[_P_SIGNS : _P_SIGNS + 3] = mode_signs(self.working_mode)
         prm[_P_KAPPA], prm[_P_SERIAL], prm[_P_CLEAR] = m.kappa_max, m.serial_min, m.clearance
         prm[_P_DLO], prm[_P_DHI] = lo, hi
         prm[_P_SERIAL_ON] = 1.0 if self.serial_rules else 0.0

@@ -6,7 +6,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import WORKING_MODES
+from planner.kinematics import WORKING_MODES, mode_signs
 
 __all__ = [
     "KAPPA_SINGULAR",
@@ -24,7 +24,7 @@ KAPPA_SINGULAR = 1e6
 MODE_INDEX: dict[str, int] = {m: k for k, m in enumerate(WORKING_MODES)}
 
 #: Shape (8, 3), int8: the signs (s_axis, s_A, s_B) of each slot of :data:`WORKING_MODES`.
-MODE_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
+MODE_SIGNS = np.array([mode_signs(m) for m in WORKING_MODES])
 
 
 def parse_modes(working_modes: object) -> np.ndarray:

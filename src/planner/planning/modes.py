@@ -45,7 +45,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.geometry import Obstacle
-from planner.kinematics import WORKING_MODES, forward_batch
+from planner.kinematics import WORKING_MODES, forward_batch, mode_signs
 from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
 from planner.planning.planner import plan as plan_single_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
@@ -341,7 +341,7 @@ def crossing_signs_hold(
         b = forward_batch(design, line, asm)
         if not b.ok.all():
             return False
-        signs = np.array([1.0 if ch == "+" else -1.0 for ch in mode])
+        signs = mode_signs(mode).astype(float)
         m = b.serial_measures * signs
         if not np.all(m[:, j] > 0):
             return False
@@ -651,7 +651,7 @@ def path_state_checker(
                 t = np.clip((q - a) @ ab / float(ab @ ab), 0.0, 1.0)
                 dist = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
                 others = [k for k in range(3) if k != j]
-                want = np.array([1 if before[k] == "+" else -1 for k in others])
+                want = mode_signs(before)[others]
                 keep = np.all(signs[:, others] == want, axis=1)
                 valid |= rest & free_ok & keep & (dist <= near + 1e-9)
         return valid
