@@ -161,12 +161,9 @@ def search(
             else:
                 simplifier.ropeShortcutPath(path)
                 simplifier.reduceVertices(path)
-            cand = _waypoints(path)
-            # the simplifier only keeps motions the validator accepted; re-certify anyway
-            if naive_resolution is not None or checker.check_path(cand).valid:
-                waypoints, simplified = cand, True
-            else:  # pragma: no cover - would be a validator bug
-                logger.error("simplified path failed re-certification; keeping the raw path")
+            # the simplifier only keeps motions the validator accepted; the caller
+            # (plan_in_region) certifies the final path once more
+            waypoints, simplified = _waypoints(path), True
             logger.debug("simplification took %.4f s", time.perf_counter() - t0)
             del simplifier
         del path
