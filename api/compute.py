@@ -252,6 +252,34 @@ def plan(request: PlanRequest) -> PlanResponse:
     return response
 
 
+def limits_loc(exc: Exception) -> tuple[str | int, ...]:
+    """Where in the body a limits error belongs: ``body.limits.<field>`` when the message
+    names the field."""
+    for name in ("velocity", "acceleration", "jerk"):
+        if f"limits.{name}" in str(exc):
+            return ("body", "limits", name)
+    return ("body", "limits")
+
+
+def joint_limits(wire: Any) -> Any:
+    """The request's ``limits`` (absent fields: the library's defaults) as
+    :class:`planner.timing.JointLimits`; a bad value raises ``LimitsError`` located at the
+    offending ``body.limits.<field>``."""
+    from planner.exceptions import LimitsError
+    from planner.timing import JointLimits
+
+    default = JointLimits.default()
+    try:
+        return JointLimits(
+            velocity=wire.velocity or default.velocity,
+            acceleration=wire.acceleration or default.acceleration,
+            jerk=wire.jerk or default.jerk,
+        )
+    except LimitsError as exc:
+        exc.loc = limits_loc(exc)  # type: ignore[attr-defined]
+        raise
+
+
 def _add_trajectory(
     request: PlanRequest, response: PlanResponse, design: Any, check: Any | None
 ) -> None:
@@ -261,18 +289,11 @@ def _add_trajectory(
     transits) supplies the validity rules of the dense re-check; joint limits and assembly
     are always checked."""
     from planner.exceptions import TimingDeadlineError, TimingError
-    from planner.timing import JointLimits, time_path
+    from planner.timing import time_path
 
     assert response.path is not None
     path = response.path
-    wire = request.limits
-    with located("body", "limits"):
-        default = JointLimits.default()
-        limits = JointLimits(
-            velocity=wire.velocity or default.velocity,
-            acceleration=wire.acceleration or default.acceleration,
-            jerk=wire.jerk or default.jerk,
-        )
+    limits = joint_limits(request.limits)
     options: dict[str, Any] = {}
     if request.timing.max_deviation is not None:
         options["max_deviation"] = request.timing.max_deviation
@@ -287,7 +308,7 @@ def _add_trajectory(
                 method=request.timing.method,
                 assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
                 sample_rate_hz=request.timing.sample_rate_hz,
-                max_cartesian_speed=wire.cartesian_speed,
+                max_cartesian_speed=request.limits.cartesian_speed,
                 stop_at=stop_at,
                 check_states=check,
                 deadline=_DEADLINE.get(),

@@ -10,7 +10,15 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import _DEADLINE, located, sampled_value, timing_error, trajectory_model
+from api.compute import (
+    _DEADLINE,
+    joint_limits,
+    limits_loc,
+    located,
+    sampled_value,
+    timing_error,
+    trajectory_model,
+)
 from planner.exceptions import AssemblyError, InputError, LimitsError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.schemas import (
@@ -226,13 +234,6 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     return check
 
 
-def _limits_loc(exc: LimitsError) -> tuple[str | int, ...]:
-    for name in ("velocity", "acceleration", "jerk"):
-        if f"limits.{name}" in str(exc):
-            return ("body", "limits", name)
-    return ("body", "limits")
-
-
 def _input_loc(exc: InputError) -> tuple[str | int, ...]:
     text = str(exc)
     for name in ("sample_rate_hz", "max_deviation", "stop_at", "waypoints", "method"):
@@ -252,7 +253,7 @@ def timing(request: TimingRequest) -> TimingResponse:
         TimingInfeasibleError,
         TrajectoryCheckError,
     )
-    from planner.timing import JointLimits, time_path
+    from planner.timing import time_path
 
     with located("body", "design"):
         design = request.design.to_design()
@@ -276,17 +277,7 @@ def timing(request: TimingRequest) -> TimingResponse:
                 message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
                 diagnostics=diagnostics,
             )
-    wire = request.limits
-    default = JointLimits.default()
-    try:
-        limits = JointLimits(
-            velocity=wire.velocity or default.velocity,
-            acceleration=wire.acceleration or default.acceleration,
-            jerk=wire.jerk or default.jerk,
-        )
-    except LimitsError as exc:
-        exc.loc = _limits_loc(exc)  # type: ignore[attr-defined]
-        raise
+    limits = joint_limits(request.limits)
     options: dict[str, Any] = {}
     if request.max_deviation is not None:
         options["max_deviation"] = request.max_deviation
@@ -298,7 +289,7 @@ def timing(request: TimingRequest) -> TimingResponse:
             method=request.method,
             assembly_mode=request.assembly_mode,
             sample_rate_hz=request.sample_rate_hz,
-            max_cartesian_speed=wire.cartesian_speed,
+            max_cartesian_speed=request.limits.cartesian_speed,
             stop_at=request.stop_at,
             check_states=check,
             deadline=_DEADLINE.get(),
@@ -315,7 +306,7 @@ def timing(request: TimingRequest) -> TimingResponse:
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
     except LimitsError as exc:
-        exc.loc = _limits_loc(exc)  # type: ignore[attr-defined]
+        exc.loc = limits_loc(exc)  # type: ignore[attr-defined]
         raise
     except InputError as exc:
         if not hasattr(exc, "loc"):

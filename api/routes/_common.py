@@ -10,14 +10,30 @@ from fastapi import Response
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
+from api.exceptions import LimitExceededError
 from api.logging import REQUEST_ID
 from api.metrics import record_job, run_measured
 from api.workers import WorkerPool
 from planner.schemas import DesignModel
 
-__all__ = ["json_response", "run_job", "run_jobs", "with_design_defaults"]
+__all__ = [
+    "check_obstacle_count",
+    "json_response",
+    "run_job",
+    "run_jobs",
+    "with_design_defaults",
+]
 
 _BUILT_IN = DesignModel()
+
+
+def check_obstacle_count(obstacles: Sequence[Any], limit: int, loc: tuple[str | int, ...]) -> None:
+    """:class:`LimitExceededError` (422 at ``loc``) when a request has more than ``limit``
+    obstacles (the service's ``max_obstacles``)."""
+    if len(obstacles) > limit:
+        raise LimitExceededError(
+            f"at most {limit} obstacles per request, got {len(obstacles)}", loc
+        )
 
 
 def with_design_defaults(body: Any, defaults: DesignModel, loc: tuple = ("body",)) -> Any:

@@ -15,7 +15,13 @@ from fastapi import APIRouter, Depends, Response
 from api import compute
 from api.deps import Deadline, Pool, SettingsDep
 from api.exceptions import LimitExceededError
-from api.routes._common import json_response, run_job, run_jobs, with_design_defaults
+from api.routes._common import (
+    check_obstacle_count,
+    json_response,
+    run_job,
+    run_jobs,
+    with_design_defaults,
+)
 from api.settings import Settings
 from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 
@@ -40,11 +46,7 @@ def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int,
             f"{settings.request_timeout_s:g} s, got {request.planner.time_budget_s:g}",
             (*loc, "planner", "time_budget_s"),
         )
-    if len(request.obstacles) > settings.max_obstacles:
-        raise LimitExceededError(
-            f"at most {settings.max_obstacles} obstacles per request, got {len(request.obstacles)}",
-            (*loc, "obstacles"),
-        )
+    check_obstacle_count(request.obstacles, settings.max_obstacles, (*loc, "obstacles"))
 
 
 @router.post("/plan", response_model=PlanResponse)

@@ -6,8 +6,7 @@ from fastapi import APIRouter, Response
 
 from api import compute_analysis
 from api.deps import Deadline, Pool, SettingsDep
-from api.exceptions import LimitExceededError
-from api.routes._common import run_job
+from api.routes._common import check_obstacle_count, run_job
 from planner.schemas import TimingRequest, TimingResponse
 
 router = APIRouter(prefix="/v1", tags=["timing"])
@@ -20,12 +19,9 @@ async def timing(
     """Turn a joint path (N x 3 waypoints, rad) into a trajectory from rest to rest with
     toppra or ruckig under ``limits``, checked densely against the joint limits, the assembly
     mode and (with ``margins`` or ``obstacles``) the planner's validity rules. A waypoint that
-    breaks a rule is a 422 naming it; a path that cannot be timed is a 200 with a ``status``."""
-    if len(body.obstacles) > settings.max_obstacles:
-        raise LimitExceededError(
-            f"at most {settings.max_obstacles} obstacles per request, got {len(body.obstacles)}",
-            ("body", "obstacles"),
-        )
+    breaks a joint limit or does not assemble is a 422 naming it; a path that breaks another
+    rule, or cannot be timed, is a 200 with a ``status`` (``invalid_path``, ``infeasible``)."""
+    check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
     return await run_job(
         pool, compute_analysis.timing, body, deadline, design_defaults=settings.design_defaults
     )
