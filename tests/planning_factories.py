@@ -5,6 +5,7 @@ scenes, and wire conversion for /work/shared/tools/check-plan."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -15,9 +16,18 @@ from planner.design import Design
 from planner.geometry import Capsule, Sphere, segment_obstacle_distance
 from planner.kinematics import conditioning, forward_batch, link_points
 
-#: The independent plan checker of the shared folder, which lies beside the repository (in CI
-#: too: a clean clone with a copy of shared/ beside it).
-CHECK_PLAN = Path(__file__).resolve().parents[2] / "shared" / "tools" / "check-plan"
+
+def _find_check_plan() -> Path:
+    """The independent plan checker of the shared folder: $PLANNER_CHECK_PLAN if set, else
+    shared/ beside the repository (CI lays out a clean clone with a copy of shared/ beside
+    it), else the workplace's /work/shared."""
+    if os.environ.get("PLANNER_CHECK_PLAN"):
+        return Path(os.environ["PLANNER_CHECK_PLAN"])
+    beside = Path(__file__).resolve().parents[2] / "shared" / "tools" / "check-plan"
+    return beside if beside.exists() else Path("/work/shared/tools/check-plan")
+
+
+CHECK_PLAN = _find_check_plan()
 LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
 
 
