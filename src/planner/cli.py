@@ -62,20 +62,13 @@ def serve(
     run(settings)
 
 
-_PRESETS = {
-    "default": "default",
-    "singularity-free": "singularity_free",
-    "paper-optimum": "paper_optimum",
-}
-
-
 def _design_option(preset: str, l0: float | None, l1: float | None, l2: float | None) -> dict:
-    from planner.design import Design
+    from planner.design import PRESET_NAMES, Design
     from planner.schemas import DesignModel
 
-    if preset not in _PRESETS:
-        raise typer.BadParameter(f"one of {', '.join(_PRESETS)}", param_hint="--design")
-    base = DesignModel.from_design(getattr(Design, _PRESETS[preset])()).model_dump()
+    if preset not in PRESET_NAMES:
+        raise typer.BadParameter(f"one of {', '.join(PRESET_NAMES)}", param_hint="--design")
+    base = DesignModel.from_design(Design.preset(preset)).model_dump()
     base.update({k: v for k, v in {"L0": l0, "L1": l1, "L2": l2}.items() if v is not None})
     return base
 

@@ -92,6 +92,18 @@ def goal_candidates(
     return cands[order], ""
 
 
+def _mode_undefined(design: Design, posture: JointPosture, which: str) -> str:
+    """Why a posture has no working mode, with the measured values: it does not assemble
+    (|CD|), or it lies exactly on a serial singularity (the serial measures)."""
+    fb = forward_batch(design, posture.q, posture.assembly_mode)
+    if not fb.ok[0]:
+        return f"{which} {assembly_reason(design, posture.q)}"
+    return (
+        f"{which} working_mode: the {which} lies exactly on a serial singularity "
+        f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
+    )
+
+
 def plan(
     design: Design,
     start: JointPosture,
@@ -145,14 +157,7 @@ def plan(
     else:
         mode = posture_mode(design, start)
     if mode is None:
-        fb = forward_batch(design, start.q, start.assembly_mode)
-        why = (
-            assembly_reason(design, start.q)
-            if not fb.ok[0]
-            else "working_mode: the start lies exactly on a serial singularity "
-            f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
-        )
-        return finish(PlanStatus.INVALID_START, "start " + why)
+        return finish(PlanStatus.INVALID_START, _mode_undefined(design, start, "start"))
     checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, mode)
     if not checker.is_valid_one(*start.q):
         return finish(PlanStatus.INVALID_START, "start " + checker.explain(start.q))
@@ -160,14 +165,7 @@ def plan(
     if isinstance(goal, JointPosture):
         goal_checker = checker if goal_mode in (None, mode) else checker.with_mode(goal_mode)
         if goal_mode is None:
-            fb = forward_batch(design, goal.q, goal.assembly_mode)
-            why = (
-                assembly_reason(design, goal.q)
-                if not fb.ok[0]
-                else "working_mode: the goal lies exactly on a serial singularity "
-                f"(serial measures {np.round(fb.serial_measures[0], 9).tolist()})"
-            )
-            return finish(PlanStatus.INVALID_GOAL, "goal " + why)
+            return finish(PlanStatus.INVALID_GOAL, _mode_undefined(design, goal, "goal"))
         if goal.assembly_mode == start.assembly_mode and not goal_checker.is_valid_one(*goal.q):
             return finish(PlanStatus.INVALID_GOAL, "goal " + goal_checker.explain(goal.q))
         if goal.assembly_mode != start.assembly_mode:
