@@ -4,39 +4,51 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
+PIP := $(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: install run test bench lint clean lock
+.PHONY: install install-test run test bench lint clean lock
 
-$(STAMP): pyproject.toml constraints.txt
-	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+# The run-time install (`make run`: the library and the service, no test tools, no Ray) and
+# the test install (`make test`: adds the test tools and the Ray extra its test needs) share
+# one .venv; each has its own stamp, redone when pyproject.toml or constraints.txt change.
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev]'
+
+$(VENV)/.installed-run: pyproject.toml constraints.txt | $(BIN)/python
+	$(PIP) -e .
 	@touch $@
 
-install: $(STAMP)
+$(VENV)/.installed-test: pyproject.toml constraints.txt | $(BIN)/python
+	$(PIP) -e '.[test,ray]'
+	@touch $@ $(VENV)/.installed-run
 
-# numba compiles the kernels once into its on-disk cache (about 10 s the first time), so that
-# neither the first request nor a test's time budget pays for it.
-run: $(STAMP)
+install: $(VENV)/.installed-run
+
+install-test: $(VENV)/.installed-test
+
+# numba compiles the kernels once into its on-disk cache (tens of seconds the first time on a
+# slow machine, with a progress bar), so that neither the first request nor a test pays.
+run: $(VENV)/.installed-run
 	$(BIN)/planner warm-up
 	$(BIN)/planner serve --host $(HOST) --port $(PORT)
 
-test: $(STAMP)
+test: $(VENV)/.installed-test
 	$(BIN)/planner warm-up
 	$(BIN)/python -m pytest -q -n 2
 
-bench: $(STAMP)
-	@for f in benchmarks/*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
+bench: $(VENV)/.installed-test
+	@for f in benchmarks/[a-z]*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
 
-lint: $(STAMP)
+lint: $(VENV)/.installed-test
 	$(BIN)/ruff check src api tests benchmarks examples deploy
 	$(BIN)/ruff format --check src api tests benchmarks examples deploy
 
-# Re-pin constraints.txt from the current environment (after changing pyproject.toml).
-lock: $(STAMP)
+# Re-pin constraints.txt from the test environment (a superset of the run-time one) after
+# changing pyproject.toml.
+lock: $(VENV)/.installed-test
 	$(BIN)/python -m pip freeze --exclude-editable --disable-pip-version-check | grep -v '^hybrid-planner' > constraints.txt
 
 clean:

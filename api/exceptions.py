@@ -58,7 +58,8 @@ class DeadlineExceededError(ServiceError):
 
 
 class WorkerCrashedError(ServiceError):
-    """A worker process died while the job ran; the pool was rebuilt."""
+    """The worker process running the job died; only this job fails, and a replacement
+    worker is started (and warmed) in the background."""
 
 
 class LimitExceededError(ServiceError):

@@ -153,14 +153,20 @@ class _PoolCollector:
             "planner_pool_queue_depth": ("Jobs waiting for a worker.", max(in_flight - workers, 0)),
             "planner_pool_saturation": ("Jobs in flight / capacity (1: the next job gets 503).",
                                         in_flight / capacity),
-            "planner_pool_ready": ("1 once every worker answered once.",
+            "planner_pool_ready": ("1 while every configured worker is warm.",
                                    1 if pool.state == "ready" else 0),
+            "planner_pool_warm_workers": ("Worker processes alive and warm.",
+                                          pool.warm_workers),
         }  # fmt: skip
         for name, (doc, value) in values.items():
             yield GaugeMetricFamily(name, doc, value=value)
         yield CounterMetricFamily(
             "planner_pool_rejected", "Jobs refused because the pool was full (503).",
             value=pool.rejected,
+        )  # fmt: skip
+        yield CounterMetricFamily(
+            "planner_pool_worker_restarts", "Worker processes that died and were replaced.",
+            value=pool.restarts,
         )  # fmt: skip
 
 

@@ -20,6 +20,8 @@ import statistics
 import time
 from collections.abc import Callable
 
+from _machine import print_machine
+
 from planner import Design
 from planner.analysis.sections import cartesian_section, joint_section
 from planner.analysis.workspace import closed_form_volume, sample_workspace
@@ -38,6 +40,7 @@ def median_seconds(fn: Callable[[], object], repeat: int) -> tuple[float, object
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=256, help="cells per axis of the sections")
     parser.add_argument("--rel-se", type=float, default=0.005, help="target relative std error")

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from _machine import print_machine
 
 from planner import Design, Manipulator, conditioning, forward_batch, inverse_batch
 
@@ -31,6 +32,7 @@ def median_seconds(fn: Callable[[], object], repeat: int) -> float:
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1_000_000)
     parser.add_argument("--loop-n", type=int, default=2_000, help="postures in the Python loop")

@@ -22,6 +22,8 @@ import statistics
 import time
 from collections.abc import Awaitable, Callable
 
+from _machine import print_machine
+
 from api import compute
 from api.logging import JsonFormatter, RequestIdFilter
 from api.metrics import Metrics, run_measured
@@ -72,6 +74,7 @@ def _time_pair(
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=20000, help="requests per variant")
     args = parser.parse_args()

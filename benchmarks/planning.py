@@ -43,6 +43,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from _machine import print_machine
 
 from planner import Design
 from planner.geometry import Box, Sphere
@@ -292,6 +293,7 @@ def _row(label: str, r: dict) -> str:
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--queries", type=int, default=100)
     parser.add_argument("--naive-queries", type=int, default=100)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+from _machine import print_machine
 
 from api import compute, compute_analysis
 from planner.client import AsyncPlannerClient
@@ -147,6 +148,7 @@ def _pct(values: list[float], p: float) -> float:
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--requests", type=int, default=400)

@@ -24,6 +24,7 @@ import statistics
 import time
 
 import numpy as np
+from _machine import print_machine
 
 from planner import Design, conditioning, forward_batch
 from planner.exceptions import TrajectoryCheckError
@@ -62,6 +63,7 @@ def pct(xs: list[float], p: float) -> float:
 
 
 def main() -> None:
+    print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--paths", type=int, default=100)
     parser.add_argument("--waypoints", type=int, default=20)

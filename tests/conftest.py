@@ -1,7 +1,7 @@
 """Shared fixtures: an in-process app (FastAPI's TestClient) and a real service process.
 
 ``live_server`` starts ``planner serve`` (uvicorn) in a subprocess on a free loopback port,
-waits for ``/v1/health`` and yields its base URL; the client tests and the examples use it.
+waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client tests and the examples use it.
 """
 
 from __future__ import annotations
@@ -22,8 +22,9 @@ from api.app import create_app
 from api.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Seconds allowed for a service process to answer /v1/health after it starts.
-STARTUP_TIMEOUT_S = 60.0
+#: Seconds allowed for a service to be ready (every worker warm) after it starts: the first
+#: warm-up of a fresh checkout compiles and imports for tens of seconds on a slow machine.
+STARTUP_TIMEOUT_S = 180.0
 
 
 def free_port() -> int:
@@ -33,10 +34,42 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def make_client(**settings: object) -> TestClient:
-    """A TestClient of an app built with these settings (one worker unless told)."""
+class ReadyClient(TestClient):
+    """A TestClient whose ``with`` block starts once ``/v1/ready`` answers 200, i.e. every
+    worker is warm, as a client of a real deployment waits for readiness (a request sent
+    earlier would spend its time budget waiting for the workers' warm-up)."""
+
+    wait_ready = True
+
+    def __enter__(self) -> ReadyClient:
+        super().__enter__()
+        if self.wait_ready:
+            wait_ready(self)
+        return self
+
+
+def wait_ready(client: httpx.Client | TestClient, timeout_s: float = STARTUP_TIMEOUT_S) -> None:
+    """Wait until ``client``'s service answers ``/v1/ready`` with 200."""
+    end = time.monotonic() + timeout_s
+    headers = {"X-API-Key": key} if (key := getattr(client, "api_key", None)) else None
+    while True:
+        r = client.get("/v1/ready", headers=headers)
+        if r.status_code == 200:
+            return
+        assert r.status_code == 503, r.text
+        assert time.monotonic() < end, f"the workers never became ready: {r.text}"
+        time.sleep(0.05)
+
+
+def make_client(*, wait_ready: bool = True, **settings: object) -> TestClient:
+    """A TestClient of an app built with these settings (one worker unless told); entering
+    it waits for readiness unless ``wait_ready`` is False."""
     settings.setdefault("workers", 1)
-    return TestClient(create_app(Settings(**settings)), raise_server_exceptions=False)
+    client = ReadyClient(create_app(Settings(**settings)), raise_server_exceptions=False)
+    client.wait_ready = wait_ready
+    if settings.get("api_key"):
+        client.api_key = str(settings["api_key"])  # type: ignore[attr-defined]
+    return client
 
 
 @pytest.fixture(scope="session")
@@ -58,7 +91,9 @@ def api() -> Iterator[TestClient]:
         yield client
 
 
-def _wait_healthy(url: str, process: subprocess.Popen[bytes], log: Path) -> None:
+def wait_live_ready(url: str, process: subprocess.Popen[bytes], log: Path) -> None:
+    """Wait until the service process at ``url`` answers ``/v1/ready`` with 200 (every
+    worker warm); fail with the end of its log if it exits or never gets there."""
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
     while time.monotonic() < deadline:
         if process.poll() is not None:
@@ -66,13 +101,13 @@ def _wait_healthy(url: str, process: subprocess.Popen[bytes], log: Path) -> None
                 f"the service exited with {process.returncode}:\n{log.read_text()[-4000:]}"
             )
         try:
-            if httpx.get(f"{url}/v1/health", timeout=1.0).status_code == 200:
+            if httpx.get(f"{url}/v1/ready", timeout=1.0).status_code == 200:
                 return
         except httpx.HTTPError:
             pass
         time.sleep(0.1)
     raise RuntimeError(
-        f"the service did not answer within {STARTUP_TIMEOUT_S} s:\n{log.read_text()[-4000:]}"
+        f"the service was not ready within {STARTUP_TIMEOUT_S} s:\n{log.read_text()[-4000:]}"
     )
 
 
@@ -110,7 +145,7 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         )
     url = f"http://127.0.0.1:{port}"
     try:
-        _wait_healthy(url, process, log)
+        wait_live_ready(url, process, log)
         yield url
     finally:
         process.terminate()

@@ -37,7 +37,12 @@ def _die(_request: PlanRequest) -> PlanResponse:
     os._exit(3)
 
 
-def _wait_ready(client, timeout_s: float = 60.0) -> None:
+def _sleep_then_pid(seconds: float) -> int:
+    time.sleep(seconds)
+    return os.getpid()
+
+
+def _wait_ready(client, timeout_s: float = 180.0) -> None:
     end = time.monotonic() + timeout_s
     while client.get("/v1/ready").status_code != 200:
         assert time.monotonic() < end, "workers never became ready"
@@ -107,20 +112,20 @@ def test_no_key_configured_means_open(api):
 
 # ---------------------------------------------------------------- readiness and saturation
 def test_ready_turns_200_once_workers_answer(client_factory):
-    with client_factory() as c:
+    with client_factory(wait_ready=False) as c:
         r = c.get("/v1/ready")
-        if r.status_code == 503:  # the usual case: spawning takes a while
+        if r.status_code == 503:  # the usual case: spawning and warming take a while
             assert r.json()["status"] == "starting" and r.headers["retry-after"] == "1"
+            assert r.json()["warm"] == 0
         _wait_ready(c)
-        assert c.get("/v1/ready").json() == {"status": "ready", "workers": 1}
+        assert c.get("/v1/ready").json() == {"status": "ready", "workers": 1, "warm": 1}
 
 
 def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory):
     with client_factory(workers=1, queue_size=0, retry_after_s=2) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
-        pool._reserve(1)
-        busy = pool._submit(time.sleep, 0.5)
+        busy = pool.submit(time.sleep, 0.5)
         r = c.post("/v1/fk", json={"q": [0, 1, 2]})
         assert r.status_code == 503
         assert r.headers["retry-after"] == "2"
@@ -131,11 +136,11 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factor
 
 
 def test_request_over_its_time_budget_is_504(client_factory):
-    with client_factory(workers=1, queue_size=2, request_timeout_s=1.0) as c:
+    # a budget that an fk job keeps even on a loaded machine, and a job twice as long
+    with client_factory(workers=1, queue_size=2, request_timeout_s=3.0) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
-        pool._reserve(1)
-        busy = pool._submit(time.sleep, 2.0)  # the fk job waits behind it past its deadline
+        busy = pool.submit(time.sleep, 6.0)  # the fk job waits behind it past its deadline
         r = c.post("/v1/fk", json={"q": [0, 1, 2]})
         assert r.status_code == 504
         assert r.json()["detail"][0]["type"] == "deadline_exceeded"
@@ -146,7 +151,7 @@ def test_request_over_its_time_budget_is_504(client_factory):
 
 def test_pool_reserves_a_batch_all_or_nothing():
     async def scenario() -> None:
-        pool = WorkerPool(1, 1)
+        pool = WorkerPool(1, 1, warm_up=None)
         await pool.start()
         try:
             with pytest.raises(PoolSaturatedError):
@@ -219,12 +224,25 @@ def test_batch_runs_on_several_processes_without_blocking_the_loop(two_workers):
     assert len(pids) == 2 and os.getpid() not in pids
 
 
-def test_crashed_worker_is_502_and_the_pool_recovers(two_workers):
+def test_a_dead_worker_fails_only_its_own_job_and_is_replaced_warm(two_workers):
+    """One worker dies mid-job while the other runs a job: only the dead one's request gets
+    the 502 (naming the exit), the other job completes, readiness is 503 'recovering' until
+    the replacement is warm, then 200, and the next request succeeds."""
+    pool: WorkerPool = two_workers.app.state.pool
+    before = set(pool.pids)
+    healthy = pool.submit(_sleep_then_pid, 1.0)  # occupies one worker
     two_workers.app.dependency_overrides[get_plan_function] = lambda: _die
-    r = two_workers.post("/v1/plan", json=PLAN)
+    r = two_workers.post("/v1/plan", json=PLAN)  # lands on the other one, which dies
     assert r.status_code == 502
     assert r.json()["detail"][0]["type"] == "worker_crashed"
+    assert "exit code 3" in r.json()["detail"][0]["msg"]
+    ready = two_workers.get("/v1/ready")
+    assert ready.status_code == 503 and ready.json()["status"] == "recovering", ready.text
+    assert ready.json()["warm"] == 1
+    assert healthy.result(timeout=60) in before  # the job on the healthy worker finished
     two_workers.app.dependency_overrides.clear()
+    _wait_ready(two_workers)
+    assert len(set(pool.pids) - before) == 1 and len(pool.pids) == 2
     r = two_workers.post("/v1/fk", json={"q": [0, 1, 2]})
     assert r.status_code == 200 and len(r.json()["postures"]) == 2
 

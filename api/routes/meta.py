@@ -24,11 +24,13 @@ def health() -> Health:
     responses={503: {"model": Readiness, "description": "Workers not up (yet)."}},
 )
 def ready(pool: Pool, settings: SettingsDep, response: Response) -> Readiness:
-    """Readiness: every worker process started and answered once (503 until then)."""
-    if pool.state != "ready":
+    """Readiness: every configured worker process is alive and warm (503 otherwise: while
+    starting, while a dead worker's replacement warms up, while stopping)."""
+    state = pool.state
+    if state != "ready":
         response.status_code = 503
         response.headers["Retry-After"] = str(settings.retry_after_s)
-    return Readiness(status=pool.state, workers=pool.workers)
+    return Readiness(status=state, workers=pool.workers, warm=pool.warm_workers)
 
 
 @router.get(
