@@ -565,4 +565,3 @@ class WorkerPool:
                 f.cancel()
             raise
         return await self._await(futures, deadline)
-
