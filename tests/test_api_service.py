@@ -210,7 +210,7 @@ def test_batch_larger_than_the_pool_capacity_is_served_in_rounds(client_factory)
 
 def test_batch_runs_on_several_processes_without_blocking_the_loop(two_workers):
     two_workers.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
-    body = {"requests": [{**PLAN, "planner": {"time_budget_s": 1.0}}] * 2}
+    body = {"requests": [{**PLAN, "planner": {"time_budget_s": 3.0}}] * 2}
     answer: dict = {}
     thread = threading.Thread(
         target=lambda: answer.update(r=two_workers.post("/v1/plan/batch", json=body))

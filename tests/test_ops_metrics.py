@@ -37,7 +37,7 @@ def sample(metrics, name: str, **labels: str) -> float:
     return metrics.get((name, tuple(sorted(labels.items()))), 0.0)
 
 
-def _wait_ready(client, timeout_s: float = 60.0) -> None:
+def _wait_ready(client, timeout_s: float = 180.0) -> None:
     end = time.monotonic() + timeout_s
     while client.get("/v1/ready").status_code != 200:
         assert time.monotonic() < end, "workers never became ready"

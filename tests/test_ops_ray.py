@@ -22,7 +22,7 @@ pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _wait_ready(url: str, timeout_s: float = 60.0) -> None:
+def _wait_ready(url: str, timeout_s: float = 180.0) -> None:
     end = time.monotonic() + timeout_s
     while True:
         try:

@@ -51,7 +51,7 @@ def _start(tmp_path: Path, port: int, **env: str) -> tuple[subprocess.Popen[byte
             cwd=ROOT, env=full_env, stdout=out, stderr=subprocess.STDOUT,
         )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
-    end = time.monotonic() + 60
+    end = time.monotonic() + 180  # every worker warm: slow on a fresh, slow machine
     while True:
         assert process.poll() is None, log.read_text()[-3000:]
         try:
@@ -103,17 +103,17 @@ def _stop(process: subprocess.Popen[bytes], log: Path, timeout_s: float) -> floa
 
 
 def test_in_flight_plan_finishes_within_the_grace(tmp_path, unused_port):
-    process, log = _start(tmp_path, unused_port, PLANNER_SHUTDOWN_TIMEOUT_S="20")
+    process, log = _start(tmp_path, unused_port, PLANNER_SHUTDOWN_TIMEOUT_S="40")
     url = f"http://127.0.0.1:{unused_port}"
     thread, out = _plan_in_thread(url, 1.5, "drain-1")
     worker = _wait_started(tmp_path / "worker.pid")
-    elapsed = _stop(process, log, timeout_s=20)
+    elapsed = _stop(process, log, timeout_s=45)
     thread.join(10)
     (r,) = out
     assert isinstance(r, httpx.Response) and r.status_code == 200, r
     assert r.json()["message"] == str(worker)  # the job's own answer, not a cut connection
     assert r.headers["x-request-id"] == "drain-1"
-    assert elapsed < 15  # it did not wait the whole grace
+    assert elapsed < 30  # it did not wait the whole grace (40 s): it stopped after the job
     assert not _alive(worker)
     with pytest.raises(httpx.ConnectError):  # nothing listens any more
         httpx.get(f"{url}/v1/health", timeout=1)
@@ -138,5 +138,5 @@ def test_plan_beyond_the_grace_is_cancelled_cleanly(tmp_path, unused_port):
     assert r.headers["retry-after"] == "1"
     assert r.headers["x-request-id"] == "cut-1"
     # the answer came at the end of the job's share of the grace, the exit soon after
-    assert grace * 0.5 < elapsed < grace + 8
+    assert grace * 0.5 < elapsed < grace + 20
     assert not _alive(worker)  # the busy worker was terminated, not left running

@@ -115,7 +115,9 @@ def test_wall_gives_no_path_within_budget():
     elapsed = time.perf_counter() - t0
     assert res.status is PlanStatus.NO_PATH and res.path is None
     assert "no path" in res.message
-    assert elapsed < budget * 1.25 + 1.0  # budget plus overhead (generous: not a speed test)
+    assert f"within {budget} s" in res.message  # the search ran on the budget it was given
+    # and stopped there: the bound leaves set-up and answer seconds of room (not a speed test)
+    assert elapsed < budget + 5.0
 
 
 def test_invalid_start_and_goal_name_rule_and_value():
