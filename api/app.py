@@ -17,6 +17,7 @@ from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
 from api.routes import workspace as workspace_routes
 from api.settings import Settings, get_settings
+from api.warmup import warm_up_worker
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
 
@@ -41,6 +42,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             settings.queue_size or 0,
             retry_after_s=settings.retry_after_s,
             log_setup=(settings.log_level, settings.log_format),
+            warm_up=warm_up_worker,
         )
         await pool.start()
         app.state.pool = pool

@@ -11,9 +11,9 @@ a worker that dies (a crash in native code, the OOM killer, SIGKILL) fails only 
 was running (:class:`WorkerCrashedError`, HTTP 502 naming the exit); the others keep running
 and a replacement is spawned and warmed in the background.
 
-Warm means ready: a worker announces itself only after :func:`planner.warmup.warm_up` has
-imported OMPL, toppra, ruckig and matplotlib and run every kernel, so the first job on it
-costs what any later one costs. :attr:`WorkerPool.state` is ``"ready"`` (``/v1/ready`` 200)
+Warm means ready: a worker announces itself only after its ``warm_up`` function (the
+service's :func:`api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
+the first job on it costs what any later one costs. :attr:`WorkerPool.state` is ``"ready"`` (``/v1/ready`` 200)
 only while every configured worker is warm; ``"starting"`` before the first time,
 ``"recovering"`` while a replacement warms up, ``"broken"`` when warm-up itself fails.
 
@@ -64,7 +64,7 @@ from api.exceptions import (
     WorkerCrashedError,
 )
 
-__all__ = ["PoolState", "WorkerPool", "warm_up_worker"]
+__all__ = ["PoolState", "WorkerPool"]
 
 logger = logging.getLogger(__name__)
 
@@ -80,14 +80,6 @@ _PR_SET_PDEATHSIG = 1
 
 
 # ---------------------------------------------------------------------- the worker side
-def warm_up_worker() -> float:
-    """Import and compile everything a job may use (:func:`planner.warmup.warm_up`); the
-    default warm-up of the service's workers. Returns its seconds."""
-    from planner.warmup import warm_up
-
-    return warm_up()
-
-
 def _die_with_parent(parent_pid: int) -> None:
     """Exit when the parent does: SIGKILL from the kernel when the spawning thread ends
     (Linux), and a watcher thread that polls the parent's pid (everywhere)."""
@@ -194,8 +186,8 @@ class WorkerPool:
     log_setup : (level, format) or None
         How the workers log (:func:`api.logging.configure_logging`); None: Python's default.
     warm_up : callable or None
-        Run in each new worker before it takes jobs (module-level, picklable); default
-        :func:`warm_up_worker`. None: no warm-up (tests of the pool's mechanics).
+        Run in each new worker before it takes jobs (module-level, picklable; the service
+        passes :func:`api.warmup.warm_up_worker`). None: no warm-up.
     """
 
     def __init__(
@@ -205,7 +197,7 @@ class WorkerPool:
         *,
         retry_after_s: int = 1,
         log_setup: tuple[str, str] | None = None,
-        warm_up: Callable[[], object] | None = warm_up_worker,
+        warm_up: Callable[[], object] | None = None,
     ) -> None:
         if workers < 1 or queue_size < 0:
             raise ValueError("workers must be >= 1 and queue_size >= 0")

@@ -124,9 +124,11 @@ Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 
 
 class _Request(BaseModel):
-    """Base of request models: unknown fields are errors."""
+    """Base of request models: unknown fields are errors, and types are strict (``true`` is
+    not a number, ``"1.5"`` is not a number; an integer is a number): a client's mistake is
+    named, not coerced."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class _Response(BaseModel):
@@ -864,7 +866,9 @@ class DesignOptimizeResponse(_Response):
 # ---------------------------------------------------------------------------- figures
 class FigureQuery(_Request):
     """Query parameters of ``GET /v1/figures/{name}.png|svg``: the design (absent fields: the
-    default robot) and the rendering."""
+    default robot) and the rendering. Query strings are text: numbers are parsed (lax)."""
+
+    model_config = ConfigDict(extra="forbid", strict=False)
 
     L0: Length = Field(_DEFAULT.L0, description="|AB|, m.")
     L1: LinkLength = Field(_DEFAULT.L1, description="|AC| = |BD|, m.")
