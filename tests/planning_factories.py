@@ -1,33 +1,16 @@
 """Shared factories of the validity and planning tests: an independent reference of the
 validity rules (from planner.kinematics and dense point sampling, not the validity kernels),
-scenes, and wire conversion for /work/shared/tools/check-plan."""
+scenes, and wire conversion for the independent plan checker (``tests/plan_checker.py``)."""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
+from plan_checker import PlanCheck, check_plan
 
 from planner.design import Design
 from planner.geometry import Capsule, Sphere, segment_obstacle_distance
 from planner.kinematics import conditioning, forward_batch, link_points
 
-
-def _find_check_plan() -> Path:
-    """The independent plan checker of the shared folder: $PLANNER_CHECK_PLAN if set, else
-    shared/ beside the repository (CI lays out a clean clone with a copy of shared/ beside
-    it), else the workplace's /work/shared."""
-    if os.environ.get("PLANNER_CHECK_PLAN"):
-        return Path(os.environ["PLANNER_CHECK_PLAN"])
-    beside = Path(__file__).resolve().parents[2] / "shared" / "tools" / "check-plan"
-    return beside if beside.exists() else Path("/work/shared/tools/check-plan")
-
-
-CHECK_PLAN = _find_check_plan()
 LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
 
 
@@ -107,11 +90,10 @@ def wire_design(d: Design) -> dict:
     }
 
 
-def run_check_plan(
-    tmp_path: Path, design, start, goal_wire: dict, margins, obstacles, response: dict
-):
-    """Run the independent checker on a plan; returns (exit code, output)."""
-    req = {
+def plan_request(design, start, goal_wire: dict, margins, obstacles) -> dict:
+    """The /v1/plan request (wire JSON) of a library plan: design, start, goal, margins and
+    obstacles written out in full, so that the checker needs none of the library's defaults."""
+    return {
         "design": wire_design(design),
         "start": {"q": start.q.tolist(), "assembly_mode": start.assembly_mode},
         "goal": goal_wire,
@@ -122,12 +104,13 @@ def run_check_plan(
         },
         "obstacles": [wire_obstacle(o) for o in obstacles],
     }
-    (tmp_path / "req.json").write_text(json.dumps(req))
-    (tmp_path / "resp.json").write_text(json.dumps(response))
-    proc = subprocess.run(
-        [sys.executable, str(CHECK_PLAN), str(tmp_path / "req.json"), str(tmp_path / "resp.json")],
-        capture_output=True,
-        text=True,
-        timeout=120,
+
+
+def check_library_plan(design, start, goal_wire: dict, margins, obstacles, response: dict):
+    """Re-check a library plan (``PlanResult.as_wire()``) with the independent checker of
+    ``tests/plan_checker.py``; returns its :class:`~plan_checker.PlanCheck` (``ok``, and the
+    broken rules in ``str()``)."""
+    report: PlanCheck = check_plan(
+        plan_request(design, start, goal_wire, margins, obstacles), response
     )
-    return proc.returncode, proc.stdout + proc.stderr
+    return report

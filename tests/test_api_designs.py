@@ -16,7 +16,7 @@ def test_presets_are_the_documented_designs(api):
     presets = {p["name"]: p["design"] for p in r.json()["presets"]}
     assert list(presets) == ["default", "singularity-free", "paper-optimum"]
     sf = presets["singularity-free"]
-    # CONVENTIONS.md: 2 L1 < L0 < 2 (L2 - L1) removes both parallel singularities
+    # docs/conventions.md: 2 L1 < L0 < 2 (L2 - L1) removes both parallel singularities
     assert 2 * sf["L1"] < sf["L0"] < 2 * (sf["L2"] - sf["L1"])
     po = presets["paper-optimum"]
     assert po["L0"] == 0 and po["L1"] == po["L2"]
@@ -65,7 +65,7 @@ def test_design_check_runs_in_a_worker_and_names_bad_fields(api):
     )
     assert r.status_code == 200, r.text
     body = r.json()
-    # 2 L1 < L0 < 2 (L2 - L1): no parallel singularity (CONVENTIONS.md, erratum 4)
+    # 2 L1 < L0 < 2 (L2 - L1): no parallel singularity (docs/conventions.md, erratum 4)
     assert body["singularity_free"] is True and body["parallel_singularities"] == []
     r = api.post(
         "/v1/design/check",

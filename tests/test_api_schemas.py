@@ -1,4 +1,4 @@
-"""The wire models hold exactly the vocabulary of CONVENTIONS.md (names, statuses, kinds)."""
+"""The wire models hold exactly the vocabulary of docs/conventions.md (names, statuses, kinds)."""
 
 from __future__ import annotations
 

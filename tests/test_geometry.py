@@ -1,5 +1,5 @@
 """Obstacle distances against an independent route: dense point sampling of the segment with
-numpy point-obstacle distances written from the definitions (as /work/shared/tools/check-plan)."""
+numpy point-obstacle distances written from the definitions (as in tests/plan_checker.py)."""
 
 from __future__ import annotations
 

@@ -351,6 +351,57 @@ def test_kappa_matches_svd_and_eq6_and_the_paper_where_it_holds():
                 assert c.parallel == pytest.approx(abs(delta - k * math.pi), abs=1e-12)
 
 
+def reference_a(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
+    """A = [L2 k^T; (p - c)^T; (p - d)^T] of eq. (3) from :func:`reference_points`, with k
+    the plane normal e(theta1) x y."""
+    pts = reference_points(design, q, passive)
+    e = np.array([math.cos(q[0]), 0.0, -math.sin(q[0])])
+    k = np.cross(e, [0.0, 1.0, 0.0])
+    return np.stack([design.L2 * k, pts["P"] - pts["C"], pts["P"] - pts["D"]])
+
+
+def test_a_is_singular_only_at_k_pi_erratum_1():
+    """Erratum 1 (section 2.5): eq. (6) gives det(A A^T) = L2^6 (1 - cos^2(theta4 - theta5)),
+    so |det A| = L2^3 |sin(theta4 - theta5)|: A is singular only at theta4 - theta5 = k pi
+    and best at odd multiples of pi/2, where the paper says it is singular."""
+    rng = np.random.default_rng(21)
+    seen_right_angle = seen_near_pi = 0
+    for design in DESIGNS[:4]:
+        b = forward_batch(design, random_q(rng, 4000), "+")
+        for i in np.flatnonzero(b.ok)[:1500]:
+            delta = b.passive[i, 0] - b.passive[i, 1]
+            det = abs(np.linalg.det(reference_a(design, b.q[i], b.passive[i])))
+            assert det == pytest.approx(design.L2**3 * abs(math.sin(delta)), abs=1e-12)
+            if abs(math.cos(delta)) < 0.01:  # delta within 0.01 rad of +-pi/2
+                assert det > 0.999 * design.L2**3
+                seen_right_angle += 1
+            if abs(math.sin(delta)) < 0.01:  # delta near k pi
+                assert det < 0.011 * design.L2**3
+                seen_near_pi += 1
+    assert seen_right_angle > 10 and seen_near_pi > 3
+
+
+def test_isotropy_follows_theta4_minus_theta5_not_theta3_minus_theta4_erratum_3():
+    """Erratum 3 (section 3.4): kappa(A) = 1 where |theta4 - theta5| = pi/2 (mod pi), while
+    |theta3 - theta4| = pi/2 says nothing about it. kappa from numpy's SVD of A."""
+    design = Design(L0=0.3, L1=0.25, L2=0.4)
+    b = forward_batch(design, random_q(np.random.default_rng(22), 200_000), "+")
+    ok = b.ok
+    t3, t4, t5 = b.q[ok, 2], b.passive[ok, 0], b.passive[ok, 1]
+    right = np.flatnonzero(np.abs(np.cos(t4 - t5)) < 1e-3)
+    paper = np.flatnonzero(np.abs(np.cos(t3 - t4)) < 1e-3)
+    assert len(right) > 20 and len(paper) > 20
+
+    def kappa(i: int) -> float:
+        a = reference_a(design, b.q[ok][i], b.passive[ok][i])
+        sv = np.linalg.svd(a, compute_uv=False)
+        return float(sv[0] / sv[-1])
+
+    assert max(kappa(i) for i in right[:50]) < 1.0021  # isotropic up to the 1e-3 window
+    worst = max(kappa(i) for i in paper[:200])
+    assert worst > 2.0  # the paper's condition admits badly conditioned postures
+
+
 def test_isotropy_at_right_angle():
     d = Design.default()
     m = Manipulator(d)

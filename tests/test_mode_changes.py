@@ -2,19 +2,18 @@
 optimum and of the singularity-free design is planned (or answered "unreachable" for a reason
 verified here independently); the working mode along each path, sampled densely from the
 kinematics, changes only at the listed transits and by one sign; no posture comes near a
-parallel singularity; /work/shared/tools/check-plan accepts every plan; /v1/plan end to end."""
+parallel singularity; the independent checker (tests/plan_checker.py) accepts every plan;
+/v1/plan end to end."""
 
 from __future__ import annotations
 
 import itertools
-import json
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
-from planning_factories import CHECK_PLAN, run_check_plan, wire_design
+from plan_checker import check_plan
+from planning_factories import check_library_plan, wire_design
 
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch
@@ -149,7 +148,7 @@ def _pairs():
 
 
 @pytest.mark.parametrize(("name", "asm", "m0", "m1"), _pairs())
-def test_every_reachable_mode_pair_is_planned(tmp_path, name, asm, m0, m1):
+def test_every_reachable_mode_pair_is_planned(name, asm, m0, m1):
     design = DESIGNS[name]
     starts, goals = _valid_postures(design, asm, m0, 1), _valid_postures(design, asm, m1, 2)
     # literal joint limits and parallel singularities split each mode region into
@@ -166,10 +165,8 @@ def test_every_reachable_mode_pair_is_planned(tmp_path, name, asm, m0, m1):
     hamming = sum(a != b for a, b in zip(m0, m1, strict=True))
     assert len(res.path.transits) >= hamming
     check_mode_path(design, start, res, goal_q=goal.q)
-    code, out = run_check_plan(
-        tmp_path, design, start, _goal_wire(goal), MARGINS, [], res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(design, start, _goal_wire(goal), MARGINS, [], res.as_wire())
+    assert report.ok, report
 
 
 def test_paper_optimum_transits_are_on_the_axis_only():
@@ -222,7 +219,7 @@ def test_no_axis_transit_makes_the_axis_sign_unreachable():
     assert res.status is PlanStatus.UNREACHABLE and "assembly mode" in res.message
 
 
-def test_cartesian_goal_in_a_specific_other_mode(tmp_path):
+def test_cartesian_goal_in_a_specific_other_mode():
     design = DESIGNS["free"]
     start = JointPosture([0.0, 2.0, 1.0], "+")  # +-+
     q_goal = _valid_postures(design, "+", "+++", 5)[0]
@@ -232,13 +229,11 @@ def test_cartesian_goal_in_a_specific_other_mode(tmp_path):
     assert res.solved, res.message
     assert [s.working_mode for s in res.path.segments][-1] == "+++"
     check_mode_path(design, start, res, goal_p=p)
-    code, out = run_check_plan(
-        tmp_path, design, start, _goal_wire(target), MARGINS, [], res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(design, start, _goal_wire(target), MARGINS, [], res.as_wire())
+    assert report.ok, report
 
 
-def test_any_mode_changes_mode_when_the_start_mode_cannot_reach(tmp_path):
+def test_any_mode_changes_mode_when_the_start_mode_cannot_reach():
     """A point whose solution in the start's mode (++-) breaks a rule: 'any' must change mode."""
     design = DESIGNS["free"]
     start = JointPosture(_valid_postures(design, "+", "++-", 1)[0], "+")
@@ -255,14 +250,14 @@ def test_any_mode_changes_mode_when_the_start_mode_cannot_reach(tmp_path):
     assert res.solved, res.message
     assert len(res.path.transits) >= 1 and res.path.segments[-1].working_mode != "++-"
     check_mode_path(design, start, res, goal_p=p)
-    code, out = run_check_plan(
-        tmp_path, design, start, {"p": p.tolist(), "working_mode": "any"}, MARGINS, [],
+    report = check_library_plan(
+        design, start, {"p": p.tolist(), "working_mode": "any"}, MARGINS, [],
         res.as_wire(),
     )  # fmt: skip
-    assert code == 0, out
+    assert report.ok, report
 
 
-def test_any_mode_changes_mode_when_the_start_region_is_cut_off(tmp_path):
+def test_any_mode_changes_mode_when_the_start_region_is_cut_off():
     """The goal point's solution in the start's mode lies in another component of that mode's
     region (joint limits at +-pi split it): the single-mode search finds no path, 'any'
     reaches the point in another mode through a transit."""
@@ -287,11 +282,11 @@ def test_any_mode_changes_mode_when_the_start_region_is_cut_off(tmp_path):
     assert res.path.segments[-1].working_mode != "+-+"
     check_mode_path(design, start, res, goal_p=p)
     goal_wire = {"p": p.tolist(), "working_mode": "any"}
-    code, out = run_check_plan(tmp_path, design, start, goal_wire, MARGINS, [], res.as_wire())
-    assert code == 0, out
+    report = check_library_plan(design, start, goal_wire, MARGINS, [], res.as_wire())
+    assert report.ok, report
 
 
-def test_obstacle_next_to_the_transit_still_solved(tmp_path):
+def test_obstacle_next_to_the_transit_still_solved():
     """A sphere on the first choice of transit: the plan uses another one or goes around."""
     from planner.geometry import Sphere
 
@@ -307,10 +302,8 @@ def test_obstacle_next_to_the_transit_still_solved(tmp_path):
     assert res.solved, res.message
     assert not np.allclose(res.path.transits[0].q, qt)
     check_mode_path(design, start, res, goal_q=goal.q)
-    code, out = run_check_plan(
-        tmp_path, design, start, _goal_wire(goal), MARGINS, obstacles, res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(design, start, _goal_wire(goal), MARGINS, obstacles, res.as_wire())
+    assert report.ok, report
 
 
 def test_path_state_checker_accepts_the_crossing_only_near_it():
@@ -359,7 +352,7 @@ def test_no_transit_on_a_walk_is_unreachable_with_the_reason():
 
 
 @pytest.mark.parametrize("stop", [False, True])
-def test_v1_plan_end_to_end_with_a_mode_change(api, tmp_path, stop):
+def test_v1_plan_end_to_end_with_a_mode_change(api, stop):
     design = DESIGNS["free"]
     goal_q = _valid_postures(design, "+", "+++", 5)[0]
     body = {
@@ -388,11 +381,5 @@ def test_v1_plan_end_to_end_with_a_mode_change(api, tmp_path, stop):
         assert d[k] < 1e-9 and np.abs(qd[k]).max() < 1e-9
     else:
         assert d[k] < 0.05
-    (tmp_path / "req.json").write_text(json.dumps(body))
-    (tmp_path / "resp.json").write_text(json.dumps(out))
-    proc = subprocess.run(
-        [sys.executable, str(CHECK_PLAN), str(tmp_path / "req.json"),
-         str(tmp_path / "resp.json")],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stdout
+    report = check_plan(body, out)  # the trajectory too, densely
+    assert report.ok, report

@@ -1,4 +1,4 @@
-"""Single-mode planning: solved scenes checked by the independent /work/shared/tools/check-plan,
+"""Single-mode planning: solved scenes checked by the independent checker (tests/plan_checker.py),
 clean failures (no path, invalid start/goal, unreachable), seeds, planners, wire fields."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from planning_factories import run_check_plan
+from planning_factories import check_library_plan
 
 from planner.design import Design
 from planner.exceptions import InputError
@@ -47,7 +47,7 @@ def test_blocker_blocks_the_direct_motion():
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_solved_paths_pass_the_independent_check(tmp_path, seed):
+def test_solved_paths_pass_the_independent_check(seed):
     margins = Margins()
     res = plan(
         DESIGN,
@@ -69,10 +69,8 @@ def test_solved_paths_pass_the_independent_check(tmp_path, seed):
     assert d.min_clearance >= margins.clearance and d.max_kappa_A <= margins.kappa_max
     assert d.min_serial_margin >= margins.serial_min
     assert d.path_length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
-    code, out = run_check_plan(
-        tmp_path, DESIGN, START, _goal_wire(GOAL), margins, BLOCKER, res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), margins, BLOCKER, res.as_wire())
+    assert report.ok, report
 
 
 def test_seed_reproduces_the_path():
@@ -84,16 +82,14 @@ def test_seed_reproduces_the_path():
 
 
 @pytest.mark.parametrize("name", PLANNERS)
-def test_every_planner_solves_a_blocked_query(name, tmp_path):
+def test_every_planner_solves_a_blocked_query(name):
     res = plan(
         DESIGN, START, GOAL, obstacles=BLOCKER, options=PlanOptions(name=name, time_budget_s=1.0)
     )
     assert res.status is PlanStatus.SOLVED, (name, res.message)
     assert res.diagnostics.planner == name
-    code, out = run_check_plan(
-        tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire())
+    assert report.ok, report
 
 
 def test_free_space_takes_the_straight_motion():
@@ -152,7 +148,7 @@ def test_other_mode_or_assembly_is_unreachable_for_a_single_mode_plan():
     assert res.status is PlanStatus.UNREACHABLE and "out of reach" in res.message
 
 
-def test_cartesian_goal_any_mode(tmp_path):
+def test_cartesian_goal_any_mode():
     q_goal = np.array([0.8, 2.3, 1.2])
     p = forward_batch(DESIGN, q_goal, "+").p[0]
     target = CartesianTarget(p, "any")
@@ -160,10 +156,10 @@ def test_cartesian_goal_any_mode(tmp_path):
     assert res.solved, res.message
     end = forward_batch(DESIGN, res.path.waypoints[-1], "+").p[0]
     np.testing.assert_allclose(end, p, atol=1e-9)
-    code, out = run_check_plan(
-        tmp_path, DESIGN, START, _goal_wire(target), Margins(), BLOCKER, res.as_wire()
+    report = check_library_plan(
+        DESIGN, START, _goal_wire(target), Margins(), BLOCKER, res.as_wire()
     )
-    assert code == 0, out
+    assert report.ok, report
 
 
 def test_wire_fields():
@@ -218,7 +214,7 @@ def test_no_leak_warnings_or_ompl_output():
     assert "leaked" not in proc.stderr and proc.stdout == "" and proc.stderr == ""
 
 
-def test_plan_in_region_with_goal_candidates(tmp_path):
+def test_plan_in_region_with_goal_candidates():
     """The building block of plan(): a checker, a start and goal candidates; its path passes
     the independent check."""
     from planner.planning import plan_in_region
@@ -227,10 +223,8 @@ def test_plan_in_region_with_goal_candidates(tmp_path):
     chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
     res = plan_in_region(chk, START.q, np.stack([GOAL.q]), options=PlanOptions(seed=3))
     assert res.solved and res.diagnostics.attempts == 1
-    code, out = run_check_plan(
-        tmp_path, DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire()
-    )
-    assert code == 0, out
+    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire())
+    assert report.ok, report
 
 
 def test_start_that_does_not_assemble_names_the_measured_cd():

@@ -11,7 +11,7 @@ router = APIRouter(prefix="/v1", tags=["designs"])
 
 
 def presets() -> DesignsResponse:
-    """The named designs of ``CONVENTIONS.md``, ``default`` first."""
+    """The named designs of ``docs/conventions.md``, ``default`` first."""
     return DesignsResponse(
         presets=[
             DesignPreset(

@@ -1,7 +1,7 @@
 """hybrid-planner: plan, time and analyse motions of the 3-DOF hybrid manipulator of
 Chablat, Wenger and Angeles (a symmetric five-bar A-C-P-D-B whose plane turns about AB).
 
-Frames, mode labels and formulas: ``CONVENTIONS.md`` and :mod:`planner.kinematics`.
+Frames, mode labels and formulas: ``docs/conventions.md`` and :mod:`planner.kinematics`.
 """
 
 from __future__ import annotations

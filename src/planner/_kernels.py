@@ -4,7 +4,7 @@ Private: :mod:`planner.kinematics` validates inputs and wraps these. One fused l
 quantity keeps every intermediate in registers instead of a temporary array per numpy
 operation; angles are left to numpy's SIMD ``arctan2``, which beats a scalar ``atan2`` in
 the loop by far (``benchmarks/kinematics.py`` measures the result).
-Formulas and frames are those of ``CONVENTIONS.md``. Tolerances come in as arguments, never
+Formulas and frames are those of ``docs/conventions.md``. Tolerances come in as arguments, never
 as module globals: numba's on-disk cache would freeze a global's value at compile time.
 """
 

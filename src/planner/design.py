@@ -1,6 +1,6 @@
 """The design of the manipulator: link lengths, link radius and joint limits.
 
-Frame and symbols follow ``CONVENTIONS.md``: ``L0 = |AB|``, ``L1 = |AC| = |BD|``,
+Frame and symbols follow ``docs/conventions.md``: ``L0 = |AB|``, ``L1 = |AC| = |BD|``,
 ``L2 = |CP| = |DP|``; metres and radians.
 """
 

@@ -1,6 +1,6 @@
 """Obstacles and distances between the link capsules and them (numpy and numba, no I/O).
 
-Obstacles are the three shapes of the wire vocabulary (``CONVENTIONS.md``): a sphere, an
+Obstacles are the three shapes of the wire vocabulary (``docs/conventions.md``): a sphere, an
 oriented box (quaternion ``[w, x, y, z]``, frame of the box to the base frame) and a capsule.
 A floor is a large flat box. Distances are *signed* distances between a link's axis segment
 and the obstacle's surface (negative when the segment enters the obstacle); the link radius

@@ -1,6 +1,6 @@
 """Kinematics of the 3-DOF hybrid manipulator: postures, modes, Jacobians, conditioning.
 
-Frame (``CONVENTIONS.md``): O is the midpoint of AB, +y points from A to B, theta1 turns the
+Frame (``docs/conventions.md``): O is the midpoint of AB, +y points from A to B, theta1 turns the
 linkage plane about +y. In the plane, u runs along +y and w along
 ``e(theta1) = (cos theta1, 0, -sin theta1)``, so ``P = (w cos theta1, u, -w sin theta1)``.
 Planar angles are measured from A->B, counter-clockwise about the plane normal

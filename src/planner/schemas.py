@@ -1,4 +1,4 @@
-"""Pydantic models of the HTTP wire vocabulary (``CONVENTIONS.md``), shared by the service
+"""Pydantic models of the HTTP wire vocabulary (``docs/conventions.md``), shared by the service
 and the client: the one definition of every field name on /v1.
 
 Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored

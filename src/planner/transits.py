@@ -1,7 +1,7 @@
 """Serial-singularity transits: the postures through which a working mode changes.
 
 A working mode (s_axis, s_A, s_B) can only change by crossing a serial singularity, which
-flips exactly one sign (``CONVENTIONS.md``):
+flips exactly one sign (``docs/conventions.md``):
 
 =================== ========= ==================================================
 kind                flipped   surface in joint space

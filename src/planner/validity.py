@@ -90,7 +90,7 @@ _R_LIMITS, _R_ASSEMBLY, _R_KAPPA, _R_MODE, _R_SERIAL, _R_CLEAR = 1, 2, 3, 4, 5, 
 
 @dataclass(frozen=True, slots=True)
 class Margins:
-    """Safety margins of a valid posture (``CONVENTIONS.md``, wire field ``margins``).
+    """Safety margins of a valid posture (``docs/conventions.md``, wire field ``margins``).
 
     Parameters
     ----------

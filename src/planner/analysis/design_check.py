@@ -1,7 +1,7 @@
 """Design check: which parallel singularities a design can have and why, which working modes
 are operative, the workspace volume, and how much of it is well conditioned.
 
-Rules (``CONVENTIONS.md``, erratum 4). C lies on the circle of radius L1 about A and D on the
+Rules (``docs/conventions.md``, erratum 4). C lies on the circle of radius L1 about A and D on the
 one about B, so ``|CD|`` takes every value in ``[max(0, L0 - 2 L1), L0 + 2 L1]``:
 
 * C = D needs ``|CD| = 0``: possible iff ``L0 <= 2 L1`` (``2 L1 < L0`` removes it);

@@ -4,7 +4,7 @@ Every locus is a set of postures traced along a parameter, built from circle int
 the linkage plane, and carries its joints, passive angles, the point P and the mode signs of
 each posture, so it can be drawn in joint space (theta2, theta3) or in the plane (u, w).
 
-Geometry used (``CONVENTIONS.md``): the triangle C-P-D is isosceles (|CP| = |DP| = L2), so
+Geometry used (``docs/conventions.md``): the triangle C-P-D is isosceles (|CP| = |DP| = L2), so
 ``|CD| = 2 L2 |sin(delta / 2)|`` with ``delta = theta4 - theta5``, and kappa(A) depends on |CD|
 alone: ``kappa = sqrt((1 + |c|) / (1 - |c|))`` with ``c = cos delta = 1 - |CD|^2 / (2 L2^2)``.
 Hence

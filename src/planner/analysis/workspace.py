@@ -2,7 +2,7 @@
 
 Without joint limits, P is reachable when each leg reaches it: ``|L1 - L2| <= |AP| <= L1 + L2``
 and the same for B (theta1 turns the linkage plane onto P). The workspace is therefore the
-intersection of two hollow spheres centred at A and B (``CONVENTIONS.md``, erratum 5), whose
+intersection of two hollow spheres centred at A and B (``docs/conventions.md``, erratum 5), whose
 volume follows from sphere-sphere lens volumes by inclusion-exclusion
 (:func:`closed_form_volume`).
 

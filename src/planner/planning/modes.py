@@ -2,7 +2,7 @@
 transits. The library entry point :func:`plan` (re-exported as ``planner.planning.plan``).
 
 A working mode changes only by crossing a serial singularity, which flips exactly one sign of
-(s_axis, s_A, s_B) (``CONVENTIONS.md``); the assembly mode never changes (that would cross a
+(s_axis, s_A, s_B) (``docs/conventions.md``); the assembly mode never changes (that would cross a
 parallel singularity). For a goal in another working mode than the start:
 
 1. *Mode sequences*: walks over the 8-mode graph (one sign flipped per edge) from the start's

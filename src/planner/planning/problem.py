@@ -1,5 +1,5 @@
 """Start and goal of a plan request (pure data, no OMPL): a joint posture or a Cartesian
-target (``CONVENTIONS.md``), and the options of the planner."""
+target (``docs/conventions.md``), and the options of the planner."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Plan results: statuses and fields of the wire vocabulary (``CONVENTIONS.md``, /v1/plan).
+"""Plan results: statuses and fields of the wire vocabulary (``docs/conventions.md``, /v1/plan).
 
 Pure data, no OMPL. :meth:`PlanResult.as_wire` gives the response's ``status``, ``message``,
 ``path`` and ``diagnostics`` as a JSON-ready dictionary, one field per wire field.

@@ -1,6 +1,6 @@
 """The geometric path to be timed: the planned joint-space polyline with circular corner blends.
 
-A planned path is a polyline in joint space (``CONVENTIONS.md``: consecutive waypoints are
+A planned path is a polyline in joint space (``docs/conventions.md``: consecutive waypoints are
 joined by the straight segment between their literal joint values). A polyline has a corner at
 every interior waypoint, where a trajectory with finite acceleration has to stop. To keep
 moving, each corner ``k`` may be replaced by a circular arc tangent to both segments (the
