@@ -164,3 +164,21 @@ def test_progress_off_a_terminal_prints_one_plain_line_per_step(capsys):
     with Progress("plan") as progress:  # no known length: the step alone
         progress.step("planning", 0)
     assert capsys.readouterr().err.startswith("plan: planning (")
+
+
+def test_optimize_design_shows_each_generation_and_prints_the_library_optimum():
+    from planner.analysis.optimize import optimize_design
+
+    args = ["optimize-design", "--objective", "gci", "--samples", "256", "--maxiter", "3"]
+    r = runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    best = optimize_design("gci", n_samples=256, maxiter=3)  # without a progress callback
+    d = best.design
+    assert r.stdout.splitlines()[0] == (
+        f"design: L0 = {d.L0:.6g} m, L1 = {d.L1:.6g} m, L2 = {d.L2:.6g} m"
+    )
+    assert f"gci: {best.value:.6g}" in r.stdout.splitlines()
+    steps = [line.split(" (")[0] for line in r.stderr.splitlines()]
+    assert steps == [f"optimize-design: [{k}/3] generation {k} of 3" for k in (1, 2, 3)]
+    r = runner.invoke(app, ["optimize-design", "--objective", "nope"])
+    assert r.exit_code == 2 and "objective must be one of" in r.stderr

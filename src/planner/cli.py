@@ -250,6 +250,55 @@ def check_design_command(
     )
 
 
+@command("optimize-design")
+def optimize_design_command(
+    objective: Annotated[
+        str, typer.Option(help="volume, well_conditioned_volume or gci.")
+    ] = "volume",
+    reach: Annotated[
+        float, typer.Option(help="Fixed L1 + L2, m (the variables are L0 and L1).", min=0.0)
+    ] = 0.8,
+    kappa_max: Annotated[
+        float, typer.Option(help="Bound on kappa(A) of the well-conditioned volume.")
+    ] = 10.0,
+    samples: Annotated[
+        int, typer.Option(help="Points per evaluation of a sampled objective.", min=8)
+    ] = 4096,
+    maxiter: Annotated[
+        int, typer.Option(help="Generations of the differential evolution.", min=1)
+    ] = 30,
+    seed: Annotated[int, typer.Option(help="Seed of the sample and of the optimiser.")] = 0,
+) -> None:
+    """Find the link lengths that maximise an objective.
+
+    The sampled objectives (well_conditioned_volume, gci) run a differential evolution for
+    up to --maxiter generations, which can take minutes; the progress shows the generation.
+    Prints the best design and its values."""
+    from planner.analysis.optimize import optimize_design
+    from planner.analysis.workspace import closed_form_volume
+    from planner.exceptions import PlannerError
+
+    try:
+        with Progress("optimize-design") as progress:
+            best = optimize_design(
+                objective,
+                reach=reach,
+                kappa_max=kappa_max,
+                n_samples=samples,
+                maxiter=maxiter,
+                seed=seed,
+                progress=progress.step,
+            )
+    except PlannerError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    d = best.design
+    typer.echo(f"design: L0 = {d.L0:.6g} m, L1 = {d.L1:.6g} m, L2 = {d.L2:.6g} m")
+    typer.echo(f"{objective}: {best.value:.6g}")
+    typer.echo(f"volume (closed form): {closed_form_volume(d):.6g} m^3")
+    typer.echo(f"evaluations: {best.evaluations}; converged: {'yes' if best.success else 'no'}")
+
+
 # ---------------------------------------------------------------------------- plan
 #: Exit statuses of ``planner plan``.
 EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT = 0, 1, 2
