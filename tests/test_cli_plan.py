@@ -37,7 +37,7 @@ def test_plan_prints_a_summary_and_writes_the_full_response(api, tmp_path):
     assert r.exit_code == 0, r.output
     full = PlanResponse.model_validate_json(out.read_text())
     assert full.status == "solved"
-    lines = r.output.splitlines()
+    lines = r.stdout.splitlines()  # the results; the progress lines are on stderr
     assert lines[0] == "status: solved"
     assert f"waypoints: {len(full.path.waypoints)}" in lines
     assert f"segments: {len(full.path.segments)}" in lines
@@ -50,6 +50,8 @@ def test_plan_prints_a_summary_and_writes_the_full_response(api, tmp_path):
     assert served["status"] == "solved"
     assert served["path"]["waypoints"] == full.path.waypoints
     assert full.diagnostics.min_clearance >= 0.01 - 1e-9
+    # not on a terminal: what it is doing, as plain lines on stderr
+    assert r.stderr.splitlines()[-1].startswith("plan: planning (search budget 1 s) and timing")
 
 
 def test_plan_other_status_exits_1(tmp_path):
@@ -57,8 +59,8 @@ def test_plan_other_status_exits_1(tmp_path):
     body = {**REQUEST, "goal": {"p": [1.5, 0.0, 0.0], "working_mode": "any"}}
     r = runner.invoke(app, ["plan", str(_write(tmp_path, body))])
     assert r.exit_code == 1
-    assert r.output.splitlines()[0] == "status: unreachable"
-    assert "duration: none" in r.output
+    assert r.stdout.splitlines()[0] == "status: unreachable"
+    assert "duration: none" in r.stdout
 
 
 def test_plan_bad_request_names_the_field_and_exits_2(tmp_path):
@@ -77,11 +79,17 @@ def test_plan_bad_request_names_the_field_and_exits_2(tmp_path):
 def test_bench_builtin_prints_its_table():
     r = runner.invoke(app, ["bench", "--builtin"])
     assert r.exit_code == 0, r.output
-    rows = [line for line in r.output.splitlines() if line[:1].isalpha()]
+    rows = [line for line in r.stdout.splitlines() if line[:1].isalpha()]
     assert any(line.startswith("forward_batch") for line in rows)
     assert any(line.startswith("time_path toppra") for line in rows)
-    for line in r.output.splitlines()[2:]:
+    for line in r.stdout.splitlines()[2:]:
         assert float(line.split()[-1]) > 0
+    # progress on stderr: each task as it starts, numbered
+    tasks = [row.rsplit(maxsplit=1)[0].strip() for row in r.stdout.splitlines()[2:]]
+    progress = r.stderr.splitlines()
+    assert len(progress) == len(tasks) == 4
+    for i, task in enumerate(tasks):
+        assert progress[i].startswith(f"bench: [{i + 1}/4] {task} (")
 
 
 def test_bench_runs_a_script_and_refuses_unknown_names():
@@ -92,5 +100,6 @@ def test_bench_runs_a_script_and_refuses_unknown_names():
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "== kinematics" in done.stdout and "forward" in done.stdout
+    assert "bench: [1/1] kinematics" in done.stderr  # progress, not mixed into the tables
     r = runner.invoke(app, ["bench", "nope"])
     assert r.exit_code == 2 and "kinematics" in r.output

@@ -1,4 +1,9 @@
-"""The ``planner`` command line (typer)."""
+"""The ``planner`` command line (typer).
+
+Results go to stdout, progress and errors to stderr; every command that can run for more than
+a few seconds shows what it is doing (see :class:`planner._cli_support.Progress`). Negative
+numbers are arguments (``planner ik -0.25 0.1 0.3``) unless they are an option's value.
+"""
 
 from __future__ import annotations
 
@@ -7,39 +12,60 @@ from typing import Annotated
 
 import typer
 
+from planner._cli_support import Command, Group, Progress
+
 app = typer.Typer(
+    cls=Group,
     help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
     no_args_is_help=True,
     add_completion=False,
 )
 
 
-@app.command()
+def command(name: str | None = None):  # type: ignore[no-untyped-def]
+    """``app.command`` with :class:`planner._cli_support.Command` (negative numbers, help)."""
+    return app.command(name, cls=Command)
+
+
+@command()
 def serve(
-    host: Annotated[str | None, typer.Option(help="Interface to bind (env PLANNER_HOST).")] = None,
+    host: Annotated[
+        str | None, typer.Option(metavar="HOST", help="Interface to bind (env PLANNER_HOST).")
+    ] = None,
     port: Annotated[
-        int | None, typer.Option(help="TCP port (env PLANNER_PORT).", min=1, max=65535)
+        int | None,
+        typer.Option(metavar="PORT", help="TCP port (env PLANNER_PORT).", min=1, max=65535),
     ] = None,
     workers: Annotated[
         int | None,
-        typer.Option(help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1),
+        typer.Option(
+            metavar="N", help="Worker processes (env PLANNER_WORKERS, default: the CPUs).", min=1
+        ),
     ] = None,
     log_level: Annotated[
         str | None,
-        typer.Option(help="Log level: debug, info, warning, error (env PLANNER_LOG_LEVEL)."),
+        typer.Option(
+            metavar="LEVEL", help="Log level: debug, info, warning, error (env PLANNER_LOG_LEVEL)."
+        ),
     ] = None,
     log_format: Annotated[
-        str | None, typer.Option(help="Log format: json or text (env PLANNER_LOG_FORMAT).")
+        str | None,
+        typer.Option(metavar="FORMAT", help="Log format: json or text (env PLANNER_LOG_FORMAT)."),
     ] = None,
     shutdown_timeout: Annotated[
         float | None,
         typer.Option(
-            help="Grace for in-flight requests on SIGTERM, s (env PLANNER_SHUTDOWN_TIMEOUT_S).",
+            metavar="SECONDS",
+            help="Seconds in-flight requests may finish after SIGTERM "
+            "(env PLANNER_SHUTDOWN_TIMEOUT_S).",
             min=0.0,
         ),
     ] = None,
 ) -> None:
-    """Start the HTTP service (every setting also from PLANNER_* environment variables)."""
+    """Start the HTTP service.
+
+    Every setting can also come from a PLANNER_* environment variable; an option given here
+    wins over the environment."""
     from pydantic import ValidationError
 
     from api.server import run
@@ -99,18 +125,18 @@ _L1 = Annotated[float | None, typer.Option("--L1", help="Override L1, m.")]
 _L2 = Annotated[float | None, typer.Option("--L2", help="Override L2, m.")]
 
 
-@app.command()
+@command()
 def fk(
-    q: Annotated[
-        list[float], typer.Argument(help="theta1 theta2 theta3, rad (after -- if one is negative).")
-    ],
+    q: Annotated[list[float], typer.Argument(help="Joint angles theta1 theta2 theta3, rad.")],
     assembly_mode: Annotated[str | None, typer.Option(help="'+' or '-' (default: both).")] = None,
     design: _Design = "default",
     l0: _L0 = None,
     l1: _L1 = None,
     l2: _L2 = None,
 ) -> None:
-    """Direct kinematics of q, computed locally; prints the JSON of POST /v1/fk."""
+    """Direct kinematics of q, computed locally.
+
+    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
     from api.compute import fk as job
     from planner.schemas import FKRequest
 
@@ -121,16 +147,18 @@ def fk(
     )
 
 
-@app.command()
+@command()
 def ik(
-    p: Annotated[list[float], typer.Argument(help="x y z of P, m (after -- if one is negative).")],
+    p: Annotated[list[float], typer.Argument(help="Coordinates x y z of the point P, m.")],
     working_mode: Annotated[str, typer.Option(help="e.g. '+-+', or 'any'.")] = "any",
     design: _Design = "default",
     l0: _L0 = None,
     l1: _L1 = None,
     l2: _L2 = None,
 ) -> None:
-    """Inverse kinematics of P, computed locally; prints the JSON of POST /v1/ik."""
+    """Inverse kinematics of P, computed locally.
+
+    Prints the JSON that POST /v1/ik answers. Example: planner ik -0.25 0.1 0.3"""
     from api.compute import ik as job
     from planner.schemas import IKRequest
 
@@ -141,15 +169,21 @@ def ik(
     )
 
 
-@app.command("warm-up")
+@command("warm-up")
 def warm_up_command() -> None:
-    """Compile (or load from cache) every numba kernel; about 10 s the first time."""
-    from planner.warmup import warm_up
+    """Compile the numba kernels and pay every first-call cost once.
 
-    typer.echo(f"kernels ready in {warm_up():.1f} s")
+    Compiles (or loads from numba's cache) every kernel, and runs a tiny plan, its timing
+    with TOPPRA and Ruckig, an analysis and a figure, so that later processes start fast.
+    The first run in an installation compiles for tens of seconds; later runs take seconds."""
+    from planner.warmup import STEPS, warm_up
+
+    with Progress("warm-up", len(STEPS)) as progress:
+        seconds = warm_up(progress.step)
+    typer.echo(f"warmed up in {seconds:.1f} s")
 
 
-@app.command()
+@command()
 def version() -> None:
     """Print the package version."""
     import planner
@@ -157,7 +191,7 @@ def version() -> None:
     typer.echo(planner.__version__)
 
 
-@app.command()
+@command()
 def figures(
     outdir: Annotated[Path, typer.Argument(help="Directory to write the figures into.")],
     n: Annotated[
@@ -166,23 +200,32 @@ def figures(
     formats: Annotated[str, typer.Option(help="Comma-separated formats.")] = "png,svg",
     dpi: Annotated[int, typer.Option(help="Resolution of PNG files.", min=20, max=600)] = 80,
 ) -> None:
-    """Write the paper's figures 4-15 (PNG and SVG), one file per figure and format."""
-    from planner.plotting import write_figures
+    """Write the paper's figures 4-15 as image files.
+
+    One file per figure and format; prints the path of each file written."""
+    from planner.plotting import FIGURES, write_figures
 
     fmts = tuple(f.strip() for f in formats.split(",") if f.strip())
-    for path in write_figures(outdir, n=n, formats=fmts, dpi=dpi):
-        typer.echo(str(path))
+    with Progress("figures", len(FIGURES)) as progress:
+        for index, (number, (stem, _)) in enumerate(FIGURES.items()):
+            progress.step(f"figure {number}: {stem}", index)
+            for path in write_figures(outdir, n=n, formats=fmts, dpi=dpi, only=(number,)):
+                progress.echo(str(path))
+        progress.step("done", len(FIGURES))
 
 
-@app.command("check-design")
+@command("check-design")
 def check_design_command(
     l0: Annotated[float, typer.Argument(metavar="L0", help="|AB|, m.")],
     l1: Annotated[float, typer.Argument(metavar="L1", help="|AC| = |BD|, m.")],
     l2: Annotated[float, typer.Argument(metavar="L2", help="|CP| = |DP|, m.")],
     kappa_max: Annotated[float, typer.Option(help="Bound on kappa(A), >= 1.")] = 10.0,
 ) -> None:
-    """Which parallel singularities a design (L0, L1, L2) can have, its operative working
-    modes, workspace volume and well-conditioned fraction."""
+    """What a design (L0, L1, L2) can do.
+
+    Prints which parallel singularities it can have and why, its operative working modes,
+    its workspace volume and the well-conditioned fraction of it. Example:
+    planner check-design 0 0.4 0.4"""
     from planner.analysis.design_check import check_design
     from planner.design import Design
     from planner.exceptions import PlannerError
@@ -205,6 +248,55 @@ def check_design_command(
         f"well-conditioned fraction (kappa(A) <= {check.kappa_max:g}): "
         f"{wc.value:.4f} +- {wc.standard_error:.4f}"
     )
+
+
+@command("optimize-design")
+def optimize_design_command(
+    objective: Annotated[
+        str, typer.Option(help="volume, well_conditioned_volume or gci.")
+    ] = "volume",
+    reach: Annotated[
+        float, typer.Option(help="Fixed L1 + L2, m (the variables are L0 and L1).", min=0.0)
+    ] = 0.8,
+    kappa_max: Annotated[
+        float, typer.Option(help="Bound on kappa(A) of the well-conditioned volume.")
+    ] = 10.0,
+    samples: Annotated[
+        int, typer.Option(help="Points per evaluation of a sampled objective.", min=8)
+    ] = 4096,
+    maxiter: Annotated[
+        int, typer.Option(help="Generations of the differential evolution.", min=1)
+    ] = 30,
+    seed: Annotated[int, typer.Option(help="Seed of the sample and of the optimiser.")] = 0,
+) -> None:
+    """Find the link lengths that maximise an objective.
+
+    The sampled objectives (well_conditioned_volume, gci) run a differential evolution for
+    up to --maxiter generations, which can take minutes; the progress shows the generation.
+    Prints the best design and its values."""
+    from planner.analysis.optimize import optimize_design
+    from planner.analysis.workspace import closed_form_volume
+    from planner.exceptions import PlannerError
+
+    try:
+        with Progress("optimize-design") as progress:
+            best = optimize_design(
+                objective,
+                reach=reach,
+                kappa_max=kappa_max,
+                n_samples=samples,
+                maxiter=maxiter,
+                seed=seed,
+                progress=progress.step,
+            )
+    except PlannerError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    d = best.design
+    typer.echo(f"design: L0 = {d.L0:.6g} m, L1 = {d.L1:.6g} m, L2 = {d.L2:.6g} m")
+    typer.echo(f"{objective}: {best.value:.6g}")
+    typer.echo(f"volume (closed form): {closed_form_volume(d):.6g} m^3")
+    typer.echo(f"evaluations: {best.evaluations}; converged: {'yes' if best.success else 'no'}")
 
 
 # ---------------------------------------------------------------------------- plan
@@ -244,7 +336,7 @@ def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
     return lines
 
 
-@app.command()
+@command()
 def plan(
     request: Annotated[
         Path, typer.Argument(help="A PlanRequest as JSON (the body of POST /v1/plan).")
@@ -253,30 +345,41 @@ def plan(
         Path | None, typer.Option("--out", "-o", help="Write the full PlanResponse JSON here.")
     ] = None,
 ) -> None:
-    """Plan (and time) a motion in-process and print a summary: status, waypoints, segments,
-    transits, duration and diagnostics. Exit status: 0 solved, 1 another status (no_path,
-    unreachable, ...), 2 an invalid request."""
-    from pydantic import ValidationError
+    """Plan and time a motion in this process, and print a summary.
 
-    from api import compute
-    from planner.exceptions import PlannerError
-    from planner.schemas import PlanRequest
+    The summary gives the status, waypoints, segments, transits, duration and diagnostics.
+    Exit status: 0 solved, 1 another status (no_path, unreachable, ...), 2 an invalid
+    request."""
+    errors: list[str] = []
+    response = None
+    with Progress("plan") as progress:
+        progress.step("loading the planner", 0)
+        from pydantic import ValidationError
 
-    try:
-        body = PlanRequest.model_validate_json(request.read_bytes())
-    except OSError as exc:
-        typer.echo(f"error: cannot read {request}: {exc}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
-    except ValidationError as exc:
-        for e in exc.errors():
-            typer.echo(f"error: {'.'.join(map(str, e['loc'])) or 'body'}: {e['msg']}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
-    try:
-        response = compute.plan(body)
-    except PlannerError as exc:
-        where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
-        typer.echo(f"error: {where + ': ' if where else ''}{exc}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
+        from api import compute
+        from planner.exceptions import PlannerError
+        from planner.schemas import PlanRequest
+
+        try:
+            body = PlanRequest.model_validate_json(request.read_bytes())
+        except OSError as exc:
+            errors.append(f"cannot read {request}: {exc}")
+        except ValidationError as exc:
+            errors += [
+                f"{'.'.join(map(str, e['loc'])) or 'body'}: {e['msg']}" for e in exc.errors()
+            ]
+        else:
+            budget = body.planner.time_budget_s
+            progress.step(f"planning (search budget {budget:g} s) and timing", 0)
+            try:
+                response = compute.plan(body)
+            except PlannerError as exc:
+                where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
+                errors.append(f"{where + ': ' if where else ''}{exc}")
+    if response is None:
+        for line in errors:
+            typer.echo(f"error: {line}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT)
     for line in _plan_summary(response):
         typer.echo(line)
     if out is not None:
@@ -292,6 +395,7 @@ QUICK_BENCH_ARGS: dict[str, list[str]] = {
     "analysis": ["--n", "64", "--rel-se", "0.02", "--repeat", "3"],
     "timing": ["--paths", "10"],
     "service": ["--workers", "2", "--requests", "60"],
+    "warmup": ["--repeat", "1"],
 }
 
 
@@ -318,8 +422,9 @@ def _median_ms(fn, repeat: int = 5) -> float:  # type: ignore[no-untyped-def]
     return 1e3 * statistics.median(times)
 
 
-def builtin_bench_rows() -> list[tuple[str, float]]:
-    """The quick built-in subset: (task, median ms) of the core operations, in-process."""
+def builtin_bench_rows(progress: Progress | None = None) -> list[tuple[str, float]]:
+    """The quick built-in subset: (task, median ms) of the core operations, in-process;
+    ``progress`` (optional) is told each task as it starts."""
     import numpy as np
 
     from planner.analysis.workspace import sample_workspace
@@ -334,26 +439,31 @@ def builtin_bench_rows() -> list[tuple[str, float]]:
     p = p[np.all(np.isfinite(p), axis=1)]
     path = np.cumsum(rng.uniform(-0.15, 0.15, (20, 3)), axis=0) + np.array([0.0, 0.5, 1.5])
     limits = JointLimits.default()
-    return [
-        ("forward_batch, 100k postures", _median_ms(lambda: forward_batch(design, q, "+"))),
-        (
-            f"inverse_batch, {len(p) // 1000}k points x 8 modes",
-            _median_ms(lambda: inverse_batch(design, p)),
-        ),
+    tasks = [
+        ("forward_batch, 100k postures", lambda: forward_batch(design, q, "+")),
+        (f"inverse_batch, {len(p) // 1000}k points x 8 modes", lambda: inverse_batch(design, p)),
         (
             "sample_workspace, 1 % relative error",
-            _median_ms(lambda: sample_workspace(design, rel_se=0.01, kappa_max=10.0)),
+            lambda: sample_workspace(design, rel_se=0.01, kappa_max=10.0),
         ),
-        ("time_path toppra, 20 waypoints", _median_ms(lambda: time_path(design, path, limits))),
+        ("time_path toppra, 20 waypoints", lambda: time_path(design, path, limits)),
     ]
+    rows = []
+    for index, (task, fn) in enumerate(tasks):
+        if progress is not None:
+            progress.step(task, index, len(tasks))
+        rows.append((task, _median_ms(fn)))
+    if progress is not None:
+        progress.step("done", len(tasks), len(tasks))
+    return rows
 
 
-@app.command()
+@command()
 def bench(
     names: Annotated[
         list[str] | None,
         typer.Argument(
-            help="Benchmarks to run: kinematics, analysis, timing, service (default: all).",
+            help="Benchmarks to run, among the scripts of benchmarks/ (default: all).",
             show_default=False,
         ),
     ] = None,
@@ -362,7 +472,9 @@ def bench(
         bool, typer.Option(help="Only the built-in in-process subset (no scripts).")
     ] = False,
 ) -> None:
-    """Run the benchmarks/ scripts (each prints its table), or the built-in quick subset when
+    """Run the benchmarks and print their tables.
+
+    Runs the scripts of benchmarks/ (each prints its table), or a built-in quick subset when
     asked or when there is no benchmarks/ directory (an installed package)."""
     import os
     import subprocess
@@ -370,9 +482,11 @@ def bench(
 
     folder = None if builtin else _benchmarks_dir()
     if folder is None:
+        with Progress("bench", 4) as progress:
+            rows = builtin_bench_rows(progress)
         typer.echo("built-in benchmark (median of 5 runs after a warm-up, one process):")
         typer.echo(f"{'task':<45} {'median ms':>10}")
-        for task, ms in builtin_bench_rows():
+        for task, ms in rows:
             typer.echo(f"{task:<45} {ms:>10.3f}")
         return
     available = sorted(f.stem for f in folder.glob("*.py") if not f.stem.startswith("_"))
@@ -389,13 +503,24 @@ def bench(
         [str(root / "src"), str(root), *filter(None, [env.get("PYTHONPATH")])]
     )
     failed = []
-    for name in chosen:
-        args = QUICK_BENCH_ARGS.get(name, []) if quick else []
-        typer.echo(f"== {name} ({' '.join(['benchmarks/' + name + '.py', *args])})")
-        code = subprocess.call([sys.executable, str(folder / f"{name}.py"), *args], cwd=root,
-                               env=env)  # fmt: skip
-        if code != 0:
-            failed.append(name)
+    with Progress("bench", len(chosen)) as progress:
+        for index, name in enumerate(chosen):
+            args = QUICK_BENCH_ARGS.get(name, []) if quick else []
+            progress.step(name, index)
+            progress.echo(f"== {name} ({' '.join(['benchmarks/' + name + '.py', *args])})")
+            argv = [sys.executable, str(folder / f"{name}.py"), *args]
+            if progress.terminal:  # its table is printed when it ends, not across the bar
+                done = subprocess.run(argv, cwd=root, env=env, capture_output=True, text=True)
+                progress.echo(done.stdout.rstrip("\n"))
+                if done.stderr:
+                    progress.echo(done.stderr.rstrip("\n"), err=True)
+                code = done.returncode
+            else:  # a log or a pipe: the table as it comes
+                sys.stdout.flush()
+                code = subprocess.call(argv, cwd=root, env=env)
+            if code != 0:
+                failed.append(name)
+        progress.step("done", len(chosen))
     if failed:
         typer.echo(f"failed: {', '.join(failed)}", err=True)
         raise typer.Exit(1)

@@ -1,43 +1,208 @@
-"""Compile (or load from numba's on-disk cache) every numba kernel of the library at once.
+"""Pay every first-call cost of the library once, before the first request: ready means warm.
 
-The first call in a fresh installation compiles for about 10 s; later processes load the
-cache in well under a second. The service's workers call :func:`warm_up` when they start,
-``make run`` / ``make test`` and the Docker build call ``planner warm-up``, so that no
-request's time budget is spent compiling.
+A fresh process pays, on its first plan, much more than the plan itself: compiling (or loading
+from numba's on-disk cache) the numba kernels, importing OMPL, toppra, ruckig, scipy and
+matplotlib, numba's first dispatch of each kernel, OMPL's first solve, toppra's and ruckig's
+first solve, matplotlib's font cache and first render, pydantic's first validation. Measured
+on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's time budget.
+
+:func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
+entry points (the paths the service's jobs take: :func:`planner.planning.plan`,
+:func:`planner.timing.time_path` with TOPPRA and with Ruckig, the workspace analysis,
+:func:`planner.plotting.render_figure`), so that afterwards the first job of each kind costs
+what the second one does. The service's workers call it when they start (``/v1/ready`` waits
+for them); ``make run`` / ``make test`` and the Docker build call ``planner warm-up`` so that
+the kernels are in numba's cache before any worker starts (the first compile, about 30 s on
+a 2-core machine, then lasts across processes).
+
+OMPL, toppra, ruckig and matplotlib are imported only through :mod:`planner.planning`,
+:mod:`planner.timing` and :mod:`planner.plotting`, the only modules that may import them.
 """
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-__all__ = ["warm_up"]
+__all__ = ["STEPS", "Progress", "Step", "warm_up"]
+
+#: ``progress(step_name, index, total)``: called before each step with the number of steps
+#: finished so far (``index`` = 0 .. total - 1), and once at the end with ``index == total``.
+Progress = Callable[[str, int, int], None]
 
 
-def warm_up() -> float:
-    """Run every kernel once on a tiny input; returns the seconds it took."""
-    t0 = time.perf_counter()
+@dataclass
+class _State:
+    """What one step hands to the next (the plan found is the path the timing steps time)."""
+
+    design: Any = None
+    plans: list[Any] = field(default_factory=list)
+
+
+def _kinematics(state: _State) -> None:
+    """The kinematics kernels (direct, inverse, conditioning) of :mod:`planner._kernels`."""
     from planner.design import Design
-    from planner.geometry import Box, Capsule, Sphere
     from planner.kinematics import conditioning, forward_batch, inverse_batch
+
+    state.design = Design.default()
+    batch = forward_batch(state.design, np.array([[0.0, 2.0, 1.0]]), "+")
+    inverse_batch(state.design, batch.p)
+    conditioning(state.design, batch.q, batch.passive, batch.w)
+
+
+def _validity(state: _State) -> None:
+    """The validity rules and the clearance kernels of every obstacle type."""
+    from planner.geometry import Box, Capsule, Sphere
     from planner.validity import Margins, ValidityChecker
     from planner.validity import warm_up as warm_validity
 
-    design = Design.default()
-    batch = forward_batch(design, np.array([[0.0, 2.0, 1.0]]), "+")
-    inverse_batch(design, batch.p)
-    conditioning(design, batch.q, batch.passive, batch.w)
     warm_validity()
-    # the clearance kernels of every obstacle type
     obstacles = [
         Sphere([2.0, 2.0, 2.0], 0.1),
         Box([-2.0, 2.0, 2.0], [0.2, 0.2, 0.2], [1.0, 0.0, 0.0, 0.0]),
         Capsule([2.0, -2.0, 2.0], [2.0, -2.0, 2.5], 0.05),
     ]
-    checker = ValidityChecker(design, Margins(), obstacles, "+", "+-+")
+    checker = ValidityChecker(state.design, Margins(), obstacles, "+", "+-+")
     q = np.array([[0.0, 2.0, 1.0], [0.1, 2.1, 1.1]])
     checker.check_states(q)
     checker.check_motion(q[0], q[1])
     checker.check_path(q)
+
+
+#: The posture the warm-up plans start from (default design, assembly mode '+', working mode
+#: '++-'), and a goal beyond a sphere so that OMPL searches (the direct motion is blocked).
+_START = (0.2, 1.0, 2.0)
+_GOAL = (1.0, 1.0, 2.0)
+_SPHERE = ((0.623, -0.013, -0.426), 0.08)
+#: A point of the start's workspace reached in working mode '+--': one transit away.
+_MODE_CHANGE_POINT = (0.73924837, -0.01303587, -0.14985306)
+
+
+def _plan_ompl(state: _State) -> None:
+    """OMPL's import and first solve: a plan around a sphere (RRT-Connect, seeded)."""
+    from planner.geometry import Sphere
+    from planner.planning import JointPosture, PlanOptions, plan
+    from planner.validity import Margins
+
+    result = plan(
+        state.design,
+        JointPosture(np.array(_START), "+"),
+        JointPosture(np.array(_GOAL), "+"),
+        obstacles=[Sphere(*_SPHERE)],
+        margins=Margins(clearance=0.01),
+        options=PlanOptions(seed=1, time_budget_s=2.0),
+    )
+    state.plans.append(result)
+
+
+def _plan_mode_change(state: _State) -> None:
+    """The mode-change search: a Cartesian goal in another working mode, through a transit."""
+    from planner.planning import CartesianTarget, JointPosture, PlanOptions, plan
+
+    result = plan(
+        state.design,
+        JointPosture(np.array(_START), "+"),
+        CartesianTarget(np.array(_MODE_CHANGE_POINT), "+--"),
+        options=PlanOptions(seed=1, time_budget_s=2.0),
+    )
+    state.plans.append(result)
+
+
+def _time_plans(state: _State, method: str) -> None:
+    """Time every path found as the service does: the path's own validity rules re-checked
+    densely, coming to rest at the transits of the mode-change path."""
+    from planner.planning import path_state_checker
+    from planner.timing import DEFAULT_MAX_DEVIATION, JointLimits, time_path
+    from planner.validity import Margins
+
+    limits = JointLimits.default()
+    for result in state.plans:
+        if result.path is None:  # a budget too short on a very slow machine: time a line
+            waypoints, check, stop_at = np.array([_START, _GOAL]), None, []
+        else:
+            waypoints = np.array(result.path.waypoints)
+            check = path_state_checker(
+                state.design, Margins(), (), result.path, near=DEFAULT_MAX_DEVIATION
+            )
+            stop_at = [t.index for t in result.path.transits]
+        time_path(
+            state.design, waypoints, limits, method=method, check_states=check, stop_at=stop_at
+        )
+
+
+def _wire(state: _State) -> None:
+    """pydantic's first validation of the wire models a plan answers with."""
+    from planner.schemas import PlanResponse
+
+    for result in state.plans:
+        PlanResponse.model_validate(result.as_wire())
+
+
+def _analysis(state: _State) -> None:
+    """The workspace analysis (sampled volumes, sections, loci) and scipy's optimiser."""
+    from planner.analysis.optimize import optimize_design
+    from planner.analysis.sections import cartesian_section, joint_section
+    from planner.analysis.workspace import closed_form_volume, sample_workspace
+
+    closed_form_volume(state.design)
+    sample_workspace(state.design, rel_se=0.1, kappa_max=10.0, seed=0)
+    cartesian_section(state.design, 16)
+    joint_section(state.design, 16)
+    optimize_design("volume", reach=0.8)
+
+
+def _figures(state: _State) -> None:
+    """matplotlib's import, font cache and first render, with the Agg backend: a PNG of the
+    loci and an SVG of a section (the two kinds of figure the figure endpoints draw)."""
+    os.environ.setdefault("MPLBACKEND", "Agg")  # headless workers: never an interactive GUI
+    from planner.plotting import render_figure
+
+    render_figure("working_modes", state.design, n=16, fmt="png", dpi=20)
+    render_figure("cartesian_section", state.design, n=16, fmt="svg", dpi=20)
+
+
+@dataclass(frozen=True)
+class Step:
+    """One named step of :func:`warm_up` (its name is what progress displays show)."""
+
+    name: str
+    run: Callable[[_State], None]
+
+
+#: The steps of :func:`warm_up`, in order (each may use what the steps before it left).
+STEPS: tuple[Step, ...] = (
+    Step("numba kernels: kinematics", _kinematics),
+    Step("numba kernels: validity and clearance", _validity),
+    Step("OMPL: a plan around an obstacle", _plan_ompl),
+    Step("OMPL: a working-mode change", _plan_mode_change),
+    Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),
+    Step("ruckig: timing the plans", lambda state: _time_plans(state, "ruckig")),
+    Step("pydantic: the wire models", _wire),
+    Step("analysis: workspace, sections, optimiser", _analysis),
+    Step("matplotlib: a PNG and an SVG figure", _figures),
+)
+
+
+def warm_up(progress: Progress | None = None) -> float:
+    """Run every step of :data:`STEPS` once on a tiny input; returns the seconds it took.
+
+    ``progress(step_name, index, total)``, if given, is called before each step with the
+    steps finished so far, and once at the end with ``("ready", total, total)``, so that a
+    caller can show what is being warmed up and how far it is. Calling it again in the same
+    process is cheap (everything is loaded), so callers need not remember whether they did.
+    """
+    t0 = time.perf_counter()
+    state = _State()
+    total = len(STEPS)
+    for index, step in enumerate(STEPS):
+        if progress is not None:
+            progress(step.name, index, total)
+        step.run(state)
+    if progress is not None:
+        progress("ready", total, total)
     return time.perf_counter() - t0

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,7 @@ def optimize_design(
     n_samples: int = 4096,
     maxiter: int = 30,
     seed: int = 0,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> DesignOptimum:
     """Maximise an objective of :data:`OBJECTIVES` over the link lengths.
 
@@ -103,6 +105,10 @@ def optimize_design(
         Generations of differential evolution (sampled objectives).
     seed : int
         Seed of the sample and of the optimiser.
+    progress : callable(step_name, index, total), optional
+        Told each local start (``'volume'``) or generation (sampled objectives) as it begins,
+        with the number done so far, then ``("done", total, total)``; a long optimisation can
+        so show how far it is (the optimiser may stop before ``maxiter`` generations).
     """
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
@@ -153,18 +159,41 @@ def optimize_design(
         calls += 1
         return -value(make(x)) / scale**3 if objective != "gci" else -value(make(x))
 
+    def tell(name: str, index: int, total: int) -> None:
+        if progress is not None:
+            progress(name, index, total)
+
     if objective == "volume":
         best = None
-        for frac in (0.25, 0.5, 0.75):
+        for k, frac in enumerate((0.25, 0.5, 0.75)):
+            tell(f"local start {k + 1} of 3", k, 3)
             x0 = np.array([lo + frac * (hi - lo) for lo, hi in bounds])
             res = optimize.minimize(loss, x0, method="L-BFGS-B", bounds=bounds)
             if best is None or res.fun < best.fun:
                 best = res
         res = best
+        tell("done", 3, 3)
     else:
+        generation = 0
+
+        def generation_done(intermediate_result: optimize.OptimizeResult) -> None:
+            nonlocal generation
+            generation += 1
+            if generation < maxiter:
+                tell(f"generation {generation + 1} of {maxiter}", generation, maxiter)
+
+        tell(f"generation 1 of {maxiter}", 0, maxiter)
         res = optimize.differential_evolution(
-            loss, bounds, seed=seed, maxiter=maxiter, popsize=8, tol=1e-3, polish=False
+            loss,
+            bounds,
+            seed=seed,
+            maxiter=maxiter,
+            popsize=8,
+            tol=1e-3,
+            polish=False,
+            callback=generation_done if progress is not None else None,
         )
+        tell("done", maxiter, maxiter)
     design = make(res.x)
     logger.info("optimize_design(%s): %s after %d evaluations", objective, design, calls)
     return DesignOptimum(
