@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import statistics
 import subprocess
 import sys
+
+from _machine import print_machine
 
 _JOB = r"""
 import json, os, sys, time
@@ -62,20 +62,6 @@ print(json.dumps({"warm_up_s": warm_up_s, "plan_s": [r[0] for r in runs],
 """
 
 
-def machine() -> str:
-    """The CPU model and core count (the numbers below hold for this machine only)."""
-    model = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{model}, {os.cpu_count()} logical CPUs, Python {platform.python_version()}"
-
-
 def run(kind: str) -> dict:
     out = subprocess.run(
         [sys.executable, "-c", _JOB, kind], capture_output=True, text=True, check=True
@@ -87,7 +73,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3, help="fresh processes per case")
     args = parser.parse_args()
-    print(f"machine: {machine()}")
+    print_machine()
     print("fresh process per round; times in ms, median over rounds")
     print(f"{'case':<22} {'warm_up s':>9} {'1st plan':>9} {'2nd plan':>9} {'ratio':>6} "
           f"{'1st fig':>8} {'2nd fig':>8} {'ratio':>6}")  # fmt: skip
