@@ -12,7 +12,7 @@ from api.deps import ApiKey
 from api.errors import install_error_handlers
 from api.metrics import Metrics
 from api.metrics import router as metrics_router
-from api.middleware import RequestLimitsMiddleware, RequestObserver
+from api.middleware import RequestGate, RequestObserver
 from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
 from api.routes import workspace as workspace_routes
@@ -63,9 +63,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     install_error_handlers(app)
     app.add_middleware(
-        RequestLimitsMiddleware,
+        RequestGate,
         max_body_bytes=settings.max_body_bytes,
         timeout_s=settings.request_timeout_s,
+        body_timeout_s=settings.body_timeout_s,
+        api_key=settings.api_key.get_secret_value() if settings.api_key else None,
     )
     app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
     app.add_middleware(RequestObserver, metrics=app.state.metrics)  # outermost: sees all

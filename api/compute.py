@@ -57,20 +57,42 @@ __all__ = [
 #: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
 #: process of the machine), set by :func:`as_json`; None: no deadline (e.g. the CLI).
 _DEADLINE: ContextVar[float | None] = ContextVar("deadline", default=None)
+#: The most trajectory samples one answer may carry (from the service's settings, see
+#: :func:`answer_sample_limit`; None: the library's cap), set by :func:`as_json`.
+_MAX_SAMPLES: ContextVar[int | None] = ContextVar("max_samples", default=None)
+#: A bound on the JSON bytes of one trajectory sample (t, q, qd, qdd, jerk, p, |dP/dt|: 17
+#: numbers of at most ~22 characters each, with brackets and commas).
+BYTES_PER_SAMPLE = 400
+
+
+def answer_sample_limit(max_samples: int, max_response_bytes: int, answers: int = 1) -> int:
+    """The most trajectory samples per answer when ``answers`` answers share one response
+    of at most ``max_response_bytes`` and no answer may carry more than ``max_samples``."""
+    return max(2, min(max_samples, max_response_bytes // (BYTES_PER_SAMPLE * max(answers, 1))))
+
+
 #: Time kept back from a plan's search for timing and answering before the deadline, s.
 _ANSWER_RESERVE_S = 0.25
 
 
 def as_json(
-    job: Callable[[Any], BaseModel], request: Any, *, deadline: float | None = None
+    job: Callable[[Any], BaseModel],
+    request: Any,
+    *,
+    deadline: float | None = None,
+    max_samples: int | None = None,
 ) -> bytes:
     """``job(request)`` serialised to JSON bytes, in the worker: the event loop then only
     forwards bytes (no re-validation, no pickling of large response models). ``deadline`` is
-    the request's, for jobs that can stop early (timing)."""
+    the request's, for jobs that can stop early (timing); ``max_samples`` bounds the
+    trajectory samples of the answer (a 422 naming ``timing.sample_rate_hz`` beyond it,
+    decided before any sample is computed)."""
     token = _DEADLINE.set(deadline)
+    samples_token = _MAX_SAMPLES.set(max_samples)
     try:
         return job(request).model_dump_json().encode()
     finally:
+        _MAX_SAMPLES.reset(samples_token)
         _DEADLINE.reset(token)
 
 
@@ -82,7 +104,8 @@ def located(*loc: str | int) -> Iterator[None]:
         yield
     except PlannerError as exc:
         if not hasattr(exc, "loc"):
-            exc.loc = loc  # type: ignore[attr-defined]
+            field = getattr(exc, "field", None)
+            exc.loc = (*loc, field) if field else loc  # type: ignore[attr-defined]
         raise
 
 
@@ -312,6 +335,7 @@ def _add_trajectory(
                 stop_at=stop_at,
                 check_states=check,
                 deadline=_DEADLINE.get(),
+                max_samples=_MAX_SAMPLES.get(),
                 **options,
             )
     except TimingDeadlineError as exc:

@@ -12,6 +12,7 @@ import numpy as np
 
 from api.compute import (
     _DEADLINE,
+    _MAX_SAMPLES,
     joint_limits,
     limits_loc,
     located,
@@ -235,6 +236,9 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
 
 
 def _input_loc(exc: InputError) -> tuple[str | int, ...]:
+    field = getattr(exc, "field", None)
+    if field:
+        return ("body", field)
     text = str(exc)
     for name in ("sample_rate_hz", "max_deviation", "stop_at", "waypoints", "method"):
         if text.startswith(name) or f" {name}" in text:
@@ -293,6 +297,7 @@ def timing(request: TimingRequest) -> TimingResponse:
             stop_at=request.stop_at,
             check_states=check,
             deadline=_DEADLINE.get(),
+            max_samples=_MAX_SAMPLES.get(),
             **options,
         )
     except TimingDeadlineError as exc:

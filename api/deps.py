@@ -10,6 +10,7 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from api.exceptions import AuthenticationError, PoolNotRunningError
+from api.middleware import api_key_given
 from api.settings import Settings
 from api.workers import WorkerPool
 
@@ -45,10 +46,7 @@ def require_api_key(
     ``Authorization: Bearer <key>`` (compared in constant time)."""
     if settings.api_key is None:
         return
-    given = request.headers.get("x-api-key")
-    if given is None:
-        scheme, _, token = request.headers.get("authorization", "").partition(" ")
-        given = token.strip() if scheme.lower() == "bearer" else None
+    given = api_key_given(dict(request.headers))
     expected = settings.api_key.get_secret_value()
     if given is None or not secrets.compare_digest(given.encode(), expected.encode()):
         raise AuthenticationError(

@@ -12,8 +12,12 @@ JSON body
 LimitExceededError                 422     a setting's size limit (obstacles, batch size)
 DesignError, InputError,           422     library errors; ``loc`` from :func:`api.compute.located`
 KinematicsError, other PlannerError
-AuthenticationError                401     ``WWW-Authenticate: Bearer``
+AuthenticationError, or no key     401     ``WWW-Authenticate: Bearer`` (no key: answered by
+                                           :mod:`api.middleware` before the body is read)
 body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
+body not sent within body_timeout  408     (answered by :mod:`api.middleware`)
+a POST body that is not JSON       415     (answered by :mod:`api.middleware`)
+an integer too long to read        422     ``number_too_long``
 WorkerCrashedError                 502
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
@@ -109,6 +113,18 @@ async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
 
 async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
     if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
+        cause = exc.__cause__
+        if isinstance(cause, ValueError) and "integer string conversion" in str(cause):
+            # valid JSON, but an integer longer than Python converts (sys.int_info)
+            return error_response(
+                422, f"a number in the body is too long to read ({str(cause).split(';')[0]})",
+                "number_too_long",
+                ("body",),
+            )  # fmt: skip
+        if isinstance(cause, RecursionError):
+            return error_response(
+                422, "the body is nested too deeply to read", "json_too_deep", ("body",)
+            )
         return error_response(
             422, f"the body is not valid JSON: {exc.detail}", "json_invalid", ("body",)
         )

@@ -95,6 +95,7 @@ def run_measured(
     *,
     deadline: float | None = None,
     request_id: str | None = None,
+    max_samples: int | None = None,
 ) -> tuple[bytes, JobSample]:
     """In a worker: :func:`api.compute.as_json` of ``job(request)`` and its :class:`JobSample`.
 
@@ -113,7 +114,7 @@ def run_measured(
     token = REQUEST_ID.set(request_id)
     start = time.perf_counter()
     try:
-        content = as_json(keep, request, deadline=deadline)
+        content = as_json(keep, request, deadline=deadline, max_samples=max_samples)
     finally:
         REQUEST_ID.reset(token)
     seconds = time.perf_counter() - start

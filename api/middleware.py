@@ -1,10 +1,21 @@
-"""ASGI middleware: request size limit and the request's deadline; request id, metrics and
-the access log (:class:`RequestObserver`).
+"""ASGI middleware: the request gate (size, API key, content type, body reading in bounded
+time, the request's deadline) and the observer (request id, metrics, the access log).
 
-Pure ASGI (no ``BaseHTTPMiddleware``): it reads the body up to ``max_body_bytes`` before the
-application sees it, answering 413 beyond (whether the client sent ``Content-Length`` or
-streamed the body in chunks), and stamps ``scope["state"]["deadline"]`` (a
-:func:`time.monotonic` value) when the request arrives, which the worker pool honours.
+Pure ASGI (no ``BaseHTTPMiddleware``). :class:`RequestGate` checks, in this order, before the
+application parses anything:
+
+1. **size**: a ``Content-Length`` over ``max_body_bytes`` is 413 at once; a streamed body is
+   cut off (413) as soon as it passes the limit;
+2. **auth**: without the API key (when one is configured), every ``/v1`` route but
+   ``/v1/health`` is 401, whatever the body holds;
+3. **content type**: a POST to ``/v1`` whose ``Content-Type`` is not JSON is 415;
+4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
+   request's budget), else 408 and the connection is closed, so a client that stalls cannot
+   hold a connection;
+5. then FastAPI parses the JSON and validates the schema (422).
+
+It also stamps ``scope["state"]["deadline"]`` (a :func:`time.monotonic` value) when the
+request arrives, which the worker pool honours.
 
 Why not ``FastAPI(max_body_size=...)``: it answers an oversized ``Content-Length`` with a
 plain-text 413, outside the exception handlers, so not in the service's ``detail`` format.
@@ -12,8 +23,10 @@ plain-text 413, outside the exception handlers, so not in the service's ``detail
 
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
+import secrets
 import time
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -21,39 +34,98 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
 from api.metrics import CURRENT, UNMATCHED, Metrics
 
-__all__ = ["RequestLimitsMiddleware", "RequestObserver"]
+__all__ = ["CLIENT_CLOSED_REQUEST", "RequestGate", "RequestObserver", "api_key_given"]
 
 access_logger = logging.getLogger("api.access")
 
+#: Status recorded (never sent) when the client went away before the answer: nginx's 499.
+CLIENT_CLOSED_REQUEST = 499
+#: Paths that never need the API key (liveness for probes).
+_OPEN_PATHS = frozenset({"/v1/health"})
+_BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
-class RequestLimitsMiddleware:
-    """Enforce ``max_body_bytes`` and stamp the deadline ``timeout_s`` after arrival."""
 
-    def __init__(self, app: ASGIApp, *, max_body_bytes: int, timeout_s: float) -> None:
+def api_key_given(headers: dict[str, str]) -> str | None:
+    """The key a request presents: ``X-API-Key``, else ``Authorization: Bearer <key>``."""
+    given = headers.get("x-api-key")
+    if given is None:
+        scheme, _, token = headers.get("authorization", "").partition(" ")
+        given = token.strip() if scheme.lower() == "bearer" else None
+    return given
+
+
+def _is_json(content_type: str) -> bool:
+    media = content_type.split(";", 1)[0].strip().lower()
+    return media == "application/json" or (
+        media.startswith("application/") and media.endswith("+json")
+    )
+
+
+class RequestGate:
+    """The checks before the application (see the module docstring), in their order."""
+
+    def __init__(
+        self,
+        app: ASGIApp,
+        *,
+        max_body_bytes: int,
+        timeout_s: float,
+        body_timeout_s: float,
+        api_key: str | None = None,
+    ) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
         self.timeout_s = timeout_s
+        self.body_timeout_s = min(body_timeout_s, timeout_s)
+        self.api_key = api_key
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        scope.setdefault("state", {})["deadline"] = time.monotonic() + self.timeout_s
-        for name, value in scope.get("headers", ()):
-            if name == b"content-length":
-                try:
-                    too_large = int(value) > self.max_body_bytes
-                except ValueError:
-                    too_large = False
-                if too_large:
-                    await self._too_large(send)
-                    return
+        arrival = time.monotonic()
+        scope.setdefault("state", {})["deadline"] = arrival + self.timeout_s
+        headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope.get("headers", ())}
+        try:
+            too_large = int(headers.get("content-length", "0")) > self.max_body_bytes
+        except ValueError:
+            too_large = False
+        if too_large:
+            await self._too_large(send)
+            return
+        path = scope.get("path", "")
+        guarded = path.startswith("/v1/") and path not in _OPEN_PATHS
+        if guarded and self.api_key is not None:
+            given = api_key_given(headers)
+            if given is None or not secrets.compare_digest(given.encode(), self.api_key.encode()):
+                await _answer(
+                    send, 401, "a valid API key is required (X-API-Key or Authorization: Bearer)",
+                    "unauthorized", [], [(b"www-authenticate", b"Bearer")],
+                )  # fmt: skip
+                return
+        if guarded and scope.get("method") in _BODY_METHODS:
+            content_type = headers.get("content-type", "")
+            if not _is_json(content_type):
+                got = f"got {content_type!r}" if content_type else "none was given"
+                await _answer(
+                    send, 415, f"the body must be JSON: send Content-Type: application/json "
+                    f"({got})", "unsupported_media_type", ["header", "content-type"],
+                )  # fmt: skip
+                return
         chunks: list[bytes] = []
         size = 0
+        body_deadline = arrival + self.body_timeout_s
         while True:
-            message = await receive()
-            if message["type"] == "http.disconnect":
+            try:
+                message = await asyncio.wait_for(receive(), body_deadline - time.monotonic())
+            except TimeoutError:
+                await _answer(
+                    send, 408, f"the request body did not arrive within {self.body_timeout_s:g} s",
+                    "body_timeout", ["body"], [(b"connection", b"close")],
+                )  # fmt: skip
                 return
+            if message["type"] == "http.disconnect":
+                return  # the observer records 499: nobody is left to answer
             body = message.get("body", b"")
             size += len(body)
             if size > self.max_body_bytes:
@@ -78,29 +150,34 @@ class RequestLimitsMiddleware:
         await self.app(scope, replay, send)
 
     async def _too_large(self, send: Send) -> None:
-        body = json.dumps(
-            {
-                "detail": [
-                    {
-                        "loc": ["body"],
-                        "msg": f"the request body exceeds {self.max_body_bytes} bytes",
-                        "type": "body_too_large",
-                    }
-                ]
-            }
-        ).encode()
-        await send(
-            {
-                "type": "http.response.start",
-                "status": 413,
-                "headers": [
-                    (b"content-type", b"application/json"),
-                    (b"content-length", str(len(body)).encode()),
-                    (b"connection", b"close"),
-                ],
-            }
-        )
-        await send({"type": "http.response.body", "body": body})
+        await _answer(
+            send, 413, f"the request body exceeds {self.max_body_bytes} bytes",
+            "body_too_large", ["body"], [(b"connection", b"close")],
+        )  # fmt: skip
+
+
+async def _answer(
+    send: Send,
+    status: int,
+    msg: str,
+    type_: str,
+    loc: list[str],
+    headers: list[tuple[bytes, bytes]] = (),  # type: ignore[assignment]
+) -> None:
+    """An error answer in the service's ``detail`` format, sent before the application."""
+    body = json.dumps({"detail": [{"loc": loc, "msg": msg, "type": type_}]}).encode()
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(body)).encode()),
+                *headers,
+            ],
+        }
+    )
+    await send({"type": "http.response.body", "body": body})
 
 
 #: Paths whose access-log line is written at DEBUG (probes and scrapes every few seconds).
@@ -145,7 +222,7 @@ class RequestObserver:
         id_token = REQUEST_ID.set(request_id)
         metrics_token = CURRENT.set(self.metrics)
         start = time.perf_counter()
-        status = 500  # if the app raises before answering
+        status: int | None = None
         self.metrics.in_progress.inc()
 
         async def send_with_id(message: Message) -> None:
@@ -159,7 +236,12 @@ class RequestObserver:
 
         try:
             await self.app(scope, receive, send_with_id)
+        except BaseException:
+            status = status or 500
+            raise
         finally:
+            # no answer started and no error: the client went away first (499, not a 5xx)
+            status = CLIENT_CLOSED_REQUEST if status is None else status
             seconds = time.perf_counter() - start
             self.metrics.in_progress.dec()
             route = _route_label(scope)

@@ -80,8 +80,30 @@ class Settings(BaseSettings):
     request_timeout_s: float = Field(
         30.0, gt=0.0, le=3600.0, allow_inf_nan=False, description="Time budget of one request, s."
     )
+    body_timeout_s: float = Field(
+        10.0,
+        gt=0.0,
+        le=3600.0,
+        allow_inf_nan=False,
+        description="Time a client has to send its whole request body, s (at most the request "
+        "budget); a slower or stalled body is answered 408 and its connection closed.",
+    )
     max_body_bytes: int = Field(
         4 * 1024 * 1024, ge=1024, le=1024**3, description="Largest request body, bytes."
+    )
+    max_response_bytes: int = Field(
+        32 * 1024 * 1024,
+        ge=64 * 1024,
+        le=1024**3,
+        description="Largest answer, bytes: bounds the trajectory samples of one answer (and "
+        "of each answer of a batch, which share it), decided before the samples are computed.",
+    )
+    max_trajectory_samples: int = Field(
+        50_000,
+        ge=2,
+        le=1_000_000,
+        description="Most trajectory samples in one answer (duration x timing.sample_rate_hz); "
+        "beyond it a 422 names timing.sample_rate_hz and the count it would produce.",
     )
     max_batch: int = Field(64, ge=1, le=MAX_BATCH_REQUESTS, description="Plans in one batch.")
     max_obstacles: int = Field(

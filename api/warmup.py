@@ -21,13 +21,20 @@ def warm_up_worker() -> float:
     ruckig, matplotlib), then the service's own jobs once each, through the path a request
     takes (:func:`api.metrics.run_measured`): a plan timed by TOPPRA and one by Ruckig (with
     an obstacle, so the clearance kernels run too), fk and ik. Returns its seconds."""
-    from api import compute
-    from api.metrics import run_measured
-    from planner.schemas import FKRequest, IKRequest, PlanRequest
-    from planner.warmup import warm_up
+    from planner.warmup import quiet_library_logs, warm_up
 
     t0 = time.perf_counter()
     warm_up()
+    with quiet_library_logs():
+        _run_jobs()
+    return time.perf_counter() - t0
+
+
+def _run_jobs() -> None:
+    from api import compute
+    from api.metrics import run_measured
+    from planner.schemas import FKRequest, IKRequest, PlanRequest
+
     deadline = time.monotonic() + 120.0
     for method in ("toppra", "ruckig"):
         body = {
@@ -40,4 +47,3 @@ def warm_up_worker() -> float:
         run_measured(compute.plan, PlanRequest.model_validate(body), deadline=deadline)
     run_measured(compute.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), deadline=deadline)
     run_measured(compute.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), deadline=deadline)
-    return time.perf_counter() - t0

@@ -154,3 +154,42 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         except subprocess.TimeoutExpired:  # pragma: no cover - a hung shutdown
             process.kill()
             process.wait()
+
+
+@pytest.fixture
+def server_factory(
+    tmp_path: Path,
+) -> Iterator[Callable[..., tuple[subprocess.Popen[bytes], str, Path]]]:
+    """Start ``planner serve`` processes with extra ``PLANNER_*`` settings (keyword
+    arguments, e.g. ``WORKERS="2"``) on free ports, each ready (every worker warm); yields
+    the starter, which returns (process, base URL, log path). Every process is killed at
+    the end of the test."""
+    started: list[subprocess.Popen[bytes]] = []
+
+    def start(**settings: str) -> tuple[subprocess.Popen[bytes], str, Path]:
+        port = free_port()
+        log = tmp_path / f"server-{port}.log"
+        env = {
+            **os.environ,
+            "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)]),
+            "PLANNER_LOG_FORMAT": "json",
+            **{f"PLANNER_{k.upper()}": v for k, v in settings.items()},
+        }
+        if "api_key" not in {k.lower() for k in settings}:
+            env.pop("PLANNER_API_KEY", None)
+        with log.open("wb") as out:
+            process = subprocess.Popen(
+                [sys.executable, "-m", "planner.cli", "serve", "--host", "127.0.0.1",
+                 "--port", str(port)],
+                cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT,
+            )  # fmt: skip
+        started.append(process)
+        url = f"http://127.0.0.1:{port}"
+        wait_live_ready(url, process, log)
+        return process, url, log
+
+    yield start
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+            process.wait()

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -22,7 +20,7 @@ import httpx
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-STARTUP_TIMEOUT_S = 180.0
+STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
 #: A real plan: a joint goal in free space, timed by TOPPRA (the default timing).
 PLAN = {
     "start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
@@ -78,41 +76,9 @@ def _workers(server: int) -> list[int]:
 
 
 @pytest.fixture
-def server(tmp_path, unused_port):
-    """A ``planner serve`` process with two workers, ready; yields (process, url, log)."""
-    log = tmp_path / "server.log"
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)]),
-        "PLANNER_WORKERS": "2",
-        "PLANNER_LOG_FORMAT": "json",
-    }
-    env.pop("PLANNER_API_KEY", None)
-    with log.open("wb") as out:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "planner.cli", "serve", "--host", "127.0.0.1",
-             "--port", str(unused_port)],
-            cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT,
-        )  # fmt: skip
-    url = f"http://127.0.0.1:{unused_port}"
-    end = time.monotonic() + STARTUP_TIMEOUT_S
-    try:
-        while True:
-            assert process.poll() is None, log.read_text()[-3000:]
-            try:
-                r = httpx.get(f"{url}/v1/ready", timeout=2)
-                if r.status_code == 200:
-                    break
-                assert r.status_code == 503 and r.json()["status"] == "starting", r.text
-            except httpx.HTTPError:
-                pass
-            assert time.monotonic() < end, log.read_text()[-3000:]
-            time.sleep(0.1)
-        yield process, url, log
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
+def server(server_factory):
+    """A ``planner serve`` process with two workers, ready; (process, url, log)."""
+    return server_factory(workers="2")
 
 
 def _post_all(url: str, bodies: list[dict]) -> list[httpx.Response | Exception]:

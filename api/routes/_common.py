@@ -78,21 +78,30 @@ async def run_job(
     deadline: float,
     *,
     design_defaults: DesignModel = _BUILT_IN,
+    max_samples: int | None = None,
 ) -> Response:
     """``job(body)`` in a worker, serialised there, with the request's ``deadline``; the
     answer as it is (the route's ``response_model`` documents it, the job's return type
     guarantees it). The worker reports the job's durations, recorded here
     (:mod:`api.metrics`). The body's design is completed from ``design_defaults`` first
-    (:func:`with_design_defaults`)."""
+    (:func:`with_design_defaults`). ``max_samples`` bounds the answer's trajectory samples
+    (:func:`api.compute.answer_sample_limit`)."""
     body = with_design_defaults(body, design_defaults)
-    job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
+    job_json = partial(
+        run_measured, job, deadline=deadline, request_id=REQUEST_ID.get(), max_samples=max_samples
+    )
     content, sample = await pool.run(job_json, body, deadline=deadline)
     record_job(sample)
     return json_response(content)
 
 
 async def run_jobs(
-    pool: WorkerPool, job: Callable[[Any], BaseModel], bodies: Sequence[Any], deadline: float
+    pool: WorkerPool,
+    job: Callable[[Any], BaseModel],
+    bodies: Sequence[Any],
+    deadline: float,
+    *,
+    max_samples: int | None = None,
 ) -> list[bytes]:
     """``job`` over ``bodies`` spread over the workers: the JSON of each answer, in order.
 
@@ -100,7 +109,9 @@ async def run_jobs(
     capacity (workers + queue) is served in rounds instead of being refused whole; a 503
     still answers a pool that is saturated by other requests.
     """
-    job_json = partial(run_measured, job, deadline=deadline, request_id=REQUEST_ID.get())
+    job_json = partial(
+        run_measured, job, deadline=deadline, request_id=REQUEST_ID.get(), max_samples=max_samples
+    )
     contents: list[bytes] = []
     for start in range(0, len(bodies), pool.workers):
         answers = await pool.map(job_json, bodies[start : start + pool.workers], deadline=deadline)

@@ -13,6 +13,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Response
 
 from api import compute
+from api.compute import answer_sample_limit
 from api.deps import Deadline, Pool, SettingsDep
 from api.exceptions import LimitExceededError
 from api.routes._common import (
@@ -55,7 +56,10 @@ async def plan(
 ) -> Response:
     """Plan (and time) a motion from ``start`` to ``goal``."""
     check_limits(body, settings, ("body",))
-    return await run_job(pool, job, body, deadline, design_defaults=settings.design_defaults)
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+    return await run_job(
+        pool, job, body, deadline, design_defaults=settings.design_defaults, max_samples=samples
+    )
 
 
 @router.post("/plan/batch", response_model=PlanBatchResponse)
@@ -71,5 +75,8 @@ async def plan_batch(
     for i, request in enumerate(body.requests):
         check_limits(request, settings, ("body", "requests", i))
     body = with_design_defaults(body, settings.design_defaults)
-    results = await run_jobs(pool, job, body.requests, deadline)
+    samples = answer_sample_limit(
+        settings.max_trajectory_samples, settings.max_response_bytes, len(body.requests)
+    )
+    results = await run_jobs(pool, job, body.requests, deadline, max_samples=samples)
     return json_response(b'{"results":[' + b",".join(results) + b"]}")

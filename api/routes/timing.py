@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from api import compute_analysis
+from api.compute import answer_sample_limit
 from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import check_obstacle_count, run_job
 from planner.schemas import TimingRequest, TimingResponse
@@ -22,6 +23,12 @@ async def timing(
     breaks a joint limit or does not assemble is a 422 naming it; a path that breaks another
     rule, or cannot be timed, is a 200 with a ``status`` (``invalid_path``, ``infeasible``)."""
     check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
-        pool, compute_analysis.timing, body, deadline, design_defaults=settings.design_defaults
+        pool,
+        compute_analysis.timing,
+        body,
+        deadline,
+        design_defaults=settings.design_defaults,
+        max_samples=samples,
     )

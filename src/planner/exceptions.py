@@ -39,7 +39,26 @@ __all__ = [
 
 
 class PlannerError(Exception):
-    """Base of every error the product raises on purpose."""
+    """Base of every error the product raises on purpose.
+
+    ``field`` names the argument the error is about, where the raising function knows it
+    (e.g. ``"sample_rate_hz"``); callers that know where that argument came from (the
+    service: which part of the request body) prefix it. None when not known.
+    """
+
+    def __init__(self, *args: object, field: str | None = None) -> None:
+        super().__init__(*args)
+        self.field = field
+
+    def __reduce__(self):  # keep ``field`` across processes (pickling drops keyword args)
+        return (_rebuild_error, (type(self), self.args, self.__dict__))
+
+
+def _rebuild_error(cls: type, args: tuple, state: dict) -> PlannerError:
+    exc = cls.__new__(cls)
+    Exception.__init__(exc, *args)
+    exc.__dict__.update(state)
+    return exc
 
 
 class DesignError(PlannerError, ValueError):

@@ -21,15 +21,17 @@ OMPL, toppra, ruckig and matplotlib are imported only through :mod:`planner.plan
 
 from __future__ import annotations
 
+import logging
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-__all__ = ["STEPS", "Progress", "Step", "warm_up"]
+__all__ = ["STEPS", "Progress", "Step", "quiet_library_logs", "warm_up"]
 
 #: ``progress(step_name, index, total)``: called before each step with the number of steps
 #: finished so far (``index`` = 0 .. total - 1), and once at the end with ``index == total``.
@@ -199,10 +201,24 @@ def warm_up(progress: Progress | None = None) -> float:
     t0 = time.perf_counter()
     state = _State()
     total = len(STEPS)
-    for index, step in enumerate(STEPS):
-        if progress is not None:
-            progress(step.name, index, total)
-        step.run(state)
+    with quiet_library_logs():
+        for index, step in enumerate(STEPS):
+            if progress is not None:
+                progress(step.name, index, total)
+            step.run(state)
     if progress is not None:
         progress("ready", total, total)
     return time.perf_counter() - t0
+
+
+@contextmanager
+def quiet_library_logs() -> Iterator[None]:
+    """The library's INFO lines off while warming up: its probe plans are nobody's plans
+    (an operator would read "plan unreachable" at every worker start); warnings still show."""
+    root = logging.getLogger("planner")
+    level = root.level
+    root.setLevel(max(level, logging.WARNING))
+    try:
+        yield
+    finally:
+        root.setLevel(level)

@@ -245,6 +245,7 @@ def time_path(
     check_states: StateChecker | None = None,
     check_resolution: float = DEFAULT_CHECK_RESOLUTION,
     deadline: float | None = None,
+    max_samples: int | None = None,
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -284,6 +285,11 @@ def time_path(
     deadline : float, optional
         ``time.monotonic()`` value after which the work stops with
         :class:`~planner.exceptions.TimingDeadlineError`.
+    max_samples : int, optional
+        Most output samples allowed (default and cap :data:`MAX_OUTPUT_SAMPLES`): a
+        duration x ``sample_rate_hz`` beyond it raises
+        :class:`~planner.exceptions.InputError` (``field="sample_rate_hz"``) once the
+        profile is known, before any sample is computed.
 
     Returns
     -------
@@ -368,10 +374,14 @@ def time_path(
                 curve = build_ruckig_curve(path, profile, lim, deadline=deadline)
                 if v_cart is not None:
                     curve = _fit_cartesian_speed(curve, design, assembly_mode, resolution, v_cart)
-        if curve.duration * rate > MAX_OUTPUT_SAMPLES:
+        count = math.floor(curve.duration * rate) + 1
+        cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
+        if count > cap:
             raise InputError(
-                f"sample_rate_hz = {rate:g} gives {curve.duration * rate:.3g} samples over "
-                f"{curve.duration:.4g} s, more than {MAX_OUTPUT_SAMPLES}: lower the rate"
+                f"sample_rate_hz = {rate:g} Hz would produce {count} samples over the "
+                f"trajectory's {curve.duration:.4g} s, more than the limit of "
+                f"{cap}: lower the rate",
+                field="sample_rate_hz",
             )
         # the output rate's samples, plus every instant the motion rests (stop_at, transits)
         t_out = np.union1d(sample_times(curve.duration, rate), curve.rest_times())
