@@ -52,6 +52,7 @@ __all__ = [
     "NAMED_FIGURES",
     "PRINT_RESOLUTION",
     "SCREEN_RESOLUTION",
+    "clear_caches",
     "draw_posture",
     "plot_loci",
     "render_figure",
@@ -130,6 +131,13 @@ def _loci(kind: str, design: Design) -> dict[str, Locus]:
     for locus in loci.values():
         _read_only(locus)
     return loci
+
+
+def clear_caches() -> None:
+    """Forget every cached section, locus and rendered figure of this process (for a
+    benchmark of cold renders, or to free memory)."""
+    for cached in (_section, _loci, _iso, _render):
+        cached.cache_clear()
 
 
 def _parallel(design: Design) -> dict[str, Locus]:
