@@ -349,13 +349,16 @@ def figure_04(design: Design = GENERAL_DESIGN) -> Figure:
     good = np.minimum(np.minimum(c.min_serial, 1 / c.kappa_A), spread)
     score = np.where(b.ok[:, :4], good[:, :4], -1).min(axis=1)
     i = int(np.argmax(score))
-    fig = Figure(figsize=(8, 7))
-    for k in range(4):
-        ax = fig.add_subplot(2, 2, k + 1)
+    fig = Figure(figsize=(8, 6.2))
+    # shared axes, labelled on the outer edge only: half the tick text to lay out and draw
+    # (this figure's time is matplotlib's text layout) and a less cluttered page
+    axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
+    for k, ax in enumerate(axes):
         draw_posture(ax, design, b.q[i, k], b.passive[i, k], colour=_MODE_COLOURS[k])
         ax.set_title(f"working mode {WORKING_MODES[k]}  (kappa(A) = {c.kappa_A[i, k]:.2f})",
                      fontsize=9)  # fmt: skip
         _cartesian_axes(ax)
+        ax.label_outer()
     fig.suptitle(f"Fig. 4: the four working modes (s_axis = +) at P = ({p[i, 1]:.3f}, "
                  f"{p[i, 0]:.3f}) m\n{_design_text(design)}", fontsize=10)  # fmt: skip
     return fig
