@@ -5,19 +5,33 @@ figure, each titled with the design used; axes in metres (the linkage plane: u a
 normal to it) or radians (joint space theta2-theta3). Figures are built on
 :class:`matplotlib.figure.Figure` objects (no pyplot global state), so this module is safe to
 use from a server thread.
+
+Speed: a worker draws the figures of the design a user is looking at again and again (the
+viewer asks for the workspace section and the isoconditioning map of the current design), so
+the sections and loci behind a figure are computed once per (design, resolution) and kept in
+small per-process LRU caches (:func:`functools.lru_cache`; :class:`Design` is a frozen,
+hashable dataclass), and so are the rendered bytes of :func:`render_figure`. Cached arrays are
+made read-only so that no figure can alter another's data. :data:`SCREEN_RESOLUTION` (the
+HTTP default) and :data:`PRINT_RESOLUTION` (the CLI and the committed PNGs) are the two grid
+sizes used; ``tests/analysis/test_analysis_figures.py`` checks that they agree.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import io
 import logging
 from collections.abc import Callable
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.axes import Axes
-from matplotlib.colors import ListedColormap
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from planner.analysis._common import MODE_INDEX
 from planner.analysis.loci import (
@@ -36,6 +50,9 @@ __all__ = [
     "GENERAL_DESIGN",
     "MODE_CHANGE_DESIGN",
     "NAMED_FIGURES",
+    "PRINT_RESOLUTION",
+    "SCREEN_RESOLUTION",
+    "clear_caches",
     "draw_posture",
     "plot_loci",
     "render_figure",
@@ -59,16 +76,76 @@ _MODE_COLOURS = [
 _LOCUS_STYLE = {
     "CD_stretched": {"color": "red", "lw": 1.6, "ls": "-", "label": "parallel: CD stretched"},
     "C=D": {"color": "magenta", "lw": 1.6, "ls": "--", "label": "parallel: C = D"},
-    "leg_A_stretched": {"color": "navy", "lw": 1.0, "ls": "-", "label": "serial: leg A"},
-    "leg_A_folded": {"color": "navy", "lw": 1.0, "ls": "-", "label": None},
-    "leg_B_stretched": {"color": "darkgreen", "lw": 1.0, "ls": "-", "label": "serial: leg B"},
-    "leg_B_folded": {"color": "darkgreen", "lw": 1.0, "ls": "-", "label": None},
-    "P_on_axis": {"color": "black", "lw": 1.0, "ls": ":", "label": "serial: P on AB"},
+    "leg_A_stretched": {"color": "navy", "lw": 1.4, "ls": "-", "label": "serial: leg A"},
+    "leg_A_folded": {"color": "navy", "lw": 1.4, "ls": "-", "label": None},
+    "leg_B_stretched": {"color": "darkgreen", "lw": 1.4, "ls": "-", "label": "serial: leg B"},
+    "leg_B_folded": {"color": "darkgreen", "lw": 1.4, "ls": "-", "label": None},
+    "P_on_axis": {"color": "black", "lw": 1.2, "ls": ":", "label": "serial: P on AB"},
 }
 
 
-def _legend_below(ax: Axes, ncol: int = 3) -> None:
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7, frameon=False)
+#: Cells per axis of the section grids of a figure served over HTTP (``GET /v1/figures``):
+#: coarse enough that every figure renders well under the viewer's 2 s, fine enough that the
+#: areas it shows agree with :data:`PRINT_RESOLUTION` within about 1 %.
+SCREEN_RESOLUTION = 96
+#: Cells per axis of the print-quality figures (``planner figures``, ``docs/figures``; over
+#: HTTP: ``?resolution=256&dpi=150``).
+PRINT_RESOLUTION = 256
+
+#: Rendered figures and their inputs kept per worker process (a few designs' worth).
+_CACHE_SIZE = 16
+
+
+def _legend_below(ax: Axes, ncol: int = 3, handles: list | None = None) -> None:
+    """The axes' legend in a frameless row under the x label, with line samples long and
+    thick enough to be told apart at a glance."""
+    kwargs = {"handles": handles} if handles is not None else {}
+    leg = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7,
+                    frameon=False, handlelength=2.6, **kwargs)  # fmt: skip
+    for line in leg.get_lines():
+        line.set_linewidth(max(line.get_linewidth(), 2.0))
+
+
+# ----------------------------------------------------------------------------- caches
+def _read_only(obj: object) -> None:
+    """Make every numpy array field of a (frozen) dataclass read-only, in place."""
+    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
+        value = getattr(obj, f.name)
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+
+
+@lru_cache(maxsize=_CACHE_SIZE)
+def _section(kind: str, design: Design, n: int) -> Section:
+    """:func:`cartesian_section` or :func:`joint_section` of a design, once per process."""
+    section = cartesian_section(design, n) if kind == "cartesian" else joint_section(design, n)
+    _read_only(section)
+    return section
+
+
+@lru_cache(maxsize=_CACHE_SIZE)
+def _loci(kind: str, design: Design) -> dict[str, Locus]:
+    """:func:`parallel_loci` or :func:`serial_loci` of a design, once per process (a fresh
+    dict each call; the loci in it are shared and read-only)."""
+    loci = parallel_loci(design) if kind == "parallel" else serial_loci(design)
+    for locus in loci.values():
+        _read_only(locus)
+    return loci
+
+
+def clear_caches() -> None:
+    """Forget every cached section, locus and rendered figure of this process (for a
+    benchmark of cold renders, or to free memory)."""
+    for cached in (_section, _loci, _iso, _render):
+        cached.cache_clear()
+
+
+def _parallel(design: Design) -> dict[str, Locus]:
+    return dict(_loci("parallel", design))
+
+
+def _serial(design: Design) -> dict[str, Locus]:
+    return dict(_loci("serial", design))
 
 
 def _design_text(design: Design) -> str:
@@ -99,10 +176,35 @@ def draw_posture(
     ax.plot([a[0], b[0]], [a[1], b[1]], "-", color="0.4", lw=4)
     ax.plot(*np.array([a, b, c, d]).T, "o", color=colour, ms=5, mfc="white")
     ax.plot(*p, "o", color=colour, ms=7)
-    off = 0.02 * design.reach
-    for name, pt in zip("ABCDP", (a, b, c, d, p), strict=True):
-        ax.text(pt[0] + off, pt[1] + off, name, fontsize=9)
+    _joint_labels(ax, design, {"A": a, "B": b, "C": c, "D": d, "P": p})
     _frame(ax, design)
+
+
+def _joint_labels(ax: Axes, design: Design, points: dict[str, np.ndarray]) -> None:
+    """Name each joint beside it, pushed away from the mechanism's centre so that no label
+    sits on a link; joints that coincide (C = D on a parallel singularity, P on a pivot) get
+    one label naming both ("C = D"), so neither hides the other."""
+    groups: list[tuple[list[str], np.ndarray]] = []
+    tol = 1e-3 * design.reach
+    for name, pt in points.items():
+        for names, at in groups:
+            if np.hypot(*(pt - at)) < tol:
+                names.append(name)
+                break
+        else:
+            groups.append(([name], pt))
+    centre = np.mean([pt for _, pt in groups], axis=0)
+    off = 0.045 * design.reach
+    for names, pt in groups:
+        away = pt - centre
+        if names[0] in "AB" and len(names) == 1:
+            away = np.array([np.sign(pt[0]) or 1.0, -1.0])  # the base: below and outwards
+        norm = float(np.hypot(*away))
+        away = np.array([0.0, 1.0]) if norm < 1e-9 else away / norm
+        ax.annotate(" = ".join(names), pt, xytext=pt + off * away, fontsize=9,
+                    fontweight="bold", ha="center", va="center",
+                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
+                          "alpha": 0.8})  # fmt: skip
 
 
 def plot_loci(
@@ -112,12 +214,24 @@ def plot_loci(
     *,
     legend: bool = True,
     labels: bool = True,
+    halo: bool = False,
 ) -> None:
     """Draw singularity loci (from :func:`parallel_loci` / :func:`serial_loci`); a locus that
-    is a single point (e.g. the stretched CD at P = O when L0 = 0) is drawn as a cross."""
+    is a single point (e.g. the stretched CD at P = O when L0 = 0) is drawn as a cross.
+
+    A locus with no posture in ``space`` (e.g. after :meth:`Locus.select`) is skipped, so the
+    legend names only what is drawn. ``halo`` outlines each line in white, so that it shows
+    on dark cells too (the black serial-singular bands of a joint section)."""
+    from matplotlib import patheffects
+
+    effects = [patheffects.withStroke(linewidth=3.2, foreground="white")] if halo else None
     seen: set[str] = set()
     for kind, locus in loci.items():
         if locus.fills_region and space == "cartesian":
+            continue
+        xy = locus.polyline(space)
+        finite = xy[np.all(np.isfinite(xy), axis=1)]
+        if not len(finite):
             continue
         style = dict(_LOCUS_STYLE.get(kind, {"color": "grey"}))
         label = style.pop("label", None)
@@ -125,16 +239,15 @@ def plot_loci(
             label = None
         elif label is not None:
             seen.add(label)
-        xy = locus.polyline(space)
-        finite = xy[np.all(np.isfinite(xy), axis=1)]
-        if len(finite) and np.ptp(finite, axis=0).max() < 1e-6:
-            ax.plot(*finite[0], "x", color=style["color"], ms=10, mew=2, label=label)
+        if np.ptp(finite, axis=0).max() < 1e-6:
+            ax.plot(*finite[0], "x", color=style["color"], ms=10, mew=2, label=label,
+                    path_effects=effects)  # fmt: skip
             continue
         if space == "joint" and kind == "C=D" and not locus.fills_region:
             ax.plot(xy[:, 0], xy[:, 1], "o", color=style["color"], ms=7, mfc="none",
-                    label=label)  # fmt: skip
+                    label=label, path_effects=effects)  # fmt: skip
             continue
-        ax.plot(xy[:, 0], xy[:, 1], label=label, **style)
+        ax.plot(xy[:, 0], xy[:, 1], label=label, path_effects=effects, **style)
     if legend:
         _legend_below(ax)
 
@@ -145,38 +258,56 @@ def _extent(section: Section) -> list[float]:
     return [section.x[0] - dx, section.x[-1] + dx, section.y[0] - dy, section.y[-1] + dy]
 
 
+#: Image values of :func:`_mode_index_image` beyond the eight working-mode slots.
+_SINGULAR, _BASE_POINT = 8, 9
+#: Colours of those two: thin serial-singular bands black; the two-dimensional base-point
+#: region of erratum 6 a light grey, so the loci drawn over it stay visible.
+_SINGULAR_COLOUR, _BASE_POINT_COLOUR = "black", "0.82"
+
+
 def _mode_index_image(section: Section, slot: int) -> np.ndarray:
-    """(ny, nx) float: working-mode slot index 0-7, 8 where singular, NaN where not reached."""
+    """(ny, nx) float: working-mode slot index 0-7, 8 where singular, 9 where P is on the base
+    point A = B (every working-mode sign 0: erratum 6), NaN where not reached."""
     wm = section.working_mode[..., slot, :]
     idx = 4 * (wm[..., 0] < 0) + 2 * (wm[..., 1] < 0) + (wm[..., 2] < 0)
     img = idx.astype(float)
-    img[section.singular[..., slot]] = 8
+    img[section.singular[..., slot]] = _SINGULAR
+    img[np.all(wm == 0, axis=-1)] = _BASE_POINT
     img[~section.reached[..., slot]] = np.nan
     return img
 
 
 def _mode_cmap() -> ListedColormap:
-    return ListedColormap([*_MODE_COLOURS, "black"])
+    return ListedColormap([*_MODE_COLOURS, _SINGULAR_COLOUR, _BASE_POINT_COLOUR])
 
 
-def _kappa_image(section: Section, slots: list[int]) -> np.ndarray:
-    """log10 of the smallest regular kappa(A) over ``slots`` (NaN where none reaches)."""
+def _best_kappa(section: Section, slots: list[int]) -> np.ndarray:
+    """Smallest regular kappa(A) over ``slots`` (NaN where none reaches)."""
     reached = section.reached[..., slots] & ~section.singular[..., slots]
     k = np.where(reached, section.kappa_A[..., slots], np.inf).min(axis=-1)
-    with np.errstate(divide="ignore"):
-        return np.where(np.isfinite(k), np.log10(k), np.nan)
+    return np.where(np.isfinite(k), k, np.nan)
+
+
+#: Colour range and ticks of kappa(A) in the section figures (log scale: kappa 1 to 30).
+_KAPPA_RANGE = (1.0, 30.0)
+_KAPPA_TICKS = (1, 1.5, 2, 3, 5, 10, 20, 30)
 
 
 def _kappa_panel(fig: Figure, ax: Axes, section: Section, slots: list[int]) -> None:
-    img = _kappa_image(section, slots)
+    """Best regular kappa(A) per cell on a log colour scale whose bar is labelled in kappa
+    itself (not its logarithm); cells reached only on a singularity in grey."""
+    img = _best_kappa(section, slots)
     sing = np.any(section.reached[..., slots] & section.singular[..., slots], axis=-1)
-    im = ax.imshow(img, origin="lower", extent=_extent(section), cmap="viridis_r",
-                   vmin=0.0, vmax=1.5, interpolation="nearest", aspect="equal")  # fmt: skip
+    norm = LogNorm(*_KAPPA_RANGE, clip=True)
+    im = ax.imshow(img, origin="lower", extent=_extent(section), cmap="viridis_r", norm=norm,
+                   interpolation="nearest", aspect="equal")  # fmt: skip
     shade = np.where(sing & np.isnan(img), 1.0, np.nan)
     ax.imshow(shade, origin="lower", extent=_extent(section), cmap=ListedColormap(["0.55"]),
               interpolation="nearest", aspect="equal")  # fmt: skip
-    cb = fig.colorbar(im, ax=ax, shrink=0.8)
-    cb.set_label("log10 kappa(A), best regular posture")
+    cb = fig.colorbar(im, ax=ax, shrink=0.8, ticks=_KAPPA_TICKS)
+    cb.ax.set_yticklabels([f"{t:g}" for t in _KAPPA_TICKS])
+    cb.ax.minorticks_off()
+    cb.set_label("kappa(A) of the best regular posture (log scale; 1 = isotropic)")
 
 
 def _cartesian_axes(ax) -> None:
@@ -218,13 +349,16 @@ def figure_04(design: Design = GENERAL_DESIGN) -> Figure:
     good = np.minimum(np.minimum(c.min_serial, 1 / c.kappa_A), spread)
     score = np.where(b.ok[:, :4], good[:, :4], -1).min(axis=1)
     i = int(np.argmax(score))
-    fig = Figure(figsize=(8, 7))
-    for k in range(4):
-        ax = fig.add_subplot(2, 2, k + 1)
+    fig = Figure(figsize=(8, 6.2))
+    # shared axes, labelled on the outer edge only: half the tick text to lay out and draw
+    # (this figure's time is matplotlib's text layout) and a less cluttered page
+    axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
+    for k, ax in enumerate(axes):
         draw_posture(ax, design, b.q[i, k], b.passive[i, k], colour=_MODE_COLOURS[k])
         ax.set_title(f"working mode {WORKING_MODES[k]}  (kappa(A) = {c.kappa_A[i, k]:.2f})",
                      fontsize=9)  # fmt: skip
         _cartesian_axes(ax)
+        ax.label_outer()
     fig.suptitle(f"Fig. 4: the four working modes (s_axis = +) at P = ({p[i, 1]:.3f}, "
                  f"{p[i, 0]:.3f}) m\n{_design_text(design)}", fontsize=10)  # fmt: skip
     return fig
@@ -246,14 +380,14 @@ def _posture_figure(title: str, design: Design, locus: Locus, note: str) -> Figu
 
 def figure_05(design: Design = GENERAL_DESIGN) -> Figure:
     """Parallel singularity: P the midpoint of a stretched CD."""
-    locus = parallel_loci(design)["CD_stretched"]
+    locus = _parallel(design)["CD_stretched"]
     return _posture_figure("Fig. 5: parallel singularity, C, P, D aligned (CD stretched)",
                            design, locus, "A cannot resist a force normal to CD")  # fmt: skip
 
 
 def figure_06(design: Design = GENERAL_DESIGN) -> Figure:
     """Parallel singularity: C = D, P turns freely about them."""
-    locus = parallel_loci(design)["C=D"]
+    locus = _parallel(design)["C=D"]
     fig = _posture_figure("Fig. 6: parallel singularity, C = D", design, locus,
                           "P can turn about C = D with the actuators locked")  # fmt: skip
     ax = fig.axes[0]
@@ -266,7 +400,7 @@ def figure_06(design: Design = GENERAL_DESIGN) -> Figure:
 
 def figure_07(design: Design = GENERAL_DESIGN) -> Figure:
     """Serial singularity: leg B stretched, P on the workspace boundary."""
-    locus = serial_loci(design)["leg_B_stretched"]
+    locus = _serial(design)["leg_B_stretched"]
     fig = _posture_figure("Fig. 7: serial singularity, leg B stretched (B, D, P aligned)",
                           design, locus, "P cannot move along BP")  # fmt: skip
     ax = fig.axes[0]
@@ -278,8 +412,8 @@ def figure_07(design: Design = GENERAL_DESIGN) -> Figure:
 
 
 def _cartesian_section_figure(title: str, design: Design, n: int, note: str) -> Figure:
-    section = cartesian_section(design, n)
-    loci = {**serial_loci(design), **parallel_loci(design)}
+    section = _section("cartesian", design, n)
+    loci = {**_serial(design), **_parallel(design)}
     fig = Figure(figsize=(7, 7))
     ax = fig.add_subplot(1, 1, 1)
     _kappa_panel(fig, ax, section, list(range(8)))
@@ -290,29 +424,36 @@ def _cartesian_section_figure(title: str, design: Design, n: int, note: str) -> 
 
 
 def _joint_section_figure(title: str, design: Design, n: int) -> Figure:
-    section = joint_section(design, n)
-    loci = {**serial_loci(design), **parallel_loci(design)}
-    fig = Figure(figsize=(11, 6.2))
+    """Working mode per (theta2, theta3) cell, one panel per assembly mode, with the loci.
+
+    Thin serial-singular bands are black; the base-point region of erratum 6 (half the plane
+    for L0 = 0, L1 = L2) is light grey, so that the loci and their legend stay visible."""
+    section = _section("joint", design, n)
+    loci = {**_serial(design), **_parallel(design)}
+    fig = Figure(figsize=(11, 6.4))
     for k, mode in enumerate(section.labels):
         ax = fig.add_subplot(1, 2, k + 1)
         img = _mode_index_image(section, k)
         ax.imshow(img, origin="lower", extent=_extent(section), cmap=_mode_cmap(), vmin=-0.5,
-                  vmax=8.5, interpolation="nearest", aspect="equal")  # fmt: skip
+                  vmax=_BASE_POINT + 0.5, interpolation="nearest", aspect="equal")  # fmt: skip
         mine = {kind: loc.select(assembly_mode=mode) if kind != "C=D" else loc
                 for kind, loc in loci.items()}  # fmt: skip
-        plot_loci(ax, mine, "joint", legend=False)
-        present = sorted({WORKING_MODES[int(v)] for v in np.unique(img[np.isfinite(img)]) if v < 8})
-        for m in present:
-            ax.plot([], [], "s", color=_MODE_COLOURS[MODE_INDEX[m]], label=f"mode {m}")
-        ax.plot([], [], "s", color="black", label="singular")
-        _legend_below(ax, ncol=3)
+        plot_loci(ax, mine, "joint", legend=False, halo=True)
+        handles, _ = ax.get_legend_handles_labels()
+        values = {int(v) for v in np.unique(img[np.isfinite(img)])}
+        handles += [Patch(color=_MODE_COLOURS[v], label=f"mode {WORKING_MODES[v]}")
+                    for v in sorted(values) if v < _SINGULAR]  # fmt: skip
+        handles.append(Patch(color=_SINGULAR_COLOUR, label="serial-singular cell"))
+        if _BASE_POINT in values:
+            handles.append(Patch(color=_BASE_POINT_COLOUR, label="P = A = B (erratum 6)"))
+        _legend_below(ax, ncol=3, handles=handles)
         ax.set_title(f"assembly mode '{mode}'", fontsize=9)
         _joint_axes(ax)
     fig.suptitle(f"{title}\n{_design_text(design)}", fontsize=10)
     return fig
 
 
-def figure_08(design: Design | None = None, n: int = 256) -> Figure:
+def figure_08(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.paper_optimum()
     return _cartesian_section_figure(
         "Fig. 8: cross-section of the Cartesian workspace (L0 = 0, L1 = L2)", design, n,
@@ -321,15 +462,15 @@ def figure_08(design: Design | None = None, n: int = 256) -> Figure:
     )  # fmt: skip
 
 
-def figure_09(design: Design | None = None, n: int = 256) -> Figure:
+def figure_09(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.paper_optimum()
     return _joint_section_figure(
-        "Fig. 9: cross-section of the joint space (L0 = 0, L1 = L2); black: P at the base "
+        "Fig. 9: cross-section of the joint space (L0 = 0, L1 = L2); grey: P at the base "
         "point A = B (erratum 6)", design, n,
     )  # fmt: skip
 
 
-def figure_10(design: Design | None = None, n: int = 256) -> Figure:
+def figure_10(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.singularity_free()
     return _cartesian_section_figure(
         "Fig. 10: Cartesian workspace free of parallel singularities (2 L1 < L0 < 2 (L2 - L1))",
@@ -337,14 +478,14 @@ def figure_10(design: Design | None = None, n: int = 256) -> Figure:
     )  # fmt: skip
 
 
-def figure_11(design: Design | None = None, n: int = 256) -> Figure:
+def figure_11(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.singularity_free()
     return _joint_section_figure("Fig. 11: joint space free of parallel singularities", design, n)
 
 
 def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
     """The same P: parallel-singular in the convex mode, regular in the non-convex one."""
-    locus = parallel_loci(design)["CD_stretched"].select(working_mode=CONVEX[0])
+    locus = _parallel(design)["CD_stretched"].select(working_mode=CONVEX[0])
     i = _pick(locus, design)
     p = np.array([locus.uw[i, 1], locus.uw[i, 0], 0.0])
     b = inverse_batch(design, p)
@@ -363,18 +504,21 @@ def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
 
 
 def _mode_workspace_figure(title: str, design: Design, modes: tuple[str, str], n: int) -> Figure:
-    section = cartesian_section(design, n)
+    section = _section("cartesian", design, n)
     slots = [MODE_INDEX[m] for m in modes]
-    loci = parallel_loci(design)
+    loci = _parallel(design)
     par = {k: loc.select(working_mode=modes[0]) for k, loc in loci.items()}
     par2 = {k: loc.select(working_mode=modes[1]) for k, loc in loci.items()}
     fig = Figure(figsize=(7, 7))
     ax = fig.add_subplot(1, 1, 1)
     _kappa_panel(fig, ax, section, slots)
-    plot_loci(ax, serial_loci(design), "cartesian", legend=False)
+    plot_loci(ax, _serial(design), "cartesian", legend=False)
     plot_loci(ax, par, "cartesian", legend=False, labels=False)
     plot_loci(ax, par2, "cartesian", legend=False, labels=False)
-    ax.plot([], [], color="red", label="parallel singularity in these modes")
+    drawn = any(np.isfinite(v.uw).any() for v in (*par.values(), *par2.values()))
+    ax.plot([], [], color="red" if drawn else "none",
+            label="parallel singularity in these modes" if drawn
+            else "no parallel singularity in these modes")  # fmt: skip
     _legend_below(ax, ncol=2)
     ax.set_title(f"{title}\nmodes {modes[0]} (w > 0) and {modes[1]} (w < 0); "
                  f"{_design_text(design)}", fontsize=9)  # fmt: skip
@@ -382,13 +526,13 @@ def _mode_workspace_figure(title: str, design: Design, modes: tuple[str, str], n
     return fig
 
 
-def figure_13(design: Design = MODE_CHANGE_DESIGN, n: int = 256) -> Figure:
+def figure_13(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) -> Figure:
     return _mode_workspace_figure(
         "Fig. 13: workspace of the convex working mode", design, CONVEX, n
     )
 
 
-def figure_14(design: Design = MODE_CHANGE_DESIGN, n: int = 256) -> Figure:
+def figure_14(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) -> Figure:
     return _mode_workspace_figure(
         "Fig. 14: workspace of the non-convex working mode", design, NONCONVEX, n
     )
@@ -396,38 +540,93 @@ def figure_14(design: Design = MODE_CHANGE_DESIGN, n: int = 256) -> Figure:
 
 #: Levels of kappa(A) drawn in figure 15 (1 is the isotropy locus).
 ISO_LEVELS = (1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0)
+#: Samples along each isoconditioning curve of figure 15.
+ISO_SAMPLES = 4001
 
 
-def figure_15(design: Design = MODE_CHANGE_DESIGN, n: int = 128) -> Figure:
-    """Isoconditioning curves of kappa(A) for the convex and the non-convex working modes."""
-    section = cartesian_section(design, n)
-    fig = Figure(figsize=(11, 6.5))
-    cmap = colormaps["plasma"]
+@lru_cache(maxsize=_CACHE_SIZE)
+def _iso(design: Design, level: float) -> Locus:
+    """:func:`isoconditioning_loci` at one level, once per process (read-only)."""
+    locus = isoconditioning_loci(design, level, samples=ISO_SAMPLES)
+    _read_only(locus)
+    return locus
+
+
+def _segments(xy: np.ndarray) -> list[np.ndarray]:
+    """The runs of finite rows (k, 2), k >= 2, of a NaN-separated polyline."""
+    ok = np.all(np.isfinite(xy), axis=1).astype(np.int8)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok, [0]])))
+    return [xy[i:j] for i, j in zip(edges[::2], edges[1::2], strict=True) if j - i >= 2]
+
+
+def _length(xy: np.ndarray) -> float:
+    """Arc length of a polyline (k, 2), m."""
+    return float(np.hypot(*np.diff(xy, axis=0).T).sum())
+
+
+def _iso_label(level: float) -> str:
+    return "1 isotropic" if level == 1.0 else f"{level:g}"
+
+
+def figure_15(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) -> Figure:
+    """Isoconditioning curves of kappa(A) for the convex and the non-convex working modes.
+
+    The curves are the exact loci (:func:`isoconditioning_loci`, not contours of a grid),
+    wrapped in a :class:`matplotlib.contour.ContourSet` so that ``clabel`` writes each level
+    on its curve; the bands between levels are shaded from the Cartesian section so that the
+    well-conditioned regions show at a glance."""
+    from matplotlib.contour import ContourSet
+
+    section = _section("cartesian", design, n)
+    loci = {level: _iso(design, level) for level in ISO_LEVELS}
+    par = _parallel(design)
+    bounds = [*ISO_LEVELS, 1e12]
+    base = colormaps["YlGnBu"](np.linspace(0.05, 0.7, len(bounds) - 2))[:, :3]
+    worst = np.array([0.96, 0.62, 0.62])  # beyond the last level: near a parallel singularity
+    # pale (mixed with white) so that the black labels stay legible on every band
+    band_colours = ListedColormap(np.vstack([0.6 * base + 0.4, worst]))
+    norm = BoundaryNorm(bounds, band_colours.N)
+    long_enough = 0.12 * design.reach  # shorter pieces (near a cusp) are drawn, not labelled
+    fig = Figure(figsize=(11, 6.8))
     for k, modes in enumerate((CONVEX, NONCONVEX)):
         ax = fig.add_subplot(1, 2, k + 1)
         slots = [MODE_INDEX[m] for m in modes]
-        area = np.where(section.reached[..., slots].any(axis=-1), 1.0, np.nan)
-        ax.imshow(area, origin="lower", extent=_extent(section), cmap=ListedColormap(["0.9"]),
+        reached = section.reached[..., slots]
+        kappa = np.where(reached, section.kappa_A[..., slots], np.inf).min(axis=-1)
+        kappa = np.where(reached.any(axis=-1), kappa, np.nan)
+        ax.imshow(kappa, origin="lower", extent=_extent(section), cmap=band_colours, norm=norm,
                   interpolation="nearest", aspect="equal")  # fmt: skip
-        for j, level in enumerate(ISO_LEVELS):
-            loc = isoconditioning_loci(design, level, samples=4001)
-            colour = cmap(j / len(ISO_LEVELS))
-            for m in modes:
-                xy = loc.select(working_mode=m).polyline("cartesian")
-                ax.plot(xy[:, 0], xy[:, 1], color=colour, lw=2.2 if level == 1 else 1.0)
-            ax.plot([], [], color=colour, lw=2.2 if level == 1 else 1.0,
-                    label="isotropy (kappa = 1)" if level == 1 else f"kappa = {level:g}")  # fmt: skip
-        par = parallel_loci(design)
+        segs = [[seg for m in modes
+                 for seg in _segments(loci[level].select(working_mode=m).polyline("cartesian"))]
+                for level in ISO_LEVELS]  # fmt: skip
+        widths = [2.4 if level == 1.0 else 1.0 for level in ISO_LEVELS]
+        colours = ["tab:blue" if level == 1.0 else "0.15" for level in ISO_LEVELS]
+        long = [[g for g in ss if _length(g) >= long_enough] for ss in segs]
+        short = [[g for g in ss if _length(g) < long_enough] for ss in segs]
+        for ss, c, lw in zip(short, colours, widths, strict=True):
+            for g in ss:
+                ax.plot(g[:, 0], g[:, 1], color=c, lw=lw)
+        cs = ContourSet(ax, list(ISO_LEVELS), long, colors=colours, linewidths=widths)
+        with_curves = [lvl for lvl, ss in zip(ISO_LEVELS, long, strict=True) if ss]
+        ax.clabel(cs, with_curves, inline=True, inline_spacing=2, fontsize=7,
+                  fmt=_iso_label)  # fmt: skip
         for m in modes:
             sel = {kk: v.select(working_mode=m) for kk, v in par.items()}
             plot_loci(ax, sel, "cartesian", legend=False, labels=False)
-        ax.plot([], [], color="red", label="parallel singularity")
-        _legend_below(ax, ncol=3)
+        handles = [
+            Line2D([], [], color="tab:blue", lw=2.4, label="isotropy, kappa(A) = 1"),
+            Line2D([], [], color="0.15", lw=1.0,
+                   label="kappa(A) = " + ", ".join(f"{v:g}" for v in ISO_LEVELS[1:])),
+            Line2D([], [], color="red", lw=1.6, label="parallel singularity"),
+            Patch(color=band_colours(band_colours.N - 1), label="kappa(A) > 10"),
+            Patch(color=band_colours(0), label="kappa(A) < 1.25"),
+        ]  # fmt: skip
+        _legend_below(ax, ncol=2, handles=handles)
         kind = "convex" if k == 0 else "non-convex"
-        ax.set_title(f"{kind} modes {modes[0]} / {modes[1]}", fontsize=9)
+        ax.set_title(f"{kind} modes {modes[0]} (w > 0) / {modes[1]} (w < 0)", fontsize=9)
         _cartesian_axes(ax)
-    fig.suptitle(f"Fig. 15: isoconditioning curves of kappa(A) for two working modes\n"
-                 f"{_design_text(design)}", fontsize=10)  # fmt: skip
+    fig.suptitle(f"Fig. 15: isoconditioning curves of kappa(A) for two working modes "
+                 f"(labels: kappa)\n{_design_text(design)}", fontsize=10)  # fmt: skip
     return fig
 
 
@@ -444,14 +643,14 @@ FIGURES: dict[int, tuple[str, Callable[[int], Figure]]] = {
     12: ("fig12_working_mode_and_parallel_singularity", lambda n: figure_12()),
     13: ("fig13_workspace_convex_mode", lambda n: figure_13(n=n)),
     14: ("fig14_workspace_nonconvex_mode", lambda n: figure_14(n=n)),
-    15: ("fig15_isoconditioning", lambda n: figure_15(n=max(64, n // 2))),
+    15: ("fig15_isoconditioning", lambda n: figure_15(n=n)),
 }
 
 
 def write_figures(
     outdir: str | Path,
     *,
-    n: int = 256,
+    n: int = PRINT_RESOLUTION,
     formats: tuple[str, ...] = ("png", "svg"),
     dpi: int = 80,
     only: tuple[int, ...] | None = None,
@@ -546,9 +745,13 @@ FIGURE_FORMATS: tuple[str, ...] = ("png", "svg")
 
 
 def render_figure(
-    name: str, design: Design, *, n: int = 96, fmt: str = "png", dpi: int = 80
+    name: str, design: Design, *, n: int = SCREEN_RESOLUTION, fmt: str = "png", dpi: int = 80
 ) -> bytes:
     """One figure of :data:`NAMED_FIGURES` for ``design``, as PNG or SVG bytes.
+
+    The bytes are cached per process (the last :data:`_CACHE_SIZE` distinct requests), and the
+    sections and loci behind them per design, so a viewer asking again for the figures of the
+    design on screen gets them without recomputing or redrawing.
 
     Parameters
     ----------
@@ -556,7 +759,8 @@ def render_figure(
         A key of :data:`NAMED_FIGURES`.
     design : Design
     n : int
-        Cells per axis of the section grids.
+        Cells per axis of the section grids: :data:`SCREEN_RESOLUTION` by default,
+        :data:`PRINT_RESOLUTION` for print quality.
     fmt : 'png' | 'svg'
     dpi : int
         Resolution of a PNG.
@@ -569,15 +773,20 @@ def render_figure(
         The figure shows something this design does not have (e.g. a stretched-CD
         singularity of a singularity-free design), or it cannot be drawn for it.
     """
-    import io
-
-    from planner.exceptions import DesignError, InputError, PlannerError
+    from planner.exceptions import InputError
 
     if name not in NAMED_FIGURES:
         raise InputError(f"name must be one of {sorted(NAMED_FIGURES)}, got {name!r}")
     if fmt not in FIGURE_FORMATS:
         raise InputError(f"format must be one of {FIGURE_FORMATS}, got {fmt!r}")
+    return _render(name, design, int(n), fmt, int(dpi))
+
+
+@lru_cache(maxsize=_CACHE_SIZE)
+def _render(name: str, design: Design, n: int, fmt: str, dpi: int) -> bytes:
+    """The work of :func:`render_figure` (a refused figure raises and is not cached)."""
     from planner.analysis.workspace import closed_form_volume
+    from planner.exceptions import DesignError, PlannerError
 
     if closed_form_volume(design) <= 0.0:
         raise DesignError(

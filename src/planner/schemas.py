@@ -874,9 +874,13 @@ class FigureQuery(_Request):
     L1: LinkLength = Field(_DEFAULT.L1, description="|AC| = |BD|, m.")
     L2: LinkLength = Field(_DEFAULT.L2, description="|CP| = |DP|, m.")
     resolution: int = Field(
-        96, ge=16, le=MAX_SECTION_RESOLUTION, description="Cells per axis of section grids."
+        96,
+        ge=16,
+        le=MAX_SECTION_RESOLUTION,
+        description="Cells per axis of section grids: 96 (screen, the viewer's default) or "
+        "256 for print quality (the service caps it with a setting).",
     )
-    dpi: int = Field(80, ge=20, le=300, description="Resolution of a PNG.")
+    dpi: int = Field(80, ge=20, le=300, description="Resolution of a PNG (150 for print).")
 
     @model_validator(mode="after")
     def _check_design(self) -> FigureQuery:

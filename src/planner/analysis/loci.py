@@ -25,7 +25,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import PostureBatch, mode_label, wrap_angle
+from planner.kinematics import PostureBatch, mode_signs, wrap_angle
 
 __all__ = [
     "LOCUS_KINDS",
@@ -101,10 +101,9 @@ class Locus:
         """The rows in one working mode and/or assembly mode; other rows become separators."""
         keep = self.valid.copy()
         if working_mode is not None:
-            labels = np.array([mode_label(s) for s in self.working_mode])
-            keep &= labels == working_mode
+            keep &= _signs_match(self.working_mode, working_mode)
         if assembly_mode is not None:
-            keep &= np.array([mode_label([s]) for s in self.assembly_mode]) == assembly_mode
+            keep &= _signs_match(self.assembly_mode, assembly_mode)
         nan = ~keep
         q = self.q.copy()
         passive = self.passive.copy()
@@ -133,6 +132,19 @@ class Locus:
         step = np.abs(np.diff(xy, axis=0)).max(axis=1)
         breaks = np.flatnonzero(step > jump) + 1
         return np.insert(xy, breaks, np.nan, axis=0)
+
+
+def _signs_match(signs: np.ndarray, label: str) -> np.ndarray:
+    """Rows (M,) of a sign array (M,) or (M, k) whose :func:`planner.kinematics.mode_label` is ``label``.
+
+    Compares the int8 signs with :func:`mode_signs` of the label in one numpy operation
+    rather than building a label string per row (which took seconds on the dense loci of a
+    figure); a label of the wrong length or with other characters matches no row.
+    """
+    rows = np.asarray(signs).reshape(len(signs), -1)
+    if not isinstance(label, str) or len(label) != rows.shape[1] or set(label) - set("+-0"):
+        return np.zeros(len(rows), dtype=bool)
+    return np.all(rows == mode_signs(label)[None, :], axis=1)
 
 
 # ----------------------------------------------------------------------------- geometry
