@@ -26,11 +26,7 @@ machine say little without it.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
-import shutil
 import statistics
-import subprocess
 import time
 from collections.abc import Callable
 
@@ -43,18 +39,6 @@ from planner.analysis.workspace import closed_form_volume, sample_workspace
 GOAL_S = 1.0
 #: Goal of one figure at the screen resolution (the viewer's budget, issue 15).
 FIGURE_GOAL_S = 2.0
-
-
-def machine() -> str:
-    """CPU model name and core count (``lscpu``; the platform's answer where it is missing)."""
-    model, cores = platform.processor() or platform.machine(), str(os.cpu_count())
-    if shutil.which("lscpu"):
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=False).stdout
-        fields = dict(line.split(":", 1) for line in out.splitlines() if ":" in line)
-        fields = {k.strip(): v.strip() for k, v in fields.items()}
-        model = fields.get("Model name", model)
-        cores = fields.get("CPU(s)", cores)
-    return f"machine: {model}, {cores} CPU(s), Python {platform.python_version()}"
 
 
 def median_seconds(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
@@ -116,7 +100,6 @@ def main() -> None:
     parser.add_argument("--figure-repeat", type=int, default=3, help="repeats per figure")
     parser.add_argument("--no-figures", action="store_true", help="skip the figure table")
     args = parser.parse_args()
-    print(machine())
 
     rows = []
     for name, design in (("paper optimum", Design.paper_optimum()), ("default", Design.default())):
