@@ -13,6 +13,7 @@ from api.errors import install_error_handlers
 from api.metrics import Metrics
 from api.metrics import router as metrics_router
 from api.middleware import RequestGate, RequestObserver
+from api.openapi import install_docs, install_openapi
 from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
 from api.routes import workspace as workspace_routes
@@ -21,8 +22,8 @@ from api.warmup import warm_up_worker
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
 
-#: Error answers every /v1 route may give (documented in the OpenAPI schema).
-_ERRORS = {code: {"model": ErrorResponse} for code in (401, 413, 422, 502, 503, 504)}
+#: Error answers of the job routes' own (the gate's and the pool's: api.openapi).
+_ERRORS = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
 
@@ -59,6 +60,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
         "manipulator (five-bar A-C-P-D-B turning about AB).",
         lifespan=lifespan,
+        docs_url=None,  # served from the package's own assets (api.openapi.install_docs)
+        redoc_url=None,
     )
     app.state.settings = settings
     install_error_handlers(app)
@@ -78,4 +81,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+    install_docs(app)
+    install_openapi(app, api_key=settings.api_key is not None)
     return app

@@ -142,6 +142,9 @@ def configure_logging(level: str = "info", log_format: LogFormat = "json") -> No
         lg = logging.getLogger(name)
         lg.handlers.clear()
         lg.propagate = True
+    # Python warnings (numpy's, matplotlib's ...) become log records of ``py.warnings``, so
+    # that every line of the log has the log's format (a JSON log stays parseable)
+    logging.captureWarnings(True)
 
 
 def uvicorn_log_config(level: str = "info", log_format: LogFormat = "json") -> dict[str, Any]:

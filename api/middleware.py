@@ -8,7 +8,8 @@ application parses anything:
    cut off (413) as soon as it passes the limit;
 2. **auth**: without the API key (when one is configured), every ``/v1`` route but
    ``/v1/health`` is 401, whatever the body holds;
-3. **content type**: a POST to ``/v1`` whose ``Content-Type`` is not JSON is 415;
+3. **content type**: a POST to a ``/v1`` route whose ``Content-Type`` is not JSON is 415
+   (a method the route does not take is left to routing: 405);
 4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
    request's budget), else 408 and the connection is closed, so a client that stalls cannot
    hold a connection;
@@ -29,6 +30,7 @@ import logging
 import secrets
 import time
 
+from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
@@ -52,6 +54,16 @@ def api_key_given(headers: dict[str, str]) -> str | None:
         scheme, _, token = headers.get("authorization", "").partition(" ")
         given = token.strip() if scheme.lower() == "bearer" else None
     return given
+
+
+def _route_takes(scope: Scope) -> bool:
+    """Whether a route of the app takes this path with this method (else routing answers
+    404 or 405, which the content type must not pre-empt)."""
+    router = getattr(scope.get("app"), "router", None)
+    for route in getattr(router, "routes", ()):
+        if route.matches(scope)[0] is Match.FULL:
+            return True
+    return False
 
 
 def _is_json(content_type: str) -> bool:
@@ -103,7 +115,7 @@ class RequestGate:
                     "unauthorized", [], [(b"www-authenticate", b"Bearer")],
                 )  # fmt: skip
                 return
-        if guarded and scope.get("method") in _BODY_METHODS:
+        if guarded and scope.get("method") in _BODY_METHODS and _route_takes(scope):
             content_type = headers.get("content-type", "")
             if not _is_json(content_type):
                 got = f"got {content_type!r}" if content_type else "none was given"

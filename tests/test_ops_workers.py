@@ -10,6 +10,7 @@ of more than ten either side.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import threading
@@ -153,3 +154,23 @@ def test_a_killed_server_leaves_no_process_behind(server):
     while any(_alive(p) for p in ours):
         assert time.monotonic() < end, [p for p in ours if _alive(p)]
         time.sleep(0.1)
+
+
+def test_every_log_line_is_json_and_an_idle_stop_is_quiet(server):
+    """Requests that used to leave non-JSON lines (a figure whose legend had nothing to show,
+    library warnings), then a SIGTERM on an idle server: every line of the log is JSON, and
+    nothing claims a worker was busy or a semaphore leaked."""
+    process, url, log = server
+    for name in ("working_modes", "serial_singularity", "isoconditioning"):
+        r = httpx.get(f"{url}/v1/figures/{name}.png", params={"dpi": 20, "resolution": 16})
+        assert r.status_code == 200, r.text
+    assert httpx.post(f"{url}/v1/plan", json=PLAN, timeout=60).status_code == 200
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=60) in (0, -signal.SIGTERM)
+    lines = log.read_text().splitlines()
+    assert lines
+    for line in lines:
+        record = json.loads(line)  # every line parses
+        assert "still busy" not in record["message"], record
+        assert "leaked" not in record["message"], record
+        assert record["level"] != "error", record

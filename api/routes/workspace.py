@@ -5,14 +5,14 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Path, Query, Response
 
 from api import compute_analysis
 from api.deps import Deadline, Pool, SettingsDep
 from api.errors import error_response
 from api.exceptions import LimitExceededError
 from api.routes._common import run_job
-from planner.schemas import FigureQuery, WorkspaceRequest, WorkspaceResponse
+from planner.schemas import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
 
 router = APIRouter(prefix="/v1", tags=["workspace"])
 
@@ -68,11 +68,20 @@ async def workspace(
     response_class=Response,
     responses={
         200: {"content": {t: {} for t in MEDIA_TYPES.values()}, "description": "The image."},
-        404: {"description": "Unknown figure name or format (the answer lists the names)."},
+        404: {
+            "model": ErrorResponse,
+            "description": "Unknown figure name or format (the answer lists the names).",
+        },
     },
 )
 async def figure(
-    filename: str,
+    filename: Annotated[
+        str,
+        Path(
+            description="``{name}.png`` or ``{name}.svg``",
+            json_schema_extra={"enum": [f"{n}.{f}" for n in FIGURE_NAMES for f in MEDIA_TYPES]},
+        ),
+    ],
     query: Annotated[FigureQuery, Query()],
     pool: Pool,
     deadline: Deadline,

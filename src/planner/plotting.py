@@ -99,7 +99,11 @@ _CACHE_SIZE = 16
 def _legend_below(ax: Axes, ncol: int = 3, handles: list | None = None) -> None:
     """The axes' legend in a frameless row under the x label, with line samples long and
     thick enough to be told apart at a glance."""
-    kwargs = {"handles": handles} if handles is not None else {}
+    if handles is None:
+        handles = ax.get_legend_handles_labels()[0]
+    if not handles:  # nothing labelled is drawn (e.g. a design without that locus)
+        return
+    kwargs = {"handles": handles}
     leg = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7,
                     frameon=False, handlelength=2.6, **kwargs)  # fmt: skip
     for line in leg.get_lines():

@@ -1,0 +1,125 @@
+"""The OpenAPI document says everything a route can answer, and the offline API docs.
+
+FastAPI documents the success answer and request validation (422) of each route; the answers
+of the request gate (:mod:`api.middleware`: 401 without the key, 408, 413, 415) and of the
+worker pool (502, 503, 504) happen around the routes, so :func:`install_openapi` adds them:
+
+- every ``/v1`` operation but ``/v1/health``: 401 when a key is configured (and then the
+  ``securitySchemes`` ``ApiKey``, header ``X-API-Key``, and ``Bearer``);
+- every operation with a body: 408, 413, 415, 422;
+- every operation that runs in a worker: 502, 503, 504; the others that can be refused
+  while the service stops: 503.
+
+``/docs`` (Swagger UI) and ``/redoc`` (ReDoc) load their scripts from ``/static/docs``,
+files shipped inside this package (``api/static/docs``, with their licences), never from a
+CDN: the docs render on a machine with no internet.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+from fastapi.openapi.utils import get_openapi
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+
+__all__ = ["STATIC_DOCS", "install_docs", "install_openapi"]
+
+#: The vendored Swagger UI and ReDoc files.
+STATIC_DOCS = Path(__file__).parent / "static" / "docs"
+_ERROR = {"$ref": "#/components/schemas/ErrorResponse"}
+_DESCRIPTIONS = {
+    "401": "Missing or wrong API key (X-API-Key or Authorization: Bearer).",
+    "408": "The request body did not arrive within the body timeout.",
+    "413": "The request body is larger than the service's limit.",
+    "415": "The request body is not JSON (Content-Type must be application/json).",
+    "422": "Invalid input: each detail item's loc names the field.",
+    "502": "The worker process running the job died (only this job fails).",
+    "503": "Every worker busy and the queue full, or the service is stopping (Retry-After).",
+    "504": "The request's time budget ran out before the work finished.",
+}
+#: Operations answered in the event loop, without a worker job.
+_NO_JOB = frozenset({"/v1/health", "/v1/ready", "/v1/version", "/v1/designs"})
+
+
+def _add(operation: dict[str, Any], *codes: str) -> None:
+    responses = operation.setdefault("responses", {})
+    for code in codes:
+        if code not in responses:
+            responses[code] = {
+                "description": _DESCRIPTIONS[code],
+                "content": {"application/json": {"schema": _ERROR}},
+            }
+
+
+def document_errors(schema: dict[str, Any], *, api_key: bool) -> dict[str, Any]:
+    """Add the statuses of the gate and the pool to every operation of ``schema`` (in
+    place), and the security schemes when ``api_key``."""
+    for path, item in schema.get("paths", {}).items():
+        if not path.startswith("/v1/"):
+            continue
+        for method, operation in item.items():
+            if path == "/v1/health":
+                continue
+            if api_key:
+                _add(operation, "401")
+                operation["security"] = [{"ApiKey": []}, {"Bearer": []}]
+            if method in ("post", "put", "patch"):
+                _add(operation, "408", "413", "415", "422")
+            if path not in _NO_JOB:
+                _add(operation, "502", "503", "504")
+            elif path != "/v1/ready":
+                _add(operation, "503")
+    if api_key:
+        schema.setdefault("components", {})["securitySchemes"] = {
+            "ApiKey": {"type": "apiKey", "in": "header", "name": "X-API-Key"},
+            "Bearer": {"type": "http", "scheme": "bearer"},
+        }
+    return schema
+
+
+def install_openapi(app: FastAPI, *, api_key: bool) -> None:
+    """Make ``app.openapi()`` return the document with :func:`document_errors` applied."""
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = get_openapi(
+                title=app.title,
+                version=app.version,
+                description=app.description,
+                routes=app.routes,
+            )
+            app.openapi_schema = document_errors(schema, api_key=api_key)
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+def install_docs(app: FastAPI) -> None:
+    """Serve ``/docs`` and ``/redoc`` from the vendored assets (the app must be built with
+    ``docs_url=None, redoc_url=None``)."""
+    app.mount("/static/docs", StaticFiles(directory=STATIC_DOCS), name="static-docs")
+    title = f"{app.title} API"
+
+    @app.get("/docs", include_in_schema=False)
+    def swagger() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url="/openapi.json",
+            title=title,
+            swagger_js_url="/static/docs/swagger-ui-bundle.js",
+            swagger_css_url="/static/docs/swagger-ui.css",
+            swagger_favicon_url="/static/docs/favicon-32x32.png",
+        )
+
+    @app.get("/redoc", include_in_schema=False)
+    def redoc() -> HTMLResponse:
+        return get_redoc_html(
+            openapi_url="/openapi.json",
+            title=title,
+            redoc_js_url="/static/docs/redoc.standalone.js",
+            redoc_favicon_url="/static/docs/favicon-32x32.png",
+            with_google_fonts=False,
+        )
