@@ -15,6 +15,7 @@ from api.metrics import router as metrics_router
 from api.middleware import RequestLimitsMiddleware, RequestObserver
 from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
+from api.routes.viewer import install_viewer
 from api.routes import workspace as workspace_routes
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
@@ -74,4 +75,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+    install_viewer(app)  # GET / and /viewer/: the page, without the API key
     return app
