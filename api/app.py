@@ -15,8 +15,8 @@ from api.metrics import router as metrics_router
 from api.middleware import RequestLimitsMiddleware, RequestObserver
 from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
-from api.routes.viewer import install_viewer
 from api.routes import workspace as workspace_routes
+from api.routes.viewer import install_viewer
 from api.settings import Settings, get_settings
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
