@@ -136,7 +136,7 @@ export class Scene {
       this.robot.add(j, this.labels[k]);
     }
     const dist = 2.6 * (R + half);
-    this.camera.position.set(0.62 * dist, -0.62 * dist, 0.62 * dist);
+    this.camera.position.set(0.8 * dist, -0.45 * dist, 0.5 * dist);
     this.controls.target.set(0, 0, 0);
     this.controls.update();
     this.render();
