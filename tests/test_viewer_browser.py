@@ -229,6 +229,15 @@ def test_bad_fields_show_their_messages_next_to_them(page, live_server, tmp_path
     page.locator("[data-key=radius]").fill("0.06")
     assert plan(page)["status"] == "solved"
     expect(page.get_by_test_id("field-error")).to_have_count(0)
+    # a goal out of reach: a non-solved status with its message, in plain words
+    page.locator("input[name=goal-kind][value=p]").check()
+    for i, x in enumerate(("3", "0", "0")):
+        page.locator(f"input[name='goal.p.{i}']").fill(x)
+    answer = plan(page)
+    assert answer["status"] == "unreachable"
+    expect(page.get_by_test_id("status")).to_have_text("unreachable")
+    expect(page.get_by_test_id("message")).to_have_text(answer["message"])
+    assert answer["message"]
     # the browser logs each 422 answer as a failed resource load: expected here, nothing else
     page.watch.check(allowed_errors=re.compile(r"status of 422"))
 
