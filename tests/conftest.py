@@ -2,6 +2,7 @@
 
 ``live_server`` starts ``planner serve`` (uvicorn) in a subprocess on a free loopback port,
 waits for ``/v1/health`` and yields its base URL; the client tests and the examples use it.
+``serve_factory`` starts one with other settings (e.g. an API key).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 import httpx
@@ -76,11 +78,12 @@ def _wait_healthy(url: str, process: subprocess.Popen[bytes], log: Path) -> None
     )
 
 
-@pytest.fixture(scope="session")
-def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """Base URL of a real ``planner serve`` process (uvicorn, 2 workers) on a free port."""
+@contextmanager
+def serve(log: Path, **env_vars: str) -> Iterator[str]:
+    """A real ``planner serve`` process (uvicorn) on a free loopback port, its environment
+    without ``PLANNER_API_KEY`` unless given in ``env_vars`` (2 workers unless told); yields
+    its base URL once ``/v1/health`` answers, and stops it at the end."""
     port = free_port()
-    log = tmp_path_factory.mktemp("live_server") / "server.log"
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join(
@@ -89,6 +92,7 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         "PLANNER_WORKERS": "2",
     }
     env.pop("PLANNER_API_KEY", None)
+    env.update(env_vars)
     with log.open("wb") as out:
         process = subprocess.Popen(
             [
@@ -119,3 +123,16 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         except subprocess.TimeoutExpired:  # pragma: no cover - a hung shutdown
             process.kill()
             process.wait()
+
+
+@pytest.fixture(scope="session")
+def serve_factory() -> Callable[..., AbstractContextManager[str]]:
+    """:func:`serve`, as a fixture: a service process with its own settings."""
+    return serve
+
+
+@pytest.fixture(scope="session")
+def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """Base URL of a real ``planner serve`` process (uvicorn, 2 workers) on a free port."""
+    with serve(tmp_path_factory.mktemp("live_server") / "server.log") as url:
+        yield url

@@ -260,3 +260,43 @@ def test_copied_curl_and_python_call_are_the_request(page, live_server):
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("solved"), out.stdout
     page.watch.check()
+
+
+KEY = "viewer-test-key"
+
+
+@pytest.fixture(scope="module")
+def keyed_server(serve_factory, tmp_path_factory) -> Iterator[str]:
+    """A service that requires an API key (one worker)."""
+    log = tmp_path_factory.mktemp("keyed_server") / "server.log"
+    with serve_factory(log, PLANNER_API_KEY=KEY, PLANNER_WORKERS="1") as url:
+        yield url
+
+
+def test_api_key_typed_into_the_page_is_sent(browser, keyed_server):
+    from playwright.sync_api import expect
+
+    context = browser.new_context(viewport=VIEWPORT)
+    try:
+        page = context.new_page()
+        watch = Watch(page, keyed_server)
+        keys: dict[str, str | None] = {}
+        page.on("request", lambda r: keys.setdefault(r.url, r.headers.get("x-api-key")))
+        page.goto(keyed_server + "/")  # the page itself needs no key
+        expect(page.get_by_test_id("message")).to_contain_text("API key")
+        page.locator("#api-key").fill(KEY)
+        page.locator("#api-key").press("Tab")  # "change"
+        expect(page.locator("#preset")).to_have_value("default")
+        answer = plan(page)
+        assert answer["status"] == "solved", answer["message"]
+        api_calls = {u: k for u, k in keys.items() if "/v1/" in u}
+        assert f"{keyed_server}/v1/plan" in api_calls
+        assert api_calls[f"{keyed_server}/v1/plan"] == KEY
+        # the copied command names the key's variable, never the key
+        page.locator("#copy-curl").click()
+        curl = page.get_by_test_id("export-text").input_value()
+        assert "$PLANNER_API_KEY" in curl and KEY not in curl
+        # before the key was typed, the service refused the page's calls (401): nothing else
+        watch.check(allowed_errors=re.compile(r"status of 401"))
+    finally:
+        context.close()

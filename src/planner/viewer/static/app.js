@@ -13,6 +13,7 @@ const timeline = $('timeline');
 const DEFAULT_MARGINS = { kappa_max: 10, serial_min: 0.05 };
 
 let presets = [];
+let lastPlan = null;  // the last answer (and its request), for the downloads
 let shown = null;     // the plan on screen: {request, response, t, q, postures, segmentOf, ...}
 let playing = false;
 let tNow = 0;
@@ -61,11 +62,11 @@ function designChanged() {
   const d = currentDesign();
   if (!d) return;
   const key = JSON.stringify(d);
+  const match = presets.find((p) => JSON.stringify(p.design) === key);
+  $('preset').value = match ? match.name : '';
   if (key === designKey) return;
   designKey = key;
   scene.setDesign(d);
-  const match = presets.find((p) => JSON.stringify(p.design) === key);
-  $('preset').value = match ? match.name : '';
   clearTimeout(analysisTimer);
   analysisTimer = setTimeout(() => analyse(d), 300);
 }
@@ -114,7 +115,9 @@ async function loadPresets() {
   try {
     presets = (await getJSON('/v1/designs')).presets;
   } catch (err) {
-    setStatus('not planned', '', `presets unavailable: ${err.message}`);
+    const hint = err instanceof ApiError && err.status === 401
+      ? 'The service needs an API key: type it into the API key field (Service).' : `presets unavailable: ${err.message}`;
+    setStatus('not planned', '', hint);
     return;
   }
   for (const p of presets) {
@@ -125,8 +128,7 @@ async function loadPresets() {
     select.appendChild(o);
   }
   form.setDesign(presets[0].design);  // "default" comes first
-  designKey = '';
-  designChanged();
+  designChanged();  // analysed again only if the service's default differs from the page's
   preview();
 }
 
@@ -226,7 +228,6 @@ function renderTransits(transits, t) {
     const m = document.createElement('div');
     m.className = 'transit-mark';
     m.dataset.testid = 'transit-mark';
-    m.setAttribute('data-testid', 'transit-mark');
     m.style.left = `${(100 * tr.t) / (duration || 1)}%`;
     m.textContent = tr.kind;
     m.title = `${tr.kind}: sign ${tr.flipped} flips, ${tr.from} → ${tr.to}`;
@@ -310,8 +311,6 @@ timeline.addEventListener('input', () => {
 });
 
 // ------------------------------------------------------------------ export
-let lastPlan = null;
-
 async function exportText(text) {
   const area = $('export-text');
   area.hidden = false;

@@ -198,7 +198,6 @@ export function showErrors(detail) {
     el.className = 'field-error';
     el.dataset.testid = 'field-error';
     el.dataset.loc = path.join('.');
-    el.setAttribute('data-testid', 'field-error');
     el.textContent = text;
     target.appendChild(el);
     (exact || target.querySelector('input, select'))?.setAttribute('aria-invalid', 'true');
