@@ -238,6 +238,9 @@ def test_bad_fields_show_their_messages_next_to_them(page, live_server, tmp_path
     expect(page.get_by_test_id("status")).to_have_text("unreachable")
     expect(page.get_by_test_id("message")).to_have_text(answer["message"])
     assert answer["message"]
+    # and the solved plan before it is off the screen
+    expect(page.get_by_test_id("kappa-plot").locator("canvas")).to_have_count(0)
+    expect(page.get_by_test_id("timeline")).to_be_disabled()
     # the browser logs each 422 answer as a failed resource load: expected here, nothing else
     page.watch.check(allowed_errors=re.compile(r"status of 422"))
 

@@ -135,6 +135,7 @@ async function loadPresets() {
 $('preset').addEventListener('change', () => {
   const p = presets.find((x) => x.name === $('preset').value);
   if (!p) return;
+  if (shown) clearPlan();
   form.setDesign(p.design);
   designChanged();
   preview();
@@ -174,15 +175,27 @@ function samples(response) {
   return { t: q.map((_, i) => i), q, qd: zeros, qdd: zeros, duration: q.length - 1, p: null };
 }
 
-function showPlan(request, response) {
+/** Take the plan off the screen (none came back, or the design changed). */
+function clearPlan() {
+  stop();
   shown = null;
+  timeline.disabled = true;
+  timeline.max = '0';
+  timeline.value = '0';
+  $('play').disabled = true;
+  $('time').textContent = '0.00';
+  $('duration').textContent = '0.00';
+  renderTransits([], []);
+  plots.clear();
+  section.setPath(null);
+}
+
+function showPlan(request, response) {
+  clearPlan();
   $('download-json').disabled = false;
   $('download-csv').disabled = !response.trajectory;
   lastPlan = { request, response };
   if (!response.path) {
-    timeline.disabled = true;
-    $('play').disabled = true;
-    renderTransits([], []);
     preview();
     return;
   }
@@ -341,10 +354,8 @@ window.addEventListener('resize', () => plots.resize());
 
 form.init({
   changed: (name = '') => {
-    if (name.startsWith('design.')) {
-      shown = null;  // the plan on screen was for another design
-      designChanged();
-    }
+    if (name.startsWith('design.') && shown) clearPlan();  // the plan was for another design
+    if (name.startsWith('design.')) designChanged();
     preview();
   },
 });

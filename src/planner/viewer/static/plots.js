@@ -55,8 +55,7 @@ const joints = (m, k) => m.map((v) => v[k]);
 
 /** Draw every plot for a trajectory and the page's kinematics along it. */
 export function show({ t, q, qd, qdd, kappa, serial, margins, transitTimes, onSeek }) {
-  for (const c of charts) c.destroy();
-  for (const id of ['kappa-plot', 'joint-plot']) document.getElementById(id).replaceChildren();
+  clear();
   transits = transitTimes;
   now = 0;
   const kEl = document.getElementById('kappa-plot');
@@ -79,6 +78,13 @@ export function show({ t, q, qd, qdd, kappa, serial, margins, transitTimes, onSe
       label: `θ${k + 1}`, stroke: JOINT_COLORS[k], width: 1.5,
     })), [t, ...[0, 1, 2].map((k) => joints(m, k))], { yLabel: unit }, onSeek));
   }
+}
+
+/** Remove every plot. */
+export function clear() {
+  for (const c of charts) c.destroy();
+  charts = [];
+  for (const id of ['kappa-plot', 'joint-plot']) document.getElementById(id).replaceChildren();
 }
 
 /** Move the current-time line. */
