@@ -17,6 +17,7 @@ from api.openapi import install_docs, install_openapi
 from api.routes import design, designs, kinematics, meta, plan
 from api.routes import timing as timing_routes
 from api.routes import workspace as workspace_routes
+from api.routes.viewer import install_viewer
 from api.settings import Settings, get_settings
 from api.warmup import warm_up_worker
 from api.workers import WorkerPool
@@ -81,6 +82,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+    install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)
     return app

@@ -1,7 +1,9 @@
 """Shared fixtures: an in-process app (FastAPI's TestClient) and a real service process.
 
 ``live_server`` starts ``planner serve`` (uvicorn) in a subprocess on a free loopback port,
-waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client tests and the examples use it.
+waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client tests and the
+examples use it. ``serve_factory`` starts one with other settings (e.g. an API key) as a
+context manager; ``server_factory`` starts processes that a test may signal or kill.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, ExitStack, contextmanager
 from pathlib import Path
 
 import httpx
@@ -111,11 +114,21 @@ def wait_live_ready(url: str, process: subprocess.Popen[bytes], log: Path) -> No
     )
 
 
-@pytest.fixture(scope="session")
-def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """Base URL of a real ``planner serve`` process (uvicorn, 2 workers) on a free port."""
+@contextmanager
+def serve(log: Path, **env_vars: str) -> Iterator[str]:
+    """A real ``planner serve`` process (uvicorn) on a free loopback port, its environment
+    without ``PLANNER_API_KEY`` unless given in ``env_vars`` (2 workers unless told); yields
+    its base URL once ``/v1/ready`` answers (every worker warm), and stops it at the end."""
+    with serve_process(log, **env_vars) as (_, url):
+        yield url
+
+
+@contextmanager
+def serve_process(
+    log: Path, *, log_level: str = "warning", **env_vars: str
+) -> Iterator[tuple[subprocess.Popen[bytes], str]]:
+    """:func:`serve`, yielding the process too (process, base URL)."""
     port = free_port()
-    log = tmp_path_factory.mktemp("live_server") / "server.log"
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join(
@@ -124,6 +137,7 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         "PLANNER_WORKERS": "2",
     }
     env.pop("PLANNER_API_KEY", None)
+    env.update(env_vars)
     with log.open("wb") as out:
         process = subprocess.Popen(
             [
@@ -136,7 +150,7 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                 "--port",
                 str(port),
                 "--log-level",
-                "warning",
+                log_level,
             ],
             cwd=ROOT,
             env=env,
@@ -146,7 +160,7 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     url = f"http://127.0.0.1:{port}"
     try:
         wait_live_ready(url, process, log)
-        yield url
+        yield process, url
     finally:
         process.terminate()
         try:
@@ -156,40 +170,35 @@ def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
             process.wait()
 
 
+@pytest.fixture(scope="session")
+def serve_factory() -> Callable[..., AbstractContextManager[str]]:
+    """:func:`serve`, as a fixture: a service process with its own settings."""
+    return serve
+
+
+@pytest.fixture(scope="session")
+def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """Base URL of a real ``planner serve`` process (uvicorn, 2 workers) on a free port."""
+    with serve(tmp_path_factory.mktemp("live_server") / "server.log") as url:
+        yield url
+
+
 @pytest.fixture
 def server_factory(
     tmp_path: Path,
 ) -> Iterator[Callable[..., tuple[subprocess.Popen[bytes], str, Path]]]:
     """Start ``planner serve`` processes with extra ``PLANNER_*`` settings (keyword
-    arguments, e.g. ``WORKERS="2"``) on free ports, each ready (every worker warm); yields
-    the starter, which returns (process, base URL, log path). Every process is killed at
-    the end of the test."""
-    started: list[subprocess.Popen[bytes]] = []
+    arguments, e.g. ``workers="2"``), JSON logs at INFO, each ready (every worker warm);
+    yields the starter, which returns (process, base URL, log path), for tests that signal or
+    kill the process. Every process is stopped at the end of the test."""
+    count = iter(range(1_000))
+    with ExitStack() as stack:
 
-    def start(**settings: str) -> tuple[subprocess.Popen[bytes], str, Path]:
-        port = free_port()
-        log = tmp_path / f"server-{port}.log"
-        env = {
-            **os.environ,
-            "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)]),
-            "PLANNER_LOG_FORMAT": "json",
-            **{f"PLANNER_{k.upper()}": v for k, v in settings.items()},
-        }
-        if "api_key" not in {k.lower() for k in settings}:
-            env.pop("PLANNER_API_KEY", None)
-        with log.open("wb") as out:
-            process = subprocess.Popen(
-                [sys.executable, "-m", "planner.cli", "serve", "--host", "127.0.0.1",
-                 "--port", str(port)],
-                cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT,
-            )  # fmt: skip
-        started.append(process)
-        url = f"http://127.0.0.1:{port}"
-        wait_live_ready(url, process, log)
-        return process, url, log
+        def start(**settings: str) -> tuple[subprocess.Popen[bytes], str, Path]:
+            log = tmp_path / f"server-{next(count)}.log"
+            env = {"PLANNER_LOG_FORMAT": "json"}
+            env.update({f"PLANNER_{k.upper()}": v for k, v in settings.items()})
+            process, url = stack.enter_context(serve_process(log, log_level="info", **env))
+            return process, url, log
 
-    yield start
-    for process in started:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
+        yield start

@@ -1,0 +1,40 @@
+// Calls to the service's /v1 API (same origin), with the API key when one is typed in.
+
+export class ApiError extends Error {
+  constructor(status, detail) {
+    const first = Array.isArray(detail) && detail.length ? detail[0].msg : `HTTP ${status}`;
+    super(first);
+    this.status = status;
+    this.detail = Array.isArray(detail) ? detail : [];
+  }
+}
+
+let apiKey = '';
+export const setApiKey = (key) => { apiKey = key.trim(); };
+
+function headers(json) {
+  const h = {};
+  if (json) h['Content-Type'] = 'application/json';
+  if (apiKey) h['X-API-Key'] = apiKey;
+  return h;
+}
+
+async function answer(response) {
+  if (response.ok) return response;
+  let detail = [];
+  try { detail = (await response.json()).detail; } catch { /* not JSON */ }
+  throw new ApiError(response.status, detail);
+}
+
+export async function getJSON(path) {
+  return (await answer(await fetch(path, { headers: headers(false) }))).json();
+}
+
+export async function postJSON(path, body) {
+  const r = await fetch(path, { method: 'POST', headers: headers(true), body: JSON.stringify(body) });
+  return (await answer(r)).json();
+}
+
+export async function getBlob(path) {
+  return (await answer(await fetch(path, { headers: headers(false) }))).blob();
+}

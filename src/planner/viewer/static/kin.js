@@ -1,0 +1,69 @@
+// Kinematics of the five-bar A-C-P-D-B turning about AB, in the paper's frame
+// (CONVENTIONS.md): A = (0, -L0/2, 0), B = (0, L0/2, 0); the plane turns about +y; in-plane
+// coordinates (u along AB, w along e(theta1) = (cos t1, 0, -sin t1)); P = (w cos t1, u, -w sin t1).
+//
+// Decision: the page computes C, D, P, kappa(A), the serial margin and the modes itself,
+// from each trajectory sample's q, with the closed forms below (the same as the service's
+// forward kernel: P is the intersection of the circles of radius L2 about C and D, on the
+// side given by the assembly mode). It costs microseconds per sample, needs no request per
+// animation frame, and works at any sample. The tests check these points against the
+// trajectory's own P (trajectory.p, computed by the service): see fkCheck().
+
+const sign = (x) => (x > 0 ? '+' : x < 0 ? '-' : '0');
+
+/** Joint centres and measures of q = [t1, t2, t3] in assembly mode asm ('+' | '-'), or null. */
+export function posture(design, q, asm) {
+  const { L0, L1, L2 } = design;
+  const [t1, t2, t3] = q;
+  const cu = -L0 / 2 + L1 * Math.cos(t2), cw = L1 * Math.sin(t2);
+  const du = L0 / 2 + L1 * Math.cos(t3), dw = L1 * Math.sin(t3);
+  const eu = du - cu, ew = dw - cw, d2 = eu * eu + ew * ew;
+  if (d2 === 0 || d2 > 4 * L2 * L2 * (1 + 1e-12)) return null;
+  const h2 = L2 * L2 - d2 / 4;
+  const s = (asm === '-' ? -1 : 1) * (h2 > 0 ? Math.sqrt(h2 / d2) : 0);
+  const pu = (cu + du) / 2 - s * ew, pw = (cw + dw) / 2 + s * eu;
+  const t4 = Math.atan2(pw - cw, pu - cu), t5 = Math.atan2(pw - dw, pu - du);
+  const c1 = Math.cos(t1), s1 = Math.sin(t1);
+  const to3 = (u, w) => [w * c1, u, -w * s1];
+  const c = Math.cos(t4 - t5);
+  const kappa = 1 - Math.abs(c) > 0 ? Math.sqrt((1 + Math.abs(c)) / (1 - Math.abs(c))) : Infinity;
+  const sA = Math.sin(t4 - t2), sB = Math.sin(t5 - t3);
+  const serial = Math.min(Math.abs(sA), Math.abs(sB), Math.abs(pw) / (L1 + L2));
+  return {
+    A: [0, -L0 / 2, 0], B: [0, L0 / 2, 0], C: to3(cu, cw), D: to3(du, dw), P: to3(pu, pw),
+    u: pu, w: pw, t4, t5, kappa, serial,
+    workingMode: sign(pw) + sign(sA) + sign(sB),
+    assemblyMode: sign(Math.sin(t5 - t4)),
+  };
+}
+
+/** The in-plane unit vector e(theta1) normal to AB. */
+export const planeDirection = (t1) => [Math.cos(t1), 0, -Math.sin(t1)];
+
+/** Postures of every trajectory sample. */
+export function along(design, qs, asm) {
+  return qs.map((q) => posture(design, q, asm));
+}
+
+/** Largest distance between the page's P and the service's trajectory.p (m), or null. */
+export function fkCheck(postures, ps) {
+  if (!ps) return null;
+  let worst = 0;
+  postures.forEach((x, i) => {
+    if (!x) { worst = Infinity; return; }
+    worst = Math.max(worst, Math.hypot(x.P[0] - ps[i][0], x.P[1] - ps[i][1], x.P[2] - ps[i][2]));
+  });
+  return worst;
+}
+
+/** Sample index nearest (in joint space) to each transit posture. */
+export function transitSamples(qs, transits) {
+  return transits.map((tr) => {
+    let best = 0, bestD = Infinity;
+    qs.forEach((q, i) => {
+      const d = Math.hypot(q[0] - tr.q[0], q[1] - tr.q[1], q[2] - tr.q[2]);
+      if (d < bestD) { bestD = d; best = i; }
+    });
+    return best;
+  });
+}

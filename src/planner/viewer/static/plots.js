@@ -1,0 +1,102 @@
+// Plots against time (uPlot, loaded as the global uPlot by index.html): kappa(A) and the
+// serial margin against their margins; q, qd, qdd of the three actuated joints. Transits are
+// vertical lines with their kind, the current time a red line; a click seeks.
+
+const uPlot = globalThis.uPlot;
+const JOINT_COLORS = ['#1f77b4', '#ff7f0e', '#2ca02c'];
+const TRANSIT = '#6a1b9a';
+
+let charts = [];
+let now = 0;
+let transits = [];
+
+function overlay(u) {
+  const { ctx } = u;
+  const { top, height } = u.bbox;
+  ctx.save();
+  ctx.font = `${11 * devicePixelRatio}px system-ui, sans-serif`;
+  for (const tr of transits) {
+    const x = u.valToPos(tr.t, 'x', true);
+    ctx.strokeStyle = TRANSIT;
+    ctx.setLineDash([4 * devicePixelRatio, 3 * devicePixelRatio]);
+    ctx.lineWidth = devicePixelRatio;
+    ctx.beginPath(); ctx.moveTo(x, top); ctx.lineTo(x, top + height); ctx.stroke();
+    ctx.fillStyle = TRANSIT;
+    ctx.fillText(tr.kind, x + 3 * devicePixelRatio, top + 11 * devicePixelRatio);
+  }
+  const x = u.valToPos(now, 'x', true);
+  ctx.setLineDash([]);
+  ctx.strokeStyle = '#d62728';
+  ctx.lineWidth = 1.5 * devicePixelRatio;
+  ctx.beginPath(); ctx.moveTo(x, top); ctx.lineTo(x, top + height); ctx.stroke();
+  ctx.restore();
+}
+
+function chart(el, title, series, data, { yRange, yLabel } = {}, onSeek) {
+  const box = document.createElement('div');
+  el.appendChild(box);
+  const width = Math.max(200, el.clientWidth - 12);
+  const u = new uPlot({
+    title, width, height: 150,
+    legend: { show: true, live: false },
+    cursor: { drag: { x: false, y: false }, points: { show: false } },
+    scales: { x: { time: false }, y: yRange ? { range: yRange } : { auto: true } },
+    axes: [{ label: 't (s)', labelSize: 16, size: 30 }, { label: yLabel, labelSize: 18, size: 50 }],
+    series: [{ label: 't' }, ...series],
+    hooks: { draw: [overlay] },
+  }, data, box);
+  u.over.addEventListener('click', () => {
+    if (u.cursor.left >= 0) onSeek(u.posToVal(u.cursor.left, 'x'));
+  });
+  return u;
+}
+
+const joints = (m, k) => m.map((v) => v[k]);
+
+/** Draw every plot for a trajectory and the page's kinematics along it. */
+export function show({ t, q, qd, qdd, kappa, serial, margins, transitTimes, onSeek }) {
+  clear();
+  transits = transitTimes;
+  now = 0;
+  const kEl = document.getElementById('kappa-plot');
+  const jEl = document.getElementById('joint-plot');
+  const finiteKappa = kappa.map((k) => (Number.isFinite(k) ? k : null));
+  const kTop = Math.max(margins.kappa_max * 1.15, ...finiteKappa.filter((k) => k !== null)) || 2;
+  const dashed = { dash: [6, 4], width: 1.5 };
+  charts = [
+    chart(kEl, 'κ(A) along the trajectory', [
+      { label: 'κ(A)', stroke: '#d62728', width: 2 },
+      { label: `κ max = ${margins.kappa_max}`, stroke: '#555', ...dashed },
+    ], [t, finiteKappa, t.map(() => margins.kappa_max)], { yRange: [1, kTop], yLabel: 'κ(A)' }, onSeek),
+    chart(kEl, 'serial margin: min(|sin(θ4-θ2)|, |sin(θ5-θ3)|, |w|/(L1+L2))', [
+      { label: 'serial margin', stroke: '#1f77b4', width: 2 },
+      { label: `serial min = ${margins.serial_min}`, stroke: '#555', ...dashed },
+    ], [t, serial, t.map(() => margins.serial_min)], { yRange: [0, 1], yLabel: 'margin' }, onSeek),
+  ];
+  for (const [name, m, unit] of [['q', q, 'rad'], ['qd', qd, 'rad/s'], ['qdd', qdd, 'rad/s²']]) {
+    charts.push(chart(jEl, `${name} (${unit})`, [0, 1, 2].map((k) => ({
+      label: `θ${k + 1}`, stroke: JOINT_COLORS[k], width: 1.5,
+    })), [t, ...[0, 1, 2].map((k) => joints(m, k))], { yLabel: unit }, onSeek));
+  }
+}
+
+/** Remove every plot. */
+export function clear() {
+  for (const c of charts) c.destroy();
+  charts = [];
+  for (const id of ['kappa-plot', 'joint-plot']) document.getElementById(id).replaceChildren();
+}
+
+/** Move the current-time line. */
+export function setTime(t) {
+  now = t;
+  for (const c of charts) c.redraw(false, false);
+}
+
+/** Fit the plots to their containers' width. */
+export function resize() {
+  for (const c of charts) {
+    const w = Math.max(200, c.root.parentElement.parentElement.clientWidth - 12);
+    if (Math.abs(c.width - w) > 2) c.setSize({ width: w, height: 150 });
+  }
+}

@@ -1,0 +1,218 @@
+// The 3-D scene (three.js): the mechanism in the paper's frame (z up), its linkage plane,
+// the obstacles, the path of P coloured by working mode and the transits, named.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/OrbitControls.js';
+import { planeDirection } from './kin.js';
+
+const COLORS = { base: 0x555555, leg: 0x1f77b4, link: 0xff7f0e, p: 0xd62728, plane: 0x9ecae1, obstacle: 0xd62728, transit: 0x6a1b9a };
+/** One colour per working mode (the path's segments). */
+export const MODE_COLORS = {
+  '+++': '#2ca02c', '++-': '#17becf', '+-+': '#1f77b4', '+--': '#9467bd',
+  '-++': '#8c564b', '-+-': '#e377c2', '--+': '#bcbd22', '---': '#7f7f7f',
+};
+
+const v3 = (a) => new THREE.Vector3(a[0], a[1], a[2]);
+const UP = new THREE.Vector3(0, 1, 0);
+
+/** A text label that keeps its size on screen. */
+function label(text, color = '#1d2430', px = 13) {
+  const canvas = document.createElement('canvas');
+  const ctx = canvas.getContext('2d');
+  const font = `600 ${px * 2}px system-ui, sans-serif`;
+  ctx.font = font;
+  canvas.width = Math.ceil(ctx.measureText(text).width) + 12;
+  canvas.height = px * 2 + 10;
+  ctx.font = font;
+  ctx.fillStyle = 'rgba(255,255,255,0.8)';
+  ctx.fillRect(0, 0, canvas.width, canvas.height);
+  ctx.fillStyle = color;
+  ctx.textBaseline = 'middle';
+  ctx.fillText(text, 6, canvas.height / 2);
+  const texture = new THREE.CanvasTexture(canvas);
+  texture.colorSpace = THREE.SRGBColorSpace;
+  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: texture, sizeAttenuation: false, depthTest: false }));
+  sprite.scale.set((0.03 * canvas.width) / canvas.height, 0.03, 1);
+  sprite.center.set(-0.15, -0.15);
+  sprite.renderOrder = 10;
+  return sprite;
+}
+
+/** A cylinder of radius r from a to b (re-placed with place()). */
+class Rod {
+  constructor(group, color, r) {
+    this.mesh = new THREE.Mesh(new THREE.CylinderGeometry(1, 1, 1, 20), new THREE.MeshStandardMaterial({ color, roughness: 0.5 }));
+    this.r = r;
+    group.add(this.mesh);
+  }
+  place(a, b) {
+    const A = v3(a), B = v3(b), d = B.clone().sub(A), len = d.length();
+    this.mesh.visible = len > 1e-9;
+    if (!this.mesh.visible) return;
+    this.mesh.position.copy(A).addScaledVector(d, 0.5);
+    this.mesh.quaternion.setFromUnitVectors(UP, d.normalize());
+    this.mesh.scale.set(this.r, len, this.r);
+  }
+}
+
+export class Scene {
+  constructor(canvas) {
+    this.canvas = canvas;
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0xffffff);
+    this.camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
+    this.camera.up.set(0, 0, 1);
+    this.camera.position.set(1.6, -1.1, 0.9);
+    this.controls = new OrbitControls(this.camera, canvas);
+    this.controls.addEventListener('change', () => this.render());
+    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x888888, 2.2));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.5);
+    sun.position.set(2, -1, 3);
+    this.scene.add(sun);
+    this.robot = new THREE.Group();
+    this.world = new THREE.Group();
+    this.pathGroup = new THREE.Group();
+    this.scene.add(this.world, this.robot, this.pathGroup);
+    new ResizeObserver(() => this.resize()).observe(canvas);
+    this.resize();
+  }
+
+  resize() {
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    if (!w || !h) return;
+    this.renderer.setSize(w, h, false);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+    this.render();
+  }
+
+  render() { this.renderer.render(this.scene, this.camera); }
+
+  /** Build the robot and the static world for a design (call again when it changes). */
+  setDesign(design) {
+    this.design = design;
+    for (const g of [this.robot, this.world]) g.clear();
+    const R = design.L1 + design.L2, r = Math.max(design.link_radius, 0.006);
+    this.reach = R;
+    const half = design.L0 / 2;
+    // floor grid (a reference only: the mechanism hangs in free space) and the axis AB
+    const grid = new THREE.GridHelper(2 * (R + half) + 0.4, 20, 0xc7ccd6, 0xe3e6eb);
+    grid.rotation.x = Math.PI / 2;
+    grid.position.z = -R - 0.05;
+    this.world.add(grid);
+    const axis = new THREE.Line(
+      new THREE.BufferGeometry().setFromPoints([v3([0, -half - R - 0.1, 0]), v3([0, half + R + 0.1, 0])]),
+      new THREE.LineDashedMaterial({ color: 0x555555, dashSize: 0.03, gapSize: 0.02 }),
+    );
+    axis.computeLineDistances();
+    this.world.add(axis);
+    const yLabel = label('y (axis AB)', '#555');
+    yLabel.position.set(0, half + R + 0.1, 0);
+    this.world.add(yLabel);
+    const axes = new THREE.AxesHelper(0.12);
+    axes.position.set(0, 0, -R - 0.05);
+    this.world.add(axes);
+    // linkage plane: spanned by y and e(theta1), turned in place()
+    const plane = new THREE.Mesh(
+      new THREE.PlaneGeometry(2 * R, 2 * (R + half)),
+      new THREE.MeshBasicMaterial({ color: COLORS.plane, transparent: true, opacity: 0.18, side: THREE.DoubleSide, depthWrite: false }),
+    );
+    const edge = new THREE.LineSegments(new THREE.EdgesGeometry(plane.geometry), new THREE.LineBasicMaterial({ color: 0x6baed6 }));
+    plane.add(edge);
+    this.plane = plane;
+    this.robot.add(plane);
+    this.rods = {
+      AB: new Rod(this.robot, COLORS.base, r * 1.6), AC: new Rod(this.robot, COLORS.leg, r), BD: new Rod(this.robot, COLORS.leg, r),
+      CP: new Rod(this.robot, COLORS.link, r), DP: new Rod(this.robot, COLORS.link, r),
+    };
+    this.joints = {};
+    this.labels = {};
+    for (const k of ['A', 'B', 'C', 'D', 'P']) {
+      const color = k === 'P' ? COLORS.p : k < 'C' ? COLORS.base : 0x333333;
+      const j = new THREE.Mesh(new THREE.SphereGeometry(r * (k === 'P' ? 1.9 : 1.5), 20, 14), new THREE.MeshStandardMaterial({ color }));
+      this.joints[k] = j;
+      this.labels[k] = label(k);
+      this.robot.add(j, this.labels[k]);
+    }
+    const dist = 2.6 * (R + half);
+    this.camera.position.set(0.8 * dist, -0.45 * dist, 0.5 * dist);
+    this.controls.target.set(0, 0, 0);
+    this.controls.update();
+    this.render();
+  }
+
+  /** Draw the obstacles of the request. */
+  setObstacles(list) {
+    this.obstacles?.removeFromParent();
+    this.obstacles = new THREE.Group();
+    const mat = new THREE.MeshStandardMaterial({ color: COLORS.obstacle, transparent: true, opacity: 0.45, roughness: 0.7 });
+    for (const o of list) {
+      if (!o.center || o.center.some((x) => typeof x !== 'number')) continue;
+      let mesh = null;
+      if (o.type === 'sphere' && typeof o.radius === 'number' && o.radius > 0) {
+        mesh = new THREE.Mesh(new THREE.SphereGeometry(o.radius, 32, 20), mat);
+      } else if (o.type === 'box' && o.size?.every((x) => typeof x === 'number' && x > 0)) {
+        mesh = new THREE.Mesh(new THREE.BoxGeometry(...o.size), mat);
+        const [w, x, y, z] = o.quaternion || [1, 0, 0, 0];
+        mesh.quaternion.set(x, y, z, w).normalize();
+      }
+      if (!mesh) continue;
+      mesh.position.copy(v3(o.center));
+      this.obstacles.add(mesh);
+    }
+    this.scene.add(this.obstacles);
+    this.render();
+  }
+
+  /** Put the mechanism in posture x (from kin.posture) at joint angle t1. */
+  setPosture(x, t1) {
+    if (!x || !this.rods) return;
+    const { A, B, C, D, P } = x;
+    this.rods.AB.place(A, B);
+    this.rods.AC.place(A, C);
+    this.rods.BD.place(B, D);
+    this.rods.CP.place(C, P);
+    this.rods.DP.place(D, P);
+    for (const [k, p] of Object.entries({ A, B, C, D, P })) {
+      this.joints[k].position.copy(v3(p));
+      this.labels[k].position.copy(v3(p));
+    }
+    if (this.design.L0 === 0) this.labels.B.visible = false;  // A = B: one label
+    const e = v3(planeDirection(t1)), y = new THREE.Vector3(0, 1, 0), n = e.clone().cross(y);
+    this.plane.quaternion.setFromRotationMatrix(new THREE.Matrix4().makeBasis(e, y, n));
+    this.render();
+  }
+
+  /** The path of P (one line per segment, coloured by its working mode) and the transits. */
+  setPath(points, segmentOf, modes, transits, goalP) {
+    this.pathGroup.clear();
+    let start = 0;
+    for (let i = 1; i <= points.length; i++) {
+      if (i === points.length || segmentOf[i] !== segmentOf[start]) {
+        const pts = points.slice(start, Math.min(i + 1, points.length)).map(v3);
+        const color = MODE_COLORS[modes[segmentOf[start]]] || '#333';
+        if (pts.length >= 2) {  // a thin tube: WebGL draws lines one pixel wide
+          const curve = new THREE.CurvePath();
+          for (let k = 1; k < pts.length; k++) curve.add(new THREE.LineCurve3(pts[k - 1], pts[k]));
+          const tube = new THREE.TubeGeometry(curve, Math.max(8, pts.length), 0.004, 6, false);
+          this.pathGroup.add(new THREE.Mesh(tube, new THREE.MeshBasicMaterial({ color })));
+        }
+        start = i;
+      }
+    }
+    transits.forEach((tr, i) => {
+      const m = new THREE.Mesh(new THREE.OctahedronGeometry(0.018), new THREE.MeshStandardMaterial({ color: COLORS.transit }));
+      m.position.copy(v3(tr.p));
+      const l = label(`transit ${i + 1}: ${tr.kind}`, '#6a1b9a');
+      l.position.copy(v3(tr.p));
+      this.pathGroup.add(m, l);
+    });
+    if (goalP) {
+      const g = new THREE.Mesh(new THREE.SphereGeometry(0.015, 16, 10), new THREE.MeshBasicMaterial({ color: 0x2e7d32, wireframe: true }));
+      g.position.copy(v3(goalP));
+      this.pathGroup.add(g);
+    }
+    this.render();
+  }
+}
