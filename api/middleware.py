@@ -6,8 +6,8 @@ application parses anything:
 
 1. **size**: a ``Content-Length`` over ``max_body_bytes`` is 413 at once; a streamed body is
    cut off (413) as soon as it passes the limit;
-2. **auth**: without the API key (when one is configured), every ``/v1`` route but
-   ``/v1/health`` is 401, whatever the body holds;
+2. **auth**: without the API key (when one is configured), every ``/v1`` route but the
+   probes ``/v1/health`` and ``/v1/ready`` is 401, whatever the body holds;
 3. **content type**: a POST to a ``/v1`` route whose ``Content-Type`` is not JSON is 415
    (a method the route does not take is left to routing: 405);
 4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
@@ -42,8 +42,8 @@ access_logger = logging.getLogger("api.access")
 
 #: Status recorded (never sent) when the client went away before the answer: nginx's 499.
 CLIENT_CLOSED_REQUEST = 499
-#: Paths that never need the API key (liveness for probes).
-_OPEN_PATHS = frozenset({"/v1/health"})
+#: Paths that never need the API key (liveness and readiness, for probes).
+_OPEN_PATHS = frozenset({"/v1/health", "/v1/ready"})
 _BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
 

@@ -4,7 +4,8 @@ FastAPI documents the success answer and request validation (422) of each route;
 of the request gate (:mod:`api.middleware`: 401 without the key, 408, 413, 415) and of the
 worker pool (502, 503, 504) happen around the routes, so :func:`install_openapi` adds them:
 
-- every ``/v1`` operation but ``/v1/health``: 401 when a key is configured (and then the
+- every ``/v1`` operation but the probes ``/v1/health`` and ``/v1/ready``: 401 when a key is
+  configured (and then the
   ``securitySchemes`` ``ApiKey``, header ``X-API-Key``, and ``Bearer``);
 - every operation with a body: 408, 413, 415, 422;
 - every operation that runs in a worker: 502, 503, 504; the others that can be refused
@@ -64,7 +65,7 @@ def document_errors(schema: dict[str, Any], *, api_key: bool) -> dict[str, Any]:
         for method, operation in item.items():
             if path == "/v1/health":
                 continue
-            if api_key:
+            if api_key and path != "/v1/ready":
                 _add(operation, "401")
                 operation["security"] = [{"ApiKey": []}, {"Bearer": []}]
             if method in ("post", "put", "patch"):

@@ -78,6 +78,104 @@ def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
     raise RuntimeError("the service did not become ready")
 
 
+#: The floor: a bare FastAPI app on uvicorn answering a tiny JSON POST (no validation of
+#: ours, no worker process, no middleware), served the same way as the service.
+_BARE_APP = """
+import uvicorn
+from fastapi import FastAPI
+from pydantic import BaseModel
+
+class Body(BaseModel):
+    q: list[float]
+
+app = FastAPI()
+
+@app.post("/echo")
+def echo(body: Body) -> dict:
+    return {"q": body.q}
+
+uvicorn.run(app, host="127.0.0.1", port=int(__import__("sys").argv[1]), log_level="warning",
+            access_log=False)
+"""
+
+
+def _start_bare() -> tuple[subprocess.Popen[bytes], str]:
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-c", _BARE_APP, str(port)], cwd=ROOT)
+    url = f"http://127.0.0.1:{port}"
+    end = time.monotonic() + 60
+    while time.monotonic() < end:
+        try:
+            httpx.post(f"{url}/echo", json={"q": [0, 1, 2]}, timeout=1)
+            return proc, url
+        except httpx.HTTPError:
+            time.sleep(0.1)
+    proc.kill()
+    raise RuntimeError("the bare app did not start")
+
+
+async def _raw_load(url: str, bodies: list[dict], concurrency: int) -> tuple[list, float]:
+    """POST each body with a plain httpx client (no response models), ``concurrency`` at a
+    time: the same client for the bare app and the service's routes, so the rows compare."""
+    latencies: list[float] = []
+    queue = list(bodies)
+
+    async def worker(client: httpx.AsyncClient) -> None:
+        while queue:
+            body = queue.pop()
+            t0 = time.perf_counter()
+            r = await client.post(url, json=body)
+            r.raise_for_status()
+            latencies.append(time.perf_counter() - t0)
+
+    async with httpx.AsyncClient(timeout=60) as client:
+        t0 = time.perf_counter()
+        await asyncio.gather(*(worker(client) for _ in range(concurrency)))
+        wall = time.perf_counter() - t0
+    return latencies, wall
+
+
+def _floor_rows(url: str, n: int, rng: np.random.Generator) -> None:
+    """The per-request overhead against the bare-FastAPI floor, measured side by side at
+    concurrency 1 (issue goals: /v1/fk p50 <= 1.3 x bare p50; a small free-space plan p50
+    <= bare p50 + 1.5 x its in-process time)."""
+    bare, bare_url = _start_bare()
+    try:
+        fk_bodies = [r.model_dump(mode="json") for r in _requests("fk", n, rng)]
+        plans = _solvable("plan", n, rng)
+        plan_bodies = [r.model_dump(mode="json", exclude_none=True) for r in plans]
+        _in_process(compute.plan, plans[:20])
+        plan_local = statistics.median(_in_process(compute.plan, plans)) * 1e3
+        rows = {}
+        for name, target, bodies in (
+            ("bare FastAPI POST", f"{bare_url}/echo", fk_bodies),
+            ("/v1/health (GET)", None, None),
+            ("/v1/fk", f"{url}/v1/fk", fk_bodies),
+            ("/v1/plan (free, none)", f"{url}/v1/plan", plan_bodies),
+        ):
+            if target is None:
+                lat = []
+                with httpx.Client() as client:
+                    for _ in range(n):
+                        t0 = time.perf_counter()
+                        client.get(f"{url}/v1/health")
+                        lat.append(time.perf_counter() - t0)
+            else:
+                asyncio.run(_raw_load(target, bodies[:30], 1))  # warm connections and caches
+                lat, _ = asyncio.run(_raw_load(target, bodies, 1))
+            rows[name] = _pct(lat, 50)
+            print(f"{name:24} p50 {rows[name]:7.2f} ms   p95 {_pct(lat, 95):7.2f} ms")
+        bare_p50 = rows["bare FastAPI POST"]
+        print(f"/v1/fk p50 / bare p50 = {rows['/v1/fk'] / bare_p50:.2f} (goal <= 1.3)")
+        print(
+            f"plan p50 - bare p50 = {rows['/v1/plan (free, none)'] - bare_p50:.2f} ms against "
+            f"1.5 x in-process {plan_local:.2f} ms = {1.5 * plan_local:.2f} ms"
+        )
+    finally:
+        bare.terminate()
+        bare.wait(timeout=30)
+
+
 def _requests(kind: str, n: int, rng: np.random.Generator) -> list:
     q = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(0.8, 1.2, n), rng.uniform(1.8, 2.2, n)])
     if kind == "fk":
@@ -152,6 +250,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--requests", type=int, default=400)
+    parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     endpoints = [
@@ -172,6 +271,11 @@ def main() -> None:
             f"{'endpoint':11} {'conc':>4} {'p50':>8} {'p95':>8} {'p99':>8} {'req/s':>8} "
             f"{'in-proc p50':>12} {'p50 ratio':>10}"
         )
+        print("per-request overhead, concurrency 1, plain httpx client")
+        _floor_rows(url, min(args.requests, 300), rng)
+        print()
+        if args.floor_only:
+            return
         for name, method, job in endpoints:
             make = _solvable if name.startswith("plan") else _requests
             requests = make(name, args.requests, rng)

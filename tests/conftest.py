@@ -52,11 +52,10 @@ class ReadyClient(TestClient):
 
 
 def wait_ready(client: httpx.Client | TestClient, timeout_s: float = STARTUP_TIMEOUT_S) -> None:
-    """Wait until ``client``'s service answers ``/v1/ready`` with 200."""
+    """Wait until ``client``'s service answers ``/v1/ready`` with 200 (no key needed)."""
     end = time.monotonic() + timeout_s
-    headers = {"X-API-Key": key} if (key := getattr(client, "api_key", None)) else None
     while True:
-        r = client.get("/v1/ready", headers=headers)
+        r = client.get("/v1/ready")
         if r.status_code == 200:
             return
         assert r.status_code == 503, r.text
@@ -70,8 +69,6 @@ def make_client(*, wait_ready: bool = True, **settings: object) -> TestClient:
     settings.setdefault("workers", 1)
     client = ReadyClient(create_app(Settings(**settings)), raise_server_exceptions=False)
     client.wait_ready = wait_ready
-    if settings.get("api_key"):
-        client.api_key = str(settings["api_key"])  # type: ignore[attr-defined]
     return client
 
 

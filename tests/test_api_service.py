@@ -75,12 +75,12 @@ def test_settings_from_environment(monkeypatch):
 
 
 # ---------------------------------------------------------------- API key
-def test_api_key_guards_every_v1_route_but_health(client_factory):
+def test_api_key_guards_every_v1_route_but_the_probes(client_factory):
     with client_factory(api_key="s3cret") as c:
         assert c.get("/v1/health").status_code == 200
+        assert c.get("/v1/ready").status_code == 200  # probes need no key
         for method, path, body in [
             ("GET", "/v1/version", None),
-            ("GET", "/v1/ready", None),
             ("GET", "/v1/designs", None),
             ("POST", "/v1/fk", {"q": [0, 1, 2]}),
             ("POST", "/v1/plan", PLAN),

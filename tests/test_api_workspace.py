@@ -229,12 +229,12 @@ def test_bad_figure_query_is_422_naming_the_parameter(api, query, loc):
     assert loc in [item["loc"] for item in r.json()["detail"]]
 
 
-def test_every_v1_route_but_health_needs_the_api_key(client_factory):
+def test_every_v1_route_but_the_probes_needs_the_api_key(client_factory):
     with client_factory(api_key="s3cret") as c:
         routes = [
             (method.upper(), path)
             for path, operations in c.app.openapi()["paths"].items()
-            if path.startswith("/v1/") and path != "/v1/health"
+            if path.startswith("/v1/") and path not in ("/v1/health", "/v1/ready")
             for method in operations
         ]
         paths = {p for _, p in routes}

@@ -20,12 +20,13 @@ def health() -> Health:
 @router.get(
     "/ready",
     response_model=Readiness,
-    dependencies=[ApiKey],
-    responses={503: {"model": Readiness, "description": "Workers not up (yet)."}},
+    responses={503: {"model": Readiness, "description": "Not every worker is warm (yet)."}},
 )
 def ready(pool: Pool, settings: SettingsDep, response: Response) -> Readiness:
     """Readiness: every configured worker process is alive and warm (503 otherwise: while
-    starting, while a dead worker's replacement warms up, while stopping)."""
+    starting, while a dead worker's replacement warms up, while stopping). Like
+    ``/v1/health`` it never needs the API key: load-balancer health checks often cannot send
+    one, and it tells nothing but the worker counts."""
     state = pool.state
     if state != "ready":
         response.status_code = 503
