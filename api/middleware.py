@@ -261,7 +261,9 @@ class RequestObserver:
             self.metrics.record_request(method, route, status, seconds)
             path = scope.get("path", "")
             access_logger.log(
-                logging.DEBUG if path in _QUIET_PATHS and status < 400 else logging.INFO,
+                # probes every few seconds, also their 503s while the workers warm up
+                logging.DEBUG if path in _QUIET_PATHS and (status < 400 or status == 503)
+                else logging.INFO,
                 "%s %s %d",
                 method,
                 path,
