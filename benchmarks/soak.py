@@ -74,7 +74,7 @@ def _mix(rng: np.random.Generator, n: int) -> list[tuple[str, str, dict | None]]
         if kind == "fk":
             out.append(("POST", "/v1/fk", {"q": q}))
         elif kind == "analyze":
-            out.append(("POST", "/v1/analyze", {"q": q}))
+            out.append(("POST", "/v1/analyze", {"q": q, "assembly_mode": "+"}))
         elif kind == "plan":
             out.append(("POST", "/v1/plan", {"start": start,
                         "goal": {"q": goal, "assembly_mode": "+"}, "planner": {"seed": 1}}))  # fmt: skip
