@@ -1,5 +1,5 @@
 // Kinematics of the five-bar A-C-P-D-B turning about AB, in the paper's frame
-// (CONVENTIONS.md): A = (0, -L0/2, 0), B = (0, L0/2, 0); the plane turns about +y; in-plane
+// (docs/conventions.md): A = (0, -L0/2, 0), B = (0, L0/2, 0); the plane turns about +y; in-plane
 // coordinates (u along AB, w along e(theta1) = (cos t1, 0, -sin t1)); P = (w cos t1, u, -w sin t1).
 //
 // Decision: the page computes C, D, P, kappa(A), the serial margin and the modes itself,
