@@ -6,6 +6,7 @@ in a worker process like the jobs of :mod:`api.compute`. No FastAPI here.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -79,6 +80,7 @@ def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
 
     with located("body", "design"):
         design = request.design.to_design()
+    deadline = _DEADLINE.get()
     sample = sample_workspace(
         design,
         rel_se=request.rel_se,
@@ -86,6 +88,8 @@ def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
         working_modes=request.working_modes,
         joint_limits=request.joint_limits,
         seed=request.seed,
+        # half of what is left of the request's budget (the sections come next)
+        deadline=None if deadline is None else (time.monotonic() + deadline) / 2,
     )
     opts = request.sections
     cart = joint = None

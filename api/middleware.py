@@ -262,7 +262,8 @@ class RequestObserver:
             path = scope.get("path", "")
             access_logger.log(
                 # probes every few seconds, also their 503s while the workers warm up
-                logging.DEBUG if path in _QUIET_PATHS and (status < 400 or status == 503)
+                logging.DEBUG
+                if path in _QUIET_PATHS and (status < 400 or status == 503)
                 else logging.INFO,
                 "%s %s %d",
                 method,

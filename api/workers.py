@@ -130,7 +130,11 @@ def _worker_main(
         except (EOFError, OSError):
             return
         if message[0] == "stop":
-            return
+            # nothing to clean up (no job, no file): skip the interpreter's teardown of
+            # numba, OMPL and matplotlib, which takes seconds on a loaded machine
+            for stream in (sys.stdout, sys.stderr):
+                stream.flush()
+            os._exit(0)
         _, fn, arg = message
         try:
             outcome: tuple[str, Any] = ("ok", fn(arg))
@@ -411,12 +415,16 @@ class WorkerPool:
         end = None if timeout_s is None else time.monotonic() + timeout_s
         for w in workers:
             w.process.join(None if end is None else max(end - time.monotonic(), 0.0))
-        busy = [w for w in workers if w.process.is_alive()]
+        alive = [w for w in workers if w.process.is_alive()]
+        busy = [w for w in alive if w.state == "busy"]
         if busy:
             logger.warning("terminating %d worker(s) still busy at shutdown", len(busy))
-            for w in busy:
+        elif alive:  # idle or warming, slow to exit: nothing is lost
+            logger.info("stopping %d idle worker(s) that had not exited yet", len(alive))
+        if alive:
+            for w in alive:
                 w.process.terminate()
-            for w in busy:
+            for w in alive:
                 w.process.join(5.0)
                 if w.process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
                     w.process.kill()

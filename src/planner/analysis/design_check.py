@@ -106,6 +106,7 @@ def check_design(
     kappa_max: float = 10.0,
     rel_se: float = 0.01,
     seed: int = 0,
+    deadline: float | None = None,
 ) -> DesignCheck:
     """Check a design (see the module docstring for the rules).
 
@@ -118,12 +119,17 @@ def check_design(
         Relative standard error asked of the sampled volume.
     seed : int
         Seed of the quasi-random sampling (the answer is deterministic for a seed).
+    deadline : float, optional
+        :func:`time.monotonic` value by which the sampled volume stops refining (see
+        :func:`planner.analysis.workspace.sample_workspace`).
     """
     if not (math.isfinite(kappa_max) and kappa_max >= 1.0):
         raise InputError(f"kappa_max must be a finite number >= 1, got {kappa_max}")
     kinds, reasons = parallel_singularity_kinds(design)
     volume = closed_form_volume(design)
-    sample = sample_workspace(design, rel_se=rel_se, kappa_max=kappa_max, seed=seed)
+    sample = sample_workspace(
+        design, rel_se=rel_se, kappa_max=kappa_max, seed=seed, deadline=deadline
+    )
     operative = tuple(m for m in WORKING_MODES if sample.per_mode_regular[m].value > 0.0)
     fraction = sample.well_conditioned_fraction
     if fraction is None:  # pragma: no cover - kappa_max was given, so it is computed

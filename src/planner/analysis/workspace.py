@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -215,6 +216,7 @@ def sample_workspace(
     kappa_max: float | None = None,
     seed: int = 0,
     max_samples: int = MAX_SAMPLES,
+    deadline: float | None = None,
 ) -> WorkspaceSample:
     """Estimate workspace volumes by randomised quasi-Monte Carlo.
 
@@ -238,6 +240,12 @@ def sample_workspace(
         Bound on kappa(A) defining the well-conditioned volume.
     seed : int
         Seed of the scrambling.
+    deadline : float, optional
+        A :func:`time.monotonic` value: the sample stops doubling when the next round (about
+        twice the last one's time) would end after it, and the estimate is returned with
+        the standard error reached (a thin workspace in a large bounding box can need
+        millions of points for ``rel_se``; a caller with a time budget gets the best
+        estimate within it rather than none).
 
     Returns
     -------
@@ -276,6 +284,7 @@ def sample_workspace(
     n = 0
     draw = 2**m
     while True:
+        round_start = time.monotonic()
         for r, sampler in enumerate(samplers):
             unit = sampler.random_base2(m) if n == 0 else sampler.random(draw)
             p = _points(unit, half_len, radius)
@@ -293,11 +302,14 @@ def sample_workspace(
         n += draw
         total = Estimate.from_replicates(dom * hits / n, n * replicates)
         done = rel_se is None or total.relative_error <= rel_se
-        if done or 2 * n * replicates > max_samples:
+        now = time.monotonic()
+        late = deadline is not None and now + 2.0 * (now - round_start) > deadline
+        if done or late or 2 * n * replicates > max_samples:
             if not done:
                 logger.warning(
-                    "sample_workspace stopped at %d samples with relative error %.3g > %.3g",
+                    "sample_workspace stopped at %d samples (%s) with relative error %.3g > %.3g",
                     n * replicates,
+                    "time budget" if late else "max_samples",
                     total.relative_error,
                     rel_se,
                 )
