@@ -1090,6 +1090,7 @@ def plan_cartesian(
         budget[1:-1] -= np.maximum(bound[:-1], bound[1:])
         dev, gain = blend_allowance(design, q, budget)
         blend_bound = float(np.max(gain[dev > 0] * dev[dev > 0], initial=0.0))
+
         def timed(method: str):
             return time_path(
                 design, q, limits, method=method, assembly_mode=asm,
