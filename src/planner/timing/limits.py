@@ -41,6 +41,19 @@ def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
+def _scaling(name: str, value: object) -> float:
+    """A scaling factor in (0, 1], or :class:`LimitsError` naming ``limits.<name>``."""
+    if isinstance(value, bool):
+        raise LimitsError(f"limits.{name} must be a number in (0, 1], got {value!r}")
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise LimitsError(f"limits.{name} must be a number in (0, 1], got {value!r}") from exc
+    if not (math.isfinite(x) and 0.0 < x <= 1.0):
+        raise LimitsError(f"limits.{name} must lie in (0, 1], got {value!r}")
+    return x
+
+
 @dataclass(frozen=True, slots=True)
 class JointLimits:
     """Symmetric per-joint limits of velocity, acceleration and (optionally) jerk.
@@ -78,14 +91,35 @@ class JointLimits:
         (the acceleration ramps up in 40 ms)."""
         return cls(velocity=(2.0,) * 3, acceleration=(8.0,) * 3, jerk=(200.0,) * 3)
 
-    def scaled(self, factor: float) -> JointLimits:
-        """These limits with velocity and acceleration multiplied by ``factor`` (0 < f <= 1),
-        jerk unchanged: the slower profile of a repair."""
-        if not 0.0 < factor <= 1.0:
-            raise LimitsError(f"scale factor must be in (0, 1], got {factor}")
+    def scaled(
+        self, velocity_scaling: float, acceleration_scaling: float | None = None
+    ) -> JointLimits:
+        """These limits with velocity multiplied by ``velocity_scaling`` and acceleration by
+        ``acceleration_scaling`` (MoveIt's ``max_velocity_scaling_factor`` and
+        ``max_acceleration_scaling_factor``), jerk unchanged.
+
+        Parameters
+        ----------
+        velocity_scaling : float in (0, 1]
+        acceleration_scaling : float in (0, 1], optional
+            Default: ``velocity_scaling`` (one factor for both, the slower profile of a
+            timing repair).
+
+        Raises
+        ------
+        LimitsError
+            A factor is not a number in (0, 1]; the message names the field
+            (``limits.velocity_scaling`` or ``limits.acceleration_scaling``).
+        """
+        v = _scaling("velocity_scaling", velocity_scaling)
+        a = (
+            v
+            if acceleration_scaling is None
+            else _scaling("acceleration_scaling", acceleration_scaling)
+        )
         return JointLimits(
-            velocity=tuple(v * factor for v in self.velocity),  # type: ignore[arg-type]
-            acceleration=tuple(a * factor for a in self.acceleration),  # type: ignore[arg-type]
+            velocity=tuple(x * v for x in self.velocity),  # type: ignore[arg-type]
+            acceleration=tuple(x * a for x in self.acceleration),  # type: ignore[arg-type]
             jerk=self.jerk,
         )
 

@@ -1,0 +1,244 @@
+"""Trajectories in a controller's shape: named joints and points, and CSV files.
+
+The library's :class:`~planner.timing.Trajectory` holds parallel arrays (``t`` (M,), ``q``,
+``qd``, ``qdd`` (M, 3)). Controllers (ROS 2 ``JointTrajectory``, FollowJointTrajectory, CSV
+players) take a list of points with ``positions``, ``velocities``, ``accelerations`` and
+``time_from_start`` for named joints. This module converts either way, losslessly (the same
+floats), and writes and reads CSV files.
+
+The points form is the wire's ``timing.format = "points"`` (``docs/conventions.md``, "Wire,
+second part")::
+
+    {"duration": s, "joint_names": ["theta1", "theta2", "theta3"],
+     "points": [{"time_from_start": s, "positions": [3], "velocities": [3],
+                 "accelerations": [3]}, ...]}
+
+CSV: a first comment line naming the units, then the header
+``t,theta1,theta2,theta3,dtheta1,dtheta2,dtheta3,ddtheta1,ddtheta2,ddtheta3`` (plus
+``dddtheta1..3`` when jerks are given), one row per sample, floats written with 17
+significant digits so that reading gives back the same numbers.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import IO
+
+import numpy as np
+
+from planner.exceptions import InputError
+
+__all__ = [
+    "CSV_UNITS",
+    "JOINT_NAMES",
+    "TrajectoryArrays",
+    "arrays_from_points",
+    "points_from_arrays",
+    "read_csv",
+    "to_points",
+    "write_csv",
+]
+
+#: Joint names of the points form, in the order of q.
+JOINT_NAMES: tuple[str, str, str] = ("theta1", "theta2", "theta3")
+#: The first line of a CSV file (a comment naming the units of every column).
+CSV_UNITS = "# units: t s; theta rad; dtheta rad/s; ddtheta rad/s^2; dddtheta rad/s^3"
+
+_POS = list(JOINT_NAMES)
+_VEL = [f"d{n}" for n in JOINT_NAMES]
+_ACC = [f"dd{n}" for n in JOINT_NAMES]
+_JERK = [f"ddd{n}" for n in JOINT_NAMES]
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectoryArrays:
+    """A sampled trajectory as parallel arrays (the ``"arrays"`` format).
+
+    Attributes
+    ----------
+    t : shape (M,), s -- increasing, from 0.
+    q, qd, qdd : shape (M, 3) -- rad, rad/s, rad/s^2.
+    jerk : shape (M, 3), rad/s^3, or None.
+    duration : float, s -- ``t[-1]`` for a trajectory sampled to its end.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    jerk: np.ndarray | None = None
+    duration: float = float("nan")
+
+
+def _arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.shape[0] < 1:
+        raise InputError(f"t must have shape (M,) with M >= 1, got {t.shape}")
+    out = [t]
+    for name, a in (("q", q), ("qd", qd), ("qdd", qdd), ("jerk", jerk)):
+        if a is None:
+            out.append(None)
+            continue
+        a = np.asarray(a, dtype=float)
+        if a.shape != (t.shape[0], 3):
+            raise InputError(f"{name} must have shape ({t.shape[0]}, 3), got {a.shape}")
+        out.append(a)
+    if not all(np.all(np.isfinite(a)) for a in out if a is not None):
+        raise InputError("trajectory samples must be finite (no NaN or infinity)")
+    if np.any(np.diff(t) <= 0):
+        raise InputError("t must increase strictly")
+    return tuple(out)
+
+
+def points_from_arrays(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    *,
+    duration: float | None = None,
+) -> dict:
+    """The points form (JSON-ready dict) of parallel arrays.
+
+    Parameters
+    ----------
+    t : shape (M,), s
+    q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
+    duration : float, s, optional (default ``t[-1]``)
+
+    Returns
+    -------
+    dict with ``duration``, ``joint_names`` (:data:`JOINT_NAMES`) and ``points`` (M dicts
+    with ``time_from_start``, ``positions``, ``velocities``, ``accelerations``).
+    """
+    t, q, qd, qdd, _ = _arrays(t, q, qd, qdd)
+    points = [
+        {
+            "time_from_start": ti,
+            "positions": qi,
+            "velocities": vi,
+            "accelerations": ai,
+        }
+        for ti, qi, vi, ai in zip(t.tolist(), q.tolist(), qd.tolist(), qdd.tolist(), strict=True)
+    ]
+    return {
+        "duration": float(t[-1] if duration is None else duration),
+        "joint_names": list(JOINT_NAMES),
+        "points": points,
+    }
+
+
+def to_points(trajectory: object) -> dict:
+    """The points form of a :class:`~planner.timing.Trajectory` (or any object with ``t``,
+    ``q``, ``qd``, ``qdd``, ``duration``)."""
+    return points_from_arrays(
+        trajectory.t, trajectory.q, trajectory.qd, trajectory.qdd,  # type: ignore[attr-defined]
+        duration=trajectory.duration,  # type: ignore[attr-defined]
+    )  # fmt: skip
+
+
+def arrays_from_points(points_form: Mapping) -> TrajectoryArrays:
+    """Parallel arrays of a points form (the inverse of :func:`points_from_arrays`).
+
+    Joints are reordered by ``joint_names`` when present (any order of theta1..theta3).
+
+    Raises
+    ------
+    InputError
+        A missing field, an unknown or missing joint name, or a point of the wrong length.
+    """
+    try:
+        pts = points_form["points"]
+    except (KeyError, TypeError) as exc:
+        raise InputError("a points trajectory needs a 'points' list") from exc
+    names = list(points_form.get("joint_names", JOINT_NAMES))
+    if sorted(names) != sorted(JOINT_NAMES) or len(names) != 3:
+        raise InputError(f"joint_names must be {list(JOINT_NAMES)} in some order, got {names}")
+    order = [names.index(n) for n in JOINT_NAMES]
+    if not isinstance(pts, Sequence) or len(pts) == 0:
+        raise InputError("points must be a non-empty list")
+    try:
+        t = np.array([p["time_from_start"] for p in pts], dtype=float)
+        q = np.array([p["positions"] for p in pts], dtype=float)[:, order]
+        qd = np.array([p["velocities"] for p in pts], dtype=float)[:, order]
+        qdd = np.array([p["accelerations"] for p in pts], dtype=float)[:, order]
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise InputError(
+            "every point needs time_from_start and 3 positions, velocities, accelerations"
+        ) from exc
+    t, q, qd, qdd, _ = _arrays(t, q, qd, qdd)
+    duration = float(points_form.get("duration", t[-1]))
+    return TrajectoryArrays(t, q, qd, qdd, None, duration)
+
+
+def write_csv(
+    target: str | os.PathLike | IO[str],
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    jerk: np.ndarray | None = None,
+) -> None:
+    """Write samples as CSV: the units line, the header, one row per sample.
+
+    Parameters
+    ----------
+    target : path or text file
+    t : shape (M,), s
+    q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
+    jerk : shape (M, 3), rad/s^3, optional (adds three columns)
+    """
+    t, q, qd, qdd, jerk = _arrays(t, q, qd, qdd, jerk)
+    header = ["t", *_POS, *_VEL, *_ACC] + (_JERK if jerk is not None else [])
+    cols = [t[:, None], q, qd, qdd] + ([jerk] if jerk is not None else [])
+    data = np.hstack(cols)
+    buf = io.StringIO()
+    buf.write(CSV_UNITS + "\n")
+    buf.write(",".join(header) + "\n")
+    for row in data:
+        buf.write(",".join(f"{x:.17g}" for x in row) + "\n")
+    if isinstance(target, (str, os.PathLike)):
+        with open(target, "w", encoding="utf-8", newline="") as f:
+            f.write(buf.getvalue())
+    else:
+        target.write(buf.getvalue())
+
+
+def read_csv(source: str | os.PathLike | IO[str]) -> TrajectoryArrays:
+    """Read a CSV written by :func:`write_csv` (comment lines starting with '#' skipped).
+
+    Raises
+    ------
+    InputError
+        A missing column of the header, or a row that is not numbers.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        with open(source, encoding="utf-8", newline="") as f:
+            text = f.read()
+    else:
+        text = source.read()
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise InputError("the CSV has no header")
+    rows = list(csv.reader(lines))
+    header = [h.strip() for h in rows[0]]
+    missing = [h for h in ["t", *_POS, *_VEL, *_ACC] if h not in header]
+    if missing:
+        raise InputError(f"the CSV header lacks the columns {missing}")
+    try:
+        data = np.array([[float(x) for x in r] for r in rows[1:]], dtype=float)
+    except ValueError as exc:
+        raise InputError(f"a CSV row is not numbers: {exc}") from exc
+    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(header):
+        raise InputError("the CSV rows must have one value per header column")
+
+    def cols(names: list[str]) -> np.ndarray:
+        return data[:, [header.index(n) for n in names]]
+
+    jerk = cols(_JERK) if all(n in header for n in _JERK) else None
+    t = data[:, header.index("t")]
+    return TrajectoryArrays(t, cols(_POS), cols(_VEL), cols(_ACC), jerk, float(t[-1]))

@@ -1,0 +1,323 @@
+"""Straight tool paths (planner.planning.cartesian) against independent routes.
+
+Forward kinematics, kappa(A), the serial measures and link clearance are re-derived here from
+the closed forms of docs/conventions.md with numpy alone (nothing from the library's
+kinematics), and the distance of P to the polyline is measured on a dense resampling of the
+timed trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+from itertools import pairwise
+
+import numpy as np
+import pytest
+
+from planner import Design
+from planner.geometry import Sphere
+from planner.kinematics import WORKING_MODES, inverse_batch
+from planner.planning.cartesian import (
+    CHORD_SHARE,
+    chord_deviation_bound,
+    inspect_cartesian,
+    plan_cartesian,
+)
+from planner.planning.problem import JointPosture
+from planner.validity import Margins
+
+
+# ---------------------------------------------------------------- independent closed forms
+def own_fk(design: Design, q: np.ndarray, assembly_mode: str):
+    """(P (M, 3), theta4, theta5, C, D in-plane (M, 2) each, ok) from conventions.md."""
+    q = np.atleast_2d(q)
+    half = design.L0 / 2
+    c = np.stack([-half + design.L1 * np.cos(q[:, 1]), design.L1 * np.sin(q[:, 1])], axis=1)
+    d = np.stack([half + design.L1 * np.cos(q[:, 2]), design.L1 * np.sin(q[:, 2])], axis=1)
+    m = 0.5 * (c + d)
+    cd = d - c
+    dist = np.linalg.norm(cd, axis=1)
+    h = np.sqrt(np.maximum(design.L2**2 - (dist / 2) ** 2, 0.0))
+    n = np.stack([-cd[:, 1], cd[:, 0]], axis=1) / dist[:, None]
+    best = None
+    for side in (1.0, -1.0):
+        p = m + side * h[:, None] * n
+        cross = (p - c)[:, 0] * (p - d)[:, 1] - (p - c)[:, 1] * (p - d)[:, 0]
+        good = np.sign(cross) == (1 if assembly_mode == "+" else -1)
+        best = p if best is None else np.where(good[:, None], p, best)
+    p = best
+    t4 = np.arctan2(p[:, 1] - c[:, 1], p[:, 0] - c[:, 0])
+    t5 = np.arctan2(p[:, 1] - d[:, 1], p[:, 0] - d[:, 0])
+    u, w = p[:, 0], p[:, 1]
+    p3 = np.stack([w * np.cos(q[:, 0]), u, -w * np.sin(q[:, 0])], axis=1)
+    return p3, t4, t5, c, d, dist <= 2 * design.L2
+
+
+def own_kappa(t4, t5):
+    half = np.abs(np.tan((t4 - t5) / 2))
+    return np.maximum(half, 1 / half)
+
+
+def seg_dist(pts, a, b):
+    ab = b - a
+    t = np.clip((pts - a) @ ab / (ab @ ab), 0, 1)
+    return np.linalg.norm(a + t[:, None] * ab - pts, axis=1)
+
+
+def poly_dist(pts, vertices):
+    return np.min([seg_dist(pts, a, b) for a, b in pairwise(vertices)],
+                  axis=0)  # fmt: skip
+
+
+def start_at(design: Design, p, mode="+-+"):
+    ib = inverse_batch(design, np.asarray(p, float))
+    k = WORKING_MODES.index(mode)
+    assert ib.ok[0, k]
+    return JointPosture(ib.q[0, k], "+" if ib.assembly_mode_signs[0, k] > 0 else "-")
+
+
+DEFAULT = Design.default()
+P_MID = np.array([0.45, 0.0, 0.1])
+
+
+# ---------------------------------------------------------------- solved paths
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+@pytest.mark.parametrize(
+    "offsets",
+    [
+        [[0.0, 0.3, 0.0]],
+        [[0.0, 0.12, 0.0], [0.06, 0.12, 0.1]],  # a corner
+        [[0.05, 0.1, -0.05], [0.0, 0.2, 0.05], [-0.05, 0.15, 0.1]],
+    ],
+)
+def test_timed_trajectory_keeps_p_within_tolerance(method, offsets):
+    start = start_at(DEFAULT, P_MID)
+    wp = P_MID + np.asarray(offsets)
+    tol = 1e-3
+    res = plan_cartesian(DEFAULT, start, wp, path_tolerance=tol, timing=method,
+                         cartesian_speed=0.25)  # fmt: skip
+    assert res.status.value == "solved" and res.fraction == 1.0, res.message
+    traj = res.trajectory
+    assert traj is not None, res.timing_error
+    # ruckig may give way to toppra when its moves stray beyond the blend allowance
+    assert traj.method == method or "timed with toppra instead" in res.timing_error
+    t = np.linspace(0, traj.duration, 20001)
+    q = traj.at(t)[0]
+    p, t4, t5, *_, ok = own_fk(DEFAULT, q, start.assembly_mode)
+    assert np.all(ok)
+    vertices = np.vstack([own_fk(DEFAULT, start.q, start.assembly_mode)[0], wp])
+    dev = poly_dist(p, vertices)
+    assert dev.max() <= tol, dev.max()
+    # the joint path alone stays within the chord share
+    w = res.path.waypoints
+    dense = np.concatenate([a + np.linspace(0, 1, 200)[:, None] * (b - a)
+                            for a, b in pairwise(w)])  # fmt: skip
+    assert poly_dist(own_fk(DEFAULT, dense, start.assembly_mode)[0], vertices).max() <= (
+        CHORD_SHARE * tol
+    )
+    # ends: the start posture and P on the last waypoint, and the tool speed bound
+    assert np.allclose(traj.q[0], start.q)
+    assert np.linalg.norm(own_fk(DEFAULT, traj.q[-1], start.assembly_mode)[0][0] - wp[-1]) < 1e-9
+    assert np.max(traj.p_speed) <= 0.25 * (1 + 1e-3)
+    # the library's own measure agrees with ours
+    assert res.diagnostics.max_path_deviation <= tol
+    assert kappa_ok(own_kappa(t4, t5), Margins().kappa_max)
+
+
+def kappa_ok(k, kmax):
+    return bool(np.all(k <= kmax * (1 + 1e-6)))
+
+
+def test_chord_bound_is_an_upper_bound_on_random_pieces():
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(300):
+        qa = rng.uniform(-3, 3, 3)
+        qb = qa + rng.uniform(-0.15, 0.15, 3)
+        pa, *_, oka = own_fk(DEFAULT, qa, "+")
+        pb, *_, okb = own_fk(DEFAULT, qb, "+")
+        if not (oka[0] and okb[0]):
+            continue
+        wa = np.array([np.hypot(pa[0, 0], pa[0, 2])])
+        wb = np.array([np.hypot(pb[0, 0], pb[0, 2])])
+        bound = chord_deviation_bound(DEFAULT, qa[None], qb[None], wa, wb, pa, pb, "+")[0]
+        t = np.linspace(0, 1, 2001)
+        p, *_, ok = own_fk(DEFAULT, qa + t[:, None] * (qb - qa), "+")
+        if not np.all(ok) or not np.isfinite(bound):
+            continue
+        true = seg_dist(p, pa[0], pb[0]).max()
+        assert true <= bound + 1e-12
+        checked += 1
+    assert checked > 100
+
+
+# ---------------------------------------------------------------- stopping points
+def test_line_into_a_serial_singularity_stops_at_the_margin_sphere():
+    """Outward along +y from A: leg A stretches at |AP| = L1 + L2; serial_min is met first
+    where |AP|^2 = L1^2 + L2^2 + 2 L1 L2 sqrt(1 - serial_min^2) (law of cosines)."""
+    m = Margins()
+    start = start_at(DEFAULT, P_MID)
+    p0 = own_fk(DEFAULT, start.q, start.assembly_mode)[0][0]
+    goal = p0 + np.array([0.0, 0.5, 0.0])
+    res = plan_cartesian(DEFAULT, start, goal[None], timing="toppra")
+    assert res.status.value == "no_path" and res.fraction < 1
+    assert res.stop.rule == "serial_min"
+    a = np.array([0.0, -DEFAULT.L0 / 2, 0.0])
+    r = math.sqrt(DEFAULT.L1**2 + DEFAULT.L2**2
+                  + 2 * DEFAULT.L1 * DEFAULT.L2 * math.sqrt(1 - m.serial_min**2))  # fmt: skip
+    # the crossing of the line with the sphere |AP| = r, by bisection (independent)
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.linalg.norm(p0 + mid * (goal - p0) - a) < r else (lo, mid)
+    assert res.fraction == pytest.approx(lo, abs=2e-3)
+    assert res.fraction <= lo + 1e-9
+    assert "serial_min" in res.message and "% along the path" in res.message
+    assert "P = (" in res.message
+    # the last posture is valid and on the line
+    q_end = res.path.waypoints[-1]
+    p_end, t4, *_ = own_fk(DEFAULT, q_end, start.assembly_mode)
+    assert np.linalg.norm(p_end[0] - res.stop.p) < 1e-9
+    assert abs(np.sin(t4[0] - q_end[1])) >= m.serial_min
+    assert res.stop.value < m.serial_min
+    # the pre-check knows the surfaces: the margin sphere, then the stretched leg
+    kinds = [e.kind for e in res.events]
+    assert "serial_min" in kinds and "leg_A_stretched" in kinds
+    ev = next(e for e in res.events if e.kind == "leg_A_stretched")
+    assert np.linalg.norm(ev.p - a) == pytest.approx(DEFAULT.L1 + DEFAULT.L2, abs=1e-9)
+    # the partial path is timed and stays on the line
+    assert res.trajectory is not None
+    t = np.linspace(0, res.trajectory.duration, 5001)
+    p, *_ = own_fk(DEFAULT, res.trajectory.at(t)[0], start.assembly_mode)
+    assert seg_dist(p, p0, goal).max() <= 1e-3
+
+
+def test_line_towards_the_axis_stops_at_the_axis_margin():
+    """The default design's workspace never touches the axis AB; this one's does."""
+    m = Margins()
+    design = Design(0.2, 0.3, 0.4)
+    start = start_at(design, np.array([0.3, 0.4, 0.1]))
+    p0 = own_fk(design, start.q, start.assembly_mode)[0][0]
+    goal = np.array([-0.3, 0.4, -0.1])  # through the axis at (0, 0.4, 0)
+    res = plan_cartesian(design, start, goal[None], timing="none")
+    assert res.stop.rule == "serial_min", res.message
+    p_end = res.stop.p
+    # the stop is where |w| / (L1 + L2) = serial_min, |w| = distance to the y axis
+    margin = np.hypot(p_end[0], p_end[2]) / design.reach
+    assert m.serial_min <= margin == pytest.approx(m.serial_min, rel=1e-2)
+    assert any(e.kind == "P_on_axis" for e in res.events)
+    line = goal - p0
+    assert res.fraction == pytest.approx(np.linalg.norm(p_end - p0) / np.linalg.norm(line))
+
+
+def test_line_into_a_parallel_singularity_stops_at_kappa_max():
+    design = Design(0.6, 0.25, 0.45)
+    q = np.array([1.0203710958896153, 1.2877112199285161, -1.997682427306367])
+    start = JointPosture(q, "+")
+    p0 = own_fk(design, q, "+")[0][0]
+    direction = np.array([-0.2829635943241514, -0.6170719108927705, 0.7342709725123973])
+    goal = p0 + 0.3 * direction
+    res = plan_cartesian(design, start, goal[None], timing="none")
+    assert res.stop.rule == "kappa_max"
+    assert "kappa(A) = " in res.message and "> margins.kappa_max = 10" in res.message
+    # independent kappa along the line by our own IK-free route: the joint path's end, and a
+    # posture a little further by the library's IK, measured with our FK
+    q_end = res.path.waypoints[-1]
+    _, t4, t5, *_ = own_fk(design, q_end, "+")
+    assert own_kappa(t4, t5)[0] <= 10 * (1 + 1e-9)
+    assert own_kappa(t4, t5)[0] > 9.9  # stopped at the margin, not before
+    assert res.stop.value > 10
+    # every posture of the joint path keeps kappa <= 10 (dense, our FK)
+    w = res.path.waypoints
+    dense = np.concatenate([a + np.linspace(0, 1, 100)[:, None] * (b - a)
+                            for a, b in pairwise(w)])  # fmt: skip
+    _, t4, t5, *_ = own_fk(design, dense, "+")
+    assert kappa_ok(own_kappa(t4, t5), 10)
+    assert any(e.kind == "kappa_max" and e.entering for e in res.events)
+
+
+def test_line_into_an_obstacle_stops_at_the_clearance():
+    m = Margins()
+    start = start_at(DEFAULT, P_MID)
+    p0 = own_fk(DEFAULT, start.q, start.assembly_mode)[0][0]
+    goal = p0 + np.array([0.0, 0.2, 0.0])
+    ball = Sphere(center=p0 + np.array([0.0, 0.15, 0.0]), radius=0.03)
+    res = plan_cartesian(DEFAULT, start, goal[None], obstacles=[ball], timing="none")
+    assert res.stop.rule == "clearance"
+    assert "clearance" in res.message
+    # our own clearance at the end posture: links AC, BD, CP, DP against the ball
+    q_end = res.path.waypoints[-1]
+    p, _, _, c, d, _ = own_fk(DEFAULT, q_end, start.assembly_mode)
+    t1 = q_end[0]
+
+    def to3(uw):
+        return np.array([uw[1] * np.cos(t1), uw[0], -uw[1] * np.sin(t1)])
+
+    a3, b3 = np.array([0, -DEFAULT.L0 / 2, 0]), np.array([0, DEFAULT.L0 / 2, 0])
+    c3, d3 = to3(c[0]), to3(d[0])
+    links = [(a3, c3), (b3, d3), (c3, p[0]), (d3, p[0])]
+    clear = min(seg_dist(ball.center[None], s, e)[0] for s, e in links)
+    clear -= ball.radius + DEFAULT.link_radius
+    assert m.clearance <= clear < m.clearance + 2e-3
+    assert 0.3 < res.fraction < 0.75
+
+
+def test_line_out_of_the_workspace_stops_before_leaving_it():
+    start = start_at(DEFAULT, P_MID)
+    p0 = own_fk(DEFAULT, start.q, start.assembly_mode)[0][0]
+    goal = np.array([1.2, 0.0, 0.1])  # far outside: |AP| > L1 + L2
+    res = plan_cartesian(DEFAULT, start, goal[None], timing="none")
+    assert res.status.value == "no_path"
+    leave = [e for e in res.events if e.kind.endswith("stretched") and e.entering]
+    assert leave, res.events
+    # the analytic exit point is outside reach of both legs from there on
+    a = np.array([0.0, -DEFAULT.L0 / 2, 0.0])
+    b = -a
+    f_exit = leave[0].fraction
+    beyond = p0 + (f_exit + 1e-3) * (goal - p0)
+    assert max(np.linalg.norm(beyond - a), np.linalg.norm(beyond - b)) > DEFAULT.reach
+    assert res.fraction < f_exit
+    assert res.stop.rule in ("serial_min", "workspace")
+
+
+def test_joint_limits_stop_the_line():
+    design = Design(0.5, 0.2, 0.6, joint_min=(-0.3, -math.pi, -math.pi),
+                    joint_max=(0.3, math.pi, math.pi))  # fmt: skip
+    start = start_at(design, P_MID)
+    goal = P_MID + np.array([0.0, 0.0, 0.3])  # turns theta1 past -0.3
+    res = plan_cartesian(design, start, goal[None], timing="none")
+    assert res.stop.rule == "joint_limits"
+    assert "theta1 = " in res.message
+    q_end = res.path.waypoints[-1]
+    assert abs(q_end[0]) == pytest.approx(0.3, abs=1e-5)
+    assert np.all(res.path.waypoints[:, 0] >= -0.3)
+
+
+def test_invalid_start_and_bad_arguments():
+    from planner import InputError
+
+    design = Design(0.5, 0.2, 0.6)
+    res = plan_cartesian(design, JointPosture([4.0, 2.0, 1.0], "+"), [[0.3, 0.0, 0.0]])
+    assert res.status.value == "invalid_start" and res.fraction == 0.0
+    assert "joint_limits" in res.message
+    start = start_at(DEFAULT, P_MID)
+    with pytest.raises(InputError, match="path_tolerance"):
+        plan_cartesian(DEFAULT, start, [[0.4, 0.0, 0.0]], path_tolerance=0.0)
+    with pytest.raises(InputError, match="waypoints"):
+        plan_cartesian(DEFAULT, start, [[0.4, 0.0]])
+
+
+def test_precheck_sphere_crossings_match_the_closed_form():
+    start = start_at(DEFAULT, P_MID)
+    p0 = own_fk(DEFAULT, start.q, start.assembly_mode)[0][0]
+    goal = np.array([0.45, 0.8, 0.1])
+    events = inspect_cartesian(DEFAULT, start, goal[None])
+    b = np.array([0.0, DEFAULT.L0 / 2, 0.0])
+    a = -b
+    for e in events:
+        if e.kind.startswith("leg_"):
+            centre = a if "leg_A" in e.kind else b
+            r = DEFAULT.reach if "stretched" in e.kind else DEFAULT.L2 - DEFAULT.L1
+            assert np.linalg.norm(e.p - centre) == pytest.approx(r, abs=1e-9)
+            assert np.linalg.norm(e.p - p0) / np.linalg.norm(goal - p0) == pytest.approx(e.fraction)
+    assert [e.fraction for e in events] == sorted(e.fraction for e in events)
