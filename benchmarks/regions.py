@@ -24,8 +24,8 @@ from planner.validity import Margins, ValidityChecker
 
 DESIGNS = {
     "singularity-free 0.5/0.2/0.6 (P off axis, 2L1<L0)": Design.default(),
-    "mode-change 0.6/0.25/0.45 (P off axis, 2L1<L0)": Design(0.6, 0.25, 0.45),
-    "general 0.3/0.3/0.4 (P on axis, 2L1>L0)": Design(0.3, 0.3, 0.4),
+    "mode-change 0.6/0.25/0.45 (P reaches the axis, 2L1<L0)": Design(0.6, 0.25, 0.45),
+    "general 0.3/0.3/0.4 (P reaches the axis, 2L1>L0)": Design(0.3, 0.3, 0.4),
     "paper optimum 0/0.4/0.4": Design.paper_optimum(),
 }
 CUT = Design(0.3, 0.3, 0.4, joint_min=(-3.14, -0.49, -2.81), joint_max=(3.14, 0.51, -1.72))
