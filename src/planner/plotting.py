@@ -54,6 +54,8 @@ __all__ = [
     "SCREEN_RESOLUTION",
     "clear_caches",
     "draw_posture",
+    "figure_region_images",
+    "figure_region_map",
     "plot_loci",
     "render_figure",
     "write_figures",
@@ -807,3 +809,99 @@ def _render(name: str, design: Design, n: int, fmt: str, dpi: int) -> bytes:
     except (PlannerError, ValueError, IndexError, KeyError) as exc:  # a locus it lacks
         raise DesignError(f"figure {name!r} cannot be drawn for this design: {exc}") from exc
     return buffer.getvalue()
+
+
+# ---------------------------------------------------------------------------- region maps
+def _region_colours(count: int) -> np.ndarray:
+    """(count, 4) RGBA: one distinguishable colour per region id (tab20, cycled)."""
+    cmap = colormaps["tab20"]
+    return np.array([cmap(k % 20) for k in range(max(count, 1))])
+
+
+def figure_region_map(design: Design, n: int = PRINT_RESOLUTION, *, margins=None) -> Figure:
+    """The region map of ``design`` in joint space (theta2, theta3), one panel per assembly
+    mode, coloured by region (the certified cells of each region; pale: its undecided
+    cells; white: surely invalid in every mode; black dots: cells where a transit may
+    happen), each region labelled with its working mode and its union-graph component.
+
+    Parameters
+    ----------
+    design : Design
+    n : int, cells per axis of the map.
+    margins : planner.validity.Margins, optional (default margins).
+    """
+    from planner.analysis.regions import VALID, region_map
+
+    rmap = region_map(design, margins, n)
+    colours = _region_colours(len(rmap.regions))
+    fig = Figure(figsize=(12, 6.2))
+    lo, hi = design.joint_min, design.joint_max
+    extent = [lo[1], hi[1], lo[2], hi[2]]
+    for ai, asm in enumerate(("+", "-")):
+        ax = fig.add_subplot(1, 2, ai + 1)
+        img = np.ones((n, n, 4))
+        for region in rmap.regions:
+            if region.assembly_mode != asm:
+                continue
+            mi = MODE_INDEX[region.working_mode]
+            cells = rmap.labels[ai, mi] == region.label
+            sure = cells & (rmap.status[ai, mi] == VALID)
+            pale = cells & ~sure & (img[..., 0] == 1.0) & (img[..., 1] == 1.0)
+            img[pale] = 0.55 + 0.45 * colours[region.id]
+            img[sure] = colours[region.id]
+            if sure.any():
+                k3, k2 = np.nonzero(sure)
+                m = len(k3) // 2
+                ax.text(rmap.theta2[k2[m]], rmap.theta3[k3[m]],
+                        f"{region.working_mode}\n#{region.component}", fontsize=7,
+                        ha="center", va="center",
+                        bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1})  # fmt: skip
+        ax.imshow(img, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
+        tk3, tk2 = np.nonzero(rmap.transit_cells[ai].max(axis=0) > 0)
+        ax.plot(rmap.theta2[tk2], rmap.theta3[tk3], ",", color="black")
+        count = sum(r.assembly_mode == asm for r in rmap.regions)
+        ax.set_title(f"assembly mode {asm}: {count} regions", fontsize=9)
+        _joint_axes(ax)
+    fig.suptitle(
+        f"Region map (labels: working mode, #union-graph component; pale: undecided; "
+        f"dots: possible transits); {_design_text(design)}",
+        fontsize=9,
+    )
+    return fig
+
+
+def figure_region_images(design: Design, n: int = PRINT_RESOLUTION, *, margins=None) -> Figure:
+    """Each region's image in the Cartesian section (the linkage plane (u, w), m): the apex
+    P of its certified cells, coloured as in :func:`figure_region_map`, one panel per
+    assembly mode; the legend names each region's working mode and component."""
+    from planner.analysis.regions import cartesian_images, region_map
+
+    rmap = region_map(design, margins, n)
+    images = cartesian_images(rmap)
+    colours = _region_colours(len(rmap.regions))
+    fig = Figure(figsize=(12, 6.6))
+    reach = design.reach
+    for ai, asm in enumerate(("+", "-")):
+        ax = fig.add_subplot(1, 2, ai + 1)
+        handles = []
+        for region in rmap.regions:
+            if region.assembly_mode != asm:
+                continue
+            _, p = images[region.id]
+            if len(p) == 0:
+                continue
+            ax.scatter(p[:, 0], p[:, 1], s=0.6, color=colours[region.id], lw=0, rasterized=True)
+            handles.append(Patch(color=colours[region.id],
+                                 label=f"{region.working_mode} #{region.component}"))  # fmt: skip
+        for x in (-design.L0 / 2, design.L0 / 2):
+            ax.plot([x], [0.0], "ko", ms=3)
+        ax.set_xlim(-reach - design.L0 / 2, reach + design.L0 / 2)
+        ax.set_ylim(-reach, reach)
+        ax.set_title(f"assembly mode {asm}", fontsize=9)
+        _legend_below(ax, ncol=4, handles=handles)
+        _cartesian_axes(ax)
+    fig.suptitle(
+        f"Images of the regions in the linkage plane (certified cells); {_design_text(design)}",
+        fontsize=9,
+    )
+    return fig
