@@ -17,6 +17,11 @@ from planner import Design, forward_batch
 # machine's own address for its internal services) and no usage telemetry.
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+# Ray Serve kills its HTTP proxy when it is not ready within 5 s (and on health checks of
+# 10 s): a slow or loaded machine (one core, another suite running) takes longer to start
+# it. The test is about serving the app, not Ray's start-up speed: give it room.
+os.environ.setdefault("RAY_SERVE_PROXY_READY_CHECK_TIMEOUT_S", "120")
+os.environ.setdefault("RAY_SERVE_PROXY_HEALTH_CHECK_TIMEOUT_S", "60")
 pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
 
 ROOT = Path(__file__).resolve().parents[1]
