@@ -23,6 +23,8 @@ from api.warmup import warm_up_worker
 from api.workers import WorkerPool
 from planner.schemas import ErrorResponse
 
+__all__ = ["create_app"]
+
 #: Error answers of the job routes' own (the gate's and the pool's: api.openapi).
 _ERRORS = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.

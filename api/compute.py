@@ -41,10 +41,13 @@ from planner.schemas import (
 
 __all__ = [
     "analyze",
+    "answer_sample_limit",
     "as_json",
     "design_check",
     "fk",
     "ik",
+    "joint_limits",
+    "limits_loc",
     "located",
     "plan",
     "posture_model",

@@ -35,7 +35,7 @@ from planner.schemas import (
     WorkspaceResponse,
 )
 
-__all__ = ["figure", "optimize_design", "timing", "workspace"]
+__all__ = ["figure", "optimize_design", "section_grid", "timing", "workspace"]
 
 
 def _bits(mask: np.ndarray) -> list[list[int]]:

@@ -49,14 +49,7 @@ from pydantic import BaseModel
 from api.compute import as_json
 from api.logging import REQUEST_ID
 
-__all__ = [
-    "CURRENT",
-    "JobSample",
-    "Metrics",
-    "record_job",
-    "router",
-    "run_measured",
-]
+__all__ = ["CURRENT", "JobSample", "Metrics", "metrics", "record_job", "router", "run_measured"]
 
 #: Buckets (s) for request and job durations: 1 ms to 60 s.
 DURATION_BUCKETS = (

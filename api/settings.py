@@ -49,6 +49,8 @@ from planner.schemas import (
     DesignModel,
 )
 
+__all__ = ["Settings"]
+
 
 def _cpu_count() -> int:
     try:

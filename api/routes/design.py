@@ -15,6 +15,8 @@ from planner.schemas import (
     DesignOptimizeResponse,
 )
 
+__all__ = ["design_check", "design_optimize", "router"]
+
 router = APIRouter(prefix="/v1/design", tags=["design"])
 
 

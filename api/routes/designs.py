@@ -7,6 +7,8 @@ from fastapi import APIRouter
 from planner.design import Design
 from planner.schemas import DesignModel, DesignPreset, DesignsResponse
 
+__all__ = ["designs", "presets", "router"]
+
 router = APIRouter(prefix="/v1", tags=["designs"])
 
 

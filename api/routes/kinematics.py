@@ -16,6 +16,8 @@ from planner.schemas import (
     IKResponse,
 )
 
+__all__ = ["analyze", "fk", "ik", "router"]
+
 router = APIRouter(prefix="/v1", tags=["kinematics"])
 
 

@@ -8,6 +8,8 @@ import planner
 from api.deps import ApiKey, Pool, SettingsDep
 from planner.schemas import ErrorResponse, Health, Readiness, VersionInfo
 
+__all__ = ["health", "ready", "router", "version"]
+
 router = APIRouter(prefix="/v1", tags=["meta"])
 
 

@@ -26,6 +26,8 @@ from api.routes._common import (
 from api.settings import Settings
 from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 
+__all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
+
 router = APIRouter(prefix="/v1", tags=["plan"])
 
 PlanFunction = Callable[[PlanRequest], PlanResponse]

@@ -10,6 +10,8 @@ from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import check_obstacle_count, run_job
 from planner.schemas import TimingRequest, TimingResponse
 
+__all__ = ["router", "timing"]
+
 router = APIRouter(prefix="/v1", tags=["timing"])
 
 

@@ -14,6 +14,8 @@ from api.exceptions import LimitExceededError
 from api.routes._common import run_job
 from planner.schemas import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
 
+__all__ = ["figure", "router", "workspace"]
+
 router = APIRouter(prefix="/v1", tags=["workspace"])
 
 #: Names of the figures and their media types (kept here so the event loop never imports

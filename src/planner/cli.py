@@ -14,6 +14,22 @@ import typer
 
 from planner._cli_support import Command, Group, Progress
 
+__all__ = [
+    "app",
+    "bench",
+    "builtin_bench_rows",
+    "check_design_command",
+    "command",
+    "figures",
+    "fk",
+    "ik",
+    "optimize_design_command",
+    "plan",
+    "serve",
+    "version",
+    "warm_up_command",
+]
+
 app = typer.Typer(
     cls=Group,
     help="Plan, time and analyse motions of the 3-DOF hybrid manipulator.",
