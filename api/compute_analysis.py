@@ -10,29 +10,28 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import (
-    _DEADLINE,
-    _MAX_SAMPLES,
-    joint_limits,
-    limits_loc,
-    located,
-    sampled_value,
-    timing_error,
-    trajectory_model,
-)
-from planner.exceptions import AssemblyError, InputError, LimitsError
+from api.compute import _DEADLINE, _MAX_SAMPLES
+from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
-from planner.schemas import (
+from planner.wire import (
     DesignModel,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
     Diagnostics,
     FigureQuery,
     SectionGrid,
+    TimingErrorInfo,
     TimingRequest,
     TimingResponse,
     WorkspaceRequest,
     WorkspaceResponse,
+    joint_limits_to_core,
+    located,
+    margins_to_core,
+    obstacles_to_core,
+    sampled_value,
+    timing_error,
+    trajectory_model,
 )
 
 __all__ = ["figure", "optimize_design", "section_grid", "timing", "workspace"]
@@ -205,16 +204,11 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     asks for none (no margins, no obstacles)."""
     if request.margins is None and not request.obstacles:
         return None
-    from planner.geometry import obstacle_from_wire
-    from planner.validity import Margins, ValidityChecker
+    from planner.validity import ValidityChecker
+    from planner.wire import Margins as WireMargins
 
-    obstacles = []
-    for i, o in enumerate(request.obstacles):
-        with located("body", "obstacles", i):
-            obstacles.append(obstacle_from_wire(o.model_dump()))
-    with located("body", "margins"):
-        wire = request.margins.model_dump(exclude_none=True) if request.margins else {}
-        margins = Margins(**wire)
+    obstacles = obstacles_to_core(request.obstacles)
+    margins = margins_to_core(request.margins or WireMargins())
     working_mode = request.working_mode
     if working_mode is None:
         working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
@@ -268,20 +262,17 @@ def timing(request: TimingRequest) -> TimingResponse:
         bad = np.nonzero(~check(q))[0]
         if bad.size:
             i = int(bad[0])
-            diagnostics = Diagnostics()
-            diagnostics.timing_error = {  # type: ignore[attr-defined]
-                "type": "InvalidWaypoint",
-                "rule": "validity",
-                "time": None,
-                "q": q[i].tolist(),
-                "index": i,
-            }
+            diagnostics = Diagnostics(
+                timing_error=TimingErrorInfo(
+                    type="InvalidWaypoint", rule="validity", q=q[i].tolist(), index=i
+                )
+            )
             return TimingResponse(
                 status="invalid_path",
                 message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
                 diagnostics=diagnostics,
             )
-    limits = joint_limits(request.limits)
+    limits = joint_limits_to_core(request.limits)
     options: dict[str, Any] = {}
     if request.max_deviation is not None:
         options["max_deviation"] = request.max_deviation
@@ -305,19 +296,14 @@ def timing(request: TimingRequest) -> TimingResponse:
     except TimingInfeasibleError as exc:
         return TimingResponse(status="infeasible", message=f"no time profile found: {exc}")
     except TrajectoryCheckError as exc:
-        diagnostics = Diagnostics()
-        diagnostics.timing_error = timing_error(exc)  # type: ignore[attr-defined]
+        diagnostics = Diagnostics(timing_error=timing_error(exc))
         return TimingResponse(
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
-    except LimitsError as exc:
-        exc.loc = limits_loc(exc)  # type: ignore[attr-defined]
-        raise
     except InputError as exc:
         if not hasattr(exc, "loc"):
             exc.loc = _input_loc(exc)  # type: ignore[attr-defined]
         raise
     trajectory = trajectory_model(traj)
-    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s)
-    diagnostics.timing_repairs = traj.repairs  # type: ignore[attr-defined]
+    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

@@ -1,7 +1,7 @@
 """Every error of the service mapped to an HTTP answer, in one place.
 
 Every error body has FastAPI's shape, ``{"detail": [{"loc": [...], "msg": "...", "type":
-"..."}]}`` (:class:`planner.schemas.ErrorResponse`), whatever raised it:
+"..."}]}`` (:class:`planner.wire.ErrorResponse`), whatever raised it:
 
 =================================  ======  =====================================================
 raised                             status  notes

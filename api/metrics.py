@@ -95,7 +95,7 @@ def run_measured(
     ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job
     propagate unchanged (the parent maps them to HTTP answers).
     """
-    from planner.schemas import PlanResponse
+    from planner.wire import PlanResponse
 
     models: list[BaseModel] = []
 

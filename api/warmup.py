@@ -33,7 +33,7 @@ def warm_up_worker() -> float:
 def _run_jobs() -> None:
     from api import compute
     from api.metrics import run_measured
-    from planner.schemas import FKRequest, IKRequest, PlanRequest
+    from planner.wire import FKRequest, IKRequest, PlanRequest
 
     deadline = time.monotonic() + 120.0
     for method in ("toppra", "ruckig"):

@@ -32,7 +32,7 @@ from _machine import print_machine
 
 from api import compute, compute_analysis
 from planner.client import AsyncPlannerClient
-from planner.schemas import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
+from planner.wire import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
 
 ROOT = Path(__file__).resolve().parents[1]
 

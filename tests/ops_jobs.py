@@ -8,7 +8,7 @@ import os
 import sys
 import time
 
-from planner.schemas import Diagnostics, PlanRequest, PlanResponse
+from planner.wire import Diagnostics, PlanRequest, PlanResponse
 
 logger = logging.getLogger("tests.ops_jobs")
 

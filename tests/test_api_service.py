@@ -17,7 +17,7 @@ from api.exceptions import PoolSaturatedError
 from api.routes.plan import get_plan_function
 from api.settings import Settings
 from api.workers import WorkerPool
-from planner.schemas import PlanRequest, PlanResponse
+from planner.wire import PlanRequest, PlanResponse
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}

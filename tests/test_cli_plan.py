@@ -11,7 +11,7 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from planner.cli import app
-from planner.schemas import PlanResponse
+from planner.wire import PlanResponse
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()

@@ -14,7 +14,7 @@ from api.exceptions import LimitExceededError
 from api.logging import REQUEST_ID
 from api.metrics import record_job, run_measured
 from api.workers import WorkerPool
-from planner.schemas import DesignModel
+from planner.wire import DesignModel
 
 __all__ = [
     "check_obstacle_count",

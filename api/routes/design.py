@@ -8,7 +8,7 @@ from fastapi import APIRouter, Response
 from api import compute, compute_analysis
 from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import run_job
-from planner.schemas import (
+from planner.wire import (
     DesignCheckRequest,
     DesignCheckResponse,
     DesignOptimizeRequest,

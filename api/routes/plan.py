@@ -24,7 +24,7 @@ from api.routes._common import (
     with_design_defaults,
 )
 from api.settings import Settings
-from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 
 __all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
 

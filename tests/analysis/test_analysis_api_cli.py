@@ -10,7 +10,7 @@ from api.app import create_app
 from api.settings import Settings
 from planner import Design
 from planner.cli import app as cli_app
-from planner.schemas import DesignModel
+from planner.wire import DesignModel
 
 
 @pytest.fixture(scope="module")
