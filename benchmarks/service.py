@@ -55,7 +55,7 @@ def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
         [
             sys.executable,
             "-m",
-            "planner.cli",
+            "planner_cli",
             "serve",
             "--port",
             str(port),

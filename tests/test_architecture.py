@@ -130,7 +130,6 @@ def test_core_imports_nothing_of_the_wire_or_of_http() -> None:
     assert breaches == []
 
 
-@pytest.mark.xfail(strict=True, reason="planner.cli imports the service (until the CLI moves up)")
 def test_no_library_module_imports_the_service_or_the_cli() -> None:
     breaches = sorted(
         f"{name} imports {module}"

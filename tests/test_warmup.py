@@ -13,7 +13,7 @@ import sys
 
 from typer.testing import CliRunner
 
-from planner.cli import app
+from planner_cli import app
 
 _WORKLOAD = """
 import importlib, json, sys

@@ -1,7 +1,7 @@
 """The ``planner`` command line (typer).
 
 Results go to stdout, progress and errors to stderr; every command that can run for more than
-a few seconds shows what it is doing (see :class:`planner._cli_support.Progress`). Negative
+a few seconds shows what it is doing (see :class:`planner_cli._support.Progress`). Negative
 numbers are arguments (``planner ik -0.25 0.1 0.3``) unless they are an option's value.
 """
 
@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from planner._cli_support import Command, Group, Progress
+from planner_cli._support import Command, Group, Progress
 
 __all__ = [
     "app",
@@ -39,7 +39,7 @@ app = typer.Typer(
 
 
 def command(name: str | None = None):  # type: ignore[no-untyped-def]
-    """``app.command`` with :class:`planner._cli_support.Command` (negative numbers, help)."""
+    """``app.command`` with :class:`planner_cli._support.Command` (negative numbers, help)."""
     return app.command(name, cls=Command)
 
 
@@ -540,7 +540,3 @@ def bench(
     if failed:
         typer.echo(f"failed: {', '.join(failed)}", err=True)
         raise typer.Exit(1)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    app()
