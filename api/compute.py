@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from contextvars import ContextVar
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -45,6 +44,9 @@ from planner.wire import (
 
 __all__ = [
     "BYTES_PER_SAMPLE",
+    "UNBOUNDED",
+    "Job",
+    "JobBudget",
     "analyze",
     "answer_sample_limit",
     "as_json",
@@ -55,12 +57,27 @@ __all__ = [
 ]
 
 
-#: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
-#: process of the machine), set by :func:`as_json`; None: no deadline (e.g. the CLI).
-_DEADLINE: ContextVar[float | None] = ContextVar("deadline", default=None)
-#: The most trajectory samples one answer may carry (from the service's settings, see
-#: :func:`answer_sample_limit`; None: the library's cap), set by :func:`as_json`.
-_MAX_SAMPLES: ContextVar[int | None] = ContextVar("max_samples", default=None)
+@dataclass(frozen=True, slots=True)
+class JobBudget:
+    """What one job may spend, handed to it as a parameter (every job is
+    ``job(request, budget)``).
+
+    Attributes
+    ----------
+    deadline : float or None
+        The request's deadline, a :func:`time.monotonic` value (one clock for every process
+        of the machine); None: no deadline (e.g. the CLI).
+    max_samples : int or None
+        The most trajectory samples the answer may carry (from the service's settings, see
+        :func:`answer_sample_limit`); None: the library's cap.
+    """
+
+    deadline: float | None = None
+    max_samples: int | None = None
+
+
+#: No deadline, the library's sample cap: the budget of a job called in-process.
+UNBOUNDED = JobBudget()
 #: A bound on the JSON bytes of one trajectory sample (t, q, qd, qdd, jerk, p, |dP/dt|: 17
 #: numbers of at most ~22 characters each, with brackets and commas).
 BYTES_PER_SAMPLE = 400
@@ -76,28 +93,20 @@ def answer_sample_limit(max_samples: int, max_response_bytes: int, answers: int 
 _ANSWER_RESERVE_S = 0.25
 
 
-def as_json(
-    job: Callable[[Any], BaseModel],
-    request: Any,
-    *,
-    deadline: float | None = None,
-    max_samples: int | None = None,
-) -> bytes:
-    """``job(request)`` serialised to JSON bytes, in the worker: the event loop then only
-    forwards bytes (no re-validation, no pickling of large response models). ``deadline`` is
-    the request's, for jobs that can stop early (timing); ``max_samples`` bounds the
-    trajectory samples of the answer (a 422 naming ``timing.sample_rate_hz`` beyond it,
-    decided before any sample is computed)."""
-    token = _DEADLINE.set(deadline)
-    samples_token = _MAX_SAMPLES.set(max_samples)
-    try:
-        return job(request).model_dump_json().encode()
-    finally:
-        _MAX_SAMPLES.reset(samples_token)
-        _DEADLINE.reset(token)
+#: A job: request model and budget in, response model out.
+Job = Callable[[Any, JobBudget], BaseModel]
 
 
-def fk(request: FKRequest) -> FKResponse:
+def as_json(job: Job, request: Any, budget: JobBudget = UNBOUNDED) -> bytes:
+    """``job(request, budget)`` serialised to JSON bytes, in the worker: the event loop then
+    only forwards bytes (no re-validation, no pickling of large response models). The
+    budget's deadline is the request's, for jobs that can stop early (planning, timing); its
+    ``max_samples`` bounds the trajectory samples of the answer (a 422 naming
+    ``timing.sample_rate_hz`` beyond it, decided before any sample is computed)."""
+    return job(request, budget).model_dump_json().encode()
+
+
+def fk(request: FKRequest, budget: JobBudget = UNBOUNDED) -> FKResponse:
     """``POST /v1/fk``: the postures of q (one assembly mode, or all)."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -112,7 +121,7 @@ def fk(request: FKRequest) -> FKResponse:
     return FKResponse(postures=[posture_model(m, p) for p in found])
 
 
-def ik(request: IKRequest) -> IKResponse:
+def ik(request: IKRequest, budget: JobBudget = UNBOUNDED) -> IKResponse:
     """``POST /v1/ik``: the postures reaching p, one per working mode."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -127,7 +136,7 @@ def _finite_or_none(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
+def analyze(request: AnalyzeRequest, budget: JobBudget = UNBOUNDED) -> AnalyzeResponse:
     """``POST /v1/analyze``: Jacobians, condition numbers, margins and modes of one posture."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -165,7 +174,7 @@ def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
     )
 
 
-def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
+def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> DesignCheckResponse:
     """``POST /v1/design/check``: which parallel singularities the design allows and why, its
     operative working modes, closed-form and sampled volumes, well-conditioned fraction."""
     from planner.analysis.design_check import check_design
@@ -190,7 +199,7 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
     )
 
 
-def plan(request: PlanRequest) -> PlanResponse:
+def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """``POST /v1/plan``: the request's library objects (:func:`planner.wire.plan_inputs`,
     converted once), :func:`planner.planning.plan`, then the numpy path timed by
     :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``), and one
@@ -205,7 +214,7 @@ def plan(request: PlanRequest) -> PlanResponse:
 
     inputs = plan_inputs(request)
     options = inputs.options
-    deadline = _DEADLINE.get()
+    deadline = budget.deadline
     if deadline is not None:
         # the search may not outlive the request: it gets what is left of the request's budget
         # (minus a reserve for timing and the answer), so that it ends as no_path, not a 504
@@ -223,15 +232,13 @@ def plan(request: PlanRequest) -> PlanResponse:
     if request.timing.method == "none" or result.path is None:
         return plan_response(result)
     try:
-        trajectory = _time_plan(request, inputs, result.path, deadline=deadline)
+        trajectory = _time_plan(request, inputs, result.path, budget)
     except TimingError as exc:  # deadline, no profile, or the dense re-check failed
         return plan_response(result, timing_failure=exc)
     return plan_response(result, trajectory=trajectory)
 
 
-def _time_plan(
-    request: PlanRequest, inputs: PlanInputs, path: Any, *, deadline: float | None
-) -> Any:
+def _time_plan(request: PlanRequest, inputs: PlanInputs, path: Any, budget: JobBudget) -> Any:
     """Time the planned numpy path under the planner's rules per piece (each segment's mode,
     serial rules off near transits: :func:`planner.planning.path_state_checker`); joint
     limits and assembly are always checked."""
@@ -257,7 +264,7 @@ def _time_plan(
             max_cartesian_speed=request.limits.cartesian_speed,
             stop_at=[t.index for t in path.transits] if stop else [],
             check_states=check,
-            deadline=deadline,
-            max_samples=_MAX_SAMPLES.get(),
+            deadline=budget.deadline,
+            max_samples=budget.max_samples,
             **options,
         )

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import _DEADLINE, _MAX_SAMPLES
+from api.compute import UNBOUNDED, JobBudget
 from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.wire import (
@@ -70,7 +70,7 @@ def section_grid(section: Any) -> SectionGrid:
     )
 
 
-def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
+def workspace(request: WorkspaceRequest, budget: JobBudget = UNBOUNDED) -> WorkspaceResponse:
     """``POST /v1/workspace``: closed-form and sampled volumes (per working mode, well
     conditioned, GCI) and the Cartesian and joint sections as grids."""
     from planner.analysis.sections import cartesian_section, joint_section
@@ -124,7 +124,9 @@ def figure(args: tuple[str, str, FigureQuery]) -> bytes:
         return render_figure(name, query.design(), n=query.resolution, fmt=fmt, dpi=query.dpi)
 
 
-def optimize_design(request: DesignOptimizeRequest) -> DesignOptimizeResponse:
+def optimize_design(
+    request: DesignOptimizeRequest, budget: JobBudget = UNBOUNDED
+) -> DesignOptimizeResponse:
     """``POST /v1/design/optimize``: :func:`planner.analysis.optimize.optimize_design` with the
     request's (bounded) sample size and generations."""
     from planner.analysis.optimize import optimize_design as optimize
@@ -240,7 +242,7 @@ def _input_loc(exc: InputError) -> tuple[str | int, ...]:
     return ("body",)
 
 
-def timing(request: TimingRequest) -> TimingResponse:
+def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingResponse:
     """``POST /v1/timing``: :func:`planner.timing.time_path` on the client's joint path,
     checked densely (joint limits, assembly, and the planner's rules when asked).
 
@@ -287,8 +289,8 @@ def timing(request: TimingRequest) -> TimingResponse:
             max_cartesian_speed=request.limits.cartesian_speed,
             stop_at=request.stop_at,
             check_states=check,
-            deadline=_DEADLINE.get(),
-            max_samples=_MAX_SAMPLES.get(),
+            deadline=budget.deadline,
+            max_samples=budget.max_samples,
             **options,
         )
     except TimingDeadlineError as exc:

@@ -15,6 +15,7 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    PrivateAttr,
     Tag,
     ValidationInfo,
     field_validator,
@@ -144,16 +145,26 @@ class DesignModel(_Request):
                 )
         return value
 
+    #: The library design, built once when the model is validated (the check of every rule
+    #: of :class:`planner.Design` is that construction); pickled with the model.
+    _design: Design | None = PrivateAttr(default=None)
+
     @model_validator(mode="after")
     def _check_design(self) -> DesignModel:
         try:
-            self.to_design()
+            self._design = self._build()
         except DesignError as exc:  # any remaining rule of Design
             raise ValueError(str(exc)) from exc
         return self
 
     def to_design(self) -> Design:
-        """The library's :class:`planner.Design`."""
+        """The library's :class:`planner.Design` (the one built at validation: a request's
+        design object is built once)."""
+        if self._design is None:
+            self._design = self._build()
+        return self._design
+
+    def _build(self) -> Design:
         return Design(
             L0=self.L0,
             L1=self.L1,
