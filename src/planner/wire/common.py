@@ -348,7 +348,7 @@ def located(*loc: str | int) -> Iterator[None]:
         yield
     except PlannerError as exc:
         if not hasattr(exc, "loc"):
-            exc.loc = (*loc, exc.field) if exc.field else loc  # type: ignore[attr-defined]
+            exc.loc = (*loc, *exc.field_path)  # type: ignore[attr-defined]
         raise
 
 
