@@ -8,12 +8,13 @@ import os
 import sys
 import time
 
+from api.compute import UNBOUNDED, JobBudget
 from planner.wire import Diagnostics, PlanRequest, PlanResponse
 
 logger = logging.getLogger("tests.ops_jobs")
 
 
-def timed_outcome(request: PlanRequest, budget: object = None) -> PlanResponse:
+def timed_outcome(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """A plan answer whose status and durations come from the request: ``planner.seed``
     picks the status, ``planner.time_budget_s`` is reported as the planning time, a tenth of
     it as the timing time."""
@@ -25,7 +26,7 @@ def timed_outcome(request: PlanRequest, budget: object = None) -> PlanResponse:
     )
 
 
-def sleep_pid(request: PlanRequest, budget: object = None) -> PlanResponse:
+def sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """Sleep ``planner.time_budget_s`` seconds, log a line, answer with the worker's pid (also
     written to the file named by the environment variable OPS_PID_FILE, when set)."""
     pid_file = os.environ.get("OPS_PID_FILE")
