@@ -21,7 +21,9 @@ from api.routes.viewer import install_viewer
 from api.settings import Settings, get_settings
 from api.warmup import warm_up_worker
 from api.workers import WorkerPool
-from planner.schemas import ErrorResponse
+from planner.wire import ErrorResponse
+
+__all__ = ["create_app"]
 
 #: Error answers of the job routes' own (the gate's and the pool's: api.openapi).
 _ERRORS = {422: {"model": ErrorResponse}}

@@ -2,26 +2,25 @@
 model out, run in a worker process (:mod:`api.workers`). No FastAPI here: the same functions
 serve the CLI.
 
-A library error raised while handling one field gets ``loc`` (the path of that field in the
-request body) attached, so :mod:`api.errors` can name the field in its 422 answer.
+The wire <-> library conversions are those of :mod:`planner.wire`; a library error raised
+while converting one field is located there (:func:`planner.wire.located`), so
+:mod:`api.errors` can name the field in its 422 answer.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from pydantic import BaseModel
 
 from planner.constants import KAPPA_SOLVABLE
-from planner.exceptions import AssemblyError, PlannerError
-from planner.kinematics import SERIAL_KINDS, Manipulator, Posture
-from planner.schemas import (
+from planner.exceptions import AssemblyError, TimingError
+from planner.kinematics import SERIAL_KINDS, Manipulator
+from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
     DesignCheckRequest,
@@ -31,35 +30,54 @@ from planner.schemas import (
     FKResponse,
     IKRequest,
     IKResponse,
+    PlanInputs,
     PlanRequest,
     PlanResponse,
-    PostureModel,
-    SampledValue,
     SerialMargins,
-    TrajectoryModel,
+    joint_limits_to_core,
+    located,
+    plan_inputs,
+    plan_response,
+    posture_model,
+    sampled_value,
 )
 
 __all__ = [
+    "BYTES_PER_SAMPLE",
+    "UNBOUNDED",
+    "Job",
+    "JobBudget",
     "analyze",
+    "answer_sample_limit",
     "as_json",
     "design_check",
     "fk",
     "ik",
-    "located",
     "plan",
-    "posture_model",
-    "sampled_value",
-    "timing_error",
-    "trajectory_model",
 ]
 
 
-#: The deadline of the job being run (a :func:`time.monotonic` value, one clock for every
-#: process of the machine), set by :func:`as_json`; None: no deadline (e.g. the CLI).
-_DEADLINE: ContextVar[float | None] = ContextVar("deadline", default=None)
-#: The most trajectory samples one answer may carry (from the service's settings, see
-#: :func:`answer_sample_limit`; None: the library's cap), set by :func:`as_json`.
-_MAX_SAMPLES: ContextVar[int | None] = ContextVar("max_samples", default=None)
+@dataclass(frozen=True, slots=True)
+class JobBudget:
+    """What one job may spend, handed to it as a parameter (every job is
+    ``job(request, budget)``).
+
+    Attributes
+    ----------
+    deadline : float or None
+        The request's deadline, a :func:`time.monotonic` value (one clock for every process
+        of the machine); None: no deadline (e.g. the CLI).
+    max_samples : int or None
+        The most trajectory samples the answer may carry (from the service's settings, see
+        :func:`answer_sample_limit`); None: the library's cap.
+    """
+
+    deadline: float | None = None
+    max_samples: int | None = None
+
+
+#: No deadline, the library's sample cap: the budget of a job called in-process.
+UNBOUNDED = JobBudget()
 #: A bound on the JSON bytes of one trajectory sample (t, q, qd, qdd, jerk, p, |dP/dt|: 17
 #: numbers of at most ~22 characters each, with brackets and commas).
 BYTES_PER_SAMPLE = 400
@@ -75,59 +93,20 @@ def answer_sample_limit(max_samples: int, max_response_bytes: int, answers: int 
 _ANSWER_RESERVE_S = 0.25
 
 
-def as_json(
-    job: Callable[[Any], BaseModel],
-    request: Any,
-    *,
-    deadline: float | None = None,
-    max_samples: int | None = None,
-) -> bytes:
-    """``job(request)`` serialised to JSON bytes, in the worker: the event loop then only
-    forwards bytes (no re-validation, no pickling of large response models). ``deadline`` is
-    the request's, for jobs that can stop early (timing); ``max_samples`` bounds the
-    trajectory samples of the answer (a 422 naming ``timing.sample_rate_hz`` beyond it,
-    decided before any sample is computed)."""
-    token = _DEADLINE.set(deadline)
-    samples_token = _MAX_SAMPLES.set(max_samples)
-    try:
-        return job(request).model_dump_json().encode()
-    finally:
-        _MAX_SAMPLES.reset(samples_token)
-        _DEADLINE.reset(token)
+#: A job: request model and budget in, response model out.
+Job = Callable[[Any, JobBudget], BaseModel]
 
 
-@contextmanager
-def located(*loc: str | int) -> Iterator[None]:
-    """Attach ``loc`` (e.g. ``("body", "q")``) to a :class:`PlannerError` raised inside, unless
-    a more precise location is already attached."""
-    try:
-        yield
-    except PlannerError as exc:
-        if not hasattr(exc, "loc"):
-            field = getattr(exc, "field", None)
-            exc.loc = (*loc, field) if field else loc  # type: ignore[attr-defined]
-        raise
+def as_json(job: Job, request: Any, budget: JobBudget = UNBOUNDED) -> bytes:
+    """``job(request, budget)`` serialised to JSON bytes, in the worker: the event loop then
+    only forwards bytes (no re-validation, no pickling of large response models). The
+    budget's deadline is the request's, for jobs that can stop early (planning, timing); its
+    ``max_samples`` bounds the trajectory samples of the answer (a 422 naming
+    ``timing.sample_rate_hz`` beyond it, decided before any sample is computed)."""
+    return job(request, budget).model_dump_json().encode()
 
 
-def _finite_or_none(x: float) -> float | None:
-    return float(x) if np.isfinite(x) else None
-
-
-def posture_model(manipulator: Manipulator, posture: Posture) -> PostureModel:
-    """The wire form of a library posture."""
-    return PostureModel(
-        q=posture.q.tolist(),
-        passive=posture.passive.tolist(),
-        p=posture.p.tolist(),
-        points={k: v.tolist() for k, v in posture.points.items()},
-        w=posture.w,
-        working_mode=posture.working_mode,
-        assembly_mode=posture.assembly_mode,
-        within_limits=manipulator.within_limits(posture.q),
-    )
-
-
-def fk(request: FKRequest) -> FKResponse:
+def fk(request: FKRequest, budget: JobBudget = UNBOUNDED) -> FKResponse:
     """``POST /v1/fk``: the postures of q (one assembly mode, or all)."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -142,7 +121,7 @@ def fk(request: FKRequest) -> FKResponse:
     return FKResponse(postures=[posture_model(m, p) for p in found])
 
 
-def ik(request: IKRequest) -> IKResponse:
+def ik(request: IKRequest, budget: JobBudget = UNBOUNDED) -> IKResponse:
     """``POST /v1/ik``: the postures reaching p, one per working mode."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -153,7 +132,11 @@ def ik(request: IKRequest) -> IKResponse:
     return IKResponse(postures=[posture_model(m, p) for p in found])
 
 
-def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def analyze(request: AnalyzeRequest, budget: JobBudget = UNBOUNDED) -> AnalyzeResponse:
     """``POST /v1/analyze``: Jacobians, condition numbers, margins and modes of one posture."""
     with located("body", "design"):
         m = Manipulator(request.design.to_design())
@@ -191,14 +174,14 @@ def analyze(request: AnalyzeRequest) -> AnalyzeResponse:
     )
 
 
-def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
+def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> DesignCheckResponse:
     """``POST /v1/design/check``: which parallel singularities the design allows and why, its
     operative working modes, closed-form and sampled volumes, well-conditioned fraction."""
     from planner.analysis.design_check import check_design
 
     with located("body", "design"):
         design = request.design.to_design()
-    deadline = _DEADLINE.get()
+    deadline = budget.deadline
     check = check_design(
         design,
         kappa_max=request.kappa_max,
@@ -223,176 +206,72 @@ def design_check(request: DesignCheckRequest) -> DesignCheckResponse:
     )
 
 
-def plan(request: PlanRequest) -> PlanResponse:
-    """``POST /v1/plan``: plan one request with :func:`planner.planning.plan`, then time the
-    path with :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``).
+def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
+    """``POST /v1/plan``: the request's library objects (:func:`planner.wire.plan_inputs`,
+    converted once), :func:`planner.planning.plan`, then the numpy path timed by
+    :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``), and one
+    response built once (:func:`planner.wire.plan_response`).
 
-    The wire models are turned into the library's objects here; a library error is a 422
-    naming the field it came from. Timing outcomes: the request's deadline passing gives
-    status ``timeout``; a path the timing cannot turn into a checked trajectory (no profile,
-    or the dense re-check fails after the repairs) gives ``no_path`` with the reason, the
-    path kept and ``diagnostics.timing_error`` naming the failed rule.
+    A library error is a 422 naming the field it came from. Timing outcomes: the request's
+    deadline passing gives status ``timeout``; a path the timing cannot turn into a checked
+    trajectory (no profile, or the dense re-check fails after the repairs) gives ``no_path``
+    with the reason, the path kept and ``diagnostics.timing_error`` naming the failed rule.
     """
-    from planner.geometry import obstacle_from_wire
-    from planner.planning import CartesianTarget, JointPosture, PlanOptions, path_state_checker
     from planner.planning import plan as plan_path
-    from planner.validity import Margins
 
-    with located("body", "design"):
-        design = request.design.to_design()
-    with located("body", "start"):
-        start = JointPosture(np.array(request.start.q), request.start.assembly_mode)
-    with located("body", "goal"):
-        g = request.goal
-        goal = (
-            JointPosture(np.array(g.q), g.assembly_mode)
-            if hasattr(g, "q")
-            else CartesianTarget(np.array(g.p), g.working_mode)
-        )
-    obstacles = []
-    for i, o in enumerate(request.obstacles):
-        with located("body", "obstacles", i):
-            obstacles.append(obstacle_from_wire(o.model_dump()))
-    with located("body", "margins"):
-        margins = Margins(**request.margins.model_dump(exclude_none=True))
-    with located("body", "planner"):
-        options = PlanOptions(
-            **request.planner.model_dump(
-                exclude_none=True,
-                include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
-            )
-        )
-    deadline = _DEADLINE.get()
+    inputs = plan_inputs(request)
+    options = inputs.options
+    deadline = budget.deadline
     if deadline is not None:
         # the search may not outlive the request: it gets what is left of the request's budget
         # (minus a reserve for timing and the answer), so that it ends as no_path, not a 504
         left = deadline - time.monotonic() - _ANSWER_RESERVE_S
         if left < options.time_budget_s:
             options = replace(options, time_budget_s=max(left, 0.01))
-    result = plan_path(design, start, goal, obstacles=obstacles, margins=margins, options=options)
-    response = PlanResponse.model_validate(result.as_wire())
-    if request.timing.method != "none" and result.path is not None:
-        # the planner's rules per piece: each segment's mode, serial rules off near transits
-        from planner.timing import DEFAULT_MAX_DEVIATION
-
-        deviation = request.timing.max_deviation
-        near = DEFAULT_MAX_DEVIATION if deviation is None else deviation
-        check = path_state_checker(design, margins, obstacles, result.path, near=near)
-        _add_trajectory(request, response, design, check)
-    return response
-
-
-def limits_loc(exc: Exception) -> tuple[str | int, ...]:
-    """Where in the body a limits error belongs: ``body.limits.<field>`` when the message
-    names the field."""
-    for name in ("velocity", "acceleration", "jerk"):
-        if f"limits.{name}" in str(exc):
-            return ("body", "limits", name)
-    return ("body", "limits")
-
-
-def joint_limits(wire: Any) -> Any:
-    """The request's ``limits`` (absent fields: the library's defaults) as
-    :class:`planner.timing.JointLimits`; a bad value raises ``LimitsError`` located at the
-    offending ``body.limits.<field>``."""
-    from planner.exceptions import LimitsError
-    from planner.timing import JointLimits
-
-    default = JointLimits.default()
+    result = plan_path(
+        inputs.design,
+        inputs.start,
+        inputs.goal,
+        obstacles=inputs.obstacles,
+        margins=inputs.margins,
+        options=options,
+    )
+    if request.timing.method == "none" or result.path is None:
+        return plan_response(result)
     try:
-        return JointLimits(
-            velocity=wire.velocity or default.velocity,
-            acceleration=wire.acceleration or default.acceleration,
-            jerk=wire.jerk or default.jerk,
-        )
-    except LimitsError as exc:
-        exc.loc = limits_loc(exc)  # type: ignore[attr-defined]
-        raise
+        trajectory = _time_plan(request, inputs, result.path, budget)
+    except TimingError as exc:  # deadline, no profile, or the dense re-check failed
+        return plan_response(result, timing_failure=exc)
+    return plan_response(result, trajectory=trajectory)
 
 
-def _add_trajectory(
-    request: PlanRequest, response: PlanResponse, design: Any, check: Any | None
-) -> None:
-    """Time ``response.path`` in place: fill ``trajectory`` and the timing diagnostics, or
-    turn the status into ``timeout`` / ``no_path`` with the reason. ``check`` (Q -> valid,
-    :func:`planner.planning.path_state_checker`: each segment's rules, serial rules off near
-    transits) supplies the validity rules of the dense re-check; joint limits and assembly
-    are always checked."""
-    from planner.exceptions import TimingDeadlineError, TimingError
-    from planner.timing import time_path
+def _time_plan(request: PlanRequest, inputs: PlanInputs, path: Any, budget: JobBudget) -> Any:
+    """Time the planned numpy path under the planner's rules per piece (each segment's mode,
+    serial rules off near transits: :func:`planner.planning.path_state_checker`); joint
+    limits and assembly are always checked."""
+    from planner.planning import path_state_checker
+    from planner.timing import DEFAULT_MAX_DEVIATION, time_path
 
-    assert response.path is not None
-    path = response.path
-    limits = joint_limits(request.limits)
+    timing = request.timing
+    near = DEFAULT_MAX_DEVIATION if timing.max_deviation is None else timing.max_deviation
+    check = path_state_checker(inputs.design, inputs.margins, inputs.obstacles, path, near=near)
+    limits = joint_limits_to_core(request.limits)
     options: dict[str, Any] = {}
-    if request.timing.max_deviation is not None:
-        options["max_deviation"] = request.timing.max_deviation
-    stop = request.planner.stop_at_transits or request.timing.stop_at_transits
-    stop_at = [t.index for t in path.transits] if stop else []
-    try:
-        with located("body", "timing"):
-            traj = time_path(
-                design,
-                np.array(path.waypoints),
-                limits,
-                method=request.timing.method,
-                assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
-                sample_rate_hz=request.timing.sample_rate_hz,
-                max_cartesian_speed=request.limits.cartesian_speed,
-                stop_at=stop_at,
-                check_states=check,
-                deadline=_DEADLINE.get(),
-                max_samples=_MAX_SAMPLES.get(),
-                **options,
-            )
-    except TimingDeadlineError as exc:
-        response.status = "timeout"
-        response.message = f"the path was found but timing ran out of time: {exc}"
-        return
-    except TimingError as exc:  # no profile, or the dense re-check failed after the repairs
-        response.status = "no_path"
-        response.message = f"the path was found but could not be timed: {exc}"
-        response.diagnostics.timing_error = timing_error(exc)
-        return
-    response.trajectory = trajectory_model(traj)
-    response.diagnostics.timing_time_s = traj.computation_time_s
-    response.diagnostics.timing_repairs = traj.repairs
-
-
-def sampled_value(estimate: Any) -> SampledValue:
-    """The wire form of an :class:`planner.analysis.workspace.Estimate` (None: zero, no
-    samples)."""
-    if estimate is None:
-        return SampledValue(value=0.0, standard_error=0.0, n_samples=0)
-    return SampledValue(
-        value=estimate.value, standard_error=estimate.standard_error, n_samples=estimate.n_samples
-    )
-
-
-def trajectory_model(traj: Any) -> TrajectoryModel:
-    """The wire form of a :class:`planner.timing.Trajectory`."""
-    return TrajectoryModel(
-        method=traj.method,
-        duration=traj.duration,
-        t=traj.t.tolist(),
-        q=traj.q.tolist(),
-        qd=traj.qd.tolist(),
-        qdd=traj.qdd.tolist(),
-        jerk=traj.jerk.tolist() if traj.jerk is not None else None,
-        p=traj.p.tolist(),
-        p_speed=traj.p_speed.tolist(),
-        max_deviation_q=traj.max_deviation_q,
-        max_deviation_p=traj.max_deviation_p,
-    )
-
-
-def timing_error(exc: Exception) -> dict[str, Any]:
-    """``diagnostics.timing_error`` of a failed timing: the error's type, and the rule, time
-    and posture of a failed dense re-check."""
-    q = getattr(exc, "q", None)
-    return {
-        "type": type(exc).__name__,
-        "rule": getattr(exc, "rule", None),
-        "time": getattr(exc, "time", None),
-        "q": list(q) if q is not None else None,
-    }
+    if timing.max_deviation is not None:
+        options["max_deviation"] = timing.max_deviation
+    stop = request.planner.stop_at_transits or timing.stop_at_transits
+    with located("body", "timing"):
+        return time_path(
+            inputs.design,
+            np.asarray(path.waypoints, dtype=float),
+            limits,
+            method=timing.method,
+            assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
+            sample_rate_hz=timing.sample_rate_hz,
+            max_cartesian_speed=request.limits.cartesian_speed,
+            stop_at=[t.index for t in path.transits] if stop else [],
+            check_states=check,
+            deadline=budget.deadline,
+            max_samples=budget.max_samples,
+            **options,
+        )

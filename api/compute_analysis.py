@@ -11,32 +11,31 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import (
-    _DEADLINE,
-    _MAX_SAMPLES,
-    joint_limits,
-    limits_loc,
-    located,
-    sampled_value,
-    timing_error,
-    trajectory_model,
-)
-from planner.exceptions import AssemblyError, InputError, LimitsError
+from api.compute import UNBOUNDED, JobBudget
+from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
-from planner.schemas import (
+from planner.wire import (
     DesignModel,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
     Diagnostics,
     FigureQuery,
     SectionGrid,
+    TimingErrorInfo,
     TimingRequest,
     TimingResponse,
     WorkspaceRequest,
     WorkspaceResponse,
+    joint_limits_to_core,
+    located,
+    margins_to_core,
+    obstacles_to_core,
+    sampled_value,
+    timing_error,
+    trajectory_model,
 )
 
-__all__ = ["figure", "optimize_design", "timing", "workspace"]
+__all__ = ["figure", "optimize_design", "section_grid", "timing", "workspace"]
 
 
 def _bits(mask: np.ndarray) -> list[list[int]]:
@@ -72,7 +71,7 @@ def section_grid(section: Any) -> SectionGrid:
     )
 
 
-def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
+def workspace(request: WorkspaceRequest, budget: JobBudget = UNBOUNDED) -> WorkspaceResponse:
     """``POST /v1/workspace``: closed-form and sampled volumes (per working mode, well
     conditioned, GCI) and the Cartesian and joint sections as grids."""
     from planner.analysis.sections import cartesian_section, joint_section
@@ -80,7 +79,7 @@ def workspace(request: WorkspaceRequest) -> WorkspaceResponse:
 
     with located("body", "design"):
         design = request.design.to_design()
-    deadline = _DEADLINE.get()
+    deadline = budget.deadline
     sample = sample_workspace(
         design,
         rel_se=request.rel_se,
@@ -129,24 +128,30 @@ def figure(args: tuple[str, str, FigureQuery]) -> bytes:
         return render_figure(name, query.design(), n=query.resolution, fmt=fmt, dpi=query.dpi)
 
 
-def optimize_design(request: DesignOptimizeRequest) -> DesignOptimizeResponse:
+def _check_bounds(request: DesignOptimizeRequest) -> None:
+    """The rules of the bounds that the schema cannot state (each error names its field)."""
+    if request.reach is None:
+        for name in ("L1_bounds", "L2_bounds"):
+            if getattr(request, name) is None:
+                raise InputError(f"{name} is required when reach is null", field=name)
+    if request.reach is not None and request.L1_bounds is not None:
+        lo, hi = request.L1_bounds
+        if max(lo, 1e-6) > min(hi, request.reach - 1e-6):
+            raise InputError(
+                f"L1_bounds {request.L1_bounds} leave no room below reach", field="L1_bounds"
+            )
+
+
+def optimize_design(
+    request: DesignOptimizeRequest, budget: JobBudget = UNBOUNDED
+) -> DesignOptimizeResponse:
     """``POST /v1/design/optimize``: :func:`planner.analysis.optimize.optimize_design` with the
     request's (bounded) sample size and generations."""
     from planner.analysis.optimize import optimize_design as optimize
     from planner.analysis.workspace import closed_form_volume
 
-    if request.reach is None:
-        for name in ("L1_bounds", "L2_bounds"):
-            if getattr(request, name) is None:
-                err = InputError(f"{name} is required when reach is null")
-                err.loc = ("body", name)  # type: ignore[attr-defined]
-                raise err
-    if request.reach is not None and request.L1_bounds is not None:
-        lo, hi = request.L1_bounds
-        if max(lo, 1e-6) > min(hi, request.reach - 1e-6):
-            err = InputError(f"L1_bounds {request.L1_bounds} leave no room below reach")
-            err.loc = ("body", "L1_bounds")  # type: ignore[attr-defined]
-            raise err
+    with located("body"):
+        _check_bounds(request)
     with located("body", "design"):
         template = request.design.to_design()
 
@@ -186,22 +191,20 @@ def _check_waypoints(design: Any, q: np.ndarray, assembly_mode: str) -> None:
     if outside.size:
         i = int(outside[0])
         j = int(np.argmax((q[i] < lo) | (q[i] > hi)))
-        err = InputError(
+        raise InputError(
             f"waypoints[{i}] is outside the joint limits: theta{j + 1} = {q[i, j]:.6g} rad not "
-            f"in [{lo[j]:.6g}, {hi[j]:.6g}]"
+            f"in [{lo[j]:.6g}, {hi[j]:.6g}]",
+            field=("waypoints", i, j),
         )
-        err.loc = ("body", "waypoints", i, j)  # type: ignore[attr-defined]
-        raise err
     batch = forward_batch(design, q, assembly_mode)
     bad = np.nonzero(~batch.ok | (batch.assembly_mode_signs == 0))[0]
     if bad.size:
         i = int(bad[0])
-        err2 = AssemblyError(
+        raise AssemblyError(
             f"waypoints[{i}] = {q[i].tolist()} does not assemble in assembly mode "
-            f"{assembly_mode!r} (the loop does not close, or it is a parallel singularity)"
+            f"{assembly_mode!r} (the loop does not close, or it is a parallel singularity)",
+            field=("waypoints", i),
         )
-        err2.loc = ("body", "waypoints", i)  # type: ignore[attr-defined]
-        raise err2
 
 
 def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
@@ -209,16 +212,11 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     asks for none (no margins, no obstacles)."""
     if request.margins is None and not request.obstacles:
         return None
-    from planner.geometry import obstacle_from_wire
-    from planner.validity import Margins, ValidityChecker
+    from planner.validity import ValidityChecker
+    from planner.wire import Margins as WireMargins
 
-    obstacles = []
-    for i, o in enumerate(request.obstacles):
-        with located("body", "obstacles", i):
-            obstacles.append(obstacle_from_wire(o.model_dump()))
-    with located("body", "margins"):
-        wire = request.margins.model_dump(exclude_none=True) if request.margins else {}
-        margins = Margins(**wire)
+    obstacles = obstacles_to_core(request.obstacles)
+    margins = margins_to_core(request.margins or WireMargins())
     working_mode = request.working_mode
     if working_mode is None:
         working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
@@ -239,18 +237,7 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     return check
 
 
-def _input_loc(exc: InputError) -> tuple[str | int, ...]:
-    field = getattr(exc, "field", None)
-    if field:
-        return ("body", field)
-    text = str(exc)
-    for name in ("sample_rate_hz", "max_deviation", "stop_at", "waypoints", "method"):
-        if text.startswith(name) or f" {name}" in text:
-            return ("body", name)
-    return ("body",)
-
-
-def timing(request: TimingRequest) -> TimingResponse:
+def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingResponse:
     """``POST /v1/timing``: :func:`planner.timing.time_path` on the client's joint path,
     checked densely (joint limits, assembly, and the planner's rules when asked).
 
@@ -266,62 +253,52 @@ def timing(request: TimingRequest) -> TimingResponse:
     with located("body", "design"):
         design = request.design.to_design()
     q = np.asarray(request.waypoints, dtype=float)
-    _check_waypoints(design, q, request.assembly_mode)
+    with located("body"):
+        _check_waypoints(design, q, request.assembly_mode)
     check = _validity_check(request, design, q[0])
     if check is not None:
         bad = np.nonzero(~check(q))[0]
         if bad.size:
             i = int(bad[0])
-            diagnostics = Diagnostics()
-            diagnostics.timing_error = {  # type: ignore[attr-defined]
-                "type": "InvalidWaypoint",
-                "rule": "validity",
-                "time": None,
-                "q": q[i].tolist(),
-                "index": i,
-            }
+            diagnostics = Diagnostics(
+                timing_error=TimingErrorInfo(
+                    type="InvalidWaypoint", rule="validity", q=q[i].tolist(), index=i
+                )
+            )
             return TimingResponse(
                 status="invalid_path",
                 message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
                 diagnostics=diagnostics,
             )
-    limits = joint_limits(request.limits)
+    limits = joint_limits_to_core(request.limits)
     options: dict[str, Any] = {}
     if request.max_deviation is not None:
         options["max_deviation"] = request.max_deviation
     try:
-        traj = time_path(
-            design,
-            q,
-            limits,
-            method=request.method,
-            assembly_mode=request.assembly_mode,
-            sample_rate_hz=request.sample_rate_hz,
-            max_cartesian_speed=request.limits.cartesian_speed,
-            stop_at=request.stop_at,
-            check_states=check,
-            deadline=_DEADLINE.get(),
-            max_samples=_MAX_SAMPLES.get(),
-            **options,
-        )
+        with located("body"):  # an input error names its field (sample_rate_hz, stop_at...)
+            traj = time_path(
+                design,
+                q,
+                limits,
+                method=request.method,
+                assembly_mode=request.assembly_mode,
+                sample_rate_hz=request.sample_rate_hz,
+                max_cartesian_speed=request.limits.cartesian_speed,
+                stop_at=request.stop_at,
+                check_states=check,
+                deadline=budget.deadline,
+                max_samples=budget.max_samples,
+                **options,
+            )
     except TimingDeadlineError as exc:
         return TimingResponse(status="timeout", message=f"timing ran out of time: {exc}")
     except TimingInfeasibleError as exc:
         return TimingResponse(status="infeasible", message=f"no time profile found: {exc}")
     except TrajectoryCheckError as exc:
-        diagnostics = Diagnostics()
-        diagnostics.timing_error = timing_error(exc)  # type: ignore[attr-defined]
+        diagnostics = Diagnostics(timing_error=timing_error(exc))
         return TimingResponse(
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
-    except LimitsError as exc:
-        exc.loc = limits_loc(exc)  # type: ignore[attr-defined]
-        raise
-    except InputError as exc:
-        if not hasattr(exc, "loc"):
-            exc.loc = _input_loc(exc)  # type: ignore[attr-defined]
-        raise
     trajectory = trajectory_model(traj)
-    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s)
-    diagnostics.timing_repairs = traj.repairs  # type: ignore[attr-defined]
+    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

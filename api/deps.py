@@ -14,7 +14,16 @@ from api.middleware import api_key_given
 from api.settings import Settings
 from api.workers import WorkerPool
 
-__all__ = ["ApiKey", "Deadline", "Pool", "SettingsDep", "require_api_key"]
+__all__ = [
+    "ApiKey",
+    "Deadline",
+    "Pool",
+    "SettingsDep",
+    "get_app_settings",
+    "get_deadline",
+    "get_pool",
+    "require_api_key",
+]
 
 
 def get_app_settings(request: Request) -> Settings:

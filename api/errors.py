@@ -1,7 +1,7 @@
 """Every error of the service mapped to an HTTP answer, in one place.
 
 Every error body has FastAPI's shape, ``{"detail": [{"loc": [...], "msg": "...", "type":
-"..."}]}`` (:class:`planner.schemas.ErrorResponse`), whatever raised it:
+"..."}]}`` (:class:`planner.wire.ErrorResponse`), whatever raised it:
 
 =================================  ======  =====================================================
 raised                             status  notes
@@ -10,8 +10,9 @@ request validation (pydantic)      422     ``loc`` is the path of the field, e.g
 malformed or too deeply nested     422     ``loc`` = ["body"]
 JSON body
 LimitExceededError                 422     a setting's size limit (obstacles, batch size)
-DesignError, InputError,           422     library errors; ``loc`` from :func:`api.compute.located`
-KinematicsError, other PlannerError
+DesignError, InputError,           422     library errors; ``loc``: where the wire located the
+KinematicsError, other PlannerError        error (:func:`planner.wire.located`), else the
+                                           table's, followed by the error's own ``field``
 AuthenticationError, or no key     401     ``WWW-Authenticate: Bearer`` (no key: answered by
                                            :mod:`api.middleware` before the body is read)
 body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
@@ -140,7 +141,8 @@ async def _library(_: Request, exc: PlannerError) -> JSONResponse:
             break
     else:  # pragma: no cover - PlannerError is in the table
         status, type_, loc = 422, "planner_error", ("body",)
-    return error_response(status, str(exc), type_, getattr(exc, "loc", loc))
+    located = getattr(exc, "loc", None)
+    return error_response(status, str(exc), type_, located or (*loc, *exc.field_path))
 
 
 async def _service(_: Request, exc: Exception) -> JSONResponse:

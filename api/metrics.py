@@ -46,17 +46,10 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from pydantic import BaseModel
 
-from api.compute import as_json
+from api.compute import UNBOUNDED, Job, JobBudget, as_json
 from api.logging import REQUEST_ID
 
-__all__ = [
-    "CURRENT",
-    "JobSample",
-    "Metrics",
-    "record_job",
-    "router",
-    "run_measured",
-]
+__all__ = ["CURRENT", "JobSample", "Metrics", "metrics", "record_job", "router", "run_measured"]
 
 #: Buckets (s) for request and job durations: 1 ms to 60 s.
 DURATION_BUCKETS = (
@@ -90,31 +83,31 @@ class JobSample:
 
 
 def run_measured(
-    job: Callable[[Any], BaseModel],
+    job: Job,
     request: Any,
     *,
-    deadline: float | None = None,
+    budget: JobBudget = UNBOUNDED,
     request_id: str | None = None,
-    max_samples: int | None = None,
 ) -> tuple[bytes, JobSample]:
-    """In a worker: :func:`api.compute.as_json` of ``job(request)`` and its :class:`JobSample`.
+    """In a worker: :func:`api.compute.as_json` of ``job(request, budget)`` and its
+    :class:`JobSample`.
 
     ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job
     propagate unchanged (the parent maps them to HTTP answers).
     """
-    from planner.schemas import PlanResponse
+    from planner.wire import PlanResponse
 
     models: list[BaseModel] = []
 
-    def keep(r: Any) -> BaseModel:
-        model = job(r)
+    def keep(r: Any, b: JobBudget) -> BaseModel:
+        model = job(r, b)
         models.append(model)
         return model
 
     token = REQUEST_ID.set(request_id)
     start = time.perf_counter()
     try:
-        content = as_json(keep, request, deadline=deadline, max_samples=max_samples)
+        content = as_json(keep, request, budget)
     finally:
         REQUEST_ID.reset(token)
     seconds = time.perf_counter() - start

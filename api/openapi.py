@@ -27,7 +27,7 @@ from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-__all__ = ["STATIC_DOCS", "install_docs", "install_openapi"]
+__all__ = ["STATIC_DOCS", "document_errors", "install_docs", "install_openapi"]
 
 #: The vendored Swagger UI and ReDoc files.
 STATIC_DOCS = Path(__file__).parent / "static" / "docs"

@@ -42,12 +42,14 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from planner.design import PRESET_NAMES, Design
 from planner.exceptions import DesignError
-from planner.schemas import (
+from planner.wire import (
     MAX_BATCH_REQUESTS,
     MAX_OBSTACLES,
     MAX_SECTION_RESOLUTION,
     DesignModel,
 )
+
+__all__ = ["Settings"]
 
 
 def _cpu_count() -> int:

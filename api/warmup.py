@@ -32,10 +32,11 @@ def warm_up_worker() -> float:
 
 def _run_jobs() -> None:
     from api import compute
+    from api.compute import JobBudget
     from api.metrics import run_measured
-    from planner.schemas import FKRequest, IKRequest, PlanRequest
+    from planner.wire import FKRequest, IKRequest, PlanRequest
 
-    deadline = time.monotonic() + 120.0
+    budget = JobBudget(deadline=time.monotonic() + 120.0)
     for method in ("toppra", "ruckig"):
         body = {
             "start": _POSTURE,
@@ -44,6 +45,6 @@ def _run_jobs() -> None:
             "planner": {"seed": 1},
             "timing": {"method": method},
         }
-        run_measured(compute.plan, PlanRequest.model_validate(body), deadline=deadline)
-    run_measured(compute.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), deadline=deadline)
-    run_measured(compute.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), deadline=deadline)
+        run_measured(compute.plan, PlanRequest.model_validate(body), budget=budget)
+    run_measured(compute.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), budget=budget)
+    run_measured(compute.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), budget=budget)

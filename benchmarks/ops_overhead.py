@@ -28,7 +28,7 @@ from api import compute
 from api.logging import JsonFormatter, RequestIdFilter
 from api.metrics import Metrics, run_measured
 from api.middleware import RequestObserver
-from planner.schemas import FKRequest
+from planner.wire import FKRequest
 
 
 async def _endpoint(scope, receive, send) -> None:  # type: ignore[no-untyped-def]

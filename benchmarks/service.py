@@ -32,7 +32,7 @@ from _machine import print_machine
 
 from api import compute, compute_analysis
 from planner.client import AsyncPlannerClient
-from planner.schemas import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
+from planner.wire import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,7 +55,7 @@ def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
         [
             sys.executable,
             "-m",
-            "planner.cli",
+            "planner_cli",
             "serve",
             "--port",
             str(port),

@@ -135,7 +135,7 @@ def main() -> None:
     env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
            "PLANNER_WORKERS": str(args.workers), "PLANNER_QUEUE_SIZE": str(args.concurrency * 2)}  # fmt: skip
     proc = subprocess.Popen(
-        [sys.executable, "-m", "planner.cli", "serve", "--port", str(port), "--log-level", "warning"],
+        [sys.executable, "-m", "planner_cli", "serve", "--port", str(port), "--log-level", "warning"],
         cwd=ROOT, env=env,
     )  # fmt: skip
     url = f"http://127.0.0.1:{port}"

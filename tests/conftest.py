@@ -140,7 +140,7 @@ def serve_process(
             [
                 sys.executable,
                 "-m",
-                "planner.cli",
+                "planner_cli",
                 "serve",
                 "--host",
                 "127.0.0.1",

@@ -8,24 +8,25 @@ import os
 import sys
 import time
 
-from planner.schemas import Diagnostics, PlanRequest, PlanResponse
+from api.compute import UNBOUNDED, JobBudget
+from planner.wire import Diagnostics, PlanRequest, PlanResponse
 
 logger = logging.getLogger("tests.ops_jobs")
 
 
-def timed_outcome(request: PlanRequest) -> PlanResponse:
+def timed_outcome(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """A plan answer whose status and durations come from the request: ``planner.seed``
     picks the status, ``planner.time_budget_s`` is reported as the planning time, a tenth of
     it as the timing time."""
     statuses = ("solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout")
-    budget = request.planner.time_budget_s
+    seconds = request.planner.time_budget_s
     return PlanResponse(
         status=statuses[(request.planner.seed or 0) % len(statuses)],
-        diagnostics=Diagnostics(planning_time_s=budget, timing_time_s=budget / 10),
+        diagnostics=Diagnostics(planning_time_s=seconds, timing_time_s=seconds / 10),
     )
 
 
-def sleep_pid(request: PlanRequest) -> PlanResponse:
+def sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """Sleep ``planner.time_budget_s`` seconds, log a line, answer with the worker's pid (also
     written to the file named by the environment variable OPS_PID_FILE, when set)."""
     pid_file = os.environ.get("OPS_PID_FILE")

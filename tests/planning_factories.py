@@ -106,8 +106,16 @@ def plan_request(design, start, goal_wire: dict, margins, obstacles) -> dict:
     }
 
 
+def plan_answer(result) -> dict:
+    """The wire answer of a library :class:`~planner.planning.PlanResult` (no trajectory), as
+    the service would send it: :func:`planner.wire.plan_response` dumped to JSON types."""
+    from planner.wire import plan_response
+
+    return plan_response(result).model_dump(mode="json")
+
+
 def check_library_plan(design, start, goal_wire: dict, margins, obstacles, response: dict):
-    """Re-check a library plan (``PlanResult.as_wire()``) with the independent checker of
+    """Re-check a library plan (its wire answer, :func:`plan_answer`) with the independent checker of
     ``tests/plan_checker.py``; returns its :class:`~plan_checker.PlanCheck` (``ok``, and the
     broken rules in ``str()``)."""
     report: PlanCheck = check_plan(

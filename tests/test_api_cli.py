@@ -7,7 +7,7 @@ import json
 
 from typer.testing import CliRunner
 
-from planner.cli import app
+from planner_cli import app
 
 runner = CliRunner()
 

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from planner.design import Design
-from planner.schemas import DesignModel
+from planner.wire import DesignModel
 
 
 def test_presets_are_the_documented_designs(api):

@@ -9,7 +9,7 @@ import pytest
 from pydantic import ValidationError
 
 from planner import schemas
-from planner.schemas import (
+from planner.wire import (
     BoxObstacle,
     CartesianTarget,
     Diagnostics,
@@ -99,7 +99,7 @@ def test_plan_response_vocabulary():
     assert set(PlanBatchResponse.model_fields) == {"results"}
 
 
-def test_a_full_response_parses_and_keeps_extra_diagnostics():
+def test_a_full_response_parses_with_declared_diagnostics_and_ignores_unknown_ones():
     text = """{"status": "solved", "message": "",
       "path": {"waypoints": [[0,1,2],[0.1,1,2],[0.2,1,2]],
                "segments": [{"working_mode": "++-", "assembly_mode": "+", "start_index": 0,
@@ -110,11 +110,12 @@ def test_a_full_response_parses_and_keeps_extra_diagnostics():
                              "flipped": "A"}]},
       "trajectory": {"duration": 1.0, "t": [0, 1], "q": [[0,1,2],[0.2,1,2]],
                      "qd": [[0,0,0],[0,0,0]], "qdd": [[0,0,0],[0,0,0]], "jerk": null},
-      "diagnostics": {"planning_time_s": 0.01, "path_length": 0.2},
+      "diagnostics": {"planning_time_s": 0.01, "path_length": 0.2, "from_a_newer_server": 1},
       "future_field": 1}"""
     r = PlanResponse.model_validate_json(text)
     assert r.path.transits[0].kind == "leg_A_stretched"
-    assert r.diagnostics.model_extra == {"path_length": 0.2}
+    assert r.diagnostics.path_length == 0.2
+    assert "from_a_newer_server" not in r.diagnostics.model_dump()
     assert r.trajectory.duration == 1.0
 
 

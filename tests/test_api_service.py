@@ -13,27 +13,28 @@ import time
 import pytest
 from pydantic import ValidationError
 
+from api.compute import UNBOUNDED, JobBudget
 from api.exceptions import PoolSaturatedError
 from api.routes.plan import get_plan_function
 from api.settings import Settings
 from api.workers import WorkerPool
-from planner.schemas import PlanRequest, PlanResponse
+from planner.wire import PlanRequest, PlanResponse
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}
 
 
 # ---------------------------------------------------------------- jobs run in worker processes
-def _echo_seed(request: PlanRequest) -> PlanResponse:
+def _echo_seed(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     return PlanResponse(status="no_path", message=str(request.planner.seed))
 
 
-def _sleep_pid(request: PlanRequest) -> PlanResponse:
+def _sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     time.sleep(request.planner.time_budget_s)
     return PlanResponse(status="timeout", message=str(os.getpid()))
 
 
-def _die(_request: PlanRequest) -> PlanResponse:
+def _die(_request: PlanRequest, _budget: JobBudget = UNBOUNDED) -> PlanResponse:
     os._exit(3)
 
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from planner.cli import app
-from planner.schemas import PlanResponse
+from planner.wire import PlanResponse
+from planner_cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -95,7 +95,7 @@ def test_bench_builtin_prints_its_table():
 def test_bench_runs_a_script_and_refuses_unknown_names():
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
     done = subprocess.run(
-        [sys.executable, "-m", "planner.cli", "bench", "kinematics", "--quick"],
+        [sys.executable, "-m", "planner_cli", "bench", "kinematics", "--quick"],
         capture_output=True, text=True, timeout=300, env=env, cwd=ROOT,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr

@@ -11,8 +11,8 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from planner._cli_support import Progress, numbers_as_arguments
-from planner.cli import app
+from planner_cli import app
+from planner_cli._support import Progress, numbers_as_arguments
 
 runner = CliRunner()
 GROUP = typer.main.get_command(app)

@@ -27,7 +27,7 @@ from planner.client import (
     TransportError,
 )
 from planner.exceptions import PlannerError
-from planner.schemas import FKResponse, PlanRequest
+from planner.wire import FKResponse, PlanRequest
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 EMPTY_FK = {"postures": []}

@@ -13,7 +13,7 @@ import pytest
 
 import planner
 from planner.client import AsyncPlannerClient, InvalidRequestError, NotFoundError, PlannerClient
-from planner.schemas import DesignOptimizeResponse, TimingResponse, WorkspaceResponse
+from planner.wire import DesignOptimizeResponse, TimingResponse, WorkspaceResponse
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

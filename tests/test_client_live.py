@@ -14,7 +14,7 @@ from planner.client import (
     InvalidRequestError,
     PlannerClient,
 )
-from planner.schemas import AnalyzeResponse, DesignsResponse, FKResponse, IKResponse
+from planner.wire import AnalyzeResponse, DesignsResponse, FKResponse, IKResponse
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 

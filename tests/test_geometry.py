@@ -8,7 +8,8 @@ import pytest
 from planning_factories import point_distance
 
 from planner.exceptions import InputError
-from planner.geometry import Box, Capsule, Sphere, obstacle_from_wire, segment_obstacle_distance
+from planner.geometry import Box, Capsule, Sphere, segment_obstacle_distance
+from planner.wire import obstacle_from_dict
 
 
 def _sampled(a, b, ob, k=4001):
@@ -84,7 +85,7 @@ def test_closed_forms():
 )
 def test_bad_obstacles_name_the_field(data, field):
     with pytest.raises(InputError, match=field.replace(".", r"\.")):
-        obstacle_from_wire(data)
+        obstacle_from_dict(data)
 
 
 def test_boxes_touching_and_grazing():

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 from plan_checker import check_plan
-from planning_factories import check_library_plan, wire_design
+from planning_factories import check_library_plan, plan_answer, wire_design
 
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch
@@ -165,7 +165,7 @@ def test_every_reachable_mode_pair_is_planned(name, asm, m0, m1):
     hamming = sum(a != b for a, b in zip(m0, m1, strict=True))
     assert len(res.path.transits) >= hamming
     check_mode_path(design, start, res, goal_q=goal.q)
-    report = check_library_plan(design, start, _goal_wire(goal), MARGINS, [], res.as_wire())
+    report = check_library_plan(design, start, _goal_wire(goal), MARGINS, [], plan_answer(res))
     assert report.ok, report
 
 
@@ -229,7 +229,7 @@ def test_cartesian_goal_in_a_specific_other_mode():
     assert res.solved, res.message
     assert [s.working_mode for s in res.path.segments][-1] == "+++"
     check_mode_path(design, start, res, goal_p=p)
-    report = check_library_plan(design, start, _goal_wire(target), MARGINS, [], res.as_wire())
+    report = check_library_plan(design, start, _goal_wire(target), MARGINS, [], plan_answer(res))
     assert report.ok, report
 
 
@@ -252,7 +252,7 @@ def test_any_mode_changes_mode_when_the_start_mode_cannot_reach():
     check_mode_path(design, start, res, goal_p=p)
     report = check_library_plan(
         design, start, {"p": p.tolist(), "working_mode": "any"}, MARGINS, [],
-        res.as_wire(),
+        plan_answer(res),
     )  # fmt: skip
     assert report.ok, report
 
@@ -282,7 +282,7 @@ def test_any_mode_changes_mode_when_the_start_region_is_cut_off():
     assert res.path.segments[-1].working_mode != "+-+"
     check_mode_path(design, start, res, goal_p=p)
     goal_wire = {"p": p.tolist(), "working_mode": "any"}
-    report = check_library_plan(design, start, goal_wire, MARGINS, [], res.as_wire())
+    report = check_library_plan(design, start, goal_wire, MARGINS, [], plan_answer(res))
     assert report.ok, report
 
 
@@ -302,7 +302,9 @@ def test_obstacle_next_to_the_transit_still_solved():
     assert res.solved, res.message
     assert not np.allclose(res.path.transits[0].q, qt)
     check_mode_path(design, start, res, goal_q=goal.q)
-    report = check_library_plan(design, start, _goal_wire(goal), MARGINS, obstacles, res.as_wire())
+    report = check_library_plan(
+        design, start, _goal_wire(goal), MARGINS, obstacles, plan_answer(res)
+    )
     assert report.ok, report
 
 

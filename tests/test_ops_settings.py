@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from api.server import job_grace_s
 from api.settings import Settings
-from planner.cli import app as cli
+from planner_cli import app as cli
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "operations.md"
 

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from planning_factories import check_library_plan
+from planning_factories import check_library_plan, plan_answer
 
 from planner.design import Design
 from planner.exceptions import InputError
@@ -69,7 +69,7 @@ def test_solved_paths_pass_the_independent_check(seed):
     assert d.min_clearance >= margins.clearance and d.max_kappa_A <= margins.kappa_max
     assert d.min_serial_margin >= margins.serial_min
     assert d.path_length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
-    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), margins, BLOCKER, res.as_wire())
+    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), margins, BLOCKER, plan_answer(res))
     assert report.ok, report
 
 
@@ -88,7 +88,9 @@ def test_every_planner_solves_a_blocked_query(name):
     )
     assert res.status is PlanStatus.SOLVED, (name, res.message)
     assert res.diagnostics.planner == name
-    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire())
+    report = check_library_plan(
+        DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, plan_answer(res)
+    )
     assert report.ok, report
 
 
@@ -157,14 +159,14 @@ def test_cartesian_goal_any_mode():
     end = forward_batch(DESIGN, res.path.waypoints[-1], "+").p[0]
     np.testing.assert_allclose(end, p, atol=1e-9)
     report = check_library_plan(
-        DESIGN, START, _goal_wire(target), Margins(), BLOCKER, res.as_wire()
+        DESIGN, START, _goal_wire(target), Margins(), BLOCKER, plan_answer(res)
     )
     assert report.ok, report
 
 
 def test_wire_fields():
     res = plan(DESIGN, START, GOAL, obstacles=BLOCKER)
-    wire = res.as_wire()
+    wire = plan_answer(res)
     assert wire["status"] == "solved"
     assert set(wire["path"]) == {"waypoints", "segments", "transits"}
     assert set(wire["path"]["segments"][0]) == {
@@ -223,7 +225,9 @@ def test_plan_in_region_with_goal_candidates():
     chk = ValidityChecker(DESIGN, Margins(), BLOCKER, "+", "+-+")
     res = plan_in_region(chk, START.q, np.stack([GOAL.q]), options=PlanOptions(seed=3))
     assert res.solved and res.diagnostics.attempts == 1
-    report = check_library_plan(DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, res.as_wire())
+    report = check_library_plan(
+        DESIGN, START, _goal_wire(GOAL), Margins(), BLOCKER, plan_answer(res)
+    )
     assert report.ok, report
 
 

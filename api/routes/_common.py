@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from functools import partial
 from typing import Any
 
@@ -10,11 +10,12 @@ from fastapi import Response
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
+from api.compute import Job, JobBudget
 from api.exceptions import LimitExceededError
 from api.logging import REQUEST_ID
 from api.metrics import record_job, run_measured
 from api.workers import WorkerPool
-from planner.schemas import DesignModel
+from planner.wire import DesignModel
 
 __all__ = [
     "check_obstacle_count",
@@ -73,7 +74,7 @@ def json_response(content: bytes) -> Response:
 
 async def run_job(
     pool: WorkerPool,
-    job: Callable[[Any], BaseModel],
+    job: Job,
     body: Any,
     deadline: float,
     *,
@@ -88,7 +89,10 @@ async def run_job(
     (:func:`api.compute.answer_sample_limit`)."""
     body = with_design_defaults(body, design_defaults)
     job_json = partial(
-        run_measured, job, deadline=deadline, request_id=REQUEST_ID.get(), max_samples=max_samples
+        run_measured,
+        job,
+        budget=JobBudget(deadline, max_samples),
+        request_id=REQUEST_ID.get(),
     )
     content, sample = await pool.run(job_json, body, deadline=deadline)
     record_job(sample)
@@ -97,7 +101,7 @@ async def run_job(
 
 async def run_jobs(
     pool: WorkerPool,
-    job: Callable[[Any], BaseModel],
+    job: Job,
     bodies: Sequence[Any],
     deadline: float,
     *,
@@ -110,7 +114,10 @@ async def run_jobs(
     still answers a pool that is saturated by other requests.
     """
     job_json = partial(
-        run_measured, job, deadline=deadline, request_id=REQUEST_ID.get(), max_samples=max_samples
+        run_measured,
+        job,
+        budget=JobBudget(deadline, max_samples),
+        request_id=REQUEST_ID.get(),
     )
     contents: list[bytes] = []
     for start in range(0, len(bodies), pool.workers):

@@ -8,12 +8,14 @@ from fastapi import APIRouter, Response
 from api import compute, compute_analysis
 from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import run_job
-from planner.schemas import (
+from planner.wire import (
     DesignCheckRequest,
     DesignCheckResponse,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
 )
+
+__all__ = ["design_check", "design_optimize", "router"]
 
 router = APIRouter(prefix="/v1/design", tags=["design"])
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from planner.design import Design
-from planner.schemas import DesignModel, DesignPreset, DesignsResponse
+from planner.wire import DesignModel, DesignPreset, DesignsResponse
+
+__all__ = ["designs", "presets", "router"]
 
 router = APIRouter(prefix="/v1", tags=["designs"])
 

@@ -7,7 +7,7 @@ from fastapi import APIRouter, Response
 from api import compute
 from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import run_job
-from planner.schemas import (
+from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
     FKRequest,
@@ -15,6 +15,8 @@ from planner.schemas import (
     IKRequest,
     IKResponse,
 )
+
+__all__ = ["analyze", "fk", "ik", "router"]
 
 router = APIRouter(prefix="/v1", tags=["kinematics"])
 

@@ -6,7 +6,9 @@ from fastapi import APIRouter, Response
 
 import planner
 from api.deps import ApiKey, Pool, SettingsDep
-from planner.schemas import ErrorResponse, Health, Readiness, VersionInfo
+from planner.wire import ErrorResponse, Health, Readiness, VersionInfo
+
+__all__ = ["health", "ready", "router", "version"]
 
 router = APIRouter(prefix="/v1", tags=["meta"])
 

@@ -13,7 +13,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Response
 
 from api import compute
-from api.compute import answer_sample_limit
+from api.compute import JobBudget, answer_sample_limit
 from api.deps import Deadline, Pool, SettingsDep
 from api.exceptions import LimitExceededError
 from api.routes._common import (
@@ -24,11 +24,13 @@ from api.routes._common import (
     with_design_defaults,
 )
 from api.settings import Settings
-from planner.schemas import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+
+__all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
 
 router = APIRouter(prefix="/v1", tags=["plan"])
 
-PlanFunction = Callable[[PlanRequest], PlanResponse]
+PlanFunction = Callable[[PlanRequest, JobBudget], PlanResponse]
 
 
 def get_plan_function() -> PlanFunction:

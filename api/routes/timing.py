@@ -8,7 +8,9 @@ from api import compute_analysis
 from api.compute import answer_sample_limit
 from api.deps import Deadline, Pool, SettingsDep
 from api.routes._common import check_obstacle_count, run_job
-from planner.schemas import TimingRequest, TimingResponse
+from planner.wire import TimingRequest, TimingResponse
+
+__all__ = ["router", "timing"]
 
 router = APIRouter(prefix="/v1", tags=["timing"])
 

@@ -12,6 +12,8 @@ from fastapi.staticfiles import StaticFiles
 
 from planner.viewer import STATIC_DIR, content_security_policy, index_html
 
+__all__ = ["install_viewer", "page", "router"]
+
 router = APIRouter(tags=["viewer"])
 
 #: Where the page's modules, styles and vendored libraries are served.

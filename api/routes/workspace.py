@@ -12,7 +12,9 @@ from api.deps import Deadline, Pool, SettingsDep
 from api.errors import error_response
 from api.exceptions import LimitExceededError
 from api.routes._common import run_job
-from planner.schemas import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
+from planner.wire import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
+
+__all__ = ["figure", "router", "workspace"]
 
 router = APIRouter(prefix="/v1", tags=["workspace"])
 

@@ -7,7 +7,7 @@
 ...                          goal={"p": [0.3, 0.1, 0.2], "working_mode": "any"})
 
 Both clients take the same keyword-only options and return the shared wire models of
-:mod:`planner.schemas`; :class:`AsyncPlannerClient`'s methods are coroutines. Each endpoint
+:mod:`planner.wire`; :class:`AsyncPlannerClient`'s methods are coroutines. Each endpoint
 method is written once (a request builder in :class:`_BaseClient`) and turned into a sync or
 an async method, so the two clients cannot drift apart.
 
@@ -50,7 +50,7 @@ from pydantic import BaseModel, ValidationError
 import planner
 from planner.design import Design
 from planner.exceptions import PlannerError
-from planner.schemas import (
+from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
     DesignCheckRequest,

@@ -41,14 +41,26 @@ __all__ = [
 class PlannerError(Exception):
     """Base of every error the product raises on purpose.
 
-    ``field`` names the argument the error is about, where the raising function knows it
-    (e.g. ``"sample_rate_hz"``); callers that know where that argument came from (the
-    service: which part of the request body) prefix it. None when not known.
+    ``field`` names the argument the error is about, where the raising function knows it:
+    a name (``"sample_rate_hz"``), a dotted name into an argument (``"limits.jerk"``) or a
+    path with indices (``("waypoints", 3, 1)``). Callers that know where that argument came
+    from (the wire: which part of the request body, :func:`planner.wire.located`) prefix it.
+    None when not known.
     """
 
-    def __init__(self, *args: object, field: str | None = None) -> None:
+    def __init__(self, *args: object, field: str | tuple[str | int, ...] | None = None) -> None:
         super().__init__(*args)
         self.field = field
+
+    @property
+    def field_path(self) -> tuple[str | int, ...]:
+        """``field`` as a path: a dotted name split at its dots, a tuple as it is; () when
+        the field is not known."""
+        if self.field is None:
+            return ()
+        if isinstance(self.field, tuple):
+            return self.field
+        return tuple(self.field.split("."))
 
     def __reduce__(self):  # keep ``field`` across processes (pickling drops keyword args)
         return (_rebuild_error, (type(self), self.args, self.__dict__))

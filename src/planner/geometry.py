@@ -31,7 +31,7 @@ rotation and h the half sizes).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -47,7 +47,6 @@ __all__ = [
     "Obstacle",
     "PackedObstacles",
     "Sphere",
-    "obstacle_from_wire",
     "pack_obstacles",
     "segment_obstacle_distance",
 ]
@@ -150,27 +149,6 @@ class Box:
 Obstacle = Sphere | Box | Capsule
 
 
-def obstacle_from_wire(data: Mapping[str, object]) -> Obstacle:
-    """An obstacle from its wire dictionary (``{"type": "sphere", "center": ..., ...}``).
-
-    Raises
-    ------
-    InputError
-        Unknown ``type``, a missing field, or a field breaking its rule (named).
-    """
-    kind = data.get("type")
-    try:
-        if kind == "sphere":
-            return Sphere(data["center"], data["radius"])  # type: ignore[arg-type]
-        if kind == "box":
-            return Box(data["center"], data["size"], data.get("quaternion", (1.0, 0.0, 0.0, 0.0)))  # type: ignore[arg-type]
-        if kind == "capsule":
-            return Capsule(data["a"], data["b"], data["radius"])  # type: ignore[arg-type]
-    except KeyError as exc:
-        raise InputError(f"obstacle of type {kind!r} lacks the field {exc.args[0]!r}") from exc
-    raise InputError(f"obstacle type must be 'sphere', 'box' or 'capsule', got {kind!r}")
-
-
 class PackedObstacles(NamedTuple):
     """Obstacles as float arrays for the compiled kernels (layout in the module docstring)."""
 
@@ -184,11 +162,9 @@ class PackedObstacles(NamedTuple):
 
 
 def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
-    """Pack obstacles (typed objects or wire dictionaries) into :class:`PackedObstacles`."""
+    """Pack obstacles into :class:`PackedObstacles`."""
     spheres, capsules, boxes = [], [], []
     for i, ob in enumerate(obstacles):
-        if isinstance(ob, Mapping):
-            ob = obstacle_from_wire(ob)
         if isinstance(ob, Sphere):
             spheres.append([*ob.center, ob.radius])
         elif isinstance(ob, Capsule):
@@ -382,7 +358,7 @@ def segment_obstacle_distance(
     ----------
     a, b : array, shape (N, 3), m
         Segment ends.
-    obstacles : sequence of Sphere, Box, Capsule (or wire dictionaries)
+    obstacles : sequence of Sphere, Box, Capsule
 
     Returns
     -------

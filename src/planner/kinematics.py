@@ -44,6 +44,7 @@ __all__ = [
     "SERIAL_KINDS",
     "WORKING_MODES",
     "Conditioning",
+    "InverseBatch",
     "Manipulator",
     "Posture",
     "PostureBatch",

@@ -3,7 +3,8 @@
 A fresh process pays, on its first plan, much more than the plan itself: compiling (or loading
 from numba's on-disk cache) the numba kernels, importing OMPL, toppra, ruckig, scipy and
 matplotlib, numba's first dispatch of each kernel, OMPL's first solve, toppra's and ruckig's
-first solve, matplotlib's font cache and first render, pydantic's first validation. Measured
+first solve, matplotlib's font cache and first render (pydantic's first validation of the
+wire models is the service's to warm: :mod:`api.warmup` runs its jobs). Measured
 on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's time budget.
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
@@ -137,14 +138,6 @@ def _time_plans(state: _State, method: str) -> None:
         )
 
 
-def _wire(state: _State) -> None:
-    """pydantic's first validation of the wire models a plan answers with."""
-    from planner.schemas import PlanResponse
-
-    for result in state.plans:
-        PlanResponse.model_validate(result.as_wire())
-
-
 def _analysis(state: _State) -> None:
     """The workspace analysis (sampled volumes, sections, loci) and scipy's optimiser."""
     from planner.analysis.optimize import optimize_design
@@ -184,7 +177,6 @@ STEPS: tuple[Step, ...] = (
     Step("OMPL: a working-mode change", _plan_mode_change),
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),
     Step("ruckig: timing the plans", lambda state: _time_plans(state, "ruckig")),
-    Step("pydantic: the wire models", _wire),
     Step("analysis: workspace, sections, optimiser", _analysis),
     Step("matplotlib: a PNG and an SVG figure", _figures),
 )

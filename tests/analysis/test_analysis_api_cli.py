@@ -9,8 +9,8 @@ from typer.testing import CliRunner
 from api.app import create_app
 from api.settings import Settings
 from planner import Design
-from planner.cli import app as cli_app
-from planner.schemas import DesignModel
+from planner.wire import DesignModel
+from planner_cli import app as cli_app
 
 
 @pytest.fixture(scope="module")

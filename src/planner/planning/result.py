@@ -1,7 +1,7 @@
 """Plan results: statuses and fields of the wire vocabulary (``docs/conventions.md``, /v1/plan).
 
-Pure data, no OMPL. :meth:`PlanResult.as_wire` gives the response's ``status``, ``message``,
-``path`` and ``diagnostics`` as a JSON-ready dictionary, one field per wire field.
+Pure data, no OMPL, no wire format: the response model is built from these by
+:func:`planner.wire.plan_response`.
 """
 
 from __future__ import annotations
@@ -92,42 +92,3 @@ class PlanResult:
     @property
     def solved(self) -> bool:
         return self.status is PlanStatus.SOLVED
-
-    def as_wire(self) -> dict:
-        """The wire response fields ``status``, ``message``, ``path``, ``diagnostics``."""
-
-        def num(x: float) -> float | None:
-            return float(x) if np.isfinite(x) else None
-
-        d = self.diagnostics
-        out: dict = {
-            "status": self.status.value,
-            "message": self.message,
-            "path": None,
-            "diagnostics": {
-                "planning_time_s": d.planning_time_s,
-                "path_length": num(d.path_length),
-                "min_clearance": num(d.min_clearance),
-                "max_kappa_A": num(d.max_kappa_A),
-                "min_serial_margin": num(d.min_serial_margin),
-                "planner": d.planner,
-            },
-        }
-        if self.path is not None:
-            out["path"] = {
-                "waypoints": np.asarray(self.path.waypoints, dtype=float).tolist(),
-                "segments": [
-                    {
-                        "working_mode": s.working_mode,
-                        "assembly_mode": s.assembly_mode,
-                        "start_index": s.start_index,
-                        "end_index": s.end_index,
-                    }
-                    for s in self.path.segments
-                ],
-                "transits": [
-                    {"index": t.index, "q": list(t.q), "kind": t.kind, "flipped": t.flipped}
-                    for t in self.path.transits
-                ],
-            }
-        return out

@@ -28,15 +28,18 @@ def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise LimitsError(f"limits.{name} must be 3 numbers, got {value!r}") from exc
+        raise LimitsError(f"limits.{name} must be 3 numbers, got {value!r}", field=name) from exc
     if arr.shape != (3,):
-        raise LimitsError(f"limits.{name} must be 3 numbers (one per joint), got shape {arr.shape}")
+        raise LimitsError(
+            f"limits.{name} must be 3 numbers (one per joint), got shape {arr.shape}", field=name
+        )
     for j, v in enumerate(arr.tolist()):
         if not math.isfinite(v):
-            raise LimitsError(f"limits.{name}[{j}] must be finite, got {v}")
+            raise LimitsError(f"limits.{name}[{j}] must be finite, got {v}", field=name)
         if not MIN_RATE <= v <= MAX_RATE:
             raise LimitsError(
-                f"limits.{name}[{j}] must lie in [{MIN_RATE:g}, {MAX_RATE:g}], got {v}"
+                f"limits.{name}[{j}] must lie in [{MIN_RATE:g}, {MAX_RATE:g}], got {v}",
+                field=name,
             )
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 

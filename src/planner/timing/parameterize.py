@@ -93,18 +93,23 @@ def _waypoints(design: Design, waypoints: object) -> np.ndarray:
     try:
         w = np.asarray(waypoints, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"waypoints must be numbers, got {waypoints!r}") from exc
+        raise InputError(
+            f"waypoints must be numbers, got {waypoints!r}", field="waypoints"
+        ) from exc
     if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 1:
-        raise InputError(f"waypoints must have shape (N, 3) with N >= 1, got {w.shape}")
+        raise InputError(
+            f"waypoints must have shape (N, 3) with N >= 1, got {w.shape}", field="waypoints"
+        )
     if not np.all(np.isfinite(w)):
-        raise InputError("waypoints must be finite (no NaN or infinity)")
+        raise InputError("waypoints must be finite (no NaN or infinity)", field="waypoints")
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     out = np.any((w < lo) | (w > hi), axis=1)
     if np.any(out):
         i = int(np.argmax(out))
         raise InputError(
             f"waypoints[{i}] = {w[i].tolist()} is outside the joint limits "
-            f"[{list(design.joint_min)}, {list(design.joint_max)}]"
+            f"[{list(design.joint_min)}, {list(design.joint_max)}]",
+            field="waypoints",
         )
     return w
 
@@ -113,9 +118,9 @@ def _positive(name: str, value: object) -> float:
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a number, got {value!r}") from exc
+        raise InputError(f"{name} must be a number, got {value!r}", field=name) from exc
     if not (math.isfinite(x) and x > 0):
-        raise InputError(f"{name} must be a positive finite number, got {value!r}")
+        raise InputError(f"{name} must be a positive finite number, got {value!r}", field=name)
     return x
 
 
@@ -123,7 +128,9 @@ def _stop_mask(stop_at: Iterable[int], n: int) -> np.ndarray:
     mask = np.zeros(n, bool)
     for i in stop_at:
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
-            raise InputError(f"stop_at must hold waypoint indices in [0, {n}), got {i!r}")
+            raise InputError(
+                f"stop_at must hold waypoint indices in [0, {n}), got {i!r}", field="stop_at"
+            )
         mask[int(i)] = True
     return mask
 
@@ -133,10 +140,13 @@ def _deviation(value: object, n: int) -> np.ndarray:
         dev = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
     except (TypeError, ValueError) as exc:
         raise InputError(
-            f"max_deviation must be a number or {n} numbers (one per waypoint), got {value!r}"
+            f"max_deviation must be a number or {n} numbers (one per waypoint), got {value!r}",
+            field="max_deviation",
         ) from exc
     if not np.all(np.isfinite(dev) & (dev >= 0)):
-        raise InputError(f"max_deviation must be finite and >= 0, got {value!r}")
+        raise InputError(
+            f"max_deviation must be finite and >= 0, got {value!r}", field="max_deviation"
+        )
     return dev
 
 
@@ -311,9 +321,11 @@ def time_path(
     if not isinstance(limits, JointLimits):
         raise LimitsError(f"limits must be a JointLimits, got {type(limits).__name__}")
     if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+        raise InputError(f"method must be one of {METHODS}, got {method!r}", field="method")
     if method == "ruckig" and limits.jerk is None:
-        raise LimitsError("limits.jerk is required for method='ruckig' (3 positive numbers)")
+        raise LimitsError(
+            "limits.jerk is required for method='ruckig' (3 positive numbers)", field="limits.jerk"
+        )
     if assembly_mode not in ASSEMBLY_MODES:
         raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
     w = _waypoints(design, waypoints)

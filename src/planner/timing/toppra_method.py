@@ -30,7 +30,7 @@ from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
 
-__all__ = ["PathProfile", "check_deadline", "min_blend_radius", "solve_toppra"]
+__all__ = ["PathProfile", "check_deadline", "min_blend_radius", "section_grid", "solve_toppra"]
 
 logger = logging.getLogger(__name__)
 

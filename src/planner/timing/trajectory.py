@@ -26,6 +26,7 @@ __all__ = [
     "TimeScaledCurve",
     "ToppraCurve",
     "Trajectory",
+    "check_sample_count",
     "p_velocity",
     "sample_times",
 ]

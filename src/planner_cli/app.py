@@ -1,7 +1,7 @@
 """The ``planner`` command line (typer).
 
 Results go to stdout, progress and errors to stderr; every command that can run for more than
-a few seconds shows what it is doing (see :class:`planner._cli_support.Progress`). Negative
+a few seconds shows what it is doing (see :class:`planner_cli._support.Progress`). Negative
 numbers are arguments (``planner ik -0.25 0.1 0.3``) unless they are an option's value.
 """
 
@@ -12,7 +12,23 @@ from typing import Annotated
 
 import typer
 
-from planner._cli_support import Command, Group, Progress
+from planner_cli._support import Command, Group, Progress
+
+__all__ = [
+    "app",
+    "bench",
+    "builtin_bench_rows",
+    "check_design_command",
+    "command",
+    "figures",
+    "fk",
+    "ik",
+    "optimize_design_command",
+    "plan",
+    "serve",
+    "version",
+    "warm_up_command",
+]
 
 app = typer.Typer(
     cls=Group,
@@ -23,7 +39,7 @@ app = typer.Typer(
 
 
 def command(name: str | None = None):  # type: ignore[no-untyped-def]
-    """``app.command`` with :class:`planner._cli_support.Command` (negative numbers, help)."""
+    """``app.command`` with :class:`planner_cli._support.Command` (negative numbers, help)."""
     return app.command(name, cls=Command)
 
 
@@ -90,7 +106,7 @@ def serve(
 
 def _design_option(preset: str, l0: float | None, l1: float | None, l2: float | None) -> dict:
     from planner.design import PRESET_NAMES, Design
-    from planner.schemas import DesignModel
+    from planner.wire import DesignModel
 
     if preset not in PRESET_NAMES:
         raise typer.BadParameter(f"one of {', '.join(PRESET_NAMES)}", param_hint="--design")
@@ -138,7 +154,7 @@ def fk(
 
     Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
     from api.compute import fk as job
-    from planner.schemas import FKRequest
+    from planner.wire import FKRequest
 
     _run_job(
         job,
@@ -160,7 +176,7 @@ def ik(
 
     Prints the JSON that POST /v1/ik answers. Example: planner ik -0.25 0.1 0.3"""
     from api.compute import ik as job
-    from planner.schemas import IKRequest
+    from planner.wire import IKRequest
 
     _run_job(
         job,
@@ -305,7 +321,7 @@ EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
-    """One screen of text about a :class:`planner.schemas.PlanResponse`."""
+    """One screen of text about a :class:`planner.wire.PlanResponse`."""
     lines = [f"status: {response.status}"]
     if response.message:
         lines.append(f"message: {response.message}")
@@ -358,7 +374,7 @@ def plan(
 
         from api import compute
         from planner.exceptions import PlannerError
-        from planner.schemas import PlanRequest
+        from planner.wire import PlanRequest
 
         try:
             body = PlanRequest.model_validate_json(request.read_bytes())
@@ -524,7 +540,3 @@ def bench(
     if failed:
         typer.echo(f"failed: {', '.join(failed)}", err=True)
         raise typer.Exit(1)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    app()

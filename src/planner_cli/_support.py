@@ -1,7 +1,7 @@
 """Support of the ``planner`` command line: progress displays, negative numbers as
 arguments, and help texts that read cleanly on an 80-column terminal.
 
-Kept out of :mod:`planner.cli` so that the commands there read as what they do.
+Kept out of :mod:`planner_cli.app` so that the commands there read as what they do.
 
 * :class:`Progress`: what a long command is doing and how far it is, on stderr (results go
   to stdout, so ``planner figures out/ > list.txt`` keeps only the results): a rich progress

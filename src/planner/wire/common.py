@@ -1,0 +1,405 @@
+"""The shared objects of every endpoint family: number types with their sanity bounds, the
+request and response bases, the design, joint postures and Cartesian targets, obstacles and
+validity margins (``docs/conventions.md``, *Shared objects*).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PrivateAttr,
+    Tag,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
+from planner.exceptions import DesignError, InputError, PlannerError
+
+if TYPE_CHECKING:
+    from planner import geometry
+
+__all__ = [
+    "MAX_BATCH_REQUESTS",
+    "MAX_COORDINATE",
+    "MAX_OBSTACLES",
+    "Angle",
+    "Angles3",
+    "AssemblyModeLabel",
+    "BoxObstacle",
+    "CapsuleObstacle",
+    "CartesianTarget",
+    "Coordinate",
+    "DesignModel",
+    "Diagnostics",
+    "Finite",
+    "Goal",
+    "JointPosture",
+    "Length",
+    "LinkLength",
+    "Margins",
+    "Matrix3",
+    "Obstacle",
+    "Point3",
+    "PositiveSize",
+    "Rates3",
+    "SphereObstacle",
+    "TimingErrorInfo",
+    "Vec3",
+    "WorkingModeLabel",
+    "WorkingModeOrAny",
+    "design_to_core",
+    "located",
+    "margins_to_core",
+    "obstacle_from_dict",
+    "obstacles_to_core",
+]
+
+#: Largest |coordinate| of a point on the wire, m: a sanity bound far above any workcell.
+MAX_COORDINATE = 1e4
+#: Hard cap on obstacles in one request (the service's own, lower cap is a setting).
+MAX_OBSTACLES = 10_000
+#: Hard cap on plan requests in one batch (the service's own, lower cap is a setting).
+MAX_BATCH_REQUESTS = 10_000
+#: Largest sample count of a returned trajectory or path accepted by a client.
+_MAX_SAMPLES = 10_000_000
+
+_DEFAULT = Design.default()
+
+WorkingModeLabel = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---"]
+WorkingModeOrAny = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---", "any"]
+AssemblyModeLabel = Literal["+", "-"]
+
+# ---------------------------------------------------------------------------- number types
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Length = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)]
+LinkLength = Annotated[float, Field(allow_inf_nan=False, ge=MIN_LENGTH, le=MAX_LENGTH)]
+Coordinate = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Angle = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_JOINT_TRAVEL, le=MAX_JOINT_TRAVEL)]
+PositiveSize = Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=MAX_COORDINATE)]
+#: Three angles, rad (a joint vector).
+Angles3 = Annotated[list[Angle], Field(min_length=3, max_length=3)]
+#: A point, m.
+Point3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
+#: Three positive rates (one per joint).
+Rates3 = Annotated[
+    list[Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e6)]],  # = timing MIN/MAX_RATE
+    Field(min_length=3, max_length=3),
+]
+#: A 3-vector of any finite numbers (responses).
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
+
+
+class _Request(BaseModel):
+    """Base of request models: unknown fields are errors, and types are strict (``true`` is
+    not a number, ``"1.5"`` is not a number; an integer is a number): a client's mistake is
+    named, not coerced."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class _Response(BaseModel):
+    """Base of response models: unknown fields are ignored (forward compatibility)."""
+
+    model_config = ConfigDict(extra="ignore")
+
+
+# ---------------------------------------------------------------------------- design
+class DesignModel(_Request):
+    """A design on the wire; every field defaults to the default robot
+    (:meth:`planner.Design.default`: L0 = 0.5, L1 = 0.2, L2 = 0.6 m, joints within +-pi)."""
+
+    L0: Length = Field(_DEFAULT.L0, description="|AB|, m, >= 0.")
+    L1: LinkLength = Field(_DEFAULT.L1, description="|AC| = |BD|, m, > 0.")
+    L2: LinkLength = Field(_DEFAULT.L2, description="|CP| = |DP|, m, > 0.")
+    link_radius: Length = Field(
+        _DEFAULT.link_radius, description="Radius of the link capsules, m, >= 0."
+    )
+    joint_min: Angles3 = Field(
+        default_factory=lambda: list(_DEFAULT.joint_min),
+        description="Lower limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
+    )
+    joint_max: Angles3 = Field(
+        default_factory=lambda: list(_DEFAULT.joint_max),
+        description="Upper limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
+    )
+
+    @field_validator("joint_max")
+    @classmethod
+    def _above_min(cls, value: list[float], info: ValidationInfo) -> list[float]:
+        lo = info.data.get("joint_min")
+        for i in range(3 if lo is not None else 0):
+            if not lo[i] < value[i]:
+                raise ValueError(
+                    f"joint_max[{i}] must be above joint_min[{i}], got {value[i]} <= {lo[i]}"
+                )
+        return value
+
+    #: The library design, built once when the model is validated (the check of every rule
+    #: of :class:`planner.Design` is that construction); pickled with the model.
+    _design: Design | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _check_design(self) -> DesignModel:
+        try:
+            self._design = self._build()
+        except DesignError as exc:  # any remaining rule of Design
+            raise ValueError(str(exc)) from exc
+        return self
+
+    def to_design(self) -> Design:
+        """The library's :class:`planner.Design` (the one built at validation: a request's
+        design object is built once)."""
+        if self._design is None:
+            self._design = self._build()
+        return self._design
+
+    def _build(self) -> Design:
+        return Design(
+            L0=self.L0,
+            L1=self.L1,
+            L2=self.L2,
+            link_radius=self.link_radius,
+            joint_min=tuple(self.joint_min),
+            joint_max=tuple(self.joint_max),
+        )
+
+    @classmethod
+    def from_design(cls, design: Design) -> DesignModel:
+        """The wire form of a library design."""
+        return cls(
+            L0=design.L0,
+            L1=design.L1,
+            L2=design.L2,
+            link_radius=design.link_radius,
+            joint_min=list(design.joint_min),
+            joint_max=list(design.joint_max),
+        )
+
+
+_DesignField = Field(default_factory=DesignModel, description="The robot; default robot if absent.")
+
+
+# ---------------------------------------------------------------------------- postures, targets
+class JointPosture(_Request):
+    """A joint posture: actuated joints and the assembly mode (sign of sin(theta5 - theta4))."""
+
+    q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
+    assembly_mode: AssemblyModeLabel = Field(description="'+' or '-'.")
+
+
+class CartesianTarget(_Request):
+    """A Cartesian target for P, with the working mode to reach it in (or ``"any"``)."""
+
+    p: Point3 = Field(description="(x, y, z) of P, m.")
+    working_mode: WorkingModeOrAny = Field(
+        "any", description="(s_axis, s_A, s_B) as '+-+'-style text, or 'any'."
+    )
+
+
+def _goal_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        if "q" in value:
+            return "q"
+        return "p" if "p" in value else None
+    if isinstance(value, CartesianTarget):
+        return "p"
+    if isinstance(value, JointPosture):
+        return "q"
+    return None
+
+
+#: A goal: a joint posture (has ``q``) or a Cartesian target (has ``p``). Validation errors
+#: name the branch taken: ``goal.q.<field>`` or ``goal.p.<field>``.
+Goal = Annotated[
+    Annotated[JointPosture, Tag("q")] | Annotated[CartesianTarget, Tag("p")],
+    Discriminator(
+        _goal_kind,
+        custom_error_type="goal_kind",
+        custom_error_message="goal must be a joint posture {q, assembly_mode} "
+        "or a Cartesian target {p, working_mode}",
+    ),
+]
+
+
+# ---------------------------------------------------------------------------- obstacles
+class SphereObstacle(_Request):
+    type: Literal["sphere"] = "sphere"
+    center: Point3 = Field(description="m.")
+    radius: PositiveSize = Field(description="m, > 0.")
+
+
+class BoxObstacle(_Request):
+    """An oriented box: ``size`` is the full edge lengths along its own axes, turned by the
+    unit quaternion ``[w, x, y, z]`` (normalised here; a zero quaternion is an error)."""
+
+    type: Literal["box"] = "box"
+    center: Point3 = Field(description="m.")
+    size: Annotated[list[PositiveSize], Field(min_length=3, max_length=3)] = Field(
+        description="Full edge lengths (sx, sy, sz), m, > 0."
+    )
+    quaternion: Annotated[list[Finite], Field(min_length=4, max_length=4)] = Field(
+        default_factory=lambda: [1.0, 0.0, 0.0, 0.0], description="[w, x, y, z]."
+    )
+
+    @field_validator("quaternion")
+    @classmethod
+    def _unit(cls, value: list[float]) -> list[float]:
+        norm = math.sqrt(sum(v * v for v in value))
+        if not 1e-9 < norm < 1e9:
+            raise ValueError(f"quaternion must have a norm in (1e-9, 1e9), got {norm:.3g}")
+        return [v / norm for v in value]
+
+
+class CapsuleObstacle(_Request):
+    """The set of points within ``radius`` of the segment ``a``-``b``."""
+
+    type: Literal["capsule"] = "capsule"
+    a: Point3 = Field(description="m.")
+    b: Point3 = Field(description="m.")
+    radius: PositiveSize = Field(description="m, > 0.")
+
+
+Obstacle = Annotated[SphereObstacle | BoxObstacle | CapsuleObstacle, Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------------------- plan options
+class Margins(_Request):
+    """Validity margins of a plan; an absent field takes the planner's documented default."""
+
+    kappa_max: Annotated[float, Field(allow_inf_nan=False, gt=1.0, le=1e12)] | None = Field(
+        None, description="Upper bound on kappa(A), > 1."
+    )
+    serial_min: Annotated[float, Field(allow_inf_nan=False, gt=0.0, lt=1.0)] | None = Field(
+        None,
+        description="Lower bound on |sin(t4 - t2)|, |sin(t5 - t3)| and |w| / (L1 + L2), in "
+        "(0, 1): a zero margin would let a motion touch a serial singularity.",
+    )
+    clearance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)] | None = Field(
+        None, description="Least distance from every link capsule to every obstacle, m."
+    )
+
+
+class TimingErrorInfo(_Response):
+    """Why a path could not be timed (``diagnostics.timing_error``): the error's type, and for
+    a failed dense re-check the rule, the time (s) and joints (rad) of the first failing
+    sample; ``index`` names the waypoint of ``POST /v1/timing`` that breaks a validity rule."""
+
+    type: str = Field(description="TimingInfeasibleError, TrajectoryCheckError, InvalidWaypoint...")
+    rule: str | None = Field(
+        None,
+        description="validity, joint_limits, velocity, acceleration, jerk, cartesian_speed or "
+        "assembly.",
+    )
+    time: float | None = Field(None, description="Time of the first failing sample, s.")
+    q: Vec3 | None = Field(None, description="Joints of the first failing sample, rad.")
+    index: int | None = Field(None, ge=0, description="The failing waypoint (POST /v1/timing).")
+
+
+class Diagnostics(_Response):
+    """Timings and margins met, every field declared (an unknown one, from a newer server, is
+    ignored like any response field). A quantity that does not apply is ``null``."""
+
+    planning_time_s: float | None = Field(None, description="Wall time of the plan, s.")
+    timing_time_s: float | None = Field(None, description="Wall time of the timing, s.")
+    min_clearance: float | None = Field(
+        None, description="Least link-obstacle distance along the path, m (null: no obstacle)."
+    )
+    max_kappa_A: float | None = Field(None, description="Largest kappa(A) along the path.")
+    min_serial_margin: float | None = Field(
+        None, description="Smallest serial measure along the path."
+    )
+    path_length: float | None = Field(
+        None, description="Sum of joint-space distances between waypoints, rad."
+    )
+    planner: str | None = Field(
+        None, description="Planner that found the path ('direct': the straight motion)."
+    )
+    timing_repairs: int | None = Field(
+        None, ge=0, description="Repair rounds of the timing (0: the first trajectory passed)."
+    )
+    timing_error: TimingErrorInfo | None = Field(
+        None, description="Why the path could not be timed (status no_path / invalid_path)."
+    )
+
+
+# ---------------------------------------------------------------------------- wire -> core
+# The core modules are imported inside the conversions: the client and the CLI import the
+# vocabulary without paying for numba, OMPL or toppra.
+
+
+@contextmanager
+def located(*loc: str | int) -> Iterator[None]:
+    """Attach ``loc`` (the path of a request field, e.g. ``("body", "q")``) to a
+    :class:`~planner.exceptions.PlannerError` raised inside, followed by the error's own
+    ``field`` when it has one, unless an inner block already located it: the service turns
+    ``loc`` into ``detail[].loc`` (:mod:`api.errors`)."""
+    try:
+        yield
+    except PlannerError as exc:
+        if not hasattr(exc, "loc"):
+            exc.loc = (*loc, *exc.field_path)  # type: ignore[attr-defined]
+        raise
+
+
+def obstacle_from_dict(data: Mapping[str, Any]) -> geometry.Obstacle:
+    """A library obstacle from its wire dictionary (``{"type": "sphere", "center": ...}``).
+
+    Raises
+    ------
+    InputError
+        Unknown ``type``, a missing field, or a field breaking its rule (named).
+    """
+    from planner.geometry import Box, Capsule, Sphere
+
+    kind = data.get("type")
+    try:
+        if kind == "sphere":
+            return Sphere(data["center"], data["radius"])
+        if kind == "box":
+            return Box(data["center"], data["size"], data.get("quaternion", (1.0, 0.0, 0.0, 0.0)))
+        if kind == "capsule":
+            return Capsule(data["a"], data["b"], data["radius"])
+    except KeyError as exc:
+        raise InputError(
+            f"obstacle of type {kind!r} lacks the field {exc.args[0]!r}", field=exc.args[0]
+        ) from exc
+    raise InputError(
+        f"obstacle type must be 'sphere', 'box' or 'capsule', got {kind!r}", field="type"
+    )
+
+
+def obstacles_to_core(
+    models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle],
+    loc: tuple[str | int, ...] = ("body", "obstacles"),
+) -> list[geometry.Obstacle]:
+    """The library obstacles of a request's ``obstacles`` (errors located at ``loc.<i>``)."""
+    out = []
+    for i, model in enumerate(models):
+        with located(*loc, i):
+            out.append(obstacle_from_dict(model.model_dump()))
+    return out
+
+
+def margins_to_core(model: Margins, loc: tuple[str | int, ...] = ("body", "margins")) -> Any:
+    """The library's :class:`planner.validity.Margins` (absent fields: its defaults)."""
+    from planner.validity import Margins as CoreMargins
+
+    with located(*loc):
+        return CoreMargins(**model.model_dump(exclude_none=True))
+
+
+def design_to_core(model: DesignModel, loc: tuple[str | int, ...] = ("body", "design")) -> Design:
+    """The library design of a request's ``design`` (errors located at ``loc``)."""
+    with located(*loc):
+        return model.to_design()

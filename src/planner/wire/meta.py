@@ -1,0 +1,55 @@
+"""``GET /v1/health``, ``/v1/ready``, ``/v1/version`` and the error body of every 4xx/5xx."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import (
+    Field,
+)
+
+from planner.wire.common import _Response
+
+__all__ = ["ErrorItem", "ErrorResponse", "Health", "Readiness", "VersionInfo"]
+
+
+# ---------------------------------------------------------------------------- meta, errors
+class Health(_Response):
+    """Answer of ``GET /v1/health``."""
+
+    status: Literal["ok"]
+
+
+class VersionInfo(_Response):
+    """Answer of ``GET /v1/version``."""
+
+    version: str
+    libraries: dict[str, str]
+
+
+class Readiness(_Response):
+    """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
+
+    status: Literal["ready", "starting", "recovering", "broken", "stopping"] = Field(
+        description="'ready' while every configured worker is warm (imports done, kernels "
+        "compiled); 'starting' before the first time; 'recovering' while a replacement of a "
+        "dead worker warms up; 'broken' when a worker cannot be started or warmed up; "
+        "'stopping' during a shutdown."
+    )
+    workers: int = Field(ge=0, description="Worker processes configured.")
+    warm: int = Field(0, ge=0, description="Worker processes alive and warm now.")
+
+
+class ErrorItem(_Response):
+    """One error in FastAPI's format: ``loc`` is the path to the field, e.g.
+    ``["body", "design", "L1"]``."""
+
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class ErrorResponse(_Response):
+    """Body of every 4xx/5xx answer of the service."""
+
+    detail: list[ErrorItem]

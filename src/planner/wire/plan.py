@@ -1,0 +1,267 @@
+"""``POST /v1/plan`` and ``/v1/plan/batch``: planner options, the request, the path, its
+diagnostics and the response.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import (
+    Field,
+    field_validator,
+)
+
+from planner.design import Design
+from planner.wire.common import (
+    _MAX_SAMPLES,
+    MAX_BATCH_REQUESTS,
+    MAX_OBSTACLES,
+    AssemblyModeLabel,
+    DesignModel,
+    Diagnostics,
+    Goal,
+    JointPosture,
+    Margins,
+    Obstacle,
+    Vec3,
+    WorkingModeLabel,
+    _DesignField,
+    _Request,
+    _Response,
+    design_to_core,
+    located,
+    margins_to_core,
+    obstacles_to_core,
+)
+from planner.wire.timing import (
+    Limits,
+    TimingOptions,
+    TrajectoryModel,
+    timing_error,
+    trajectory_model,
+)
+
+__all__ = [
+    "PathModel",
+    "PlanBatchRequest",
+    "PlanBatchResponse",
+    "PlanInputs",
+    "PlanRequest",
+    "PlanResponse",
+    "PlanStatus",
+    "PlannerOptions",
+    "SegmentModel",
+    "TransitKind",
+    "TransitModel",
+    "path_model",
+    "plan_inputs",
+    "plan_response",
+]
+
+
+class PlannerOptions(_Request):
+    """Search options of a plan."""
+
+    name: str = Field(
+        "rrtconnect",
+        pattern=r"^[A-Za-z][A-Za-z0-9_]{0,31}$",
+        description="Planner (case-insensitive): rrtconnect (default), rrt, rrtstar, prmstar, "
+        "bitstar, aorrtc, lbkpiece.",
+    )
+    time_budget_s: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=600.0)] = Field(
+        1.0, description="Search budget, s (at most the service's request budget)."
+    )
+    seed: Annotated[int, Field(ge=1, le=2**31 - 1)] | None = Field(
+        None,
+        description="Seed of the planner's random numbers, >= 1 (reproducible results); "
+        "absent: the planner's default seed.",
+    )
+    simplify: bool = Field(True, description="Shorten and smooth the path (OMPL simplifier).")
+    stop_at_transits: bool = Field(
+        False,
+        description="Come to rest at each working-mode transit (the timed trajectory stops "
+        "on the serial-singularity posture); default: pass it at speed.",
+    )
+
+    @field_validator("name")
+    @classmethod
+    def _lower(cls, value: str) -> str:
+        return value.lower()
+
+
+# ---------------------------------------------------------------------------- plan
+class PlanRequest(_Request):
+    """Body of ``POST /v1/plan``. Only ``start`` and ``goal`` are required."""
+
+    design: DesignModel = _DesignField
+    start: JointPosture
+    goal: Goal
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    margins: Margins = Field(default_factory=Margins)
+    planner: PlannerOptions = Field(default_factory=PlannerOptions)
+    timing: TimingOptions = Field(default_factory=TimingOptions)
+    limits: Limits = Field(default_factory=Limits)
+
+
+PlanStatus = Literal["solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout"]
+TransitKind = Literal[
+    "P_on_axis", "leg_A_stretched", "leg_A_folded", "leg_B_stretched", "leg_B_folded"
+]
+
+
+class SegmentModel(_Response):
+    """A run of waypoints in one working and assembly mode; indices inclusive."""
+
+    working_mode: WorkingModeLabel
+    assembly_mode: AssemblyModeLabel
+    start_index: int = Field(ge=0)
+    end_index: int = Field(ge=0)
+
+
+class TransitModel(_Response):
+    """A serial-singularity posture where exactly one working-mode sign flips."""
+
+    index: int = Field(ge=0)
+    q: Vec3
+    kind: TransitKind
+    flipped: Literal["axis", "A", "B"]
+
+
+class PathModel(_Response):
+    """The planned joint path: waypoints (N x 3, rad), its segments and transits."""
+
+    waypoints: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    segments: list[SegmentModel] = Field(default_factory=list)
+    transits: list[TransitModel] = Field(default_factory=list)
+
+
+class PlanResponse(_Response):
+    """Answer of ``POST /v1/plan``: a finished search is a 200 with one of the statuses."""
+
+    status: PlanStatus
+    message: str = ""
+    path: PathModel | None = None
+    trajectory: TrajectoryModel | None = None
+    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+
+
+class PlanBatchRequest(_Request):
+    """Body of ``POST /v1/plan/batch``."""
+
+    requests: list[PlanRequest] = Field(min_length=1, max_length=MAX_BATCH_REQUESTS)
+
+
+class PlanBatchResponse(_Response):
+    """Answer of ``POST /v1/plan/batch``: one response per request, in the same order."""
+
+    results: list[PlanResponse]
+
+
+# ---------------------------------------------------------------------------- conversions
+@dataclass(frozen=True)
+class PlanInputs:
+    """A plan request as the library's objects, converted once (each field's errors located
+    at its place in the body): the arguments of :func:`planner.planning.plan`."""
+
+    design: Design
+    start: Any
+    goal: Any
+    obstacles: list[Any]
+    margins: Any
+    options: Any
+
+
+def plan_inputs(request: PlanRequest) -> PlanInputs:
+    """The library objects of a plan request: design, start, goal, obstacles, margins and
+    :class:`planner.planning.PlanOptions` (a bad value raises the library's error, located)."""
+    from planner.planning import CartesianTarget as CoreTarget
+    from planner.planning import JointPosture as CorePosture
+    from planner.planning import PlanOptions
+
+    design = design_to_core(request.design)
+    with located("body", "start"):
+        start = CorePosture(np.array(request.start.q), request.start.assembly_mode)
+    with located("body", "goal"):
+        g = request.goal
+        goal = (
+            CorePosture(np.array(g.q), g.assembly_mode)
+            if isinstance(g, JointPosture)
+            else CoreTarget(np.array(g.p), g.working_mode)
+        )
+    obstacles = obstacles_to_core(request.obstacles)
+    margins = margins_to_core(request.margins)
+    with located("body", "planner"):
+        options = PlanOptions(
+            **request.planner.model_dump(
+                exclude_none=True,
+                include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
+            )
+        )
+    return PlanInputs(design, start, goal, obstacles, margins, options)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def path_model(path: Any) -> PathModel:
+    """The wire form of a :class:`planner.planning.PlanPath`."""
+    return PathModel(
+        waypoints=np.asarray(path.waypoints, dtype=float).tolist(),
+        segments=[
+            SegmentModel(
+                working_mode=s.working_mode,
+                assembly_mode=s.assembly_mode,
+                start_index=s.start_index,
+                end_index=s.end_index,
+            )
+            for s in path.segments
+        ],
+        transits=[
+            TransitModel(index=t.index, q=list(t.q), kind=t.kind, flipped=t.flipped)
+            for t in path.transits
+        ],
+    )
+
+
+def plan_response(
+    result: Any, *, trajectory: Any = None, timing_failure: Exception | None = None
+) -> PlanResponse:
+    """The answer of one plan, built once: the :class:`planner.planning.PlanResult`, and the
+    :class:`planner.timing.Trajectory` of its path (or the
+    :class:`~planner.exceptions.TimingError` that stopped the timing: a passed deadline is
+    status ``timeout``, any other timing failure ``no_path`` with the path kept and
+    ``diagnostics.timing_error`` naming the failed rule)."""
+    from planner.exceptions import TimingDeadlineError
+
+    d = result.diagnostics
+    status, message = result.status.value, result.message
+    timing: dict[str, Any] = {}
+    if isinstance(timing_failure, TimingDeadlineError):
+        status = "timeout"
+        message = f"the path was found but timing ran out of time: {timing_failure}"
+    elif timing_failure is not None:  # no profile, or the dense re-check failed after repairs
+        status = "no_path"
+        message = f"the path was found but could not be timed: {timing_failure}"
+        timing["timing_error"] = timing_error(timing_failure)
+    elif trajectory is not None:
+        timing["timing_time_s"] = trajectory.computation_time_s
+        timing["timing_repairs"] = trajectory.repairs
+    diagnostics = Diagnostics(
+        planning_time_s=d.planning_time_s,
+        path_length=_finite(d.path_length),
+        min_clearance=_finite(d.min_clearance),
+        max_kappa_A=_finite(d.max_kappa_A),
+        min_serial_margin=_finite(d.min_serial_margin),
+        planner=d.planner,
+        **timing,
+    )
+    return PlanResponse(
+        status=status,
+        message=message,
+        path=path_model(result.path) if result.path is not None else None,
+        trajectory=trajectory_model(trajectory) if trajectory is not None else None,
+        diagnostics=diagnostics,
+    )

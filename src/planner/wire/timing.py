@@ -1,0 +1,195 @@
+"""The timing vocabulary: timing options and joint limits of a plan, the timed trajectory, and
+``POST /v1/timing``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    Field,
+    ValidationInfo,
+    field_validator,
+)
+
+from planner.wire.common import (
+    _MAX_SAMPLES,
+    MAX_OBSTACLES,
+    Angles3,
+    AssemblyModeLabel,
+    DesignModel,
+    Diagnostics,
+    Margins,
+    Obstacle,
+    Rates3,
+    TimingErrorInfo,
+    Vec3,
+    WorkingModeLabel,
+    _DesignField,
+    _Request,
+    _Response,
+    located,
+)
+
+__all__ = [
+    "MAX_TIMING_WAYPOINTS",
+    "Limits",
+    "TimingOptions",
+    "TimingRequest",
+    "TimingResponse",
+    "TimingStatus",
+    "TrajectoryModel",
+    "joint_limits_to_core",
+    "timing_error",
+    "trajectory_model",
+]
+
+
+class TimingOptions(_Request):
+    """How the planned path is turned into a trajectory."""
+
+    method: Literal["toppra", "ruckig", "none"] = "toppra"
+    sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
+    stop_at_transits: bool = Field(False, description="Come to rest at each mode transit.")
+    max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
+        None,
+        description="Largest joint-space distance from a waypoint to its corner blend, rad "
+        "(0: stop at every waypoint); absent: the timing default.",
+    )
+
+
+class Limits(_Request):
+    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent field takes the timing default
+    (:meth:`planner.timing.JointLimits.default`: 2 rad/s, 8 rad/s^2, 200 rad/s^3)."""
+
+    velocity: Rates3 | None = None
+    acceleration: Rates3 | None = None
+    jerk: Rates3 | None = None
+    cartesian_speed: Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e3)] | None = Field(
+        None, description="Bound on the speed of P, m/s (optional)."
+    )
+
+
+class TrajectoryModel(_Response):
+    """The timed trajectory: M samples of t (s), q (rad), qd (rad/s), qdd (rad/s^2); for
+    ruckig also the jerk (rad/s^3); P (m) and its speed (m/s); the largest deviation from the
+    planned path in joint space (rad) and at P (m)."""
+
+    duration: float
+    t: Annotated[list[float], Field(max_length=_MAX_SAMPLES)]
+    q: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    qd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    qdd: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+    jerk: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)] | None = None
+    p: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)] | None = None
+    p_speed: Annotated[list[float], Field(max_length=_MAX_SAMPLES)] | None = None
+    method: Literal["toppra", "ruckig"] | None = None
+    max_deviation_q: float | None = None
+    max_deviation_p: float | None = None
+
+
+# ---------------------------------------------------------------------------- timing
+#: Hard cap on the waypoints of a path sent to ``POST /v1/timing``.
+MAX_TIMING_WAYPOINTS = 10_000
+
+
+class TimingRequest(_Request):
+    """Body of ``POST /v1/timing``: time-parameterise a joint path (N x 3 waypoints, rad,
+    joined by straight joint-space segments, literal values) from rest to rest, checked
+    densely against the design's joint limits, the assembly mode and, when ``margins`` or
+    ``obstacles`` are given, the planner's validity rules."""
+
+    design: DesignModel = _DesignField
+    waypoints: Annotated[list[Angles3], Field(min_length=2, max_length=MAX_TIMING_WAYPOINTS)] = (
+        Field(description="N x 3 joint waypoints, rad, N >= 2.")
+    )
+    assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the path.")
+    method: Literal["toppra", "ruckig"] = "toppra"
+    sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
+    limits: Limits = Field(default_factory=Limits)
+    max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
+        None, description="Largest distance from a waypoint to its corner blend, rad."
+    )
+    stop_at: list[Annotated[int, Field(ge=0)]] = Field(
+        default_factory=list,
+        max_length=MAX_TIMING_WAYPOINTS,
+        description="Waypoint indices where the trajectory comes to rest.",
+    )
+    margins: Margins | None = Field(
+        None, description="Validity margins of the dense re-check (the planner's rules)."
+    )
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    working_mode: WorkingModeLabel | None = Field(
+        None,
+        description="Working mode the validity rules hold the path to (absent: that of the "
+        "first waypoint); used with margins or obstacles.",
+    )
+
+    @field_validator("stop_at")
+    @classmethod
+    def _stop_at_in_range(cls, value: list[int], info: ValidationInfo) -> list[int]:
+        waypoints = info.data.get("waypoints")
+        n = len(waypoints) if waypoints is not None else None
+        for i in value if n is not None else ():
+            if i >= n:
+                raise ValueError(f"stop_at holds waypoint indices in [0, {n}), got {i}")
+        return value
+
+
+TimingStatus = Literal["solved", "invalid_path", "infeasible", "timeout"]
+
+
+class TimingResponse(_Response):
+    """Answer of ``POST /v1/timing``. ``solved``: ``trajectory`` passed the dense re-check;
+    ``invalid_path``: the path itself breaks a rule between its waypoints, or no repair kept
+    the trajectory valid (``diagnostics.timing_error`` names the rule, time and posture);
+    ``infeasible``: the solver found no profile; ``timeout``: the request's deadline passed."""
+
+    status: TimingStatus
+    message: str = ""
+    trajectory: TrajectoryModel | None = None
+    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+
+
+# ---------------------------------------------------------------------------- conversions
+def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "limits")) -> Any:
+    """The request's ``limits`` as :class:`planner.timing.JointLimits` (absent fields: the
+    library's defaults); a bad value raises ``LimitsError`` located at ``loc.<field>``."""
+    from planner.timing import JointLimits
+
+    default = JointLimits.default()
+    with located(*loc):
+        return JointLimits(
+            velocity=model.velocity or default.velocity,
+            acceleration=model.acceleration or default.acceleration,
+            jerk=model.jerk or default.jerk,
+        )
+
+
+def trajectory_model(traj: Any) -> TrajectoryModel:
+    """The wire form of a :class:`planner.timing.Trajectory`."""
+    return TrajectoryModel(
+        method=traj.method,
+        duration=traj.duration,
+        t=traj.t.tolist(),
+        q=traj.q.tolist(),
+        qd=traj.qd.tolist(),
+        qdd=traj.qdd.tolist(),
+        jerk=traj.jerk.tolist() if traj.jerk is not None else None,
+        p=traj.p.tolist(),
+        p_speed=traj.p_speed.tolist(),
+        max_deviation_q=traj.max_deviation_q,
+        max_deviation_p=traj.max_deviation_p,
+    )
+
+
+def timing_error(exc: Exception) -> TimingErrorInfo:
+    """``diagnostics.timing_error`` of a failed timing: the error's type, and the rule, time
+    and posture of a failed dense re-check."""
+    q = getattr(exc, "q", None)
+    return TimingErrorInfo(
+        type=type(exc).__name__,
+        rule=getattr(exc, "rule", None),
+        time=getattr(exc, "time", None),
+        q=list(q) if q is not None else None,
+    )

@@ -1,0 +1,205 @@
+"""The layering of the house (docs/architecture.md), as tests.
+
+Floors from the ground up: the core (numpy maths and the native libraries), the pictures
+(matplotlib), the wire (pydantic models and the conversions wire <-> core), the client
+(httpx), the service, and the CLI on top. A room imports only from floors below it. The
+rules are read from the source (the AST of every module, imports inside functions included),
+so a lazy import cannot hide a breach; one rule is checked by importing in a fresh process.
+
+Each public module declares ``__all__`` and exports exactly what it defines in public, as
+httpx tests its exported members.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LIBRARY = ROOT / "src" / "planner"
+SERVICE = ROOT / "api"
+CLI = ROOT / "src" / "planner_cli"
+
+#: The import name of the service package (the folder ``api/``).
+SERVICE_NAME = "api"
+
+#: The core rooms: numpy maths and the native libraries, nothing of the wire or of HTTP.
+CORE = (
+    "planner.design",
+    "planner.kinematics",
+    "planner.geometry",
+    "planner.validity",
+    "planner.transits",
+    "planner.planning",
+    "planner.timing",
+    "planner.analysis",
+    "planner.exceptions",
+    "planner.constants",
+    "planner._kernels",
+    "planner.warmup",
+)
+#: What the core may never import (the wire, the client, the service, the CLI and their
+#: third-party libraries).
+CORE_FORBIDDEN = (
+    "pydantic",
+    "pydantic_settings",
+    "fastapi",
+    "starlette",
+    "httpx",
+    "typer",
+    SERVICE_NAME,
+    "planner.wire",
+    "planner.wire",
+    "planner.client",
+    "planner_cli",
+)
+#: Each native library and the one room allowed to import it.
+CONFINED = {
+    "ompl": ("planner.planning",),
+    "toppra": ("planner.timing",),
+    "ruckig": ("planner.timing",),
+    "matplotlib": ("planner.plotting",),
+}
+
+
+def _module_name(path: Path) -> str:
+    """The dotted import name of a source file."""
+    if path.is_relative_to(SERVICE):
+        parts = (SERVICE_NAME, *path.relative_to(SERVICE).with_suffix("").parts)
+    else:
+        parts = path.relative_to(ROOT / "src").with_suffix("").parts
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _sources() -> dict[str, Path]:
+    """Every module of the library, the service and the CLI, by import name."""
+    files = [*LIBRARY.rglob("*.py"), *SERVICE.rglob("*.py"), *CLI.rglob("*.py")]
+    return {_module_name(p): p for p in sorted(files)}
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """The absolute names of every module ``name`` imports, anywhere in its body."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                module = ".".join([*base, node.module] if node.module else base)
+            else:
+                module = node.module or ""
+            found.add(module)
+            found.update(f"{module}.{alias.name}" for alias in node.names)
+    return found
+
+
+def _within(module: str, rooms: tuple[str, ...]) -> bool:
+    return any(module == room or module.startswith(room + ".") for room in rooms)
+
+
+SOURCES = _sources()
+IMPORTS = {name: _imports(name, path) for name, path in SOURCES.items()}
+
+
+def test_the_tree_is_read() -> None:
+    """The rules below see the whole tree (a wrong root would make every rule vacuous)."""
+    assert "planner.validity" in SOURCES
+    assert "planner.planning.ompl_backend" in SOURCES
+    assert f"{SERVICE_NAME}.compute" in SOURCES
+
+
+def test_core_imports_nothing_of_the_wire_or_of_http() -> None:
+    breaches = sorted(
+        f"{name} imports {module}"
+        for name, imported in IMPORTS.items()
+        if _within(name, CORE)
+        for module in imported
+        if _within(module, CORE_FORBIDDEN)
+    )
+    assert breaches == []
+
+
+def test_no_library_module_imports_the_service_or_the_cli() -> None:
+    breaches = sorted(
+        f"{name} imports {module}"
+        for name, imported in IMPORTS.items()
+        if _within(name, ("planner",))
+        for module in imported
+        if _within(module, (SERVICE_NAME, "planner_cli"))
+    )
+    assert breaches == []
+
+
+@pytest.mark.parametrize("library", sorted(CONFINED))
+def test_native_library_is_confined_to_its_room(library: str) -> None:
+    users = {
+        name for name, imported in IMPORTS.items() if any(_within(m, (library,)) for m in imported)
+    }
+    assert users, f"nobody imports {library}: the rule is stale"
+    assert sorted(u for u in users if not _within(u, CONFINED[library])) == []
+
+
+def test_core_has_no_wire_conversions_of_its_own() -> None:
+    """``as_wire`` / ``*_from_wire`` / ``*_to_wire`` belong to the wire room."""
+    found = sorted(
+        f"{name}.{node.name}"
+        for name, path in SOURCES.items()
+        if _within(name, CORE)
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and "wire" in node.name
+    )
+    assert found == []
+
+
+def test_the_wire_imports_without_fastapi() -> None:
+    """The client and the CLI use the wire models without loading the web framework."""
+    code = (
+        "import sys, planner.wire; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('fastapi', 'starlette', 'uvicorn', 'httpx', 'api')))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert out.stdout.strip() == "[]"
+
+
+def _public_modules() -> list[str]:
+    return [name for name in SOURCES if not any(part.startswith("_") for part in name.split("."))]
+
+
+@pytest.mark.parametrize("name", _public_modules())
+def test_public_module_exports_what_it_defines(name: str) -> None:
+    """``__all__`` lists existing names, sorted once, and every public class and function the
+    module defines itself (a new public name is a decision to export it, or to rename it)."""
+    module = importlib.import_module(name)
+    exported = getattr(module, "__all__", None)
+    assert exported is not None, f"{name} has no __all__"
+    assert len(set(exported)) == len(exported)
+    assert [n for n in exported if not hasattr(module, n)] == []
+    defined = {
+        n
+        for n, obj in vars(module).items()
+        if not n.startswith("_")
+        and (inspect.isclass(obj) or inspect.isfunction(obj))
+        and getattr(obj, "__module__", None) == name
+    }
+    assert sorted(defined - set(exported)) == []
+
+
+def test_the_library_is_typed() -> None:
+    """PEP 561: type checkers of client code read the library's annotations."""
+    assert (LIBRARY / "py.typed").is_file()
+    pyproject = (ROOT / "pyproject.toml").read_text()
+    assert "py.typed" in pyproject

@@ -1,0 +1,76 @@
+"""The wire room: errors located at their field in one way, the backward-compatible
+``planner.schemas`` name, and plan answers built from library results with every
+diagnostics field declared."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import planner.schemas
+import planner.wire
+from planner import Design
+from planner.exceptions import InputError, LimitsError, PlannerError
+from planner.timing import JointLimits, time_path
+from planner.wire import Limits, PlanRequest, located, plan_inputs, plan_response
+
+
+def test_schemas_is_the_wire_under_its_first_name():
+    assert planner.schemas.__all__ == planner.wire.__all__
+    assert all(
+        getattr(planner.schemas, n) is getattr(planner.wire, n) for n in planner.wire.__all__
+    )
+
+
+@pytest.mark.parametrize(
+    ("field", "path"),
+    [(None, ()), ("sample_rate_hz", ("sample_rate_hz",)), ("limits.jerk", ("limits", "jerk")),
+     (("waypoints", 3, 1), ("waypoints", 3, 1))],
+)  # fmt: skip
+def test_located_prefixes_the_field_path(field, path):
+    with pytest.raises(PlannerError) as info, located("body", "timing"):
+        raise InputError("bad", field=field)
+    assert info.value.loc == ("body", "timing", *path)
+
+
+def test_an_inner_location_wins():
+    with pytest.raises(PlannerError) as info, located("body"), located("body", "design"):
+        raise InputError("bad")
+    assert info.value.loc == ("body", "design")
+
+
+def test_library_errors_name_their_argument():
+    """The library sets ``field`` where it knows it: no caller parses messages."""
+    with pytest.raises(InputError) as info:
+        time_path(Design.default(), np.array([[0, 2, 1], [0.1, 2, 1]]), JointLimits.default(),
+                  sample_rate_hz=-1.0)  # fmt: skip
+    assert info.value.field == "sample_rate_hz"
+    with pytest.raises(LimitsError) as info:
+        JointLimits(velocity=(1.0, 0.0, 1.0), acceleration=(1.0, 1.0, 1.0))
+    assert info.value.field == "velocity"
+
+
+def test_bad_limits_are_located_at_their_field():
+    model = Limits.model_construct(velocity=[1.0, 1e9, 1.0], acceleration=None, jerk=None)
+    with pytest.raises(LimitsError) as info:
+        planner.wire.joint_limits_to_core(model)
+    assert info.value.loc == ("body", "limits", "velocity")
+
+
+def test_a_plan_answer_declares_every_diagnostics_field():
+    from planner.planning import plan
+
+    request = PlanRequest.model_validate(
+        {"start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+         "goal": {"q": [0.3, 2.1, 0.9], "assembly_mode": "+"}, "planner": {"seed": 1}}
+    )  # fmt: skip
+    inputs = plan_inputs(request)
+    assert inputs.design is request.design.to_design()  # built once, at validation
+    result = plan(inputs.design, inputs.start, inputs.goal, options=inputs.options)
+    answer = plan_response(result)
+    assert answer.status == "solved"
+    d = answer.diagnostics
+    assert d.model_extra in (None, {})
+    assert d.planner and d.path_length == pytest.approx(
+        float(np.sum(np.linalg.norm(np.diff(np.array(answer.path.waypoints), axis=0), axis=1)))
+    )
