@@ -99,6 +99,7 @@ __all__ = [
     "RegionTransit",
     "cartesian_coverage",
     "cartesian_images",
+    "clear_cache",
     "locate",
     "prove_disconnected",
     "region_map",
