@@ -50,8 +50,8 @@ def main(out: Path) -> int:
     sys.path.insert(0, str(ROOT))
     from fastapi.testclient import TestClient
 
-    from api.app import create_app
-    from api.settings import Settings
+    from planner_api.app import create_app
+    from planner_api.settings import Settings
 
     out.mkdir(parents=True, exist_ok=True)
     with TestClient(create_app(Settings(workers=1))) as client:

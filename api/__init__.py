@@ -1,3 +1,3 @@
-"""The HTTP layer of hybrid-planner (FastAPI). ``api.app.create_app`` builds the service."""
+"""The HTTP layer of hybrid-planner (FastAPI). ``planner_api.app.create_app`` builds the service."""
 
 __all__ = []

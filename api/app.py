@@ -1,4 +1,4 @@
-"""Builds the FastAPI application: wiring only, the routes live in ``api.routes``."""
+"""Builds the FastAPI application: wiring only, the routes live in ``planner_api.routes``."""
 
 from __future__ import annotations
 
@@ -8,24 +8,24 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 
 import planner
-from api.deps import ApiKey
-from api.errors import install_error_handlers
-from api.metrics import Metrics
-from api.metrics import router as metrics_router
-from api.middleware import RequestGate, RequestObserver
-from api.openapi import install_docs, install_openapi
-from api.routes import design, designs, kinematics, meta, plan
-from api.routes import timing as timing_routes
-from api.routes import workspace as workspace_routes
-from api.routes.viewer import install_viewer
-from api.settings import Settings, get_settings
-from api.warmup import warm_up_worker
-from api.workers import WorkerPool
 from planner.wire import ErrorResponse
+from planner_api.deps import ApiKey
+from planner_api.errors import install_error_handlers
+from planner_api.metrics import Metrics
+from planner_api.metrics import router as metrics_router
+from planner_api.middleware import RequestGate, RequestObserver
+from planner_api.openapi import install_docs, install_openapi
+from planner_api.routes import design, designs, kinematics, meta, plan
+from planner_api.routes import timing as timing_routes
+from planner_api.routes import workspace as workspace_routes
+from planner_api.routes.viewer import install_viewer
+from planner_api.settings import Settings, get_settings
+from planner_api.warmup import warm_up_worker
+from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
 
-#: Error answers of the job routes' own (the gate's and the pool's: api.openapi).
+#: Error answers of the job routes' own (the gate's and the pool's: planner_api.openapi).
 _ERRORS = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
@@ -53,7 +53,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         try:
             yield
         finally:
-            # after a drain (api.server) the grace is spent: stop the workers at once
+            # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
 
@@ -63,7 +63,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
         "manipulator (five-bar A-C-P-D-B turning about AB).",
         lifespan=lifespan,
-        docs_url=None,  # served from the package's own assets (api.openapi.install_docs)
+        docs_url=None,  # served from the package's own assets (planner_api.openapi.install_docs)
         redoc_url=None,
     )
     app.state.settings = settings

@@ -1,10 +1,10 @@
 """The service's jobs: one module-level function per endpoint, request model in, response
-model out, run in a worker process (:mod:`api.workers`). No FastAPI here: the same functions
+model out, run in a worker process (:mod:`planner_api.workers`). No FastAPI here: the same functions
 serve the CLI.
 
 The wire <-> library conversions are those of :mod:`planner.wire`; a library error raised
 while converting one field is located there (:func:`planner.wire.located`), so
-:mod:`api.errors` can name the field in its 422 answer.
+:mod:`planner_api.errors` can name the field in its 422 answer.
 """
 
 from __future__ import annotations

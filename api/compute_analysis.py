@@ -1,6 +1,6 @@
 """Jobs of the analysis and timing endpoints (``/v1/workspace``, ``/v1/figures``,
 ``/v1/design/optimize``, ``/v1/timing``): request model in, response model (or bytes) out, run
-in a worker process like the jobs of :mod:`api.compute`. No FastAPI here.
+in a worker process like the jobs of :mod:`planner_api.compute`. No FastAPI here.
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from api.compute import UNBOUNDED, JobBudget
 from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.wire import (
@@ -34,6 +33,7 @@ from planner.wire import (
     timing_error,
     trajectory_model,
 )
+from planner_api.compute import UNBOUNDED, JobBudget
 
 __all__ = ["figure", "optimize_design", "section_grid", "timing", "workspace"]
 

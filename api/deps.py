@@ -9,10 +9,10 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from api.exceptions import AuthenticationError, PoolNotRunningError
-from api.middleware import api_key_given
-from api.settings import Settings
-from api.workers import WorkerPool
+from planner_api.exceptions import AuthenticationError, PoolNotRunningError
+from planner_api.middleware import api_key_given
+from planner_api.settings import Settings
+from planner_api.workers import WorkerPool
 
 __all__ = [
     "ApiKey",
@@ -43,7 +43,7 @@ def get_deadline(
     request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
 ) -> float:
     """The request's deadline, a :func:`time.monotonic` value (stamped on arrival by
-    :mod:`api.middleware`)."""
+    :mod:`planner_api.middleware`)."""
     deadline = getattr(request.state, "deadline", None)
     return deadline if deadline is not None else time.monotonic() + settings.request_timeout_s
 

@@ -14,10 +14,10 @@ DesignError, InputError,           422     library errors; ``loc``: where the wi
 KinematicsError, other PlannerError        error (:func:`planner.wire.located`), else the
                                            table's, followed by the error's own ``field``
 AuthenticationError, or no key     401     ``WWW-Authenticate: Bearer`` (no key: answered by
-                                           :mod:`api.middleware` before the body is read)
-body larger than max_body_bytes    413     (answered by :mod:`api.middleware`)
-body not sent within body_timeout  408     (answered by :mod:`api.middleware`)
-a POST body that is not JSON       415     (answered by :mod:`api.middleware`)
+                                           :mod:`planner_api.middleware` before the body is read)
+body larger than max_body_bytes    413     (answered by :mod:`planner_api.middleware`)
+body not sent within body_timeout  408     (answered by :mod:`planner_api.middleware`)
+a POST body that is not JSON       415     (answered by :mod:`planner_api.middleware`)
 an integer too long to read        422     ``number_too_long``
 WorkerCrashedError                 502
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
@@ -40,15 +40,6 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from api.exceptions import (
-    AuthenticationError,
-    DeadlineExceededError,
-    LimitExceededError,
-    PoolNotRunningError,
-    PoolSaturatedError,
-    ShuttingDownError,
-    WorkerCrashedError,
-)
 from planner.exceptions import (
     AssemblyError,
     DesignError,
@@ -56,6 +47,15 @@ from planner.exceptions import (
     KinematicsError,
     PlannerError,
     SingularPostureError,
+)
+from planner_api.exceptions import (
+    AuthenticationError,
+    DeadlineExceededError,
+    LimitExceededError,
+    PoolNotRunningError,
+    PoolSaturatedError,
+    ShuttingDownError,
+    WorkerCrashedError,
 )
 
 __all__ = ["error_response", "install_error_handlers"]

@@ -1,4 +1,4 @@
-"""Errors of the service itself (not of the library); :mod:`api.errors` maps each one, and
+"""Errors of the service itself (not of the library); :mod:`planner_api.errors` maps each one, and
 every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
 
 ::

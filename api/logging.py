@@ -2,7 +2,7 @@
 
 The request id comes from the client's ``X-Request-ID`` header when it is a sane token (at
 most 128 characters of ``[A-Za-z0-9._:-]``), else a new UUID4 hex is made. The middleware of
-:mod:`api.metrics` sets it for the request (:data:`REQUEST_ID`, a context variable, so it
+:mod:`planner_api.metrics` sets it for the request (:data:`REQUEST_ID`, a context variable, so it
 follows the request's task) and echoes it in the ``X-Request-ID`` response header; jobs sent
 to the worker processes carry it along and set it there too, so a library log line written in
 a worker names the request as well.
@@ -127,7 +127,7 @@ def configure_logging(level: str = "info", log_format: LogFormat = "json") -> No
     """Send every log record of the process to stderr in ``log_format``, at ``level``.
 
     Replaces the root logger's handlers (idempotent); uvicorn's loggers propagate to the root
-    so that their lines share the format and the request id. Called by :func:`api.server.run`
+    so that their lines share the format and the request id. Called by :func:`planner_api.server.run`
     and by each worker process at start-up.
     """
     handler = logging.StreamHandler(sys.stderr)
@@ -151,12 +151,14 @@ def uvicorn_log_config(level: str = "info", log_format: LogFormat = "json") -> d
     """A ``logging.config.dictConfig`` for ``uvicorn.run(log_config=...)`` that sets up the
     same handler as :func:`configure_logging` (uvicorn applies its log config itself)."""
     formatter: dict[str, Any] = (
-        {"()": "api.logging.JsonFormatter"} if log_format == "json" else {"format": _TEXT_FORMAT}
+        {"()": "planner_api.logging.JsonFormatter"}
+        if log_format == "json"
+        else {"format": _TEXT_FORMAT}
     )
     return {
         "version": 1,
         "disable_existing_loggers": False,
-        "filters": {"request_id": {"()": "api.logging.RequestIdFilter"}},
+        "filters": {"request_id": {"()": "planner_api.logging.RequestIdFilter"}},
         "formatters": {"default": formatter},
         "handlers": {
             "default": {

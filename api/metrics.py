@@ -1,7 +1,7 @@
 """Prometheus metrics of one service process, exposed at ``GET /metrics``.
 
 Multi-process safety: the CPU-bound work runs in the worker processes of
-:mod:`api.workers`, which record nothing. Each job is wrapped by :func:`run_measured`, which
+:mod:`planner_api.workers`, which record nothing. Each job is wrapped by :func:`run_measured`, which
 returns, next to the job's JSON, a small :class:`JobSample` (the job's name, its time in the
 worker, and for a plan its status and its planning and timing durations); the parent process
 records the sample (:func:`record_job`). So every metric lives in the one process that serves
@@ -46,8 +46,8 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from pydantic import BaseModel
 
-from api.compute import UNBOUNDED, Job, JobBudget, as_json
-from api.logging import REQUEST_ID
+from planner_api.compute import UNBOUNDED, Job, JobBudget, as_json
+from planner_api.logging import REQUEST_ID
 
 __all__ = ["CURRENT", "JobSample", "Metrics", "metrics", "record_job", "router", "run_measured"]
 
@@ -89,7 +89,7 @@ def run_measured(
     budget: JobBudget = UNBOUNDED,
     request_id: str | None = None,
 ) -> tuple[bytes, JobSample]:
-    """In a worker: :func:`api.compute.as_json` of ``job(request, budget)`` and its
+    """In a worker: :func:`planner_api.compute.as_json` of ``job(request, budget)`` and its
     :class:`JobSample`.
 
     ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job
@@ -170,7 +170,7 @@ class Metrics:
     Parameters
     ----------
     get_pool : callable
-        Returns the application's :class:`api.workers.WorkerPool` (or None before start-up);
+        Returns the application's :class:`planner_api.workers.WorkerPool` (or None before start-up);
         read at every scrape.
     version : str
         The service version, for ``planner_build_info``.
@@ -232,7 +232,7 @@ class Metrics:
 
 
 #: The metrics of the application serving the current request (set by the request
-#: middleware, :class:`api.middleware.RequestObserver`), read by :func:`record_job`.
+#: middleware, :class:`planner_api.middleware.RequestObserver`), read by :func:`record_job`.
 CURRENT: ContextVar[Metrics | None] = ContextVar("metrics", default=None)
 
 

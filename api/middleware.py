@@ -33,8 +33,8 @@ import time
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
-from api.metrics import CURRENT, UNMATCHED, Metrics
+from planner_api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
+from planner_api.metrics import CURRENT, UNMATCHED, Metrics
 
 __all__ = ["CLIENT_CLOSED_REQUEST", "RequestGate", "RequestObserver", "api_key_given"]
 
@@ -198,7 +198,7 @@ _QUIET_PATHS = frozenset({"/v1/health", "/v1/ready", "/metrics"})
 
 def _route_label(scope: Scope) -> str:
     """The matched route's path template, else the path if it is one of the app's documented
-    paths (a 413 answered before routing), else :data:`api.metrics.UNMATCHED`."""
+    paths (a 413 answered before routing), else :data:`planner_api.metrics.UNMATCHED`."""
     route = scope.get("route")
     path = getattr(route, "path", None)
     if isinstance(path, str):
@@ -217,7 +217,7 @@ def _route_label(scope: Scope) -> str:
 
 class RequestObserver:
     """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
-    sane, else a new one; echoed in the answer and set in :data:`api.logging.REQUEST_ID` for
+    sane, else a new one; echoed in the answer and set in :data:`planner_api.logging.REQUEST_ID` for
     every log line), records it in ``metrics`` and writes one access-log line."""
 
     def __init__(self, app: ASGIApp, *, metrics: Metrics) -> None:

@@ -1,7 +1,7 @@
 """The OpenAPI document says everything a route can answer, and the offline API docs.
 
 FastAPI documents the success answer and request validation (422) of each route; the answers
-of the request gate (:mod:`api.middleware`: 401 without the key, 408, 413, 415) and of the
+of the request gate (:mod:`planner_api.middleware`: 401 without the key, 408, 413, 415) and of the
 worker pool (502, 503, 504) happen around the routes, so :func:`install_openapi` adds them:
 
 - every ``/v1`` operation but the probes ``/v1/health`` and ``/v1/ready``: 401 when a key is

@@ -2,7 +2,7 @@
 
 On SIGTERM or SIGINT uvicorn stops accepting connections and waits up to
 ``shutdown_timeout_s`` for the requests in flight; this module's server first tells the worker
-pool to drain (:meth:`api.workers.WorkerPool.drain`): new jobs are refused with a 503, and
+pool to drain (:meth:`planner_api.workers.WorkerPool.drain`): new jobs are refused with a 503, and
 jobs still running shortly before the grace ends are cancelled with a clean 503
 ``shutting_down`` (``Retry-After``; a retry lands on another replica), so every request in
 flight gets an answer. The lifespan's end then stops the worker processes, terminating any
@@ -16,9 +16,9 @@ import socket
 import uvicorn
 from fastapi import FastAPI
 
-from api.app import create_app
-from api.logging import configure_logging, uvicorn_log_config
-from api.settings import Settings
+from planner_api.app import create_app
+from planner_api.logging import configure_logging, uvicorn_log_config
+from planner_api.settings import Settings
 
 __all__ = ["GracefulServer", "job_grace_s", "run"]
 
@@ -45,7 +45,7 @@ class GracefulServer(uvicorn.Server):
 
 
 def run(settings: Settings, app: FastAPI | None = None) -> None:
-    """Serve ``app`` (default: :func:`api.app.create_app` of ``settings``) on
+    """Serve ``app`` (default: :func:`planner_api.app.create_app` of ``settings``) on
     ``settings.host:port`` until SIGTERM/SIGINT. Blocks."""
     configure_logging(settings.log_level, settings.log_format)
     app = app if app is not None else create_app(settings)
@@ -55,7 +55,7 @@ def run(settings: Settings, app: FastAPI | None = None) -> None:
         port=settings.port,
         log_config=uvicorn_log_config(settings.log_level, settings.log_format),
         log_level=settings.log_level,
-        access_log=False,  # api.middleware.RequestObserver writes the access log
+        access_log=False,  # planner_api.middleware.RequestObserver writes the access log
         timeout_graceful_shutdown=settings.shutdown_timeout_s,  # type: ignore[arg-type]
     )
     GracefulServer(config, app, settings.shutdown_timeout_s).run()

@@ -1,5 +1,5 @@
 """The warm-up of a service worker: everything a worker's first job would otherwise pay is
-paid before the worker takes jobs (:class:`api.workers.WorkerPool` announces a worker warm,
+paid before the worker takes jobs (:class:`planner_api.workers.WorkerPool` announces a worker warm,
 and ``/v1/ready`` counts it, only after this returns).
 
 Measured on a 2-core machine: after the library's kernels alone were warm, the first plan
@@ -19,7 +19,7 @@ _POSTURE = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
 def warm_up_worker() -> float:
     """The library's warm-up (:func:`planner.warmup.warm_up`: numba kernels, OMPL, toppra,
     ruckig, matplotlib), then the service's own jobs once each, through the path a request
-    takes (:func:`api.metrics.run_measured`): a plan timed by TOPPRA and one by Ruckig (with
+    takes (:func:`planner_api.metrics.run_measured`): a plan timed by TOPPRA and one by Ruckig (with
     an obstacle, so the clearance kernels run too), fk and ik. Returns its seconds."""
     from planner.warmup import quiet_library_logs, warm_up
 
@@ -31,10 +31,10 @@ def warm_up_worker() -> float:
 
 
 def _run_jobs() -> None:
-    from api import compute
-    from api.compute import JobBudget
-    from api.metrics import run_measured
     from planner.wire import FKRequest, IKRequest, PlanRequest
+    from planner_api import compute
+    from planner_api.compute import JobBudget
+    from planner_api.metrics import run_measured
 
     budget = JobBudget(deadline=time.monotonic() + 120.0)
     for method in ("toppra", "ruckig"):

@@ -12,7 +12,7 @@ was running (:class:`WorkerCrashedError`, HTTP 502 naming the exit); the others 
 and a replacement is spawned and warmed in the background.
 
 Warm means ready: a worker announces itself only after its ``warm_up`` function (the
-service's :func:`api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
+service's :func:`planner_api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
 the first job on it costs what any later one costs. :attr:`WorkerPool.state` is ``"ready"`` (``/v1/ready`` 200)
 only while every configured worker is warm; ``"starting"`` before the first time,
 ``"recovering"`` while a replacement warms up, ``"broken"`` when warm-up itself fails.
@@ -28,7 +28,7 @@ burst never builds an unbounded queue. A job that outlives the request's deadlin
 :class:`DeadlineExceededError` (HTTP 504); a job that has not started yet is cancelled, one
 that is running finishes in its worker (its result is dropped) and keeps its slot until then.
 
-Graceful shutdown (:mod:`api.server`): on SIGTERM, :meth:`WorkerPool.drain` turns the pool to
+Graceful shutdown (:mod:`planner_api.server`): on SIGTERM, :meth:`WorkerPool.drain` turns the pool to
 'stopping' (``/v1/ready`` answers 503, new jobs get :class:`ShuttingDownError`, 503) and gives
 the jobs in flight until the grace deadline to finish; those still waiting for their result
 then are cancelled with :class:`ShuttingDownError` (a clean 503 the client may retry on
@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any, Literal, TypeVar
 
-from api.exceptions import (
+from planner_api.exceptions import (
     DeadlineExceededError,
     PoolSaturatedError,
     ShuttingDownError,
@@ -113,7 +113,7 @@ def _worker_main(
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if log_setup is not None:
-        from api.logging import configure_logging
+        from planner_api.logging import configure_logging
 
         configure_logging(*log_setup)  # type: ignore[arg-type]
     try:
@@ -188,10 +188,10 @@ class WorkerPool:
     retry_after_s : int
         Seconds advertised to a refused caller.
     log_setup : (level, format) or None
-        How the workers log (:func:`api.logging.configure_logging`); None: Python's default.
+        How the workers log (:func:`planner_api.logging.configure_logging`); None: Python's default.
     warm_up : callable or None
         Run in each new worker before it takes jobs (module-level, picklable; the service
-        passes :func:`api.warmup.warm_up_worker`). None: no warm-up.
+        passes :func:`planner_api.warmup.warm_up_worker`). None: no warm-up.
     """
 
     def __init__(

@@ -1,6 +1,6 @@
 """Cost of the observability layer per request: the request-id / metrics / access-log
-middleware (:class:`api.middleware.RequestObserver`) and the job sample returned by the
-workers (:func:`api.metrics.run_measured` against :func:`api.compute.as_json`).
+middleware (:class:`planner_api.middleware.RequestObserver`) and the job sample returned by the
+workers (:func:`planner_api.metrics.run_measured` against :func:`planner_api.compute.as_json`).
 
 Both are timed in-process, with and without the layer, in the same run, on the same inputs
 (medians of batches; the ratio is of those medians):
@@ -24,11 +24,11 @@ from collections.abc import Awaitable, Callable
 
 from _machine import print_machine
 
-from api import compute
-from api.logging import JsonFormatter, RequestIdFilter
-from api.metrics import Metrics, run_measured
-from api.middleware import RequestObserver
 from planner.wire import FKRequest
+from planner_api import compute
+from planner_api.logging import JsonFormatter, RequestIdFilter
+from planner_api.metrics import Metrics, run_measured
+from planner_api.middleware import RequestObserver
 
 
 async def _endpoint(scope, receive, send) -> None:  # type: ignore[no-untyped-def]

@@ -30,9 +30,9 @@ import httpx
 import numpy as np
 from _machine import print_machine
 
-from api import compute, compute_analysis
 from planner.client import AsyncPlannerClient
 from planner.wire import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
+from planner_api import compute, compute_analysis
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,6 +1,6 @@
 """The service as a Ray Serve deployment, for a cluster of machines.
 
-Ray Serve's FastAPI ingress wraps the very app of :func:`api.app.create_app`: every route,
+Ray Serve's FastAPI ingress wraps the very app of :func:`planner_api.app.create_app`: every route,
 setting, error, metric and log line is the same as under ``planner serve``. Each replica is one
 copy of the service with its own worker pool (``PLANNER_WORKERS`` processes, reserved as
 ``num_cpus`` of the replica's actor), so a replica is sized like one container, and Ray spreads
@@ -27,17 +27,17 @@ from typing import Any
 from ray import serve
 from ray.serve.deployment import Application
 
-from api.settings import Settings
+from planner_api.settings import Settings
 
 __all__ = ["PlannerDeployment", "app_builder", "build"]
 
 
 def _app_builder(settings: dict[str, Any]) -> Any:
     """A builder evaluated on each replica: the FastAPI app of ``settings`` (fields of
-    :class:`api.settings.Settings`; the rest from the replica's PLANNER_* environment)."""
+    :class:`planner_api.settings.Settings`; the rest from the replica's PLANNER_* environment)."""
 
     def build_app() -> Any:
-        from api.app import create_app
+        from planner_api.app import create_app
 
         return create_app(Settings(**settings))
 
@@ -64,7 +64,7 @@ def build(
         Requests a replica accepts at once (default: its pool's capacity, workers + queue),
         so Ray queues the excess instead of the replica answering 503.
     **settings
-        Other fields of :class:`api.settings.Settings` (e.g. ``request_timeout_s=10``).
+        Other fields of :class:`planner_api.settings.Settings` (e.g. ``request_timeout_s=10``).
     """
     if workers is not None:
         settings["workers"] = workers
@@ -88,7 +88,7 @@ class PlannerDeployment:
 def app_builder(args: dict[str, str]) -> Application:
     """Ray Serve's application builder for ``serve run deploy.ray_serve:app_builder key=value
     ...``: ``num_replicas``, ``workers``, ``max_ongoing_requests`` and any field of
-    :class:`api.settings.Settings` (strings, converted and validated by the settings)."""
+    :class:`planner_api.settings.Settings` (strings, converted and validated by the settings)."""
     args = dict(args)
     kwargs: dict[str, Any] = {}
     for key in ("num_replicas", "workers", "max_ongoing_requests"):

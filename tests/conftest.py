@@ -21,8 +21,8 @@ import httpx
 import pytest
 from fastapi.testclient import TestClient
 
-from api.app import create_app
-from api.settings import Settings
+from planner_api.app import create_app
+from planner_api.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Seconds allowed for a service to be ready (every worker warm) after it starts: the first

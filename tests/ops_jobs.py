@@ -8,8 +8,8 @@ import os
 import sys
 import time
 
-from api.compute import UNBOUNDED, JobBudget
 from planner.wire import Diagnostics, PlanRequest, PlanResponse
+from planner_api.compute import UNBOUNDED, JobBudget
 
 logger = logging.getLogger("tests.ops_jobs")
 
@@ -41,10 +41,10 @@ def sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRespon
 def serve(job_name: str) -> None:
     """Serve the app of the environment's settings with the plan job ``job_name`` of this
     module (``python -c 'import ops_jobs; ops_jobs.serve("sleep_pid")'``)."""
-    from api.app import create_app
-    from api.routes.plan import get_plan_function
-    from api.server import run
-    from api.settings import Settings
+    from planner_api.app import create_app
+    from planner_api.routes.plan import get_plan_function
+    from planner_api.server import run
+    from planner_api.settings import Settings
 
     settings = Settings()
     app = create_app(settings)

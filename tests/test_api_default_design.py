@@ -7,9 +7,9 @@ import pytest
 from fastapi.testclient import TestClient
 from pydantic import ValidationError
 
-from api.app import create_app
-from api.settings import Settings
 from planner import Design, Manipulator
+from planner_api.app import create_app
+from planner_api.settings import Settings
 
 
 @pytest.fixture(scope="module")

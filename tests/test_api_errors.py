@@ -11,7 +11,7 @@ from fastapi import FastAPI
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from api.errors import install_error_handlers
+from planner_api.errors import install_error_handlers
 
 ROUTES = ["/v1/fk", "/v1/ik", "/v1/analyze", "/v1/plan", "/v1/plan/batch"]
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}

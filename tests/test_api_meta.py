@@ -3,7 +3,7 @@
 from fastapi.testclient import TestClient
 
 import planner
-from api.app import create_app
+from planner_api.app import create_app
 
 
 def test_health_answers_ok():

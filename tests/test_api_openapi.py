@@ -13,7 +13,7 @@ from urllib.parse import urljoin, urlparse
 
 import pytest
 
-from api.routes.workspace import FIGURE_NAMES
+from planner_api.routes.workspace import FIGURE_NAMES
 
 ROOT = Path(__file__).resolve().parents[1]
 

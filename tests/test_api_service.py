@@ -13,12 +13,12 @@ import time
 import pytest
 from pydantic import ValidationError
 
-from api.compute import UNBOUNDED, JobBudget
-from api.exceptions import PoolSaturatedError
-from api.routes.plan import get_plan_function
-from api.settings import Settings
-from api.workers import WorkerPool
 from planner.wire import PlanRequest, PlanResponse
+from planner_api.compute import UNBOUNDED, JobBudget
+from planner_api.exceptions import PoolSaturatedError
+from planner_api.routes.plan import get_plan_function
+from planner_api.settings import Settings
+from planner_api.workers import WorkerPool
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}

@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from api.routes.workspace import FIGURE_NAMES
+from planner_api.routes.workspace import FIGURE_NAMES
 
 PAPER_OPTIMUM = {"L0": 0.0, "L1": 0.4, "L2": 0.4}
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

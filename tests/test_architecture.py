@@ -17,6 +17,7 @@ import importlib
 import inspect
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -27,7 +28,7 @@ SERVICE = ROOT / "api"
 CLI = ROOT / "src" / "planner_cli"
 
 #: The import name of the service package (the folder ``api/``).
-SERVICE_NAME = "api"
+SERVICE_NAME = "planner_api"
 
 #: The core rooms: numpy maths and the native libraries, nothing of the wire or of HTTP.
 CORE = (
@@ -54,7 +55,6 @@ CORE_FORBIDDEN = (
     "httpx",
     "typer",
     SERVICE_NAME,
-    "planner.wire",
     "planner.wire",
     "planner.client",
     "planner_cli",
@@ -119,6 +119,44 @@ def test_the_tree_is_read() -> None:
     assert f"{SERVICE_NAME}.compute" in SOURCES
 
 
+def test_the_packages_installed_are_the_folders() -> None:
+    """pyproject's explicit package list (needed for the ``api/`` -> ``planner_api`` mapping)
+    names every package folder, and nothing else."""
+    listed = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    folders = [name for name, path in SOURCES.items() if path.name == "__init__.py"]
+    assert sorted(listed) == sorted(folders)
+
+
+def test_nothing_imports_the_service_by_its_folder_name() -> None:
+    """The service installs as ``planner_api``; an ``import api`` would only work from the
+    repository's root, and would load a second copy of the service next to the installed one."""
+    others = [
+        p for d in ("tests", "benchmarks", "examples", "deploy") for p in (ROOT / d).rglob("*.py")
+    ]
+    modules = {**SOURCES, **{str(p.relative_to(ROOT)): p for p in others}}
+    breaches = sorted(
+        f"{name} imports {module}"
+        for name, path in modules.items()
+        for module in _imports(name, path)
+        if _within(module, ("api",))
+    )
+    assert breaches == []
+
+
+def test_the_service_installs_under_its_distinct_name(tmp_path: Path) -> None:
+    """Outside the repository ``planner_api`` is the service (from the ``api/`` folder) and no
+    top-level ``api`` is installed that could collide with another project's."""
+    code = (
+        "import importlib.util as u; s = u.find_spec('planner_api'); "
+        "print(s.submodule_search_locations[0]); print(u.find_spec('api'))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path
+    ).stdout.split()
+    assert Path(out[0]).resolve() == SERVICE.resolve()
+    assert out[1] == "None"
+
+
 def test_core_imports_nothing_of_the_wire_or_of_http() -> None:
     breaches = sorted(
         f"{name} imports {module}"
@@ -167,7 +205,7 @@ def test_the_wire_imports_without_fastapi() -> None:
     code = (
         "import sys, planner.wire; "
         "print(sorted(m for m in sys.modules if m.split('.')[0] in "
-        "('fastapi', 'starlette', 'uvicorn', 'httpx', 'api')))"
+        "('fastapi', 'starlette', 'uvicorn', 'httpx', 'api', 'planner_api')))"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT

@@ -13,7 +13,7 @@ import re
 import pytest
 from ops_jobs import sleep_pid
 
-from api.logging import (
+from planner_api.logging import (
     REQUEST_ID,
     JsonFormatter,
     RequestIdFilter,
@@ -21,7 +21,7 @@ from api.logging import (
     request_id_from,
     uvicorn_log_config,
 )
-from api.routes.plan import get_plan_function
+from planner_api.routes.plan import get_plan_function
 
 HEX32 = re.compile(r"[0-9a-f]{32}")
 

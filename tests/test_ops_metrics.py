@@ -11,7 +11,7 @@ import pytest
 from ops_jobs import sleep_pid, timed_outcome
 from prometheus_client.parser import text_string_to_metric_families
 
-from api.routes.plan import get_plan_function
+from planner_api.routes.plan import get_plan_function
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 

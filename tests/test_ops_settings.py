@@ -11,8 +11,8 @@ import pytest
 from pydantic import ValidationError
 from typer.testing import CliRunner
 
-from api.server import job_grace_s
-from api.settings import Settings
+from planner_api.server import job_grace_s
+from planner_api.settings import Settings
 from planner_cli import app as cli
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "operations.md"

@@ -1,4 +1,4 @@
-"""Graceful shutdown of a real service process (uvicorn, api.server): on SIGTERM a plan in
+"""Graceful shutdown of a real service process (uvicorn, planner_api.server): on SIGTERM a plan in
 flight finishes and is answered when it fits the grace; one that does not is answered with a
 clean 503 ``shutting_down`` at the end of the grace and its worker is stopped; the process
 exits cleanly either way, leaving no worker behind. Its log is JSON with the request ids."""

@@ -3,7 +3,7 @@ a worker's first plan (OMPL), timing (TOPPRA and Ruckig) and figure import nothi
 compile nothing, so the first request costs what a warm one does ("ready means warm",
 issue 12). Asserted on what the process holds, not on wall-clock times
 (benchmarks/warmup.py measures the times). The wire models are not the library's: the
-service's worker warm-up (:mod:`api.warmup`) validates them through its own jobs."""
+service's worker warm-up (:mod:`planner_api.warmup`) validates them through its own jobs."""
 
 from __future__ import annotations
 

@@ -10,12 +10,12 @@ from fastapi import Response
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
-from api.compute import Job, JobBudget
-from api.exceptions import LimitExceededError
-from api.logging import REQUEST_ID
-from api.metrics import record_job, run_measured
-from api.workers import WorkerPool
 from planner.wire import DesignModel
+from planner_api.compute import Job, JobBudget
+from planner_api.exceptions import LimitExceededError
+from planner_api.logging import REQUEST_ID
+from planner_api.metrics import record_job, run_measured
+from planner_api.workers import WorkerPool
 
 __all__ = [
     "check_obstacle_count",
@@ -84,9 +84,9 @@ async def run_job(
     """``job(body)`` in a worker, serialised there, with the request's ``deadline``; the
     answer as it is (the route's ``response_model`` documents it, the job's return type
     guarantees it). The worker reports the job's durations, recorded here
-    (:mod:`api.metrics`). The body's design is completed from ``design_defaults`` first
+    (:mod:`planner_api.metrics`). The body's design is completed from ``design_defaults`` first
     (:func:`with_design_defaults`). ``max_samples`` bounds the answer's trajectory samples
-    (:func:`api.compute.answer_sample_limit`)."""
+    (:func:`planner_api.compute.answer_sample_limit`)."""
     body = with_design_defaults(body, design_defaults)
     job_json = partial(
         run_measured,

@@ -5,15 +5,15 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from api import compute, compute_analysis
-from api.deps import Deadline, Pool, SettingsDep
-from api.routes._common import run_job
 from planner.wire import (
     DesignCheckRequest,
     DesignCheckResponse,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
 )
+from planner_api import compute, compute_analysis
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.routes._common import run_job
 
 __all__ = ["design_check", "design_optimize", "router"]
 

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from api import compute
-from api.deps import Deadline, Pool, SettingsDep
-from api.routes._common import run_job
 from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -15,6 +12,9 @@ from planner.wire import (
     IKRequest,
     IKResponse,
 )
+from planner_api import compute
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.routes._common import run_job
 
 __all__ = ["analyze", "fk", "ik", "router"]
 

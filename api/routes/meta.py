@@ -5,8 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 import planner
-from api.deps import ApiKey, Pool, SettingsDep
 from planner.wire import ErrorResponse, Health, Readiness, VersionInfo
+from planner_api.deps import ApiKey, Pool, SettingsDep
 
 __all__ = ["health", "ready", "router", "version"]
 

@@ -1,6 +1,6 @@
 """POST /v1/plan and /v1/plan/batch.
 
-The job is :func:`api.compute.plan`, resolved through the ``get_plan_function`` dependency
+The job is :func:`planner_api.compute.plan`, resolved through the ``get_plan_function`` dependency
 (tests override it). A finished search is a 200 whatever its status; errors are for invalid
 input (422), a full pool (503) or the request's deadline (504).
 """
@@ -12,19 +12,19 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Response
 
-from api import compute
-from api.compute import JobBudget, answer_sample_limit
-from api.deps import Deadline, Pool, SettingsDep
-from api.exceptions import LimitExceededError
-from api.routes._common import (
+from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+from planner_api import compute
+from planner_api.compute import JobBudget, answer_sample_limit
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.exceptions import LimitExceededError
+from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
     run_job,
     run_jobs,
     with_design_defaults,
 )
-from api.settings import Settings
-from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
+from planner_api.settings import Settings
 
 __all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from api import compute_analysis
-from api.compute import answer_sample_limit
-from api.deps import Deadline, Pool, SettingsDep
-from api.routes._common import check_obstacle_count, run_job
 from planner.wire import TimingRequest, TimingResponse
+from planner_api import compute_analysis
+from planner_api.compute import answer_sample_limit
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.routes._common import check_obstacle_count, run_job
 
 __all__ = ["router", "timing"]
 

@@ -7,12 +7,12 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
 
-from api import compute_analysis
-from api.deps import Deadline, Pool, SettingsDep
-from api.errors import error_response
-from api.exceptions import LimitExceededError
-from api.routes._common import run_job
 from planner.wire import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
+from planner_api import compute_analysis
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.errors import error_response
+from planner_api.exceptions import LimitExceededError
+from planner_api.routes._common import run_job
 
 __all__ = ["figure", "router", "workspace"]
 

@@ -4,7 +4,7 @@ A fresh process pays, on its first plan, much more than the plan itself: compili
 from numba's on-disk cache) the numba kernels, importing OMPL, toppra, ruckig, scipy and
 matplotlib, numba's first dispatch of each kernel, OMPL's first solve, toppra's and ruckig's
 first solve, matplotlib's font cache and first render (pydantic's first validation of the
-wire models is the service's to warm: :mod:`api.warmup` runs its jobs). Measured
+wire models is the service's to warm: :mod:`planner_api.warmup` runs its jobs). Measured
 on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's time budget.
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own

@@ -84,8 +84,8 @@ def serve(
     wins over the environment."""
     from pydantic import ValidationError
 
-    from api.server import run
-    from api.settings import Settings
+    from planner_api.server import run
+    from planner_api.settings import Settings
 
     given = {
         "host": host,
@@ -153,8 +153,8 @@ def fk(
     """Direct kinematics of q, computed locally.
 
     Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
-    from api.compute import fk as job
     from planner.wire import FKRequest
+    from planner_api.compute import fk as job
 
     _run_job(
         job,
@@ -175,8 +175,8 @@ def ik(
     """Inverse kinematics of P, computed locally.
 
     Prints the JSON that POST /v1/ik answers. Example: planner ik -0.25 0.1 0.3"""
-    from api.compute import ik as job
     from planner.wire import IKRequest
+    from planner_api.compute import ik as job
 
     _run_job(
         job,
@@ -372,9 +372,9 @@ def plan(
         progress.step("loading the planner", 0)
         from pydantic import ValidationError
 
-        from api import compute
         from planner.exceptions import PlannerError
         from planner.wire import PlanRequest
+        from planner_api import compute
 
         try:
             body = PlanRequest.model_validate_json(request.read_bytes())

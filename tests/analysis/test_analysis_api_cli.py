@@ -6,10 +6,10 @@ import pytest
 from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
-from api.app import create_app
-from api.settings import Settings
 from planner import Design
 from planner.wire import DesignModel
+from planner_api.app import create_app
+from planner_api.settings import Settings
 from planner_cli import app as cli_app
 
 

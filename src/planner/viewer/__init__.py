@@ -1,7 +1,7 @@
 """The browser viewer's static files (``static/``), shipped inside the package.
 
 The service serves ``static/index.html`` at ``GET /`` and the folder at ``/viewer/``
-(:mod:`api.routes.viewer`). Everything the page loads is in ``static/``: its own ES modules
+(:mod:`planner_api.routes.viewer`). Everything the page loads is in ``static/``: its own ES modules
 and the vendored libraries (``static/vendor/README.md``), so the page works offline.
 """
 

@@ -343,7 +343,7 @@ def located(*loc: str | int) -> Iterator[None]:
     """Attach ``loc`` (the path of a request field, e.g. ``("body", "q")``) to a
     :class:`~planner.exceptions.PlannerError` raised inside, followed by the error's own
     ``field`` when it has one, unless an inner block already located it: the service turns
-    ``loc`` into ``detail[].loc`` (:mod:`api.errors`)."""
+    ``loc`` into ``detail[].loc`` (:mod:`planner_api.errors`)."""
     try:
         yield
     except PlannerError as exc:
