@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 from pydantic import ValidationError
 
 from planner import Design, Manipulator
-from planner_api.app import create_app
 from planner_api.settings import Settings
 
 
 @pytest.fixture(scope="module")
-def optimum_client():
-    settings = Settings(workers=1, default_design="paper-optimum")
-    with TestClient(create_app(settings)) as client:
+def optimum_client(client_factory):
+    # ready before the first request: a request sent during the warm-up spends its budget
+    with client_factory(default_design="paper-optimum") as client:
         yield client
 
 
@@ -38,9 +36,8 @@ def test_partial_design_takes_the_rest_from_the_configured_robot(optimum_client)
     assert body["singularity_free"] is False
 
 
-def test_merged_design_breaking_a_rule_is_a_422_naming_the_field():
-    settings = Settings(workers=1, default_design='{"L1": 0.3, "L2": 0.4, "joint_max": [1, 1, 1]}')
-    with TestClient(create_app(settings)) as client:
+def test_merged_design_breaking_a_rule_is_a_422_naming_the_field(client_factory):
+    with client_factory(default_design='{"L1": 0.3, "L2": 0.4, "joint_max": [1, 1, 1]}') as client:
         r = client.post("/v1/fk", json={"design": {"joint_min": [2, 0, 0]}, "q": [0.5, 0.5, 0.5]})
     assert r.status_code == 422
     locs = [tuple(d["loc"]) for d in r.json()["detail"]]

@@ -3,19 +3,16 @@
 import math
 
 import pytest
-from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
 from planner import Design
 from planner.wire import DesignModel
-from planner_api.app import create_app
-from planner_api.settings import Settings
 from planner_cli import app as cli_app
 
 
 @pytest.fixture(scope="module")
-def client():
-    with TestClient(create_app(Settings(workers=1))) as c:  # starts the worker pool
+def client(client_factory):
+    with client_factory() as c:  # starts the worker pool, ready (warm) on entry
         yield c
 
 
