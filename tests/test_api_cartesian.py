@@ -259,6 +259,7 @@ def test_an_invalid_start_has_fraction_0_and_no_path(api):
         ({"waypoints": []}, ["body", "waypoints"], "at least 1"),
         ({"waypoints": [[0.4, 0.0]]}, ["body", "waypoints", 0], "at least 3"),
         ({"waypoints": [[0.4, 0.0, "a"]]}, ["body", "waypoints", 0, 2], "number"),
+        ({"waypoints": [[1e4, 1e4, -1e4]]}, ["body", "waypoints"], "more than 100 (L1 + L2)"),
         ({"path_tolerance": 0}, ["body", "path_tolerance"], "greater than or equal"),
         ({"path_tolerance": 0.5}, ["body", "path_tolerance"], "less than or equal"),
         ({"path_tolerance": "1e-3"}, ["body", "path_tolerance"], "number"),

@@ -36,6 +36,7 @@ from planner.wire.analysis import (
 )
 from planner.wire.cartesian import (
     MAX_CARTESIAN_WAYPOINTS,
+    MAX_POLYLINE_REACHES,
     CartesianDiagnostics,
     CartesianInputs,
     CartesianRequest,
@@ -157,6 +158,7 @@ __all__ = [
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
+    "MAX_POLYLINE_REACHES",
     "MAX_SECTION_RESOLUTION",
     "MAX_TIMING_WAYPOINTS",
     "RETRIED_STATUSES",

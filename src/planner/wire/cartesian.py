@@ -44,6 +44,7 @@ from planner.wire.timing import (
 
 __all__ = [
     "MAX_CARTESIAN_WAYPOINTS",
+    "MAX_POLYLINE_REACHES",
     "CartesianDiagnostics",
     "CartesianInputs",
     "CartesianRequest",
@@ -60,6 +61,10 @@ MAX_CARTESIAN_WAYPOINTS = 1_000
 #: few nanometres; above 0.1 m "straight" means little.
 MIN_PATH_TOLERANCE = 1e-5
 MAX_PATH_TOLERANCE = 0.1
+#: Longest polyline accepted, in units of the reach L1 + L2: P never leaves the ball of that
+#: radius about A, so a longer one is a mistake, and its probes (one every 2 mm, planned
+#: before the stop is known) would cost seconds per kilometre.
+MAX_POLYLINE_REACHES = 100.0
 
 
 class CartesianTimingOptions(_Request):
@@ -166,12 +171,30 @@ class CartesianInputs:
 
 def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
     """The library objects of a Cartesian request (a bad value raises the library's error,
-    located at its field)."""
+    located at its field). A polyline longer than :data:`MAX_POLYLINE_REACHES` reaches
+    (L1 + L2), from the start's P, is an :class:`~planner.exceptions.InputError` at
+    ``waypoints``."""
+    from planner.exceptions import InputError
+    from planner.kinematics import forward_batch
     from planner.planning import JointPosture as CorePosture
 
     design = design_to_core(request.design)
     with located("body", "start"):
         start = CorePosture(np.array(request.start.q), request.start.assembly_mode)
+    waypoints = np.asarray(request.waypoints, dtype=float)
+    fb = forward_batch(design, start.q, start.assembly_mode)
+    if fb.ok[0]:
+        vertices = np.vstack([fb.p[0][None], waypoints])
+        length = float(np.sum(np.linalg.norm(np.diff(vertices, axis=0), axis=1)))
+        cap = MAX_POLYLINE_REACHES * (design.L1 + design.L2)
+        if length > cap:
+            with located("body"):
+                raise InputError(
+                    f"waypoints: the polyline from the start's P is {length:.6g} m long, more "
+                    f"than {MAX_POLYLINE_REACHES:g} (L1 + L2) = {cap:.6g} m (P never leaves "
+                    "the ball of radius L1 + L2 about A)",
+                    field="waypoints",
+                )
     obstacles = obstacles_to_core(request.obstacles)
     margins = margins_to_core(request.margins)
     limits = joint_limits_to_core(request.limits)
@@ -181,10 +204,7 @@ def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
         "sample_rate_hz": request.timing.sample_rate_hz,
         "cartesian_speed": request.limits.cartesian_speed,
     }
-    return CartesianInputs(
-        design, start, np.asarray(request.waypoints, dtype=float), obstacles, margins, limits,
-        options,
-    )  # fmt: skip
+    return CartesianInputs(design, start, waypoints, obstacles, margins, limits, options)
 
 
 def _finite(x: float) -> float | None:
