@@ -293,7 +293,7 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
     from planner.planning.cartesian import plan_cartesian
 
     inputs = cartesian_inputs(request)
-    with located("body"):
+    try:
         result = plan_cartesian(
             inputs.design,
             inputs.start,
@@ -303,6 +303,10 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
             limits=inputs.limits,
             **inputs.options,
         )
+    except InputError as exc:  # the timing's sample bound names sample_rate_hz: timing's
+        where = ("body", "timing") if exc.field == "sample_rate_hz" else ("body",)
+        with located(*where):
+            raise
     traj = result.trajectory
     if traj is not None and budget.max_samples is not None and len(traj.t) > budget.max_samples:
         rate = request.timing.sample_rate_hz

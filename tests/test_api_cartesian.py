@@ -298,6 +298,15 @@ def test_too_many_samples_is_422_naming_the_rate(client_factory):
     assert item["loc"] == ["body", "timing", "sample_rate_hz"] and "lower the rate" in item["msg"]
 
 
+def test_a_trajectory_beyond_the_librarys_sample_cap_is_422_naming_the_rate(api):
+    # 0.3 m at 1 um/s: 3e5 s at 100 Hz, far more samples than any answer may carry
+    body = {"start": START, "waypoints": [[0.45, 0.3, 0.1]], "limits": {"cartesian_speed": 1e-6}}
+    r = api.post("/v1/cartesian", json=body)
+    assert r.status_code == 422, r.text
+    item = r.json()["detail"][0]
+    assert item["loc"] == ["body", "timing", "sample_rate_hz"] and "lower the rate" in item["msg"]
+
+
 def test_the_route_is_documented_with_its_errors(api):
     op = api.get("/openapi.json").json()["paths"]["/v1/cartesian"]["post"]
     assert {"200", "422", "503", "504"} <= set(op["responses"])
