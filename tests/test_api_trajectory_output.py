@@ -232,3 +232,16 @@ def test_cli_cartesian_follows_the_line_and_names_the_stop(api, tmp_path):
     r = runner.invoke(app, ["cartesian", *map(str, START["q"]), "0.4", "0", "0",
                             "--velocity-scaling", "2"])  # fmt: skip
     assert r.exit_code == 2 and "limits.velocity_scaling" in r.output
+
+
+def test_client_cartesian_validates_locally_before_sending():
+    from planner.client import InvalidRequestError
+
+    def refuse(request: httpx.Request) -> httpx.Response:  # pragma: no cover - never called
+        raise AssertionError("sent")
+
+    with PlannerClient("http://planner.test", transport=httpx.MockTransport(refuse)) as client:
+        with pytest.raises(InvalidRequestError) as err:
+            client.cartesian(start=START, waypoints=[[0.4, 0.0, 0.0]], path_tolerance=0)
+    assert err.value.status_code is None
+    assert err.value.detail[0]["loc"] == ["path_tolerance"]
