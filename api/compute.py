@@ -303,7 +303,7 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
             limits=inputs.limits,
             **inputs.options,
         )
-    except InputError as exc:  # the timing's sample bound names sample_rate_hz: timing's
+    except InputError as exc:  # the sample bound names sample_rate_hz, a field of timing
         where = ("body", "timing") if exc.field == "sample_rate_hz" else ("body",)
         with located(*where):
             raise
