@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner.analysis import _region_kernels as K
 from planner.analysis import regions as R
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch
@@ -57,6 +58,91 @@ def test_labels_agree_with_the_validity_checker(name):
                 assert valid.all() if code == R.VALID else not valid.any(), (asm, mode, code)
                 checked[code] += len(q)
     assert checked[0] > 1000 and checked[2] > 1000
+
+
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_every_cell_agrees_with_dense_sampling(name):
+    """Every cell of a 128 x 128 map, at its four corners, its centre and four random points
+    (the cells are closed: corners belong to four of them), checked in every working mode
+    by the ValidityChecker: no sample of a surely valid cell is invalid, none of a surely
+    invalid cell is valid; undecided cells hold valid and invalid samples often enough that
+    the map is not trivially undecided."""
+    design = DESIGNS[name]
+    rmap = R.region_map(design, n=128)
+    rng = np.random.default_rng(17)
+    k3, k2 = np.meshgrid(np.arange(rmap.n), np.arange(rmap.n), indexing="ij")
+    k3, k2 = k3.ravel(), k2.ravel()
+    u = np.concatenate(
+        [[[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.0, 0.0]],
+         rng.uniform(-0.5, 0.5, (4, 2))]
+    )  # fmt: skip
+    t2 = rmap.theta2[k2][:, None] + u[None, :, 0] * rmap.h2
+    t3 = rmap.theta3[k3][:, None] + u[None, :, 1] * rmap.h3
+    t1 = rng.uniform(design.joint_min[0], design.joint_max[0], t2.shape)
+    q = np.stack([t1, t2, t3], axis=-1).reshape(-1, 3)
+    decided = 0
+    for ai, asm in enumerate("+-"):
+        for mi, mode in enumerate(WORKING_MODES):
+            valid = ValidityChecker(design, Margins(), (), asm, mode).is_valid(q)
+            valid = valid.reshape(len(k3), len(u))
+            st = rmap.status[ai, mi][k3, k2]
+            assert valid[st == R.VALID].all(), (asm, mode)
+            assert not valid[st == R.INVALID].any(), (asm, mode)
+            decided += int((st != R.UNDECIDED).sum())
+    assert decided > 0.97 * 16 * len(k3)
+
+
+@pytest.mark.parametrize("name", ["singularity-free", "paper-optimum", "mode-change", "general"])
+def test_mirror_image_equals_the_direct_classification(name):
+    """On a box symmetric about 0 the map builds one assembly mode and mirrors it (reflection
+    about AB); the other assembly mode classified directly gives the same verdicts, masks,
+    kinds and centre modes, and the same bounds to rounding."""
+    design = DESIGNS[name]
+    both = R._classify(design, Margins(), 96, R.DEFAULT_REFINE, mirror=False)
+    mirrored = R._classify(design, Margins(), 96, R.DEFAULT_REFINE)
+    assert np.array_equal(both.status, mirrored.status)
+    assert np.array_equal(both.bits, mirrored.bits)
+    assert np.array_equal(both.centre_mode, mirrored.centre_mode)
+    inside = np.isfinite(both.m_lo)
+    assert np.array_equal(inside, np.isfinite(mirrored.m_lo))
+    for a, b in ((both.m_lo, mirrored.m_lo), (both.m_hi, mirrored.m_hi)):
+        assert np.allclose(a[inside], b[inside], rtol=0, atol=1e-12)
+    zero = ((both.bits >> K.BITS_ZERO) & 7).astype(bool)
+    for k in range(3):
+        where = (both.bits >> (K.BITS_ZERO + k)) & 1 == 1
+        assert np.array_equal(both.kind[:, k][where], mirrored.kind[:, k][where])
+    assert zero.any()
+
+
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_labels_are_those_of_scipy_ndimage(name):
+    """The one-pass labelling of every layer gives the labels of ``scipy.ndimage.label``
+    with 8-connectivity, layer by layer, numbered alike, and the cell counts of bincount."""
+    from scipy import ndimage
+
+    rmap = R.region_map(DESIGNS[name], n=96)
+    eight = np.ones((3, 3), dtype=bool)
+    for ai in range(2):
+        for mi in range(8):
+            st = rmap.status[ai, mi]
+            for src, mask in ((rmap.labels, st != R.INVALID), (rmap.certified, st == R.VALID)):
+                expected, count = ndimage.label(mask, structure=eight)
+                assert np.array_equal(src[ai, mi], expected), (ai, mi)
+                assert int(src[ai, mi].max()) == count
+            for region in rmap.regions_of("+-"[ai], WORKING_MODES[mi]):
+                cells = rmap.labels[ai, mi] == region.label
+                assert region.cells == int(cells.sum())
+                assert region.valid_cells == int((cells & (st == R.VALID)).sum())
+
+
+def test_refinement_only_sharpens_the_verdicts():
+    """Refined maps keep every verdict of the unrefined one and decide more cells."""
+    design = DESIGNS["general"]
+    coarse = R.region_map(design, n=64, refine=1)
+    fine = R.region_map(design, n=64)
+    decided = coarse.status != R.UNDECIDED
+    assert np.array_equal(coarse.status[decided], fine.status[decided])
+    assert (fine.status != R.UNDECIDED).sum() > decided.sum()
 
 
 def test_measure_bounds_hold_by_forward_kinematics():
