@@ -229,6 +229,20 @@ def test_cache_returns_the_same_read_only_map():
     assert R.region_map(Design.default(), Margins(kappa_max=5.0), 32) is not a
 
 
+def test_cache_keeps_at_most_its_bytes(monkeypatch):
+    """The LRU cache drops the least recently used map beyond its byte budget and does not
+    keep a map larger than the budget."""
+    R.clear_cache()
+    a = R.region_map(Design.default(), n=64)
+    monkeypatch.setattr(R, "_CACHE_BYTES", int(1.5 * R._nbytes(a)))
+    b = R.region_map(Design.paper_optimum(), n=64)
+    assert R.region_map(Design.paper_optimum(), n=64) is b
+    assert R.region_map(Design.default(), n=64) is not a  # dropped for b
+    big = R.region_map(Design.default(), n=128)
+    assert R.region_map(Design.default(), n=128) is not big  # never kept
+    R.clear_cache()
+
+
 def test_coverage_areas_match_the_jacobian_integral():
     """Area of each certified region's image two ways: the Cartesian raster of
     :func:`cartesian_coverage` (inverse kinematics) and the sum over its cells of

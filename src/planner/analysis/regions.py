@@ -75,8 +75,9 @@ through B) form the components of the *union graph*.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -118,6 +119,9 @@ _FLIP_NAMES = ("axis", "A", "B")
 _REL_SLACK = 1e-9
 _ABS_SLACK = 1e-12
 _CACHE_SIZE = 16
+#: Most bytes of maps the per-process cache holds (a map of n x n cells holds about
+#: 250 n^2 bytes: 16 MB at 256, 260 MB at 1024); a map larger than this is not kept.
+_CACHE_BYTES = 320 * 2**20
 
 
 @dataclass(frozen=True, slots=True)
@@ -268,21 +272,55 @@ def region_map(
     Returns
     -------
     RegionMap
-        Read-only; the same object for the same (design, kappa_max, serial_min, n) while it
-        stays in the per-process LRU cache (16 entries).
+        Read-only; the same object for the same (design with its joint limits, kappa_max,
+        serial_min, n, refine) while it stays in the per-process LRU cache (at most 16 maps
+        and 320 MB: the least recently used go first).
     """
     margins = Margins() if margins is None else margins
     if not isinstance(n, int | np.integer) or isinstance(n, bool) or not 8 <= n <= MAX_RESOLUTION:
         raise InputError(f"n must be an integer in [8, {MAX_RESOLUTION}], got {n!r}")
     if not isinstance(refine, int) or isinstance(refine, bool) or not 1 <= refine <= 16:
         raise InputError(f"refine must be an integer in [1, 16], got {refine!r}")
-    key = Margins(margins.kappa_max, margins.serial_min, 0.0)
-    return _region_map(design, key, int(n), refine)
+    key = (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
+    with _CACHE_LOCK:
+        hit = _CACHE.get(key)
+        if hit is not None:
+            _CACHE.move_to_end(key)
+            return hit
+    rmap = _region_map(*key)
+    _remember(key, rmap)
+    return rmap
+
+
+#: The per-process LRU cache of :func:`region_map`: key -> map, oldest first.
+_CACHE: OrderedDict[tuple, RegionMap] = OrderedDict()
+_CACHE_LOCK = threading.Lock()
+
+
+def _nbytes(rmap: RegionMap) -> int:
+    """Bytes of a map's arrays."""
+    return sum(v.nbytes for v in (getattr(rmap, f) for f in rmap.__slots__)
+               if isinstance(v, np.ndarray))  # fmt: skip
+
+
+def _remember(key: tuple, rmap: RegionMap) -> None:
+    """Keep ``rmap`` in the cache, dropping the least recently used maps beyond its bounds."""
+    size = _nbytes(rmap)
+    if size > _CACHE_BYTES:
+        return
+    with _CACHE_LOCK:
+        _CACHE[key] = rmap
+        _CACHE.move_to_end(key)
+        total = sum(_nbytes(m) for m in _CACHE.values())
+        while len(_CACHE) > _CACHE_SIZE or total > _CACHE_BYTES:
+            _, old = _CACHE.popitem(last=False)
+            total -= _nbytes(old)
 
 
 def clear_cache() -> None:
     """Forget every cached region map of this process."""
-    _region_map.cache_clear()
+    with _CACHE_LOCK:
+        _CACHE.clear()
 
 
 def _sub_trig(centres: np.ndarray, a: float, split: int) -> np.ndarray:
@@ -379,8 +417,9 @@ def _slot_of(bits: int, start: np.ndarray, cell: int, layer: int) -> int:
     return int(start[cell]) + (bits & ((1 << layer) - 1)).bit_count()
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
 def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
+    """Build the map (the work of :func:`region_map`, uncached): classify the cells, label
+    every layer, join regions through the transit sets' components."""
     theta2, theta3, h2, h3 = _grid(design, n)
     cells = _classify(design, margins, n, split)
     _drop_unused_transit_sets(cells.bits)
