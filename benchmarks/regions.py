@@ -3,7 +3,8 @@ false proofs over seeded solved queries. Prints a table; ``python benchmarks/reg
 
 Build times are p50 (and p90) of cold builds (cache cleared; 21 at n = 256, 5 at 128 and
 512) on one core, after a warm-up that loads the numba kernels; ``--builds-only`` prints
-that table alone. False proofs: seeded queries (both ends valid, same assembly
+that table alone. Then the check of the paper's "twice as large" claim (section 3.3), and
+the proofs. False proofs: seeded queries (both ends valid, same assembly
 mode) are planned with ``planner.planning.plan``; a solved query the map proves
 disconnected would be a false proof (the count must be 0). ``--queries N`` (default 1000).
 """
@@ -72,6 +73,40 @@ def build_times(runs: int) -> None:
               f"{per} |")  # fmt: skip
 
 
+#: The paper's convex and non-convex working modes (section 3.3) with their mirrors about AB.
+CONVEX, NONCONVEX = ("+-+", "-+-"), ("++-", "--+")
+
+
+def twice_as_large(m: int = 400) -> None:
+    """The paper's "by a change of working mode we can reach a workspace twice as large" (as
+    each of figures 13-14), per design and union-graph component of assembly mode '+' (the
+    mirror image of '-'): what the certified regions of the convex pair, of the non-convex
+    pair and of the whole component (every mode a change of working mode reaches from there)
+    cover, in the linkage plane (the paper's sections) and in 3-D (theta1 a full turn)."""
+    print(f"\n\"twice as large\": certified regions (n = 256, default margins), assembly mode "
+          f"'+', linkage plane on a {m} x {m} raster and 3-D volume as theta1 turns\n")  # fmt: skip
+    print("| design | component | convex m^2 | non-convex m^2 | all m^2 | all / convex | "
+          "all / non-convex | convex m^3 | non-convex m^3 | all m^3 | 3-D all / convex | "
+          "3-D all / non-convex |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, design in DESIGNS.items():
+        rmap = R.region_map(design, n=256)
+        cov = R.cartesian_coverage(rmap, m)
+        mine = [r for r in rmap.regions if r.assembly_mode == "+" and r.valid_cells]
+        for comp in sorted({r.component for r in mine}):
+            ids = [r.id for r in mine if r.component == comp]
+            cv = [r.id for r in mine if r.component == comp and r.working_mode in CONVEX]
+            nc = [r.id for r in mine if r.component == comp and r.working_mode in NONCONVEX]
+            a = (cov.area(cv), cov.area(nc), cov.area(ids))
+            v = (cov.volume(cv), cov.volume(nc), cov.volume(ids))
+            if a[2] < 0.01 * cov.area(r.id for r in mine):
+                continue  # slivers of undecided-free cells: not a workspace
+            ratios = [f"{x[2] / x[k]:.2f}" if x[k] > 0 else "-" for x in (a, v) for k in (0, 1)]
+            print(f"| {name} | {comp} | {a[0]:.3f} | {a[1]:.3f} | {a[2]:.3f} | {ratios[0]} | "
+                  f"{ratios[1]} | {v[0]:.3f} | {v[1]:.3f} | {v[2]:.3f} | {ratios[2]} | "
+                  f"{ratios[3]} |")  # fmt: skip
+
+
 def _valid(design, rng):
     while True:
         q = rng.uniform(design.joint_min, design.joint_max)
@@ -138,6 +173,7 @@ def main() -> None:
     build_times(args.runs)
     if args.builds_only:
         return
+    twice_as_large()
     proofs(args.queries)
 
 

@@ -163,3 +163,22 @@ def test_cli_prints_the_table_and_the_json():
 def test_cli_names_the_bad_field():
     r = CliRunner().invoke(cli_app, ["regions", "--resolution", "4"])
     assert r.exit_code == 2 and "resolution" in r.output
+
+
+@pytest.mark.parametrize(
+    "name", ["region_map", "region_images", "regions_convex_mode", "regions_nonconvex_mode"]
+)
+def test_region_figures_are_served(api, name):
+    r = api.get(f"/v1/figures/{name}.png",
+                params={"L0": 0.3, "L1": 0.3, "L2": 0.4, "resolution": 32, "dpi": 30})  # fmt: skip
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+    assert r.content.startswith(b"\x89PNG\r\n\x1a\n")
+
+
+def test_cli_writes_named_figures(tmp_path):
+    r = CliRunner().invoke(cli_app, ["figures", str(tmp_path), "--named", "region_map",
+                                     "--n", "32", "--formats", "png", "--dpi", "30"])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "region_map.png").read_bytes().startswith(b"\x89PNG")
+    r = CliRunner().invoke(cli_app, ["figures", str(tmp_path), "--named", "no_such_figure"])
+    assert r.exit_code == 2 and "no_such_figure" in r.output

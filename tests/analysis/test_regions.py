@@ -9,6 +9,7 @@ import pytest
 from planner.analysis import _region_kernels as K
 from planner.analysis import regions as R
 from planner.design import Design
+from planner.exceptions import InputError
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning import JointPosture, PlanOptions, plan
 from planner.transits import FLIPPED_SIGN
@@ -269,6 +270,40 @@ def test_coverage_areas_match_the_jacobian_integral():
         j3 = (uw(q + dq3) - uw(q - dq3)) / (2 * h)
         jac = np.abs(j2[:, 0] * j3[:, 1] - j2[:, 1] * j3[:, 0]).sum() * rmap.h2 * rmap.h3
         assert cov.area([region.id]) == pytest.approx(jac, rel=0.04)
+
+
+@pytest.mark.parametrize("name", ["singularity-free", "paper-optimum", "mode-change", "general"])
+def test_coverage_volume_with_loose_margins_is_the_closed_form(name):
+    """With margins that exclude almost nothing, the volume swept by all certified regions
+    of one assembly mode (Coverage.volume, Pappus over the folded raster) is the closed-form
+    workspace volume (lens volumes of the two hollow balls, erratum 5) within 1 %."""
+    from planner.analysis.workspace import closed_form_volume
+
+    design = DESIGNS[name]
+    rmap = R.region_map(design, Margins(kappa_max=1e4, serial_min=1e-3), 256)
+    cov = R.cartesian_coverage(rmap, 400)
+    for asm in "+-":
+        ids = [r.id for r in rmap.regions if r.assembly_mode == asm]
+        assert cov.volume(ids) == pytest.approx(closed_form_volume(design), rel=0.01)
+    limited = R.cartesian_coverage(R.region_map(DESIGNS["limits"], n=32), 32)
+    with pytest.raises(InputError):
+        limited.volume([0])
+
+
+def test_twice_as_large_holds_in_the_section_of_the_paper_optimum_only():
+    """The paper's claim (section 3.3) on its optimum: in the linkage plane the certified
+    regions of a union-graph component cover twice what its convex (or non-convex) pair
+    covers, but the 3-D volume swept as theta1 turns is the same (the second half of the
+    section is the first's mirror about AB, i.e. the same points half a turn later)."""
+    rmap = R.region_map(Design.paper_optimum(), n=256)
+    cov = R.cartesian_coverage(rmap, 300)
+    mine = [r for r in rmap.regions if r.assembly_mode == "+" and r.valid_cells]
+    for comp in {r.component for r in mine}:
+        ids = [r.id for r in mine if r.component == comp]
+        for pair in (("+-+", "-+-"), ("++-", "--+")):
+            sub = [r.id for r in mine if r.component == comp and r.working_mode in pair]
+            assert cov.area(ids) / cov.area(sub) == pytest.approx(2.0, rel=0.02)
+            assert cov.volume(ids) / cov.volume(sub) == pytest.approx(1.0, rel=0.01)
 
 
 # ----------------------------------------------------------------------------- proofs

@@ -661,12 +661,14 @@ class Coverage:
     reached : dict region id -> shape (m, m) bool, rows w, columns u: the region's
         certified cells reach the point (inverse kinematics in the region's working mode,
         joint values shifted by multiples of 2 pi into the joint box, then looked up).
+    theta1_span : rad, joint_max - joint_min of theta1 (what :meth:`volume` needs).
     """
 
     u: np.ndarray
     w: np.ndarray
     pixel_area: float
     reached: dict[int, np.ndarray]
+    theta1_span: float = 2.0 * math.pi
 
     def area(self, region_ids) -> float:
         """Area (m^2) of the union of the given regions' images."""
@@ -677,6 +679,30 @@ class Coverage:
         for i in ids:
             union |= self.reached[i]
         return float(union.sum()) * self.pixel_area
+
+    def volume(self, region_ids) -> float:
+        """Volume (m^3) of the 3-D points the given regions reach as theta1 turns.
+
+        The plane point (u, w) at theta1 is the 3-D point at distance |w| from the axis AB,
+        at angle theta1 (w > 0) or theta1 + pi (w < 0) about it: with theta1 spanning a full
+        turn, a region reaches every point of the circle of radius |w| through (u, |w|),
+        whichever sign of w reached it. The volume is that of the solid of revolution of the
+        union of the images folded onto w > 0 (Pappus: the sum of 2 pi |w| over its raster
+        cells). Raises InputError when theta1 spans less than a full turn."""
+        if self.theta1_span < 2.0 * math.pi * (1.0 - 1e-12):
+            raise InputError(
+                f"volume needs theta1 limits spanning a full turn, got {self.theta1_span:.6g} rad"
+            )
+        ids = list(region_ids)
+        if not ids:
+            return 0.0
+        union = np.zeros_like(self.reached[ids[0]])
+        for i in ids:
+            union |= self.reached[i]
+        folded = union | union[::-1]  # the raster is symmetric about w = 0
+        upper = self.w > 0.0
+        ring = 2.0 * math.pi * self.w[upper] * self.pixel_area
+        return float((folded[upper].sum(axis=1) * ring).sum())
 
 
 def cartesian_coverage(rmap: RegionMap, m: int = 256) -> Coverage:
@@ -727,4 +753,5 @@ def cartesian_coverage(rmap: RegionMap, m: int = 256) -> Coverage:
             for i, lab_over in zip(sel[hit].tolist(), over[hit].tolist(), strict=True):
                 rid = int(rmap.region_index[ai, mi, lab_over])
                 reached[rid].flat[i] = True
-    return Coverage(u, w, float((u[1] - u[0]) * (w[1] - w[0])), reached)
+    span = float(d.joint_max[0] - d.joint_min[0])
+    return Coverage(u, w, float((u[1] - u[0]) * (w[1] - w[0])), reached, span)
