@@ -24,6 +24,7 @@ __all__ = [
     "classify_kernel",
     "label_kernel",
     "mirror_kernel",
+    "mirror_label_kernel",
     "transit_kernel",
 ]
 
@@ -375,12 +376,8 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
     """
     n3, n2 = bits.shape
     full = (1 << LAYERS) - 1
-    start = np.empty(n3 * n2 + 1, dtype=np.int64)
-    total = 0
-    for cell in range(n3 * n2):
-        start[cell] = total
-        total += _popcount(bits[cell // n2, cell % n2] & full)
-    start[n3 * n2] = total
+    start = _slot_starts(bits)
+    total = start[n3 * n2]
     parent = np.arange(total)
     for i3 in range(n3):
         for i2 in range(n2):
@@ -424,6 +421,77 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
                 elif b < BITS_B:
                     certified[b - BITS_VALID, i3, i2] = slot_label[x]
                 x += 1
+    first, sizes, valid = _component_sizes(bits, start, slot_label, counts, over)
+    return counts, first, sizes, valid, start, slot_label
+
+
+@njit(cache=True, nogil=True)
+def mirror_label_kernel(bits, bits_src, start_src, label_src, over, certified):  # pragma: no cover
+    """:func:`label_kernel` of the mirror image of a labelled assembly mode, without
+    union-find: the component of layer b at cell (k3, k2) is that of the mirrored layer
+    (modes mi -> 7 - mi, transit sets (j, c) -> (j, 3 - c)) at (n - 1 - k3, n - 1 - k2) in
+    the source, renumbered in this raster order. ``bits`` are the mirrored masks of
+    :func:`mirror_kernel` (with the same transit sets dropped), ``bits_src``, ``start_src``
+    and ``label_src`` the source's masks, slot starts and slot labels. Same returns."""
+    n3, n2 = bits.shape
+    full = (1 << LAYERS) - 1
+    start = _slot_starts(bits)
+    total = start[n3 * n2]
+    top = 1
+    for x in range(label_src.shape[0]):
+        top = max(top, label_src[x] + 1)
+    renumber = np.zeros((LAYERS, top), dtype=np.int64)
+    counts = np.zeros(LAYERS, dtype=np.int64)
+    slot_label = np.empty(total, dtype=np.int64)
+    for i3 in range(n3):
+        for i2 in range(n2):
+            t = bits[i3, i2] & full
+            x = start[i3 * n2 + i2]
+            k3, k2 = n3 - 1 - i3, n2 - 1 - i2
+            m_src = bits_src[k3, k2] & full
+            y0 = start_src[k3 * n2 + k2]
+            while t:
+                b = _low_bit(t)
+                t &= t - 1
+                if b < BITS_VALID:
+                    bs = 7 - b
+                elif b < BITS_B:
+                    bs = BITS_VALID + 7 - (b - BITS_VALID)
+                else:
+                    bs = b - (b - BITS_B) % 4 + 3 - (b - BITS_B) % 4
+                lab = label_src[y0 + _popcount(m_src & ((1 << bs) - 1))]
+                if renumber[b, lab] == 0:
+                    counts[b] += 1
+                    renumber[b, lab] = counts[b]
+                slot_label[x] = renumber[b, lab]
+                if b < BITS_VALID:
+                    over[b, i3, i2] = slot_label[x]
+                elif b < BITS_B:
+                    certified[b - BITS_VALID, i3, i2] = slot_label[x]
+                x += 1
+    first, sizes, valid = _component_sizes(bits, start, slot_label, counts, over)
+    return counts, first, sizes, valid, start, slot_label
+
+
+@njit(cache=True, nogil=True)
+def _slot_starts(bits):  # pragma: no cover - compiled
+    """(n3 n2 + 1,) first slot of each cell (the last entry: the number of slots)."""
+    n3, n2 = bits.shape
+    full = (1 << LAYERS) - 1
+    start = np.empty(n3 * n2 + 1, dtype=np.int64)
+    total = 0
+    for cell in range(n3 * n2):
+        start[cell] = total
+        total += _popcount(bits[cell // n2, cell % n2] & full)
+    start[n3 * n2] = total
+    return start
+
+
+@njit(cache=True, nogil=True)
+def _component_sizes(bits, start, slot_label, counts, over):  # pragma: no cover - compiled
+    """First cell (flat index), cells and surely valid cells of every component."""
+    n3, n2 = bits.shape
+    full = (1 << LAYERS) - 1
     top = 1 + max(1, counts.max())
     first = np.zeros((LAYERS, top), dtype=np.int64)
     sizes = np.zeros((LAYERS, top), dtype=np.int64)
@@ -442,7 +510,7 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
                 if BITS_VALID <= b < BITS_B:
                     valid[b - BITS_VALID, over[b - BITS_VALID, i3, i2]] += 1
                 x += 1
-    return counts, first, sizes, valid, start, slot_label
+    return first, sizes, valid
 
 
 @njit(cache=True, nogil=True)

@@ -347,6 +347,7 @@ class _Cells:
     centre_mode: np.ndarray  # (2, n, n) int8
     m_lo: np.ndarray  # (2, 3, n, n)
     m_hi: np.ndarray  # (2, 3, n, n)
+    mirrored: bool  # the second assembly mode is the first's mirror image
 
 
 def _classify(
@@ -365,10 +366,11 @@ def _classify(
         centre_mode=np.empty((2, n, n), dtype=np.int8),
         m_lo=np.empty((2, 3, n, n)),
         m_hi=np.empty((2, 3, n, n)),
+        mirrored=mirror and _mirrored(design),
     )
     sub2, sub3 = _sub_trig(theta2, a2, split), _sub_trig(theta3, a3, split)
     fields = ("status", "bits", "kind", "centre_mode", "m_lo", "m_hi")
-    mirror = mirror and _mirrored(design)
+    mirror = cells.mirrored
     for ai in (0,) if mirror else (0, 1):
         K.classify_kernel(
             design.L0, design.L1, design.L2, 2.0 * design.L2 * lo, 2.0 * design.L2 * hi,
@@ -425,7 +427,13 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
     _drop_unused_transit_sets(cells.bits)
     labels = np.zeros((2, 8, n, n), dtype=np.int32)
     certified = np.zeros((2, 8, n, n), dtype=np.int32)
-    layers = [K.label_kernel(cells.bits[ai], labels[ai], certified[ai]) for ai in range(2)]
+    layers = [K.label_kernel(cells.bits[0], labels[0], certified[0])]
+    if cells.mirrored:  # the other assembly mode's components are the mirror images
+        start, slot_label = layers[0][4], layers[0][5]
+        layers.append(K.mirror_label_kernel(cells.bits[1], cells.bits[0], start, slot_label,
+                                            labels[1], certified[1]))  # fmt: skip
+    else:
+        layers.append(K.label_kernel(cells.bits[1], labels[1], certified[1]))
     counts = np.stack([lay[0][:8] for lay in layers])
     # regions, then the union graph over the transit sets' components
     max_l = int(counts.max())
