@@ -90,7 +90,7 @@ def test_margins_change_the_map(api):
     ("body", "loc"),
     [
         ({"resolution": 15}, ["body", "resolution"]),
-        ({"resolution": 1025}, ["body", "resolution"]),
+        ({"resolution": 513}, ["body", "resolution"]),
         ({"resolution": 64.5}, ["body", "resolution"]),
         ({"resolution": "256"}, ["body", "resolution"]),
         ({"margins": {"kappa_max": 1.0}}, ["body", "margins", "kappa_max"]),

@@ -57,7 +57,7 @@ async def design_regions(
     """The region map of a design: the connected regions of each working mode and assembly
     mode in the (theta2, theta3) grid (cells surely valid or undecided under ``margins``), and
     the transits joining regions across serial surfaces. ``resolution`` (cells per axis,
-    16 .. 1024) bounds the work: time and memory grow as its square."""
+    16 .. 512) bounds the work: time and memory grow as its square."""
     return await run_job(
         pool, compute_analysis.regions, body, deadline, design_defaults=settings.design_defaults
     )

@@ -471,7 +471,7 @@ class _BaseClient:
         """Region map of a design: the connected regions of each working and assembly mode in
         the (theta2, theta3) grid and the transits joining them across serial surfaces.
         ``margins``: ``kappa_max``, ``serial_min`` (absent: the server's defaults);
-        ``resolution``: cells per axis, 16 .. 1024 (absent: 256)."""
+        ``resolution``: cells per axis, 16 .. 512 (absent: 256)."""
         data: dict[str, Any] = {"design": _design(design)}
         if margins is not None:
             data["margins"] = _margins(margins)

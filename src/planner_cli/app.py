@@ -405,7 +405,7 @@ def regions(
     serial_min: Annotated[
         float | None, typer.Option(help="Bound on each serial measure, in (0, 1).")
     ] = None,
-    resolution: Annotated[int, typer.Option(help="Cells per axis, 16 .. 1024.")] = 256,
+    resolution: Annotated[int, typer.Option(help="Cells per axis, 16 .. 512.")] = 256,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the JSON of POST /v1/design/regions.")
     ] = False,

@@ -120,8 +120,8 @@ _REL_SLACK = 1e-9
 _ABS_SLACK = 1e-12
 _CACHE_SIZE = 16
 #: Most bytes of maps the per-process cache holds (a map of n x n cells holds about
-#: 250 n^2 bytes: 16 MB at 256, 260 MB at 1024); a map larger than this is not kept.
-_CACHE_BYTES = 320 * 2**20
+#: 250 n^2 bytes: 16 MB at 256, 62 MB at 512); a map larger than this is not kept.
+_CACHE_BYTES = 256 * 2**20
 
 
 @dataclass(frozen=True, slots=True)
@@ -274,7 +274,7 @@ def region_map(
     RegionMap
         Read-only; the same object for the same (design with its joint limits, kappa_max,
         serial_min, n, refine) while it stays in the per-process LRU cache (at most 16 maps
-        and 320 MB: the least recently used go first).
+        and 256 MB: the least recently used go first).
     """
     margins = Margins() if margins is None else margins
     if not isinstance(n, int | np.integer) or isinstance(n, bool) or not 8 <= n <= MAX_RESOLUTION:
