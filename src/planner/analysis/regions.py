@@ -419,12 +419,9 @@ def _slot_of(bits: int, start: np.ndarray, cell: int, layer: int) -> int:
     return int(start[cell]) + (bits & ((1 << layer) - 1)).bit_count()
 
 
-def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
-    """Build the map (the work of :func:`region_map`, uncached): classify the cells, label
-    every layer, join regions through the transit sets' components."""
-    theta2, theta3, h2, h3 = _grid(design, n)
-    cells = _classify(design, margins, n, split)
-    _drop_unused_transit_sets(cells.bits)
+def _label_layers(cells: _Cells, n: int) -> tuple[np.ndarray, np.ndarray, list[tuple]]:
+    """Labels (2, 8, n, n) and certified labels of every (assembly, working) mode, and the
+    per-assembly outputs of :func:`~planner.analysis._region_kernels.label_kernel`."""
     labels = np.zeros((2, 8, n, n), dtype=np.int32)
     certified = np.zeros((2, 8, n, n), dtype=np.int32)
     layers = [K.label_kernel(cells.bits[0], labels[0], certified[0])]
@@ -434,25 +431,22 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
                                             labels[1], certified[1]))  # fmt: skip
     else:
         layers.append(K.label_kernel(cells.bits[1], labels[1], certified[1]))
-    counts = np.stack([lay[0][:8] for lay in layers])
-    # regions, then the union graph over the transit sets' components
-    max_l = int(counts.max())
-    region_index = np.full((2, 8, max_l + 1), -1, dtype=np.int32)
-    raw: list[tuple[int, int, int]] = []
-    for ai in range(2):
-        for mi in range(8):
-            for lab in range(1, int(counts[ai, mi]) + 1):
-                region_index[ai, mi, lab] = len(raw)
-                raw.append((ai, mi, lab))
-    parent = list(range(len(raw)))
+    return labels, certified, layers
 
-    def find(x: int) -> int:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
 
+def _transit_graph(
+    cells: _Cells, layers: list[tuple], counts: np.ndarray, region_index: np.ndarray, n: int
+) -> tuple[list[RegionTransit], np.ndarray, list[list[int]]]:
+    """The transits, the transit cells (2, 3, n, n) and the groups of region ids that lie in
+    one component of some transit set (to be joined in the union graph).
+
+    For each assembly mode and transit set b (flip j, fixed signs c) whose two modes both
+    have regions: every region lies in one component of b (its cells are passable for b),
+    found from its first cell; regions of the two modes in one component are joined by a
+    transit, labelled with the kinds of that component's cells where the flipped measure may
+    vanish."""
     transits: list[RegionTransit] = []
+    groups: list[list[int]] = []
     transit_cells = np.zeros((2, 3, n, n), dtype=np.int8)
     flat_bits = cells.bits.reshape(2, -1)
     for ai in range(2):
@@ -478,9 +472,7 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
                          transit_cells[ai])  # fmt: skip
         for b in range(12):
             for comp, (plus, minus) in members[b].items():
-                ids = plus + minus
-                for other in ids[1:]:
-                    parent[find(other)] = find(ids[0])
+                groups.append(plus + minus)
                 found = [(TRANSIT_KINDS[k], int(v)) for k, v in enumerate(kinds[b, comp]) if v]
                 names = tuple(name for name, _ in found)
                 counted = tuple(v for _, v in found)
@@ -489,8 +481,45 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
                     for a in plus
                     for b_ in minus
                 )
-    roots = sorted({find(i) for i in range(len(raw))})
+    return transits, transit_cells, groups
+
+
+def _components(count: int, groups: list[list[int]]) -> list[int]:
+    """Component of each of ``count`` items once every group's members are joined
+    (union-find; components numbered 0, 1, ... in the order of their roots)."""
+    parent = list(range(count))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for ids in groups:
+        for other in ids[1:]:
+            parent[find(other)] = find(ids[0])
+    roots = sorted({find(i) for i in range(count)})
     comp_of = {r: k for k, r in enumerate(roots)}
+    return [comp_of[find(i)] for i in range(count)]
+
+
+def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
+    """Build the map (the work of :func:`region_map`, uncached): classify the cells, label
+    every layer, join regions through the transit sets' components."""
+    theta2, theta3, h2, h3 = _grid(design, n)
+    cells = _classify(design, margins, n, split)
+    _drop_unused_transit_sets(cells.bits)
+    labels, certified, layers = _label_layers(cells, n)
+    counts = np.stack([lay[0][:8] for lay in layers])
+    region_index = np.full((2, 8, int(counts.max()) + 1), -1, dtype=np.int32)
+    raw: list[tuple[int, int, int]] = []  # (assembly, mode, label) of each region id
+    for ai in range(2):
+        for mi in range(8):
+            for lab in range(1, int(counts[ai, mi]) + 1):
+                region_index[ai, mi, lab] = len(raw)
+                raw.append((ai, mi, lab))
+    transits, transit_cells, groups = _transit_graph(cells, layers, counts, region_index, n)
+    component = _components(len(raw), groups)
     regions = tuple(
         Region(
             id=i,
@@ -499,7 +528,7 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
             label=lab,
             cells=int(layers[ai][2][mi, lab]),
             valid_cells=int(layers[ai][3][mi, lab]),
-            component=comp_of[find(i)],
+            component=component[i],
         )
         for i, (ai, mi, lab) in enumerate(raw)
     )
