@@ -215,7 +215,7 @@ def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> 
 def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """``POST /v1/plan``: the request's library objects (:func:`planner.wire.plan_inputs`,
     converted once), :func:`planner.planning.plan` with the goal's options ``prefer`` and
-    ``tolerance`` (:func:`planner.wire.plan_goal`), then the numpy path timed by
+    ``tolerance`` (:func:`planner.planning.plan_with_goal_options`), then the numpy path timed by
     :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``), and one
     response built once (:func:`planner.wire.plan_response`).
 
@@ -233,12 +233,7 @@ def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
         left = deadline - time.monotonic() - _ANSWER_RESERVE_S
         if left < options.time_budget_s:
             options = replace(options, time_budget_s=max(left, 0.01))
-    result = plan_goal(
-        replace(inputs, options=options),
-        prefer=inputs.prefer,
-        tolerance=inputs.tolerance,
-        deadline=deadline,
-    )
+    result = plan_goal(replace(inputs, options=options), deadline=deadline)
     if request.timing.method == "none" or result.path is None:
         return plan_response(result)
     try:

@@ -3,8 +3,11 @@ and working-mode changes through serial-singularity transits.
 
 Entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins, options)``),
 returning a :class:`PlanResult` whose statuses and fields are the wire vocabulary's.
+:func:`plan_with_goal_options` is the same call with MoveIt-like goal options on top (a goal
+tolerance, and the working mode preferred for a Cartesian "any" goal); it calls :func:`plan`.
 """
 
+from planner.planning.goal_options import plan_with_goal_options
 from planner.planning.modes import mode_sequences, path_state_checker, plan
 from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
@@ -33,5 +36,6 @@ __all__ = [
     "path_state_checker",
     "plan",
     "plan_in_region",
+    "plan_with_goal_options",
     "posture_mode",
 ]

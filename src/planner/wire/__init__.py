@@ -103,7 +103,7 @@ from planner.wire.design import (
     regions_model,
     sampled_value,
 )
-from planner.wire.goal import RETRIED_STATUSES, goal_alternatives, plan_goal
+from planner.wire.goal import plan_goal
 from planner.wire.kinematics import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -170,7 +170,6 @@ __all__ = [
     "MAX_SECTION_RESOLUTION",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
-    "RETRIED_STATUSES",
     "AnalyzeRequest",
     "AnalyzeResponse",
     "Angle",
@@ -259,7 +258,6 @@ __all__ = [
     "cartesian_inputs",
     "cartesian_response",
     "design_to_core",
-    "goal_alternatives",
     "joint_limits_to_core",
     "located",
     "margins_to_core",

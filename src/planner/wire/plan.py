@@ -165,7 +165,7 @@ class PlanBatchResponse(_Response):
 class PlanInputs:
     """A plan request as the library's objects, converted once (each field's errors located
     at its place in the body): the arguments of :func:`planner.planning.plan`, and the goal
-    options ``prefer`` and ``tolerance`` (:func:`planner.wire.goal.plan_goal`)."""
+    options ``prefer`` and ``tolerance`` (:func:`planner.planning.plan_with_goal_options`)."""
 
     design: Design
     start: Any
