@@ -213,6 +213,20 @@ def test_the_wire_imports_without_fastapi() -> None:
     assert out.stdout.strip() == "[]"
 
 
+def test_the_client_converts_trajectories_without_the_timing_libraries() -> None:
+    """Writing CSV or converting a trajectory's form (``planner.timing.export``) loads
+    neither toppra nor ruckig nor OMPL: a client machine needs none of them at run time."""
+    code = (
+        "import sys, planner.client, planner.timing.export, planner.timing.limits; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('toppra', 'ruckig', 'ompl', 'matplotlib')))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert out.stdout.strip() == "[]"
+
+
 def _public_modules() -> list[str]:
     return [name for name in SOURCES if not any(part.startswith("_") for part in name.split("."))]
 

@@ -13,16 +13,49 @@ The only package that imports toppra and ruckig. Entry point: :func:`time_path`.
 
 from __future__ import annotations
 
-from planner.timing.checks import LIMIT_RTOL, StateChecker
-from planner.timing.limits import JointLimits
-from planner.timing.parameterize import (
-    DEFAULT_CHECK_RESOLUTION,
-    DEFAULT_MAX_DEVIATION,
-    DEFAULT_SAMPLE_RATE_HZ,
-    METHODS,
-    time_path,
-)
-from planner.timing.trajectory import Trajectory
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from planner.timing.checks import LIMIT_RTOL, StateChecker
+    from planner.timing.limits import JointLimits
+    from planner.timing.parameterize import (
+        DEFAULT_CHECK_RESOLUTION,
+        DEFAULT_MAX_DEVIATION,
+        DEFAULT_SAMPLE_RATE_HZ,
+        METHODS,
+        time_path,
+    )
+    from planner.timing.trajectory import Trajectory
+
+#: Where each exported name lives. Imported on first use (PEP 562), so that a module of the
+#: package that needs neither toppra nor ruckig (``planner.timing.export``, which the client
+#: uses to convert and write trajectories; ``planner.timing.limits``) loads without them.
+_HOMES = {
+    "LIMIT_RTOL": "checks",
+    "StateChecker": "checks",
+    "JointLimits": "limits",
+    "DEFAULT_CHECK_RESOLUTION": "parameterize",
+    "DEFAULT_MAX_DEVIATION": "parameterize",
+    "DEFAULT_SAMPLE_RATE_HZ": "parameterize",
+    "METHODS": "parameterize",
+    "time_path": "parameterize",
+    "Trajectory": "trajectory",
+}
+
+
+def __getattr__(name: str) -> object:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
 
 __all__ = [
     "DEFAULT_CHECK_RESOLUTION",
