@@ -155,7 +155,7 @@ def test_motion_into_an_obstacle_between_samples_is_rejected():
 @pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
 def test_lipschitz_rates_bound_finite_differences(design):
     """The constants of the certificate bound the measured change of each margin."""
-    from planner.validity import _evaluate_many, _rates
+    from planner.validity._kernels import evaluate_many, rates
 
     rng = np.random.default_rng(2)
     margins = Margins(kappa_max=6.0)
@@ -167,10 +167,10 @@ def test_lipschitz_rates_bound_finite_differences(design):
         t = np.linspace(0, 1, 2001)
         q = a + t[:, None] * dq
         out = np.empty((len(q), 7))
-        _evaluate_many(q, chk._prm, *chk._packed, True, out)
+        evaluate_many(q, chk._prm, *chk._packed, True, out)
         inside = out[:, 1] >= 0  # kappa band holds: the rates apply
-        rates = _rates(dq[0], dq[1], dq[2], chk._prm)
-        for j, rate in zip((1, 2, 3), rates, strict=True):
+        bounds = rates(dq[0], dq[1], dq[2], chk._prm)
+        for j, rate in zip((1, 2, 3), bounds, strict=True):
             g = out[:, j]
             both = inside[1:] & inside[:-1] & np.isfinite(g[1:]) & np.isfinite(g[:-1])
             if both.any():
