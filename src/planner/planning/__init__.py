@@ -9,12 +9,7 @@ the goal needs another mode.
 """
 
 from planner.planning.modes import mode_sequences, path_state_checker, plan
-from planner.planning.planner import (
-    goal_candidates,
-    plan_in_region,
-    plan_single_mode,
-    posture_mode,
-)
+from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,

@@ -47,12 +47,7 @@ import numpy as np
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, mode_signs
-from planner.planning.planner import (
-    goal_candidates,
-    plan_in_region,
-    plan_single_mode,
-    posture_mode,
-)
+from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
