@@ -8,7 +8,14 @@ would freeze a global's value at compile time.
 
 from __future__ import annotations
 
-__all__ = ["ASSEMBLY_TOL", "AXIS_TOL", "KAPPA_SOLVABLE", "REACH_TOL", "SIGN_TOL"]
+__all__ = [
+    "ASSEMBLY_TOL",
+    "AXIS_TOL",
+    "CIRCLES_MEET_TOL",
+    "KAPPA_SOLVABLE",
+    "REACH_TOL",
+    "SIGN_TOL",
+]
 
 #: Relative slack of the loop closure: the loop closes when 0 < |CD|^2 <= 4 L2^2 (1 +
 #: ASSEMBLY_TOL) (:func:`planner._kernels.close_loop`, used by the kinematics and the validity
@@ -22,6 +29,12 @@ ASSEMBLY_TOL = 1e-12
 #: point (erratum 6). Relative to the reach, so that it scales with the robot; 1e-12 is four
 #: orders above round-off of coordinates of order L1 + L2 and far below any real offset.
 AXIS_TOL = 1e-12
+#: Slack on |cos| <= 1 where the singularity loci intersect two circles (a link's end on
+#: its circle and at a given distance from a second point, ``planner.analysis.loci``): two
+#: circles tangent up to round-off (a cosine a few ulps beyond 1) still meet, at one point.
+#: 1e-12 is some 10^4 ulps of a cosine: room for round-off, too little to let two circles
+#: that miss each other by a measurable amount meet.
+CIRCLES_MEET_TOL = 1e-12
 #: Slack on |cos| <= 1 in inverse kinematics: a point this close outside a leg's reach is
 #: taken as on its boundary (stretched or folded), not unreachable.
 REACH_TOL = 1e-9
