@@ -279,14 +279,15 @@ class ValidityChecker:
         If g is L-Lipschitz in t on [t_a, t_b], then for every t there
         ``g(t) >= (g(t_a) + g(t_b) - L (t_b - t_a)) / 2`` (the two cones from the ends meet
         there). A piece is accepted only when that bound is >= 0 for all three margins, so
-        every posture of it keeps every margin. The constants (see ``rates``), for the
+        every posture of it keeps every margin. The constants (``_kernels.rates``), for the
         motion ``q_a + t dq``:
 
         * |CD|: C and D move by L1 |dtheta2| and L1 |dtheta3|: ``L = L1 (|dq2| + |dq3|)``,
           valid everywhere. Certifying it first (lower bound ``b >= 0`` on the piece) keeps
           |CD| at least ``b`` inside its band, hence |sin(theta4 - theta5)| >= s on the piece,
           s the least apex sine over that shrunk band (>= 1 / K), and the passive rates are
-          at most ``r45 = L1 (|dq2| + |dq3|) / (L2 s)`` (``rates_at``, ``sin_apex_min``);
+          at most ``r45 = L1 (|dq2| + |dq3|) / (L2 s)`` (``_kernels.rates_at`` and
+          ``_kernels.sin_apex_min``);
         * serial: ``r45 + |dq2|``, ``r45 + |dq3|`` (sin of a difference of angles) and
           ``(L1 |dq2| + L2 r45) / (L1 + L2)`` (w), the largest of the three for their minimum;
         * clearance: a link point at distance r <= L1 + L2 from the axis AB moves by at most
