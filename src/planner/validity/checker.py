@@ -319,7 +319,16 @@ class ValidityChecker:
     def motion_valid(self, q_a: np.ndarray, q_b: np.ndarray) -> bool:
         """:meth:`check_motion` ends included, as a bool, for float arrays of shape (3,)
         (copied: numba compiles read-only arrays separately)."""
-        return self.motion_test()(np.array(q_a, dtype=float), np.array(q_b, dtype=float))
+        r = certify_motion(
+            np.array(q_a, dtype=float),
+            np.array(q_b, dtype=float),
+            self._prm,
+            *self._packed,
+            self.coarse_step,
+            MIN_CERTIFIED_STEP,
+            False,
+        )
+        return r[0] == 0
 
     def motion_test(self) -> Callable[[np.ndarray, np.ndarray], bool]:
         """The certified motion test as a plain function ``(q_a, q_b) -> bool``, for a caller
