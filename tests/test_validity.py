@@ -155,7 +155,7 @@ def test_motion_into_an_obstacle_between_samples_is_rejected():
 @pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
 def test_lipschitz_rates_bound_finite_differences(design):
     """The constants of the certificate bound the measured change of each margin."""
-    from planner.validity import _evaluate_many, _rates
+    from planner.validity._kernels import evaluate_many, rates
 
     rng = np.random.default_rng(2)
     margins = Margins(kappa_max=6.0)
@@ -167,10 +167,10 @@ def test_lipschitz_rates_bound_finite_differences(design):
         t = np.linspace(0, 1, 2001)
         q = a + t[:, None] * dq
         out = np.empty((len(q), 7))
-        _evaluate_many(q, chk._prm, *chk._packed, True, out)
+        evaluate_many(q, chk._prm, *chk._packed, True, out)
         inside = out[:, 1] >= 0  # kappa band holds: the rates apply
-        rates = _rates(dq[0], dq[1], dq[2], chk._prm)
-        for j, rate in zip((1, 2, 3), rates, strict=True):
+        bounds = rates(dq[0], dq[1], dq[2], chk._prm)
+        for j, rate in zip((1, 2, 3), bounds, strict=True):
             g = out[:, j]
             both = inside[1:] & inside[:-1] & np.isfinite(g[1:]) & np.isfinite(g[:-1])
             if both.any():
@@ -216,3 +216,43 @@ def test_serial_rules_off_keeps_the_other_rules():
     assert not chk.check_motion(a, b).valid
     assert off.check_motion(a, b).valid
     assert off.check_states(far).reason[0] == "clearance"
+
+
+def test_the_loop_closes_by_one_rule_in_kinematics_and_validity():
+    """Around a stretched CD (|CD| = 2 L2), forward kinematics and the validity rules agree
+    posture by posture on whether the loop closes (one closure, one ASSEMBLY_TOL), and the
+    boundary lies where |CD|^2 = 4 L2^2 (1 + ASSEMBLY_TOL), computed here in numpy."""
+    from planner.constants import ASSEMBLY_TOL
+    from planner.kinematics import forward_batch
+
+    d = Design(0.5, 0.4, 0.6)  # |CD| reaches L0 + 2 L1 = 1.3 > 2 L2 = 1.2
+    # theta2 = pi puts C at u = -0.65; |CD| = 2 L2 at cos(theta3) = 0.47 / 0.72
+    t3 = np.arccos(0.47 / 0.72) + np.arange(-600, 600) * 1e-14
+    q = np.stack([np.zeros_like(t3), np.full_like(t3, np.pi), t3], axis=1)
+    cu, cw = -d.L0 / 2 + d.L1 * np.cos(q[:, 1]), d.L1 * np.sin(q[:, 1])
+    du, dw = d.L0 / 2 + d.L1 * np.cos(q[:, 2]), d.L1 * np.sin(q[:, 2])
+    expected = (du - cu) ** 2 + (dw - cw) ** 2 <= 4 * d.L2**2 * (1 + ASSEMBLY_TOL)
+    assert 0 < expected.sum() < len(q)  # the scan crosses the boundary
+    closes = forward_batch(d, q, "+").ok
+    reason = ValidityChecker(d, Margins(), [], "+", "+-+").check_states(q).reason
+    assert np.array_equal(closes, expected)
+    assert np.array_equal(reason != "assembly", expected)
+    assert set(reason[expected]) == {"kappa_max"}  # stretched: kappa(A) is unbounded
+
+
+def test_motion_test_is_the_certificate_of_check_motion():
+    """The callable OMPL's motion validator runs gives check_motion's verdict, motion by
+    motion, accepting some motions and rejecting others."""
+    rng = np.random.default_rng(5)
+    chk = ValidityChecker(Design.default(), Margins(), OBSTACLES, "+", "+-+")
+    test = chk.motion_test()
+    starts = rng.uniform(-np.pi, np.pi, (400, 3))
+    starts = starts[chk.is_valid(starts)]
+    verdicts = []
+    for a in starts:
+        b = a + rng.normal(size=3) * 0.4
+        want = chk.check_motion(a, b).valid
+        assert test(a.copy(), b) == want
+        assert chk.motion_valid(a, b) == want
+        verdicts.append(want)
+    assert 0 < sum(verdicts) < len(verdicts)

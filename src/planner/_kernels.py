@@ -17,6 +17,39 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def close_loop(L0, L1, L2, theta2, theta3, branch, assembly_tol):  # pragma: no cover - compiled
+    """The five-bar loop closure of one posture, in the loop's plane (u along AB, w along
+    e(theta1)); the one copy that the kinematics and the validity kernels share.
+
+    C = A + L1 e(theta2), D = B + L1 e(theta3); P is the apex of the isosceles triangle C-P-D
+    over the base CD, on the side ``branch`` (+1 or -1, the assembly mode). The loop closes
+    when 0 < |CD|^2 <= 4 L2^2 (1 + ``assembly_tol``) (:data:`planner.constants.ASSEMBLY_TOL`:
+    the slack keeps a stretched CD that round-off puts a hair beyond 2 L2 assembled).
+
+    Returns
+    -------
+    (closes, cu, cw, du, dw, pu, pw, d2) : bool and floats
+        Whether the loop closes; C, D and P in (u, w), m; d2 = |CD|^2, m^2. Where the loop
+        does not close (also for NaN input), P is NaN.
+    """
+    half = 0.5 * L0
+    cu = -half + L1 * math.cos(theta2)
+    cw = L1 * math.sin(theta2)
+    du = half + L1 * math.cos(theta3)
+    dw = L1 * math.sin(theta3)
+    eu = du - cu
+    ew = dw - cw
+    d2 = eu * eu + ew * ew
+    if not (d2 > 0.0 and d2 <= 4.0 * L2 * L2 * (1.0 + assembly_tol)):
+        return False, cu, cw, du, dw, np.nan, np.nan, d2
+    h2 = L2 * L2 - 0.25 * d2
+    s = branch * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
+    pu = 0.5 * (cu + du) - s * ew
+    pw = 0.5 * (cw + dw) + s * eu
+    return True, cu, cw, du, dw, pu, pw, d2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def forward_kernel(
     L0, L1, L2, q, branch, assembly_tol, p, dy, dx, w_out, ok
 ):  # pragma: no cover - compiled
@@ -25,30 +58,21 @@ def forward_kernel(
     Writes P (N, 3), the in-plane coordinate w (N,), whether the loop closes (N,), and the
     in-plane vectors C->P and D->P as (dy, dx) pairs (N, 2) each, so that the caller gets
     (theta4, theta5) = arctan2(dy, dx) from numpy's SIMD arctan2 (much faster than a scalar
-    atan2 here). A posture with C = D or |CD| > 2 L2 has ``ok = False`` and NaN outputs.
+    atan2 here). A posture with C = D or |CD| > 2 L2 has ``ok = False`` and NaN outputs
+    (:func:`close_loop`).
     """
     n = q.shape[0]
-    half = 0.5 * L0
-    lim = 4.0 * L2 * L2 * (1.0 + assembly_tol)
     for i in range(n):
         t1 = q[i, 0]
-        cu = -half + L1 * math.cos(q[i, 1])
-        cw = L1 * math.sin(q[i, 1])
-        du = half + L1 * math.cos(q[i, 2])
-        dw = L1 * math.sin(q[i, 2])
-        eu = du - cu
-        ew = dw - cw
-        d2 = eu * eu + ew * ew
-        if d2 > lim or d2 == 0.0 or not (d2 == d2):
+        closes, cu, cw, du, dw, pu, pw, _ = close_loop(
+            L0, L1, L2, q[i, 1], q[i, 2], branch[i], assembly_tol
+        )
+        if not closes:
             ok[i] = False
             p[i, 0] = p[i, 1] = p[i, 2] = np.nan
             dy[i, 0] = dy[i, 1] = dx[i, 0] = dx[i, 1] = np.nan
             w_out[i] = np.nan
             continue
-        h2 = L2 * L2 - 0.25 * d2
-        s = branch[i] * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
-        pu = 0.5 * (cu + du) - s * ew
-        pw = 0.5 * (cw + dw) + s * eu
         dy[i, 0] = pw - cw
         dx[i, 0] = pu - cu
         dy[i, 1] = pw - dw
@@ -62,7 +86,7 @@ def forward_kernel(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def inverse_kernel(
-    L0, L1, L2, p, reach_tol, sign_tol, ys, xs, ok, degenerate
+    L0, L1, L2, p, reach_tol, sign_tol, axis_tol, ys, xs, ok, degenerate
 ):  # pragma: no cover - compiled
     """Inverse kinematics of N points, as in-plane vectors whose angles the caller takes with
     numpy's SIMD arctan2.
@@ -73,17 +97,18 @@ def inverse_kernel(
     says that this leg solution exists and is not a duplicate (on a serial singularity the two
     elbow sides meet and only e = 0 is kept; on the axis only a = 0 is kept).
     ``degenerate[i]``: P is a pivot with L1 = L2, the leg angle is undetermined; nothing is ok.
+    ``axis_tol`` is relative to the reach L1 + L2 (:data:`planner.constants.AXIS_TOL`).
     """
     n = p.shape[0]
     half = 0.5 * L0
-    axis_tol = 1e-12 * (L1 + L2)
+    axis_dist = axis_tol * (L1 + L2)  # m
     l1l2 = L1 * L2
     for i in range(n):
         x = p[i, 0]
         pu = p[i, 1]
         z = p[i, 2]
         r = math.sqrt(x * x + z * z)
-        on_axis = r <= axis_tol
+        on_axis = r <= axis_dist
         if on_axis:
             r = 0.0
         degenerate[i] = False
@@ -97,7 +122,7 @@ def inverse_kernel(
                     (L1 * L1 + dist * dist - L2 * L2) / (2.0 * L1 * dist) if dist > 0.0 else np.nan
                 )
                 reach = dist > 0.0 and abs(cos_a) <= 1.0 + reach_tol
-                if dist <= axis_tol and abs(L1 - L2) <= axis_tol:
+                if dist <= axis_dist and abs(L1 - L2) <= axis_dist:
                     degenerate[i] = True
                 if reach:
                     cos_a = min(1.0, max(-1.0, cos_a))

@@ -1,11 +1,40 @@
-"""Named numerical tolerances shared by the kinematics, analysis and planning code."""
+"""Named numerical tolerances shared by the kinematics, validity, analysis and planning code.
+
+One place for every tolerance that decides whether the loop closes, whether a point is on a
+singular set, or how close to a boundary still counts as on it. The numba kernels take them
+as arguments (or in their parameter vector), never as module globals: numba's on-disk cache
+would freeze a global's value at compile time.
+"""
 
 from __future__ import annotations
 
-__all__ = ["ASSEMBLY_TOL", "KAPPA_SOLVABLE", "REACH_TOL", "SIGN_TOL"]
+__all__ = [
+    "ASSEMBLY_TOL",
+    "AXIS_TOL",
+    "CIRCLES_MEET_TOL",
+    "KAPPA_SOLVABLE",
+    "REACH_TOL",
+    "SIGN_TOL",
+]
 
-#: Relative slack on |CD| <= 2 L2 when closing the loop (round-off of a stretched CD).
+#: Relative slack of the loop closure: the loop closes when 0 < |CD|^2 <= 4 L2^2 (1 +
+#: ASSEMBLY_TOL) (:func:`planner._kernels.close_loop`, used by the kinematics and the validity
+#: rules alike). A stretched CD computed from rounded cosines lands a few ulps (~1e-16
+#: relative) either side of 2 L2; 1e-12 keeps it assembled with room to spare, while no
+#: posture that misses closing by a measurable amount (1e-12 of L2 is a picometre for a
+#: metre-long link) is taken as assembled.
 ASSEMBLY_TOL = 1e-12
+#: P is on the axis AB (w = 0, theta1 undetermined) when its distance to the axis is at most
+#: AXIS_TOL (L1 + L2); with L1 = L2 a point that close to a pivot is the degenerate base
+#: point (erratum 6). Relative to the reach, so that it scales with the robot; 1e-12 is four
+#: orders above round-off of coordinates of order L1 + L2 and far below any real offset.
+AXIS_TOL = 1e-12
+#: Slack on |cos| <= 1 where the singularity loci intersect two circles (a link's end on
+#: its circle and at a given distance from a second point, ``planner.analysis.loci``): two
+#: circles tangent up to round-off (a cosine a few ulps beyond 1) still meet, at one point.
+#: 1e-12 is some 10^4 ulps of a cosine: room for round-off, too little to let two circles
+#: that miss each other by a measurable amount meet.
+CIRCLES_MEET_TOL = 1e-12
 #: Slack on |cos| <= 1 in inverse kinematics: a point this close outside a leg's reach is
 #: taken as on its boundary (stretched or folded), not unreachable.
 REACH_TOL = 1e-9

@@ -35,7 +35,7 @@ from typing import Literal
 import numpy as np
 
 from planner import _kernels
-from planner.constants import ASSEMBLY_TOL, KAPPA_SOLVABLE, REACH_TOL, SIGN_TOL
+from planner.constants import ASSEMBLY_TOL, AXIS_TOL, KAPPA_SOLVABLE, REACH_TOL, SIGN_TOL
 from planner.design import Design
 from planner.exceptions import AssemblyError, InputError, SingularPostureError
 
@@ -240,12 +240,22 @@ def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0)
     leg_ok = np.empty((n, 2, 2, 2), dtype=np.bool_)
     degenerate = np.empty(n, dtype=np.bool_)
     _kernels.inverse_kernel(
-        design.L0, design.L1, design.L2, p2, REACH_TOL, SIGN_TOL, ys, xs, leg_ok, degenerate
+        design.L0,
+        design.L1,
+        design.L2,
+        p2,
+        REACH_TOL,
+        SIGN_TOL,
+        AXIS_TOL,
+        ys,
+        xs,
+        leg_ok,
+        degenerate,
     )
     angles = np.arctan2(ys, xs, out=ys)
     ax, sa, sb = _SLOT_INDEX
     q = np.empty((n, 8, 3))
-    on_axis = np.hypot(p2[:, 0], p2[:, 2]) <= 1e-12 * design.reach
+    on_axis = np.hypot(p2[:, 0], p2[:, 2]) <= AXIS_TOL * design.reach
     t1 = np.stack([np.arctan2(-p2[:, 2], p2[:, 0]), np.arctan2(p2[:, 2], -p2[:, 0])], axis=1)
     t1[on_axis] = float(theta1_on_axis)
     q[..., 0] = t1[:, ax]

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from planner.constants import CIRCLES_MEET_TOL
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import PostureBatch, mode_signs, wrap_angle
@@ -160,7 +161,7 @@ def _angles_to(
     dist = np.hypot(g[:, 0], g[:, 1])
     with np.errstate(invalid="ignore", divide="ignore"):
         cos_a = (r_center**2 + dist**2 - np.asarray(r_target) ** 2) / (2.0 * r_center * dist)
-    cos_a = np.where(np.abs(cos_a) <= 1.0 + 1e-12, np.clip(cos_a, -1.0, 1.0), np.nan)
+    cos_a = np.where(np.abs(cos_a) <= 1.0 + CIRCLES_MEET_TOL, np.clip(cos_a, -1.0, 1.0), np.nan)
     base = np.arctan2(g[:, 1], g[:, 0])
     a = np.arccos(cos_a)
     return base + a, base - a

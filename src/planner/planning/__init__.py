@@ -1,15 +1,18 @@
 """Joint-space planning with OMPL (the only package importing OMPL): single-mode segments
 and working-mode changes through serial-singularity transits.
 
-Entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins, options)``),
-returning a :class:`PlanResult` whose statuses and fields are the wire vocabulary's.
+The one entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins,
+options)``, from :mod:`planner.planning.modes`), returning a :class:`PlanResult` whose
+statuses and fields are the wire vocabulary's. It plans in the start's working mode first
+(:func:`plan_single_mode`, for callers that must not change mode) and through transits when
+the goal needs another mode.
 :func:`plan_with_goal_options` is the same call with MoveIt-like goal options on top (a goal
 tolerance, and the working mode preferred for a Cartesian "any" goal); it calls :func:`plan`.
 """
 
 from planner.planning.goal_options import plan_with_goal_options
 from planner.planning.modes import mode_sequences, path_state_checker, plan
-from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
+from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
@@ -36,6 +39,7 @@ __all__ = [
     "path_state_checker",
     "plan",
     "plan_in_region",
+    "plan_single_mode",
     "plan_with_goal_options",
     "posture_mode",
 ]

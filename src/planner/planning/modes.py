@@ -1,5 +1,6 @@
 """Working-mode changes: plans made of single-mode segments joined by serial-singularity
-transits. The library entry point :func:`plan` (re-exported as ``planner.planning.plan``).
+transits, and the library's one entry point :func:`plan` (exported as
+``planner.planning.plan``), a dispatcher over the three kinds of goal.
 
 A working mode changes only by crossing a serial singularity, which flips exactly one sign of
 (s_axis, s_A, s_B) (``docs/conventions.md``); the assembly mode never changes (that would cross a
@@ -46,8 +47,7 @@ import numpy as np
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, mode_signs
-from planner.planning.planner import goal_candidates, plan_in_region, posture_mode
-from planner.planning.planner import plan as plan_single_mode
+from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
@@ -475,7 +475,15 @@ def plan(
     options: PlanOptions | None = None,
 ) -> PlanResult:
     """Plan a valid joint path from ``start`` to ``goal``, changing working mode through serial
-    singularities where the goal needs it (the assembly mode never changes).
+    singularities where the goal needs it (the assembly mode never changes). The library's
+    one entry point, exported as ``planner.planning.plan``; the wire, the service and the
+    CLI call it.
+
+    One function per kind of goal: :func:`_plan_to_joint_goal`,
+    :func:`_plan_to_point_in_mode` (Cartesian target in a given working mode) and
+    :func:`_plan_to_point_in_any_mode` (``working_mode`` 'any'). Each asks the single-mode
+    planner (:func:`planner.planning.planner.plan_single_mode`) first, and plans through
+    transits (:func:`plan_mode_change`) when that answer calls for it.
 
     Parameters
     ----------
@@ -483,124 +491,189 @@ def plan(
     start : joint posture (its working and assembly modes come from it).
     goal : joint posture (in any working mode of the start's assembly mode), or Cartesian
         target (a specific working mode, or 'any').
-    obstacles, margins, options : as :func:`planner.planning.planner.plan`;
-        ``options.time_budget_s`` bounds the whole search (every segment and fallback).
+    obstacles : spheres, boxes, capsules (or wire dictionaries).
+    margins : default :class:`Margins`.
+    options : default :class:`PlanOptions`; ``options.time_budget_s`` bounds the whole
+        search (every segment and fallback).
 
     Returns
     -------
     PlanResult
         ``solved`` with ``path.segments`` (one per working mode visited) and
         ``path.transits`` (one per sign flip; consecutive segments share the transit
-        waypoint); ``unreachable`` when the goal's mode is in the other assembly mode or no
-        mode sequence has a transit posture (the message says why); ``no_path`` when the
-        budget ran out; ``invalid_start`` / ``invalid_goal`` as for single-mode plans.
+        waypoint); ``invalid_start`` / ``invalid_goal`` naming the broken rule and its value;
+        ``unreachable`` when the goal lies in the other assembly mode, out of reach, breaks a
+        rule in every joint solution, or no mode sequence has a transit posture (the message
+        says why); ``no_path`` when the budget ran out.
     """
     t0 = time.perf_counter()
-    margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
-    deadline = t0 + options.time_budget_s
-    obstacles = tuple(obstacles)
-
-    def single(opts: PlanOptions = options) -> PlanResult:
-        return plan_single_mode(
-            design, start, goal, obstacles=obstacles, margins=margins, options=opts
-        )
-
-    def finish(status: PlanStatus, message: str) -> PlanResult:
-        logger.info("plan %s: %s", status.value, message)
-        return PlanResult(status, message, None, Diagnostics(time.perf_counter() - t0))
-
-    asm = start.assembly_mode
-    if isinstance(goal, JointPosture) or goal.working_mode != "any":
-        # the single-mode planner first: it answers every request that needs no mode change
-        # (checks, messages) at no extra cost, and 'unreachable' for the others
-        first = single()
-        if first.status is not PlanStatus.UNREACHABLE:
-            return first
-        start_mode = posture_mode(design, start)
-        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
-            return first
-        if isinstance(goal, JointPosture):
-            goal_mode = posture_mode(design, goal)
-            if goal.assembly_mode != asm or goal_mode in (None, start_mode):
-                return first
-            # the single-mode planner checked the goal in its own mode already
-            return plan_mode_change(
-                design, start, start_mode, {goal_mode: goal.q[None].copy()},
-                obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
-            )  # fmt: skip
-        if goal.working_mode == start_mode:
-            return first
-    else:  # 'any': the start's mode first, with half the budget
-        first = single(replace(options, time_budget_s=options.time_budget_s * 0.5))
-        if first.status is PlanStatus.INVALID_START:
-            return first
-        start_mode = posture_mode(design, start)
-        if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
-            return first
-    checker = ValidityChecker(design, margins, obstacles, asm, start_mode)
-
-    modes = [m for m in WORKING_MODES if m != start_mode]
-    if goal.working_mode != "any":
-        modes = [goal.working_mode]
-    targets: dict[str, np.ndarray] = {}
-    whys: dict[str, str] = {}
-    for m in modes:
-        cands, why = goal_candidates(
-            design, CartesianTarget(goal.p, m), checker.with_mode(m), start.q
-        )
-        if len(cands):
-            targets[m] = cands
-        else:
-            whys[m] = why
-
+    request = _Request(
+        design,
+        start,
+        tuple(obstacles),
+        margins if margins is not None else Margins(),
+        options,
+        t0,
+        t0 + options.time_budget_s,
+    )
+    if isinstance(goal, JointPosture):
+        return _plan_to_joint_goal(request, goal)
     if goal.working_mode == "any":
-        if not targets:
-            if first.solved or first.status is not PlanStatus.UNREACHABLE:
-                return first
-            return finish(
-                PlanStatus.UNREACHABLE,
-                f"the goal point is unreachable in every working mode: in {start_mode} "
-                f"{first.message}; " + "; ".join(f"in {m} {w}" for m, w in whys.items()),
-            )
-        if first.solved:
-            # a path is never shorter than the straight distance to its goal: skip the
-            # transit sampling when no goal candidate of another mode is close enough
-            bound = min(float(np.linalg.norm(c[0] - start.q)) for c in targets.values())
-            if not bound < BETTER_RATIO * first.diagnostics.path_length:
-                return first
-            search = _ModeChangeSearch(design, asm, margins, obstacles, options, deadline)
-            best = min(
-                search.estimate(seq, start.q, targets[seq[-1]][0])
-                for seq in mode_sequences(start_mode, list(targets))
-            )
-            if not best < BETTER_RATIO * first.diagnostics.path_length:
-                return first
-            other = plan_mode_change(
-                design, start, start_mode, targets,
-                obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
-            )  # fmt: skip
-            if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
-                return other
-            return replace(
-                first,
-                diagnostics=replace(first.diagnostics, planning_time_s=time.perf_counter() - t0),
-            )
-        other = plan_mode_change(
-            design, start, start_mode, targets,
-            obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
-        )  # fmt: skip
-        if other.solved or first.status is PlanStatus.UNREACHABLE:
-            return other
-        return other if other.status is PlanStatus.NO_PATH else first
+        return _plan_to_point_in_any_mode(request, goal)
+    return _plan_to_point_in_mode(request, goal)
 
-    m = goal.working_mode
-    if m not in targets:
-        return finish(PlanStatus.UNREACHABLE, whys[m])
-    return plan_mode_change(
-        design, start, start_mode, targets,
-        obstacles=obstacles, margins=margins, options=options, t0=t0, deadline=deadline,
+
+@dataclass(frozen=True, slots=True)
+class _Request:
+    """What every step of :func:`plan` shares: the problem, its clock and its deadline."""
+
+    design: Design
+    start: JointPosture
+    obstacles: tuple[Obstacle, ...]
+    margins: Margins
+    options: PlanOptions
+    t0: float
+    deadline: float
+
+    def single_mode(
+        self, goal: JointPosture | CartesianTarget, *, share: float = 1.0
+    ) -> PlanResult:
+        """The single-mode plan to ``goal`` with ``share`` of the time budget."""
+        options = self.options
+        if share != 1.0:
+            options = replace(options, time_budget_s=options.time_budget_s * share)
+        return plan_single_mode(
+            self.design, self.start, goal,
+            obstacles=self.obstacles, margins=self.margins, options=options,
+        )  # fmt: skip
+
+    def start_mode(self) -> str | None:
+        """The start's working mode (None where it is undefined)."""
+        return posture_mode(self.design, self.start)
+
+    def mode_change(self, start_mode: str, targets: dict[str, np.ndarray]) -> PlanResult:
+        """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3))."""
+        return plan_mode_change(
+            self.design, self.start, start_mode, targets,
+            obstacles=self.obstacles, margins=self.margins, options=self.options,
+            t0=self.t0, deadline=self.deadline,
+        )  # fmt: skip
+
+    def goal_candidates(
+        self, p: np.ndarray, modes: Sequence[str]
+    ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+        """Valid joint goals of the point ``p`` in each working mode of ``modes`` (mode ->
+        (K, 3), modes with none left out), and why each mode left out has none."""
+        targets: dict[str, np.ndarray] = {}
+        whys: dict[str, str] = {}
+        asm = self.start.assembly_mode
+        for m in modes:
+            checker = ValidityChecker(self.design, self.margins, self.obstacles, asm, m)
+            cands, why = goal_candidates(self.design, CartesianTarget(p, m), checker, self.start.q)
+            if len(cands):
+                targets[m] = cands
+            else:
+                whys[m] = why
+        return targets, whys
+
+    def finish(self, status: PlanStatus, message: str) -> PlanResult:
+        """An answer without a path, timed from the request's start."""
+        logger.info("plan %s: %s", status.value, message)
+        return PlanResult(status, message, None, Diagnostics(time.perf_counter() - self.t0))
+
+
+def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
+    """A joint goal: the single-mode plan, or through transits when the goal lies in another
+    working mode of the start's assembly mode (the single-mode planner answers every other
+    case, checks and messages included, at no extra cost)."""
+    first = request.single_mode(goal)
+    if first.status is not PlanStatus.UNREACHABLE:
+        return first
+    start_mode = request.start_mode()
+    goal_mode = posture_mode(request.design, goal)
+    if (
+        start_mode is None  # pragma: no cover - the single-mode planner said invalid_start
+        or goal.assembly_mode != request.start.assembly_mode
+        or goal_mode in (None, start_mode)
+    ):
+        return first
+    # the single-mode planner checked the goal in its own mode already
+    return request.mode_change(start_mode, {goal_mode: goal.q[None].copy()})
+
+
+def _plan_to_point_in_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
+    """A Cartesian target in a given working mode: the single-mode plan, or through
+    transits when that mode is not the start's."""
+    first = request.single_mode(goal)
+    if first.status is not PlanStatus.UNREACHABLE:
+        return first
+    start_mode = request.start_mode()
+    if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+        return first
+    if goal.working_mode == start_mode:
+        return first
+    targets, whys = request.goal_candidates(goal.p, [goal.working_mode])
+    if not targets:
+        return request.finish(PlanStatus.UNREACHABLE, whys[goal.working_mode])
+    return request.mode_change(start_mode, targets)
+
+
+def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
+    """A Cartesian target in working mode 'any': the start's mode first with half the
+    budget, then through transits to the other modes when that fails, or when their
+    estimate is shorter than :data:`BETTER_RATIO` times the single-mode path."""
+    first = request.single_mode(goal, share=0.5)
+    if first.status is PlanStatus.INVALID_START:
+        return first
+    start_mode = request.start_mode()
+    if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
+        return first
+    others = [m for m in WORKING_MODES if m != start_mode]
+    targets, whys = request.goal_candidates(goal.p, others)
+    if not targets:
+        if first.solved or first.status is not PlanStatus.UNREACHABLE:
+            return first
+        return request.finish(
+            PlanStatus.UNREACHABLE,
+            f"the goal point is unreachable in every working mode: in {start_mode} "
+            f"{first.message}; " + "; ".join(f"in {m} {w}" for m, w in whys.items()),
+        )
+    if first.solved:
+        return _shorter_through_transits(request, first, start_mode, targets)
+    other = request.mode_change(start_mode, targets)
+    if other.solved or first.status is PlanStatus.UNREACHABLE:
+        return other
+    return other if other.status is PlanStatus.NO_PATH else first
+
+
+def _shorter_through_transits(
+    request: _Request, first: PlanResult, start_mode: str, targets: dict[str, np.ndarray]
+) -> PlanResult:
+    """The shorter of the solved single-mode plan ``first`` and a plan through transits to
+    ``targets``; the transit search runs only when it may beat ``first`` by
+    :data:`BETTER_RATIO`."""
+    limit = BETTER_RATIO * first.diagnostics.path_length
+    # a path is never shorter than the straight distance to its goal: skip the transit
+    # sampling when no goal candidate of another mode is close enough
+    bound = min(float(np.linalg.norm(c[0] - request.start.q)) for c in targets.values())
+    if not bound < limit:
+        return first
+    search = _ModeChangeSearch(
+        request.design, request.start.assembly_mode, request.margins, request.obstacles,
+        request.options, request.deadline,
     )  # fmt: skip
+    best = min(
+        search.estimate(seq, request.start.q, targets[seq[-1]][0])
+        for seq in mode_sequences(start_mode, list(targets))
+    )
+    if not best < limit:
+        return first
+    other = request.mode_change(start_mode, targets)
+    if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
+        return other
+    planning_time_s = time.perf_counter() - request.t0
+    return replace(first, diagnostics=replace(first.diagnostics, planning_time_s=planning_time_s))
 
 
 def path_state_checker(

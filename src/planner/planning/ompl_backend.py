@@ -21,7 +21,7 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from planner.planning.problem import PlanOptions
-from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, _check_motion
+from planner.validity import ValidityChecker
 
 __all__ = ["DEFAULT_RANGE", "SearchOutcome", "search"]
 
@@ -66,20 +66,13 @@ def _seed(seed: int) -> None:
 
 def _make_motion_validator(si, checker: ValidityChecker):
     """A ``MotionValidator`` whose two-state ``checkMotion`` certifies the whole motion in one
-    compiled call (:meth:`ValidityChecker.check_motion`)."""
-    prm, packed, step = checker._prm, checker._packed, checker.coarse_step
-    spheres, capsules, boxes = packed
+    compiled call (:meth:`ValidityChecker.motion_test`, the certificate of
+    :meth:`ValidityChecker.check_motion`)."""
+    motion_test = checker.motion_test()
 
     class _Certified(ob.MotionValidator):
         def checkMotion(self, s1, s2):
-            qa = np.array((s1[0], s1[1], s1[2]))
-            qb = np.array((s2[0], s2[1], s2[2]))
-            return (
-                _check_motion(
-                    qa, qb, prm, spheres, capsules, boxes, step, MIN_CERTIFIED_STEP, False
-                )[0]
-                == 0
-            )
+            return motion_test(np.array((s1[0], s1[1], s1[2])), np.array((s2[0], s2[1], s2[2])))
 
     return _Certified(si)
 

@@ -1,6 +1,9 @@
-"""Single-mode planning: the library entry point :func:`plan`.
+"""Single-mode planning: :func:`plan_single_mode` and its building block :func:`plan_in_region`.
 
-A plan lives in one working mode and one assembly mode, both taken from the start posture.
+The library's entry point is :func:`planner.planning.plan` (:mod:`planner.planning.modes`),
+which calls :func:`plan_single_mode` first and changes working mode when the goal needs it.
+A single-mode plan lives in one working mode and one assembly mode, both taken from the start
+posture.
 Steps: check start and goal (a broken rule gives ``invalid_start`` / ``invalid_goal`` with the
 rule and the measured value); turn a Cartesian goal into joint candidates (inverse kinematics
 in the start's modes, every 2 pi shift inside the joint limits, valid ones ordered by joint
@@ -26,7 +29,7 @@ from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker, assembly_reason
 
-__all__ = ["goal_candidates", "plan", "plan_in_region", "posture_mode"]
+__all__ = ["goal_candidates", "plan_in_region", "plan_single_mode", "posture_mode"]
 
 logger = logging.getLogger(__name__)
 
@@ -104,7 +107,7 @@ def _mode_undefined(design: Design, posture: JointPosture, which: str) -> str:
     )
 
 
-def plan(
+def plan_single_mode(
     design: Design,
     start: JointPosture,
     goal: JointPosture | CartesianTarget,
@@ -114,6 +117,10 @@ def plan(
     options: PlanOptions | None = None,
 ) -> PlanResult:
     """Plan a valid joint path from ``start`` to ``goal`` inside the start's working mode.
+
+    The first step of :func:`planner.planning.plan`, which goes on through transits when
+    this one answers ``unreachable`` for a goal in another working mode. Call this one
+    directly for a plan that must stay in the start's working mode.
 
     Parameters
     ----------
@@ -200,10 +207,10 @@ def plan_in_region(
     """Plan inside the region of a validity checker from ``q_start`` to the first reachable
     of the goal candidates ``q_goals`` (K, 3), rad, tried in order.
 
-    The building block of :func:`plan` and of the mode-change planner, which plans each
-    segment between postures it chose (e.g. next to a transit) with its own checker. Start
-    and goals must be valid for ``checker`` (not re-checked here); the straight motion is
-    tried first, then OMPL within ``options.time_budget_s`` in total.
+    The building block of :func:`plan_single_mode` and of the mode-change planner, which
+    plans each segment between postures it chose (e.g. next to a transit) with its own
+    checker. Start and goals must be valid for ``checker`` (not re-checked here); the
+    straight motion is tried first, then OMPL within ``options.time_budget_s`` in total.
 
     Returns
     -------

@@ -145,7 +145,7 @@ def plan_candidates(
 ) -> dict[str, PlanResult]:
     """One plan per working mode in ``modes`` to the Cartesian point ``p`` (3,) m, with
     :func:`planner.planning.plan` (mode changes included); every result, solved or not."""
-    from planner.planning.modes import plan
+    from planner.planning import plan
 
     out = {}
     for mode in modes:

@@ -1,0 +1,394 @@
+"""The compiled kernels of the validity rules (numba), over many postures at once.
+
+Private: :class:`planner.validity.ValidityChecker` validates inputs, packs a design, its
+margins and modes into the parameter vector ``prm`` (layout ``P_*``) and the obstacles into
+:func:`planner.geometry.pack_obstacles` arrays, and calls these. One posture's measures go
+into a vector of layout ``M_*``; rule codes are ``R_*``, named by :data:`REASONS`. The rules,
+their order and the motion certificate are explained in :mod:`planner.validity` and
+:meth:`planner.validity.ValidityChecker.check_motion`.
+
+The loop closure is :func:`planner._kernels.close_loop`, shared with the kinematics. Its
+tolerance (:data:`planner.constants.ASSEMBLY_TOL`) comes in through ``prm[P_ASSEMBLY_TOL]``,
+not as a global: numba's on-disk cache would freeze a global's value at compile time. numba's
+cache of these kernels is keyed on this file only: after editing a kernel of another module
+that they call (``close_loop``, :func:`planner.geometry.segment_min_distance`), clear the
+cache (``__pycache__/*.nbi``, ``*.nbc``) or touch this file.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+
+from planner._kernels import close_loop
+from planner.constants import ASSEMBLY_TOL
+from planner.geometry import segment_min_distance
+from planner.kinematics import mode_signs
+
+if TYPE_CHECKING:
+    from planner.design import Design
+    from planner.validity.checker import Margins
+
+#: Reason codes of the kernels, index -> rule name (0 means valid).
+REASONS: tuple[str, ...] = (
+    "valid",
+    "joint_limits",
+    "assembly",
+    "kappa_max",
+    "working_mode",
+    "serial_min",
+    "clearance",
+)
+R_LIMITS, R_ASSEMBLY, R_KAPPA, R_MODE, R_SERIAL, R_CLEAR = 1, 2, 3, 4, 5, 6
+
+# parameter vector layout
+P_L0, P_L1, P_L2, P_RAD = 0, 1, 2, 3
+P_LO, P_HI = 4, 7  # 3 each
+P_BRANCH, P_SIGNS = 10, 11  # signs: 3
+P_KAPPA, P_SERIAL, P_CLEAR, P_DLO, P_DHI, P_SERIAL_ON = 14, 15, 16, 17, 18, 19
+P_ASSEMBLY_TOL = 20
+N_PARAMS = 21
+
+
+def pack_params(
+    design: Design, margins: Margins, assembly_mode: str, working_mode: str, *, serial_rules: bool
+) -> np.ndarray:
+    """The parameter vector ``prm`` (layout ``P_*``, read-only) of one design, its margins
+    and modes: what every kernel of this module reads instead of Python objects.
+    ``serial_rules`` False turns rules 4 and 5 off (:class:`planner.validity.ValidityChecker`)."""
+    lo, hi = margins.cd_range
+    prm = np.empty(N_PARAMS)
+    prm[P_L0], prm[P_L1], prm[P_L2] = design.L0, design.L1, design.L2
+    prm[P_RAD] = design.link_radius
+    prm[P_LO : P_LO + 3] = design.joint_min
+    prm[P_HI : P_HI + 3] = design.joint_max
+    prm[P_BRANCH] = mode_signs(assembly_mode)[0]
+    prm[P_SIGNS : P_SIGNS + 3] = mode_signs(working_mode)
+    prm[P_KAPPA], prm[P_SERIAL], prm[P_CLEAR] = (
+        margins.kappa_max,
+        margins.serial_min,
+        margins.clearance,
+    )
+    prm[P_DLO], prm[P_DHI] = lo, hi
+    prm[P_SERIAL_ON] = 1.0 if serial_rules else 0.0
+    prm[P_ASSEMBLY_TOL] = ASSEMBLY_TOL
+    prm.flags.writeable = False
+    return prm
+
+
+# measure vector layout (per state)
+M_REASON, M_DMARGIN, M_SERIAL, M_CLEAR, M_KAPPA, M_SERIAL_RAW, M_CLEAR_RAW = range(7)
+N_MEASURES = 7
+
+
+@njit(cache=True)
+def evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: no cover
+    """Measures of one posture into ``out`` (layout ``M_*``).
+
+    Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
+    serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
+    False the evaluation stops at the first broken rule (unset entries are -inf) and the
+    clearance is exact only below clearance + 1 m (a lower bound above: enough for rules and
+    certificates).
+    """
+    evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, np.inf, out)
+
+
+@njit(cache=True)
+def evaluate_bounded(
+    q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upper, out
+):  # pragma: no cover
+    """:func:`evaluate`; in ``full`` mode the clearance is exact only where it is below
+    ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima."""
+    L0, L1, L2 = prm[P_L0], prm[P_L1], prm[P_L2]
+    for k in range(N_MEASURES):
+        out[k] = -np.inf
+    out[M_REASON] = 0.0
+    reason = 0
+    if not (
+        q0 >= prm[P_LO]
+        and q1 >= prm[P_LO + 1]
+        and q2 >= prm[P_LO + 2]
+        and q0 <= prm[P_HI]
+        and q1 <= prm[P_HI + 1]
+        and q2 <= prm[P_HI + 2]
+    ):
+        reason = R_LIMITS
+        if not full:
+            out[M_REASON] = reason
+            return
+    closes, cu, cw, du, dw, pu, pw, d2 = close_loop(
+        L0, L1, L2, q1, q2, prm[P_BRANCH], prm[P_ASSEMBLY_TOL]
+    )
+    if not closes:
+        out[M_REASON] = reason if reason else R_ASSEMBLY
+        return
+    d = math.sqrt(d2)
+    # kappa band on |CD|
+    dmargin = min(d - 2.0 * L2 * prm[P_DLO], 2.0 * L2 * prm[P_DHI] - d)
+    out[M_DMARGIN] = dmargin
+    ratio = min(d / (2.0 * L2), 1.0)
+    tan_half = ratio / math.sqrt(max(1.0 - ratio * ratio, 0.0)) if ratio < 1.0 else np.inf
+    out[M_KAPPA] = max(tan_half, 1.0 / tan_half) if tan_half > 0.0 else np.inf
+    if reason == 0 and dmargin < 0.0:
+        reason = R_KAPPA
+        if not full:
+            out[M_REASON] = reason
+            return
+    # passive angles
+    t4 = math.atan2(pw - cw, pu - cu)
+    t5 = math.atan2(pw - dw, pu - du)
+    m_axis = prm[P_SIGNS] * pw / (L1 + L2)
+    m_a = prm[P_SIGNS + 1] * math.sin(t4 - q1)
+    m_b = prm[P_SIGNS + 2] * math.sin(t5 - q2)
+    serial = min(m_axis, min(m_a, m_b))
+    out[M_SERIAL_RAW] = serial
+    if prm[P_SERIAL_ON] == 0.0:
+        out[M_SERIAL] = np.inf  # rules 4 and 5 off: nothing to certify
+    else:
+        out[M_SERIAL] = serial - prm[P_SERIAL]
+        if reason == 0 and serial <= 0.0:
+            reason = R_MODE
+        elif reason == 0 and serial < prm[P_SERIAL]:
+            reason = R_SERIAL
+    if reason and not full:
+        out[M_REASON] = reason
+        return
+    # links in 3-D: rotate in-plane (u, w) about +y by theta1
+    c1, s1 = math.cos(q0), math.sin(q0)
+    rad = prm[P_RAD]
+    upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 1.0
+    best = upper
+    half = 0.5 * L0
+    ends_u = (-half, half, cu, du)
+    ends_w = (0.0, 0.0, cw, dw)
+    for link in range(4):
+        au, aw = ends_u[link], ends_w[link]
+        if link < 2:
+            bu, bw = (cu, cw) if link == 0 else (du, dw)
+        else:
+            bu, bw = pu, pw
+        dist = segment_min_distance(
+            aw * c1, au, -aw * s1, bw * c1, bu, -bw * s1, spheres, capsules, boxes, best
+        )
+        if dist < best:
+            best = dist
+    clear = best - rad
+    out[M_CLEAR_RAW] = clear
+    out[M_CLEAR] = clear - prm[P_CLEAR]
+    if reason == 0 and out[M_CLEAR] < 0.0:
+        reason = R_CLEAR
+    out[M_REASON] = reason
+
+
+@njit(cache=True)
+def evaluate_many(q, prm, spheres, capsules, boxes, full, out):  # pragma: no cover
+    for i in range(q.shape[0]):
+        evaluate(q[i, 0], q[i, 1], q[i, 2], prm, spheres, capsules, boxes, full, out[i])
+
+
+@njit(cache=True)
+def rates_at(dq0, dq1, dq2, prm, s_min):  # pragma: no cover - compiled
+    """Lipschitz bounds over the parameter t in [0, 1] of a straight motion q0 + t dq, for the
+    d-margin, serial margin and clearance margin, valid wherever
+    |sin(theta4 - theta5)| >= s_min > 0.
+
+    The loop closure C + L2 e(theta4) = D + L2 e(theta5) differentiated and projected on
+    e(theta5) gives |dtheta4| <= |dD - dC| / (L2 |sin(theta4 - theta5)|)
+    <= L1 (|dtheta2| + |dtheta3|) / (L2 s_min), and the same for theta5."""
+    L1, L2 = prm[P_L1], prm[P_L2]
+    reach = L1 + L2
+    a0, a1, a2 = abs(dq0), abs(dq1), abs(dq2)
+    rate_cd = L1 * (a1 + a2)
+    r45 = rate_cd / (L2 * s_min)
+    rate_serial = max(max(r45 + a1, r45 + a2), (L1 * a1 + L2 * r45) / reach)
+    # a point of a link moves by (distance to the axis AB) |dtheta1| + its in-plane motion
+    v_c = L1 * a1
+    v_d = L1 * a2
+    v_p = min(v_c, v_d) + L2 * r45
+    rate_clear = max(L1 * a0 + max(v_c, v_d), reach * a0 + max(max(v_c, v_d), v_p))
+    return rate_cd, rate_serial, rate_clear
+
+
+@njit(cache=True)
+def rates(dq0, dq1, dq2, prm):  # pragma: no cover - compiled
+    """:func:`rates_at` valid wherever kappa(A) <= K = kappa_max: there
+    |sin(theta4 - theta5)| = (1 + |cos|) / kappa >= 1 / K."""
+    return rates_at(dq0, dq1, dq2, prm, 1.0 / prm[P_KAPPA])
+
+
+@njit(cache=True, inline="always")
+def sin_apex_min(prm, lb_cd):  # pragma: no cover - compiled
+    """Least |sin(theta4 - theta5)| over postures whose |CD| lies in the kappa band shrunk by
+    ``lb_cd`` >= 0 at both ends: |CD| = 2 L2 sin(gamma / 2) with gamma the apex angle, and
+    sin(gamma) is concave in gamma on [0, pi], so its minimum is at an end of the range."""
+    two_l2 = 2.0 * prm[P_L2]
+    lo = min(prm[P_DLO] + lb_cd / two_l2, 1.0)
+    hi = max(prm[P_DHI] - lb_cd / two_l2, lo)
+    # sin(gamma) = 2 sin(gamma/2) cos(gamma/2) = 2 r sqrt(1 - r^2)
+    s_lo = 2.0 * lo * math.sqrt(max(1.0 - lo * lo, 0.0))
+    s_hi = 2.0 * hi * math.sqrt(max(1.0 - hi * hi, 0.0))
+    return min(s_lo, s_hi)
+
+
+@njit(cache=True)
+def certify_motion(
+    qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, skip_ends
+):  # pragma: no cover
+    """Certify the straight motion qa -> qb. Returns (reason, t): reason 0 when every posture
+    of the motion is valid, else the rule found broken (or not certifiable) near parameter t.
+    Algorithm and proof: :meth:`ValidityChecker.check_motion`."""
+    dq0, dq1, dq2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
+    length = max(abs(dq0), max(abs(dq1), abs(dq2)))
+    n = max(1, math.ceil(length / coarse_step))
+    ts = np.empty(n + 1)
+    ms = np.empty((n + 1, N_MEASURES))
+    done = np.zeros(n + 1, dtype=np.bool_)
+    if skip_ends:
+        evaluate(qa[0], qa[1], qa[2], prm, spheres, capsules, boxes, True, ms[0])
+        evaluate(qb[0], qb[1], qb[2], prm, spheres, capsules, boxes, True, ms[n])
+        ms[0, M_REASON] = 0.0
+        ms[n, M_REASON] = 0.0
+        done[0] = True
+        done[n] = True
+    # coarse samples, in bisection order so an obstacle in the middle is met early
+    stride = 1
+    while stride < n:
+        stride *= 2
+    while stride >= 1:
+        for k in range(0, n + 1, stride):
+            if done[k]:
+                continue
+            done[k] = True
+            t = k / n
+            ts[k] = t
+            evaluate(
+                qa[0] + t * dq0,
+                qa[1] + t * dq1,
+                qa[2] + t * dq2,
+                prm,
+                spheres,
+                capsules,
+                boxes,
+                False,
+                ms[k],
+            )
+            if ms[k, M_REASON] != 0.0:
+                return int(ms[k, M_REASON]), t
+        stride //= 2
+    for k in range(n + 1):
+        ts[k] = k / n
+    rate_cd = rates(dq0, dq1, dq2, prm)[0]
+    tiny = min_step / max(length, 1e-300)
+    # depth-first certification with an explicit stack of intervals
+    cap = n + 128
+    st_t = np.empty((cap, 2))
+    st_m = np.empty((cap, 2, 3))
+    top = 0
+    for k in range(n):
+        st_t[top, 0], st_t[top, 1] = ts[k], ts[k + 1]
+        for j in range(3):
+            st_m[top, 0, j] = ms[k, 1 + j]
+            st_m[top, 1, j] = ms[k + 1, 1 + j]
+        top += 1
+    mid = np.empty(N_MEASURES)
+    while top > 0:
+        top -= 1
+        ta, tb = st_t[top, 0], st_t[top, 1]
+        w = tb - ta
+        lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
+        if lb_cd >= 0.0:
+            # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
+            _, rate_serial, rate_clear = rates_at(dq0, dq1, dq2, prm, sin_apex_min(prm, lb_cd))
+        else:
+            rate_serial = rate_clear = np.inf
+        lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
+        lb_cl = 0.5 * (st_m[top, 0, 2] + st_m[top, 1, 2] - rate_clear * w)
+        if lb_cd >= 0.0 and lb_se >= 0.0 and lb_cl >= 0.0:
+            continue
+        tm = 0.5 * (ta + tb)
+        if w <= tiny or top + 2 > cap:
+            if lb_cd < 0.0:
+                return R_KAPPA, tm
+            if lb_se < 0.0:
+                return R_SERIAL, tm
+            return R_CLEAR, tm
+        evaluate(
+            qa[0] + tm * dq0,
+            qa[1] + tm * dq1,
+            qa[2] + tm * dq2,
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            False,
+            mid,
+        )
+        if mid[M_REASON] != 0.0:
+            return int(mid[M_REASON]), tm
+        ma = st_m[top, 0].copy()
+        mb = st_m[top, 1].copy()
+        st_t[top, 0], st_t[top, 1] = ta, tm
+        st_t[top + 1, 0], st_t[top + 1, 1] = tm, tb
+        for j in range(3):
+            st_m[top, 0, j] = ma[j]
+            st_m[top, 1, j] = mid[1 + j]
+            st_m[top + 1, 0, j] = mid[1 + j]
+            st_m[top + 1, 1, j] = mb[j]
+        top += 2
+    return 0, 1.0
+
+
+@njit(cache=True)
+def certify_path(
+    q, prm, spheres, capsules, boxes, coarse_step, min_step, reasons, ts
+):  # pragma: no cover
+    """Certify every motion of a waypoint path (N, 3); stops at the first broken motion."""
+    for i in range(q.shape[0] - 1):
+        r, t = certify_motion(
+            q[i], q[i + 1], prm, spheres, capsules, boxes, coarse_step, min_step, False
+        )
+        reasons[i] = r
+        ts[i] = t
+        if r != 0:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def path_extremes(q, step, prm, spheres, capsules, boxes, out):  # pragma: no cover
+    """(min clearance, max kappa_A, min signed serial) over the waypoints of q (N, 3) and
+    samples every ``step`` rad (max-norm) on the motions between them, into out (3,); NaN
+    when no sample closes the loop."""
+    m = np.empty(N_MEASURES)
+    lo_clear, hi_kappa, lo_serial = np.inf, -np.inf, np.inf
+    found = False
+    for i in range(q.shape[0]):
+        n = 1
+        if i > 0:
+            length = 0.0
+            for j in range(3):
+                length = max(length, abs(q[i, j] - q[i - 1, j]))
+            n = max(1, math.ceil(length / step))
+        for k in range(1, n + 1):
+            if i == 0:
+                a0, a1, a2 = q[0, 0], q[0, 1], q[0, 2]
+            else:
+                t = k / n
+                a0 = q[i - 1, 0] + t * (q[i, 0] - q[i - 1, 0])
+                a1 = q[i - 1, 1] + t * (q[i, 1] - q[i - 1, 1])
+                a2 = q[i - 1, 2] + t * (q[i, 2] - q[i - 1, 2])
+            # only obstacles that may lower the running minimum are measured exactly
+            evaluate_bounded(a0, a1, a2, prm, spheres, capsules, boxes, True, lo_clear, m)
+            if m[M_KAPPA] > -np.inf:
+                found = True
+                lo_clear = min(lo_clear, m[M_CLEAR_RAW])
+                hi_kappa = max(hi_kappa, m[M_KAPPA])
+                lo_serial = min(lo_serial, m[M_SERIAL_RAW])
+    if not found:
+        out[0] = out[1] = out[2] = np.nan
+    else:
+        out[0], out[1], out[2] = lo_clear, hi_kappa, lo_serial
