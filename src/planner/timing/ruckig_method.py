@@ -25,6 +25,7 @@ continuous. Position limits are not in the community version: the caller checks 
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -68,56 +69,89 @@ class _Move:
     braking: bool  # a brake phase precedes the profile: evaluate with Ruckig's at_time
 
     def speed_bound(self, fallback: float) -> float:
-        """Upper bound of |qd| during the move, rad/s: per joint, the largest |velocity| at a
-        phase boundary or where the acceleration crosses zero inside a phase (velocity is
-        quadratic in time within a constant-jerk phase); ``fallback`` for a braking move."""
+        """Upper bound of |qd| during the move, rad/s (:func:`_speed_bounds`); ``fallback``
+        for a braking move."""
         if self.braking:
             return fallback
-        v0, v1 = np.abs(self.v[:, :-1]), np.abs(self.v[:, 1:])
-        a0, a1 = self.a[:, :-1], self.a[:, 1:]
-        crosses = (a0 * a1 < 0) & (self.jerk != 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v_turn = np.where(crosses, np.abs(self.v[:, :-1] - a0**2 / (2 * self.jerk)), 0.0)
-        per_joint = np.max(np.maximum(np.maximum(v0, v1), v_turn), axis=1)
-        return float(np.linalg.norm(per_joint))
+        return float(_speed_bounds(self.v[None], self.a[None], self.jerk[None])[0])
 
     def evaluate(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
         """q, qd, qdd, jerk at local times tau (M,) in [0, duration], shapes (M, 3)."""
-        tau = np.clip(tau, 0.0, self.duration)
+        tau = np.clip(np.atleast_1d(np.asarray(tau, dtype=float)), 0.0, self.duration)
         if self.braking:
-            rows = [self.source.at_time(float(x)) for x in tau]
-            q = np.array([r[0] for r in rows])
-            qd = np.array([r[1] for r in rows])
-            qdd = np.array([r[2] for r in rows])
-            return q, qd, qdd, np.full_like(q, np.nan)
-        out = [np.empty((tau.shape[0], 3)) for _ in range(4)]
-        for d in range(3):
-            k = np.clip(np.searchsorted(self.cum[d], tau, side="right") - 1, 0, 6)
-            x = tau - self.cum[d, k]
-            j, a, v = self.jerk[d, k], self.a[d, k], self.v[d, k]
-            out[0][:, d] = self.p[d, k] + x * (v + x * (a / 2 + x * j / 6))
-            out[1][:, d] = v + x * (a + x * j / 2)
-            out[2][:, d] = a + x * j
-            out[3][:, d] = j
-        return tuple(out)
+            return _evaluate_with_ruckig(self.source, tau)
+        table = tuple(x[None] for x in (self.cum, self.jerk, self.p, self.v, self.a))
+        return _integrate(table, np.zeros(tau.shape[0], dtype=int), tau)
 
 
-def _solve_move(
-    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, corners: tuple[int, ...]
-) -> _Move:
-    inp.current_position, inp.current_velocity, inp.current_acceleration = (
-        np.asarray(x, dtype=float).tolist() for x in start
-    )
-    inp.target_position, inp.target_velocity, inp.target_acceleration = (
-        np.asarray(x, dtype=float).tolist() for x in target
-    )
+def _speed_bounds(v: np.ndarray, a: np.ndarray, jerk: np.ndarray) -> np.ndarray:
+    """Upper bound of |qd| during each of K moves, rad/s, shape (K,): per joint, the largest
+    |velocity| at a phase boundary or where the acceleration crosses zero inside a phase
+    (velocity is quadratic in time within a constant-jerk phase), and the norm over joints.
+    ``v``, ``a``: shape (K, 3, 8) at the phase starts; ``jerk``: shape (K, 3, 7)."""
+    v0, v1 = np.abs(v[..., :-1]), np.abs(v[..., 1:])
+    a0, a1 = a[..., :-1], a[..., 1:]
+    crosses = (a0 * a1 < 0) & (jerk != 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_turn = np.where(crosses, np.abs(v[..., :-1] - a0**2 / (2 * jerk)), 0.0)
+    per_joint = np.max(np.maximum(np.maximum(v0, v1), v_turn), axis=-1)
+    return np.linalg.norm(per_joint, axis=-1)
+
+
+def _integrate(
+    table: tuple[np.ndarray, ...], move: np.ndarray, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """q, qd, qdd, jerk, shapes (M, 3), at local times ``tau`` (M,) of moves ``move`` (M,):
+    per joint, the constant-jerk phase holding tau, integrated from its start state.
+
+    ``table`` = (cum (K, 3, 8) phase start times, jerk (K, 3, 7), p, v, a (K, 3, 8) the
+    states at the phase starts) of K moves. A phase boundary belongs to the later phase (as
+    ``searchsorted(side="right")``); the last phase extends past its end."""
+    cum, jerk, p, v, a = table
+    c = cum[move]  # (M, 3, 8)
+    k = np.clip(np.sum(c <= tau[:, None, None], axis=2) - 1, 0, 6)[..., None]  # (M, 3, 1)
+    x = tau[:, None] - np.take_along_axis(c, k, axis=2)[..., 0]
+    j = np.take_along_axis(jerk[move], k, axis=2)[..., 0]
+    a0 = np.take_along_axis(a[move], k, axis=2)[..., 0]
+    v0 = np.take_along_axis(v[move], k, axis=2)[..., 0]
+    p0 = np.take_along_axis(p[move], k, axis=2)[..., 0]
+    q = p0 + x * (v0 + x * (a0 / 2 + x * j / 6))
+    return q, v0 + x * (a0 + x * j / 2), a0 + x * j, j
+
+
+def _evaluate_with_ruckig(
+    traj: RuckigTrajectory, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """q, qd, qdd (and NaN jerk) by Ruckig's own ``at_time``: for a move with brake phases,
+    which the phase tables do not hold."""
+    rows = [traj.at_time(float(x)) for x in tau]
+    q = np.array([r[0] for r in rows]).reshape(-1, 3)
+    qd = np.array([r[1] for r in rows]).reshape(-1, 3)
+    qdd = np.array([r[2] for r in rows]).reshape(-1, 3)
+    return q, qd, qdd, np.full_like(q, np.nan)
+
+
+def _calculate(
+    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple
+) -> RuckigTrajectory | str:
+    """One Ruckig move from ``start`` to ``target`` ((q, qd, qdd), each 3 numbers): Ruckig's
+    trajectory, or the reason it gave none (``RuckigError`` or an error code). The lean path:
+    the candidate moves of :func:`build_ruckig_curve` need only their durations, so nothing
+    else is extracted here (that costs as much as the solve itself)."""
+    inp.current_position, inp.current_velocity, inp.current_acceleration = start
+    inp.target_position, inp.target_velocity, inp.target_acceleration = target
     traj = RuckigTrajectory(3)
     try:
         result = otg.calculate(inp, traj)
     except RuckigError as exc:
-        raise TimingInfeasibleError(f"ruckig rejected a move: {str(exc).strip()}") from exc
+        return f"ruckig rejected a move: {str(exc).strip()}"
     if result not in (Result.Working, Result.Finished):
-        raise TimingInfeasibleError(f"ruckig found no move: {result}")
+        return f"ruckig found no move: {result}"
+    return traj
+
+
+def _move_from(traj: RuckigTrajectory, corners: tuple[int, ...]) -> _Move:
+    """The phase tables of a solved Ruckig trajectory, for vectorised evaluation."""
     profiles = traj.profiles[0]
     cum = np.array([np.concatenate([[0.0], np.cumsum(pr.t)]) for pr in profiles])
     braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in profiles)
@@ -134,6 +168,24 @@ def _solve_move(
     )
 
 
+def _solve_move(
+    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, corners: tuple[int, ...]
+) -> _Move:
+    """One Ruckig move from ``start`` to ``target`` (arrays or lists), as a :class:`_Move`.
+
+    Raises
+    ------
+    TimingInfeasibleError
+        Ruckig rejects the move or returns an error code.
+    """
+    as_lists = tuple(tuple(np.asarray(x, dtype=float).tolist() for x in st)
+                     for st in (start, target))  # fmt: skip
+    traj = _calculate(otg, inp, *as_lists)
+    if isinstance(traj, str):
+        raise TimingInfeasibleError(traj)
+    return _move_from(traj, corners)
+
+
 def _reachable_acceleration(
     vel: np.ndarray, acc: np.ndarray, v_max: np.ndarray, a_max: np.ndarray, j_max: np.ndarray
 ) -> np.ndarray:
@@ -142,15 +194,15 @@ def _reachable_acceleration(
     ``|vel| + acc^2 / (2 j_max) <= v_max``. The second is the speed reached before the
     acceleration can be brought to zero (when it raises the speed, as a start state) or the
     speed it had when the acceleration was zero (when it lowers it, as a target state);
-    Ruckig rejects a state beyond it, and every through-state is both."""
-    factor = 1.0
-    for d in range(3):
-        if acc[d] == 0.0:
-            continue
-        factor = min(factor, a_max[d] * _INSIDE / abs(acc[d]))
-        room = max(v_max[d] * _INSIDE - abs(vel[d]), 0.0)
-        factor = min(factor, float(np.sqrt(2 * j_max[d] * room)) / abs(acc[d]))
-    return acc * factor
+    Ruckig rejects a state beyond it, and every through-state is both.
+
+    ``vel``, ``acc``: shape (..., 3), any number of states at once."""
+    mag = np.abs(acc)
+    room = np.maximum(v_max * _INSIDE - np.abs(vel), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_joint = np.minimum(a_max * _INSIDE / mag, np.sqrt(2 * j_max * room) / mag)
+    factor = np.min(np.where(mag > 0.0, per_joint, 1.0), axis=-1, initial=1.0)
+    return acc * factor[..., None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,16 +228,36 @@ class RuckigCurve:
         """Index of the move active at each time (a boundary belongs to the later move)."""
         return np.clip(np.searchsorted(self.start, t, side="right") - 1, 0, len(self.moves) - 1)
 
+    @functools.cached_property
+    def _table(self) -> tuple[np.ndarray, ...]:
+        """The moves' phase tables stacked, shape (K, 3, 8) or (K, 3, 7) (see
+        :func:`_integrate`), plus ``braking`` (K,) and ``durations`` (K,)."""
+        m = self.moves
+        return (
+            np.stack([x.cum for x in m]),
+            np.stack([x.jerk for x in m]),
+            np.stack([x.p for x in m]),
+            np.stack([x.v for x in m]),
+            np.stack([x.a for x in m]),
+            np.array([x.braking for x in m]),
+            np.array([x.duration for x in m]),
+        )
+
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q, qd, qdd, jerk at times t (M,), shapes (M, 3): every move's phase table at
+        once (a braking move by Ruckig's ``at_time``, its jerk NaN)."""
         t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.duration)
         idx = self.move_index(t)
-        out = [np.empty((t.shape[0], 3)) for _ in range(4)]
-        for k in np.unique(idx):
+        *table, braking, durations = self._table
+        tau = np.clip(t - self.start[idx], 0.0, durations[idx])
+        q, qd, qdd, jerk = _integrate(tuple(table), idx, tau)
+        for k in np.flatnonzero(braking):
             sel = idx == k
-            vals = self.moves[k].evaluate(t[sel] - self.start[k])
-            for o, v in zip(out, vals, strict=True):
-                o[sel] = v
-        return out[0], out[1], out[2], out[3]
+            if np.any(sel):
+                q[sel], qd[sel], qdd[sel], jerk[sel] = _evaluate_with_ruckig(
+                    self.moves[k].source, tau[sel]
+                )
+        return q, qd, qdd, jerk
 
     def rest_times(self) -> np.ndarray:
         """Move boundaries strictly inside the motion where it is at rest (the stops), s."""
@@ -197,15 +269,18 @@ class RuckigCurve:
 
     def check_times(self, resolution: float) -> np.ndarray:
         """Per move, a uniform grid with step ``resolution / V`` where V bounds |qd| during
-        that move (:meth:`_Move.speed_bound`), so consecutive postures are at most
-        ``resolution`` apart; every move boundary is included."""
-        counts = [
-            max(2, int(np.ceil(m.duration * m.speed_bound(self.speed_bound) / resolution)) + 1)
-            for m in self.moves
-        ]
-        check_sample_count(sum(counts))
-        parts = [np.linspace(self.start[k], self.start[k + 1], n) for k, n in enumerate(counts)]
-        return np.unique(np.concatenate([*parts, self.start]))
+        that move (:func:`_speed_bounds`; the norm of the velocity limits for a braking move),
+        so consecutive postures are at most ``resolution`` apart; every move boundary is
+        included."""
+        _, jerk, _, v, a, braking, durations = self._table
+        speed = np.where(braking, self.speed_bound, _speed_bounds(v, a, jerk))
+        counts = np.maximum(2, np.ceil(durations * speed / resolution).astype(int) + 1)
+        check_sample_count(int(np.sum(counts)))
+        move = np.repeat(np.arange(len(self.moves)), counts)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        frac = (np.arange(move.shape[0]) - first[move]) / (counts[move] - 1)
+        t = self.start[move] + frac * durations[move]
+        return np.unique(np.concatenate([t, self.start]))
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         """A move through blends k..m stands for segments k-1..m; a rest-to-rest move
@@ -288,36 +363,43 @@ def build_ruckig_curve(
     _, sd, sdd_right = profile.at_path(s_marks)
     _, _, sdd_left = profile.at_path(np.maximum(s_marks - 1e-9 * max(path.length, 1.0), 0.0))
 
-    # Each through-state at full toppra speed, and its velocity direction and acceleration.
-    base: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
-    for i, (_, tag, _) in enumerate(marks):
-        if tag == 0:
-            base.append(None)
-            continue
-        # Entry: straight side is before; exit: after. The tangent is continuous there.
-        direction = tangent_left[i] if tag == 1 else tangent[i]
-        acc_s = sdd_left[i] if tag == 1 else sdd_right[i]
-        acc = direction * acc_s if through_acceleration else np.zeros(3)
-        base.append((q[i], direction * sd[i], acc))
+    # Every through-state at every speed factor at once, shape (marks, factors, 3): toppra's
+    # velocity times f (clipped inside the limits) and its acceleration times f^2, made
+    # reachable. An entry's straight side is before it, an exit's after; rests are zeros.
+    tags = np.array([m[1] for m in marks])
+    entry = (tags == 1)[:, None]
+    direction = np.where(entry, tangent_left, tangent)
+    acc_s = np.where(tags == 1, sdd_left, sdd_right)
+    moving = (tags != 0)[:, None, None]
+    f = np.asarray(speed_factors, dtype=float)[None, :, None]
+    vel = np.clip((direction * sd[:, None])[:, None, :] * f, -v_max * _INSIDE, v_max * _INSIDE)
+    acc = (direction * acc_s[:, None])[:, None, :] * f**2
+    if not through_acceleration:
+        acc = np.zeros_like(acc)
+    acc = _reachable_acceleration(vel, acc, v_max, a_max, j_max)
+    vel, acc = np.where(moving, vel, 0.0), np.where(moving, acc, 0.0)
+    q_l, vel_l, acc_l = q.tolist(), vel.tolist(), acc.tolist()
+    zero = [0.0, 0.0, 0.0]
+    n_f = len(speed_factors)
+    middle = n_f - 2 if n_f > 1 else 0  # the look-ahead's factor (speed_factors[-2])
 
-    def state(i: int, f: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Through-state i slowed by f: velocity times f, acceleration times f^2."""
-        if base[i] is None:
-            zero = np.zeros(3)
-            return q[i], zero, zero
-        qi, vel, acc = base[i]  # type: ignore[misc]
-        vel = np.clip(vel * f, -v_max * _INSIDE, v_max * _INSIDE)
-        return qi, vel, _reachable_acceleration(vel, acc * f**2, v_max, a_max, j_max)
+    def state(i: int, k: int) -> tuple[list, list, list]:
+        """Through-state i at speed factor index k, as lists for Ruckig."""
+        if tags[i] == 0:
+            return q_l[i], zero, zero
+        return q_l[i], vel_l[i][k], acc_l[i][k]
 
     # Greedy speed choice per through-state. A joint at its velocity limit cannot stretch
     # its move to a longer common duration (Ruckig's blocked intervals), which can make a
     # synchronised move several times longer than each joint's own minimum; a slightly
     # slower through-state avoids that. For each state, the factor minimising the move into it
-    # plus the move out of it (towards the next state at a middle factor) is kept.
+    # plus the move out of it (towards the next state at a middle factor) is kept. Candidate
+    # moves are solved for their durations only (:func:`_calculate`); the phase tables are
+    # read from the chosen one.
     keep = [i for i in range(len(marks))
             if not (i > 0 and marks[i][1] == 0 and marks[i - 1][1] == 0
                     and s_marks[i] <= s_marks[i - 1])]  # fmt: skip
-    chosen = {keep[0]: state(keep[0], 1.0)}
+    chosen = state(keep[0], 0)
     moves: list[_Move] = []
     for pos in range(1, len(keep)):
         if pos % 16 == 0:
@@ -326,28 +408,24 @@ def build_ruckig_curve(
         nxt = keep[pos + 1] if pos + 1 < len(keep) else None
         (_, tag0, c0), (_, tag1, c1) = marks[prev], marks[i]
         corners = tuple(sorted({c for c, tag in ((c0, tag0), (c1, tag1)) if tag != 0}))
-        factors = (1.0,) if base[i] is None else speed_factors
-        best: tuple[float, _Move, tuple] | None = None
-        for f in factors:
-            target = state(i, f)
-            try:
-                move = _solve_move(otg, inp, chosen[prev], target, corners)
-            except TimingInfeasibleError:
+        candidates = range(1) if tags[i] == 0 else range(n_f)
+        best: tuple[float, RuckigTrajectory, tuple] | None = None
+        for k in candidates:
+            target = state(i, k)
+            traj = _calculate(otg, inp, chosen, target)
+            if isinstance(traj, str):
                 continue
-            cost = move.duration
-            if nxt is not None and len(factors) > 1:
-                try:
-                    ahead = _solve_move(otg, inp, target, state(nxt, speed_factors[-2]), ())
-                    cost += ahead.duration
-                except TimingInfeasibleError:
-                    cost = np.inf
+            cost = traj.duration
+            if nxt is not None and len(candidates) > 1:
+                ahead = _calculate(otg, inp, target, state(nxt, middle))
+                cost = np.inf if isinstance(ahead, str) else cost + ahead.duration
             if best is None or cost < best[0]:
-                best = (cost, move, target)
+                best = (cost, traj, target)
         if best is None:
             raise TimingInfeasibleError(
                 f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
             )
-        moves.append(best[1])
-        chosen[i] = best[2]
+        moves.append(_move_from(best[1], corners))
+        chosen = best[2]
     start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
     return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))
