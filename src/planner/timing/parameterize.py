@@ -40,7 +40,7 @@ from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
 from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
 from planner.timing.path import BlendedPath
-from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
+from planner.timing.ruckig_method import SEED_REFINE, RuckigCurve, build_ruckig_curve
 from planner.timing.toppra_method import (
     PathProfile,
     check_deadline,
@@ -372,13 +372,14 @@ def time_path(
                     lim,
                     speed_gain=speed_gain if v_cart is not None else None,
                     max_cartesian_speed=v_cart,
-                    refine=refine,
+                    refine=refine * (SEED_REFINE if method == "ruckig" else 1),
                     deadline=deadline,
                 )
-                profile = _fit_time_scale(
-                    ToppraCurve(path, profile), lim, resolution,
-                    speed_gain if v_cart else None, v_cart,
-                )  # fmt: skip
+                if method == "toppra":
+                    profile = _fit_time_scale(
+                        ToppraCurve(path, profile), lim, resolution,
+                        speed_gain if v_cart else None, v_cart,
+                    )  # fmt: skip
             elif slow_down < 1.0:
                 profile = profile.time_scaled(slow_down)
             curve = ToppraCurve(path, profile)

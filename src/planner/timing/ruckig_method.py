@@ -39,7 +39,7 @@ from planner.timing.path import ARC, BlendedPath
 from planner.timing.toppra_method import PathProfile, check_deadline
 from planner.timing.trajectory import check_sample_count
 
-__all__ = ["RuckigCurve", "build_ruckig_curve"]
+__all__ = ["PATIENCE", "SEED_REFINE", "SPEED_FACTORS", "RuckigCurve", "build_ruckig_curve"]
 
 logger = logging.getLogger(__name__)
 
@@ -48,6 +48,17 @@ logger = logging.getLogger(__name__)
 _INSIDE = 1.0 - 1e-9
 #: Candidate slow-downs of each through-state's toppra velocity (see build_ruckig_curve).
 SPEED_FACTORS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5)
+#: The greedy choice stops trying slower factors after this many in a row did worse than the
+#: best so far (the cost is nearly unimodal in the factor: on the benchmark paths a patience
+#: of 2 chooses as all six do, for about half the solves).
+PATIENCE = 2
+#: Grid refinement of the toppra pass that gives the through-states (see
+#: :func:`~planner.timing.toppra_method.section_grid`): only the profile's states at the
+#: blends' ends are used, and on a grid 3x coarser they barely change (ruckig/toppra duration
+#: p50 +0.004 on the benchmark paths) while the pass costs about half.
+SEED_REFINE = 1 / 3
+#: Tags of the through-states.
+_REST, _ENTRY, _EXIT, _MIDDLE = 0, 1, 2, 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,40 +143,48 @@ def _evaluate_with_ruckig(
 
 
 def _calculate(
-    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple
-) -> RuckigTrajectory | str:
-    """One Ruckig move from ``start`` to ``target`` ((q, qd, qdd), each 3 numbers): Ruckig's
-    trajectory, or the reason it gave none (``RuckigError`` or an error code). The lean path:
-    the candidate moves of :func:`build_ruckig_curve` need only their durations, so nothing
-    else is extracted here (that costs as much as the solve itself)."""
+    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, traj: RuckigTrajectory
+) -> str:
+    """One Ruckig move from ``start`` to ``target`` ((q, qd, qdd), each 3 numbers) into
+    ``traj``: "" when solved, else the reason Ruckig gave none (``RuckigError`` or an error
+    code). The lean path: the candidate moves of :func:`build_ruckig_curve` need only their
+    durations, so nothing else is read here (that costs as much as the solve itself)."""
     inp.current_position, inp.current_velocity, inp.current_acceleration = start
     inp.target_position, inp.target_velocity, inp.target_acceleration = target
-    traj = RuckigTrajectory(3)
     try:
         result = otg.calculate(inp, traj)
     except RuckigError as exc:
         return f"ruckig rejected a move: {str(exc).strip()}"
     if result not in (Result.Working, Result.Finished):
         return f"ruckig found no move: {result}"
-    return traj
+    return ""
 
 
-def _move_from(traj: RuckigTrajectory, corners: tuple[int, ...]) -> _Move:
-    """The phase tables of a solved Ruckig trajectory, for vectorised evaluation."""
-    profiles = traj.profiles[0]
-    cum = np.array([np.concatenate([[0.0], np.cumsum(pr.t)]) for pr in profiles])
-    braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in profiles)
-    return _Move(
-        duration=float(traj.duration),
-        cum=cum,
-        jerk=np.array([pr.j for pr in profiles]),
-        p=np.array([pr.p for pr in profiles]),
-        v=np.array([pr.v for pr in profiles]),
-        a=np.array([pr.a for pr in profiles]),
-        corners=corners,
-        source=traj,
-        braking=braking,
-    )
+def _moves_from(trajs: list[RuckigTrajectory], corners: list[tuple[int, ...]]) -> list[_Move]:
+    """The phase tables of solved Ruckig trajectories, for vectorised evaluation (read in one
+    pass: per-move numpy conversions would cost as much as the solves)."""
+    rows = [[(pr.t, pr.j) for pr in tr.profiles[0]] for tr in trajs]
+    states = [[(pr.p, pr.v, pr.a) for pr in tr.profiles[0]] for tr in trajs]
+    phases = np.array(rows, dtype=float).reshape(len(trajs), 3, 2, 7)
+    at = np.array(states, dtype=float).reshape(len(trajs), 3, 3, 8)
+    cum = np.concatenate([np.zeros((len(trajs), 3, 1)), np.cumsum(phases[:, :, 0], axis=2)], 2)
+    out = []
+    for k, tr in enumerate(trajs):
+        braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in tr.profiles[0])
+        out.append(
+            _Move(
+                duration=float(tr.duration),
+                cum=cum[k],
+                jerk=phases[k, :, 1],
+                p=at[k, :, 0],
+                v=at[k, :, 1],
+                a=at[k, :, 2],
+                corners=corners[k],
+                source=tr,
+                braking=braking,
+            )
+        )
+    return out
 
 
 def _solve_move(
@@ -180,10 +199,11 @@ def _solve_move(
     """
     as_lists = tuple(tuple(np.asarray(x, dtype=float).tolist() for x in st)
                      for st in (start, target))  # fmt: skip
-    traj = _calculate(otg, inp, *as_lists)
-    if isinstance(traj, str):
-        raise TimingInfeasibleError(traj)
-    return _move_from(traj, corners)
+    traj = RuckigTrajectory(3)
+    error = _calculate(otg, inp, *as_lists, traj)
+    if error:
+        raise TimingInfeasibleError(error)
+    return _moves_from([traj], [corners])[0]
 
 
 def _reachable_acceleration(
@@ -295,6 +315,47 @@ class RuckigCurve:
         return [self.moves[k].corners for k in self.move_index(np.atleast_1d(t))]
 
 
+def _through_marks(path: BlendedPath, profile: PathProfile, t_merge: float) -> list[tuple]:
+    """Through-states in path order, as (s, tag, corner): a rest (``_REST``) at every stop,
+    the entry and exit of every blend (``_ENTRY``, ``_EXIT``, with the blend's waypoint).
+
+    Two blends sharing a whole segment meet at one point: only the later one's entry is kept.
+    A straight segment between two blends that toppra crosses in less than ``t_merge`` s gets
+    one state at its middle (``_MIDDLE``, corner -1) instead of the exit and the entry: toppra
+    accelerates hard out of the first blend and brakes hard into the next, and a joint under
+    a jerk limit cannot follow such a swing in so short a time (Ruckig then needs a move many
+    times longer than toppra's, measured up to 30x), while it can pass a single state."""
+    marks: list[tuple[float, int, int]] = []
+    for k in range(path.n_pieces):
+        if path.kind[k] == ARC:
+            marks.append((float(path.s0[k]), _ENTRY, int(path.corner[k])))
+            marks.append((float(path.s0[k + 1]), _EXIT, int(path.corner[k])))
+    marks += [(float(s), _REST, -1) for s in path.stops]
+    marks.sort(key=lambda m: (m[0], m[1] != _EXIT, m[1]))  # an exit before a coinciding entry
+    marks = [
+        m
+        for i, m in enumerate(marks)
+        if not (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][0] <= m[0])
+    ]
+    # consecutive rests at one position (a stop at the path's end) are one
+    marks = [m for i, m in enumerate(marks)
+             if not (i > 0 and m[1] == _REST and marks[i - 1][1] == _REST
+                     and m[0] <= marks[i - 1][0])]  # fmt: skip
+    t_marks, _, _ = profile.at_path(np.array([m[0] for m in marks]))
+    out: list[tuple[float, int, int]] = []
+    i = 0
+    while i < len(marks):
+        m = marks[i]
+        if (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][1] == _ENTRY
+                and t_marks[i + 1] - t_marks[i] < t_merge):  # fmt: skip
+            out.append((0.5 * (m[0] + marks[i + 1][0]), _MIDDLE, -1))
+            i += 2
+            continue
+        out.append(m)
+        i += 1
+    return out
+
+
 def build_ruckig_curve(
     path: BlendedPath,
     profile: PathProfile,
@@ -310,12 +371,14 @@ def build_ruckig_curve(
     ----------
     path : BlendedPath
     profile : PathProfile
-        The toppra profile of ``path`` under the same velocity and acceleration limits.
+        The toppra profile of ``path`` under the same velocity and acceleration limits (it
+        gives the through-states; it need not meet the limits between its grid points, the
+        states are pulled inside the limits here).
     limits : JointLimits
         With ``jerk`` set.
     through_acceleration : bool
         Give each through-state toppra's tangential acceleration (True) or zero.
-    speed_factors : candidate slow-downs of each through-state, tried greedily.
+    speed_factors : candidate slow-downs of each through-state, tried greedily in order.
     deadline : float, optional
         ``time.monotonic()`` value checked every 16 moves.
 
@@ -323,7 +386,8 @@ def build_ruckig_curve(
     waypoint costs about 1.45x (jerk = 25 x acceleration /s) to 1.65x (10x) the toppra duration;
     these through-states cost about 1.1x and 1.3x, with a deviation from the polyline close to
     the blend size. Extra through-states inside the arcs were tried and made it worse (a
-    rapidly turning toppra acceleration cannot be tracked under a jerk limit).
+    rapidly turning toppra acceleration cannot be tracked under a jerk limit); so is a short
+    segment's pair of states, which is why it becomes one (:func:`_through_marks`).
 
     Raises
     ------
@@ -332,31 +396,18 @@ def build_ruckig_curve(
     """
     v_max = limits.velocity_array
     a_max = limits.acceleration_array
+    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
     otg = Ruckig(3)
     inp = InputParameter(3)
     inp.max_velocity = v_max.tolist()
     inp.max_acceleration = a_max.tolist()
-    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
     inp.max_jerk = j_max.tolist()
     inp.synchronization = Synchronization.Phase
 
-    # Through-states in path order: (s, tag, corner); tag 0 rest, 1 entry, 2 exit.
-    marks: list[tuple[float, int, int]] = []
-    stops = path.stops
-    for k in range(path.n_pieces):
-        if path.kind[k] == ARC:
-            marks.append((float(path.s0[k]), 1, int(path.corner[k])))
-            marks.append((float(path.s0[k + 1]), 2, int(path.corner[k])))
-    marks += [(float(s), 0, -1) for s in stops]
-    marks.sort(key=lambda m: (m[0], m[1] != 2, m[1]))  # an exit before a coinciding entry
-    # Two blends sharing a whole segment meet at one point: keep only the later one's entry.
-    marks = [
-        m
-        for i, m in enumerate(marks)
-        if not (m[1] == 2 and i + 1 < len(marks) and marks[i + 1][0] <= m[0])
-    ]
-
+    # the time a joint needs to bring its largest acceleration to zero under its jerk limit
+    marks = _through_marks(path, profile, t_merge=float(np.max(a_max / j_max)))
     s_marks = np.array([m[0] for m in marks])
+    tags = np.array([m[1] for m in marks])
     q = path.evaluate(s_marks, 0)
     tangent = path.evaluate(s_marks, 1)
     tangent_left = path.evaluate(s_marks, 1, side="left")
@@ -365,27 +416,24 @@ def build_ruckig_curve(
 
     # Every through-state at every speed factor at once, shape (marks, factors, 3): toppra's
     # velocity times f (clipped inside the limits) and its acceleration times f^2, made
-    # reachable. An entry's straight side is before it, an exit's after; rests are zeros.
-    tags = np.array([m[1] for m in marks])
-    entry = (tags == 1)[:, None]
-    direction = np.where(entry, tangent_left, tangent)
-    acc_s = np.where(tags == 1, sdd_left, sdd_right)
-    moving = (tags != 0)[:, None, None]
+    # reachable. An entry's straight side is before it, an exit's (and a middle's) after.
+    entry = tags == _ENTRY
+    direction = np.where(entry[:, None], tangent_left, tangent)
+    acc_s = np.where(entry, sdd_left, sdd_right)
     f = np.asarray(speed_factors, dtype=float)[None, :, None]
     vel = np.clip((direction * sd[:, None])[:, None, :] * f, -v_max * _INSIDE, v_max * _INSIDE)
     acc = (direction * acc_s[:, None])[:, None, :] * f**2
     if not through_acceleration:
         acc = np.zeros_like(acc)
     acc = _reachable_acceleration(vel, acc, v_max, a_max, j_max)
-    vel, acc = np.where(moving, vel, 0.0), np.where(moving, acc, 0.0)
     q_l, vel_l, acc_l = q.tolist(), vel.tolist(), acc.tolist()
     zero = [0.0, 0.0, 0.0]
     n_f = len(speed_factors)
-    middle = n_f - 2 if n_f > 1 else 0  # the look-ahead's factor (speed_factors[-2])
+    ahead_k = max(n_f - 2, 0)  # the look-ahead's factor (the second slowest)
 
     def state(i: int, k: int) -> tuple[list, list, list]:
         """Through-state i at speed factor index k, as lists for Ruckig."""
-        if tags[i] == 0:
+        if tags[i] == _REST:
             return q_l[i], zero, zero
         return q_l[i], vel_l[i][k], acc_l[i][k]
 
@@ -393,39 +441,52 @@ def build_ruckig_curve(
     # its move to a longer common duration (Ruckig's blocked intervals), which can make a
     # synchronised move several times longer than each joint's own minimum; a slightly
     # slower through-state avoids that. For each state, the factor minimising the move into it
-    # plus the move out of it (towards the next state at a middle factor) is kept. Candidate
-    # moves are solved for their durations only (:func:`_calculate`); the phase tables are
-    # read from the chosen one.
-    keep = [i for i in range(len(marks))
-            if not (i > 0 and marks[i][1] == 0 and marks[i - 1][1] == 0
-                    and s_marks[i] <= s_marks[i - 1])]  # fmt: skip
-    chosen = state(keep[0], 0)
-    moves: list[_Move] = []
-    for pos in range(1, len(keep)):
-        if pos % 16 == 0:
+    # plus the move out of it (towards the next state at the second slowest factor) is kept;
+    # slower factors stop being tried after PATIENCE worse ones. Candidate moves are solved
+    # for their durations only (:func:`_calculate`); the phase tables are read from the
+    # chosen ones.
+    chosen = state(0, 0)
+    trajs: list[RuckigTrajectory] = []
+    corners: list[tuple[int, ...]] = []
+    known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
+    for i in range(1, len(marks)):
+        if i % 16 == 0:
             check_deadline(deadline, "while timing the path with ruckig")
-        i, prev = keep[pos], keep[pos - 1]
-        nxt = keep[pos + 1] if pos + 1 < len(keep) else None
-        (_, tag0, c0), (_, tag1, c1) = marks[prev], marks[i]
-        corners = tuple(sorted({c for c, tag in ((c0, tag0), (c1, tag1)) if tag != 0}))
-        candidates = range(1) if tags[i] == 0 else range(n_f)
-        best: tuple[float, RuckigTrajectory, tuple] | None = None
-        for k in candidates:
+        moving = tags[i] != _REST
+        look_ahead = moving and n_f > 1 and i + 1 < len(marks)
+        best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
+        worse = 0
+        for k in range(n_f if moving else 1):
             target = state(i, k)
-            traj = _calculate(otg, inp, chosen, target)
-            if isinstance(traj, str):
-                continue
+            if known is not None and k == ahead_k:
+                traj, known = known, None  # solved as the previous state's look-ahead
+            else:
+                traj = RuckigTrajectory(3)
+                if _calculate(otg, inp, chosen, target, traj):
+                    continue
             cost = traj.duration
-            if nxt is not None and len(candidates) > 1:
-                ahead = _calculate(otg, inp, target, state(nxt, middle))
-                cost = np.inf if isinstance(ahead, str) else cost + ahead.duration
+            ahead: RuckigTrajectory | None = None
+            if look_ahead:
+                ahead = RuckigTrajectory(3)
+                if _calculate(otg, inp, target, state(i + 1, ahead_k), ahead):
+                    cost, ahead = np.inf, None
+                else:
+                    cost += ahead.duration
             if best is None or cost < best[0]:
-                best = (cost, traj, target)
+                best, worse = (cost, traj, target, ahead), 0
+            elif best[0] < cost < np.inf:
+                worse += 1
+                if worse >= PATIENCE:
+                    break
         if best is None:
             raise TimingInfeasibleError(
                 f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
             )
-        moves.append(_move_from(best[1], corners))
-        chosen = best[2]
+        (_, tag0, c0), (_, tag1, c1) = marks[i - 1], marks[i]
+        blends = {c for c, tag in ((c0, tag0), (c1, tag1)) if tag in (_ENTRY, _EXIT)}
+        corners.append(tuple(sorted(blends)))
+        trajs.append(best[1])
+        chosen, known = best[2], best[3]
+    moves = _moves_from(trajs, corners)
     start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
     return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))
