@@ -72,6 +72,10 @@ INITIAL_STEP = 0.05
 MIN_PIECE = 1e-7
 #: Bisection tolerance on the stopping point along the polyline, m.
 BISECT_TOL = 1e-8
+#: Points classified at once per round of :func:`_narrow` (one batched inverse kinematics
+#: each): a bracket shrinks by NARROW_POINTS + 1 per round, 3 rounds from PROBE_STEP to
+#: BISECT_TOL where bisection takes 18 single-point steps.
+NARROW_POINTS = 64
 #: A final piece ending on the bisected boundary and at most this long (m) has its end pulled
 #: back (from :data:`BACKOFF_START` m, by factors of 4) rather than split, to certify it.
 BACKOFF_PIECE = 1e-3
@@ -523,6 +527,40 @@ def _fmt_point(p: np.ndarray) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
 
 
+def _narrow(
+    a: float,
+    b: float,
+    classify,
+    tol: float,
+    q_b: np.ndarray | None = None,
+    reason_b: str = "",
+) -> tuple[float, float, np.ndarray | None, str]:
+    """Shrink a bracket [a, b] (m along the polyline) of a change of a rule to ``b - a <= tol``.
+
+    ``classify(s)`` takes arc lengths (M,) inside the bracket and returns ``(same, q,
+    reason)``: ``same`` (M,) bool, True where s is on a's side of the change; ``q`` (M, 3) the
+    posture there (NaN where none); ``reason`` (M,) the rule broken there. Each round
+    classifies :data:`NARROW_POINTS` evenly spaced interior points at once and keeps the
+    interval from the last point on a's side before the first point on b's side to that
+    point, so the change found is the first one the points see (as with bisection, two
+    changes closer than a round's spacing can hide each other). Returns ``(a, b, q_b,
+    reason_b)``: the final bracket and the posture and rule at its end (the given ones when
+    b never moved)."""
+    while b - a > tol:
+        s = a + (b - a) * np.arange(1, NARROW_POINTS + 1) / (NARROW_POINTS + 1)
+        same, q, reason = classify(s)
+        if np.all(same):
+            a = float(s[-1])
+            continue
+        j = int(np.argmax(~same))
+        if j > 0:
+            a = float(s[j - 1])
+        b = float(s[j])
+        q_b = q[j] if np.all(np.isfinite(q[j])) else None
+        reason_b = str(reason[j])
+    return a, b, q_b, reason_b
+
+
 class _Walker:
     """State shared by the steps of :func:`plan_cartesian`."""
 
@@ -541,13 +579,18 @@ class _Walker:
         q = np.where(ok[:, None], _unwrap_to(q, ref), np.nan)
         return q, ok, w, flipped
 
-    def probe_valid(self, s: float, ref: np.ndarray) -> tuple[bool, np.ndarray, str]:
-        """Validity of the IK posture at arc length s: (valid, q, reason)."""
-        q, ok, _, flipped = self.posture_at(np.array([s]), ref)
-        if not ok[0]:
-            return False, q[0], "assembly" if flipped[0] else "workspace"
-        rep = self.checker.check_states(q)
-        return bool(rep.valid[0]), q[0], str(rep.reason[0])
+    def probe_valid(self, s: np.ndarray, ref: np.ndarray):
+        """Validity of the IK postures at arc lengths s (M,), unwrapped towards ``ref``:
+        (valid (M,), q (M, 3), reason (M,)); the reason is "workspace" or "assembly" where the
+        working mode's branch does not reach the point (or changes assembly mode)."""
+        q, ok, _, flipped = self.posture_at(np.asarray(s, dtype=float), ref)
+        valid = np.zeros(q.shape[0], dtype=bool)
+        reason = np.where(flipped, "assembly", "workspace").astype(object)
+        if np.any(ok):
+            rep = self.checker.check_states(q[ok])
+            valid[ok] = rep.valid
+            reason[ok] = rep.reason
+        return valid, q, reason
 
 
 def _describe(
@@ -754,22 +797,18 @@ def inspect_cartesian(
                        & (qc <= np.asarray(design.joint_max) + 1e-12), axis=1)  # fmt: skip
         for kind, good in (("kappa_max", kappa_ok), ("joint_limits", jl_ok)):
             for i in np.flatnonzero((good[1:] != good[:-1]) & run[1:] & run[:-1]):
-                a, b = s[i], s[i + 1]
-                ga = good[i]
-                for _ in range(50):
-                    mid = 0.5 * (a + b)
-                    qm, okm, _, _ = _ik(design, poly.at(np.array([mid])), slot, asm_sign)
+                ga = bool(good[i])
+
+                def classify(s_, kind=kind, ga=ga, ref=qc[i]):
+                    qm, okm, _, _ = _ik(design, poly.at(s_), slot, asm_sign)
                     if kind == "kappa_max":
-                        gm = bool(measures(qm, okm)[1][0])
+                        gm = measures(qm, okm)[1]
                     else:
-                        qm = _unwrap_to(qm[0], qc[i])
-                        gm = bool(np.all((qm >= design.joint_min) & (qm <= design.joint_max)))
-                    if gm == ga:
-                        a = mid
-                    else:
-                        b = mid
-                    if b - a < BISECT_TOL:
-                        break
+                        qm = _unwrap_to(qm, ref)
+                        gm = np.all((qm >= design.joint_min) & (qm <= design.joint_max), axis=1)
+                    return gm == ga, qm, np.full(len(s_), "")
+
+                a, b, _, _ = _narrow(float(s[i]), float(s[i + 1]), classify, BISECT_TOL)
                 seg = int(poly.segment_of(np.array([a]))[0])
                 if kind == "kappa_max":
                     detail = f"kappa_max: kappa(A) = {margins.kappa_max:g}"
@@ -924,14 +963,9 @@ def plan_cartesian(
                 bad_reason = str(checker.check_states(qp[j][None]).reason[0])
             elif flipped[j]:
                 bad_reason = "assembly"
-            while b - a > BISECT_TOL:
-                mid = 0.5 * (a + b)
-                v, qm, reason = walker.probe_valid(mid, good_q)
-                if v:
-                    a, good_q = mid, qm
-                else:
-                    b, bad_reason = mid, reason
-                    bad_q = qm if np.all(np.isfinite(qm)) else None
+            a, b, bad_q, bad_reason = _narrow(
+                a, b, lambda s_: walker.probe_valid(s_, good_q), BISECT_TOL, bad_q, bad_reason
+            )
             end_s = a
             stop_rule, q_stop_bad = bad_reason, bad_q
             p_stop_bad = poly.at(np.array([b]))[0]
