@@ -16,8 +16,9 @@ How a straight path is built (``docs/cartesian.md`` has the full argument):
 2. Up to there, the joint path is a polyline through inverse-kinematics postures. Between two
    consecutive ones the robot moves on the straight joint segment, whose P leaves the
    Cartesian line; :func:`chord_deviation_bound` bounds that deviation from above (a second
-   derivative bound, proved in its docstring), and a piece is split at its Cartesian midpoint
-   until the bound is at most ``chord_share * path_tolerance``.
+   derivative bound, proved in its docstring), and a piece is split into equal Cartesian
+   parts (as many as the bound's quadratic decay asks, :data:`MAX_PARTS` at most) until the
+   bound is at most ``chord_share * path_tolerance``.
 3. Every joint piece is certified by :meth:`ValidityChecker.check_path` (all rules hold on the
    whole straight joint motion, not only at samples); a piece that cannot be certified is
    split too, and where splitting reaches :data:`MIN_PIECE` m the path stops at the piece's
@@ -83,8 +84,12 @@ BACKOFF_START = 1e-7
 #: Share of ``path_tolerance`` given to the chords between joint waypoints; the rest is the
 #: timing's corner blends.
 CHORD_SHARE = 0.5
-#: Most refinement rounds (each halves the pieces that fail).
+#: Most refinement rounds (each splits the pieces that fail).
 MAX_ROUNDS = 60
+#: Most parts one refinement round cuts a piece into.
+MAX_PARTS = 16
+#: Where a piece whose motion cannot be certified is split (shares of its length).
+GRADED_SPLIT = (0.5, 0.75, 0.875)
 
 
 # ------------------------------------------------------------------------------ results
@@ -1014,8 +1019,15 @@ def plan_cartesian(
                 p_stop_bad = poly.at(np.array([end_s]))[0]
                 continue
         if np.any(split):
-            idx = certified + np.flatnonzero(split)
-            s_mid = 0.5 * (s[idx] + s[idx + 1])
+            # each piece over the tolerance is cut into n equal parts at once, n from the
+            # bound's quadratic decay with the piece's length (f and the second-derivative
+            # term both scale with its square): one round where halving would take several;
+            # a part still over the tolerance is split again in the next round
+            pieces = certified + np.flatnonzero(split)
+            n_parts = np.clip(np.ceil(np.sqrt(b_tail[split] / tol_chord)), 2, MAX_PARTS).astype(int)
+            idx = np.repeat(pieces, n_parts - 1)
+            frac = np.concatenate([np.arange(1, n) / n for n in n_parts])
+            s_mid = s[idx] + frac * (s[idx + 1] - s[idx])
             qm, okm, wm, _ = walker.posture_at(s_mid, q[idx])
             valid_m = okm.copy()
             if np.any(okm):
@@ -1048,23 +1060,56 @@ def plan_cartesian(
         piece = s[k + 1] - s[k]
         if k + 1 == len(s) - 1 and end_s < poly.length and piece <= BACKOFF_PIECE:
             # the final piece ends on a margin (the bisected boundary), where no motion can be
-            # certified (margin 0): pull the end back, by growing steps
-            backoff = BACKOFF_START if backoff == 0.0 else 4.0 * backoff
-            if backoff < 0.5 * piece:
-                s_new = float(s[-1]) - backoff
-                qm, okm, wm, _ = walker.posture_at(np.array([s_new]), q[k])
-                if okm[0] and checker.is_valid(qm)[0]:
-                    s[-1], q[-1], w[-1] = s_new, qm[0], wm[0]
-                    end_s = s_new
-                    bound = bound[:certified]
-                    continue
+            # certified (margin 0): pull the end back, by growing steps. The steps are tried
+            # in order as one at a time would (the first end whose motion certifies is kept;
+            # an end that breaks a rule, or a step beyond half the piece, ends the pull-back),
+            # but their postures come from one batched inverse kinematics.
+            first_step = BACKOFF_START if backoff == 0.0 else 4.0 * backoff
+            steps = first_step * 4.0 ** np.arange(16)
+            pulled = np.cumsum(steps)
+            fits = steps < 0.5 * (piece - np.concatenate([[0.0], pulled[:-1]]))
+            n_try = int(np.argmin(fits)) if not np.all(fits) else len(fits)
+            accepted = False
+            if n_try > 0:
+                s_try = float(s[-1]) - pulled[:n_try]
+                qm, okm, wm, _ = walker.posture_at(s_try, q[k])
+                valid_m = okm.copy()
+                if np.any(okm):
+                    valid_m[okm] = checker.is_valid(qm[okm])
+                for j in range(n_try):
+                    backoff = float(steps[j])
+                    if not valid_m[j]:
+                        break
+                    s[-1], q[-1], w[-1] = s_try[j], qm[j], wm[j]
+                    end_s = float(s_try[j])
+                    rep = checker.check_path(q[certified:], certify=True)
+                    if rep.valid:
+                        accepted = True
+                        break
+                else:
+                    backoff = float(4.0 * steps[n_try - 1])  # the next step is too large
+                piece = s[k + 1] - s[k]
+            else:
+                backoff = first_step
+            if accepted:
+                bound = bound[:certified]
+                continue
         if piece > MIN_PIECE:
-            s_mid = 0.5 * (s[k] + s[k + 1])
-            qm, okm, wm, _ = walker.posture_at(np.array([s_mid]), q[k])
-            if okm[0] and checker.is_valid(qm)[0]:
-                s = np.insert(s, k + 1, s_mid)
-                q = np.insert(q, k + 1, qm, axis=0)
-                w = np.insert(w, k + 1, wm)
+            # split at the midpoint; the final piece of a path that stops on a rule's boundary
+            # also at 3/4 and 7/8: the margin shrinks towards that end, so its second half
+            # fails in turn (three halving rounds in one)
+            stops_short = k + 1 == len(s) - 1 and end_s < poly.length
+            frac = GRADED_SPLIT if stops_short else GRADED_SPLIT[:1]
+            s_mid = s[k] + np.asarray(frac) * (s[k + 1] - s[k])
+            qm, okm, wm, _ = walker.posture_at(s_mid, q[k])
+            valid_m = okm.copy()
+            if np.any(okm):
+                valid_m[okm] = checker.is_valid(qm[okm])
+            n_ok = int(np.argmin(valid_m)) if not np.all(valid_m) else len(frac)
+            if n_ok > 0:
+                s = np.insert(s, k + 1, s_mid[:n_ok])
+                q = np.insert(q, k + 1, qm[:n_ok], axis=0)
+                w = np.insert(w, k + 1, wm[:n_ok])
                 bound = bound[:certified]
                 continue
         # the motion out of waypoint k cannot be certified: stop at k
