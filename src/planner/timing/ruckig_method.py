@@ -16,8 +16,15 @@ built from the time-optimal toppra profile on the blended path (:mod:`planner.ti
   acceleration and displacement are all parallel to the segment, so the phase-synchronised
   move stays exactly on the planned segment; around a corner the move bends near the arc
   (phase synchronisation falls back to time synchronisation) and its deviation is measured;
+* a straight segment between two blends that toppra crosses faster than a joint can bring its
+  acceleration to zero under the jerk limit (``max_j a_j / j_j``) gets one through-state at
+  its middle instead of an exit and an entry: toppra leaves the first blend accelerating hard
+  and enters the next braking hard, a swing no jerk-limited joint can follow in that time;
 * stops (path start and end, requested stops, unblended corners) are reached at rest, and a
   rest-to-rest move with phase synchronisation is the straight segment itself.
+
+The toppra profile is solved on a coarser grid than toppra's own method uses
+(:data:`SEED_REFINE`): only its states at the through-states matter.
 
 The moves meet with equal position, velocity and acceleration, so q, qd and qdd are
 continuous. Position limits are not in the community version: the caller checks joint limits.
