@@ -202,3 +202,25 @@ def test_patience_chooses_as_trying_every_factor(monkeypatch):
     monkeypatch.setattr(ruckig_method, "PATIENCE", len(ruckig_method.SPEED_FACTORS))
     full = [time_path(DESIGN, w, limits, method="ruckig").duration for w in walks]
     np.testing.assert_allclose(short, full, rtol=1e-3)
+
+
+def test_moves_through_middle_states_stand_for_their_blends():
+    """With a low jerk limit (a / j = 0.2 s) most segments between blends get a middle state,
+    often several in a row. A move between two of them passes a blend: it must stand for it
+    (its plan segments are checked for deviation), and only a rest-to-rest move may stand for
+    none. Independently of the library's check, no posture strays farther from the polyline
+    than the allowance plus half the check resolution (the dense re-check's guarantee)."""
+    limits = JointLimits(velocity=(2.0,) * 3, acceleration=(8.0,) * 3, jerk=(40.0,) * 3)
+    chained = 0
+    for seed in range(4):
+        w = random_walk(seed, n=8)
+        traj = time_path(DESIGN, w, limits, method="ruckig")
+        curve = traj.curve
+        for k, move in enumerate(curve.moves):
+            if not move.corners:
+                ends = curve.evaluate(curve.start[k : k + 2] + np.array([1e-12, -1e-12]))[1]
+                assert np.abs(ends).max() < 1e-6, k
+        chained += sum(len(m.corners) >= 3 for m in curve.moves)
+        q = traj.at(fine_times(traj.duration, 20001))[0]
+        assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= 0.05 + 0.005
+    assert chained > 0  # middle states in a row were exercised

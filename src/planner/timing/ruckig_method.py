@@ -323,21 +323,24 @@ class RuckigCurve:
 
 
 def _through_marks(path: BlendedPath, profile: PathProfile, t_merge: float) -> list[tuple]:
-    """Through-states in path order, as (s, tag, corner): a rest (``_REST``) at every stop,
-    the entry and exit of every blend (``_ENTRY``, ``_EXIT``, with the blend's waypoint).
+    """Through-states in path order, as (s, tag, blends): a rest (``_REST``, no blend) at every
+    stop, the entry and exit of every blend (``_ENTRY``, ``_EXIT``, with the blend's
+    waypoint). A move between two states stands for the blends of both (and the segments
+    around them: :meth:`RuckigCurve.plan_segments`).
 
     Two blends sharing a whole segment meet at one point: only the later one's entry is kept.
     A straight segment between two blends that toppra crosses in less than ``t_merge`` s gets
-    one state at its middle (``_MIDDLE``, corner -1) instead of the exit and the entry: toppra
+    one state at its middle (``_MIDDLE``, with both blends) instead of the exit and the entry,
+    so that the moves into and out of it stand for both blends and the segment: toppra
     accelerates hard out of the first blend and brakes hard into the next, and a joint under
     a jerk limit cannot follow such a swing in so short a time (Ruckig then needs a move many
     times longer than toppra's, measured up to 30x), while it can pass a single state."""
-    marks: list[tuple[float, int, int]] = []
+    marks: list[tuple[float, int, tuple[int, ...]]] = []
     for k in range(path.n_pieces):
         if path.kind[k] == ARC:
-            marks.append((float(path.s0[k]), _ENTRY, int(path.corner[k])))
-            marks.append((float(path.s0[k + 1]), _EXIT, int(path.corner[k])))
-    marks += [(float(s), _REST, -1) for s in path.stops]
+            marks.append((float(path.s0[k]), _ENTRY, (int(path.corner[k]),)))
+            marks.append((float(path.s0[k + 1]), _EXIT, (int(path.corner[k]),)))
+    marks += [(float(s), _REST, ()) for s in path.stops]
     marks.sort(key=lambda m: (m[0], m[1] != _EXIT, m[1]))  # an exit before a coinciding entry
     marks = [
         m
@@ -349,13 +352,13 @@ def _through_marks(path: BlendedPath, profile: PathProfile, t_merge: float) -> l
              if not (i > 0 and m[1] == _REST and marks[i - 1][1] == _REST
                      and m[0] <= marks[i - 1][0])]  # fmt: skip
     t_marks, _, _ = profile.at_path(np.array([m[0] for m in marks]))
-    out: list[tuple[float, int, int]] = []
+    out: list[tuple[float, int, tuple[int, ...]]] = []
     i = 0
     while i < len(marks):
         m = marks[i]
         if (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][1] == _ENTRY
                 and t_marks[i + 1] - t_marks[i] < t_merge):  # fmt: skip
-            out.append((0.5 * (m[0] + marks[i + 1][0]), _MIDDLE, -1))
+            out.append((0.5 * (m[0] + marks[i + 1][0]), _MIDDLE, m[2] + marks[i + 1][2]))
             i += 2
             continue
         out.append(m)
@@ -489,9 +492,7 @@ def build_ruckig_curve(
             raise TimingInfeasibleError(
                 f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
             )
-        (_, tag0, c0), (_, tag1, c1) = marks[i - 1], marks[i]
-        blends = {c for c, tag in ((c0, tag0), (c1, tag1)) if tag in (_ENTRY, _EXIT)}
-        corners.append(tuple(sorted(blends)))
+        corners.append(tuple(sorted(set(marks[i - 1][2]) | set(marks[i][2]))))
         trajs.append(best[1])
         chosen, known = best[2], best[3]
     moves = _moves_from(trajs, corners)
