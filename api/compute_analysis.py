@@ -1,5 +1,5 @@
 """Jobs of the analysis and timing endpoints (``/v1/workspace``, ``/v1/figures``,
-``/v1/design/optimize``, ``/v1/timing``): request model in, response model (or bytes) out, run
+``/v1/design/optimize``, ``/v1/design/regions``, ``/v1/timing``): request model in, response model (or bytes) out, run
 in a worker process like the jobs of :mod:`planner_api.compute`. No FastAPI here.
 """
 
@@ -19,6 +19,8 @@ from planner.wire import (
     DesignOptimizeResponse,
     Diagnostics,
     FigureQuery,
+    RegionsRequest,
+    RegionsResponse,
     SectionGrid,
     TimingErrorInfo,
     TimingRequest,
@@ -29,13 +31,14 @@ from planner.wire import (
     located,
     margins_to_core,
     obstacles_to_core,
+    regions_model,
     sampled_value,
     timing_error,
     trajectory_model,
 )
 from planner_api.compute import UNBOUNDED, JobBudget
 
-__all__ = ["figure", "optimize_design", "section_grid", "timing", "workspace"]
+__all__ = ["figure", "optimize_design", "regions", "section_grid", "timing", "workspace"]
 
 
 def _bits(mask: np.ndarray) -> list[list[int]]:
@@ -180,6 +183,21 @@ def optimize_design(
         message=best.message,
         evaluations=best.evaluations,
     )
+
+
+def regions(request: RegionsRequest, budget: JobBudget = UNBOUNDED) -> RegionsResponse:
+    """``POST /v1/design/regions``: :func:`planner.analysis.regions.region_map` of the design
+    under its margins at the request's resolution (cached per worker process, so a second
+    request for the same map answers at once)."""
+    from planner.analysis.regions import region_map
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    margins = margins_to_core(request.margins)
+    t0 = time.perf_counter()
+    with located("body", "resolution"):
+        rmap = region_map(design, margins, request.resolution)
+    return regions_model(rmap, computation_time_s=time.perf_counter() - t0)
 
 
 # ---------------------------------------------------------------------------- timing

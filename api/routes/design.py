@@ -1,5 +1,6 @@
 """POST /v1/design/check: what a design's geometry allows (parallel singularities, operative
-working modes, workspace volume and conditioning), computed in a worker."""
+working modes, workspace volume and conditioning); /v1/design/optimize: the best link lengths;
+/v1/design/regions: the region map. Each computed in a worker."""
 
 from __future__ import annotations
 
@@ -10,12 +11,14 @@ from planner.wire import (
     DesignCheckResponse,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
+    RegionsRequest,
+    RegionsResponse,
 )
 from planner_api import compute, compute_analysis
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.routes._common import run_job
 
-__all__ = ["design_check", "design_optimize", "router"]
+__all__ = ["design_check", "design_optimize", "design_regions", "router"]
 
 router = APIRouter(prefix="/v1/design", tags=["design"])
 
@@ -44,4 +47,17 @@ async def design_optimize(
         body,
         deadline,
         design_defaults=settings.design_defaults,
+    )
+
+
+@router.post("/regions", response_model=RegionsResponse)
+async def design_regions(
+    body: RegionsRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
+    """The region map of a design: the connected regions of each working mode and assembly
+    mode in the (theta2, theta3) grid (cells surely valid or undecided under ``margins``), and
+    the transits joining regions across serial surfaces. ``resolution`` (cells per axis,
+    16 .. 512) bounds the work: time and memory grow as its square."""
+    return await run_job(
+        pool, compute_analysis.regions, body, deadline, design_defaults=settings.design_defaults
     )

@@ -3,6 +3,7 @@
 >>> with PlannerClient("http://127.0.0.1:8000") as client:          # doctest: +SKIP
 ...     postures = client.ik([0.3, 0.1, 0.2]).postures
 ...     verdict = client.check_design({"L0": 0.5, "L1": 0.2, "L2": 0.6})
+...     regions = client.regions({"L0": 0.3, "L1": 0.3, "L2": 0.4}, resolution=128)
 ...     result = client.plan(start={"q": [0, 1, 2], "assembly_mode": "+"},
 ...                          goal={"p": [0.3, 0.1, 0.2], "working_mode": "any"})
 
@@ -36,6 +37,7 @@ Exceptions (all carry a message; :class:`APIError` also the server's status and 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import email.utils
 import inspect
 import itertools
@@ -70,6 +72,8 @@ from planner.wire import (
     PlanRequest,
     PlanResponse,
     Readiness,
+    RegionsRequest,
+    RegionsResponse,
     TimingRequest,
     TimingResponse,
     VersionInfo,
@@ -268,6 +272,8 @@ class _Call(Generic[M]):
 
 
 DesignLike = DesignModel | Design | Mapping[str, Any] | None
+#: Margins as a wire model, the library's :class:`planner.validity.Margins` or a mapping.
+MarginsLike = BaseModel | Mapping[str, Any] | Any | None
 
 
 def _validated(model: type[M], data: Any) -> M:
@@ -287,6 +293,15 @@ def _design(design: DesignLike) -> DesignModel | dict[str, Any]:
     if isinstance(design, Design):
         return DesignModel.from_design(design)
     return design if isinstance(design, DesignModel) else dict(design)
+
+
+def _margins(margins: MarginsLike) -> dict[str, Any]:
+    """Margins as the wire's mapping: a wire model, the library's dataclass or a mapping."""
+    if isinstance(margins, BaseModel):
+        return margins.model_dump(exclude_none=True)
+    if dataclasses.is_dataclass(margins) and not isinstance(margins, type):
+        return dataclasses.asdict(margins)
+    return dict(margins or {})
 
 
 def _floats(values: Any) -> Any:
@@ -445,6 +460,25 @@ class _BaseClient:
                 data[name] = value
         body = _validated(DesignCheckRequest, data)
         return _Call("POST", "/v1/design/check", body, DesignCheckResponse)
+
+    def _regions(
+        self,
+        design: DesignLike = None,
+        *,
+        margins: MarginsLike = None,
+        resolution: int | None = None,
+    ) -> _Call[RegionsResponse]:
+        """Region map of a design: the connected regions of each working and assembly mode in
+        the (theta2, theta3) grid and the transits joining them across serial surfaces.
+        ``margins``: ``kappa_max``, ``serial_min`` (absent: the server's defaults);
+        ``resolution``: cells per axis, 16 .. 512 (absent: 256)."""
+        data: dict[str, Any] = {"design": _design(design)}
+        if margins is not None:
+            data["margins"] = _margins(margins)
+        if resolution is not None:
+            data["resolution"] = resolution
+        body = _validated(RegionsRequest, data)
+        return _Call("POST", "/v1/design/regions", body, RegionsResponse)
 
     def _plan(
         self, request: PlanRequest | Mapping[str, Any] | None = None, **fields: Any
@@ -672,6 +706,7 @@ class PlannerClient(_BaseClient):
     figure = _sync(_BaseClient._figure)
     timing = _sync(_BaseClient._timing)
     optimize_design = _sync(_BaseClient._optimize_design)
+    regions = _sync(_BaseClient._regions)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -725,3 +760,4 @@ class AsyncPlannerClient(_BaseClient):
     figure = _async(_BaseClient._figure)
     timing = _async(_BaseClient._timing)
     optimize_design = _async(_BaseClient._optimize_design)
+    regions = _async(_BaseClient._regions)

@@ -64,7 +64,9 @@ __all__ = [
     "figure_11",
     "figure_12",
     "figure_13",
+    "figure_13_regions",
     "figure_14",
+    "figure_14_regions",
     "figure_15",
     "figure_region_images",
     "figure_region_map",
@@ -756,6 +758,11 @@ NAMED_FIGURES: dict[str, Callable[[Design, int], Figure]] = {
     "workspace_convex_mode": lambda d, n: figure_13(d, n),
     "workspace_nonconvex_mode": lambda d, n: figure_14(d, n),
     "isoconditioning": lambda d, n: figure_15(d, n),
+    # from the region map (functions below): the map, its regions' images, figures 13-14
+    "region_map": lambda d, n: figure_region_map(d, n),
+    "region_images": lambda d, n: figure_region_images(d, n),
+    "regions_convex_mode": lambda d, n: figure_13_regions(d, n),
+    "regions_nonconvex_mode": lambda d, n: figure_14_regions(d, n),
 }
 
 #: Formats :func:`render_figure` writes.
@@ -825,9 +832,11 @@ def _render(name: str, design: Design, n: int, fmt: str, dpi: int) -> bytes:
 
 # ---------------------------------------------------------------------------- region maps
 def _region_colours(count: int) -> np.ndarray:
-    """(count, 4) RGBA: one distinguishable colour per region id (tab20, cycled)."""
+    """(count, 4) RGBA: one distinguishable colour per region id (tab20 without its two
+    greys, which the figures keep for what is not a region, cycled)."""
     cmap = colormaps["tab20"]
-    return np.array([cmap(k % 20) for k in range(max(count, 1))])
+    palette = [cmap(k) for k in range(20) if k not in (14, 15)]
+    return np.array([palette[k % len(palette)] for k in range(max(count, 1))])
 
 
 def figure_region_map(design: Design, n: int = PRINT_RESOLUTION, *, margins=None) -> Figure:
@@ -917,3 +926,72 @@ def figure_region_images(design: Design, n: int = PRINT_RESOLUTION, *, margins=N
         fontsize=9,
     )
     return fig
+
+
+def _coverage_image(cov, ids: list[int], colours: np.ndarray, background: list[int]) -> np.ndarray:
+    """RGBA raster (rows w, columns u) of a coverage: light grey where some region of
+    ``background`` reaches, each region of ``ids`` in its colour on top, white elsewhere."""
+    img = np.ones((len(cov.w), len(cov.u), 4))
+    for i in background:
+        img[cov.reached[i]] = (0.85, 0.85, 0.85, 1.0)
+    for i in ids:
+        img[cov.reached[i]] = colours[i]
+    return img
+
+
+def _figure_mode_regions(
+    title: str, design: Design, modes: tuple[str, str], n: int, margins=None
+) -> Figure:
+    """The Cartesian section (linkage plane) reached by the certified regions of a pair of
+    working modes (the mode and its mirror about AB), one panel per assembly mode, over the
+    grey area that all certified regions of that assembly mode reach (the workspace a change
+    of working mode opens); the title of each panel gives both areas and their ratio."""
+    from planner.analysis.regions import cartesian_coverage, region_map
+
+    rmap = region_map(design, margins, n)
+    cov = cartesian_coverage(rmap, min(max(2 * n, 256), 512))
+    colours = _region_colours(len(rmap.regions))
+    fig = Figure(figsize=(12, 5.8))
+    extent = [cov.u[0], cov.u[-1], cov.w[0], cov.w[-1]]
+    for ai, asm in enumerate(("+", "-")):
+        ax = fig.add_subplot(1, 2, ai + 1)
+        mine = [r for r in rmap.regions if r.assembly_mode == asm and r.valid_cells]
+        ids = [r.id for r in mine if r.working_mode in modes]
+        img = _coverage_image(cov, ids, colours, [r.id for r in mine])
+        ax.imshow(img, origin="lower", extent=extent, interpolation="nearest")
+        pair, every = cov.area(ids), cov.area(r.id for r in mine)
+        handles = [Patch(color=colours[i], label=f"{rmap.regions[i].working_mode} region {i}")
+                   for i in ids]  # fmt: skip
+        handles.append(Patch(color=(0.85, 0.85, 0.85), label="other working modes only"))
+        for x in (-design.L0 / 2, design.L0 / 2):
+            ax.plot([x], [0.0], "ko", ms=3)
+        ratio = f"{every / pair:.2f}" if pair > 0 else "-"
+        ax.set_title(
+            f"assembly mode {asm}: {' / '.join(modes)} {pair:.3f} m^2, all modes {every:.3f} m^2 "
+            f"(ratio {ratio})",
+            fontsize=9,
+        )
+        _legend_below(ax, ncol=3, handles=handles)
+        _cartesian_axes(ax)
+    fig.suptitle(
+        f"{title}: certified regions (kappa(A) <= {rmap.margins.kappa_max:g}, serial measures "
+        f">= {rmap.margins.serial_min:g}) in the linkage plane; {_design_text(design)}",
+        fontsize=9,
+    )
+    return fig
+
+
+def figure_13_regions(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) -> Figure:
+    """The paper's figure 13 from the region map: where the convex working modes ('+-+' and
+    its mirror '-+-') reach free of parallel singularities (and of the other margins)."""
+    return _figure_mode_regions(
+        "Fig. 13 from the region map: convex working mode", design, CONVEX, n
+    )
+
+
+def figure_14_regions(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) -> Figure:
+    """The paper's figure 14 from the region map: the non-convex working modes ('++-' and
+    '--+')."""
+    return _figure_mode_regions(
+        "Fig. 14 from the region map: non-convex working mode", design, NONCONVEX, n
+    )

@@ -25,6 +25,7 @@ __all__ = [
     "ik",
     "optimize_design_command",
     "plan",
+    "regions",
     "serve",
     "version",
     "warm_up_command",
@@ -117,12 +118,18 @@ def _design_option(preset: str, l0: float | None, l1: float | None, l2: float | 
 
 def _run_job(job, model, data: dict) -> None:  # type: ignore[no-untyped-def]
     """Validate ``data`` as ``model``, run ``job`` locally and echo its JSON answer."""
+    typer.echo(_job_answer(job, model, data).model_dump_json(indent=2))
+
+
+def _job_answer(job, model, data: dict):  # type: ignore[no-untyped-def]
+    """Validate ``data`` as ``model`` and run ``job`` locally; a bad field or a library
+    error is printed (naming the field) and exits with status 2."""
     from pydantic import ValidationError
 
     from planner.exceptions import PlannerError
 
     try:
-        answer = job(model.model_validate(data))
+        return job(model.model_validate(data))
     except ValidationError as exc:
         for e in exc.errors():
             typer.echo(f"error: {'.'.join(map(str, e['loc']))}: {e['msg']}", err=True)
@@ -130,7 +137,6 @@ def _run_job(job, model, data: dict) -> None:  # type: ignore[no-untyped-def]
     except PlannerError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from None
-    typer.echo(answer.model_dump_json(indent=2))
 
 
 _Design = Annotated[
@@ -215,19 +221,64 @@ def figures(
     ] = 256,
     formats: Annotated[str, typer.Option(help="Comma-separated formats.")] = "png,svg",
     dpi: Annotated[int, typer.Option(help="Resolution of PNG files.", min=20, max=600)] = 80,
+    named: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated figure names of GET /v1/figures (e.g. region_map) to write "
+            "for --design instead of the paper's figures."
+        ),
+    ] = "",
+    design: _Design = "default",
+    l0: _L0 = None,
+    l1: _L1 = None,
+    l2: _L2 = None,
 ) -> None:
     """Write the paper's figures 4-15 as image files.
 
-    One file per figure and format; prints the path of each file written."""
+    One file per figure and format; prints the path of each file written. With --named, the named figures of a design instead (NAME.FORMAT), e.g. planner figures out --named region_map,regions_convex_mode --design paper-optimum"""
     from planner.plotting import FIGURES, write_figures
 
     fmts = tuple(f.strip() for f in formats.split(",") if f.strip())
+    if named:
+        _write_named_figures(outdir, named, _design_option(design, l0, l1, l2), n, fmts, dpi)
+        return
     with Progress("figures", len(FIGURES)) as progress:
         for index, (number, (stem, _)) in enumerate(FIGURES.items()):
             progress.step(f"figure {number}: {stem}", index)
             for path in write_figures(outdir, n=n, formats=fmts, dpi=dpi, only=(number,)):
                 progress.echo(str(path))
         progress.step("done", len(FIGURES))
+
+
+def _write_named_figures(
+    outdir: Path, named: str, design: dict, n: int, fmts: tuple[str, ...], dpi: int
+) -> None:
+    """``planner figures --named``: each named figure of ``design`` in each format."""
+    from planner.exceptions import PlannerError
+    from planner.plotting import NAMED_FIGURES, render_figure
+    from planner.wire import DesignModel
+
+    names = [name.strip() for name in named.split(",") if name.strip()]
+    unknown = [name for name in names if name not in NAMED_FIGURES]
+    if unknown:
+        typer.echo(f"error: --named: no figure {unknown[0]!r}; one of {sorted(NAMED_FIGURES)}",
+                   err=True)  # fmt: skip
+        raise typer.Exit(2)
+    outdir.mkdir(parents=True, exist_ok=True)
+    with Progress("figures", len(names)) as progress:
+        for index, name in enumerate(names):
+            progress.step(f"figure {name}", index)
+            for fmt in fmts:
+                try:
+                    image = render_figure(name, DesignModel(**design).to_design(), n=n,
+                                          fmt=fmt, dpi=dpi)  # fmt: skip
+                except PlannerError as exc:
+                    typer.echo(f"error: {exc}", err=True)
+                    raise typer.Exit(2) from None
+                path = outdir / f"{name}.{fmt}"
+                path.write_bytes(image)
+                progress.echo(str(path))
+        progress.step("done", len(names))
 
 
 @command("check-design")
@@ -318,6 +369,64 @@ def optimize_design_command(
 # ---------------------------------------------------------------------------- plan
 #: Exit statuses of ``planner plan``.
 EXIT_SOLVED, EXIT_NOT_SOLVED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _regions_table(answer) -> list[str]:  # type: ignore[no-untyped-def]
+    """The lines of ``planner regions``: the design, then a table of the regions and one of
+    the transits."""
+    d, m = answer.design, answer.margins
+    lines = [
+        f"design: L0 = {d.L0:g} m, L1 = {d.L1:g} m, L2 = {d.L2:g} m; kappa_max {m.kappa_max:g}, "
+        f"serial_min {m.serial_min:g}; {answer.resolution} x {answer.resolution} cells",
+        f"regions: {len(answer.regions)} in {answer.components} union-graph components",
+        f"{'id':>4}  {'asm':>3}  {'mode':>4}  {'cells':>7}  {'valid':>7}  {'component':>9}",
+    ]
+    lines += [
+        f"{r.id:>4}  {r.assembly_mode:>3}  {r.working_mode:>4}  {r.cells:>7}  {r.valid_cells:>7}  "
+        f"{r.component:>9}"
+        for r in answer.regions
+    ]
+    lines.append(f"transits: {len(answer.transits)}")
+    lines.append(f"{'from':>4}  {'to':>4}  {'kind':<16}  {'flipped':<7}  {'cells':>6}")
+    lines += [
+        f"{t.from_:>4}  {t.to:>4}  {t.kind:<16}  {t.flipped:<7}  {t.cells:>6}"
+        for t in answer.transits
+    ]
+    return lines
+
+
+@command()
+def regions(
+    design: _Design = "default",
+    l0: _L0 = None,
+    l1: _L1 = None,
+    l2: _L2 = None,
+    kappa_max: Annotated[float | None, typer.Option(help="Bound on kappa(A), > 1.")] = None,
+    serial_min: Annotated[
+        float | None, typer.Option(help="Bound on each serial measure, in (0, 1).")
+    ] = None,
+    resolution: Annotated[int, typer.Option(help="Cells per axis, 16 .. 512.")] = 256,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the JSON of POST /v1/design/regions.")
+    ] = False,
+) -> None:
+    """The region map of a design, computed locally.
+
+    Prints its connected regions (working mode, assembly mode, cells) and the transits between them across serial surfaces, or with --json the answer of POST /v1/design/regions. Example: planner regions --design paper-optimum --resolution 128"""
+    from planner.wire import RegionsRequest
+    from planner_api.compute_analysis import regions as job
+
+    margins = {k: v for k, v in {"kappa_max": kappa_max, "serial_min": serial_min}.items() if v}
+    data = {
+        "design": _design_option(design, l0, l1, l2),
+        "margins": margins,
+        "resolution": resolution,
+    }
+    answer = _job_answer(job, RegionsRequest, data)
+    if as_json:
+        typer.echo(answer.model_dump_json(indent=2))
+    else:
+        typer.echo("\n".join(_regions_table(answer)))
 
 
 def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]

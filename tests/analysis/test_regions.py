@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner.analysis import _region_kernels as K
 from planner.analysis import regions as R
 from planner.design import Design
+from planner.exceptions import InputError
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning import JointPosture, PlanOptions, plan
 from planner.transits import FLIPPED_SIGN
@@ -57,6 +59,91 @@ def test_labels_agree_with_the_validity_checker(name):
                 assert valid.all() if code == R.VALID else not valid.any(), (asm, mode, code)
                 checked[code] += len(q)
     assert checked[0] > 1000 and checked[2] > 1000
+
+
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_every_cell_agrees_with_dense_sampling(name):
+    """Every cell of a 128 x 128 map, at its four corners, its centre and four random points
+    (the cells are closed: corners belong to four of them), checked in every working mode
+    by the ValidityChecker: no sample of a surely valid cell is invalid, none of a surely
+    invalid cell is valid; undecided cells hold valid and invalid samples often enough that
+    the map is not trivially undecided."""
+    design = DESIGNS[name]
+    rmap = R.region_map(design, n=128)
+    rng = np.random.default_rng(17)
+    k3, k2 = np.meshgrid(np.arange(rmap.n), np.arange(rmap.n), indexing="ij")
+    k3, k2 = k3.ravel(), k2.ravel()
+    u = np.concatenate(
+        [[[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.0, 0.0]],
+         rng.uniform(-0.5, 0.5, (4, 2))]
+    )  # fmt: skip
+    t2 = rmap.theta2[k2][:, None] + u[None, :, 0] * rmap.h2
+    t3 = rmap.theta3[k3][:, None] + u[None, :, 1] * rmap.h3
+    t1 = rng.uniform(design.joint_min[0], design.joint_max[0], t2.shape)
+    q = np.stack([t1, t2, t3], axis=-1).reshape(-1, 3)
+    decided = 0
+    for ai, asm in enumerate("+-"):
+        for mi, mode in enumerate(WORKING_MODES):
+            valid = ValidityChecker(design, Margins(), (), asm, mode).is_valid(q)
+            valid = valid.reshape(len(k3), len(u))
+            st = rmap.status[ai, mi][k3, k2]
+            assert valid[st == R.VALID].all(), (asm, mode)
+            assert not valid[st == R.INVALID].any(), (asm, mode)
+            decided += int((st != R.UNDECIDED).sum())
+    assert decided > 0.97 * 16 * len(k3)
+
+
+@pytest.mark.parametrize("name", ["singularity-free", "paper-optimum", "mode-change", "general"])
+def test_mirror_image_equals_the_direct_classification(name):
+    """On a box symmetric about 0 the map builds one assembly mode and mirrors it (reflection
+    about AB); the other assembly mode classified directly gives the same verdicts, masks,
+    kinds and centre modes, and the same bounds to rounding."""
+    design = DESIGNS[name]
+    both = R._classify(design, Margins(), 96, R.DEFAULT_REFINE, mirror=False)
+    mirrored = R._classify(design, Margins(), 96, R.DEFAULT_REFINE)
+    assert np.array_equal(both.status, mirrored.status)
+    assert np.array_equal(both.bits, mirrored.bits)
+    assert np.array_equal(both.centre_mode, mirrored.centre_mode)
+    inside = np.isfinite(both.m_lo)
+    assert np.array_equal(inside, np.isfinite(mirrored.m_lo))
+    for a, b in ((both.m_lo, mirrored.m_lo), (both.m_hi, mirrored.m_hi)):
+        assert np.allclose(a[inside], b[inside], rtol=0, atol=1e-12)
+    zero = ((both.bits >> K.BITS_ZERO) & 7).astype(bool)
+    for k in range(3):
+        where = (both.bits >> (K.BITS_ZERO + k)) & 1 == 1
+        assert np.array_equal(both.kind[:, k][where], mirrored.kind[:, k][where])
+    assert zero.any()
+
+
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_labels_are_those_of_scipy_ndimage(name):
+    """The one-pass labelling of every layer gives the labels of ``scipy.ndimage.label``
+    with 8-connectivity, layer by layer, numbered alike, and the cell counts of bincount."""
+    from scipy import ndimage
+
+    rmap = R.region_map(DESIGNS[name], n=96)
+    eight = np.ones((3, 3), dtype=bool)
+    for ai in range(2):
+        for mi in range(8):
+            st = rmap.status[ai, mi]
+            for src, mask in ((rmap.labels, st != R.INVALID), (rmap.certified, st == R.VALID)):
+                expected, count = ndimage.label(mask, structure=eight)
+                assert np.array_equal(src[ai, mi], expected), (ai, mi)
+                assert int(src[ai, mi].max()) == count
+            for region in rmap.regions_of("+-"[ai], WORKING_MODES[mi]):
+                cells = rmap.labels[ai, mi] == region.label
+                assert region.cells == int(cells.sum())
+                assert region.valid_cells == int((cells & (st == R.VALID)).sum())
+
+
+def test_refinement_only_sharpens_the_verdicts():
+    """Refined maps keep every verdict of the unrefined one and decide more cells."""
+    design = DESIGNS["general"]
+    coarse = R.region_map(design, n=64, refine=1)
+    fine = R.region_map(design, n=64)
+    decided = coarse.status != R.UNDECIDED
+    assert np.array_equal(coarse.status[decided], fine.status[decided])
+    assert (fine.status != R.UNDECIDED).sum() > decided.sum()
 
 
 def test_measure_bounds_hold_by_forward_kinematics():
@@ -143,6 +230,20 @@ def test_cache_returns_the_same_read_only_map():
     assert R.region_map(Design.default(), Margins(kappa_max=5.0), 32) is not a
 
 
+def test_cache_keeps_at_most_its_bytes(monkeypatch):
+    """The LRU cache drops the least recently used map beyond its byte budget and does not
+    keep a map larger than the budget."""
+    R.clear_cache()
+    a = R.region_map(Design.default(), n=64)
+    monkeypatch.setattr(R, "_CACHE_BYTES", int(1.5 * R._nbytes(a)))
+    b = R.region_map(Design.paper_optimum(), n=64)
+    assert R.region_map(Design.paper_optimum(), n=64) is b
+    assert R.region_map(Design.default(), n=64) is not a  # dropped for b
+    big = R.region_map(Design.default(), n=128)
+    assert R.region_map(Design.default(), n=128) is not big  # never kept
+    R.clear_cache()
+
+
 def test_coverage_areas_match_the_jacobian_integral():
     """Area of each certified region's image two ways: the Cartesian raster of
     :func:`cartesian_coverage` (inverse kinematics) and the sum over its cells of
@@ -169,6 +270,40 @@ def test_coverage_areas_match_the_jacobian_integral():
         j3 = (uw(q + dq3) - uw(q - dq3)) / (2 * h)
         jac = np.abs(j2[:, 0] * j3[:, 1] - j2[:, 1] * j3[:, 0]).sum() * rmap.h2 * rmap.h3
         assert cov.area([region.id]) == pytest.approx(jac, rel=0.04)
+
+
+@pytest.mark.parametrize("name", ["singularity-free", "paper-optimum", "mode-change", "general"])
+def test_coverage_volume_with_loose_margins_is_the_closed_form(name):
+    """With margins that exclude almost nothing, the volume swept by all certified regions
+    of one assembly mode (Coverage.volume, Pappus over the folded raster) is the closed-form
+    workspace volume (lens volumes of the two hollow balls, erratum 5) within 1 %."""
+    from planner.analysis.workspace import closed_form_volume
+
+    design = DESIGNS[name]
+    rmap = R.region_map(design, Margins(kappa_max=1e4, serial_min=1e-3), 256)
+    cov = R.cartesian_coverage(rmap, 400)
+    for asm in "+-":
+        ids = [r.id for r in rmap.regions if r.assembly_mode == asm]
+        assert cov.volume(ids) == pytest.approx(closed_form_volume(design), rel=0.01)
+    limited = R.cartesian_coverage(R.region_map(DESIGNS["limits"], n=32), 32)
+    with pytest.raises(InputError):
+        limited.volume([0])
+
+
+def test_twice_as_large_holds_in_the_section_of_the_paper_optimum_only():
+    """The paper's claim (section 3.3) on its optimum: in the linkage plane the certified
+    regions of a union-graph component cover twice what its convex (or non-convex) pair
+    covers, but the 3-D volume swept as theta1 turns is the same (the second half of the
+    section is the first's mirror about AB, i.e. the same points half a turn later)."""
+    rmap = R.region_map(Design.paper_optimum(), n=256)
+    cov = R.cartesian_coverage(rmap, 300)
+    mine = [r for r in rmap.regions if r.assembly_mode == "+" and r.valid_cells]
+    for comp in {r.component for r in mine}:
+        ids = [r.id for r in mine if r.component == comp]
+        for pair in (("+-+", "-+-"), ("++-", "--+")):
+            sub = [r.id for r in mine if r.component == comp and r.working_mode in pair]
+            assert cov.area(ids) / cov.area(sub) == pytest.approx(2.0, rel=0.02)
+            assert cov.volume(ids) / cov.volume(sub) == pytest.approx(1.0, rel=0.01)
 
 
 # ----------------------------------------------------------------------------- proofs

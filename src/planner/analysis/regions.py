@@ -75,13 +75,13 @@ through B) form the components of the *union graph*.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from numba import njit
-from scipy import ndimage
 
+from planner.analysis import _region_kernels as K
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
@@ -114,13 +114,14 @@ MAX_RESOLUTION = 2048
 #: Cell status codes of :attr:`RegionMap.status`.
 INVALID, UNDECIDED, VALID = 0, 1, 2
 
-_MODE_SIGNS = np.array([[1 if c == "+" else -1 for c in m] for m in WORKING_MODES], dtype=np.int8)
 _MODE_INDEX = {m: k for k, m in enumerate(WORKING_MODES)}
 _FLIP_NAMES = ("axis", "A", "B")
-_EIGHT = np.ones((3, 3), dtype=bool)
 _REL_SLACK = 1e-9
 _ABS_SLACK = 1e-12
 _CACHE_SIZE = 16
+#: Most bytes of maps the per-process cache holds (a map of n x n cells holds about
+#: 250 n^2 bytes: 16 MB at 256, 62 MB at 512); a map larger than this is not kept.
+_CACHE_BYTES = 256 * 2**20
 
 
 @dataclass(frozen=True, slots=True)
@@ -237,218 +238,6 @@ class RegionMap:
         return locate(self, q)
 
 
-# ----------------------------------------------------------------------------- bounds
-@njit(cache=True, nogil=True, inline="always")
-def _cell_bounds(
-    L0, L1, L2, b_lo, b_hi, s, c2, s2, c3, s3, a2, a3, m_lo, m_hi, cen
-):  # pragma: no cover
-    """Bounds over one closed cell (centre trig values, half-widths a2, a3 rad), written
-    into m_lo, m_hi (the serial measures over the cell's postures in the kappa band) and cen
-    (their values at the centre, |CD| clipped into the band). Returns (sure, miss, d): the
-    whole cell is in the band, none of it is, and |CD| at the centre."""
-    c32 = c3 * c2 + s3 * s2
-    s32 = s3 * c2 - c3 * s2
-    e_u = L0 + L1 * (c3 - c2)
-    e_w = L1 * (s3 - s2)
-    d = math.sqrt(e_u * e_u + e_w * e_w)
-    r = L1 * (a2 + a3)
-    d_lo, d_hi = d - r, d + r
-    sure = d_lo >= b_lo and d_hi <= b_hi
-    miss = d_hi < b_lo or d_lo > b_hi
-    if miss:
-        return sure, miss, d
-    dv_lo = min(max(d_lo, b_lo), b_hi)
-    dv_hi = min(max(d_hi, b_lo), b_hi)
-    g_lo = math.sqrt(max(L2 * L2 / (dv_hi * dv_hi) - 0.25, 0.0))
-    g_hi = math.sqrt(max(L2 * L2 / (dv_lo * dv_lo) - 0.25, 0.0))
-    dc = min(max(d, b_lo), b_hi)
-    g_c = math.sqrt(max(L2 * L2 / (dc * dc) - 0.25, 0.0))
-    x_a = L1 * s32 - L0 * s2
-    y_a = L0 * c2 + L1 * c32 - L1
-    x_b = L1 * s32 - L0 * s3
-    y_b = L0 * c3 + L1 - L1 * c32
-    for k in range(3):
-        if k == 0:
-            u, r_u, v, r_v, norm = 0.5 * L1 * (s2 + s3), 0.5 * r, e_u, r, L1 + L2
-        elif k == 1:
-            u, r_u, v, r_v, norm = 0.5 * x_a, 0.5 * (r + L0 * a2), y_a, r + L0 * a2, L2
-        else:
-            u, r_u, v, r_v, norm = -0.5 * x_b, 0.5 * (r + L0 * a3), y_b, r + L0 * a3, L2
-        v_lo, v_hi = v - r_v, v + r_v
-        p_lo = v_lo * g_hi if v_lo < 0.0 else v_lo * g_lo
-        p_hi = v_hi * g_hi if v_hi > 0.0 else v_hi * g_lo
-        if s < 0:
-            p_lo, p_hi = -p_hi, -p_lo
-        m_lo[k] = (u - r_u + p_lo) / norm
-        m_hi[k] = (u + r_u + p_hi) / norm
-        cen[k] = (u + s * g_c * v) / norm
-    if sure:
-        # centred form along straight paths inside the cell, all of it in the band
-        rl, rh = d_lo / (2.0 * L2), min(d_hi / (2.0 * L2), 1.0)
-        s_apex = min(
-            2.0 * rl * math.sqrt(max(1.0 - rl * rl, 0.0)),
-            2.0 * rh * math.sqrt(max(1.0 - rh * rh, 0.0)),
-        )
-        if s_apex > 0.0:
-            r45 = r / (L2 * s_apex)
-            m_lo[0] = max(m_lo[0], cen[0] - (L1 * min(a2, a3) + L2 * r45) / (L1 + L2))
-            m_hi[0] = min(m_hi[0], cen[0] + (L1 * min(a2, a3) + L2 * r45) / (L1 + L2))
-            m_lo[1] = max(m_lo[1], cen[1] - (r45 + a2))
-            m_hi[1] = min(m_hi[1], cen[1] + (r45 + a2))
-            m_lo[2] = max(m_lo[2], cen[2] - (r45 + a3))
-            m_hi[2] = min(m_hi[2], cen[2] + (r45 + a3))
-    for k in range(3):
-        m_lo[k] -= 1e-12
-        m_hi[k] += 1e-12
-    # kinds at the centre: cos(theta4 - theta2), cos(theta5 - theta3) signs in cen[3], cen[4]
-    cen[3] = 0.5 * y_a - s * g_c * x_a
-    cen[4] = -0.5 * y_b - s * g_c * x_b
-    return sure, miss, d
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _decide(sure, miss, m_lo, m_hi, smin, mode_signs, st, bp):  # pragma: no cover
-    """Per-mode status (st, 8) and transit-set passability (bp, 12) of one cell from its
-    bounds."""
-    if miss:
-        for mi in range(8):
-            st[mi] = 0
-        for b in range(12):
-            bp[b] = False
-        return
-    for mi in range(8):
-        valid = sure
-        invalid = False
-        for k in range(3):
-            if mode_signs[mi, k] > 0:
-                lo_k, hi_k = m_lo[k], m_hi[k]
-            else:
-                lo_k, hi_k = -m_hi[k], -m_lo[k]
-            if lo_k < smin:
-                valid = False
-            if hi_k < smin:
-                invalid = True
-        st[mi] = 0 if invalid else (2 if valid else 1)
-    for j in range(3):
-        o1 = 1 if j == 0 else 0
-        o2 = 1 if j == 2 else 2
-        for c in range(4):
-            h1 = -m_lo[o1] if c >= 2 else m_hi[o1]
-            h2 = -m_lo[o2] if c % 2 == 1 else m_hi[o2]
-            bp[4 * j + c] = h1 >= smin and h2 >= smin
-
-
-@njit(cache=True, nogil=True)
-def _classify_kernel(
-    L0,
-    L1,
-    L2,
-    b_lo,
-    b_hi,
-    smin,
-    s,
-    theta2,
-    theta3,
-    a2,
-    a3,
-    split,
-    mode_signs,
-    status,
-    bpass,
-    zero,
-    kind,
-    centre_mode,
-    m_lo_out,
-    m_hi_out,
-):  # pragma: no cover - compiled
-    """Classify every closed cell of one assembly mode (sign ``s``) by the bounds of the
-    module docstring. A cell left undecided in some mode is split into ``split x split``
-    closed sub-cells (their union is the cell): it is surely valid (invalid) in a mode when
-    every sub-cell is, passable for a transit set when some sub-cell is, and the bounds are
-    the hull of the sub-cells'. Writes status (8, n, n), bpass (12, n, n) (flip j, combo
-    c = 2 [first other sign '-'] + [second other sign '-']), zero (3, n, n): the measure may
-    vanish, kind (3, n, n) (index in TRANSIT_KINDS at the centre), centre_mode (n, n) and
-    the bounds (3, n, n) (NaN where no posture is in the band)."""
-    n3, n2 = theta3.shape[0], theta2.shape[0]
-    m_lo = np.empty(3)
-    m_hi = np.empty(3)
-    cen = np.empty(5)
-    sub_lo = np.empty(3)
-    sub_hi = np.empty(3)
-    sub_cen = np.empty(5)
-    st = np.empty(8, dtype=np.int8)
-    bp = np.empty(12, dtype=np.bool_)
-    sst = np.empty(8, dtype=np.int8)
-    sbp = np.empty(12, dtype=np.bool_)
-    c2s, s2s = np.cos(theta2), np.sin(theta2)
-    for i3 in range(n3):
-        t3 = theta3[i3]
-        c3, s3 = math.cos(t3), math.sin(t3)
-        for i2 in range(n2):
-            c2, s2 = c2s[i2], s2s[i2]
-            sure, miss, d = _cell_bounds(
-                L0, L1, L2, b_lo, b_hi, s, c2, s2, c3, s3, a2, a3, m_lo, m_hi, cen
-            )
-            _decide(sure, miss, m_lo, m_hi, smin, mode_signs, st, bp)
-            undecided = False
-            for mi in range(8):
-                if st[mi] == 1:
-                    undecided = True
-            if undecided and split > 1:
-                # refine: hull of the sub-cells' bounds, all / any of their verdicts
-                any_in = False
-                for mi in range(8):
-                    st[mi] = 3  # 3: no sub-cell seen yet
-                for b in range(12):
-                    bp[b] = False
-                for k in range(3):
-                    m_lo[k], m_hi[k] = np.inf, -np.inf
-                b2, b3 = a2 / split, a3 / split
-                for p3 in range(split):
-                    u3 = theta3[i3] - a3 + (2 * p3 + 1) * b3
-                    cc3, ss3 = math.cos(u3), math.sin(u3)
-                    for p2 in range(split):
-                        u2 = theta2[i2] - a2 + (2 * p2 + 1) * b2
-                        cc2, ss2 = math.cos(u2), math.sin(u2)
-                        ssure, smiss, _ = _cell_bounds(
-                            L0, L1, L2, b_lo, b_hi, s, cc2, ss2, cc3, ss3,
-                            b2 * (1.0 + 1e-9), b3 * (1.0 + 1e-9), sub_lo, sub_hi, sub_cen,
-                        )  # fmt: skip
-                        _decide(ssure, smiss, sub_lo, sub_hi, smin, mode_signs, sst, sbp)
-                        for mi in range(8):
-                            if st[mi] == 3:
-                                st[mi] = sst[mi]
-                            elif st[mi] != sst[mi]:
-                                st[mi] = 1
-                        for b in range(12):
-                            bp[b] = bp[b] or sbp[b]
-                        if not smiss:
-                            any_in = True
-                            for k in range(3):
-                                m_lo[k] = min(m_lo[k], sub_lo[k])
-                                m_hi[k] = max(m_hi[k], sub_hi[k])
-                miss = not any_in
-            for mi in range(8):
-                status[mi, i3, i2] = st[mi]
-            for b in range(12):
-                bpass[b, i3, i2] = bp[b]
-            centre_mode[i3, i2] = -1
-            kind[0, i3, i2] = 0
-            kind[1, i3, i2] = 1 if cen[3] >= 0.0 else 2
-            kind[2, i3, i2] = 3 if cen[4] >= 0.0 else 4
-            for k in range(3):
-                if miss:
-                    zero[k, i3, i2] = False
-                    m_lo_out[k, i3, i2] = np.nan
-                    m_hi_out[k, i3, i2] = np.nan
-                else:
-                    zero[k, i3, i2] = m_lo[k] <= 0.0 and m_hi[k] >= 0.0
-                    m_lo_out[k, i3, i2] = m_lo[k]
-                    m_hi_out[k, i3, i2] = m_hi[k]
-            if not miss and b_lo <= d <= b_hi and cen[0] != 0.0 and cen[1] != 0.0 and cen[2] != 0.0:
-                centre_mode[i3, i2] = 4 * (cen[0] < 0.0) + 2 * (cen[1] < 0.0) + (cen[2] < 0.0)
-
-
 def _grid(design: Design, n: int):
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     h2 = (hi[1] - lo[1]) / n
@@ -483,55 +272,169 @@ def region_map(
     Returns
     -------
     RegionMap
-        Read-only; the same object for the same (design, kappa_max, serial_min, n) while it
-        stays in the per-process LRU cache (16 entries).
+        Read-only; the same object for the same (design with its joint limits, kappa_max,
+        serial_min, n, refine) while it stays in the per-process LRU cache (at most 16 maps
+        and 256 MB: the least recently used go first).
     """
     margins = Margins() if margins is None else margins
     if not isinstance(n, int | np.integer) or isinstance(n, bool) or not 8 <= n <= MAX_RESOLUTION:
         raise InputError(f"n must be an integer in [8, {MAX_RESOLUTION}], got {n!r}")
     if not isinstance(refine, int) or isinstance(refine, bool) or not 1 <= refine <= 16:
         raise InputError(f"refine must be an integer in [1, 16], got {refine!r}")
-    key = Margins(margins.kappa_max, margins.serial_min, 0.0)
-    return _region_map(design, key, int(n), refine)
+    key = (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
+    with _CACHE_LOCK:
+        hit = _CACHE.get(key)
+        if hit is not None:
+            _CACHE.move_to_end(key)
+            return hit
+    rmap = _region_map(*key)
+    _remember(key, rmap)
+    return rmap
+
+
+#: The per-process LRU cache of :func:`region_map`: key -> map, oldest first.
+_CACHE: OrderedDict[tuple, RegionMap] = OrderedDict()
+_CACHE_LOCK = threading.Lock()
+
+
+def _nbytes(rmap: RegionMap) -> int:
+    """Bytes of a map's arrays."""
+    return sum(v.nbytes for v in (getattr(rmap, f) for f in rmap.__slots__)
+               if isinstance(v, np.ndarray))  # fmt: skip
+
+
+def _remember(key: tuple, rmap: RegionMap) -> None:
+    """Keep ``rmap`` in the cache, dropping the least recently used maps beyond its bounds."""
+    size = _nbytes(rmap)
+    if size > _CACHE_BYTES:
+        return
+    with _CACHE_LOCK:
+        _CACHE[key] = rmap
+        _CACHE.move_to_end(key)
+        total = sum(_nbytes(m) for m in _CACHE.values())
+        while len(_CACHE) > _CACHE_SIZE or total > _CACHE_BYTES:
+            _, old = _CACHE.popitem(last=False)
+            total -= _nbytes(old)
 
 
 def clear_cache() -> None:
     """Forget every cached region map of this process."""
-    _region_map.cache_clear()
+    with _CACHE_LOCK:
+        _CACHE.clear()
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
-def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
+def _sub_trig(centres: np.ndarray, a: float, split: int) -> np.ndarray:
+    """(n, split, 2): cosine and sine of the sub-cell centres of each cell (half-width a)."""
+    b = a / split
+    u = centres[:, None] - a + (2 * np.arange(split) + 1) * b
+    return np.ascontiguousarray(np.stack([np.cos(u), np.sin(u)], axis=-1))
+
+
+def _mirrored(design: Design) -> bool:
+    """The box of (theta2, theta3) is symmetric about 0: one assembly mode's classification
+    is the other's mirror image (:func:`planner.analysis._region_kernels.mirror_kernel`)."""
+    lo, hi = design.joint_min, design.joint_max
+    return bool(lo[1] == -hi[1] and lo[2] == -hi[2])
+
+
+@dataclass(frozen=True, slots=True)
+class _Cells:
+    """The cell-wise classification of both assembly modes (arrays of the kernels)."""
+
+    status: np.ndarray  # (2, 8, n, n) int8
+    bits: np.ndarray  # (2, n, n) int64 masks
+    kind: np.ndarray  # (2, 3, n, n) int8
+    centre_mode: np.ndarray  # (2, n, n) int8
+    m_lo: np.ndarray  # (2, 3, n, n)
+    m_hi: np.ndarray  # (2, 3, n, n)
+    mirrored: bool  # the second assembly mode is the first's mirror image
+
+
+def _classify(
+    design: Design, margins: Margins, n: int, split: int, *, mirror: bool = True
+) -> _Cells:
+    """Classify every cell of both assembly modes; with ``mirror`` and a symmetric box the
+    second assembly mode is the first's mirror image (half the work, the same bounds)."""
     theta2, theta3, h2, h3 = _grid(design, n)
     a2 = 0.5 * h2 * (1.0 + _REL_SLACK)
     a3 = 0.5 * h3 * (1.0 + _REL_SLACK)
     lo, hi = margins.cd_range
-    smin = margins.serial_min
-    status = np.empty((2, 8, n, n), dtype=np.int8)
+    cells = _Cells(
+        status=np.empty((2, 8, n, n), dtype=np.int8),
+        bits=np.empty((2, n, n), dtype=np.int64),
+        kind=np.empty((2, 3, n, n), dtype=np.int8),
+        centre_mode=np.empty((2, n, n), dtype=np.int8),
+        m_lo=np.empty((2, 3, n, n)),
+        m_hi=np.empty((2, 3, n, n)),
+        mirrored=mirror and _mirrored(design),
+    )
+    sub2, sub3 = _sub_trig(theta2, a2, split), _sub_trig(theta3, a3, split)
+    fields = ("status", "bits", "kind", "centre_mode", "m_lo", "m_hi")
+    mirror = cells.mirrored
+    for ai in (0,) if mirror else (0, 1):
+        K.classify_kernel(
+            design.L0, design.L1, design.L2, 2.0 * design.L2 * lo, 2.0 * design.L2 * hi,
+            margins.serial_min, 1.0 if ai == 0 else -1.0, theta2, theta3, a2, a3, split,
+            sub2, sub3, *(getattr(cells, f)[ai] for f in fields),
+        )  # fmt: skip
+    if mirror:
+        K.mirror_kernel(*(getattr(cells, f)[0] for f in fields),
+                        *(getattr(cells, f)[1] for f in fields))  # fmt: skip
+    return cells
+
+
+def _transit_pairs() -> tuple[tuple[int, int], ...]:
+    """The two working modes (sign j '+', sign j '-') of each transit set b = 4 j + c."""
+    pairs = []
+    for j in range(3):
+        others = [k for k in range(3) if k != j]
+        for c in range(4):
+            fixed = (-1 if c >= 2 else 1, -1 if c % 2 else 1)
+            pair = []
+            for sj in (1, -1):
+                sg = [0, 0, 0]
+                sg[j], sg[others[0]], sg[others[1]] = sj, *fixed
+                pair.append(4 * (sg[0] < 0) + 2 * (sg[1] < 0) + (sg[2] < 0))
+            pairs.append((pair[0], pair[1]))
+    return tuple(pairs)
+
+
+_TRANSIT_PAIRS = _transit_pairs()
+
+
+def _drop_unused_transit_sets(bits: np.ndarray) -> None:
+    """Clear, in place, the bits of the transit sets of which one mode has no cell at all in
+    that assembly mode: no transit can use them, and labelling them would be wasted work."""
+    for ai in range(bits.shape[0]):
+        present = int(np.bitwise_or.reduce(bits[ai], axis=None)) >> K.BITS_OVER
+        keep = ~0
+        for b, (mp, mm) in enumerate(_TRANSIT_PAIRS):
+            if not (present >> mp) & 1 or not (present >> mm) & 1:
+                keep &= ~(1 << (K.BITS_B + b))
+        bits[ai] &= keep
+
+
+def _slot_of(bits: int, start: np.ndarray, cell: int, layer: int) -> int:
+    """The slot of ``layer`` at ``cell`` (see :func:`~planner.analysis._region_kernels.label_kernel`)."""
+    return int(start[cell]) + (bits & ((1 << layer) - 1)).bit_count()
+
+
+def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
+    """Build the map (the work of :func:`region_map`, uncached): classify the cells, label
+    every layer, join regions through the transit sets' components."""
+    theta2, theta3, h2, h3 = _grid(design, n)
+    cells = _classify(design, margins, n, split)
+    _drop_unused_transit_sets(cells.bits)
     labels = np.zeros((2, 8, n, n), dtype=np.int32)
     certified = np.zeros((2, 8, n, n), dtype=np.int32)
-    centre_mode = np.empty((2, n, n), dtype=np.int8)
-    transit_cells = np.zeros((2, 3, n, n), dtype=np.int8)
-    bpass = np.empty((2, 12, n, n), dtype=np.bool_)
-    zero = np.empty((2, 3, n, n), dtype=np.bool_)
-    kind = np.empty((2, 3, n, n), dtype=np.int8)
-    m_lo = np.empty((2, 3, n, n))
-    m_hi = np.empty((2, 3, n, n))
-    counts = np.zeros((2, 8), dtype=np.int64)
-    for ai, asm in enumerate(ASSEMBLY_MODES):
-        _classify_kernel(
-            design.L0, design.L1, design.L2, 2.0 * design.L2 * lo, 2.0 * design.L2 * hi,
-            smin, 1.0 if asm == "+" else -1.0, theta2, theta3, a2, a3, split, _MODE_SIGNS,
-            status[ai], bpass[ai], zero[ai], kind[ai], centre_mode[ai], m_lo[ai], m_hi[ai],
-        )  # fmt: skip
-        for mi in range(8):
-            st = status[ai, mi]
-            over = st != INVALID
-            if over.any():
-                labels[ai, mi], counts[ai, mi] = ndimage.label(over, structure=_EIGHT)
-                sure = st == VALID
-                if sure.any():
-                    certified[ai, mi] = ndimage.label(sure, structure=_EIGHT)[0]
+    layers = [K.label_kernel(cells.bits[0], labels[0], certified[0])]
+    if cells.mirrored:  # the other assembly mode's components are the mirror images
+        start, slot_label = layers[0][4], layers[0][5]
+        layers.append(K.mirror_label_kernel(cells.bits[1], cells.bits[0], start, slot_label,
+                                            labels[1], certified[1]))  # fmt: skip
+    else:
+        layers.append(K.label_kernel(cells.bits[1], labels[1], certified[1]))
+    counts = np.stack([lay[0][:8] for lay in layers])
     # regions, then the union graph over the transit sets' components
     max_l = int(counts.max())
     region_index = np.full((2, 8, max_l + 1), -1, dtype=np.int32)
@@ -550,80 +453,60 @@ def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionM
         return x
 
     transits: list[RegionTransit] = []
+    transit_cells = np.zeros((2, 3, n, n), dtype=np.int8)
+    flat_bits = cells.bits.reshape(2, -1)
     for ai in range(2):
-        for j in range(3):
-            others = [k for k in range(3) if k != j]
-            zero_any = np.zeros((n, n), dtype=bool)
-            for c in range(4):
-                so = (-1 if c >= 2 else 1, -1 if c % 2 else 1)
-                # the two modes of this transit set: sign j '+' (mp) and '-' (mm)
-                pair = []
-                for sj in (1, -1):
-                    sg = [0, 0, 0]
-                    sg[j], sg[others[0]], sg[others[1]] = sj, so[0], so[1]
-                    pair.append(4 * (sg[0] < 0) + 2 * (sg[1] < 0) + (sg[2] < 0))
-                mp, mm = pair
-                if counts[ai, mp] == 0 or counts[ai, mm] == 0:
-                    continue
-                passable = bpass[ai, 4 * j + c]
-                b_lab, _ = ndimage.label(passable, structure=_EIGHT)
-                z = passable & zero[ai, j]
-                kinds_here: dict[int, dict[str, int]] = {}
-                zl, zk = b_lab[z], kind[ai, j][z]
-                for kk in np.unique(zk).tolist():
-                    comp, cnt = np.unique(zl[zk == kk], return_counts=True)
-                    for c_, n_ in zip(comp.tolist(), cnt.tolist(), strict=True):
-                        kinds_here.setdefault(c_, {})[TRANSIT_KINDS[kk]] = n_
-                members: dict[int, tuple[list[int], list[int]]] = {}
-                for side, mi in enumerate((mp, mm)):
-                    rep = np.zeros(int(counts[ai, mi]) + 1, dtype=np.int64)
-                    rep[labels[ai, mi].ravel()] = b_lab.ravel()
-                    for lab in range(1, len(rep)):
-                        members.setdefault(int(rep[lab]), ([], []))[side].append(
-                            int(region_index[ai, mi, lab])
-                        )
-                joining = [c_ for c_, (pl, mn) in members.items() if pl and mn and c_ > 0]
-                if joining:
-                    zero_any |= z & np.isin(b_lab, joining)
-                for comp, (plus, minus) in members.items():
-                    ids = plus + minus
-                    for other in ids[1:]:
-                        parent[find(other)] = find(ids[0])
-                    ks = kinds_here.get(comp, {})
-                    transits.extend(
-                        RegionTransit(a, b, _FLIP_NAMES[j], tuple(ks), tuple(ks.values()))
-                        for a in plus
-                        for b in minus
+        _, first, _, _, start, slot_label = layers[ai]
+        # members[b][comp]: the regions of both modes of transit set b in its component comp
+        members: list[dict[int, tuple[list[int], list[int]]]] = [{} for _ in range(12)]
+        joining = np.zeros((12, first.shape[1]), dtype=np.bool_)
+        for b, pair in enumerate(_TRANSIT_PAIRS):
+            if counts[ai, pair[0]] == 0 or counts[ai, pair[1]] == 0:
+                continue
+            for side, mi in enumerate(pair):
+                for lab in range(1, int(counts[ai, mi]) + 1):
+                    cell = int(first[mi, lab])
+                    comp = int(slot_label[_slot_of(int(flat_bits[ai, cell]), start, cell,
+                                                       K.BITS_B + b)])  # fmt: skip
+                    members[b].setdefault(comp, ([], []))[side].append(
+                        int(region_index[ai, mi, lab])
                     )
-            transit_cells[ai, j] = np.where(zero_any, kind[ai, j] + 1, 0)
+            for comp, (plus, minus) in members[b].items():
+                joining[b, comp] = bool(plus and minus)
+        kinds = np.zeros((12, first.shape[1], len(TRANSIT_KINDS)), dtype=np.int64)
+        K.transit_kernel(cells.bits[ai], cells.kind[ai], start, slot_label, joining, kinds,
+                         transit_cells[ai])  # fmt: skip
+        for b in range(12):
+            for comp, (plus, minus) in members[b].items():
+                ids = plus + minus
+                for other in ids[1:]:
+                    parent[find(other)] = find(ids[0])
+                found = [(TRANSIT_KINDS[k], int(v)) for k, v in enumerate(kinds[b, comp]) if v]
+                names = tuple(name for name, _ in found)
+                counted = tuple(v for _, v in found)
+                transits.extend(
+                    RegionTransit(a, b_, _FLIP_NAMES[b // 4], names, counted)
+                    for a in plus
+                    for b_ in minus
+                )
     roots = sorted({find(i) for i in range(len(raw))})
     comp_of = {r: k for k, r in enumerate(roots)}
-    sizes: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-    for ai in range(2):
-        for mi in range(8):
-            m = int(counts[ai, mi]) + 1
-            lab = labels[ai, mi]
-            sizes[ai, mi] = (
-                np.bincount(lab.ravel(), minlength=m),
-                np.bincount(lab[status[ai, mi] == VALID], minlength=m),
-            )
     regions = tuple(
         Region(
             id=i,
             assembly_mode=ASSEMBLY_MODES[ai],
             working_mode=WORKING_MODES[mi],
             label=lab,
-            cells=int(sizes[ai, mi][0][lab]),
-            valid_cells=int(sizes[ai, mi][1][lab]),
+            cells=int(layers[ai][2][mi, lab]),
+            valid_cells=int(layers[ai][3][mi, lab]),
             component=comp_of[find(i)],
         )
         for i, (ai, mi, lab) in enumerate(raw)
     )
-    for arr in (theta2, theta3, status, labels, certified, centre_mode, transit_cells):
+    status, centre_mode, m_lo, m_hi = cells.status, cells.centre_mode, cells.m_lo, cells.m_hi
+    for arr in (theta2, theta3, status, labels, certified, centre_mode, transit_cells,
+                region_index, m_lo, m_hi):  # fmt: skip
         arr.setflags(write=False)
-    region_index.setflags(write=False)
-    m_lo.setflags(write=False)
-    m_hi.setflags(write=False)
     return RegionMap(
         design=design,
         margins=margins,
@@ -786,12 +669,14 @@ class Coverage:
     reached : dict region id -> shape (m, m) bool, rows w, columns u: the region's
         certified cells reach the point (inverse kinematics in the region's working mode,
         joint values shifted by multiples of 2 pi into the joint box, then looked up).
+    theta1_span : rad, joint_max - joint_min of theta1 (what :meth:`volume` needs).
     """
 
     u: np.ndarray
     w: np.ndarray
     pixel_area: float
     reached: dict[int, np.ndarray]
+    theta1_span: float = 2.0 * math.pi
 
     def area(self, region_ids) -> float:
         """Area (m^2) of the union of the given regions' images."""
@@ -802,6 +687,30 @@ class Coverage:
         for i in ids:
             union |= self.reached[i]
         return float(union.sum()) * self.pixel_area
+
+    def volume(self, region_ids) -> float:
+        """Volume (m^3) of the 3-D points the given regions reach as theta1 turns.
+
+        The plane point (u, w) at theta1 is the 3-D point at distance |w| from the axis AB,
+        at angle theta1 (w > 0) or theta1 + pi (w < 0) about it: with theta1 spanning a full
+        turn, a region reaches every point of the circle of radius |w| through (u, |w|),
+        whichever sign of w reached it. The volume is that of the solid of revolution of the
+        union of the images folded onto w > 0 (Pappus: the sum of 2 pi |w| over its raster
+        cells). Raises InputError when theta1 spans less than a full turn."""
+        if self.theta1_span < 2.0 * math.pi * (1.0 - 1e-12):
+            raise InputError(
+                f"volume needs theta1 limits spanning a full turn, got {self.theta1_span:.6g} rad"
+            )
+        ids = list(region_ids)
+        if not ids:
+            return 0.0
+        union = np.zeros_like(self.reached[ids[0]])
+        for i in ids:
+            union |= self.reached[i]
+        folded = union | union[::-1]  # the raster is symmetric about w = 0
+        upper = self.w > 0.0
+        ring = 2.0 * math.pi * self.w[upper] * self.pixel_area
+        return float((folded[upper].sum(axis=1) * ring).sum())
 
 
 def cartesian_coverage(rmap: RegionMap, m: int = 256) -> Coverage:
@@ -852,4 +761,5 @@ def cartesian_coverage(rmap: RegionMap, m: int = 256) -> Coverage:
             for i, lab_over in zip(sel[hit].tolist(), over[hit].tolist(), strict=True):
                 rid = int(rmap.region_index[ai, mi, lab_over])
                 reached[rid].flat[i] = True
-    return Coverage(u, w, float((u[1] - u[0]) * (w[1] - w[0])), reached)
+    span = float(d.joint_max[0] - d.joint_min[0])
+    return Coverage(u, w, float((u[1] - u[0]) * (w[1] - w[0])), reached, span)

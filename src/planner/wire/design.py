@@ -5,14 +5,27 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    ConfigDict,
     Field,
     field_validator,
 )
 
 from planner.design import MAX_LENGTH
-from planner.wire.common import DesignModel, Length, _DesignField, _Request, _Response
+from planner.wire.common import (
+    AssemblyModeLabel,
+    DesignModel,
+    Length,
+    Margins,
+    WorkingModeLabel,
+    _DesignField,
+    _Request,
+    _Response,
+)
+from planner.wire.plan import TransitKind
 
 __all__ = [
+    "MAX_REGION_RESOLUTION",
+    "MIN_REGION_RESOLUTION",
     "DesignCheckRequest",
     "DesignCheckResponse",
     "DesignOptimizeRequest",
@@ -20,7 +33,12 @@ __all__ = [
     "DesignPreset",
     "DesignsResponse",
     "LengthBounds",
+    "RegionModel",
+    "RegionTransitModel",
+    "RegionsRequest",
+    "RegionsResponse",
     "SampledValue",
+    "regions_model",
     "sampled_value",
 ]
 
@@ -146,4 +164,101 @@ def sampled_value(estimate: Any) -> SampledValue:
         return SampledValue(value=0.0, standard_error=0.0, n_samples=0)
     return SampledValue(
         value=estimate.value, standard_error=estimate.standard_error, n_samples=estimate.n_samples
+    )
+
+
+# ---------------------------------------------------------------------------- region maps
+#: Cells per axis of ``POST /v1/design/regions``: the least (coarser maps cut thin regions)
+#: and the most (a map of n x n cells holds about 250 n^2 bytes, built in time ~ n^2: 512 is
+#: 4 times the default's work, about 62 MB and 0.1-0.3 s on one core, and fits the cache
+#: of each worker; 1024 would hold 250 MB per map and 0.5 GB at its peak).
+MIN_REGION_RESOLUTION, MAX_REGION_RESOLUTION = 16, 512
+
+
+class RegionsRequest(_Request):
+    """Body of ``POST /v1/design/regions``: the region map of a design under its margins
+    (:func:`planner.analysis.regions.region_map`; no obstacles, so ``margins.clearance``
+    plays no part)."""
+
+    design: DesignModel = _DesignField
+    margins: Margins = Field(default_factory=Margins)
+    resolution: int = Field(
+        256,
+        ge=MIN_REGION_RESOLUTION,
+        le=MAX_REGION_RESOLUTION,
+        description="Cells per axis of the (theta2, theta3) grid over the joint limits.",
+    )
+
+
+class RegionModel(_Response):
+    """One region: a connected component of the cells of one working mode that are not
+    surely invalid (8-connected cells of the grid)."""
+
+    id: int = Field(ge=0, description="Index in ``regions``, the name transits use.")
+    working_mode: WorkingModeLabel
+    assembly_mode: AssemblyModeLabel
+    cells: int = Field(ge=1, description="Cells of the region (surely valid + undecided).")
+    valid_cells: int = Field(ge=0, description="Its surely valid cells.")
+    component: int = Field(
+        ge=0, description="Component of the union graph: regions joined by transits."
+    )
+
+
+class RegionTransitModel(_Response):
+    """Two regions of one assembly mode whose working modes differ by one sign, touching
+    across a serial surface of kind ``kind`` (one entry per kind)."""
+
+    model_config = ConfigDict(
+        extra="ignore", serialize_by_alias=True, validate_by_alias=True, validate_by_name=True
+    )
+
+    from_: int = Field(alias="from", ge=0, description="Region id (its flipped sign '+').")
+    to: int = Field(ge=0, description="Region id (its flipped sign '-').")
+    kind: TransitKind
+    flipped: Literal["axis", "A", "B"]
+    cells: int = Field(
+        ge=0, description="Cells of the transit set where the flipped measure may vanish."
+    )
+
+
+class RegionsResponse(_Response):
+    """Answer of ``POST /v1/design/regions``."""
+
+    design: DesignModel
+    margins: Margins = Field(description="The margins used (kappa_max, serial_min).")
+    resolution: int
+    regions: list[RegionModel]
+    transits: list[RegionTransitModel]
+    components: int = Field(ge=0, description="Components of the union graph.")
+    computation_time_s: float = Field(description="Time to build the map (0 when cached), s.")
+
+
+def regions_model(rmap: Any, computation_time_s: float = 0.0) -> RegionsResponse:
+    """The wire form of a :class:`planner.analysis.regions.RegionMap`: its regions, and one
+    transit per pair of regions and kind of serial surface between them."""
+    regions = [
+        RegionModel(
+            id=r.id,
+            working_mode=r.working_mode,
+            assembly_mode=r.assembly_mode,
+            cells=r.cells,
+            valid_cells=r.valid_cells,
+            component=r.component,
+        )
+        for r in rmap.regions
+    ]
+    transits = [
+        RegionTransitModel(from_=t.a, to=t.b, kind=kind, flipped=t.flipped, cells=cells)
+        for t in rmap.transits
+        for kind, cells in zip(t.kinds, t.cells, strict=True)
+    ]
+    m = rmap.margins
+    return RegionsResponse(
+        design=DesignModel.from_design(rmap.design),
+        margins=Margins(kappa_max=m.kappa_max, serial_min=m.serial_min),
+        resolution=rmap.n,
+        regions=regions,
+        transits=transits,
+        components=len({r.component for r in rmap.regions}),
+        computation_time_s=computation_time_s,
     )
