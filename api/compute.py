@@ -18,11 +18,13 @@ import numpy as np
 from pydantic import BaseModel
 
 from planner.constants import KAPPA_SOLVABLE
-from planner.exceptions import AssemblyError, TimingError
+from planner.exceptions import AssemblyError, InputError, TimingError
 from planner.kinematics import SERIAL_KINDS, Manipulator
 from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
+    CartesianRequest,
+    CartesianResponse,
     DesignCheckRequest,
     DesignCheckResponse,
     DesignModel,
@@ -34,8 +36,11 @@ from planner.wire import (
     PlanRequest,
     PlanResponse,
     SerialMargins,
+    cartesian_inputs,
+    cartesian_response,
     joint_limits_to_core,
     located,
+    plan_goal,
     plan_inputs,
     plan_response,
     posture_model,
@@ -50,6 +55,7 @@ __all__ = [
     "analyze",
     "answer_sample_limit",
     "as_json",
+    "cartesian",
     "design_check",
     "fk",
     "ik",
@@ -208,7 +214,8 @@ def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> 
 
 def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     """``POST /v1/plan``: the request's library objects (:func:`planner.wire.plan_inputs`,
-    converted once), :func:`planner.planning.plan`, then the numpy path timed by
+    converted once), :func:`planner.planning.plan` with the goal's options ``prefer`` and
+    ``tolerance`` (:func:`planner.wire.plan_goal`), then the numpy path timed by
     :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``), and one
     response built once (:func:`planner.wire.plan_response`).
 
@@ -217,8 +224,6 @@ def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     trajectory (no profile, or the dense re-check fails after the repairs) gives ``no_path``
     with the reason, the path kept and ``diagnostics.timing_error`` naming the failed rule.
     """
-    from planner.planning import plan as plan_path
-
     inputs = plan_inputs(request)
     options = inputs.options
     deadline = budget.deadline
@@ -228,13 +233,11 @@ def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
         left = deadline - time.monotonic() - _ANSWER_RESERVE_S
         if left < options.time_budget_s:
             options = replace(options, time_budget_s=max(left, 0.01))
-    result = plan_path(
-        inputs.design,
-        inputs.start,
-        inputs.goal,
-        obstacles=inputs.obstacles,
-        margins=inputs.margins,
-        options=options,
+    result = plan_goal(
+        replace(inputs, options=options),
+        prefer=inputs.prefer,
+        tolerance=inputs.tolerance,
+        deadline=deadline,
     )
     if request.timing.method == "none" or result.path is None:
         return plan_response(result)
@@ -242,7 +245,7 @@ def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
         trajectory = _time_plan(request, inputs, result.path, budget)
     except TimingError as exc:  # deadline, no profile, or the dense re-check failed
         return plan_response(result, timing_failure=exc)
-    return plan_response(result, trajectory=trajectory)
+    return plan_response(result, trajectory=trajectory, format=request.timing.format)
 
 
 def _time_plan(request: PlanRequest, inputs: PlanInputs, path: Any, budget: JobBudget) -> Any:
@@ -275,3 +278,43 @@ def _time_plan(request: PlanRequest, inputs: PlanInputs, path: Any, budget: JobB
             max_samples=budget.max_samples,
             **options,
         )
+
+
+def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> CartesianResponse:
+    """``POST /v1/cartesian``: the request's library objects
+    (:func:`planner.wire.cartesian_inputs`), :func:`planner.planning.cartesian.plan_cartesian`
+    (the straight path, certified, and its timing), and one response built once
+    (:func:`planner.wire.cartesian_response`).
+
+    The answer's samples are bounded by ``budget.max_samples`` (a 422 naming
+    ``timing.sample_rate_hz`` beyond it, checked once the trajectory is known).
+    ``plan_cartesian`` takes no deadline: the worker pool's deadline (504) bounds it.
+    """
+    from planner.planning.cartesian import plan_cartesian
+
+    inputs = cartesian_inputs(request)
+    try:
+        result = plan_cartesian(
+            inputs.design,
+            inputs.start,
+            inputs.waypoints,
+            obstacles=inputs.obstacles,
+            margins=inputs.margins,
+            limits=inputs.limits,
+            **inputs.options,
+        )
+    except InputError as exc:  # the timing's sample bound names sample_rate_hz: timing's
+        where = ("body", "timing") if exc.field == "sample_rate_hz" else ("body",)
+        with located(*where):
+            raise
+    traj = result.trajectory
+    if traj is not None and budget.max_samples is not None and len(traj.t) > budget.max_samples:
+        rate = request.timing.sample_rate_hz
+        with located("body", "timing"):
+            raise InputError(
+                f"sample_rate_hz = {rate:g} Hz gives {len(traj.t)} samples over the "
+                f"trajectory's {traj.duration:.4g} s, more than the limit of "
+                f"{budget.max_samples}: lower the rate",
+                field="sample_rate_hz",
+            )
+    return cartesian_response(result, format=request.timing.format)

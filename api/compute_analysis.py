@@ -317,6 +317,6 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
         return TimingResponse(
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
-    trajectory = trajectory_model(traj)
+    trajectory = trajectory_model(traj, request.format)
     diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

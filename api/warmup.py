@@ -14,13 +14,15 @@ import time
 __all__ = ["warm_up_worker"]
 
 _POSTURE = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
+#: A start from which a short straight line of P is valid (docs/cartesian.md's example).
+_CARTESIAN_START = {"q": [-0.2187, 2.8609, 0.2807], "assembly_mode": "+"}
 
 
 def warm_up_worker() -> float:
     """The library's warm-up (:func:`planner.warmup.warm_up`: numba kernels, OMPL, toppra,
     ruckig, matplotlib), then the service's own jobs once each, through the path a request
     takes (:func:`planner_api.metrics.run_measured`): a plan timed by TOPPRA and one by Ruckig (with
-    an obstacle, so the clearance kernels run too), fk and ik. Returns its seconds."""
+    an obstacle, so the clearance kernels run too), a straight tool path, fk and ik. Returns its seconds."""
     from planner.warmup import quiet_library_logs, warm_up
 
     t0 = time.perf_counter()
@@ -31,7 +33,7 @@ def warm_up_worker() -> float:
 
 
 def _run_jobs() -> None:
-    from planner.wire import FKRequest, IKRequest, PlanRequest
+    from planner.wire import CartesianRequest, FKRequest, IKRequest, PlanRequest
     from planner_api import compute
     from planner_api.compute import JobBudget
     from planner_api.metrics import run_measured
@@ -46,5 +48,7 @@ def _run_jobs() -> None:
             "timing": {"method": method},
         }
         run_measured(compute.plan, PlanRequest.model_validate(body), budget=budget)
+    cartesian = {"start": _CARTESIAN_START, "waypoints": [[0.45, 0.3, 0.1]]}
+    run_measured(compute.cartesian, CartesianRequest.model_validate(cartesian), budget=budget)
     run_measured(compute.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), budget=budget)
     run_measured(compute.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), budget=budget)

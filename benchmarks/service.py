@@ -7,9 +7,12 @@ function called directly), and their ratio (the service overhead).
 
 Endpoints: ``/v1/fk`` (the cheapest call: the overhead floor), ``/v1/analyze``, and
 ``/v1/plan`` with free-space joint goals (without timing, and with toppra) when the planner
-is in this build, and ``/v1/timing`` (toppra on 5-waypoint joint paths).
+is in this build, ``/v1/timing`` (toppra on 5-waypoint joint paths) and ``/v1/cartesian``
+(0.1 m lines of P in seeded directions from one start, toppra at 0.25 m/s; some stop short,
+which is work too).
 
     PYTHONPATH=src:. python benchmarks/service.py [--workers 2] [--requests 400]
+        [--endpoints fk analyze timing plan plan+toppra cartesian]
 """
 
 from __future__ import annotations
@@ -31,7 +34,13 @@ import numpy as np
 from _machine import print_machine
 
 from planner.client import AsyncPlannerClient
-from planner.wire import AnalyzeRequest, FKRequest, PlanRequest, TimingRequest
+from planner.wire import (
+    AnalyzeRequest,
+    CartesianRequest,
+    FKRequest,
+    PlanRequest,
+    TimingRequest,
+)
 from planner_api import compute, compute_analysis
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -176,7 +185,21 @@ def _floor_rows(url: str, n: int, rng: np.random.Generator) -> None:
         bare.wait(timeout=30)
 
 
+#: The start of the Cartesian rows and its P (docs/cartesian.md's example).
+CARTESIAN_START = {"q": [-0.2187, 2.8609, 0.2807], "assembly_mode": "+"}
+CARTESIAN_P = np.array([0.45, 0.0, 0.1])
+
+
 def _requests(kind: str, n: int, rng: np.random.Generator) -> list:
+    if kind == "cartesian":
+        d = rng.normal(size=(n, 3))
+        ends = CARTESIAN_P + 0.1 * d / np.linalg.norm(d, axis=1, keepdims=True)
+        return [
+            CartesianRequest(
+                start=CARTESIAN_START, waypoints=[end.tolist()], limits={"cartesian_speed": 0.25}
+            )
+            for end in ends
+        ]
     q = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(0.8, 1.2, n), rng.uniform(1.8, 2.2, n)])
     if kind == "fk":
         return [FKRequest(q=row.tolist(), assembly_mode="+") for row in q]
@@ -217,7 +240,7 @@ async def _load(url: str, method: str, requests: list, concurrency: int) -> tupl
         while queue:
             body = queue.pop()
             t0 = time.perf_counter()
-            if method == "plan":
+            if method in ("plan", "cartesian"):
                 await call(body)
             elif method == "timing":
                 await call(body.waypoints)
@@ -251,6 +274,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--requests", type=int, default=400)
     parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
+    parser.add_argument("--endpoints", nargs="*", help="only these rows (default: all)")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     endpoints = [
@@ -261,6 +285,9 @@ def main() -> None:
     if importlib.util.find_spec("planner.planning") is not None:
         endpoints.append(("plan", "plan", compute.plan))
         endpoints.append(("plan+toppra", "plan", compute.plan))
+        endpoints.append(("cartesian", "cartesian", compute.cartesian))
+    if args.endpoints:
+        endpoints = [e for e in endpoints if e[0] in args.endpoints]
     proc, url = _start_server(args.workers)
     try:
         print(

@@ -156,3 +156,64 @@ def test_round_trip_through_json_is_lossless():
         limits={"velocity": [1, 2, 3]},
     )
     assert PlanRequest.model_validate_json(req.model_dump_json()) == req
+
+
+def test_second_part_vocabulary():
+    """docs/conventions.md, "Wire, second part": the names and values fixed there."""
+    from planner.wire import (
+        CartesianRequest,
+        CartesianResponse,
+        JointGoal,
+        TrajectoryPoint,
+        TrajectoryPointsModel,
+    )
+
+    limits = schemas.Limits.model_fields
+    for name in ("velocity_scaling", "acceleration_scaling"):
+        assert limits[name].default == 1.0
+    assert typing.get_args(schemas.TimingOptions.model_fields["format"].annotation) == (
+        "arrays",
+        "points",
+    )
+    assert schemas.TimingOptions.model_fields["format"].default == "arrays"
+    assert typing.get_args(CartesianTarget.model_fields["prefer"].annotation) == (
+        "shortest",
+        "best_conditioned",
+    )
+    assert CartesianTarget.model_fields["prefer"].default == "shortest"
+    assert CartesianTarget.model_fields["tolerance"].default == 0.0
+    assert JointGoal.model_fields["tolerance"].default == 0.0
+    assert set(TrajectoryPointsModel.model_fields) >= {"duration", "joint_names", "points"}
+    assert TrajectoryPointsModel.model_fields["joint_names"].default_factory() == [
+        "theta1",
+        "theta2",
+        "theta3",
+    ]
+    assert set(TrajectoryPoint.model_fields) == {
+        "time_from_start",
+        "positions",
+        "velocities",
+        "accelerations",
+    }
+    assert set(CartesianRequest.model_fields) == {
+        "design",
+        "start",
+        "waypoints",
+        "path_tolerance",
+        "obstacles",
+        "margins",
+        "timing",
+        "limits",
+    }
+    assert {n for n, f in CartesianRequest.model_fields.items() if f.is_required()} == {
+        "start",
+        "waypoints",
+    }
+    assert CartesianRequest.model_fields["path_tolerance"].default == 0.001
+    assert set(PlanResponse.model_fields) <= set(CartesianResponse.model_fields)
+    assert "fraction" in CartesianResponse.model_fields
+    assert (
+        "max_path_deviation"
+        in CartesianResponse.model_fields["diagnostics"].annotation.model_fields
+    )
+    assert Diagnostics().proven_infeasible is False

@@ -19,6 +19,7 @@ EXPECTED = {
     "02_mode_change.py": ["status: solved", "transit at waypoint", "mode change: ok"],
     "03_obstacles.py": ["status: solved", "check: smallest link-to-ball gap", "obstacles: ok"],
     "04_design_study.py": ["paper-optimum", "C=D, CD_stretched", "figure:", "design study: ok"],
+    "05_cartesian.py": ["status: solved", "check: P within", "status: no_path", "cartesian: ok"],
 }
 
 
@@ -47,6 +48,8 @@ def test_example_runs_against_the_live_server(live_server, tmp_path, name):
         assert line in result.stdout, (line, result.stdout)
     if name == "04_design_study.py":
         assert (tmp_path / "default_cartesian_section.png").read_bytes().startswith(b"\x89PNG")
+    if name == "05_cartesian.py":
+        assert (tmp_path / "cartesian.csv").read_text().splitlines()[1].startswith("t,theta1,")
 
 
 def test_example_reports_an_unreachable_server(unused_port):

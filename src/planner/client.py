@@ -17,6 +17,11 @@ Requests are validated locally before they are sent (a bad field raises
 ``max_retries`` times, waiting what the server's ``Retry-After`` asks, else an exponential
 backoff, capped at ``max_backoff_s``.
 
+Trajectories come as parallel arrays (``timing.format`` "arrays", the default) or as a
+controller's points ("points"); :func:`to_points` and :func:`to_arrays` convert either way
+(the same floats) and :func:`write_csv` writes either as CSV (``t,theta1,theta2,theta3,...``
+under a line naming the units: :func:`planner.timing.export.write_csv`).
+
 Exceptions (all carry a message; :class:`APIError` also the server's status and ``detail``)::
 
     PlannerError                         (planner.exceptions)
@@ -55,6 +60,8 @@ from planner.exceptions import PlannerError
 from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
+    CartesianRequest,
+    CartesianResponse,
     DesignCheckRequest,
     DesignCheckResponse,
     DesignModel,
@@ -76,9 +83,13 @@ from planner.wire import (
     RegionsResponse,
     TimingRequest,
     TimingResponse,
+    TrajectoryModel,
+    TrajectoryPointsModel,
     VersionInfo,
     WorkspaceRequest,
     WorkspaceResponse,
+    trajectory_arrays,
+    trajectory_points,
 )
 
 __all__ = [
@@ -101,6 +112,9 @@ __all__ = [
     "ServerError",
     "ServiceUnavailableError",
     "TransportError",
+    "to_arrays",
+    "to_points",
+    "write_csv",
 ]
 
 #: Where ``planner serve`` listens by default.
@@ -251,6 +265,34 @@ def _describe_item(item: Any) -> str:
     loc = ".".join(str(x) for x in item.get("loc", []))
     msg = str(item.get("msg", ""))
     return f"{loc}: {msg}" if loc else msg
+
+
+# ---------------------------------------------------------------------------- trajectories
+_Trajectory = TrajectoryModel | TrajectoryPointsModel
+
+
+def to_points(trajectory: _Trajectory) -> TrajectoryPointsModel:
+    """A trajectory of an answer in the points form (``duration``, ``joint_names``,
+    ``points``), whichever form it came in; the same samples."""
+    return trajectory_points(trajectory)
+
+
+def to_arrays(trajectory: _Trajectory) -> TrajectoryModel:
+    """A trajectory of an answer as parallel arrays (``t``, ``q``, ``qd``, ``qdd``),
+    whichever form it came in; the same samples."""
+    return trajectory_arrays(trajectory)
+
+
+def write_csv(trajectory: _Trajectory, target: Any) -> None:
+    """Write a trajectory of an answer (either form) as CSV to ``target`` (a path or a text
+    file): a comment line naming the units, the header
+    ``t,theta1,theta2,theta3,dtheta1,...,ddtheta3`` (and ``dddtheta1..3`` with ruckig's
+    jerks), one row per sample with 17 significant digits (:func:`planner.timing.export.read_csv`
+    gives back the same numbers)."""
+    from planner.timing.export import write_csv as write
+
+    a = to_arrays(trajectory)
+    write(target, a.t, a.q, a.qd, a.qdd, jerk=a.jerk)
 
 
 # ---------------------------------------------------------------------------- requests
@@ -496,6 +538,28 @@ class _BaseClient:
             body = _validated(PlanRequest, {**data, **fields})
         return _Call("POST", "/v1/plan", body, PlanResponse)
 
+    def _cartesian(
+        self, request: CartesianRequest | Mapping[str, Any] | None = None, **fields: Any
+    ) -> _Call[CartesianResponse]:
+        """A straight tool path: P moves on straight segments from the start's P through
+        ``waypoints`` (m) in the start's working mode, within ``path_tolerance`` (m, default
+        1 mm). A :class:`CartesianRequest` (or its dict), and/or its fields as keywords
+        (``start=..., waypoints=..., timing=..., limits=...``). The answer's ``status`` is
+        ``solved`` exactly when ``fraction`` = 1; otherwise ``message`` and ``stop`` say which
+        rule stopped it, the value measured and where."""
+        if isinstance(request, CartesianRequest) and not fields:
+            body = request
+        else:
+            data = dict(
+                request.model_dump(exclude_unset=True)
+                if isinstance(request, CartesianRequest)
+                else request or {}
+            )
+            if "waypoints" in fields:
+                fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
+            body = _validated(CartesianRequest, {**data, **fields})
+        return _Call("POST", "/v1/cartesian", body, CartesianResponse)
+
     def _plan_batch(
         self, requests: Sequence[PlanRequest | Mapping[str, Any]]
     ) -> _Call[PlanBatchResponse]:
@@ -701,6 +765,7 @@ class PlannerClient(_BaseClient):
     analyze = _sync(_BaseClient._analyze)
     check_design = _sync(_BaseClient._check_design)
     plan = _sync(_BaseClient._plan)
+    cartesian = _sync(_BaseClient._cartesian)
     plan_batch = _sync(_BaseClient._plan_batch)
     workspace = _sync(_BaseClient._workspace)
     figure = _sync(_BaseClient._figure)
@@ -755,6 +820,7 @@ class AsyncPlannerClient(_BaseClient):
     analyze = _async(_BaseClient._analyze)
     check_design = _async(_BaseClient._check_design)
     plan = _async(_BaseClient._plan)
+    cartesian = _async(_BaseClient._cartesian)
     plan_batch = _async(_BaseClient._plan_batch)
     workspace = _async(_BaseClient._workspace)
     figure = _async(_BaseClient._figure)

@@ -18,6 +18,7 @@ __all__ = [
     "app",
     "bench",
     "builtin_bench_rows",
+    "cartesian",
     "check_design_command",
     "command",
     "figures",
@@ -430,10 +431,19 @@ def regions(
 
 
 def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
-    """One screen of text about a :class:`planner.wire.PlanResponse`."""
+    """One screen of text about a :class:`planner.wire.PlanResponse` (or a
+    :class:`planner.wire.CartesianResponse`: with its fraction and stopping point)."""
     lines = [f"status: {response.status}"]
     if response.message:
         lines.append(f"message: {response.message}")
+    fraction = getattr(response, "fraction", None)
+    if fraction is not None:
+        lines.append(f"fraction: {fraction:.6g}")
+    stop = getattr(response, "stop", None)
+    if stop is not None:
+        p = ", ".join(f"{x:.5f}" for x in stop.p)
+        value = "none" if stop.value is None else f"{stop.value:.6g}"
+        lines.append(f"stopped by: {stop.rule} (value {value}) at P = [{p}]")
     path = response.path
     if path is not None:
         lines.append(f"waypoints: {len(path.waypoints)}")
@@ -449,7 +459,8 @@ def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
             lines.append(f"  #{tr.index} {tr.kind} (flips {tr.flipped}) at q = [{q}]")
     traj = response.trajectory
     if traj is not None:
-        lines.append(f"duration: {traj.duration:.4f} s ({traj.method}, {len(traj.t)} samples)")
+        samples = len(traj.points) if hasattr(traj, "points") else len(traj.t)
+        lines.append(f"duration: {traj.duration:.4f} s ({traj.method}, {samples} samples)")
     else:
         lines.append("duration: none (no trajectory)")
     diag = response.diagnostics.model_dump(exclude_none=True)
@@ -461,14 +472,63 @@ def _plan_summary(response) -> list[str]:  # type: ignore[no-untyped-def]
     return lines
 
 
+def _validation_lines(exc) -> list[str]:  # type: ignore[no-untyped-def]
+    return [f"{'.'.join(map(str, e['loc'])) or 'body'}: {e['msg']}" for e in exc.errors()]
+
+
+def _solve(job, body):  # type: ignore[no-untyped-def]
+    """``job(body)`` in this process: the response, or the error lines naming the field."""
+    from planner.exceptions import PlannerError
+
+    try:
+        return job(body), []
+    except PlannerError as exc:
+        where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
+        return None, [f"{where + ': ' if where else ''}{exc}"]
+
+
+def _answer(response, errors: list[str], out: Path | None, csv: Path | None) -> None:  # type: ignore[no-untyped-def]
+    """Print the summary, write ``--out`` and ``--csv``, and exit with the status's code."""
+    if response is None:
+        for line in errors:
+            typer.echo(f"error: {line}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT)
+    for line in _plan_summary(response):
+        typer.echo(line)
+    if out is not None:
+        out.write_text(response.model_dump_json(indent=2))
+        typer.echo(f"full result: {out}")
+    if csv is not None:
+        if response.trajectory is None:
+            typer.echo(f"error: no trajectory to write to {csv}", err=True)
+        else:
+            from planner.client import write_csv
+
+            write_csv(response.trajectory, csv)
+            typer.echo(f"trajectory CSV: {csv}")
+    raise typer.Exit(EXIT_SOLVED if response.status == "solved" else EXIT_NOT_SOLVED)
+
+
+_Out = Annotated[
+    Path | None, typer.Option("--out", "-o", help="Write the full response JSON here.")
+]
+_Csv = Annotated[
+    Path | None,
+    typer.Option(
+        "--csv",
+        help="Write the trajectory as CSV here: columns t, theta1 to theta3 and their rates, "
+        "under a line naming the units.",
+    ),
+]
+
+
 @command()
 def plan(
     request: Annotated[
         Path, typer.Argument(help="A PlanRequest as JSON (the body of POST /v1/plan).")
     ],
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Write the full PlanResponse JSON here.")
-    ] = None,
+    out: _Out = None,
+    csv: _Csv = None,
 ) -> None:
     """Plan and time a motion in this process, and print a summary.
 
@@ -481,7 +541,6 @@ def plan(
         progress.step("loading the planner", 0)
         from pydantic import ValidationError
 
-        from planner.exceptions import PlannerError
         from planner.wire import PlanRequest
         from planner_api import compute
 
@@ -490,27 +549,90 @@ def plan(
         except OSError as exc:
             errors.append(f"cannot read {request}: {exc}")
         except ValidationError as exc:
-            errors += [
-                f"{'.'.join(map(str, e['loc'])) or 'body'}: {e['msg']}" for e in exc.errors()
-            ]
+            errors += _validation_lines(exc)
         else:
             budget = body.planner.time_budget_s
             progress.step(f"planning (search budget {budget:g} s) and timing", 0)
+            response, errors = _solve(compute.plan, body)
+    _answer(response, errors, out, csv)
+
+
+@command()
+def cartesian(
+    numbers: Annotated[
+        list[float],
+        typer.Argument(
+            help="The start's joints theta1 theta2 theta3 (rad), then each waypoint's x y z "
+            "(m), in order."
+        ),
+    ],
+    assembly_mode: Annotated[str, typer.Option(help="The start's assembly mode, '+' or '-'.")] = (
+        "+"
+    ),
+    path_tolerance: Annotated[
+        float, typer.Option(help="Largest distance of P from the polyline, m.")
+    ] = 1e-3,
+    speed: Annotated[
+        float | None, typer.Option(help="Tool speed bound (limits.cartesian_speed), m/s.")
+    ] = None,
+    method: Annotated[str, typer.Option(help="Timing: toppra, ruckig or none.")] = "toppra",
+    velocity_scaling: Annotated[
+        float, typer.Option(help="Factor in (0, 1] on the velocity limits.")
+    ] = 1.0,
+    acceleration_scaling: Annotated[
+        float, typer.Option(help="Factor in (0, 1] on the acceleration limits.")
+    ] = 1.0,
+    trajectory_format: Annotated[
+        str, typer.Option("--format", help="Trajectory of --out: arrays or points.")
+    ] = "arrays",
+    design: _Design = "default",
+    l0: _L0 = None,
+    l1: _L1 = None,
+    l2: _L2 = None,
+    out: _Out = None,
+    csv: _Csv = None,
+) -> None:
+    """Move P on straight lines from the start through the waypoints, in this process.
+
+    P keeps the start's working and assembly mode; where a rule would break, the path stops
+    at the last valid point and the summary names the rule, the value and the point.
+    Example: planner cartesian -0.2187 2.8609 0.2807 0.45 0.3 0.1 --speed 0.25. Exit
+    status: 0 solved (the whole polyline), 1 stopped short, 2 an invalid request."""
+    errors: list[str] = []
+    response = None
+    with Progress("cartesian") as progress:
+        progress.step("loading the planner", 0)
+        from pydantic import ValidationError
+
+        from planner.wire import CartesianRequest
+        from planner_api import compute
+
+        if len(numbers) < 6 or len(numbers) % 3:
+            errors.append(
+                "numbers: give the start's 3 joint angles, then 3 coordinates per waypoint "
+                f"(at least one waypoint), got {len(numbers)} numbers"
+            )
+        else:
+            data = {
+                "design": _design_option(design, l0, l1, l2),
+                "start": {"q": numbers[:3], "assembly_mode": assembly_mode},
+                "waypoints": [numbers[i : i + 3] for i in range(3, len(numbers), 3)],
+                "path_tolerance": path_tolerance,
+                "timing": {"method": method, "format": trajectory_format},
+                "limits": {
+                    "velocity_scaling": velocity_scaling,
+                    "acceleration_scaling": acceleration_scaling,
+                    **({"cartesian_speed": speed} if speed is not None else {}),
+                },
+            }
             try:
-                response = compute.plan(body)
-            except PlannerError as exc:
-                where = ".".join(str(x) for x in getattr(exc, "loc", ())[1:])
-                errors.append(f"{where + ': ' if where else ''}{exc}")
-    if response is None:
-        for line in errors:
-            typer.echo(f"error: {line}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT)
-    for line in _plan_summary(response):
-        typer.echo(line)
-    if out is not None:
-        out.write_text(response.model_dump_json(indent=2))
-        typer.echo(f"full result: {out}")
-    raise typer.Exit(EXIT_SOLVED if response.status == "solved" else EXIT_NOT_SOLVED)
+                body = CartesianRequest.model_validate(data)
+            except ValidationError as exc:
+                errors += _validation_lines(exc)
+            else:
+                progress.step(f"following {len(body.waypoints)} segment(s) and timing", 0)
+                response, errors = _solve(compute.cartesian, body)
+    _answer(response, errors, out, csv)
 
 
 # ---------------------------------------------------------------------------- bench

@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_BATCH_REQUESTS",
     "MAX_COORDINATE",
+    "MAX_GOAL_TOLERANCE_M",
+    "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
     "Angle",
     "Angles3",
@@ -43,6 +45,7 @@ __all__ = [
     "Diagnostics",
     "Finite",
     "Goal",
+    "JointGoal",
     "JointPosture",
     "Length",
     "LinkLength",
@@ -51,6 +54,7 @@ __all__ = [
     "Obstacle",
     "Point3",
     "PositiveSize",
+    "Preference",
     "Rates3",
     "SphereObstacle",
     "TimingErrorInfo",
@@ -198,6 +202,26 @@ class JointPosture(_Request):
     assembly_mode: AssemblyModeLabel = Field(description="'+' or '-'.")
 
 
+#: Largest ``goal.tolerance`` of a Cartesian target, m, and of a joint goal, rad.
+MAX_GOAL_TOLERANCE_M = 1.0
+MAX_GOAL_TOLERANCE_RAD = math.pi
+#: How a working mode is chosen for a Cartesian target with ``working_mode`` "any".
+Preference = Literal["shortest", "best_conditioned"]
+
+
+class JointGoal(JointPosture):
+    """A joint goal: a joint posture, and how far from it (rad) the path may end."""
+
+    tolerance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_GOAL_TOLERANCE_RAD)] = (
+        Field(
+            0.0,
+            description="Largest Euclidean distance in joint space (rad) between the path's end "
+            "and q, in [0, pi]; 0 (default): exactly q. With a tolerance, a goal q that breaks a "
+            "rule or cannot be reached is replaced by a valid posture within it.",
+        )
+    )
+
+
 class CartesianTarget(_Request):
     """A Cartesian target for P, with the working mode to reach it in (or ``"any"``)."""
 
@@ -205,6 +229,31 @@ class CartesianTarget(_Request):
     working_mode: WorkingModeOrAny = Field(
         "any", description="(s_axis, s_A, s_B) as '+-+'-style text, or 'any'."
     )
+    prefer: Preference = Field(
+        "shortest",
+        description="With working_mode 'any': 'shortest' (default: the shortest joint path) "
+        "or 'best_conditioned' (the reachable working mode whose path keeps the largest "
+        "kappa(A) lowest: the most precise motion, the paper's section 3.3).",
+    )
+    tolerance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_GOAL_TOLERANCE_M)] = (
+        Field(
+            0.0,
+            description="Largest distance (m) of P at the path's end from p, in [0, 1]; 0 "
+            "(default): exactly p. With a tolerance, a p that no allowed posture reaches is "
+            "replaced by a reachable point within it.",
+        )
+    )
+
+    @field_validator("prefer")
+    @classmethod
+    def _prefer_needs_any(cls, value: str, info: ValidationInfo) -> str:
+        mode = info.data.get("working_mode", "any")
+        if value != "shortest" and mode != "any":
+            raise ValueError(
+                f"prefer {value!r} chooses among working modes: it needs working_mode "
+                f"'any', got {mode!r}"
+            )
+        return value
 
 
 def _goal_kind(value: Any) -> str | None:
@@ -219,10 +268,10 @@ def _goal_kind(value: Any) -> str | None:
     return None
 
 
-#: A goal: a joint posture (has ``q``) or a Cartesian target (has ``p``). Validation errors
+#: A goal: a joint goal (has ``q``) or a Cartesian target (has ``p``). Validation errors
 #: name the branch taken: ``goal.q.<field>`` or ``goal.p.<field>``.
 Goal = Annotated[
-    Annotated[JointPosture, Tag("q")] | Annotated[CartesianTarget, Tag("p")],
+    Annotated[JointGoal, Tag("q")] | Annotated[CartesianTarget, Tag("p")],
     Discriminator(
         _goal_kind,
         custom_error_type="goal_kind",
@@ -330,6 +379,11 @@ class Diagnostics(_Response):
     )
     timing_error: TimingErrorInfo | None = Field(
         None, description="Why the path could not be timed (status no_path / invalid_path)."
+    )
+    proven_infeasible: bool = Field(
+        False,
+        description="True only with status no_path, when the product proved that no valid "
+        "path exists (not merely that the search budget ran out).",
     )
 
 

@@ -36,9 +36,10 @@ from planner.wire.common import (
     obstacles_to_core,
 )
 from planner.wire.timing import (
+    AnyTrajectory,
     Limits,
     TimingOptions,
-    TrajectoryModel,
+    TrajectoryFormat,
     timing_error,
     trajectory_model,
 )
@@ -143,7 +144,7 @@ class PlanResponse(_Response):
     status: PlanStatus
     message: str = ""
     path: PathModel | None = None
-    trajectory: TrajectoryModel | None = None
+    trajectory: AnyTrajectory | None = None
     diagnostics: Diagnostics = Field(default_factory=Diagnostics)
 
 
@@ -163,7 +164,8 @@ class PlanBatchResponse(_Response):
 @dataclass(frozen=True)
 class PlanInputs:
     """A plan request as the library's objects, converted once (each field's errors located
-    at its place in the body): the arguments of :func:`planner.planning.plan`."""
+    at its place in the body): the arguments of :func:`planner.planning.plan`, and the goal
+    options ``prefer`` and ``tolerance`` (:func:`planner.wire.goal.plan_goal`)."""
 
     design: Design
     start: Any
@@ -171,6 +173,8 @@ class PlanInputs:
     obstacles: list[Any]
     margins: Any
     options: Any
+    prefer: str = "shortest"
+    tolerance: float = 0.0
 
 
 def plan_inputs(request: PlanRequest) -> PlanInputs:
@@ -199,7 +203,10 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
                 include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
             )
         )
-    return PlanInputs(design, start, goal, obstacles, margins, options)
+    prefer = getattr(request.goal, "prefer", "shortest")
+    return PlanInputs(
+        design, start, goal, obstacles, margins, options, prefer, request.goal.tolerance
+    )
 
 
 def _finite(x: float) -> float | None:
@@ -227,13 +234,17 @@ def path_model(path: Any) -> PathModel:
 
 
 def plan_response(
-    result: Any, *, trajectory: Any = None, timing_failure: Exception | None = None
+    result: Any,
+    *,
+    trajectory: Any = None,
+    timing_failure: Exception | None = None,
+    format: TrajectoryFormat = "arrays",
 ) -> PlanResponse:
     """The answer of one plan, built once: the :class:`planner.planning.PlanResult`, and the
     :class:`planner.timing.Trajectory` of its path (or the
     :class:`~planner.exceptions.TimingError` that stopped the timing: a passed deadline is
     status ``timeout``, any other timing failure ``no_path`` with the path kept and
-    ``diagnostics.timing_error`` naming the failed rule)."""
+    ``diagnostics.timing_error`` naming the failed rule), the trajectory in ``format``."""
     from planner.exceptions import TimingDeadlineError
 
     d = result.diagnostics
@@ -256,12 +267,13 @@ def plan_response(
         max_kappa_A=_finite(d.max_kappa_A),
         min_serial_margin=_finite(d.min_serial_margin),
         planner=d.planner,
+        proven_infeasible=bool(getattr(d, "proven_infeasible", False)) and status == "no_path",
         **timing,
     )
     return PlanResponse(
         status=status,
         message=message,
         path=path_model(result.path) if result.path is not None else None,
-        trajectory=trajectory_model(trajectory) if trajectory is not None else None,
+        trajectory=trajectory_model(trajectory, format) if trajectory is not None else None,
         diagnostics=diagnostics,
     )

@@ -7,7 +7,9 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    Discriminator,
     Field,
+    Tag,
     ValidationInfo,
     field_validator,
 )
@@ -33,16 +35,33 @@ from planner.wire.common import (
 
 __all__ = [
     "MAX_TIMING_WAYPOINTS",
+    "AnyTrajectory",
     "Limits",
+    "Scaling",
     "TimingOptions",
     "TimingRequest",
     "TimingResponse",
     "TimingStatus",
+    "TrajectoryFormat",
     "TrajectoryModel",
+    "TrajectoryPoint",
+    "TrajectoryPointsModel",
     "joint_limits_to_core",
     "timing_error",
+    "trajectory_arrays",
     "trajectory_model",
+    "trajectory_points",
 ]
+
+#: ``timing.format``: parallel arrays (``t``, ``q``, ``qd``, ``qdd``) or a controller's points.
+TrajectoryFormat = Literal["arrays", "points"]
+#: A speed scaling factor in (0, 1] (MoveIt's ``max_*_scaling_factor``).
+Scaling = Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1.0)]
+_FORMAT_DESCRIPTION = (
+    "Shape of the trajectory: 'arrays' (default: t, q, qd, qdd as parallel arrays) or "
+    "'points' (duration, joint_names theta1..theta3 and points with time_from_start, "
+    "positions, velocities, accelerations: a controller's JointTrajectory)."
+)
 
 
 class TimingOptions(_Request):
@@ -56,6 +75,7 @@ class TimingOptions(_Request):
         description="Largest joint-space distance from a waypoint to its corner blend, rad "
         "(0: stop at every waypoint); absent: the timing default.",
     )
+    format: TrajectoryFormat = Field("arrays", description=_FORMAT_DESCRIPTION)
 
 
 class Limits(_Request):
@@ -67,6 +87,14 @@ class Limits(_Request):
     jerk: Rates3 | None = None
     cartesian_speed: Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e3)] | None = Field(
         None, description="Bound on the speed of P, m/s (optional)."
+    )
+    velocity_scaling: Scaling = Field(
+        1.0,
+        description="Factor in (0, 1] multiplying the velocity limits (default 1: as given).",
+    )
+    acceleration_scaling: Scaling = Field(
+        1.0,
+        description="Factor in (0, 1] multiplying the acceleration limits (default 1: as given).",
     )
 
 
@@ -88,6 +116,43 @@ class TrajectoryModel(_Response):
     max_deviation_p: float | None = None
 
 
+class TrajectoryPoint(_Response):
+    """One sample of a points trajectory: time from the start (s), and per joint (in the
+    order of ``joint_names``) position (rad), velocity (rad/s) and acceleration (rad/s^2)."""
+
+    time_from_start: float
+    positions: Vec3
+    velocities: Vec3
+    accelerations: Vec3
+
+
+class TrajectoryPointsModel(_Response):
+    """The timed trajectory as a controller takes it (``timing.format = "points"``, ROS 2's
+    ``JointTrajectory`` shape): the same samples as the arrays form, one point each."""
+
+    duration: float
+    joint_names: Annotated[list[str], Field(min_length=3, max_length=3)] = Field(
+        default_factory=lambda: ["theta1", "theta2", "theta3"]
+    )
+    points: Annotated[list[TrajectoryPoint], Field(min_length=1, max_length=_MAX_SAMPLES)]
+    method: Literal["toppra", "ruckig"] | None = None
+    max_deviation_q: float | None = None
+    max_deviation_p: float | None = None
+
+
+def _trajectory_kind(value: Any) -> str:
+    if isinstance(value, dict):
+        return "points" if "points" in value else "arrays"
+    return "points" if isinstance(value, TrajectoryPointsModel) else "arrays"
+
+
+#: A trajectory in either format (told apart by the ``points`` field).
+AnyTrajectory = Annotated[
+    Annotated[TrajectoryModel, Tag("arrays")] | Annotated[TrajectoryPointsModel, Tag("points")],
+    Discriminator(_trajectory_kind),
+]
+
+
 # ---------------------------------------------------------------------------- timing
 #: Hard cap on the waypoints of a path sent to ``POST /v1/timing``.
 MAX_TIMING_WAYPOINTS = 10_000
@@ -106,6 +171,7 @@ class TimingRequest(_Request):
     assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the path.")
     method: Literal["toppra", "ruckig"] = "toppra"
     sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
+    format: TrajectoryFormat = Field("arrays", description=_FORMAT_DESCRIPTION)
     limits: Limits = Field(default_factory=Limits)
     max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
         None, description="Largest distance from a waypoint to its corner blend, rad."
@@ -147,27 +213,41 @@ class TimingResponse(_Response):
 
     status: TimingStatus
     message: str = ""
-    trajectory: TrajectoryModel | None = None
+    trajectory: AnyTrajectory | None = None
     diagnostics: Diagnostics = Field(default_factory=Diagnostics)
 
 
 # ---------------------------------------------------------------------------- conversions
 def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "limits")) -> Any:
     """The request's ``limits`` as :class:`planner.timing.JointLimits` (absent fields: the
-    library's defaults); a bad value raises ``LimitsError`` located at ``loc.<field>``."""
+    library's defaults), scaled by ``velocity_scaling`` and ``acceleration_scaling``
+    (:meth:`planner.timing.JointLimits.scaled`); a bad value raises ``LimitsError`` located at
+    ``loc.<field>``."""
     from planner.timing import JointLimits
 
     default = JointLimits.default()
     with located(*loc):
-        return JointLimits(
+        limits = JointLimits(
             velocity=model.velocity or default.velocity,
             acceleration=model.acceleration or default.acceleration,
             jerk=model.jerk or default.jerk,
         )
+        if model.velocity_scaling != 1.0 or model.acceleration_scaling != 1.0:
+            limits = limits.scaled(model.velocity_scaling, model.acceleration_scaling)
+        return limits
 
 
-def trajectory_model(traj: Any) -> TrajectoryModel:
-    """The wire form of a :class:`planner.timing.Trajectory`."""
+def trajectory_model(
+    traj: Any, format: TrajectoryFormat = "arrays"
+) -> TrajectoryModel | TrajectoryPointsModel:
+    """The wire form of a :class:`planner.timing.Trajectory`, in ``format`` (``"points"``:
+    :func:`planner.timing.export.to_points`, the same samples)."""
+    if format == "points":
+        return trajectory_points(_arrays_model(traj))
+    return _arrays_model(traj)
+
+
+def _arrays_model(traj: Any) -> TrajectoryModel:
     return TrajectoryModel(
         method=traj.method,
         duration=traj.duration,
@@ -192,4 +272,42 @@ def timing_error(exc: Exception) -> TimingErrorInfo:
         rule=getattr(exc, "rule", None),
         time=getattr(exc, "time", None),
         q=list(q) if q is not None else None,
+    )
+
+
+def trajectory_points(model: TrajectoryModel | TrajectoryPointsModel) -> TrajectoryPointsModel:
+    """The points form of a wire trajectory (the same floats, one point per sample; the
+    arrays' per-sample extras ``jerk``, ``p``, ``p_speed`` have no place there). A points
+    trajectory is returned as it is."""
+    if isinstance(model, TrajectoryPointsModel):
+        return model
+    from planner.timing.export import points_from_arrays
+
+    form = points_from_arrays(model.t, model.q, model.qd, model.qdd, duration=model.duration)
+    return TrajectoryPointsModel(
+        **form,
+        method=model.method,
+        max_deviation_q=model.max_deviation_q,
+        max_deviation_p=model.max_deviation_p,
+    )
+
+
+def trajectory_arrays(model: TrajectoryModel | TrajectoryPointsModel) -> TrajectoryModel:
+    """The arrays form of a wire trajectory (:func:`planner.timing.export.arrays_from_points`:
+    the same floats, joints ordered by ``joint_names``). An arrays trajectory is returned as
+    it is."""
+    if isinstance(model, TrajectoryModel):
+        return model
+    from planner.timing.export import arrays_from_points
+
+    a = arrays_from_points(model.model_dump(include={"duration", "joint_names", "points"}))
+    return TrajectoryModel(
+        duration=a.duration,
+        t=a.t.tolist(),
+        q=a.q.tolist(),
+        qd=a.qd.tolist(),
+        qdd=a.qdd.tolist(),
+        method=model.method,
+        max_deviation_q=model.max_deviation_q,
+        max_deviation_p=model.max_deviation_p,
     )

@@ -1,0 +1,40 @@
+"""POST /v1/cartesian: straight tool paths, computed in a worker like a plan.
+
+The job is :func:`planner_api.compute.cartesian`. A finished path is a 200 whatever its
+status (``solved`` exactly when ``fraction`` = 1); errors are for invalid input (422), a full
+pool (503) or the request's deadline (504).
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response
+
+from planner.wire import CartesianRequest, CartesianResponse
+from planner_api import compute
+from planner_api.compute import answer_sample_limit
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.routes._common import check_obstacle_count, run_job
+
+__all__ = ["cartesian", "router"]
+
+router = APIRouter(prefix="/v1", tags=["plan"])
+
+
+@router.post("/cartesian", response_model=CartesianResponse)
+async def cartesian(
+    body: CartesianRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
+    """Move P on straight segments from the start's P through ``waypoints`` in the start's
+    working and assembly mode, within ``path_tolerance`` of the polyline, under every rule of
+    a plan; where a rule would break, stop at the last valid point (``no_path``, ``fraction``
+    < 1, ``message`` naming the rule, the measured value and the point)."""
+    check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+    return await run_job(
+        pool,
+        compute.cartesian,
+        body,
+        deadline,
+        design_defaults=settings.design_defaults,
+        max_samples=samples,
+    )
