@@ -13,7 +13,10 @@ joint, default design, default limits 2 rad/s, 8 rad/s^2, 200 rad/s^3):
   put inside some corners (where the blends pass, off the polyline).
 
 Goals (issue 7): toppra p50 <= 10 ms for a 20-waypoint path including the dense re-check;
-ruckig duration <= 1.2x toppra's.
+ruckig duration <= 1.2x toppra's. Goals (issue 16): ruckig's p50 at most toppra's, with the
+ruckig/toppra duration ratio <= 1.2 at its maximum; the "goals" table shows both side by
+side. The methods run interleaved path by path (each path timed by every method in turn), so
+that load from other processes falls on all of them alike.
 """
 
 from __future__ import annotations
@@ -87,29 +90,49 @@ def main() -> None:
         f"{'method':<26} {'wall p50 [ms]':>14} {'p95':>7} {'cpu p50 [ms]':>13} {'p95':>7} "
         f"{'repairs':>8} {'dev p50 [rad]':>14}"
     )
-    results: dict[str, list] = {}
-    for label, method, checker in (
+    configs = (
         ("toppra", "toppra", None),
         ("toppra + kappa(A) check", "toppra", check),
         ("ruckig", "ruckig", None),
         ("ruckig + kappa(A) check", "ruckig", check),
-    ):
-        times, cpu, trajs = [], [], []
-        for w in paths:
+    )
+    results: dict[str, list] = {label: [] for label, _, _ in configs}
+    wall: dict[str, list[float]] = {label: [] for label, _, _ in configs}
+    cpu: dict[str, list[float]] = {label: [] for label, _, _ in configs}
+    for w in paths:  # interleaved: every method on this path, then the next path
+        for label, method, checker in configs:
             t0, c0 = time.perf_counter(), time.process_time()
             traj = time_path(design, w, limits, method=method, check_states=checker)
-            times.append(time.perf_counter() - t0)
-            cpu.append(time.process_time() - c0)
-            trajs.append(traj)
-        results[label] = trajs
+            wall[label].append(time.perf_counter() - t0)
+            cpu[label].append(time.process_time() - c0)
+            results[label].append(traj)
+    for label, _, _ in configs:
+        trajs = results[label]
         print(
-            f"{label:<26} {1e3 * pct(times, 50):>14.2f} {1e3 * pct(times, 95):>7.2f} "
-            f"{1e3 * pct(cpu, 50):>13.2f} {1e3 * pct(cpu, 95):>7.2f} "
+            f"{label:<26} {1e3 * pct(wall[label], 50):>14.2f} {1e3 * pct(wall[label], 95):>7.2f} "
+            f"{1e3 * pct(cpu[label], 50):>13.2f} {1e3 * pct(cpu[label], 95):>7.2f} "
             f"{sum(t.repairs for t in trajs):>8d} "
             f"{statistics.median(t.max_deviation_q for t in trajs):>14.4f}"
         )
     print("goal: toppra p50 <= 10 ms including the dense re-check (cpu: this process only, so")
     print("      other load on the machine does not count; wall: elapsed time)")
+
+    print()
+    print("goals (issue 16), side by side: computation time (cpu p50, the runs above) and")
+    print("duration (default limits: jerk = 25 x acceleration)")
+    print(f"{'checker':<12} {'toppra p50 [ms]':>16} {'ruckig p50 [ms]':>16} {'ruckig/toppra':>14} "
+          f"{'goal':>6} {'duration ratio p50':>19} {'max':>7} {'goal':>7}")  # fmt: skip
+    for name, suffix in (("none", ""), ("kappa(A)", " + kappa(A) check")):
+        top, ruck = cpu["toppra" + suffix], cpu["ruckig" + suffix]
+        ratio = [
+            r.duration / t.duration
+            for r, t in zip(results["ruckig" + suffix], results["toppra" + suffix], strict=True)
+        ]
+        print(
+            f"{name:<12} {1e3 * pct(top, 50):>16.2f} {1e3 * pct(ruck, 50):>16.2f} "
+            f"{pct(ruck, 50) / pct(top, 50):>14.3f} {'<= 1':>6} {pct(ratio, 50):>19.3f} "
+            f"{max(ratio):>7.3f} {'<= 1.2':>7}"
+        )
 
     print()
     print("duration relative to toppra (same v, a; toppra blends 0.05 rad)")

@@ -18,7 +18,9 @@ from planner import Design
 from planner.geometry import Sphere
 from planner.kinematics import WORKING_MODES, inverse_batch
 from planner.planning.cartesian import (
+    BISECT_TOL,
     CHORD_SHARE,
+    _narrow,
     chord_deviation_bound,
     inspect_cartesian,
     plan_cartesian,
@@ -321,3 +323,20 @@ def test_precheck_sphere_crossings_match_the_closed_form():
             assert np.linalg.norm(e.p - centre) == pytest.approx(r, abs=1e-9)
             assert np.linalg.norm(e.p - p0) / np.linalg.norm(goal - p0) == pytest.approx(e.fraction)
     assert [e.fraction for e in events] == sorted(e.fraction for e in events)
+
+
+@pytest.mark.parametrize("changes", [(0.3137,), (0.4321, 0.6, 0.9)])
+def test_narrow_finds_the_first_change_within_the_tolerance(changes):
+    """The batched search of a rule's boundary against the boundaries themselves: the
+    bracket ends within BISECT_TOL around the first change (the rule flips at each of
+    ``changes``), and the posture and rule reported are those at the bracket's end."""
+    first = changes[0]
+
+    def classify(s):
+        flips = np.sum(s[:, None] >= np.asarray(changes)[None, :], axis=1)
+        same = flips % 2 == 0
+        return same, np.stack([s, s, s], axis=1), np.where(same, "", "kappa_max")
+
+    a, b, q_b, reason = _narrow(0.0, 1.0, classify, BISECT_TOL)
+    assert a < first <= b and b - a <= BISECT_TOL
+    assert reason == "kappa_max" and q_b is not None and q_b[0] == b

@@ -12,7 +12,7 @@ from timing_factories import box_checker, fine_times, kappa_checker, random_walk
 
 from planner import Design, InputError, conditioning, forward_batch
 from planner.exceptions import TimingDeadlineError, TrajectoryCheckError
-from planner.timing import JointLimits, time_path
+from planner.timing import DEFAULT_CHECK_RESOLUTION, JointLimits, time_path
 from planner.timing.checks import dense_check
 from planner.timing.path import BlendedPath
 from planner.timing.toppra_method import solve_toppra
@@ -136,6 +136,12 @@ def test_bad_arguments_are_named(kwargs, match):
 
 
 def test_random_paths_with_a_box_inside_a_corner_are_never_returned_invalid():
+    """The dense re-check puts consecutive checked postures at most ``check_resolution``
+    apart, so every posture is within half of it of a checked one (module docstring of
+    :mod:`planner.timing.checks`): a rule checked with that margin holds everywhere. The
+    timing is given the box grown by the half resolution; no posture of a fine time grid,
+    independent of the check times, may enter the box itself."""
+    half = DEFAULT_CHECK_RESOLUTION / 2
     repaired = 0
     for seed in range(8):
         w = random_walk(seed, n=6)
@@ -145,12 +151,13 @@ def test_random_paths_with_a_box_inside_a_corner_are_never_returned_invalid():
         inward = (y2 - y1) / np.linalg.norm(y2 - y1)
         centre = w[k] + 0.03 * inward  # where the 0.05 blend passes, off the polyline
         check = box_checker(centre - 0.008, centre + 0.008)
+        grown = box_checker(centre - 0.008 - half, centre + 0.008 + half)
         dense = np.concatenate([np.linspace(a, b, 2000) for a, b in itertools.pairwise(w)])
-        if not np.all(check(dense)):
+        if not np.all(grown(dense)):
             continue
         for method in ("toppra", "ruckig"):
             try:
-                traj = time_path(DESIGN, w, LIMITS, method=method, check_states=check)
+                traj = time_path(DESIGN, w, LIMITS, method=method, check_states=grown)
             except TrajectoryCheckError:
                 continue  # refused with a typed error: allowed
             q, _, _, _ = traj.at(fine_times(traj.duration, 20001))

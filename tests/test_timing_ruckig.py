@@ -10,8 +10,10 @@ from timing_factories import brute_distance_to_polyline, fine_times, random_walk
 
 from planner import Design
 from planner.exceptions import TimingInfeasibleError
-from planner.timing import LIMIT_RTOL, JointLimits, time_path
-from planner.timing.ruckig_method import _solve_move
+from planner.timing import LIMIT_RTOL, JointLimits, ruckig_method, time_path
+from planner.timing.path import BlendedPath
+from planner.timing.ruckig_method import _MIDDLE, _solve_move, _through_marks
+from planner.timing.toppra_method import min_blend_radius, solve_toppra
 from planner.timing.trajectory import TimeScaledCurve
 
 DESIGN = Design.default()
@@ -146,3 +148,57 @@ def test_deviation_is_held_to_max_deviation(delta):
         q, _, _, _ = traj.at(fine_times(traj.duration, 2001))
         assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= delta + 1e-3
         assert 0.0 < traj.max_deviation_q <= delta * (1 + 1e-9)
+
+
+def _benchmark_walks(n: int) -> list[np.ndarray]:
+    """The seeded 20-waypoint walks of ``benchmarks/timing.py`` (same generator and seed)."""
+    rng = np.random.default_rng(0)
+    return [np.clip(np.cumsum(rng.uniform(-0.5, 0.5, size=(20, 3)), axis=0), -2.5, 2.5)
+            for _ in range(n)]  # fmt: skip
+
+
+def test_curve_evaluation_matches_ruckig_move_by_move():
+    """The chain's stacked phase tables against Ruckig's own evaluation of the active move."""
+    w = random_walk(5, n=8)
+    traj = time_path(DESIGN, w, LIMITS, method="ruckig")
+    curve = traj.curve
+    t = np.random.default_rng(1).uniform(0, curve.duration, 400)
+    q, qd, qdd, _ = curve.evaluate(t)
+    for i, x in enumerate(t):
+        k = int(curve.move_index(np.array([x]))[0])
+        pos, vel, acc = curve.moves[k].source.at_time(float(x - curve.start[k]))
+        np.testing.assert_allclose(q[i], pos, atol=1e-9)
+        np.testing.assert_allclose(qd[i], vel, atol=1e-9)
+        np.testing.assert_allclose(qdd[i], acc, atol=1e-8)
+
+
+def test_short_segment_between_blends_becomes_one_middle_state():
+    """Benchmark path 79 has a segment toppra crosses in 0.018 s between two blends: with an
+    exit and an entry there, Ruckig needed 0.50 s for it and the whole path took 1.24x
+    toppra's duration; with one state at its middle, within 1.2x (and every limit and the
+    deviation allowance hold, as the dense re-check of time_path guarantees)."""
+    limits = JointLimits.default()
+    w = _benchmark_walks(80)[79]
+    path = BlendedPath.from_waypoints(w, np.full(20, 0.05), np.zeros(20, bool),
+                                      min_blend_radius(limits))  # fmt: skip
+    profile = solve_toppra(path, limits)
+    t_merge = float(np.max(limits.acceleration_array / limits.jerk_array))
+    tags = [m[1] for m in _through_marks(path, profile, t_merge)]
+    assert _MIDDLE in tags
+    assert _MIDDLE not in [m[1] for m in _through_marks(path, profile, 0.0)]
+    top = time_path(DESIGN, w, limits)
+    ruck = time_path(DESIGN, w, limits, method="ruckig")
+    assert ruck.duration / top.duration <= 1.2
+    q = ruck.at(fine_times(ruck.duration, 20001))[0]
+    assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= 0.05 + 1e-3
+
+
+def test_patience_chooses_as_trying_every_factor(monkeypatch):
+    """The greedy speed choice stopping after PATIENCE worse factors against trying all of
+    them: the same chains (durations equal) on seeded benchmark paths."""
+    limits = JointLimits.default()
+    walks = _benchmark_walks(6)
+    short = [time_path(DESIGN, w, limits, method="ruckig").duration for w in walks]
+    monkeypatch.setattr(ruckig_method, "PATIENCE", len(ruckig_method.SPEED_FACTORS))
+    full = [time_path(DESIGN, w, limits, method="ruckig").duration for w in walks]
+    np.testing.assert_allclose(short, full, rtol=1e-3)

@@ -16,8 +16,9 @@ How a straight path is built (``docs/cartesian.md`` has the full argument):
 2. Up to there, the joint path is a polyline through inverse-kinematics postures. Between two
    consecutive ones the robot moves on the straight joint segment, whose P leaves the
    Cartesian line; :func:`chord_deviation_bound` bounds that deviation from above (a second
-   derivative bound, proved in its docstring), and a piece is split at its Cartesian midpoint
-   until the bound is at most ``chord_share * path_tolerance``.
+   derivative bound, proved in its docstring), and a piece is split into equal Cartesian
+   parts (as many as the bound's quadratic decay asks, :data:`MAX_PARTS` at most) until the
+   bound is at most ``chord_share * path_tolerance``.
 3. Every joint piece is certified by :meth:`ValidityChecker.check_path` (all rules hold on the
    whole straight joint motion, not only at samples); a piece that cannot be certified is
    split too, and where splitting reaches :data:`MIN_PIECE` m the path stops at the piece's
@@ -72,6 +73,10 @@ INITIAL_STEP = 0.05
 MIN_PIECE = 1e-7
 #: Bisection tolerance on the stopping point along the polyline, m.
 BISECT_TOL = 1e-8
+#: Points classified at once per round of :func:`_narrow` (one batched inverse kinematics
+#: each): a bracket shrinks by NARROW_POINTS + 1 per round, 3 rounds from PROBE_STEP to
+#: BISECT_TOL where bisection takes 18 single-point steps.
+NARROW_POINTS = 64
 #: A final piece ending on the bisected boundary and at most this long (m) has its end pulled
 #: back (from :data:`BACKOFF_START` m, by factors of 4) rather than split, to certify it.
 BACKOFF_PIECE = 1e-3
@@ -79,8 +84,12 @@ BACKOFF_START = 1e-7
 #: Share of ``path_tolerance`` given to the chords between joint waypoints; the rest is the
 #: timing's corner blends.
 CHORD_SHARE = 0.5
-#: Most refinement rounds (each halves the pieces that fail).
+#: Most refinement rounds (each splits the pieces that fail).
 MAX_ROUNDS = 60
+#: Most parts one refinement round cuts a piece into.
+MAX_PARTS = 16
+#: Where a piece whose motion cannot be certified is split (shares of its length).
+GRADED_SPLIT = (0.5, 0.75, 0.875)
 
 
 # ------------------------------------------------------------------------------ results
@@ -523,6 +532,40 @@ def _fmt_point(p: np.ndarray) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
 
 
+def _narrow(
+    a: float,
+    b: float,
+    classify,
+    tol: float,
+    q_b: np.ndarray | None = None,
+    reason_b: str = "",
+) -> tuple[float, float, np.ndarray | None, str]:
+    """Shrink a bracket [a, b] (m along the polyline) of a change of a rule to ``b - a <= tol``.
+
+    ``classify(s)`` takes arc lengths (M,) inside the bracket and returns ``(same, q,
+    reason)``: ``same`` (M,) bool, True where s is on a's side of the change; ``q`` (M, 3) the
+    posture there (NaN where none); ``reason`` (M,) the rule broken there. Each round
+    classifies :data:`NARROW_POINTS` evenly spaced interior points at once and keeps the
+    interval from the last point on a's side before the first point on b's side to that
+    point, so the change found is the first one the points see (as with bisection, two
+    changes closer than a round's spacing can hide each other). Returns ``(a, b, q_b,
+    reason_b)``: the final bracket and the posture and rule at its end (the given ones when
+    b never moved)."""
+    while b - a > tol:
+        s = a + (b - a) * np.arange(1, NARROW_POINTS + 1) / (NARROW_POINTS + 1)
+        same, q, reason = classify(s)
+        if np.all(same):
+            a = float(s[-1])
+            continue
+        j = int(np.argmax(~same))
+        if j > 0:
+            a = float(s[j - 1])
+        b = float(s[j])
+        q_b = q[j] if np.all(np.isfinite(q[j])) else None
+        reason_b = str(reason[j])
+    return a, b, q_b, reason_b
+
+
 class _Walker:
     """State shared by the steps of :func:`plan_cartesian`."""
 
@@ -541,13 +584,18 @@ class _Walker:
         q = np.where(ok[:, None], _unwrap_to(q, ref), np.nan)
         return q, ok, w, flipped
 
-    def probe_valid(self, s: float, ref: np.ndarray) -> tuple[bool, np.ndarray, str]:
-        """Validity of the IK posture at arc length s: (valid, q, reason)."""
-        q, ok, _, flipped = self.posture_at(np.array([s]), ref)
-        if not ok[0]:
-            return False, q[0], "assembly" if flipped[0] else "workspace"
-        rep = self.checker.check_states(q)
-        return bool(rep.valid[0]), q[0], str(rep.reason[0])
+    def probe_valid(self, s: np.ndarray, ref: np.ndarray):
+        """Validity of the IK postures at arc lengths s (M,), unwrapped towards ``ref``:
+        (valid (M,), q (M, 3), reason (M,)); the reason is "workspace" or "assembly" where the
+        working mode's branch does not reach the point (or changes assembly mode)."""
+        q, ok, _, flipped = self.posture_at(np.asarray(s, dtype=float), ref)
+        valid = np.zeros(q.shape[0], dtype=bool)
+        reason = np.where(flipped, "assembly", "workspace").astype(object)
+        if np.any(ok):
+            rep = self.checker.check_states(q[ok])
+            valid[ok] = rep.valid
+            reason[ok] = rep.reason
+        return valid, q, reason
 
 
 def _describe(
@@ -754,22 +802,18 @@ def inspect_cartesian(
                        & (qc <= np.asarray(design.joint_max) + 1e-12), axis=1)  # fmt: skip
         for kind, good in (("kappa_max", kappa_ok), ("joint_limits", jl_ok)):
             for i in np.flatnonzero((good[1:] != good[:-1]) & run[1:] & run[:-1]):
-                a, b = s[i], s[i + 1]
-                ga = good[i]
-                for _ in range(50):
-                    mid = 0.5 * (a + b)
-                    qm, okm, _, _ = _ik(design, poly.at(np.array([mid])), slot, asm_sign)
+                ga = bool(good[i])
+
+                def classify(s_, kind=kind, ga=ga, ref=qc[i]):
+                    qm, okm, _, _ = _ik(design, poly.at(s_), slot, asm_sign)
                     if kind == "kappa_max":
-                        gm = bool(measures(qm, okm)[1][0])
+                        gm = measures(qm, okm)[1]
                     else:
-                        qm = _unwrap_to(qm[0], qc[i])
-                        gm = bool(np.all((qm >= design.joint_min) & (qm <= design.joint_max)))
-                    if gm == ga:
-                        a = mid
-                    else:
-                        b = mid
-                    if b - a < BISECT_TOL:
-                        break
+                        qm = _unwrap_to(qm, ref)
+                        gm = np.all((qm >= design.joint_min) & (qm <= design.joint_max), axis=1)
+                    return gm == ga, qm, np.full(len(s_), "")
+
+                a, b, _, _ = _narrow(float(s[i]), float(s[i + 1]), classify, BISECT_TOL)
                 seg = int(poly.segment_of(np.array([a]))[0])
                 if kind == "kappa_max":
                     detail = f"kappa_max: kappa(A) = {margins.kappa_max:g}"
@@ -924,14 +968,9 @@ def plan_cartesian(
                 bad_reason = str(checker.check_states(qp[j][None]).reason[0])
             elif flipped[j]:
                 bad_reason = "assembly"
-            while b - a > BISECT_TOL:
-                mid = 0.5 * (a + b)
-                v, qm, reason = walker.probe_valid(mid, good_q)
-                if v:
-                    a, good_q = mid, qm
-                else:
-                    b, bad_reason = mid, reason
-                    bad_q = qm if np.all(np.isfinite(qm)) else None
+            a, b, bad_q, bad_reason = _narrow(
+                a, b, lambda s_: walker.probe_valid(s_, good_q), BISECT_TOL, bad_q, bad_reason
+            )
             end_s = a
             stop_rule, q_stop_bad = bad_reason, bad_q
             p_stop_bad = poly.at(np.array([b]))[0]
@@ -980,8 +1019,15 @@ def plan_cartesian(
                 p_stop_bad = poly.at(np.array([end_s]))[0]
                 continue
         if np.any(split):
-            idx = certified + np.flatnonzero(split)
-            s_mid = 0.5 * (s[idx] + s[idx + 1])
+            # each piece over the tolerance is cut into n equal parts at once, n from the
+            # bound's quadratic decay with the piece's length (f and the second-derivative
+            # term both scale with its square): one round where halving would take several;
+            # a part still over the tolerance is split again in the next round
+            pieces = certified + np.flatnonzero(split)
+            n_parts = np.clip(np.ceil(np.sqrt(b_tail[split] / tol_chord)), 2, MAX_PARTS).astype(int)
+            idx = np.repeat(pieces, n_parts - 1)
+            frac = np.concatenate([np.arange(1, n) / n for n in n_parts])
+            s_mid = s[idx] + frac * (s[idx + 1] - s[idx])
             qm, okm, wm, _ = walker.posture_at(s_mid, q[idx])
             valid_m = okm.copy()
             if np.any(okm):
@@ -1014,23 +1060,56 @@ def plan_cartesian(
         piece = s[k + 1] - s[k]
         if k + 1 == len(s) - 1 and end_s < poly.length and piece <= BACKOFF_PIECE:
             # the final piece ends on a margin (the bisected boundary), where no motion can be
-            # certified (margin 0): pull the end back, by growing steps
-            backoff = BACKOFF_START if backoff == 0.0 else 4.0 * backoff
-            if backoff < 0.5 * piece:
-                s_new = float(s[-1]) - backoff
-                qm, okm, wm, _ = walker.posture_at(np.array([s_new]), q[k])
-                if okm[0] and checker.is_valid(qm)[0]:
-                    s[-1], q[-1], w[-1] = s_new, qm[0], wm[0]
-                    end_s = s_new
-                    bound = bound[:certified]
-                    continue
+            # certified (margin 0): pull the end back, by growing steps. The steps are tried
+            # in order as one at a time would (the first end whose motion certifies is kept;
+            # an end that breaks a rule, or a step beyond half the piece, ends the pull-back),
+            # but their postures come from one batched inverse kinematics.
+            first_step = BACKOFF_START if backoff == 0.0 else 4.0 * backoff
+            steps = first_step * 4.0 ** np.arange(16)
+            pulled = np.cumsum(steps)
+            fits = steps < 0.5 * (piece - np.concatenate([[0.0], pulled[:-1]]))
+            n_try = int(np.argmin(fits)) if not np.all(fits) else len(fits)
+            accepted = False
+            if n_try > 0:
+                s_try = float(s[-1]) - pulled[:n_try]
+                qm, okm, wm, _ = walker.posture_at(s_try, q[k])
+                valid_m = okm.copy()
+                if np.any(okm):
+                    valid_m[okm] = checker.is_valid(qm[okm])
+                for j in range(n_try):
+                    backoff = float(steps[j])
+                    if not valid_m[j]:
+                        break
+                    s[-1], q[-1], w[-1] = s_try[j], qm[j], wm[j]
+                    end_s = float(s_try[j])
+                    rep = checker.check_path(q[certified:], certify=True)
+                    if rep.valid:
+                        accepted = True
+                        break
+                else:
+                    backoff = float(4.0 * steps[n_try - 1])  # the next step is too large
+                piece = s[k + 1] - s[k]
+            else:
+                backoff = first_step
+            if accepted:
+                bound = bound[:certified]
+                continue
         if piece > MIN_PIECE:
-            s_mid = 0.5 * (s[k] + s[k + 1])
-            qm, okm, wm, _ = walker.posture_at(np.array([s_mid]), q[k])
-            if okm[0] and checker.is_valid(qm)[0]:
-                s = np.insert(s, k + 1, s_mid)
-                q = np.insert(q, k + 1, qm, axis=0)
-                w = np.insert(w, k + 1, wm)
+            # split at the midpoint; the final piece of a path that stops on a rule's boundary
+            # also at 3/4 and 7/8: the margin shrinks towards that end, so its second half
+            # fails in turn (three halving rounds in one)
+            stops_short = k + 1 == len(s) - 1 and end_s < poly.length
+            frac = GRADED_SPLIT if stops_short else GRADED_SPLIT[:1]
+            s_mid = s[k] + np.asarray(frac) * (s[k + 1] - s[k])
+            qm, okm, wm, _ = walker.posture_at(s_mid, q[k])
+            valid_m = okm.copy()
+            if np.any(okm):
+                valid_m[okm] = checker.is_valid(qm[okm])
+            n_ok = int(np.argmin(valid_m)) if not np.all(valid_m) else len(frac)
+            if n_ok > 0:
+                s = np.insert(s, k + 1, s_mid[:n_ok])
+                q = np.insert(q, k + 1, qm[:n_ok], axis=0)
+                w = np.insert(w, k + 1, wm[:n_ok])
                 bound = bound[:certified]
                 continue
         # the motion out of waypoint k cannot be certified: stop at k

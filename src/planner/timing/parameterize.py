@@ -1,15 +1,18 @@
 """The public entry of timing: :func:`time_path`, with its bounded repair loop.
 
-Steps:
+Steps, each a function that :func:`time_path` calls in turn:
 
-1. validate the inputs (typed errors naming the field);
+1. validate the inputs (typed errors naming the field): :func:`_validate_inputs`;
 2. blend the polyline's corners (:class:`~planner.timing.path.BlendedPath`) within
-   ``max_deviation``, keeping the ``stop_at`` vertices as rest points;
-3. time it: toppra's time-optimal profile, slowed uniformly just enough that the limits hold
-   between its grid points too; for ``ruckig``, a chain of jerk-limited moves through states
-   taken from that profile (slowed uniformly if the Cartesian speed bound needs it);
-4. re-check the timed trajectory densely (:func:`~planner.timing.checks.dense_check`);
-5. repair and go back to 3, at most ``MAX_REPAIRS`` times:
+   ``max_deviation``, keeping the ``stop_at`` vertices as rest points:
+   :func:`_build_blended_path`;
+3. time it (:func:`_time_by_method`): toppra's time-optimal profile, slowed uniformly just
+   enough that the limits hold between its grid points too; for ``ruckig``, a chain of
+   jerk-limited moves through states taken from a toppra profile (slowed uniformly if the
+   Cartesian speed bound needs it);
+4. re-check the timed trajectory densely (:func:`~planner.timing.checks.dense_check`) at the
+   check times and the output times (:func:`_output_times`): :func:`_dense_check`;
+5. repair and go back to 3, at most ``MAX_REPAIRS`` times (:func:`_repair`):
 
    * a posture that fails validity, joint limits or assembly near a blend, or strays farther
      from the plan than ``max_deviation`` (ruckig): that corner's
@@ -21,7 +24,8 @@ Steps:
 
    a failure on the planned segments themselves cannot be repaired by timing: it raises
    :class:`~planner.exceptions.TrajectoryCheckError` at once, as does a failure left after the
-   last repair. A trajectory is never returned without passing the check.
+   last repair. A trajectory is never returned without passing the check;
+6. sample the checked curve, ends exact: :func:`_result`.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -40,7 +45,7 @@ from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
 from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
 from planner.timing.path import BlendedPath
-from planner.timing.ruckig_method import RuckigCurve, build_ruckig_curve
+from planner.timing.ruckig_method import SEED_REFINE, RuckigCurve, build_ruckig_curve
 from planner.timing.toppra_method import (
     PathProfile,
     check_deadline,
@@ -318,6 +323,97 @@ def time_path(
         ``deadline`` passed.
     """
     t_start = time.perf_counter()
+    job = _validate_inputs(
+        design, waypoints, limits, method, assembly_mode, sample_rate_hz,
+        max_cartesian_speed, max_deviation, stop_at, check_resolution, check_states,
+        deadline, max_samples,
+    )  # fmt: skip
+    state = _build_blended_path(job)
+    while True:
+        check_deadline(deadline, "while timing the path")
+        curve = _time_by_method(job, state)
+        t_out = _output_times(job, curve)
+        check_deadline(deadline, "before the dense re-check")
+        report = _dense_check(job, state, curve, t_out)
+        if report.ok:
+            break
+        _repair(job, state, curve, report)
+    return _result(job, state, curve, report, t_out, t_start)
+
+
+@dataclass(frozen=True, eq=False)
+class _Job:
+    """The validated inputs of one :func:`time_path` call (see its parameters)."""
+
+    design: Design
+    waypoints: np.ndarray
+    limits: JointLimits
+    method: str
+    assembly_mode: str
+    rate: float
+    v_cart: float | None
+    max_deviation: np.ndarray
+    stop: np.ndarray
+    check_states: StateChecker | None
+    resolution: float
+    deadline: float | None
+    max_samples: int
+
+    def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
+        """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
+        if self.v_cart is None:
+            return None
+
+        def gain(s: np.ndarray) -> np.ndarray:
+            q, d1, _ = path.evaluate_all(s)
+            _, v, ok = p_velocity(self.design, q, d1, self.assembly_mode)
+            return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
+
+        return gain
+
+
+@dataclass(eq=False)
+class _State:
+    """What the repair loop changes between rounds.
+
+    path : the blended path being timed (its blends shrink on repair).
+    dev : blend allowance per merged waypoint, rad; ``dev0`` the requested one (the re-check's
+        deviation limit) and ``floor`` the smallest before a corner becomes a stop.
+    scale, refine : joint-limit scaling and toppra grid refinement (ruckig limit repairs).
+    slow_down : a pending uniform time scaling of ``profile`` (toppra limit repairs).
+    profile : the toppra profile of ``path``, None when it must be solved again.
+    rescaled : a ruckig chain slowed down by a repair, used as is in the next round.
+    """
+
+    path: BlendedPath
+    dev: np.ndarray
+    dev0: np.ndarray
+    floor: np.ndarray
+    min_radius: float
+    scale: float = 1.0
+    refine: int = 1
+    repairs: int = 0
+    slow_down: float = 1.0
+    profile: PathProfile | None = None
+    rescaled: Curve | None = None
+
+
+def _validate_inputs(
+    design: Design,
+    waypoints: object,
+    limits: object,
+    method: object,
+    assembly_mode: object,
+    sample_rate_hz: object,
+    max_cartesian_speed: object,
+    max_deviation: object,
+    stop_at: Iterable[int],
+    check_resolution: object,
+    check_states: StateChecker | None,
+    deadline: float | None,
+    max_samples: int | None,
+) -> _Job:
+    """Step 1: every argument checked, with a typed error naming the field and the rule."""
     if not isinstance(limits, JointLimits):
         raise LimitsError(f"limits must be a JointLimits, got {type(limits).__name__}")
     if method not in METHODS:
@@ -341,131 +437,174 @@ def time_path(
             )
     stop = _stop_mask(stop_at, n)
     dev_in = _deviation(max_deviation, n)
+    cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
+    return _Job(
+        design, w, limits, str(method), str(assembly_mode), rate, v_cart, dev_in, stop,
+        check_states, resolution, deadline, cap,
+    )  # fmt: skip
 
-    min_radius = min_blend_radius(limits)
-    path = BlendedPath.from_waypoints(w, dev_in, stop, min_radius)
-    dev = np.minimum.reduceat(dev_in, np.unique(path.index_map, return_index=True)[1])
-    dev0 = dev.copy()  # the allowance per (merged) waypoint, rad
-    floor = dev / _SHRINK**_SHRINK_STEPS
-    scale, refine, repairs = 1.0, 1, 0
 
-    def speed_gain(s: np.ndarray) -> np.ndarray:
-        q, d1, _ = path.evaluate_all(s)
-        _, v, ok = p_velocity(design, q, d1, assembly_mode)
-        return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
+def _build_blended_path(job: _Job) -> _State:
+    """Step 2: the polyline's corners blended within ``max_deviation``, the ``stop_at``
+    vertices kept as rest points; the allowances per merged waypoint."""
+    min_radius = min_blend_radius(job.limits)
+    path = BlendedPath.from_waypoints(job.waypoints, job.max_deviation, job.stop, min_radius)
+    dev = np.minimum.reduceat(job.max_deviation, np.unique(path.index_map, return_index=True)[1])
+    return _State(
+        path=path,
+        dev=dev,
+        dev0=dev.copy(),  # the allowance per (merged) waypoint, rad
+        floor=dev / _SHRINK**_SHRINK_STEPS,
+        min_radius=min_radius,
+    )
 
-    slow_down = 1.0  # a pending uniform time scaling of the current toppra profile
-    profile: PathProfile | None = None
-    rescaled: Curve | None = None  # a ruckig chain slowed down by a repair, used as is
-    while True:
-        check_deadline(deadline, "while timing the path")
-        curve: Curve
-        lim = limits if scale == 1.0 else limits.scaled(scale)
-        if rescaled is not None:
-            curve, rescaled = rescaled, None
-        elif path.length <= 0.0:
-            curve = RestCurve(path.waypoints[0])
-        else:
-            if profile is None:
-                profile = solve_toppra(
-                    path,
-                    lim,
-                    speed_gain=speed_gain if v_cart is not None else None,
-                    max_cartesian_speed=v_cart,
-                    refine=refine,
-                    deadline=deadline,
-                )
-                profile = _fit_time_scale(
-                    ToppraCurve(path, profile), lim, resolution,
-                    speed_gain if v_cart else None, v_cart,
-                )  # fmt: skip
-            elif slow_down < 1.0:
-                profile = profile.time_scaled(slow_down)
-            curve = ToppraCurve(path, profile)
-            if method == "ruckig":
-                curve = build_ruckig_curve(path, profile, lim, deadline=deadline)
-                if v_cart is not None:
-                    curve = _fit_cartesian_speed(curve, design, assembly_mode, resolution, v_cart)
-        count = math.floor(curve.duration * rate) + 1
-        cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
-        if count > cap:
-            raise InputError(
-                f"sample_rate_hz = {rate:g} Hz would produce {count} samples over the "
-                f"trajectory's {curve.duration:.4g} s, more than the limit of "
-                f"{cap}: lower the rate",
-                field="sample_rate_hz",
-            )
-        # the output rate's samples, plus every instant the motion rests (stop_at, transits)
-        t_out = np.union1d(sample_times(curve.duration, rate), curve.rest_times())
-        check_deadline(deadline, "before the dense re-check")
-        report = dense_check(
-            curve,
-            design=design,
-            assembly_mode=assembly_mode,
-            waypoints=path.waypoints,
-            limits=limits,
-            resolution=resolution,
-            extra_times=t_out,
-            check_states=check_states,
-            max_cartesian_speed=v_cart,
-            deviation_limit=dev0,
+
+def _time_by_method(job: _Job, state: _State) -> Curve:
+    """Step 3: the timed curve of the current path. toppra: its time-optimal profile, slowed
+    uniformly just enough that the limits hold between its grid points too (or by a pending
+    repair's factor). ruckig: a chain of jerk-limited moves through states taken from a
+    toppra profile (solved on a coarser grid, see :data:`SEED_REFINE`), slowed uniformly if
+    the Cartesian speed bound needs it; a chain slowed by a repair is used as is."""
+    if state.rescaled is not None:
+        curve, state.rescaled = state.rescaled, None
+        return curve
+    path = state.path
+    if path.length <= 0.0:
+        return RestCurve(path.waypoints[0])
+    lim = job.limits if state.scale == 1.0 else job.limits.scaled(state.scale)
+    gain = job.speed_gain(path)
+    if state.profile is None:
+        profile = solve_toppra(
+            path,
+            lim,
+            speed_gain=gain,
+            max_cartesian_speed=job.v_cart,
+            refine=state.refine * (SEED_REFINE if job.method == "ruckig" else 1),
+            deadline=job.deadline,
         )
-        if report.ok:
-            break
-        if repairs >= MAX_REPAIRS:
-            if not report.limits_ok:
-                rule, ratio = report.worst_limit
-                raise TrajectoryCheckError(
-                    f"the {rule} limit is exceeded by a factor {ratio:.6f} after {repairs} repairs",
-                    rule=rule,
-                )
-            raise _failure(report, f"after {repairs} repairs")
-        repairs += 1
-        slow_down = 1.0
-        if np.any(report.bad_state):
-            blamed = _blame(curve, path, report)
-            if blamed is None:
-                raise _failure(report, "on the planned segments: the path itself is invalid")
-            for k in blamed:
-                dev[k] = 0.0 if dev[k] / _SHRINK < floor[k] * (1 - 1e-12) else dev[k] / _SHRINK
-            stop_now = np.zeros(path.waypoints.shape[0], bool)
-            stop_now[[k for k in blamed if dev[k] == 0.0]] = True
-            path = BlendedPath.from_waypoints(
-                path.waypoints, dev, stop_now | _kept_stops(path), min_radius
+        if job.method == "toppra":
+            profile = _fit_time_scale(
+                ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart
             )
-            profile = None
-            logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
-        elif method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed"}:
-            # Slow the same chain down uniformly (every joint limit still holds).
-            c = (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN)
-            rescaled = TimeScaledCurve(curve, c)
-            logger.info("timing repair %d: ruckig chain slowed by %.6f", repairs, c)
-        elif method == "toppra":
-            # Slow the same profile down uniformly: velocities and the Cartesian speed scale by
-            # c, accelerations by c^2, at the same path positions.
-            c = min(
-                (1.0 / np.sqrt(r) if rule == "acceleration" else 1.0 / r)
-                for rule, r in report.limit_ratio.items()
-            )
-            slow_down = min(c, 1.0) * (1.0 - _FIT_MARGIN)
-            logger.info("timing repair %d: profile slowed by %.6f", repairs, slow_down)
-        else:
-            rule, ratio = report.worst_limit
-            scale *= min(1.0 / ratio, 1.0 - 1e-4) * (1.0 - 1e-3)
-            refine *= 2
-            profile = None
-            logger.info("timing repair %d: %s limit x%.6f, limits scaled to %.6f", repairs,
-                        rule, ratio, scale)  # fmt: skip
+        state.profile = profile
+    elif state.slow_down < 1.0:
+        state.profile = state.profile.time_scaled(state.slow_down)
+    if job.method == "toppra":
+        return ToppraCurve(path, state.profile)
+    curve: Curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline)
+    if job.v_cart is not None:
+        curve = _fit_cartesian_speed(
+            curve, job.design, job.assembly_mode, job.resolution, job.v_cart
+        )
+    return curve
 
+
+def _output_times(job: _Job, curve: Curve) -> np.ndarray:
+    """The output rate's sample times plus every instant the motion rests (stop_at,
+    transits); :class:`~planner.exceptions.InputError` when there would be more than the
+    sample cap, before any sample is computed."""
+    count = math.floor(curve.duration * job.rate) + 1
+    if count > job.max_samples:
+        raise InputError(
+            f"sample_rate_hz = {job.rate:g} Hz would produce {count} samples over the "
+            f"trajectory's {curve.duration:.4g} s, more than the limit of "
+            f"{job.max_samples}: lower the rate",
+            field="sample_rate_hz",
+        )
+    return np.union1d(sample_times(curve.duration, job.rate), curve.rest_times())
+
+
+def _dense_check(job: _Job, state: _State, curve: Curve, t_out: np.ndarray) -> CheckReport:
+    """Step 4: the timed curve re-checked densely (:func:`~planner.timing.checks.dense_check`)
+    against the requested limits (not the scaled ones), joint limits, assembly, validity and
+    the requested deviation allowance."""
+    return dense_check(
+        curve,
+        design=job.design,
+        assembly_mode=job.assembly_mode,
+        waypoints=state.path.waypoints,
+        limits=job.limits,
+        resolution=job.resolution,
+        extra_times=t_out,
+        check_states=job.check_states,
+        max_cartesian_speed=job.v_cart,
+        deviation_limit=state.dev0,
+    )
+
+
+def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None:
+    """Step 5: one repair of a failed check (module docstring), or
+    :class:`~planner.exceptions.TrajectoryCheckError` when none can help: the repairs are
+    used up, or a bad posture lies on the planned segments themselves."""
+    if state.repairs >= MAX_REPAIRS:
+        if not report.limits_ok:
+            rule, ratio = report.worst_limit
+            raise TrajectoryCheckError(
+                f"the {rule} limit is exceeded by a factor {ratio:.6f} after "
+                f"{state.repairs} repairs",
+                rule=rule,
+            )
+        raise _failure(report, f"after {state.repairs} repairs")
+    state.repairs += 1
+    repairs = state.repairs
+    state.slow_down = 1.0
+    if np.any(report.bad_state):
+        path = state.path
+        blamed = _blame(curve, path, report)
+        if blamed is None:
+            raise _failure(report, "on the planned segments: the path itself is invalid")
+        dev, floor = state.dev, state.floor
+        for k in blamed:
+            dev[k] = 0.0 if dev[k] / _SHRINK < floor[k] * (1 - 1e-12) else dev[k] / _SHRINK
+        stop_now = np.zeros(path.waypoints.shape[0], bool)
+        stop_now[[k for k in blamed if dev[k] == 0.0]] = True
+        state.path = BlendedPath.from_waypoints(
+            path.waypoints, dev, stop_now | _kept_stops(path), state.min_radius
+        )
+        state.profile = None
+        logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
+    elif job.method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed"}:
+        # Slow the same chain down uniformly (every joint limit still holds).
+        c = (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN)
+        state.rescaled = TimeScaledCurve(curve, c)
+        logger.info("timing repair %d: ruckig chain slowed by %.6f", repairs, c)
+    elif job.method == "toppra":
+        # Slow the same profile down uniformly: velocities and the Cartesian speed scale by
+        # c, accelerations by c^2, at the same path positions.
+        c = min(
+            (1.0 / np.sqrt(r) if rule == "acceleration" else 1.0 / r)
+            for rule, r in report.limit_ratio.items()
+        )
+        state.slow_down = min(c, 1.0) * (1.0 - _FIT_MARGIN)
+        logger.info("timing repair %d: profile slowed by %.6f", repairs, state.slow_down)
+    else:
+        rule, ratio = report.worst_limit
+        state.scale *= min(1.0 / ratio, 1.0 - 1e-4) * (1.0 - 1e-3)
+        state.refine *= 2
+        state.profile = None
+        logger.info("timing repair %d: %s limit x%.6f, limits scaled to %.6f", repairs,
+                    rule, ratio, state.scale)  # fmt: skip
+
+
+def _result(
+    job: _Job,
+    state: _State,
+    curve: Curve,
+    report: CheckReport,
+    t_out: np.ndarray,
+    t_start: float,
+) -> Trajectory:
+    """Step 6: the checked curve sampled at the output times, ends exact (the first and last
+    planned waypoints, at rest), with its measured quality."""
     q, qd, qdd, jerk = curve.evaluate(t_out)
-    # The ends are exact: the first and last planned waypoints, at rest.
+    path = state.path
     q[0], q[-1] = path.waypoints[0], path.waypoints[-1]
     qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0
     if jerk is not None and not np.all(np.isfinite(jerk)):
         jerk = None
-    p, v_p, _ = p_velocity(design, q, qd, assembly_mode)
+    p, v_p, _ = p_velocity(job.design, q, qd, job.assembly_mode)
     return Trajectory(
-        method=method,
+        method=job.method,
         duration=curve.duration,
         t=t_out,
         q=q,
@@ -476,7 +615,7 @@ def time_path(
         p_speed=np.linalg.norm(v_p, axis=1),
         max_deviation_q=report.max_deviation_q,
         max_deviation_p=report.max_deviation_p,
-        repairs=repairs,
+        repairs=state.repairs,
         checked_samples=int(report.t.shape[0]),
         computation_time_s=time.perf_counter() - t_start,
         curve=curve,

@@ -16,8 +16,15 @@ built from the time-optimal toppra profile on the blended path (:mod:`planner.ti
   acceleration and displacement are all parallel to the segment, so the phase-synchronised
   move stays exactly on the planned segment; around a corner the move bends near the arc
   (phase synchronisation falls back to time synchronisation) and its deviation is measured;
+* a straight segment between two blends that toppra crosses faster than a joint can bring its
+  acceleration to zero under the jerk limit (``max_j a_j / j_j``) gets one through-state at
+  its middle instead of an exit and an entry: toppra leaves the first blend accelerating hard
+  and enters the next braking hard, a swing no jerk-limited joint can follow in that time;
 * stops (path start and end, requested stops, unblended corners) are reached at rest, and a
   rest-to-rest move with phase synchronisation is the straight segment itself.
+
+The toppra profile is solved on a coarser grid than toppra's own method uses
+(:data:`SEED_REFINE`): only its states at the through-states matter.
 
 The moves meet with equal position, velocity and acceleration, so q, qd and qdd are
 continuous. Position limits are not in the community version: the caller checks joint limits.
@@ -25,6 +32,7 @@ continuous. Position limits are not in the community version: the caller checks 
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -38,7 +46,7 @@ from planner.timing.path import ARC, BlendedPath
 from planner.timing.toppra_method import PathProfile, check_deadline
 from planner.timing.trajectory import check_sample_count
 
-__all__ = ["RuckigCurve", "build_ruckig_curve"]
+__all__ = ["PATIENCE", "SEED_REFINE", "SPEED_FACTORS", "RuckigCurve", "build_ruckig_curve"]
 
 logger = logging.getLogger(__name__)
 
@@ -47,6 +55,17 @@ logger = logging.getLogger(__name__)
 _INSIDE = 1.0 - 1e-9
 #: Candidate slow-downs of each through-state's toppra velocity (see build_ruckig_curve).
 SPEED_FACTORS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5)
+#: The greedy choice stops trying slower factors after this many in a row did worse than the
+#: best so far (the cost is nearly unimodal in the factor: on the benchmark paths a patience
+#: of 2 chooses as all six do, for about half the solves).
+PATIENCE = 2
+#: Grid refinement of the toppra pass that gives the through-states (see
+#: :func:`~planner.timing.toppra_method.section_grid`): only the profile's states at the
+#: blends' ends are used, and on a grid 3x coarser they barely change (ruckig/toppra duration
+#: p50 +0.004 on the benchmark paths) while the pass costs about half.
+SEED_REFINE = 1 / 3
+#: Tags of the through-states.
+_REST, _ENTRY, _EXIT, _MIDDLE = 0, 1, 2, 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,70 +87,130 @@ class _Move:
     braking: bool  # a brake phase precedes the profile: evaluate with Ruckig's at_time
 
     def speed_bound(self, fallback: float) -> float:
-        """Upper bound of |qd| during the move, rad/s: per joint, the largest |velocity| at a
-        phase boundary or where the acceleration crosses zero inside a phase (velocity is
-        quadratic in time within a constant-jerk phase); ``fallback`` for a braking move."""
+        """Upper bound of |qd| during the move, rad/s (:func:`_speed_bounds`); ``fallback``
+        for a braking move."""
         if self.braking:
             return fallback
-        v0, v1 = np.abs(self.v[:, :-1]), np.abs(self.v[:, 1:])
-        a0, a1 = self.a[:, :-1], self.a[:, 1:]
-        crosses = (a0 * a1 < 0) & (self.jerk != 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v_turn = np.where(crosses, np.abs(self.v[:, :-1] - a0**2 / (2 * self.jerk)), 0.0)
-        per_joint = np.max(np.maximum(np.maximum(v0, v1), v_turn), axis=1)
-        return float(np.linalg.norm(per_joint))
+        return float(_speed_bounds(self.v[None], self.a[None], self.jerk[None])[0])
 
     def evaluate(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
         """q, qd, qdd, jerk at local times tau (M,) in [0, duration], shapes (M, 3)."""
-        tau = np.clip(tau, 0.0, self.duration)
+        tau = np.clip(np.atleast_1d(np.asarray(tau, dtype=float)), 0.0, self.duration)
         if self.braking:
-            rows = [self.source.at_time(float(x)) for x in tau]
-            q = np.array([r[0] for r in rows])
-            qd = np.array([r[1] for r in rows])
-            qdd = np.array([r[2] for r in rows])
-            return q, qd, qdd, np.full_like(q, np.nan)
-        out = [np.empty((tau.shape[0], 3)) for _ in range(4)]
-        for d in range(3):
-            k = np.clip(np.searchsorted(self.cum[d], tau, side="right") - 1, 0, 6)
-            x = tau - self.cum[d, k]
-            j, a, v = self.jerk[d, k], self.a[d, k], self.v[d, k]
-            out[0][:, d] = self.p[d, k] + x * (v + x * (a / 2 + x * j / 6))
-            out[1][:, d] = v + x * (a + x * j / 2)
-            out[2][:, d] = a + x * j
-            out[3][:, d] = j
-        return tuple(out)
+            return _evaluate_with_ruckig(self.source, tau)
+        table = tuple(x[None] for x in (self.cum, self.jerk, self.p, self.v, self.a))
+        return _integrate(table, np.zeros(tau.shape[0], dtype=int), tau)
+
+
+def _speed_bounds(v: np.ndarray, a: np.ndarray, jerk: np.ndarray) -> np.ndarray:
+    """Upper bound of |qd| during each of K moves, rad/s, shape (K,): per joint, the largest
+    |velocity| at a phase boundary or where the acceleration crosses zero inside a phase
+    (velocity is quadratic in time within a constant-jerk phase), and the norm over joints.
+    ``v``, ``a``: shape (K, 3, 8) at the phase starts; ``jerk``: shape (K, 3, 7)."""
+    v0, v1 = np.abs(v[..., :-1]), np.abs(v[..., 1:])
+    a0, a1 = a[..., :-1], a[..., 1:]
+    crosses = (a0 * a1 < 0) & (jerk != 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_turn = np.where(crosses, np.abs(v[..., :-1] - a0**2 / (2 * jerk)), 0.0)
+    per_joint = np.max(np.maximum(np.maximum(v0, v1), v_turn), axis=-1)
+    return np.linalg.norm(per_joint, axis=-1)
+
+
+def _integrate(
+    table: tuple[np.ndarray, ...], move: np.ndarray, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """q, qd, qdd, jerk, shapes (M, 3), at local times ``tau`` (M,) of moves ``move`` (M,):
+    per joint, the constant-jerk phase holding tau, integrated from its start state.
+
+    ``table`` = (cum (K, 3, 8) phase start times, jerk (K, 3, 7), p, v, a (K, 3, 8) the
+    states at the phase starts) of K moves. A phase boundary belongs to the later phase (as
+    ``searchsorted(side="right")``); the last phase extends past its end."""
+    cum, jerk, p, v, a = table
+    c = cum[move]  # (M, 3, 8)
+    k = np.clip(np.sum(c <= tau[:, None, None], axis=2) - 1, 0, 6)[..., None]  # (M, 3, 1)
+    x = tau[:, None] - np.take_along_axis(c, k, axis=2)[..., 0]
+    j = np.take_along_axis(jerk[move], k, axis=2)[..., 0]
+    a0 = np.take_along_axis(a[move], k, axis=2)[..., 0]
+    v0 = np.take_along_axis(v[move], k, axis=2)[..., 0]
+    p0 = np.take_along_axis(p[move], k, axis=2)[..., 0]
+    q = p0 + x * (v0 + x * (a0 / 2 + x * j / 6))
+    return q, v0 + x * (a0 + x * j / 2), a0 + x * j, j
+
+
+def _evaluate_with_ruckig(
+    traj: RuckigTrajectory, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """q, qd, qdd (and NaN jerk) by Ruckig's own ``at_time``: for a move with brake phases,
+    which the phase tables do not hold."""
+    rows = [traj.at_time(float(x)) for x in tau]
+    q = np.array([r[0] for r in rows]).reshape(-1, 3)
+    qd = np.array([r[1] for r in rows]).reshape(-1, 3)
+    qdd = np.array([r[2] for r in rows]).reshape(-1, 3)
+    return q, qd, qdd, np.full_like(q, np.nan)
+
+
+def _calculate(
+    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, traj: RuckigTrajectory
+) -> str:
+    """One Ruckig move from ``start`` to ``target`` ((q, qd, qdd), each 3 numbers) into
+    ``traj``: "" when solved, else the reason Ruckig gave none (``RuckigError`` or an error
+    code). The lean path: the candidate moves of :func:`build_ruckig_curve` need only their
+    durations, so nothing else is read here (that costs as much as the solve itself)."""
+    inp.current_position, inp.current_velocity, inp.current_acceleration = start
+    inp.target_position, inp.target_velocity, inp.target_acceleration = target
+    try:
+        result = otg.calculate(inp, traj)
+    except RuckigError as exc:
+        return f"ruckig rejected a move: {str(exc).strip()}"
+    if result not in (Result.Working, Result.Finished):
+        return f"ruckig found no move: {result}"
+    return ""
+
+
+def _moves_from(trajs: list[RuckigTrajectory], corners: list[tuple[int, ...]]) -> list[_Move]:
+    """The phase tables of solved Ruckig trajectories, for vectorised evaluation (read in one
+    pass: per-move numpy conversions would cost as much as the solves)."""
+    rows = [[(pr.t, pr.j) for pr in tr.profiles[0]] for tr in trajs]
+    states = [[(pr.p, pr.v, pr.a) for pr in tr.profiles[0]] for tr in trajs]
+    phases = np.array(rows, dtype=float).reshape(len(trajs), 3, 2, 7)
+    at = np.array(states, dtype=float).reshape(len(trajs), 3, 3, 8)
+    cum = np.concatenate([np.zeros((len(trajs), 3, 1)), np.cumsum(phases[:, :, 0], axis=2)], 2)
+    out = []
+    for k, tr in enumerate(trajs):
+        braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in tr.profiles[0])
+        out.append(
+            _Move(
+                duration=float(tr.duration),
+                cum=cum[k],
+                jerk=phases[k, :, 1],
+                p=at[k, :, 0],
+                v=at[k, :, 1],
+                a=at[k, :, 2],
+                corners=corners[k],
+                source=tr,
+                braking=braking,
+            )
+        )
+    return out
 
 
 def _solve_move(
     otg: Ruckig, inp: InputParameter, start: tuple, target: tuple, corners: tuple[int, ...]
 ) -> _Move:
-    inp.current_position, inp.current_velocity, inp.current_acceleration = (
-        np.asarray(x, dtype=float).tolist() for x in start
-    )
-    inp.target_position, inp.target_velocity, inp.target_acceleration = (
-        np.asarray(x, dtype=float).tolist() for x in target
-    )
+    """One Ruckig move from ``start`` to ``target`` (arrays or lists), as a :class:`_Move`.
+
+    Raises
+    ------
+    TimingInfeasibleError
+        Ruckig rejects the move or returns an error code.
+    """
+    as_lists = tuple(tuple(np.asarray(x, dtype=float).tolist() for x in st)
+                     for st in (start, target))  # fmt: skip
     traj = RuckigTrajectory(3)
-    try:
-        result = otg.calculate(inp, traj)
-    except RuckigError as exc:
-        raise TimingInfeasibleError(f"ruckig rejected a move: {str(exc).strip()}") from exc
-    if result not in (Result.Working, Result.Finished):
-        raise TimingInfeasibleError(f"ruckig found no move: {result}")
-    profiles = traj.profiles[0]
-    cum = np.array([np.concatenate([[0.0], np.cumsum(pr.t)]) for pr in profiles])
-    braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in profiles)
-    return _Move(
-        duration=float(traj.duration),
-        cum=cum,
-        jerk=np.array([pr.j for pr in profiles]),
-        p=np.array([pr.p for pr in profiles]),
-        v=np.array([pr.v for pr in profiles]),
-        a=np.array([pr.a for pr in profiles]),
-        corners=corners,
-        source=traj,
-        braking=braking,
-    )
+    error = _calculate(otg, inp, *as_lists, traj)
+    if error:
+        raise TimingInfeasibleError(error)
+    return _moves_from([traj], [corners])[0]
 
 
 def _reachable_acceleration(
@@ -142,15 +221,15 @@ def _reachable_acceleration(
     ``|vel| + acc^2 / (2 j_max) <= v_max``. The second is the speed reached before the
     acceleration can be brought to zero (when it raises the speed, as a start state) or the
     speed it had when the acceleration was zero (when it lowers it, as a target state);
-    Ruckig rejects a state beyond it, and every through-state is both."""
-    factor = 1.0
-    for d in range(3):
-        if acc[d] == 0.0:
-            continue
-        factor = min(factor, a_max[d] * _INSIDE / abs(acc[d]))
-        room = max(v_max[d] * _INSIDE - abs(vel[d]), 0.0)
-        factor = min(factor, float(np.sqrt(2 * j_max[d] * room)) / abs(acc[d]))
-    return acc * factor
+    Ruckig rejects a state beyond it, and every through-state is both.
+
+    ``vel``, ``acc``: shape (..., 3), any number of states at once."""
+    mag = np.abs(acc)
+    room = np.maximum(v_max * _INSIDE - np.abs(vel), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_joint = np.minimum(a_max * _INSIDE / mag, np.sqrt(2 * j_max * room) / mag)
+    factor = np.min(np.where(mag > 0.0, per_joint, 1.0), axis=-1, initial=1.0)
+    return acc * factor[..., None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,16 +255,36 @@ class RuckigCurve:
         """Index of the move active at each time (a boundary belongs to the later move)."""
         return np.clip(np.searchsorted(self.start, t, side="right") - 1, 0, len(self.moves) - 1)
 
+    @functools.cached_property
+    def _table(self) -> tuple[np.ndarray, ...]:
+        """The moves' phase tables stacked, shape (K, 3, 8) or (K, 3, 7) (see
+        :func:`_integrate`), plus ``braking`` (K,) and ``durations`` (K,)."""
+        m = self.moves
+        return (
+            np.stack([x.cum for x in m]),
+            np.stack([x.jerk for x in m]),
+            np.stack([x.p for x in m]),
+            np.stack([x.v for x in m]),
+            np.stack([x.a for x in m]),
+            np.array([x.braking for x in m]),
+            np.array([x.duration for x in m]),
+        )
+
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """q, qd, qdd, jerk at times t (M,), shapes (M, 3): every move's phase table at
+        once (a braking move by Ruckig's ``at_time``, its jerk NaN)."""
         t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.duration)
         idx = self.move_index(t)
-        out = [np.empty((t.shape[0], 3)) for _ in range(4)]
-        for k in np.unique(idx):
+        *table, braking, durations = self._table
+        tau = np.clip(t - self.start[idx], 0.0, durations[idx])
+        q, qd, qdd, jerk = _integrate(tuple(table), idx, tau)
+        for k in np.flatnonzero(braking):
             sel = idx == k
-            vals = self.moves[k].evaluate(t[sel] - self.start[k])
-            for o, v in zip(out, vals, strict=True):
-                o[sel] = v
-        return out[0], out[1], out[2], out[3]
+            if np.any(sel):
+                q[sel], qd[sel], qdd[sel], jerk[sel] = _evaluate_with_ruckig(
+                    self.moves[k].source, tau[sel]
+                )
+        return q, qd, qdd, jerk
 
     def rest_times(self) -> np.ndarray:
         """Move boundaries strictly inside the motion where it is at rest (the stops), s."""
@@ -197,15 +296,18 @@ class RuckigCurve:
 
     def check_times(self, resolution: float) -> np.ndarray:
         """Per move, a uniform grid with step ``resolution / V`` where V bounds |qd| during
-        that move (:meth:`_Move.speed_bound`), so consecutive postures are at most
-        ``resolution`` apart; every move boundary is included."""
-        counts = [
-            max(2, int(np.ceil(m.duration * m.speed_bound(self.speed_bound) / resolution)) + 1)
-            for m in self.moves
-        ]
-        check_sample_count(sum(counts))
-        parts = [np.linspace(self.start[k], self.start[k + 1], n) for k, n in enumerate(counts)]
-        return np.unique(np.concatenate([*parts, self.start]))
+        that move (:func:`_speed_bounds`; the norm of the velocity limits for a braking move),
+        so consecutive postures are at most ``resolution`` apart; every move boundary is
+        included."""
+        _, jerk, _, v, a, braking, durations = self._table
+        speed = np.where(braking, self.speed_bound, _speed_bounds(v, a, jerk))
+        counts = np.maximum(2, np.ceil(durations * speed / resolution).astype(int) + 1)
+        check_sample_count(int(np.sum(counts)))
+        move = np.repeat(np.arange(len(self.moves)), counts)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        frac = (np.arange(move.shape[0]) - first[move]) / (counts[move] - 1)
+        t = self.start[move] + frac * durations[move]
+        return np.unique(np.concatenate([t, self.start]))
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         """A move through blends k..m stands for segments k-1..m; a rest-to-rest move
@@ -218,6 +320,47 @@ class RuckigCurve:
     def corners_at(self, t: np.ndarray) -> list[tuple[int, ...]]:
         """For each time, the blends whose move covers it (empty: a rest-to-rest move)."""
         return [self.moves[k].corners for k in self.move_index(np.atleast_1d(t))]
+
+
+def _through_marks(path: BlendedPath, profile: PathProfile, t_merge: float) -> list[tuple]:
+    """Through-states in path order, as (s, tag, corner): a rest (``_REST``) at every stop,
+    the entry and exit of every blend (``_ENTRY``, ``_EXIT``, with the blend's waypoint).
+
+    Two blends sharing a whole segment meet at one point: only the later one's entry is kept.
+    A straight segment between two blends that toppra crosses in less than ``t_merge`` s gets
+    one state at its middle (``_MIDDLE``, corner -1) instead of the exit and the entry: toppra
+    accelerates hard out of the first blend and brakes hard into the next, and a joint under
+    a jerk limit cannot follow such a swing in so short a time (Ruckig then needs a move many
+    times longer than toppra's, measured up to 30x), while it can pass a single state."""
+    marks: list[tuple[float, int, int]] = []
+    for k in range(path.n_pieces):
+        if path.kind[k] == ARC:
+            marks.append((float(path.s0[k]), _ENTRY, int(path.corner[k])))
+            marks.append((float(path.s0[k + 1]), _EXIT, int(path.corner[k])))
+    marks += [(float(s), _REST, -1) for s in path.stops]
+    marks.sort(key=lambda m: (m[0], m[1] != _EXIT, m[1]))  # an exit before a coinciding entry
+    marks = [
+        m
+        for i, m in enumerate(marks)
+        if not (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][0] <= m[0])
+    ]
+    # consecutive rests at one position (a stop at the path's end) are one
+    marks = [m for i, m in enumerate(marks)
+             if not (i > 0 and m[1] == _REST and marks[i - 1][1] == _REST
+                     and m[0] <= marks[i - 1][0])]  # fmt: skip
+    t_marks, _, _ = profile.at_path(np.array([m[0] for m in marks]))
+    out: list[tuple[float, int, int]] = []
+    i = 0
+    while i < len(marks):
+        m = marks[i]
+        if (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][1] == _ENTRY
+                and t_marks[i + 1] - t_marks[i] < t_merge):  # fmt: skip
+            out.append((0.5 * (m[0] + marks[i + 1][0]), _MIDDLE, -1))
+            i += 2
+            continue
+        out.append(m)
+        i += 1
+    return out
 
 
 def build_ruckig_curve(
@@ -235,12 +378,14 @@ def build_ruckig_curve(
     ----------
     path : BlendedPath
     profile : PathProfile
-        The toppra profile of ``path`` under the same velocity and acceleration limits.
+        The toppra profile of ``path`` under the same velocity and acceleration limits (it
+        gives the through-states; it need not meet the limits between its grid points, the
+        states are pulled inside the limits here).
     limits : JointLimits
         With ``jerk`` set.
     through_acceleration : bool
         Give each through-state toppra's tangential acceleration (True) or zero.
-    speed_factors : candidate slow-downs of each through-state, tried greedily.
+    speed_factors : candidate slow-downs of each through-state, tried greedily in order.
     deadline : float, optional
         ``time.monotonic()`` value checked every 16 moves.
 
@@ -248,7 +393,8 @@ def build_ruckig_curve(
     waypoint costs about 1.45x (jerk = 25 x acceleration /s) to 1.65x (10x) the toppra duration;
     these through-states cost about 1.1x and 1.3x, with a deviation from the polyline close to
     the blend size. Extra through-states inside the arcs were tried and made it worse (a
-    rapidly turning toppra acceleration cannot be tracked under a jerk limit).
+    rapidly turning toppra acceleration cannot be tracked under a jerk limit); so is a short
+    segment's pair of states, which is why it becomes one (:func:`_through_marks`).
 
     Raises
     ------
@@ -257,97 +403,97 @@ def build_ruckig_curve(
     """
     v_max = limits.velocity_array
     a_max = limits.acceleration_array
+    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
     otg = Ruckig(3)
     inp = InputParameter(3)
     inp.max_velocity = v_max.tolist()
     inp.max_acceleration = a_max.tolist()
-    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
     inp.max_jerk = j_max.tolist()
     inp.synchronization = Synchronization.Phase
 
-    # Through-states in path order: (s, tag, corner); tag 0 rest, 1 entry, 2 exit.
-    marks: list[tuple[float, int, int]] = []
-    stops = path.stops
-    for k in range(path.n_pieces):
-        if path.kind[k] == ARC:
-            marks.append((float(path.s0[k]), 1, int(path.corner[k])))
-            marks.append((float(path.s0[k + 1]), 2, int(path.corner[k])))
-    marks += [(float(s), 0, -1) for s in stops]
-    marks.sort(key=lambda m: (m[0], m[1] != 2, m[1]))  # an exit before a coinciding entry
-    # Two blends sharing a whole segment meet at one point: keep only the later one's entry.
-    marks = [
-        m
-        for i, m in enumerate(marks)
-        if not (m[1] == 2 and i + 1 < len(marks) and marks[i + 1][0] <= m[0])
-    ]
-
+    # the time a joint needs to bring its largest acceleration to zero under its jerk limit
+    marks = _through_marks(path, profile, t_merge=float(np.max(a_max / j_max)))
     s_marks = np.array([m[0] for m in marks])
+    tags = np.array([m[1] for m in marks])
     q = path.evaluate(s_marks, 0)
     tangent = path.evaluate(s_marks, 1)
     tangent_left = path.evaluate(s_marks, 1, side="left")
     _, sd, sdd_right = profile.at_path(s_marks)
     _, _, sdd_left = profile.at_path(np.maximum(s_marks - 1e-9 * max(path.length, 1.0), 0.0))
 
-    # Each through-state at full toppra speed, and its velocity direction and acceleration.
-    base: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
-    for i, (_, tag, _) in enumerate(marks):
-        if tag == 0:
-            base.append(None)
-            continue
-        # Entry: straight side is before; exit: after. The tangent is continuous there.
-        direction = tangent_left[i] if tag == 1 else tangent[i]
-        acc_s = sdd_left[i] if tag == 1 else sdd_right[i]
-        acc = direction * acc_s if through_acceleration else np.zeros(3)
-        base.append((q[i], direction * sd[i], acc))
+    # Every through-state at every speed factor at once, shape (marks, factors, 3): toppra's
+    # velocity times f (clipped inside the limits) and its acceleration times f^2, made
+    # reachable. An entry's straight side is before it, an exit's (and a middle's) after.
+    entry = tags == _ENTRY
+    direction = np.where(entry[:, None], tangent_left, tangent)
+    acc_s = np.where(entry, sdd_left, sdd_right)
+    f = np.asarray(speed_factors, dtype=float)[None, :, None]
+    vel = np.clip((direction * sd[:, None])[:, None, :] * f, -v_max * _INSIDE, v_max * _INSIDE)
+    acc = (direction * acc_s[:, None])[:, None, :] * f**2
+    if not through_acceleration:
+        acc = np.zeros_like(acc)
+    acc = _reachable_acceleration(vel, acc, v_max, a_max, j_max)
+    q_l, vel_l, acc_l = q.tolist(), vel.tolist(), acc.tolist()
+    zero = [0.0, 0.0, 0.0]
+    n_f = len(speed_factors)
+    ahead_k = max(n_f - 2, 0)  # the look-ahead's factor (the second slowest)
 
-    def state(i: int, f: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Through-state i slowed by f: velocity times f, acceleration times f^2."""
-        if base[i] is None:
-            zero = np.zeros(3)
-            return q[i], zero, zero
-        qi, vel, acc = base[i]  # type: ignore[misc]
-        vel = np.clip(vel * f, -v_max * _INSIDE, v_max * _INSIDE)
-        return qi, vel, _reachable_acceleration(vel, acc * f**2, v_max, a_max, j_max)
+    def state(i: int, k: int) -> tuple[list, list, list]:
+        """Through-state i at speed factor index k, as lists for Ruckig."""
+        if tags[i] == _REST:
+            return q_l[i], zero, zero
+        return q_l[i], vel_l[i][k], acc_l[i][k]
 
     # Greedy speed choice per through-state. A joint at its velocity limit cannot stretch
     # its move to a longer common duration (Ruckig's blocked intervals), which can make a
     # synchronised move several times longer than each joint's own minimum; a slightly
     # slower through-state avoids that. For each state, the factor minimising the move into it
-    # plus the move out of it (towards the next state at a middle factor) is kept.
-    keep = [i for i in range(len(marks))
-            if not (i > 0 and marks[i][1] == 0 and marks[i - 1][1] == 0
-                    and s_marks[i] <= s_marks[i - 1])]  # fmt: skip
-    chosen = {keep[0]: state(keep[0], 1.0)}
-    moves: list[_Move] = []
-    for pos in range(1, len(keep)):
-        if pos % 16 == 0:
+    # plus the move out of it (towards the next state at the second slowest factor) is kept;
+    # slower factors stop being tried after PATIENCE worse ones. Candidate moves are solved
+    # for their durations only (:func:`_calculate`); the phase tables are read from the
+    # chosen ones.
+    chosen = state(0, 0)
+    trajs: list[RuckigTrajectory] = []
+    corners: list[tuple[int, ...]] = []
+    known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
+    for i in range(1, len(marks)):
+        if i % 16 == 0:
             check_deadline(deadline, "while timing the path with ruckig")
-        i, prev = keep[pos], keep[pos - 1]
-        nxt = keep[pos + 1] if pos + 1 < len(keep) else None
-        (_, tag0, c0), (_, tag1, c1) = marks[prev], marks[i]
-        corners = tuple(sorted({c for c, tag in ((c0, tag0), (c1, tag1)) if tag != 0}))
-        factors = (1.0,) if base[i] is None else speed_factors
-        best: tuple[float, _Move, tuple] | None = None
-        for f in factors:
-            target = state(i, f)
-            try:
-                move = _solve_move(otg, inp, chosen[prev], target, corners)
-            except TimingInfeasibleError:
-                continue
-            cost = move.duration
-            if nxt is not None and len(factors) > 1:
-                try:
-                    ahead = _solve_move(otg, inp, target, state(nxt, speed_factors[-2]), ())
+        moving = tags[i] != _REST
+        look_ahead = moving and n_f > 1 and i + 1 < len(marks)
+        best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
+        worse = 0
+        for k in range(n_f if moving else 1):
+            target = state(i, k)
+            if known is not None and k == ahead_k:
+                traj, known = known, None  # solved as the previous state's look-ahead
+            else:
+                traj = RuckigTrajectory(3)
+                if _calculate(otg, inp, chosen, target, traj):
+                    continue
+            cost = traj.duration
+            ahead: RuckigTrajectory | None = None
+            if look_ahead:
+                ahead = RuckigTrajectory(3)
+                if _calculate(otg, inp, target, state(i + 1, ahead_k), ahead):
+                    cost, ahead = np.inf, None
+                else:
                     cost += ahead.duration
-                except TimingInfeasibleError:
-                    cost = np.inf
             if best is None or cost < best[0]:
-                best = (cost, move, target)
+                best, worse = (cost, traj, target, ahead), 0
+            elif best[0] < cost < np.inf:
+                worse += 1
+                if worse >= PATIENCE:
+                    break
         if best is None:
             raise TimingInfeasibleError(
                 f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
             )
-        moves.append(best[1])
-        chosen[i] = best[2]
+        (_, tag0, c0), (_, tag1, c1) = marks[i - 1], marks[i]
+        blends = {c for c, tag in ((c0, tag0), (c1, tag1)) if tag in (_ENTRY, _EXIT)}
+        corners.append(tuple(sorted(blends)))
+        trajs.append(best[1])
+        chosen, known = best[2], best[3]
+    moves = _moves_from(trajs, corners)
     start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
     return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))

@@ -159,9 +159,9 @@ class PathProfile:
         return self.time[i] + dt, sd, a
 
 
-def section_grid(path: BlendedPath, lo: int, hi: int, refine: int = 1) -> np.ndarray:
+def section_grid(path: BlendedPath, lo: int, hi: int, refine: float = 1) -> np.ndarray:
     """Grid points of the pieces ``lo..hi``: every piece boundary, lines cut every
-    ``LINE_STEP / refine`` (at least ``LINE_MIN_INTERVALS``), arcs every
+    ``LINE_STEP / refine`` (at least ``LINE_MIN_INTERVALS * refine``), arcs every
     ``ARC_STEP / refine`` of turning."""
     parts = []
     for k in range(lo, hi + 1):
@@ -171,7 +171,7 @@ def section_grid(path: BlendedPath, lo: int, hi: int, refine: int = 1) -> np.nda
             n = max(2, int(np.ceil(turn * refine / ARC_STEP)))
             parts.append(np.linspace(a, b, n + 1)[:-1])
             continue
-        n = max(LINE_MIN_INTERVALS * refine, int(np.ceil((b - a) * refine / LINE_STEP)))
+        n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
         pts = np.linspace(a, b, n + 1)[:-1]
         eps = JUNCTION_INTERVAL * (b - a)
         extra = []
@@ -234,7 +234,7 @@ def solve_toppra(
     *,
     speed_gain: Callable[[np.ndarray], np.ndarray] | None = None,
     max_cartesian_speed: float | None = None,
-    refine: int = 1,
+    refine: float = 1,
     deadline: float | None = None,
 ) -> PathProfile:
     """Time-optimal rest-to-rest profile of every section of ``path``, joined in time.
@@ -248,7 +248,7 @@ def solve_toppra(
         Needed with ``max_cartesian_speed``.
     max_cartesian_speed : float, m/s, optional
     refine : int
-        Grid refinement factor (repairs use 2, 4, ...).
+        Grid refinement factor (repairs use 2, 4, ...; below 1 a coarser grid).
     deadline : float, optional
         ``time.monotonic()`` value checked before each section.
 
