@@ -39,11 +39,12 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 import numpy as np
 
+from planner.analysis import regions as region_maps
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, mode_signs
@@ -64,6 +65,8 @@ __all__ = [
     "BETTER_RATIO",
     "CROSSING_CHECK_STEP",
     "MAX_DETOUR",
+    "PROOF_MIN_BUDGET_S",
+    "PROOF_RESOLUTION",
     "ROUND_SHARES",
     "crossing_signs_hold",
     "mode_sequences",
@@ -93,6 +96,14 @@ BETTER_RATIO = 0.7
 #: literal joint limits or by parallel singularities) can never succeed, so short rounds over
 #: every candidate and mode sequence come first, longer searches after.
 ROUND_SHARES = (0.01, 0.1, 1.0)
+
+#: Cells per axis of the region map the planner consults (:mod:`planner.analysis.regions`).
+#: 128 builds in about 25 ms on a loaded 2-core machine (256: 60-90 ms) and is as sound;
+#: a finer map only proves more (fewer undecided cells).
+PROOF_RESOLUTION = 128
+#: A map not yet in the cache is built only when at least this much of the budget remains,
+#: s (a cached map is consulted whatever the budget: a look-up costs microseconds).
+PROOF_MIN_BUDGET_S = 0.1
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
@@ -163,6 +174,7 @@ class _ModeChangeSearch:
         self.pool_reasons: dict[tuple[str, str], str] = {}
         self.share = ROUND_SHARES[0]
         self._failed: dict[bytes, float] = {}  # segment key -> largest budget that failed
+        self.searches = 0  # OMPL searches run by the segments
         self._crossings: dict[bytes, list[_Candidate]] = {}
 
     def checker(self, mode: str) -> ValidityChecker:
@@ -285,6 +297,7 @@ class _ModeChangeSearch:
             q_goals,
             options=replace(self.options, time_budget_s=max(budget, 1e-3)),
         )
+        self.searches += res.diagnostics.searches
         if not res.solved:
             self._failed[key] = budget
         return res
@@ -448,7 +461,7 @@ def plan_mode_change(
             if out is None:
                 continue
             path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-            diag = replace(diag, planning_time_s=time.perf_counter() - t0)
+            diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
             modes = " -> ".join(seq)
             return PlanResult(
                 PlanStatus.SOLVED,
@@ -461,7 +474,7 @@ def plan_mode_change(
         f"no path found within {options.time_budget_s:g} s through transits "
         f"({len(tried)} of {len(ranked)} mode sequences tried)",
         None,
-        Diagnostics(planning_time_s=time.perf_counter() - t0),
+        Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
     )
 
 
@@ -535,25 +548,80 @@ class _Request:
     options: PlanOptions
     t0: float
     deadline: float
+    #: goal candidates of a Cartesian target per working mode, once computed (see
+    #: :meth:`goal_candidates`), and why each mode has none
+    _targets: dict[str, np.ndarray] = field(default_factory=dict)
+    _whys: dict[str, str] = field(default_factory=dict)
 
     def single_mode(
-        self, goal: JointPosture | CartesianTarget, *, share: float = 1.0
+        self,
+        goal: JointPosture | CartesianTarget,
+        *,
+        share: float = 1.0,
+        before_search: Callable[[np.ndarray], PlanResult | None] | None = None,
     ) -> PlanResult:
-        """The single-mode plan to ``goal`` with ``share`` of the time budget."""
+        """The single-mode plan to ``goal`` with ``share`` of the time budget; by default
+        the region map's proof (:meth:`disproof`) runs just before its first OMPL search."""
         options = self.options
         if share != 1.0:
             options = replace(options, time_budget_s=options.time_budget_s * share)
         return plan_single_mode(
             self.design, self.start, goal,
             obstacles=self.obstacles, margins=self.margins, options=options,
+            before_search=self.disproof if before_search is None else before_search,
         )  # fmt: skip
+
+    def region_map(self) -> region_maps.RegionMap | None:
+        """The design's obstacle-free region map at :data:`PROOF_RESOLUTION`, when it is
+        cheap now: cached, or built while at least :data:`PROOF_MIN_BUDGET_S` of the budget
+        remains; None otherwise, or when ``options.region_map`` is off."""
+        if not self.options.region_map:
+            return None
+        rmap = region_maps.cached_region_map(self.design, self.margins, PROOF_RESOLUTION)
+        if rmap is None and self.deadline - time.perf_counter() >= PROOF_MIN_BUDGET_S:
+            rmap = region_maps.region_map(self.design, self.margins, PROOF_RESOLUTION)
+        return rmap
+
+    def disproof(self, goals: np.ndarray) -> PlanResult | None:
+        """``no_path`` with ``diagnostics.proven_infeasible`` when the region map proves that
+        no valid path joins the start to any of the goal candidates ``goals`` (K, 3) (every
+        candidate the request allows; valid postures); None when it cannot.
+
+        The argument is :func:`planner.analysis.regions.prove_disconnected`'s: the map is
+        obstacle-free, and obstacles only remove postures, so its proof holds with them. The
+        answer names the regions of the start and of the goals, no search run."""
+        rmap = self.region_map()
+        if rmap is None or len(goals) == 0:
+            return None
+        asm = self.start.assembly_mode
+        if not region_maps.prove_disconnected(rmap, self.start.q, goals, asm):
+            return None
+        message = _disproof_message(rmap, self.start, goals)
+        logger.info("plan no_path (proven): %s", message)
+        return PlanResult(
+            PlanStatus.NO_PATH,
+            message,
+            None,
+            Diagnostics(
+                planning_time_s=time.perf_counter() - self.t0,
+                planner="region_map",
+                proven_infeasible=True,
+            ),
+        )
 
     def start_mode(self) -> str | None:
         """The start's working mode (None where it is undefined)."""
         return posture_mode(self.design, self.start)
 
-    def mode_change(self, start_mode: str, targets: dict[str, np.ndarray]) -> PlanResult:
-        """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3))."""
+    def mode_change(
+        self, start_mode: str, targets: dict[str, np.ndarray], *, prove: bool = True
+    ) -> PlanResult:
+        """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3)),
+        after the region map's proof (:meth:`disproof`) over all of them when ``prove``
+        (only when ``targets`` are all the candidates the request allows)."""
+        proof = self.disproof(np.vstack(list(targets.values()))) if prove else None
+        if proof is not None:
+            return proof
         return plan_mode_change(
             self.design, self.start, start_mode, targets,
             obstacles=self.obstacles, margins=self.margins, options=self.options,
@@ -563,18 +631,21 @@ class _Request:
     def goal_candidates(
         self, p: np.ndarray, modes: Sequence[str]
     ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-        """Valid joint goals of the point ``p`` in each working mode of ``modes`` (mode ->
-        (K, 3), modes with none left out), and why each mode left out has none."""
-        targets: dict[str, np.ndarray] = {}
-        whys: dict[str, str] = {}
+        """Valid joint goals of the point ``p`` (the request's goal point) in each working
+        mode of ``modes`` (mode -> (K, 3), modes with none left out), and why each mode left
+        out has none; computed once per mode."""
         asm = self.start.assembly_mode
         for m in modes:
+            if m in self._targets or m in self._whys:
+                continue
             checker = ValidityChecker(self.design, self.margins, self.obstacles, asm, m)
             cands, why = goal_candidates(self.design, CartesianTarget(p, m), checker, self.start.q)
             if len(cands):
-                targets[m] = cands
+                self._targets[m] = cands
             else:
-                whys[m] = why
+                self._whys[m] = why
+        targets = {m: self._targets[m] for m in modes if m in self._targets}
+        whys = {m: self._whys[m] for m in modes if m in self._whys}
         return targets, whys
 
     def finish(self, status: PlanStatus, message: str) -> PlanResult:
@@ -623,10 +694,17 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
     """A Cartesian target in working mode 'any': the start's mode first with half the
     budget, then through transits to the other modes when that fails, or when their
     estimate is shorter than :data:`BETTER_RATIO` times the single-mode path."""
-    first = request.single_mode(goal, share=0.5)
-    if first.status is PlanStatus.INVALID_START:
-        return first
     start_mode = request.start_mode()
+
+    def every_mode_disproof(cands: np.ndarray) -> PlanResult | None:
+        # the proof must cover the goal's candidates in every working mode, not only the
+        # start's ``cands``
+        targets, _ = request.goal_candidates(goal.p, [m for m in WORKING_MODES if m != start_mode])
+        return request.disproof(np.vstack([cands, *targets.values()]))
+
+    first = request.single_mode(goal, share=0.5, before_search=every_mode_disproof)
+    if first.status is PlanStatus.INVALID_START or first.diagnostics.proven_infeasible:
+        return first
     if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
         return first
     others = [m for m in WORKING_MODES if m != start_mode]
@@ -641,7 +719,13 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
         )
     if first.solved:
         return _shorter_through_transits(request, first, start_mode, targets)
-    other = request.mode_change(start_mode, targets)
+    if first.status is PlanStatus.NO_PATH:  # the start's own candidates count too
+        own, _ = request.goal_candidates(goal.p, [start_mode])
+        proof = request.disproof(np.vstack([*own.values(), *targets.values()]))
+        if proof is not None:
+            return proof
+    # ``targets`` are all the candidates only when the start's mode has none
+    other = request.mode_change(start_mode, targets, prove=first.status is PlanStatus.UNREACHABLE)
     if other.solved or first.status is PlanStatus.UNREACHABLE:
         return other
     return other if other.status is PlanStatus.NO_PATH else first
@@ -669,11 +753,38 @@ def _shorter_through_transits(
     )
     if not best < limit:
         return first
-    other = request.mode_change(start_mode, targets)
+    other = request.mode_change(start_mode, targets, prove=False)
     if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
         return other
     planning_time_s = time.perf_counter() - request.t0
     return replace(first, diagnostics=replace(first.diagnostics, planning_time_s=planning_time_s))
+
+
+def _disproof_message(rmap: region_maps.RegionMap, start: JointPosture, goals: np.ndarray) -> str:
+    """The ``no_path`` message of a proof: the regions (id, working mode, union-graph
+    component) holding the start and the goal candidates."""
+    asm = start.assembly_mode
+
+    def names(q: np.ndarray) -> list[str]:
+        return [
+            f"region {r.id} (working mode {r.working_mode}, component {r.component})"
+            for r in region_maps.regions_at(rmap, q, asm)
+        ]
+
+    at_start = names(start.q)
+    at_goals = list(dict.fromkeys(n for g in np.atleast_2d(goals) for n in names(g)))
+    shown = ", ".join(at_goals[:4]) + (
+        f" and {len(at_goals) - 4} more" if len(at_goals) > 4 else ""
+    )
+    n_goals = len(np.atleast_2d(goals))
+    which = "the goal lies in" if n_goals == 1 else f"its {n_goals} goal candidates lie in"
+    return (
+        f"no valid path exists (proven by the region map, {rmap.n} x {rmap.n} cells, no "
+        f"search run): in assembly mode {asm} the start lies in {', '.join(at_start)}, "
+        f"{which} {shown}; no chain of regions and serial transits joins them, so every "
+        "path between them crosses a posture that breaks a rule (joint limits, kappa_max, "
+        "serial_min)"
+    )
 
 
 def path_state_checker(
