@@ -58,7 +58,13 @@ from planner.planning.result import (
     Segment,
     Transit,
 )
-from planner.transits import Crossing, crossing_through, kinds_flipping, sample_transits
+from planner.transits import (
+    Crossing,
+    crossing_through,
+    kinds_flipping,
+    sample_transits,
+    transit_kind,
+)
 from planner.validity import Margins, ValidityChecker, densify
 
 __all__ = [
@@ -69,10 +75,12 @@ __all__ = [
     "PROOF_RESOLUTION",
     "ROUND_SHARES",
     "crossing_signs_hold",
+    "map_transits",
     "mode_sequences",
     "path_state_checker",
     "plan",
     "plan_mode_change",
+    "walk_possible",
 ]
 
 logger = logging.getLogger(__name__)
@@ -163,8 +171,10 @@ class _ModeChangeSearch:
         obstacles: Sequence[Obstacle],
         options: PlanOptions,
         deadline: float,
+        rmap: region_maps.RegionMap | None = None,
     ) -> None:
         self.design, self.asm, self.margins = design, asm, margins
+        self.rmap = rmap  # the region map guiding the search (None: sampled transits only)
         self.obstacles = tuple(obstacles)
         self.options, self.deadline = options, deadline
         self.rng = np.random.default_rng(options.seed)
@@ -175,7 +185,13 @@ class _ModeChangeSearch:
         self.share = ROUND_SHARES[0]
         self._failed: dict[bytes, float] = {}  # segment key -> largest budget that failed
         self.searches = 0  # OMPL searches run by the segments
+        self.map_pools: set[tuple[str, str]] = set()  # pools taken from the region map
         self._crossings: dict[bytes, list[_Candidate]] = {}
+
+    @staticmethod
+    def _flip(key: tuple[str, str]) -> int:
+        """Index of the sign that differs between the two modes of ``key``."""
+        return next(i for i in range(3) if key[0][i] != key[1][i])
 
     def checker(self, mode: str) -> ValidityChecker:
         if mode not in self._checkers:
@@ -184,10 +200,20 @@ class _ModeChangeSearch:
 
     def pool(self, before: str, after: str) -> tuple[np.ndarray, list[str]]:
         """Transit postures (M, 3) between two adjacent modes, valid for the non-serial
-        rules, and their kinds."""
+        rules, and their kinds: from the region map's transit cells when it has some
+        (:func:`map_transits`), else sampled at random on the singular surfaces."""
         key = (before, after)
         if key in self._pools:
             return self._pools[key]
+        if self.rmap is not None:
+            q = _map_transits_cached(self.rmap, self.asm, before, after)
+            if len(q):  # theta1 is set along the line and checked in :meth:`crossings`
+                q[:, 0] = np.clip(0.0, self.design.joint_min[0], self.design.joint_max[0])
+                kinds = [transit_kind(self.design, x, self.asm, _FLIP_NAMES[self._flip(key)])
+                         for x in q[:1]] * len(q)  # fmt: skip
+                self._pools[key] = (q, kinds)
+                self.map_pools.add(key)
+                return self._pools[key]
         j = next(i for i in range(3) if before[i] != after[i])
         qs, kinds, drawn = [], [], 0
         for kind in kinds_flipping(_FLIP_NAMES[j]):
@@ -240,6 +266,11 @@ class _ModeChangeSearch:
         if len(q) == 0:
             return []
         j = next(i for i in range(3) if before[i] != after[i])
+        if (before, after) in self.map_pools:
+            q = _theta1_along(q, q_from, q_goal, self.design)
+            q = q[self.free.is_valid(q)]
+            if len(q) == 0:
+                return []
         d_from = np.linalg.norm(q - q_from, axis=1)
         d_goal = np.linalg.norm(q - q_goal, axis=1)
         # nearest to the straight line first, interleaved with nearest to each end: the mode
@@ -265,7 +296,10 @@ class _ModeChangeSearch:
             # a straight first segment is a strong hint of the same connected component
             direct = self.checker(before).motion_valid(q_from, c.q_in)
             out.append((not direct, cost, _Candidate(c, before, after)))
-            if len(out) >= CROSSINGS_PER_STEP:
+            # from the map's cells (next to the regions' shared boundary) a crossing whose
+            # first segment is straight is the usual answer: two fallbacks are enough
+            guided = (before, after) in self.map_pools
+            if len(out) >= CROSSINGS_PER_STEP or (guided and len(out) >= 3 and not out[0][0]):
                 break
         out.sort(key=lambda x: (x[0], x[1]))
         return [c for _, _, c in out]
@@ -330,6 +364,126 @@ class _ModeChangeSearch:
             return None
 
         return step(0, q_start)
+
+
+#: Transit postures of the region maps (:func:`map_transits`) per (map, assembly mode,
+#: before, after), the most recent :data:`_MAP_TRANSITS_SIZE` kept (the map is kept beside
+#: its postures, so an id reused by a new map is never mistaken for the old one).
+_MAP_TRANSITS: dict[tuple, tuple[region_maps.RegionMap, np.ndarray]] = {}
+_MAP_TRANSITS_SIZE = 512
+
+
+def _map_transits_cached(
+    rmap: region_maps.RegionMap, asm: str, before: str, after: str
+) -> np.ndarray:
+    """:func:`map_transits`, computed once per map and flip (a copy: callers edit theta1)."""
+    key = (id(rmap), asm, before, after)
+    hit = _MAP_TRANSITS.get(key)
+    if hit is None or hit[0] is not rmap:
+        if len(_MAP_TRANSITS) >= _MAP_TRANSITS_SIZE:
+            _MAP_TRANSITS.pop(next(iter(_MAP_TRANSITS)))
+        hit = _MAP_TRANSITS[key] = (rmap, map_transits(rmap, asm, before, after))
+    return hit[1].copy()
+
+
+def walk_possible(
+    rmap: region_maps.RegionMap,
+    asm: str,
+    seq: tuple[str, ...],
+    q_start: np.ndarray,
+    q_goals: np.ndarray,
+) -> bool:
+    """False only when the region map shows that no path follows the mode walk ``seq``:
+    no chain of regions r_0 (holding ``q_start``, mode seq[0]), r_1, ... (mode seq[i]), each
+    joined to the next by a transit of the map, ends in a region of mode seq[-1] holding a
+    goal candidate of ``q_goals`` (K, 3). Each segment of a plan stays in one region of its
+    mode and each crossing joins two regions the map joins (the argument of
+    :func:`planner.analysis.regions.prove_disconnected`), so such a walk cannot succeed."""
+    adj: dict[int, set[int]] = {}
+    for t in rmap.transits:
+        adj.setdefault(t.a, set()).add(t.b)
+        adj.setdefault(t.b, set()).add(t.a)
+    here = {r.id for r in region_maps.regions_at(rmap, q_start, asm) if r.working_mode == seq[0]}
+    if not here:
+        return True  # the map cannot place the start: it decides nothing
+    for mode in seq[1:]:
+        here = {b for a in here for b in adj.get(a, ()) if rmap.regions[b].working_mode == mode}
+    ends = {
+        r.id
+        for g in np.atleast_2d(q_goals)
+        for r in region_maps.regions_at(rmap, g, asm)
+        if r.working_mode == seq[-1]
+    }
+    return bool(here & ends) or not ends
+
+
+def map_transits(rmap: region_maps.RegionMap, asm: str, before: str, after: str) -> np.ndarray:
+    """Transit postures (M, 3) (theta1 0) from the region map: the cells of the flip
+    before -> after (``RegionMap.transit_cells``) where the two other signed measures are
+    >= ``serial_min`` over the whole cell, each cell centre moved onto the surface where
+    the flipped measure vanishes (Newton steps on (theta2, theta3)). Empty when the map has
+    no such cell; the caller checks the non-serial rules and builds the crossings."""
+    from planner.kinematics import ASSEMBLY_MODES
+    from planner.transits import serial_measure
+
+    j = next(i for i in range(3) if before[i] != after[i])
+    ai = ASSEMBLY_MODES.index(asm)
+    s_min = rmap.margins.serial_min
+    mask = rmap.transit_cells[ai, j] > 0
+    for k in range(3):
+        if k != j:
+            if before[k] == "+":
+                mask &= rmap.measure_low[ai, k] >= s_min
+            else:
+                mask &= rmap.measure_high[ai, k] <= -s_min
+    k3, k2 = np.nonzero(mask)
+    if len(k3) == 0:
+        return np.empty((0, 3))
+    q = np.stack([np.zeros(len(k3)), rmap.theta2[k2], rmap.theta3[k3]], axis=1)
+    flipped, h = _FLIP_NAMES[j], 1e-7
+    for _ in range(4):
+        stencil = np.concatenate([q, q + np.array([0, h, 0]), q + np.array([0, 0, h])])
+        f = serial_measure(rmap.design, stencil, asm, flipped).reshape(3, -1)
+        grad = (f[1:] - f[0]) / h
+        norm2 = (grad**2).sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = (f[0] / norm2)[:, None] * grad.T
+        ok = np.all(np.isfinite(step), axis=1)
+        q, step = q[ok], step[ok]
+        k3, k2 = k3[ok], k2[ok]
+        q[:, 1:] -= step
+    if len(q) == 0:
+        return np.empty((0, 3))
+    fb = forward_batch(rmap.design, q, asm)
+    f = fb.serial_measures[:, j]
+    keep = np.isfinite(f) & fb.ok
+    for k in range(3):  # the moved posture keeps the other two signs with the margin
+        if k != j:
+            sign = 1.0 if before[k] == "+" else -1.0
+            with np.errstate(invalid="ignore"):
+                keep &= sign * fb.serial_measures[:, k] >= s_min
+    reach = 1.5 * max(rmap.h2, rmap.h3)
+    near = (np.abs(q[:, 1] - rmap.theta2[k2]) <= reach) & (
+        np.abs(q[:, 2] - rmap.theta3[k3]) <= reach
+    )
+    lo, hi = rmap.design.joint_min, rmap.design.joint_max
+    inside = (q[:, 1] >= lo[1]) & (q[:, 1] <= hi[1]) & (q[:, 2] >= lo[2]) & (q[:, 2] <= hi[2])
+    return q[keep & (np.abs(f) < 1e-9) & near & inside]
+
+
+def _theta1_along(
+    q: np.ndarray, q_from: np.ndarray, q_goal: np.ndarray, design: Design
+) -> np.ndarray:
+    """Transit postures ``q`` with theta1 set where the straight line q_from -> q_goal is
+    nearest in (theta2, theta3) (no serial measure depends on theta1, so the postures stay
+    on their surface), within theta1's limits."""
+    d = q_goal[1:] - q_from[1:]
+    dd = float(d @ d)
+    t = np.clip((q[:, 1:] - q_from[1:]) @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(q))
+    out = q.copy()
+    out[:, 0] = np.clip(q_from[0] + t * (q_goal[0] - q_from[0]), design.joint_min[0],
+                        design.joint_max[0])  # fmt: skip
+    return out
 
 
 def crossing_signs_hold(
@@ -428,11 +582,20 @@ def plan_mode_change(
     options: PlanOptions,
     t0: float,
     deadline: float,
+    rmap: region_maps.RegionMap | None = None,
 ) -> PlanResult:
     """Plan from ``start`` (in ``start_mode``) to the goal candidates ``targets`` (mode ->
-    (K, 3) valid joint goals in that mode) through transits; see the module docstring."""
-    search = _ModeChangeSearch(design, start.assembly_mode, margins, obstacles, options, deadline)
+    (K, 3) valid joint goals in that mode) through transits; see the module docstring.
+    With the design's region map ``rmap`` the transit postures come from its transit cells
+    (sampled surfaces where it has none)."""
+    search = _ModeChangeSearch(
+        design, start.assembly_mode, margins, obstacles, options, deadline, rmap
+    )
     seqs = mode_sequences(start_mode, list(targets))
+    if rmap is not None:  # walks the region map's transit graph cannot realise go (all
+        # kept when none is left: longer walks than these may exist, the search says so)
+        seqs = [s for s in seqs if walk_possible(rmap, start.assembly_mode, s, start.q,
+                                                 targets[s[-1]])] or seqs  # fmt: skip
     ranked = []
     for seq in seqs:
         est = search.estimate(seq, start.q, targets[seq[-1]][0])
@@ -625,7 +788,7 @@ class _Request:
         return plan_mode_change(
             self.design, self.start, start_mode, targets,
             obstacles=self.obstacles, margins=self.margins, options=self.options,
-            t0=self.t0, deadline=self.deadline,
+            t0=self.t0, deadline=self.deadline, rmap=self.region_map(),
         )  # fmt: skip
 
     def goal_candidates(
