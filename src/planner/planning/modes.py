@@ -188,6 +188,14 @@ class _ModeChangeSearch:
         self.map_pools: set[tuple[str, str]] = set()  # pools taken from the region map
         self._crossings: dict[bytes, list[_Candidate]] = {}
 
+    def unguided(self) -> None:
+        """From now on transit postures are sampled on the surfaces (the map's are dropped)."""
+        self.rmap = None
+        for key in self.map_pools:
+            del self._pools[key]
+        self.map_pools.clear()
+        self._crossings.clear()
+
     @staticmethod
     def _flip(key: tuple[str, str]) -> int:
         """Index of the sign that differs between the two modes of ``key``."""
@@ -614,8 +622,14 @@ def plan_mode_change(
             Diagnostics(planning_time_s=time.perf_counter() - t0),
         )
     tried: set[tuple[str, ...]] = set()
-    for share in ROUND_SHARES:
+    # guided rounds first; where they fail, today's rounds on sampled surfaces
+    rounds = [(share, False) for share in ROUND_SHARES]
+    if rmap is not None:
+        rounds = [(ROUND_SHARES[0], True), *rounds]
+    for share, guided in rounds:
         search.share = share
+        if not guided and search.rmap is not None:
+            search.unguided()
         for _, _, seq in ranked:
             if time.perf_counter() > deadline:
                 break
