@@ -11,10 +11,14 @@ parallel singularity). For a goal in another working mode than the start:
    :data:`MAX_DETOUR` flips more than the signs that differ. They are ordered by number of
    transits, then by an estimated cost (the straight joint-space length start -> transit
    postures -> goal through the best sampled transits); every order of the flips is a walk.
-2. *Transit postures*: sampled on each singular surface of the right kind
-   (:func:`planner.transits.sample_transits`, seeded with ``options.seed``) and kept when valid
-   for every non-serial rule (joint limits, assembly, kappa(A), clearance), nearest first to
-   the straight line from the segment's start to the goal. Each is crossed by the straight
+2. *Transit postures*: with the design's region map (``options.region_map``, the map of
+   the proof below), first from its transit cells (:func:`map_transits`: cells of the flip
+   where the two other measures keep their signs with margin, moved onto the surface), walks
+   the map's transit graph cannot realise left out (:func:`walk_possible`), in one round at
+   the first share; then, and without a map, sampled on each singular surface of the right
+   kind (:func:`planner.transits.sample_transits`, seeded with ``options.seed``). Either kind
+   is kept when valid for every non-serial rule (joint limits, assembly, kappa(A),
+   clearance), nearest first to the straight line from the segment's start to the goal. Each is crossed by the straight
    motion q_in -> q_transit -> q_out along the gradient of the serial measure
    (:func:`planner.transits.crossing_through`); a crossing is kept when q_in and q_out are valid
    in their segments' checkers, both motions are certified by a ``serial_rules=False`` checker,
@@ -27,6 +31,14 @@ parallel singularity). For a goal in another working mode than the start:
    transit candidate, then to the next mode sequence, all within ``options.time_budget_s``,
    in rounds of growing per-segment budgets (:data:`ROUND_SHARES`): a segment between two
    disconnected components of a mode region fails cheaply before detours are tried.
+
+*Proven infeasibility*: before the first OMPL search (and before a mode-change search),
+:meth:`_Request.disproof` asks :func:`planner.analysis.regions.prove_disconnected` whether the
+start and every goal candidate the request allows lie in different components of the
+design's obstacle-free region map (:data:`PROOF_RESOLUTION` cells, cached per process, built
+only while :data:`PROOF_MIN_BUDGET_S` of the budget remains); if so the answer is ``no_path``
+at once with ``diagnostics.proven_infeasible`` and a message naming the regions. Obstacles only
+remove postures, so the proof holds with them; a wall of obstacles alone is never proven.
 
 Goals in the start's own mode go to the single-mode planner unchanged. A Cartesian target
 with ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
