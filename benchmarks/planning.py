@@ -3,6 +3,7 @@ suite with a naive OMPL set-up in the same run.
 
     PYTHONPATH=src .venv/bin/python benchmarks/planning.py [--queries 100] [--budget 1.0]
         [--naive-queries 100] [--naive-resolution 0.01] [--planner rrtconnect] [--range R]
+    PYTHONPATH=src .venv/bin/python benchmarks/planning.py --map [--queries 20]
 
 Scene types (default design ``Design.default()``; queries are pairs of valid postures in one
 random working mode, drawn with a fixed seed):
@@ -33,6 +34,12 @@ no straight-motion shortcut and paths that are *not* certified (a resolution is 
   isolates the validity checking.
 
 Ratios are naive time / product time over the same queries (median and mean).
+
+``--map``: the region map in the planner (``PlanOptions.region_map`` on and off on the same
+queries): the disconnected scene (the general design 0.3/0.3/0.4 cut by joint limits into two
+components; start and goal one in each, 5 s budget) with the map cached and cold (cache
+cleared before each query: the build is paid); the single-mode scenes; and the mode-change
+scenes (with and without spheres) on four designs (:data:`DESIGNS`).
 """
 
 from __future__ import annotations
@@ -153,7 +160,7 @@ def build_queries(kind: str, n: int, seed: int = 11) -> list[tuple[JointPosture,
 
 
 def build_mode_change_queries(
-    kind: str, n: int, seed: int = 13, shape=(64, 96, 96)
+    kind: str, n: int, seed: int = 13, shape=(64, 96, 96), design: Design | None = None
 ) -> list[tuple[JointPosture, JointPosture]]:
     """n (start, goal) pairs in different working modes of one assembly mode, such that a
     mode-change path exists up to the grid's resolution: the grid components of the valid
@@ -163,7 +170,8 @@ def build_mode_change_queries(
     with serial rules off); start and goal are drawn in linked components."""
     from planner.transits import crossing_through, kinds_flipping
 
-    design, obstacles, _ = build_scene(kind)
+    scene_design, obstacles, _ = build_scene(kind)
+    design = scene_design if design is None else design
     rng = np.random.default_rng(seed)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     step = (hi - lo) / (np.asarray(shape) - 1)
@@ -238,9 +246,12 @@ def build_mode_change_queries(
     return out
 
 
-def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict:
-    design, obstacles, _ = build_scene(kind)
-    times, lengths, solved, direct, transits = [], [], 0, 0, []
+def run_product(
+    kind: str, queries, budget: float, options: PlanOptions, design: Design | None = None
+) -> dict:
+    scene_design, obstacles, _ = build_scene(kind)
+    design = scene_design if design is None else design
+    times, lengths, solved, direct, transits, proven = [], [], 0, 0, [], 0
     for start, goal in queries:
         t0 = time.perf_counter()
         res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
@@ -250,9 +261,10 @@ def run_product(kind: str, queries, budget: float, options: PlanOptions) -> dict
             lengths.append(res.diagnostics.path_length)
             direct += res.diagnostics.planner == "direct"
             transits.append(len(res.path.transits))
+        proven += res.diagnostics.proven_infeasible
     return dict(
         times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries),
-        transits=transits,
+        transits=transits, proven=proven,
     )  # fmt: skip
 
 
@@ -292,6 +304,94 @@ def _row(label: str, r: dict) -> str:
     )
 
 
+#: Designs of the mode-change and region-map rows (``--designs``): P off the axis and on
+#: it, 2 L1 < L0 and > L0, the paper optimum.
+DESIGNS = {
+    "default 0.5/0.2/0.6": Design.default(),
+    "axis 0.6/0.25/0.45": Design(0.6, 0.25, 0.45),
+    "2L1>L0 0.3/0.3/0.4": Design(0.3, 0.3, 0.4),
+    "optimum 0/0.4/0.4": Design.paper_optimum(),
+}
+#: The general design cut by a box of joint limits into two components in assembly mode
+#: '-': the disconnected scene (start and goal in the two, no path exists).
+CUT = Design(0.3, 0.3, 0.4, joint_min=(-3.14, -0.49, -2.81), joint_max=(3.14, 0.51, -1.72))
+
+
+def disconnected_queries(n: int, seed: int = 5) -> list[tuple[JointPosture, JointPosture]]:
+    """n pairs of valid postures of CUT in assembly mode '-', one in each of its two
+    components (labelled on a dense grid of the validity checker, scipy.ndimage)."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    g = 257
+    t2 = np.linspace(CUT.joint_min[1], CUT.joint_max[1], g)
+    t3 = np.linspace(CUT.joint_min[2], CUT.joint_max[2], g)
+    g3, g2 = np.meshgrid(t3, t2, indexing="ij")
+    q = np.stack([np.zeros(g2.size), g2.ravel(), g3.ravel()], axis=1)
+    pts = []
+    for mode in WORKING_MODES:
+        valid = ValidityChecker(CUT, Margins(), (), "-", mode).is_valid(q).reshape(g, g)
+        lab, k = ndimage.label(valid, structure=np.ones((3, 3)))
+        for i in range(1, k + 1):
+            idx = np.flatnonzero(lab.ravel() == i)
+            if len(idx) > 200:
+                pts.append(q[idx])
+    # one grid component in each of the map's two union components (the joint limits cut)
+    from planner.analysis import regions as R
+
+    rmap = R.region_map(CUT, n=256)
+    comp = [R.regions_at(rmap, p[len(p) // 2], "-")[0].component for p in pts]
+    first = pts[0]
+    other = next(p for p, c in zip(pts, comp, strict=True) if c != comp[0])
+    out = []
+    for _ in range(n):
+        a, b = first[rng.integers(len(first))], other[rng.integers(len(other))]
+        a, b = a.copy(), b.copy()
+        a[0], b[0] = rng.uniform(-3, 3, 2)
+        out.append((JointPosture(a, "-"), JointPosture(b, "-")))
+    return out
+
+
+def map_rows(args, options: PlanOptions) -> None:
+    """The region map in the planner: the disconnected scene (map cached and cold), and the
+    cost of consulting the map on the single-mode and mode-change scenes (map on vs off)."""
+    from planner.analysis import regions as R
+
+    print("\nregion map in the planner (options.region_map on / off)")
+    print(f"{'scene':<34} {'n':>4} {'map':>4} {'solved':>6} {'proven':>6} {'p50 ms':>8} "
+          f"{'p95 ms':>8} {'max ms':>8}")  # fmt: skip
+    five = replace(options, time_budget_s=5.0)
+    queries = disconnected_queries(args.queries)
+    for label, cold in (("disconnected, map cached", False), ("disconnected, map cold", True)):
+        times, proven = [], 0
+        for start, goal in queries:
+            if cold:
+                R.clear_cache()
+            t0 = time.perf_counter()
+            res = plan(CUT, start, goal, options=five)
+            times.append(time.perf_counter() - t0)
+            proven += res.diagnostics.proven_infeasible
+        t = np.asarray(times) * 1e3
+        print(f"{label + ' (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
+              f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}")  # fmt: skip
+    scenes = [(k, None, build_queries(k, args.queries)) for k in ("free", "spheres", "boxes")]
+    for name, design in DESIGNS.items():
+        for kind in MODE_SCENES:
+            qs = build_mode_change_queries(kind, args.queries, design=design)
+            scenes.append((kind, (name, design), qs))
+    for kind, named, qs in scenes:
+        design = None if named is None else named[1]
+        budget = args.modes_budget if kind in MODE_SCENES else args.budget
+        for on in (True, False):
+            opts = replace(options, time_budget_s=budget, region_map=on)
+            r = run_product(kind, qs, budget, opts, design=design)
+            t = np.asarray(r["times"]) * 1e3
+            label = kind if named is None else f"{kind} {named[0]}"
+            print(f"{label:<34} {r['n']:>4} {'on' if on else 'off':>4} {r['solved']:>6} "
+                  f"{r['proven']:>6} {np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} "
+                  f"{t.max():>8.1f}")  # fmt: skip
+
+
 def main() -> None:
     print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -303,6 +403,11 @@ def main() -> None:
     parser.add_argument("--range", type=float, default=None)
     parser.add_argument("--modes-budget", type=float, default=2.0)
     parser.add_argument("--scenes", default=",".join(SCENES))
+    parser.add_argument(
+        "--map", action="store_true",
+        help="only the region-map rows: disconnected scene, map on / off on every scene "
+        "and mode changes on four designs",
+    )  # fmt: skip
     args = parser.parse_args()
 
     options = PlanOptions(name=args.planner, time_budget_s=args.budget, range=args.range)
@@ -310,6 +415,9 @@ def main() -> None:
     d0, o0, _ = build_scene("free")
     q0 = build_queries("free", 1)[0]
     plan(d0, q0[0], q0[1], obstacles=o0, options=PlanOptions(try_direct=False))
+    if args.map:
+        map_rows(args, options)
+        return
 
     print(
         f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "

@@ -97,12 +97,14 @@ __all__ = [
     "Region",
     "RegionMap",
     "RegionTransit",
+    "cached_region_map",
     "cartesian_coverage",
     "cartesian_images",
     "clear_cache",
     "locate",
     "prove_disconnected",
     "region_map",
+    "regions_at",
 ]
 
 #: Cells per axis of a region map by default.
@@ -281,15 +283,42 @@ def region_map(
         raise InputError(f"n must be an integer in [8, {MAX_RESOLUTION}], got {n!r}")
     if not isinstance(refine, int) or isinstance(refine, bool) or not 1 <= refine <= 16:
         raise InputError(f"refine must be an integer in [1, 16], got {refine!r}")
-    key = (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
+    key = _cache_key(design, margins, n, refine)
+    hit = _cached(key)
+    if hit is not None:
+        return hit
+    rmap = _region_map(*key)
+    _remember(key, rmap)
+    return rmap
+
+
+def cached_region_map(
+    design: Design,
+    margins: Margins | None = None,
+    n: int = DEFAULT_RESOLUTION,
+    *,
+    refine: int = DEFAULT_REFINE,
+) -> RegionMap | None:
+    """The map :func:`region_map` would return, if it is in this process's cache now; None
+    otherwise (nothing is built). The planner uses it to consult a map only when it is
+    free."""
+    margins = Margins() if margins is None else margins
+    return _cached(_cache_key(design, margins, n, refine))
+
+
+def _cache_key(design: Design, margins: Margins, n: int, refine: int) -> tuple:
+    """The cache key: the design with its joint limits, the two margins a map depends on
+    (``clearance`` needs obstacles), the resolution and the refinement."""
+    return (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
+
+
+def _cached(key: tuple) -> RegionMap | None:
+    """The cached map of ``key`` (marked most recently used), or None."""
     with _CACHE_LOCK:
         hit = _CACHE.get(key)
         if hit is not None:
             _CACHE.move_to_end(key)
-            return hit
-    rmap = _region_map(*key)
-    _remember(key, rmap)
-    return rmap
+        return hit
 
 
 #: The per-process LRU cache of :func:`region_map`: key -> map, oldest first.
@@ -590,6 +619,25 @@ def _components_at(rmap: RegionMap, q: np.ndarray, ai: int) -> set[int] | None:
         for mi, lab in enumerate(labs.tolist())
         if lab > 0
     }
+
+
+def regions_at(rmap: RegionMap, q: np.ndarray, assembly_mode: str) -> tuple[Region, ...]:
+    """Every region of ``assembly_mode`` whose cells hold posture q (3,) rad, in working-mode
+    order: one or a few (an undecided cell belongs to the over-approximation of several
+    modes); empty outside the joint box (theta1 included) or where every mode's cell is
+    surely invalid."""
+    if assembly_mode not in ASSEMBLY_MODES:
+        raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
+    q = np.asarray(q, dtype=float).reshape(-1)
+    cell = locate(rmap, q)
+    d = rmap.design
+    if cell is None or not d.joint_min[0] <= q[0] <= d.joint_max[0]:
+        return ()
+    ai = ASSEMBLY_MODES.index(assembly_mode)
+    labs = rmap.labels[ai, :, cell[0], cell[1]].tolist()
+    return tuple(
+        rmap.regions[int(rmap.region_index[ai, mi, lab])] for mi, lab in enumerate(labs) if lab
+    )
 
 
 def prove_disconnected(

@@ -11,10 +11,14 @@ parallel singularity). For a goal in another working mode than the start:
    :data:`MAX_DETOUR` flips more than the signs that differ. They are ordered by number of
    transits, then by an estimated cost (the straight joint-space length start -> transit
    postures -> goal through the best sampled transits); every order of the flips is a walk.
-2. *Transit postures*: sampled on each singular surface of the right kind
-   (:func:`planner.transits.sample_transits`, seeded with ``options.seed``) and kept when valid
-   for every non-serial rule (joint limits, assembly, kappa(A), clearance), nearest first to
-   the straight line from the segment's start to the goal. Each is crossed by the straight
+2. *Transit postures*: with the design's region map (``options.region_map``, the map of
+   the proof below), first from its transit cells (:func:`map_transits`: cells of the flip
+   where the two other measures keep their signs with margin, moved onto the surface), walks
+   the map's transit graph cannot realise left out (:func:`walk_possible`), in one round at
+   the first share; then, and without a map, sampled on each singular surface of the right
+   kind (:func:`planner.transits.sample_transits`, seeded with ``options.seed``). Either kind
+   is kept when valid for every non-serial rule (joint limits, assembly, kappa(A),
+   clearance), nearest first to the straight line from the segment's start to the goal. Each is crossed by the straight
    motion q_in -> q_transit -> q_out along the gradient of the serial measure
    (:func:`planner.transits.crossing_through`); a crossing is kept when q_in and q_out are valid
    in their segments' checkers, both motions are certified by a ``serial_rules=False`` checker,
@@ -28,6 +32,14 @@ parallel singularity). For a goal in another working mode than the start:
    in rounds of growing per-segment budgets (:data:`ROUND_SHARES`): a segment between two
    disconnected components of a mode region fails cheaply before detours are tried.
 
+*Proven infeasibility*: before the first OMPL search (and before a mode-change search),
+:meth:`_Request.disproof` asks :func:`planner.analysis.regions.prove_disconnected` whether the
+start and every goal candidate the request allows lie in different components of the
+design's obstacle-free region map (:data:`PROOF_RESOLUTION` cells, cached per process, built
+only while :data:`PROOF_MIN_BUDGET_S` of the budget remains); if so the answer is ``no_path``
+at once with ``diagnostics.proven_infeasible`` and a message naming the regions. Obstacles only
+remove postures, so the proof holds with them; a wall of obstacles alone is never proven.
+
 Goals in the start's own mode go to the single-mode planner unchanged. A Cartesian target
 with ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
 that fails, or when its estimate is shorter than :data:`BETTER_RATIO` times the single-mode
@@ -39,11 +51,12 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 import numpy as np
 
+from planner.analysis import regions as region_maps
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, mode_signs
@@ -57,19 +70,29 @@ from planner.planning.result import (
     Segment,
     Transit,
 )
-from planner.transits import Crossing, crossing_through, kinds_flipping, sample_transits
+from planner.transits import (
+    Crossing,
+    crossing_through,
+    kinds_flipping,
+    sample_transits,
+    transit_kind,
+)
 from planner.validity import Margins, ValidityChecker, densify
 
 __all__ = [
     "BETTER_RATIO",
     "CROSSING_CHECK_STEP",
     "MAX_DETOUR",
+    "PROOF_MIN_BUDGET_S",
+    "PROOF_RESOLUTION",
     "ROUND_SHARES",
     "crossing_signs_hold",
+    "map_transits",
     "mode_sequences",
     "path_state_checker",
     "plan",
     "plan_mode_change",
+    "walk_possible",
 ]
 
 logger = logging.getLogger(__name__)
@@ -93,6 +116,14 @@ BETTER_RATIO = 0.7
 #: literal joint limits or by parallel singularities) can never succeed, so short rounds over
 #: every candidate and mode sequence come first, longer searches after.
 ROUND_SHARES = (0.01, 0.1, 1.0)
+
+#: Cells per axis of the region map the planner consults (:mod:`planner.analysis.regions`).
+#: 128 builds in about 25 ms on a loaded 2-core machine (256: 60-90 ms) and is as sound;
+#: a finer map only proves more (fewer undecided cells).
+PROOF_RESOLUTION = 128
+#: A map not yet in the cache is built only when at least this much of the budget remains,
+#: s (a cached map is consulted whatever the budget: a look-up costs microseconds).
+PROOF_MIN_BUDGET_S = 0.1
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
@@ -152,8 +183,10 @@ class _ModeChangeSearch:
         obstacles: Sequence[Obstacle],
         options: PlanOptions,
         deadline: float,
+        rmap: region_maps.RegionMap | None = None,
     ) -> None:
         self.design, self.asm, self.margins = design, asm, margins
+        self.rmap = rmap  # the region map guiding the search (None: sampled transits only)
         self.obstacles = tuple(obstacles)
         self.options, self.deadline = options, deadline
         self.rng = np.random.default_rng(options.seed)
@@ -163,7 +196,22 @@ class _ModeChangeSearch:
         self.pool_reasons: dict[tuple[str, str], str] = {}
         self.share = ROUND_SHARES[0]
         self._failed: dict[bytes, float] = {}  # segment key -> largest budget that failed
+        self.searches = 0  # OMPL searches run by the segments
+        self.map_pools: set[tuple[str, str]] = set()  # pools taken from the region map
         self._crossings: dict[bytes, list[_Candidate]] = {}
+
+    def unguided(self) -> None:
+        """From now on transit postures are sampled on the surfaces (the map's are dropped)."""
+        self.rmap = None
+        for key in self.map_pools:
+            del self._pools[key]
+        self.map_pools.clear()
+        self._crossings.clear()
+
+    @staticmethod
+    def _flip(key: tuple[str, str]) -> int:
+        """Index of the sign that differs between the two modes of ``key``."""
+        return next(i for i in range(3) if key[0][i] != key[1][i])
 
     def checker(self, mode: str) -> ValidityChecker:
         if mode not in self._checkers:
@@ -172,10 +220,20 @@ class _ModeChangeSearch:
 
     def pool(self, before: str, after: str) -> tuple[np.ndarray, list[str]]:
         """Transit postures (M, 3) between two adjacent modes, valid for the non-serial
-        rules, and their kinds."""
+        rules, and their kinds: from the region map's transit cells when it has some
+        (:func:`map_transits`), else sampled at random on the singular surfaces."""
         key = (before, after)
         if key in self._pools:
             return self._pools[key]
+        if self.rmap is not None:
+            q = _map_transits_cached(self.rmap, self.asm, before, after)
+            if len(q):  # theta1 is set along the line and checked in :meth:`crossings`
+                q[:, 0] = np.clip(0.0, self.design.joint_min[0], self.design.joint_max[0])
+                kinds = [transit_kind(self.design, x, self.asm, _FLIP_NAMES[self._flip(key)])
+                         for x in q[:1]] * len(q)  # fmt: skip
+                self._pools[key] = (q, kinds)
+                self.map_pools.add(key)
+                return self._pools[key]
         j = next(i for i in range(3) if before[i] != after[i])
         qs, kinds, drawn = [], [], 0
         for kind in kinds_flipping(_FLIP_NAMES[j]):
@@ -228,6 +286,11 @@ class _ModeChangeSearch:
         if len(q) == 0:
             return []
         j = next(i for i in range(3) if before[i] != after[i])
+        if (before, after) in self.map_pools:
+            q = _theta1_along(q, q_from, q_goal, self.design)
+            q = q[self.free.is_valid(q)]
+            if len(q) == 0:
+                return []
         d_from = np.linalg.norm(q - q_from, axis=1)
         d_goal = np.linalg.norm(q - q_goal, axis=1)
         # nearest to the straight line first, interleaved with nearest to each end: the mode
@@ -253,7 +316,10 @@ class _ModeChangeSearch:
             # a straight first segment is a strong hint of the same connected component
             direct = self.checker(before).motion_valid(q_from, c.q_in)
             out.append((not direct, cost, _Candidate(c, before, after)))
-            if len(out) >= CROSSINGS_PER_STEP:
+            # from the map's cells (next to the regions' shared boundary) a crossing whose
+            # first segment is straight is the usual answer: two fallbacks are enough
+            guided = (before, after) in self.map_pools
+            if len(out) >= CROSSINGS_PER_STEP or (guided and len(out) >= 3 and not out[0][0]):
                 break
         out.sort(key=lambda x: (x[0], x[1]))
         return [c for _, _, c in out]
@@ -285,6 +351,7 @@ class _ModeChangeSearch:
             q_goals,
             options=replace(self.options, time_budget_s=max(budget, 1e-3)),
         )
+        self.searches += res.diagnostics.searches
         if not res.solved:
             self._failed[key] = budget
         return res
@@ -317,6 +384,126 @@ class _ModeChangeSearch:
             return None
 
         return step(0, q_start)
+
+
+#: Transit postures of the region maps (:func:`map_transits`) per (map, assembly mode,
+#: before, after), the most recent :data:`_MAP_TRANSITS_SIZE` kept (the map is kept beside
+#: its postures, so an id reused by a new map is never mistaken for the old one).
+_MAP_TRANSITS: dict[tuple, tuple[region_maps.RegionMap, np.ndarray]] = {}
+_MAP_TRANSITS_SIZE = 512
+
+
+def _map_transits_cached(
+    rmap: region_maps.RegionMap, asm: str, before: str, after: str
+) -> np.ndarray:
+    """:func:`map_transits`, computed once per map and flip (a copy: callers edit theta1)."""
+    key = (id(rmap), asm, before, after)
+    hit = _MAP_TRANSITS.get(key)
+    if hit is None or hit[0] is not rmap:
+        if len(_MAP_TRANSITS) >= _MAP_TRANSITS_SIZE:
+            _MAP_TRANSITS.pop(next(iter(_MAP_TRANSITS)))
+        hit = _MAP_TRANSITS[key] = (rmap, map_transits(rmap, asm, before, after))
+    return hit[1].copy()
+
+
+def walk_possible(
+    rmap: region_maps.RegionMap,
+    asm: str,
+    seq: tuple[str, ...],
+    q_start: np.ndarray,
+    q_goals: np.ndarray,
+) -> bool:
+    """False only when the region map shows that no path follows the mode walk ``seq``:
+    no chain of regions r_0 (holding ``q_start``, mode seq[0]), r_1, ... (mode seq[i]), each
+    joined to the next by a transit of the map, ends in a region of mode seq[-1] holding a
+    goal candidate of ``q_goals`` (K, 3). Each segment of a plan stays in one region of its
+    mode and each crossing joins two regions the map joins (the argument of
+    :func:`planner.analysis.regions.prove_disconnected`), so such a walk cannot succeed."""
+    adj: dict[int, set[int]] = {}
+    for t in rmap.transits:
+        adj.setdefault(t.a, set()).add(t.b)
+        adj.setdefault(t.b, set()).add(t.a)
+    here = {r.id for r in region_maps.regions_at(rmap, q_start, asm) if r.working_mode == seq[0]}
+    if not here:
+        return True  # the map cannot place the start: it decides nothing
+    for mode in seq[1:]:
+        here = {b for a in here for b in adj.get(a, ()) if rmap.regions[b].working_mode == mode}
+    ends = {
+        r.id
+        for g in np.atleast_2d(q_goals)
+        for r in region_maps.regions_at(rmap, g, asm)
+        if r.working_mode == seq[-1]
+    }
+    return bool(here & ends) or not ends
+
+
+def map_transits(rmap: region_maps.RegionMap, asm: str, before: str, after: str) -> np.ndarray:
+    """Transit postures (M, 3) (theta1 0) from the region map: the cells of the flip
+    before -> after (``RegionMap.transit_cells``) where the two other signed measures are
+    >= ``serial_min`` over the whole cell, each cell centre moved onto the surface where
+    the flipped measure vanishes (Newton steps on (theta2, theta3)). Empty when the map has
+    no such cell; the caller checks the non-serial rules and builds the crossings."""
+    from planner.kinematics import ASSEMBLY_MODES
+    from planner.transits import serial_measure
+
+    j = next(i for i in range(3) if before[i] != after[i])
+    ai = ASSEMBLY_MODES.index(asm)
+    s_min = rmap.margins.serial_min
+    mask = rmap.transit_cells[ai, j] > 0
+    for k in range(3):
+        if k != j:
+            if before[k] == "+":
+                mask &= rmap.measure_low[ai, k] >= s_min
+            else:
+                mask &= rmap.measure_high[ai, k] <= -s_min
+    k3, k2 = np.nonzero(mask)
+    if len(k3) == 0:
+        return np.empty((0, 3))
+    q = np.stack([np.zeros(len(k3)), rmap.theta2[k2], rmap.theta3[k3]], axis=1)
+    flipped, h = _FLIP_NAMES[j], 1e-7
+    for _ in range(4):
+        stencil = np.concatenate([q, q + np.array([0, h, 0]), q + np.array([0, 0, h])])
+        f = serial_measure(rmap.design, stencil, asm, flipped).reshape(3, -1)
+        grad = (f[1:] - f[0]) / h
+        norm2 = (grad**2).sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = (f[0] / norm2)[:, None] * grad.T
+        ok = np.all(np.isfinite(step), axis=1)
+        q, step = q[ok], step[ok]
+        k3, k2 = k3[ok], k2[ok]
+        q[:, 1:] -= step
+    if len(q) == 0:
+        return np.empty((0, 3))
+    fb = forward_batch(rmap.design, q, asm)
+    f = fb.serial_measures[:, j]
+    keep = np.isfinite(f) & fb.ok
+    for k in range(3):  # the moved posture keeps the other two signs with the margin
+        if k != j:
+            sign = 1.0 if before[k] == "+" else -1.0
+            with np.errstate(invalid="ignore"):
+                keep &= sign * fb.serial_measures[:, k] >= s_min
+    reach = 1.5 * max(rmap.h2, rmap.h3)
+    near = (np.abs(q[:, 1] - rmap.theta2[k2]) <= reach) & (
+        np.abs(q[:, 2] - rmap.theta3[k3]) <= reach
+    )
+    lo, hi = rmap.design.joint_min, rmap.design.joint_max
+    inside = (q[:, 1] >= lo[1]) & (q[:, 1] <= hi[1]) & (q[:, 2] >= lo[2]) & (q[:, 2] <= hi[2])
+    return q[keep & (np.abs(f) < 1e-9) & near & inside]
+
+
+def _theta1_along(
+    q: np.ndarray, q_from: np.ndarray, q_goal: np.ndarray, design: Design
+) -> np.ndarray:
+    """Transit postures ``q`` with theta1 set where the straight line q_from -> q_goal is
+    nearest in (theta2, theta3) (no serial measure depends on theta1, so the postures stay
+    on their surface), within theta1's limits."""
+    d = q_goal[1:] - q_from[1:]
+    dd = float(d @ d)
+    t = np.clip((q[:, 1:] - q_from[1:]) @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(q))
+    out = q.copy()
+    out[:, 0] = np.clip(q_from[0] + t * (q_goal[0] - q_from[0]), design.joint_min[0],
+                        design.joint_max[0])  # fmt: skip
+    return out
 
 
 def crossing_signs_hold(
@@ -415,11 +602,20 @@ def plan_mode_change(
     options: PlanOptions,
     t0: float,
     deadline: float,
+    rmap: region_maps.RegionMap | None = None,
 ) -> PlanResult:
     """Plan from ``start`` (in ``start_mode``) to the goal candidates ``targets`` (mode ->
-    (K, 3) valid joint goals in that mode) through transits; see the module docstring."""
-    search = _ModeChangeSearch(design, start.assembly_mode, margins, obstacles, options, deadline)
+    (K, 3) valid joint goals in that mode) through transits; see the module docstring.
+    With the design's region map ``rmap`` the transit postures come from its transit cells
+    (sampled surfaces where it has none)."""
+    search = _ModeChangeSearch(
+        design, start.assembly_mode, margins, obstacles, options, deadline, rmap
+    )
     seqs = mode_sequences(start_mode, list(targets))
+    if rmap is not None:  # walks the region map's transit graph cannot realise go (all
+        # kept when none is left: longer walks than these may exist, the search says so)
+        seqs = [s for s in seqs if walk_possible(rmap, start.assembly_mode, s, start.q,
+                                                 targets[s[-1]])] or seqs  # fmt: skip
     ranked = []
     for seq in seqs:
         est = search.estimate(seq, start.q, targets[seq[-1]][0])
@@ -438,8 +634,14 @@ def plan_mode_change(
             Diagnostics(planning_time_s=time.perf_counter() - t0),
         )
     tried: set[tuple[str, ...]] = set()
-    for share in ROUND_SHARES:
+    # guided rounds first; where they fail, today's rounds on sampled surfaces
+    rounds = [(share, False) for share in ROUND_SHARES]
+    if rmap is not None:
+        rounds = [(ROUND_SHARES[0], True), *rounds]
+    for share, guided in rounds:
         search.share = share
+        if not guided and search.rmap is not None:
+            search.unguided()
         for _, _, seq in ranked:
             if time.perf_counter() > deadline:
                 break
@@ -448,7 +650,7 @@ def plan_mode_change(
             if out is None:
                 continue
             path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-            diag = replace(diag, planning_time_s=time.perf_counter() - t0)
+            diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
             modes = " -> ".join(seq)
             return PlanResult(
                 PlanStatus.SOLVED,
@@ -461,7 +663,7 @@ def plan_mode_change(
         f"no path found within {options.time_budget_s:g} s through transits "
         f"({len(tried)} of {len(ranked)} mode sequences tried)",
         None,
-        Diagnostics(planning_time_s=time.perf_counter() - t0),
+        Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
     )
 
 
@@ -535,46 +737,104 @@ class _Request:
     options: PlanOptions
     t0: float
     deadline: float
+    #: goal candidates of a Cartesian target per working mode, once computed (see
+    #: :meth:`goal_candidates`), and why each mode has none
+    _targets: dict[str, np.ndarray] = field(default_factory=dict)
+    _whys: dict[str, str] = field(default_factory=dict)
 
     def single_mode(
-        self, goal: JointPosture | CartesianTarget, *, share: float = 1.0
+        self,
+        goal: JointPosture | CartesianTarget,
+        *,
+        share: float = 1.0,
+        before_search: Callable[[np.ndarray], PlanResult | None] | None = None,
     ) -> PlanResult:
-        """The single-mode plan to ``goal`` with ``share`` of the time budget."""
+        """The single-mode plan to ``goal`` with ``share`` of the time budget; by default
+        the region map's proof (:meth:`disproof`) runs just before its first OMPL search."""
         options = self.options
         if share != 1.0:
             options = replace(options, time_budget_s=options.time_budget_s * share)
         return plan_single_mode(
             self.design, self.start, goal,
             obstacles=self.obstacles, margins=self.margins, options=options,
+            before_search=self.disproof if before_search is None else before_search,
         )  # fmt: skip
+
+    def region_map(self) -> region_maps.RegionMap | None:
+        """The design's obstacle-free region map at :data:`PROOF_RESOLUTION`, when it is
+        cheap now: cached, or built while at least :data:`PROOF_MIN_BUDGET_S` of the budget
+        remains; None otherwise, or when ``options.region_map`` is off."""
+        if not self.options.region_map:
+            return None
+        rmap = region_maps.cached_region_map(self.design, self.margins, PROOF_RESOLUTION)
+        if rmap is None and self.deadline - time.perf_counter() >= PROOF_MIN_BUDGET_S:
+            rmap = region_maps.region_map(self.design, self.margins, PROOF_RESOLUTION)
+        return rmap
+
+    def disproof(self, goals: np.ndarray) -> PlanResult | None:
+        """``no_path`` with ``diagnostics.proven_infeasible`` when the region map proves that
+        no valid path joins the start to any of the goal candidates ``goals`` (K, 3) (every
+        candidate the request allows; valid postures); None when it cannot.
+
+        The argument is :func:`planner.analysis.regions.prove_disconnected`'s: the map is
+        obstacle-free, and obstacles only remove postures, so its proof holds with them. The
+        answer names the regions of the start and of the goals, no search run."""
+        rmap = self.region_map()
+        if rmap is None or len(goals) == 0:
+            return None
+        asm = self.start.assembly_mode
+        if not region_maps.prove_disconnected(rmap, self.start.q, goals, asm):
+            return None
+        message = _disproof_message(rmap, self.start, goals)
+        logger.info("plan no_path (proven): %s", message)
+        return PlanResult(
+            PlanStatus.NO_PATH,
+            message,
+            None,
+            Diagnostics(
+                planning_time_s=time.perf_counter() - self.t0,
+                planner="region_map",
+                proven_infeasible=True,
+            ),
+        )
 
     def start_mode(self) -> str | None:
         """The start's working mode (None where it is undefined)."""
         return posture_mode(self.design, self.start)
 
-    def mode_change(self, start_mode: str, targets: dict[str, np.ndarray]) -> PlanResult:
-        """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3))."""
+    def mode_change(
+        self, start_mode: str, targets: dict[str, np.ndarray], *, prove: bool = True
+    ) -> PlanResult:
+        """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3)),
+        after the region map's proof (:meth:`disproof`) over all of them when ``prove``
+        (only when ``targets`` are all the candidates the request allows)."""
+        proof = self.disproof(np.vstack(list(targets.values()))) if prove else None
+        if proof is not None:
+            return proof
         return plan_mode_change(
             self.design, self.start, start_mode, targets,
             obstacles=self.obstacles, margins=self.margins, options=self.options,
-            t0=self.t0, deadline=self.deadline,
+            t0=self.t0, deadline=self.deadline, rmap=self.region_map(),
         )  # fmt: skip
 
     def goal_candidates(
         self, p: np.ndarray, modes: Sequence[str]
     ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-        """Valid joint goals of the point ``p`` in each working mode of ``modes`` (mode ->
-        (K, 3), modes with none left out), and why each mode left out has none."""
-        targets: dict[str, np.ndarray] = {}
-        whys: dict[str, str] = {}
+        """Valid joint goals of the point ``p`` (the request's goal point) in each working
+        mode of ``modes`` (mode -> (K, 3), modes with none left out), and why each mode left
+        out has none; computed once per mode."""
         asm = self.start.assembly_mode
         for m in modes:
+            if m in self._targets or m in self._whys:
+                continue
             checker = ValidityChecker(self.design, self.margins, self.obstacles, asm, m)
             cands, why = goal_candidates(self.design, CartesianTarget(p, m), checker, self.start.q)
             if len(cands):
-                targets[m] = cands
+                self._targets[m] = cands
             else:
-                whys[m] = why
+                self._whys[m] = why
+        targets = {m: self._targets[m] for m in modes if m in self._targets}
+        whys = {m: self._whys[m] for m in modes if m in self._whys}
         return targets, whys
 
     def finish(self, status: PlanStatus, message: str) -> PlanResult:
@@ -623,10 +883,17 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
     """A Cartesian target in working mode 'any': the start's mode first with half the
     budget, then through transits to the other modes when that fails, or when their
     estimate is shorter than :data:`BETTER_RATIO` times the single-mode path."""
-    first = request.single_mode(goal, share=0.5)
-    if first.status is PlanStatus.INVALID_START:
-        return first
     start_mode = request.start_mode()
+
+    def every_mode_disproof(cands: np.ndarray) -> PlanResult | None:
+        # the proof must cover the goal's candidates in every working mode, not only the
+        # start's ``cands``
+        targets, _ = request.goal_candidates(goal.p, [m for m in WORKING_MODES if m != start_mode])
+        return request.disproof(np.vstack([cands, *targets.values()]))
+
+    first = request.single_mode(goal, share=0.5, before_search=every_mode_disproof)
+    if first.status is PlanStatus.INVALID_START or first.diagnostics.proven_infeasible:
+        return first
     if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
         return first
     others = [m for m in WORKING_MODES if m != start_mode]
@@ -641,7 +908,13 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
         )
     if first.solved:
         return _shorter_through_transits(request, first, start_mode, targets)
-    other = request.mode_change(start_mode, targets)
+    if first.status is PlanStatus.NO_PATH:  # the start's own candidates count too
+        own, _ = request.goal_candidates(goal.p, [start_mode])
+        proof = request.disproof(np.vstack([*own.values(), *targets.values()]))
+        if proof is not None:
+            return proof
+    # ``targets`` are all the candidates only when the start's mode has none
+    other = request.mode_change(start_mode, targets, prove=first.status is PlanStatus.UNREACHABLE)
     if other.solved or first.status is PlanStatus.UNREACHABLE:
         return other
     return other if other.status is PlanStatus.NO_PATH else first
@@ -669,11 +942,38 @@ def _shorter_through_transits(
     )
     if not best < limit:
         return first
-    other = request.mode_change(start_mode, targets)
+    other = request.mode_change(start_mode, targets, prove=False)
     if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
         return other
     planning_time_s = time.perf_counter() - request.t0
     return replace(first, diagnostics=replace(first.diagnostics, planning_time_s=planning_time_s))
+
+
+def _disproof_message(rmap: region_maps.RegionMap, start: JointPosture, goals: np.ndarray) -> str:
+    """The ``no_path`` message of a proof: the regions (id, working mode, union-graph
+    component) holding the start and the goal candidates."""
+    asm = start.assembly_mode
+
+    def names(q: np.ndarray) -> list[str]:
+        return [
+            f"region {r.id} (working mode {r.working_mode}, component {r.component})"
+            for r in region_maps.regions_at(rmap, q, asm)
+        ]
+
+    at_start = names(start.q)
+    at_goals = list(dict.fromkeys(n for g in np.atleast_2d(goals) for n in names(g)))
+    shown = ", ".join(at_goals[:4]) + (
+        f" and {len(at_goals) - 4} more" if len(at_goals) > 4 else ""
+    )
+    n_goals = len(np.atleast_2d(goals))
+    which = "the goal lies in" if n_goals == 1 else f"its {n_goals} goal candidates lie in"
+    return (
+        f"no valid path exists (proven by the region map, {rmap.n} x {rmap.n} cells, no "
+        f"search run): in assembly mode {asm} the start lies in {', '.join(at_start)}, "
+        f"{which} {shown}; no chain of regions and serial transits joins them, so every "
+        "path between them crosses a posture that breaks a rule (joint limits, kappa_max, "
+        "serial_min)"
+    )
 
 
 def path_state_checker(

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from itertools import product
 
 import numpy as np
@@ -32,6 +32,10 @@ from planner.validity import Margins, ValidityChecker, assembly_reason
 __all__ = ["goal_candidates", "plan_in_region", "plan_single_mode", "posture_mode"]
 
 logger = logging.getLogger(__name__)
+
+#: The hook of :func:`plan_in_region` run just before its first OMPL search: goal
+#: candidates (K, 3) -> the answer without a search, or None to search.
+BeforeSearch = Callable[[np.ndarray], PlanResult | None]
 
 
 def posture_mode(design: Design, posture: JointPosture) -> str | None:
@@ -115,6 +119,7 @@ def plan_single_mode(
     obstacles: Sequence[Obstacle] = (),
     margins: Margins | None = None,
     options: PlanOptions | None = None,
+    before_search: BeforeSearch | None = None,
 ) -> PlanResult:
     """Plan a valid joint path from ``start`` to ``goal`` inside the start's working mode.
 
@@ -130,6 +135,8 @@ def plan_single_mode(
     obstacles : spheres, boxes, capsules (or wire dictionaries).
     margins : default :class:`Margins`.
     options : default :class:`PlanOptions`.
+    before_search : called once with the goal candidates (K, 3) after the checks and the
+        straight motion, just before the first OMPL search (see :func:`plan_in_region`).
 
     Returns
     -------
@@ -193,7 +200,9 @@ def plan_single_mode(
         if len(candidates) == 0:
             return finish(PlanStatus.UNREACHABLE, why)
 
-    return plan_in_region(checker, start.q, candidates, options=options, _t0=t0)
+    return plan_in_region(
+        checker, start.q, candidates, options=options, before_search=before_search, _t0=t0
+    )
 
 
 def plan_in_region(
@@ -202,6 +211,7 @@ def plan_in_region(
     q_goals: np.ndarray,
     *,
     options: PlanOptions | None = None,
+    before_search: BeforeSearch | None = None,
     _t0: float | None = None,
 ) -> PlanResult:
     """Plan inside the region of a validity checker from ``q_start`` to the first reachable
@@ -211,12 +221,15 @@ def plan_in_region(
     plans each segment between postures it chose (e.g. next to a transit) with its own
     checker. Start and goals must be valid for ``checker`` (not re-checked here); the
     straight motion is tried first, then OMPL within ``options.time_budget_s`` in total.
+    ``before_search``, when given, is called once with ``q_goals`` just before the first OMPL
+    search (the straight motion failed); a result it returns is the answer, no search run
+    (the planner's proof that no path exists, :func:`planner.planning.modes.plan`).
 
     Returns
     -------
     PlanResult
         ``solved`` (one segment in the checker's modes, every motion certified) or
-        ``no_path``.
+        ``no_path``; ``diagnostics.searches`` counts the OMPL searches run.
     """
     t0 = time.perf_counter() if _t0 is None else _t0
     options = options if options is not None else PlanOptions()
@@ -224,7 +237,7 @@ def plan_in_region(
     q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
     mode, asm = checker.working_mode, checker.assembly_mode
     deadline = time.perf_counter() + options.time_budget_s
-    attempts = 0
+    attempts = searches = 0
     last_status = ""
     for q_goal in q_goals:
         attempts += 1
@@ -232,9 +245,14 @@ def plan_in_region(
         if options.try_direct and checker.motion_valid(q_start, q_goal):
             waypoints, name = np.stack([q_start, q_goal]), "direct"
         else:
+            if before_search is not None:
+                answer, before_search = before_search(q_goals), None
+                if answer is not None:
+                    return answer
             budget = deadline - time.perf_counter()
             if budget <= 0:
                 break
+            searches += 1
             outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
             last_status = outcome.ompl_status
             if outcome.waypoints is not None:
@@ -264,6 +282,7 @@ def plan_in_region(
                 min_serial_margin=report.min_serial_margin,
                 planner=name,
                 attempts=attempts,
+                searches=searches,
             ),
         )
     message = f"no path found within {options.time_budget_s:g} s in working mode {mode}" + (
@@ -274,5 +293,5 @@ def plan_in_region(
         PlanStatus.NO_PATH,
         message,
         None,
-        Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts),
+        Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts, searches=searches),
     )

@@ -83,6 +83,9 @@ class PlanOptions:
         (the planner ignores it; the service passes the transit indices to
         :func:`planner.timing.time_path` as ``stop_at``). Default False: a transit is
         passed at speed (the crossing is straight, so it is no corner).
+    region_map : consult the design's region map (:mod:`planner.analysis.regions`) before
+        searching: answer ``no_path`` at once where it proves that no path exists. Default
+        True; False runs the search alone (tests and benchmarks compare the two).
     """
 
     name: str = "rrtconnect"
@@ -92,6 +95,7 @@ class PlanOptions:
     range: float | None = None
     try_direct: bool = True
     stop_at_transits: bool = False
+    region_map: bool = True
 
     def __post_init__(self) -> None:
         if self.name not in PLANNERS:

@@ -66,8 +66,14 @@ class Diagnostics:
     min_clearance : least link-obstacle distance, m (inf without obstacles).
     max_kappa_A : largest kappa(A).
     min_serial_margin : smallest serial measure (signed by the working mode).
-    planner : name of the planner that found the path ('direct' for the straight motion).
+    planner : name of the planner that found the path ('direct' for the straight motion;
+        'region_map' when the region map proved that no path exists).
     attempts : number of goal candidates tried.
+    searches : number of OMPL searches run (0: the straight motion or the region map
+        answered).
+    proven_infeasible : True only with ``no_path`` when the region map proved that no valid
+        path exists (:func:`planner.analysis.regions.prove_disconnected`), not merely that the
+        budget ran out.
     """
 
     planning_time_s: float
@@ -77,6 +83,8 @@ class Diagnostics:
     min_serial_margin: float = float("nan")
     planner: str = ""
     attempts: int = 0
+    searches: int = 0
+    proven_infeasible: bool = False
 
 
 @dataclass(frozen=True, slots=True)

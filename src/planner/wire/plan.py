@@ -267,7 +267,7 @@ def plan_response(
         max_kappa_A=_finite(d.max_kappa_A),
         min_serial_margin=_finite(d.min_serial_margin),
         planner=d.planner,
-        proven_infeasible=bool(getattr(d, "proven_infeasible", False)) and status == "no_path",
+        proven_infeasible=d.proven_infeasible and status == "no_path",
         **timing,
     )
     return PlanResponse(
