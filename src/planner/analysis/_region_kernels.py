@@ -13,7 +13,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.core.errors import NumbaTypeError
+from numba.core.extending import intrinsic
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 __all__ = [
     "BITS_B",
@@ -42,12 +45,6 @@ LAYERS = 28
 # _PLUS[k]: the working modes (bit mi) whose sign k is '+' (mi = 4 [s_axis '-'] + 2 [s_A '-']
 # + [s_B '-'], the order of planner.kinematics.WORKING_MODES)
 _PLUS = (0x0F, 0x33, 0x55)
-# index of the lowest set bit of a 32-bit word, by de Bruijn multiplication
-_DE_BRUIJN = np.array(
-    [0, 1, 28, 2, 29, 14, 24, 3, 30, 22, 20, 15, 25, 17, 4, 8,
-     31, 27, 13, 23, 21, 19, 16, 7, 26, 12, 18, 6, 11, 5, 10, 9],
-    dtype=np.int64,
-)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -305,8 +302,9 @@ def mirror_kernel(
 
 @njit(cache=True, nogil=True, inline="always")
 def _low_bit(x):  # pragma: no cover - compiled
-    """Index of the lowest set bit of 0 < x < 2**32."""
-    return _DE_BRUIJN[(((x & -x) * 0x077CB531) & 0xFFFFFFFF) >> 27]
+    """Index of the lowest set bit of 0 < x < 2**63 (the processor's count of trailing
+    zeros)."""
+    return trailing_zeros(x)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -328,24 +326,40 @@ def _union(parent, x, y):  # pragma: no cover - compiled
         parent[rx] = ry
 
 
+@intrinsic
+def _ctpop(typingctx, x):  # pragma: no cover - compiled
+    """LLVM's population count of an integer (one instruction where the processor has one)."""
+    if not isinstance(x, types.Integer):
+        raise NumbaTypeError(f"_ctpop needs an integer, got {x}")
+
+    def codegen(context, builder, signature, args):
+        return builder.ctpop(args[0])
+
+    return x(x), codegen
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _popcount(x):  # pragma: no cover - compiled
-    """Set bits of 0 <= x < 2**32."""
-    x = x - ((x >> 1) & 0x55555555)
-    x = (x & 0x33333333) + ((x >> 2) & 0x33333333)
-    x = (x + (x >> 4)) & 0x0F0F0F0F
-    return ((x * 0x01010101) & 0xFFFFFFFF) >> 24
+    """Set bits of 0 <= x < 2**63."""
+    return _ctpop(x)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _join(parent, common, m, x0, mo, y0):  # pragma: no cover - compiled
+def _join(parent, common, m, x0, mo, y0, fresh):  # pragma: no cover - compiled
     """Join, in every layer of ``common``, the slot of the cell (mask m, first slot x0) with
-    that of a neighbour (mask mo, first slot y0)."""
+    that of a neighbour (mask mo, first slot y0). In the layers of ``fresh`` the cell's slot
+    is still alone (a root without children, later than every neighbour's slot), so it is
+    hung under the neighbour's root directly: the same sets as :func:`_union`, one find less."""
     while common:
         low = common & -common
         common ^= low
         below = low - 1
-        _union(parent, x0 + _popcount(m & below), y0 + _popcount(mo & below))
+        x = x0 + _popcount(m & below)
+        y = y0 + _popcount(mo & below)
+        if fresh & low:
+            parent[x] = _find(parent, y)
+        else:
+            _union(parent, x, y)
 
 
 @njit(cache=True, nogil=True)
@@ -392,15 +406,17 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
             nb_c = bits[i3 - 1, i2 + 1] & full if i3 > 0 and i2 + 1 < n2 else 0
             nb_d = bits[i3, i2 - 1] & full if i2 > 0 else 0
             rest = m & ~nb_b
-            _join(parent, m & nb_b, m, x0, nb_b, start[(i3 - 1) * n2 + i2] if i3 > 0 else 0)
+            if nb_b & m:
+                _join(parent, m & nb_b, m, x0, nb_b, start[(i3 - 1) * n2 + i2], m)
             if rest:
-                if i3 > 0 and i2 + 1 < n2:
-                    _join(parent, rest & nb_c, m, x0, nb_c, start[(i3 - 1) * n2 + i2 + 1])
-                if i2 > 0:
-                    _join(parent, rest & nb_d, m, x0, nb_d, start[i3 * n2 + i2 - 1])
-                    if i3 > 0:
-                        _join(parent, rest & ~nb_d & nb_a, m, x0, nb_a,
-                              start[(i3 - 1) * n2 + i2 - 1])  # fmt: skip
+                # a slot joined to c is no longer alone when d (or a) joins it
+                if nb_c & rest:
+                    _join(parent, rest & nb_c, m, x0, nb_c, start[(i3 - 1) * n2 + i2 + 1], m)
+                if nb_d & rest:
+                    _join(parent, rest & nb_d, m, x0, nb_d, start[i3 * n2 + i2 - 1], ~nb_c)
+                if nb_a & rest & ~nb_d:
+                    _join(parent, rest & ~nb_d & nb_a, m, x0, nb_a,
+                          start[(i3 - 1) * n2 + i2 - 1], ~nb_c)  # fmt: skip
     counts = np.zeros(LAYERS, dtype=np.int64)
     slot_label = np.empty(total, dtype=np.int64)
     for i3 in range(n3):
