@@ -8,13 +8,20 @@ the proofs. False proofs: seeded queries (both ends valid, same assembly
 mode) are planned with ``planner.planning.plan``'s search alone (``region_map=False``); a
 solved query the map (at 256 or at the planner's ``PROOF_RESOLUTION``) proves disconnected
 would be a false proof (the count must be 0). ``--queries N`` (default 1000).
+
+``--speed`` prints only the before/after table of issue 17: the old build (the route kept
+callable by the tests, ``tests/analysis/_region_reference.py``) and today's, interleaved
+build by build (cold, cache cleared), medians of wall and CPU time at 128 and 256, side by
+side with their ratio.
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from _machine import print_machine
@@ -73,6 +80,44 @@ def build_times(runs: int) -> None:
               f"{p90 * 1e3:.1f} ms | {statistics.median(c256) * 1e3:.1f} ms | "
               f"{statistics.median(w512) * 1e3:.0f} ms | {'yes' if p50 <= GOAL_256 else 'no'} | "
               f"{per} |")  # fmt: skip
+
+
+def _timed(build) -> tuple[float, float]:
+    """Wall and CPU seconds of one call."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    build()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def speed(runs: int) -> None:
+    """Old build against new, interleaved (old, new, old, new ...) so that both meet the same
+    load of the shared machine; medians of ``runs`` cold builds each."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "analysis"))
+    from _region_reference import reference_region_map
+
+    designs = {**DESIGNS, "cut limits 0.3/0.3/0.4 (no mirror)": CUT}
+    print(f"cold builds, old (before issue 17) and new interleaved, medians of {runs} each; "
+          f"goal at 256: <= {GOAL_256 * 1e3:.0f} ms\n")  # fmt: skip
+    print("| design | n | old wall | new wall | old CPU | new CPU | CPU old / new | "
+          "new wall p90 |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    margins = Margins()
+    for n in (128, 256):
+        for design in designs.values():  # compile both routes before timing
+            reference_region_map(design, margins, 16, R.DEFAULT_REFINE)
+            R.clear_cache()
+            R.region_map(design, margins, 16)
+        for name, design in designs.items():
+            old, new = [], []
+            for _ in range(runs):
+                old.append(_timed(lambda d=design, n=n: reference_region_map(d, margins, n, 4)))
+                R.clear_cache()
+                new.append(_timed(lambda d=design, n=n: R.region_map(d, margins, n)))
+            med = [statistics.median(t[k] for t in runs_) * 1e3
+                   for k in (0, 1) for runs_ in (old, new)]  # fmt: skip
+            p90 = float(np.quantile([t[0] for t in new], 0.9)) * 1e3
+            print(f"| {name} | {n} | {med[0]:.1f} ms | {med[1]:.1f} ms | {med[2]:.1f} ms | "
+                  f"{med[3]:.1f} ms | {med[2] / med[3]:.2f} | {p90:.1f} ms |")  # fmt: skip
 
 
 #: The paper's convex and non-convex working modes (section 3.3) with their mirrors about AB.
@@ -181,8 +226,12 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=21, help="cold builds per design at 256")
     parser.add_argument("--builds-only", action="store_true", help="skip the proof checks")
     parser.add_argument("--claim", action="store_true", help="only the 'twice as large' table")
+    parser.add_argument("--speed", action="store_true", help="only old against new builds")
     args = parser.parse_args()
     print_machine()
+    if args.speed:
+        speed(args.runs)
+        return
     if args.claim:
         twice_as_large()
         return

@@ -47,77 +47,110 @@ LAYERS = 28
 _PLUS = (0x0F, 0x33, 0x55)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _cell_bounds(
-    L0, L1, L2, b_lo, b_hi, s, c2, s2, c3, s3, a2, a3, m_lo, m_hi, cen
-):  # pragma: no cover
-    """Bounds over one closed cell (centre trig values, half-widths a2, a3 rad), written
-    into m_lo, m_hi (the serial measures over the cell's postures in the kappa band) and cen
-    (their values at the centre, |CD| clipped into the band). Returns (sure, miss, d): the
-    whole cell is in the band, none of it is, and |CD| at the centre."""
-    c32 = c3 * c2 + s3 * s2
-    s32 = s3 * c2 - c3 * s2
-    e_u = L0 + L1 * (c3 - c2)
-    e_w = L1 * (s3 - s2)
-    d = math.sqrt(e_u * e_u + e_w * e_w)
+#: Rows of the output of :func:`_bounds_batch`: lower bounds of the three measures, upper
+#: bounds, the three measures and the two kind signs at the centre, and the flags. At most
+#: twelve rows are written per cell: with more, numba's compiler gives up running the loop
+#: on SIMD lanes (too many runtime checks of overlapping arrays).
+_LO, _HI, _CEN, _FLAGS, _ROWS = 0, 3, 6, 11, 12
+#: Flags of a cell: all of it in the kappa band, none of it, its centre in the band.
+_SURE, _MISS, _CENTRE_IN = 1, 2, 4
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bounds_batch(L0, L1, L2, b_lo, b_hi, s, trig, a2, a3, count, out):  # pragma: no cover
+    """Bounds over ``count`` closed cells at once: ``trig`` (4, count) the cosine and sine
+    of theta2 and of theta3 at each centre, half-widths a2, a3 rad. Writes ``out``
+    (:data:`_ROWS`, count): from rows :data:`_LO` and :data:`_HI` the bounds of the three
+    serial measures over each cell's postures in the kappa band; from :data:`_CEN` their
+    values at the centre (|CD| clipped into the band), then the signs of
+    cos(theta4 - theta2) and cos(theta5 - theta3) there; row :data:`_FLAGS` the sum of
+    :data:`_SURE` (the whole cell is in the band), :data:`_MISS` (none of it is: the other
+    rows are then meaningless) and :data:`_CENTRE_IN` (|CD| at the centre is in the band).
+
+    Every value is computed for every cell, with selects in place of branches, into two
+    arrays, so that the compiler runs the loop on SIMD lanes (several cells per division
+    and square root); each value is the same expression, rounded the same way (IEEE
+    operations, no fast-math), as a cell-by-cell evaluation would give.
+
+    The bounds: |CD| moves by at most r = L1 (a2 + a3) over the cell; g(d) is evaluated on
+    the part of the |CD| interval inside the band; each measure U + s g V by interval
+    products (:func:`_measure`); where the whole cell is in the band, the centred form along
+    straight paths inside it tightens them; all widened by 1e-12 for rounding."""
     r = L1 * (a2 + a3)
-    d_lo, d_hi = d - r, d + r
-    sure = d_lo >= b_lo and d_hi <= b_hi
-    miss = d_hi < b_lo or d_lo > b_hi
-    if miss:
-        return sure, miss, d
-    dv_lo = min(max(d_lo, b_lo), b_hi)
-    dv_hi = min(max(d_hi, b_lo), b_hi)
-    g_lo = math.sqrt(max(L2 * L2 / (dv_hi * dv_hi) - 0.25, 0.0))
-    g_hi = math.sqrt(max(L2 * L2 / (dv_lo * dv_lo) - 0.25, 0.0))
-    dc = min(max(d, b_lo), b_hi)
-    g_c = math.sqrt(max(L2 * L2 / (dc * dc) - 0.25, 0.0))
-    x_a = L1 * s32 - L0 * s2
-    y_a = L0 * c2 + L1 * c32 - L1
-    x_b = L1 * s32 - L0 * s3
-    y_b = L0 * c3 + L1 - L1 * c32
-    for k in range(3):
-        if k == 0:
-            u, r_u, v, r_v, norm = 0.5 * L1 * (s2 + s3), 0.5 * r, e_u, r, L1 + L2
-        elif k == 1:
-            u, r_u, v, r_v, norm = 0.5 * x_a, 0.5 * (r + L0 * a2), y_a, r + L0 * a2, L2
-        else:
-            u, r_u, v, r_v, norm = -0.5 * x_b, 0.5 * (r + L0 * a3), y_b, r + L0 * a3, L2
-        v_lo, v_hi = v - r_v, v + r_v
-        p_lo = v_lo * g_hi if v_lo < 0.0 else v_lo * g_lo
-        p_hi = v_hi * g_hi if v_hi > 0.0 else v_hi * g_lo
-        if s < 0:
-            p_lo, p_hi = -p_hi, -p_lo
-        m_lo[k] = (u - r_u + p_lo) / norm
-        m_hi[k] = (u + r_u + p_hi) / norm
-        cen[k] = (u + s * g_c * v) / norm
-    if sure:
-        # centred form along straight paths inside the cell, all of it in the band
+    for i in range(count):
+        cc2, ss2, cc3, ss3 = trig[0, i], trig[1, i], trig[2, i], trig[3, i]
+        c32 = cc3 * cc2 + ss3 * ss2
+        s32 = ss3 * cc2 - cc3 * ss2
+        e_u = L0 + L1 * (cc3 - cc2)
+        e_w = L1 * (ss3 - ss2)
+        d = math.sqrt(e_u * e_u + e_w * e_w)
+        d_lo, d_hi = d - r, d + r
+        sure = (d_lo >= b_lo) & (d_hi <= b_hi)
+        miss = (d_hi < b_lo) | (d_lo > b_hi)
+        dv_lo = min(max(d_lo, b_lo), b_hi)
+        dv_hi = min(max(d_hi, b_lo), b_hi)
+        g_lo = math.sqrt(max(L2 * L2 / (dv_hi * dv_hi) - 0.25, 0.0))
+        g_hi = math.sqrt(max(L2 * L2 / (dv_lo * dv_lo) - 0.25, 0.0))
+        dc = min(max(d, b_lo), b_hi)
+        g_c = math.sqrt(max(L2 * L2 / (dc * dc) - 0.25, 0.0))
+        x_a = L1 * s32 - L0 * ss2
+        y_a = L0 * cc2 + L1 * c32 - L1
+        x_b = L1 * s32 - L0 * ss3
+        y_b = L0 * cc3 + L1 - L1 * c32
+        # the three signed measures U + s g V (module docstring of planner.analysis.regions)
+        u0, r_u0, v0, r_v0, n0 = 0.5 * L1 * (ss2 + ss3), 0.5 * r, e_u, r, L1 + L2
+        u1, r_u1, v1, r_v1 = 0.5 * x_a, 0.5 * (r + L0 * a2), y_a, r + L0 * a2
+        u2, r_u2, v2, r_v2 = -0.5 * x_b, 0.5 * (r + L0 * a3), y_b, r + L0 * a3
+        lo0, hi0, ce0 = _measure(u0, r_u0, v0, r_v0, n0, g_lo, g_hi, g_c, s)
+        lo1, hi1, ce1 = _measure(u1, r_u1, v1, r_v1, L2, g_lo, g_hi, g_c, s)
+        lo2, hi2, ce2 = _measure(u2, r_u2, v2, r_v2, L2, g_lo, g_hi, g_c, s)
+        # all of the cell in the band: the centred form along straight paths inside it
         rl, rh = d_lo / (2.0 * L2), min(d_hi / (2.0 * L2), 1.0)
         s_apex = min(
             2.0 * rl * math.sqrt(max(1.0 - rl * rl, 0.0)),
             2.0 * rh * math.sqrt(max(1.0 - rh * rh, 0.0)),
         )
-        if s_apex > 0.0:
-            r45 = r / (L2 * s_apex)
-            m_lo[0] = max(m_lo[0], cen[0] - (L1 * min(a2, a3) + L2 * r45) / (L1 + L2))
-            m_hi[0] = min(m_hi[0], cen[0] + (L1 * min(a2, a3) + L2 * r45) / (L1 + L2))
-            m_lo[1] = max(m_lo[1], cen[1] - (r45 + a2))
-            m_hi[1] = min(m_hi[1], cen[1] + (r45 + a2))
-            m_lo[2] = max(m_lo[2], cen[2] - (r45 + a3))
-            m_hi[2] = min(m_hi[2], cen[2] + (r45 + a3))
-    for k in range(3):
-        m_lo[k] -= 1e-12
-        m_hi[k] += 1e-12
-    # kinds at the centre: cos(theta4 - theta2), cos(theta5 - theta3) signs in cen[3], cen[4]
-    cen[3] = 0.5 * y_a - s * g_c * x_a
-    cen[4] = -0.5 * y_b - s * g_c * x_b
-    return sure, miss, d
+        centred = sure & (s_apex > 0.0)
+        r45 = r / (L2 * s_apex)
+        w0 = (L1 * min(a2, a3) + L2 * r45) / (L1 + L2)
+        w1 = r45 + a2
+        w2 = r45 + a3
+        lo0 = max(lo0, ce0 - w0) if centred else lo0
+        hi0 = min(hi0, ce0 + w0) if centred else hi0
+        lo1 = max(lo1, ce1 - w1) if centred else lo1
+        hi1 = min(hi1, ce1 + w1) if centred else hi1
+        lo2 = max(lo2, ce2 - w2) if centred else lo2
+        hi2 = min(hi2, ce2 + w2) if centred else hi2
+        out[0, i] = lo0 - 1e-12
+        out[1, i] = lo1 - 1e-12
+        out[2, i] = lo2 - 1e-12
+        out[3, i] = hi0 + 1e-12
+        out[4, i] = hi1 + 1e-12
+        out[5, i] = hi2 + 1e-12
+        out[6, i], out[7, i], out[8, i] = ce0, ce1, ce2
+        # kinds at the centre: signs of cos(theta4 - theta2), cos(theta5 - theta3)
+        out[9, i] = 0.5 * y_a - s * g_c * x_a
+        out[10, i] = -0.5 * y_b - s * g_c * x_b
+        centre_in = (b_lo <= d) & (d <= b_hi)
+        out[11, i] = (1.0 if sure else 0.0) + (2.0 if miss else 0.0) + (4.0 if centre_in else 0.0)
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _measure(u, r_u, v, r_v, norm, g_lo, g_hi, g_c, s):  # pragma: no cover - compiled
+    """Bounds (lo, hi) of one signed measure (u + s g v) / norm over a cell (u within r_u,
+    v within r_v, g in [g_lo, g_hi]) by interval products, and its value at the centre."""
+    v_lo, v_hi = v - r_v, v + r_v
+    p_lo = v_lo * g_hi if v_lo < 0.0 else v_lo * g_lo
+    p_hi = v_hi * g_hi if v_hi > 0.0 else v_hi * g_lo
+    n_lo, n_hi = -p_hi, -p_lo
+    if s < 0:
+        p_lo, p_hi = n_lo, n_hi
+    return (u - r_u + p_lo) / norm, (u + r_u + p_hi) / norm, (u + s * g_c * v) / norm
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _decide(sure, miss, m_lo, m_hi, smin):  # pragma: no cover
-    """The masks of one cell (or sub-cell) from its bounds: (over, valid, passable), bit mi
+def _decide(sure, miss, out, i, smin):  # pragma: no cover
+    """The masks of cell (or sub-cell) i from its bounds (rows of :func:`_bounds_batch`): (over, valid, passable), bit mi
     of the first two for working mode mi (not surely invalid; surely valid), bit 4 j + c
     of the third for transit set (j, c) (not surely outside it).
 
@@ -134,10 +167,11 @@ def _decide(sure, miss, m_lo, m_hi, smin):  # pragma: no cover
     for k in range(3):
         plus = _PLUS[k]
         minus = 0xFF ^ plus
-        can_p = m_hi[k] >= smin
-        can_n = -m_lo[k] >= smin
+        lo, hi = out[_LO + k, i], out[_HI + k, i]
+        can_p = hi >= smin
+        can_n = -lo >= smin
         over &= (plus if can_p else 0) | (minus if can_n else 0)
-        valid &= (plus if m_lo[k] >= smin else 0) | (minus if -m_hi[k] >= smin else 0)
+        valid &= (plus if lo >= smin else 0) | (minus if -hi >= smin else 0)
         can |= (1 if can_p else 0) << (2 * k)
         can |= (1 if can_n else 0) << (2 * k + 1)
     passable = 0
@@ -174,7 +208,7 @@ def classify_kernel(
     m_hi_out,
 ):  # pragma: no cover - compiled
     """Classify every closed cell of one assembly mode (sign ``s``) by the bounds of
-    :func:`_cell_bounds`. A cell left undecided in some mode is split into ``split x split``
+    :func:`_bounds_batch`. A cell left undecided in some mode is split into ``split x split``
     closed sub-cells (their union is the cell; ``sub2`` (n2, split, 2) and ``sub3`` hold
     the cosine and sine of their centres): it is surely valid (invalid) in a mode when every
     sub-cell is, passable for a transit set when some sub-cell is, and the bounds are the
@@ -182,76 +216,97 @@ def classify_kernel(
     docstring), kind (3, n, n) (index in TRANSIT_KINDS at the centre), centre_mode (n, n)
     and the bounds (3, n, n) (NaN where no posture is in the band)."""
     n3, n2 = theta3.shape[0], theta2.shape[0]
-    m_lo = np.empty(3)
-    m_hi = np.empty(3)
-    cen = np.empty(5)
-    sub_lo = np.empty(3)
-    sub_hi = np.empty(3)
-    sub_cen = np.empty(5)
-    c2s, s2s = np.cos(theta2), np.sin(theta2)
     b2, b3 = a2 / split, a3 / split
     e2, e3 = b2 * (1.0 + 1e-9), b3 * (1.0 + 1e-9)
+    per = split * split
+    # the row's cells, then the sub-cells of its undecided cells
+    trig_r, out_r = np.empty((4, n2)), np.empty((_ROWS, n2))
+    trig_s, out_s = np.empty((4, n2 * per)), np.empty((_ROWS, n2 * per))
+    trig_r[0], trig_r[1] = np.cos(theta2), np.sin(theta2)
+    over_r = np.empty(n2, dtype=np.int64)
+    valid_r = np.empty(n2, dtype=np.int64)
+    pass_r = np.empty(n2, dtype=np.int64)
+    miss_r = np.empty(n2, dtype=np.bool_)
+    todo = np.empty(n2, dtype=np.int64)
     for i3 in range(n3):
         t3 = theta3[i3]
-        c3, s3 = math.cos(t3), math.sin(t3)
+        trig_r[2] = math.cos(t3)
+        trig_r[3] = math.sin(t3)
+        _bounds_batch(L0, L1, L2, b_lo, b_hi, s, trig_r, a2, a3, n2, out_r)
+        nt = 0
         for i2 in range(n2):
-            c2, s2 = c2s[i2], s2s[i2]
-            sure, miss, d = _cell_bounds(
-                L0, L1, L2, b_lo, b_hi, s, c2, s2, c3, s3, a2, a3, m_lo, m_hi, cen
-            )
-            over, valid, passable = _decide(sure, miss, m_lo, m_hi, smin)
+            fl = int(out_r[_FLAGS, i2])
+            miss = fl & _MISS != 0
+            over, valid, passable = _decide(fl & _SURE != 0, miss, out_r, i2, smin)
+            over_r[i2], valid_r[i2], pass_r[i2], miss_r[i2] = over, valid, passable, miss
             if over != valid and split > 1:
-                # undecided in some mode: refine. Surely valid (invalid) where every sub-cell
+                todo[nt] = i2
+                nt += 1
+        if nt:
+            j = 0
+            for t in range(nt):
+                i2 = todo[t]
+                for p3 in range(split):
+                    for p2 in range(split):
+                        trig_s[0, j], trig_s[1, j] = sub2[i2, p2, 0], sub2[i2, p2, 1]
+                        trig_s[2, j], trig_s[3, j] = sub3[i3, p3, 0], sub3[i3, p3, 1]
+                        j += 1
+            _bounds_batch(L0, L1, L2, b_lo, b_hi, s, trig_s, e2, e3, j, out_s)
+            for t in range(nt):
+                # undecided in some mode: refined. Surely valid (invalid) where every sub-cell
                 # is, passable where some sub-cell is; bounds: the hull of the sub-cells'.
+                i2 = todo[t]
                 any_in = False
                 over, valid, passable = 0, 0xFF, 0
-                for k in range(3):
-                    m_lo[k], m_hi[k] = np.inf, -np.inf
-                for p3 in range(split):
-                    cc3, ss3 = sub3[i3, p3, 0], sub3[i3, p3, 1]
-                    for p2 in range(split):
-                        cc2, ss2 = sub2[i2, p2, 0], sub2[i2, p2, 1]
-                        ssure, smiss, _ = _cell_bounds(
-                            L0, L1, L2, b_lo, b_hi, s, cc2, ss2, cc3, ss3, e2, e3,
-                            sub_lo, sub_hi, sub_cen,
-                        )  # fmt: skip
-                        so, sv, sp = _decide(ssure, smiss, sub_lo, sub_hi, smin)
-                        over |= so
-                        valid &= sv
-                        passable |= sp
-                        if not smiss:
-                            any_in = True
-                            for k in range(3):
-                                m_lo[k] = min(m_lo[k], sub_lo[k])
-                                m_hi[k] = max(m_hi[k], sub_hi[k])
-                miss = not any_in
+                lo0 = lo1 = lo2 = np.inf
+                hi0 = hi1 = hi2 = -np.inf
+                for j in range(t * per, (t + 1) * per):
+                    fl = int(out_s[_FLAGS, j])
+                    smiss = fl & _MISS != 0
+                    so, sv, sp = _decide(fl & _SURE != 0, smiss, out_s, j, smin)
+                    over |= so
+                    valid &= sv
+                    passable |= sp
+                    if not smiss:
+                        any_in = True
+                        lo0, hi0 = min(lo0, out_s[_LO, j]), max(hi0, out_s[_HI, j])
+                        lo1, hi1 = min(lo1, out_s[_LO + 1, j]), max(hi1, out_s[_HI + 1, j])
+                        lo2, hi2 = min(lo2, out_s[_LO + 2, j]), max(hi2, out_s[_HI + 2, j])
+                out_r[_LO, i2], out_r[_LO + 1, i2], out_r[_LO + 2, i2] = lo0, lo1, lo2
+                out_r[_HI, i2], out_r[_HI + 1, i2], out_r[_HI + 2, i2] = hi0, hi1, hi2
+                over_r[i2], valid_r[i2], pass_r[i2] = over, valid, passable
+                miss_r[i2] = not any_in
+        for i2 in range(n2):
+            over, valid, miss = over_r[i2], valid_r[i2], miss_r[i2]
             for mi in range(8):
                 status[mi, i3, i2] = ((over >> mi) & 1) + ((valid >> mi) & 1)
-            mask = (over << BITS_OVER) | (valid << BITS_VALID) | (passable << BITS_B)
+            mask = (over << BITS_OVER) | (valid << BITS_VALID) | (pass_r[i2] << BITS_B)
             centre_mode[i3, i2] = -1
             kind[0, i3, i2] = 0
-            kind[1, i3, i2] = 1 if miss or cen[3] >= 0.0 else 2  # (cen is stale when miss)
-            kind[2, i3, i2] = 3 if miss or cen[4] >= 0.0 else 4
+            kind[1, i3, i2] = 1 if miss or out_r[_CEN + 3, i2] >= 0.0 else 2
+            kind[2, i3, i2] = 3 if miss or out_r[_CEN + 4, i2] >= 0.0 else 4
             for k in range(3):
+                lo, hi = out_r[_LO + k, i2], out_r[_HI + k, i2]
                 if miss:
                     m_lo_out[k, i3, i2] = np.nan
                     m_hi_out[k, i3, i2] = np.nan
                 else:
-                    if m_lo[k] <= 0.0 and m_hi[k] >= 0.0:
+                    if lo <= 0.0 and hi >= 0.0:
                         mask |= 1 << (BITS_ZERO + k)
-                    m_lo_out[k, i3, i2] = m_lo[k]
-                    m_hi_out[k, i3, i2] = m_hi[k]
+                    m_lo_out[k, i3, i2] = lo
+                    m_hi_out[k, i3, i2] = hi
             bits[i3, i2] = mask
             # a sign within rounding of 0 (e.g. the base point of erratum 6) is no sign
             tiny = 1e-12
+            c0, c1, c2 = out_r[_CEN, i2], out_r[_CEN + 1, i2], out_r[_CEN + 2, i2]
             if (
                 not miss
-                and b_lo <= d <= b_hi
-                and abs(cen[0]) > tiny
-                and abs(cen[1]) > tiny
-                and abs(cen[2]) > tiny
+                and int(out_r[_FLAGS, i2]) & _CENTRE_IN
+                and abs(c0) > tiny
+                and abs(c1) > tiny
+                and abs(c2) > tiny
             ):
-                centre_mode[i3, i2] = 4 * (cen[0] < 0.0) + 2 * (cen[1] < 0.0) + (cen[2] < 0.0)
+                centre_mode[i3, i2] = 4 * (c0 < 0.0) + 2 * (c1 < 0.0) + (c2 < 0.0)
 
 
 @njit(cache=True, nogil=True)

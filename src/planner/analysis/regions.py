@@ -22,7 +22,7 @@ The grid has ``n x n`` closed cells over the literal joint box [joint_min, joint
 (theta2, theta3) (limits are never wrapped: theta = pi and theta = -pi are different joint
 values, so a region that crosses +-pi in angle is cut there). Each cell is classified per
 assembly mode and working mode, for every posture of the closed cell at once, with bounds
-that need no path inside the cell (:func:`_cell_bounds`):
+that need no path inside the cell (:func:`~planner.analysis._region_kernels._bounds_batch`):
 
 * |CD| moves by at most L1 (|dtheta2| + |dtheta3|) (C and D turn on circles of radius L1),
   so |CD| over the cell lies within the centre's value +- L1 (a2 + a3), a2, a3 the half-widths.
