@@ -47,6 +47,42 @@ LAYERS = 28
 _PLUS = (0x0F, 0x33, 0x55)
 
 
+def _sign_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Two tables over the 64 sign patterns p (bit 2 k: sign k may be (or surely is) '+',
+    bit 2 k + 1: '-'): the working modes whose three signs the pattern allows (with
+    _PLUS[k] the modes whose sign k is '+', the product over k of the masks of the allowed
+    signs), and the transit sets (j, c) whose two fixed signs it allows (bit 4 j + c; c = 2
+    [first other sign '-'] + [second other sign '-'])."""
+    modes = np.zeros(64, dtype=np.int64)
+    passable = np.zeros(64, dtype=np.int64)
+    for p in range(64):
+        m = 0xFF
+        for k in range(3):
+            plus, minus = _PLUS[k], 0xFF ^ _PLUS[k]
+            m &= (plus if (p >> (2 * k)) & 1 else 0) | (minus if (p >> (2 * k + 1)) & 1 else 0)
+        modes[p] = m
+        for j in range(3):
+            o1, o2 = (1, 2) if j == 0 else (0, 2) if j == 1 else (0, 1)
+            for c in range(4):
+                if (p >> (2 * o1 + (c >> 1))) & 1 and (p >> (2 * o2 + (c & 1))) & 1:
+                    passable[p] |= 1 << (4 * j + c)
+    return modes, passable
+
+
+_MODES_OF, _PASSABLE_OF = _sign_tables()
+
+
+def _mirror_tables() -> tuple[np.ndarray, np.ndarray]:
+    """The bit permutations of :func:`mirror_kernel`: a byte of mode bits reversed (mode mi
+    -> 7 - mi) and a nibble of transit-set bits reversed (c -> 3 - c)."""
+    rev8 = np.array([sum(((x >> b) & 1) << (7 - b) for b in range(8)) for x in range(256)])
+    rev4 = np.array([sum(((x >> b) & 1) << (3 - b) for b in range(4)) for x in range(16)])
+    return rev8.astype(np.int64), rev4.astype(np.int64)
+
+
+_REV8, _REV4 = _mirror_tables()
+
+
 #: Rows of the output of :func:`_bounds_batch`: lower bounds of the three measures, upper
 #: bounds, the three measures and the two kind signs at the centre, and the flags. At most
 #: twelve rows are written per cell: with more, numba's compiler gives up running the loop
@@ -150,38 +186,27 @@ def _measure(u, r_u, v, r_v, norm, g_lo, g_hi, g_c, s):  # pragma: no cover - co
 
 @njit(cache=True, nogil=True, inline="always")
 def _decide(sure, miss, out, i, smin):  # pragma: no cover
-    """The masks of cell (or sub-cell) i from its bounds (rows of :func:`_bounds_batch`): (over, valid, passable), bit mi
-    of the first two for working mode mi (not surely invalid; surely valid), bit 4 j + c
-    of the third for transit set (j, c) (not surely outside it).
+    """The masks of cell (or sub-cell) i from its bounds (rows of :func:`_bounds_batch`):
+    (over, valid, passable), bit mi of the first two for working mode mi (not surely
+    invalid; surely valid), bit 4 j + c of the third for transit set (j, c) (not surely
+    outside it).
 
     Mode mi is surely invalid when a signed measure's upper bound is below ``serial_min``
     and surely valid when the cell is all in the band and every signed lower bound is at
     least ``serial_min``; a transit set is passable unless one of its two fixed signed
-    measures is surely below ``serial_min``. With _PLUS[k] the modes whose sign k is '+',
-    each rule is a product over k of the masks of the signs it allows."""
+    measures is surely below ``serial_min``. The six comparisons of each kind index the
+    tables of :func:`_sign_tables`."""
     if miss:
         return 0, 0, 0
-    over = 0xFF
-    valid = 0xFF if sure else 0
     can = 0  # bit 2 k: measure k may be >= smin; bit 2 k + 1: may be <= -smin
+    sure_of = 0  # bit 2 k: measure k is surely >= smin; bit 2 k + 1: surely <= -smin
     for k in range(3):
-        plus = _PLUS[k]
-        minus = 0xFF ^ plus
         lo, hi = out[_LO + k, i], out[_HI + k, i]
-        can_p = hi >= smin
-        can_n = -lo >= smin
-        over &= (plus if can_p else 0) | (minus if can_n else 0)
-        valid &= (plus if lo >= smin else 0) | (minus if -hi >= smin else 0)
-        can |= (1 if can_p else 0) << (2 * k)
-        can |= (1 if can_n else 0) << (2 * k + 1)
-    passable = 0
-    for j in range(3):
-        o1 = 1 if j == 0 else 0
-        o2 = 1 if j == 2 else 2
-        for c in range(4):
-            if (can >> (2 * o1 + (c >> 1))) & 1 and (can >> (2 * o2 + (c & 1))) & 1:
-                passable |= 1 << (4 * j + c)
-    return over, valid, passable
+        can |= ((1 if hi >= smin else 0) << (2 * k)) | ((1 if -lo >= smin else 0) << (2 * k + 1))
+        sure_of |= ((1 if lo >= smin else 0) << (2 * k)) | (
+            (1 if -hi >= smin else 0) << (2 * k + 1)
+        )
+    return _MODES_OF[can], _MODES_OF[sure_of] if sure else 0, _PASSABLE_OF[can]
 
 
 @njit(cache=True, nogil=True)
@@ -334,19 +359,12 @@ def mirror_kernel(
             for mi in range(8):
                 status_m[7 - mi, j3, j2] = status[mi, i3, i2]
             w = bits[i3, i2]
-            v = 0
-            for mi in range(8):
-                if (w >> (BITS_OVER + mi)) & 1:
-                    v |= 1 << (BITS_OVER + 7 - mi)
-                if (w >> (BITS_VALID + mi)) & 1:
-                    v |= 1 << (BITS_VALID + 7 - mi)
+            v = (_REV8[(w >> BITS_OVER) & 0xFF] << BITS_OVER) | (
+                _REV8[(w >> BITS_VALID) & 0xFF] << BITS_VALID
+            )
             for j in range(3):
-                for c in range(4):
-                    if (w >> (BITS_B + 4 * j + c)) & 1:
-                        v |= 1 << (BITS_B + 4 * j + 3 - c)
-                if (w >> (BITS_ZERO + j)) & 1:
-                    v |= 1 << (BITS_ZERO + j)
-            bits_m[j3, j2] = v
+                v |= _REV4[(w >> (BITS_B + 4 * j)) & 0xF] << (BITS_B + 4 * j)
+            bits_m[j3, j2] = v | (w & (7 << BITS_ZERO))
             for k in range(3):
                 kind_m[k, j3, j2] = kind[k, i3, i2]
                 m_lo_m[k, j3, j2] = -m_hi[k, i3, i2]
