@@ -515,22 +515,44 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def mirror_label_kernel(bits, bits_src, start_src, label_src, over, certified):  # pragma: no cover
+def _cut(a, top):  # pragma: no cover - compiled
+    """The first ``top`` columns of ``a`` (rows, m), zeros added where m < top, as a new
+    C-contiguous array."""
+    out = np.zeros((a.shape[0], top), dtype=a.dtype)
+    m = min(top, a.shape[1])
+    out[:, :m] = a[:, :m]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def mirror_label_kernel(
+    bits, bits_src, start_src, label_src, sizes_src, valid_src, over, certified
+):  # pragma: no cover - compiled
     """:func:`label_kernel` of the mirror image of a labelled assembly mode, without
     union-find: the component of layer b at cell (k3, k2) is that of the mirrored layer
     (modes mi -> 7 - mi, transit sets (j, c) -> (j, 3 - c)) at (n - 1 - k3, n - 1 - k2) in
     the source, renumbered in this raster order. ``bits`` are the mirrored masks of
-    :func:`mirror_kernel` (with the same transit sets dropped), ``bits_src``, ``start_src``
-    and ``label_src`` the source's masks, slot starts and slot labels. Same returns."""
+    :func:`mirror_kernel` (with the same transit sets dropped, a layer whole or not at
+    all), ``bits_src``, ``start_src``, ``label_src``, ``sizes_src`` and ``valid_src`` the
+    source's masks, slot starts, slot labels, component sizes and surely valid cells: a
+    component's cells are its source's, so its sizes are copied, not counted. Same
+    returns."""
     n3, n2 = bits.shape
     full = (1 << LAYERS) - 1
     start = _slot_starts(bits)
     total = start[n3 * n2]
-    top = 1
-    for x in range(label_src.shape[0]):
-        top = max(top, label_src[x] + 1)
+    top = max(2, sizes_src.shape[1])
     renumber = np.zeros((LAYERS, top), dtype=np.int64)
+    source = np.zeros(LAYERS, dtype=np.int64)  # the source layer of each layer
+    for b in range(LAYERS):
+        if b < BITS_VALID:
+            source[b] = 7 - b
+        elif b < BITS_B:
+            source[b] = BITS_VALID + 7 - (b - BITS_VALID)
+        else:
+            source[b] = b - (b - BITS_B) % 4 + 3 - (b - BITS_B) % 4
     counts = np.zeros(LAYERS, dtype=np.int64)
+    first = np.zeros((LAYERS, top), dtype=np.int64)
     slot_label = np.empty(total, dtype=np.int64)
     for i3 in range(n3):
         for i2 in range(n2):
@@ -542,24 +564,28 @@ def mirror_label_kernel(bits, bits_src, start_src, label_src, over, certified): 
             while t:
                 b = _low_bit(t)
                 t &= t - 1
-                if b < BITS_VALID:
-                    bs = 7 - b
-                elif b < BITS_B:
-                    bs = BITS_VALID + 7 - (b - BITS_VALID)
-                else:
-                    bs = b - (b - BITS_B) % 4 + 3 - (b - BITS_B) % 4
-                lab = label_src[y0 + _popcount(m_src & ((1 << bs) - 1))]
+                lab = label_src[y0 + _popcount(m_src & ((1 << source[b]) - 1))]
                 if renumber[b, lab] == 0:
                     counts[b] += 1
                     renumber[b, lab] = counts[b]
+                    first[b, counts[b]] = i3 * n2 + i2
                 slot_label[x] = renumber[b, lab]
                 if b < BITS_VALID:
                     over[b, i3, i2] = slot_label[x]
                 elif b < BITS_B:
                     certified[b - BITS_VALID, i3, i2] = slot_label[x]
                 x += 1
-    first, sizes, valid = _component_sizes(bits, start, slot_label, counts, over)
-    return counts, first, sizes, valid, start, slot_label
+    sizes = np.zeros((LAYERS, top), dtype=np.int64)
+    valid = np.zeros((8, top), dtype=np.int64)
+    for b in range(LAYERS):
+        for lab in range(1, top):
+            new = renumber[b, lab]
+            if new:
+                sizes[b, new] = sizes_src[source[b], lab]
+                if b < BITS_VALID:
+                    valid[b, new] = valid_src[7 - b, lab]
+    top = 1 + max(1, counts.max())
+    return counts, _cut(first, top), _cut(sizes, top), _cut(valid, top), start, slot_label
 
 
 @njit(cache=True, nogil=True)

@@ -504,9 +504,9 @@ def _label_layers(
     certified.fill(0)
     layers = [K.label_kernel(cells.bits[0], labels[0], certified[0])]
     if cells.mirrored:  # the other assembly mode's components are the mirror images
-        start, slot_label = layers[0][4], layers[0][5]
+        _, _, sizes, valid, start, slot_label = layers[0]
         layers.append(K.mirror_label_kernel(cells.bits[1], cells.bits[0], start, slot_label,
-                                            labels[1], certified[1]))  # fmt: skip
+                                            sizes, valid, labels[1], certified[1]))  # fmt: skip
     else:
         layers.append(K.label_kernel(cells.bits[1], labels[1], certified[1]))
     return labels, certified, layers
