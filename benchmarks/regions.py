@@ -11,13 +11,14 @@ would be a false proof (the count must be 0). ``--queries N`` (default 1000).
 
 ``--speed`` prints only the before/after table of issue 17: the old build (the route kept
 callable by the tests, ``tests/analysis/_region_reference.py``) and today's, interleaved
-build by build (cold, cache cleared), medians of wall and CPU time at 128 and 256, side by
-side with their ratio.
+in blocks of 5 (cold, cache cleared), medians of wall and CPU time at 128 and 256, side by
+side with their ratio and the page faults per build (``--runs``: builds of each).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 import sys
 import time
@@ -82,42 +83,57 @@ def build_times(runs: int) -> None:
               f"{per} |")  # fmt: skip
 
 
-def _timed(build) -> tuple[float, float]:
-    """Wall and CPU seconds of one call."""
+def _timed(build) -> tuple[float, float, int]:
+    """Wall and CPU seconds and minor page faults of one call."""
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
     t0, c0 = time.perf_counter(), time.process_time()
     build()
-    return time.perf_counter() - t0, time.process_time() - c0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return wall, cpu, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+
+
+#: Builds per block of :func:`speed` (old and new alternate block by block).
+SPEED_BLOCK = 5
 
 
 def speed(runs: int) -> None:
-    """Old build against new, interleaved (old, new, old, new ...) so that both meet the same
-    load of the shared machine; medians of ``runs`` cold builds each."""
+    """Old build against new, interleaved block by block (``SPEED_BLOCK`` old builds, then
+    as many new, and so on) so that both meet the same load of the shared machine; medians
+    of ``runs`` cold builds each (rounded up to whole blocks), and the page faults per
+    build. Blocks, not single builds: a new build writes into the one block of memory that
+    the previous map of its resolution left to the allocator, and an old build in between
+    (its arrays of other sizes) takes that memory back, which would charge the new build
+    page faults that a process building maps does not pay."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "analysis"))
     from _region_reference import reference_region_map
 
     designs = {**DESIGNS, "cut limits 0.3/0.3/0.4 (no mirror)": CUT}
-    print(f"cold builds, old (before issue 17) and new interleaved, medians of {runs} each; "
-          f"goal at 256: <= {GOAL_256 * 1e3:.0f} ms\n")  # fmt: skip
+    blocks = -(-runs // SPEED_BLOCK)
+    print(f"cold builds, old (before issue 17) and new interleaved in blocks of "
+          f"{SPEED_BLOCK}, medians of {blocks * SPEED_BLOCK} each; goal at 256: <= "
+          f"{GOAL_256 * 1e3:.0f} ms\n")  # fmt: skip
     print("| design | n | old wall | new wall | old CPU | new CPU | CPU old / new | "
-          "new wall p90 |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+          "new wall p90 | page faults old / new |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     margins = Margins()
+    for design in designs.values():  # compile both routes before timing
+        reference_region_map(design, margins, 16, R.DEFAULT_REFINE)
+        R.region_map(design, margins, 16)
     for n in (128, 256):
-        for design in designs.values():  # compile both routes before timing
-            reference_region_map(design, margins, 16, R.DEFAULT_REFINE)
-            R.clear_cache()
-            R.region_map(design, margins, 16)
         for name, design in designs.items():
             old, new = [], []
-            for _ in range(runs):
-                old.append(_timed(lambda d=design, n=n: reference_region_map(d, margins, n, 4)))
-                R.clear_cache()
-                new.append(_timed(lambda d=design, n=n: R.region_map(d, margins, n)))
-            med = [statistics.median(t[k] for t in runs_) * 1e3
-                   for k in (0, 1) for runs_ in (old, new)]  # fmt: skip
+            for _ in range(blocks):
+                for _ in range(SPEED_BLOCK):
+                    old.append(_timed(lambda d=design, n=n: reference_region_map(d, margins, n, 4)))
+                for _ in range(SPEED_BLOCK):
+                    R.clear_cache()
+                    new.append(_timed(lambda d=design, n=n: R.region_map(d, margins, n)))
+            med = [statistics.median(t[k] for t in runs_)
+                   for k in (0, 1, 2) for runs_ in (old, new)]  # fmt: skip
             p90 = float(np.quantile([t[0] for t in new], 0.9)) * 1e3
-            print(f"| {name} | {n} | {med[0]:.1f} ms | {med[1]:.1f} ms | {med[2]:.1f} ms | "
-                  f"{med[3]:.1f} ms | {med[2] / med[3]:.2f} | {p90:.1f} ms |")  # fmt: skip
+            print(f"| {name} | {n} | {med[0] * 1e3:.1f} ms | {med[1] * 1e3:.1f} ms | "
+                  f"{med[2] * 1e3:.1f} ms | {med[3] * 1e3:.1f} ms | {med[2] / med[3]:.2f} | "
+                  f"{p90:.1f} ms | {med[4]:.0f} / {med[5]:.0f} |")  # fmt: skip
 
 
 #: The paper's convex and non-convex working modes (section 3.3) with their mirrors about AB.
