@@ -84,9 +84,10 @@ _REV8, _REV4 = _mirror_tables()
 
 
 #: Rows of the output of :func:`_bounds_batch`: lower bounds of the three measures, upper
-#: bounds, the three measures and the two kind signs at the centre, and the flags. At most
-#: twelve rows are written per cell: with more, numba's compiler gives up running the loop
-#: on SIMD lanes (too many runtime checks of overlapping arrays).
+#: bounds, the three measures and the two kind signs at the centre, and the flags. Twelve
+#: rows, not thirteen: with |CD| at the centre as a thirteenth, numba 0.68 no longer ran the
+#: loop on SIMD lanes (seen in its assembly; LLVM's limit on runtime overlap checks), so the
+#: flags say instead whether |CD| at the centre lies in the band.
 _LO, _HI, _CEN, _FLAGS, _ROWS = 0, 3, 6, 11, 12
 #: Flags of a cell: all of it in the kappa band, none of it, its centre in the band.
 _SURE, _MISS, _CENTRE_IN = 1, 2, 4
