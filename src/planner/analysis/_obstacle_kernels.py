@@ -17,7 +17,7 @@ from numba import njit
 
 from planner.geometry import box_sdf, point_segment_distance, segment_min_distance
 
-__all__ = ["cell_passable", "corners_inside", "flood_reaches", "proximal_blocked"]
+__all__ = ["all_states", "cell_passable", "corners_inside", "flood_reaches", "proximal_blocked"]
 
 
 @njit(cache=True)
@@ -267,3 +267,36 @@ def _pop(key, cell, size):  # pragma: no cover - compiled
     key[pos] = kv
     cell[pos, 0], cell[pos, 1], cell[pos, 2] = i, j, k
     return size
+
+
+@njit(cache=True)
+def all_states(
+    mask, blocked_a, blocked_b, point_sets, theta1, a1, spheres, capsules, boxes, limit, out
+):  # pragma: no cover - compiled
+    """Every cell's state into ``out`` (n1, n, n) int8: 0 outside the mask, 1 blocked,
+    2 passable (:func:`cell_passable`), for tests and figures."""
+    for i in range(out.shape[0]):
+        c1, s1 = math.cos(theta1[i]), math.sin(theta1[i])
+        for j in range(out.shape[1]):
+            for k in range(out.shape[2]):
+                if not mask[j, k]:
+                    out[i, j, k] = 0
+                elif cell_passable(
+                    mask,
+                    blocked_a,
+                    blocked_b,
+                    point_sets,
+                    c1,
+                    s1,
+                    a1,
+                    spheres,
+                    capsules,
+                    boxes,
+                    limit,
+                    i,
+                    j,
+                    k,
+                ):
+                    out[i, j, k] = 2
+                else:
+                    out[i, j, k] = 1

@@ -80,9 +80,12 @@ from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
 from planner.validity import Margins
 
 __all__ = [
+    "BLOCKED",
     "LEVELS",
+    "OUTSIDE",
+    "PASSABLE",
     "ObstacleProof",
-    "passable_cells",
+    "cell_states",
     "point_sets",
     "prove_disconnected_with_obstacles",
     "proximal_tables",
@@ -293,21 +296,26 @@ def _passable(grid: _Grid, packed, cell) -> bool:
     ))  # fmt: skip
 
 
-def passable_cells(
+#: Cell codes of :func:`cell_states`.
+OUTSIDE, BLOCKED, PASSABLE = 0, 1, 2
+
+
+def cell_states(
     design: Design, margins: Margins, obstacles: Sequence[Obstacle], start_q: np.ndarray,
     assembly_mode: str, n: int, width: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """For tests and figures: (passable (n1, n, n) bool [i1, k3, k2], theta1 centres, the
-    2-D map's cell centres stacked (theta2, theta3)) of the grid a proof from ``start_q``
-    uses at one level (every cell evaluated, not only those a flood meets)."""
+) -> tuple[np.ndarray, np.ndarray, R.RegionMap]:  # fmt: skip
+    """For tests and figures: every cell of the grid a proof from ``start_q`` uses at one
+    level, evaluated (the flood evaluates only those it meets). Returns (states (n1, n, n)
+    int8 [i1, k3, k2]: :data:`OUTSIDE` the mask, :data:`BLOCKED`, :data:`PASSABLE`;
+    theta1 cell centres; the obstacle-free map of the (theta2, theta3) cells)."""
     rmap = R.region_map(design, margins, n)
     comps = {r.component for r in R.regions_at(rmap, np.asarray(start_q, float), assembly_mode)}
     grid = _grid(design, margins, obstacles, assembly_mode, comps, n, width)
-    packed = pack_obstacles(obstacles)
-    out = np.zeros((len(grid.theta1), n, n), dtype=np.bool_)
-    for idx in np.ndindex(out.shape):
-        out[idx] = _passable(grid, packed, idx)
-    return out, grid.theta1, np.stack([rmap.theta2, rmap.theta3])
+    out = np.empty((len(grid.theta1), n, n), dtype=np.int8)
+    K.all_states(grid.mask, grid.blocked_a, grid.blocked_b, grid.sets, grid.theta1,
+                 0.5 * grid.h1 * (1.0 + _REL_SLACK), *pack_obstacles(obstacles), grid.limit,
+                 out)  # fmt: skip
+    return out, grid.theta1, rmap
 
 
 def _prove_on(design, margins, obstacles, start_q, goals, assembly_mode, n, width) -> ObstacleProof:
