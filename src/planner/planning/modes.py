@@ -133,7 +133,7 @@ PROOF_MIN_BUDGET_S = 0.1
 #: proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans among obstacles
 #: are found well within it (``benchmarks/planning.py``), and a stuck one can afford the
 #: proof's few to tens of milliseconds.
-OBSTACLE_PROOF_AFTER_S = 0.05
+OBSTACLE_PROOF_AFTER_S = 0.03
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
