@@ -16,6 +16,8 @@ random working mode, drawn with a fixed seed):
   states: grid components of each mode linked by valid crossings of sampled transit
   postures); 2 s budget by default for this scene (``--modes-budget``);
 * ``modes_spheres``: the same with the 5 spheres of ``spheres``;
+* ``wall`` (``--map`` rows only): the narrow scene's plate without its window, on both sides
+  of the axis: no path joins theta1 > 0 to theta1 < 0 (the 3-D grid's proof);
 * ``narrow``: a thin plate in the plane z = 0 (x in [0.05, 1.3] m) with a window
   (x < 0.45 m, |y| < 0.3 m), theta1 limited to [-2, 2] rad; queries go from theta1 > 0.3 to
   theta1 < -0.3 in a working mode with w > 0, so the whole arm must pass through the window
@@ -105,6 +107,14 @@ def build_scene(kind: str, seed: int = 7) -> tuple[Design, list, list[str]]:
             Box([(hx + x1) / 2, 0.0, 0.0], [x1 - hx, 2 * hy, t]),
         ]
         return design, plate, [m for m in WORKING_MODES if m[0] == "+"]
+    if kind == "wall":
+        design = Design(
+            0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi)
+        )
+        # plates |z| <= 0.01, 0.05 <= |x| <= 1.3, |y| <= 1.3: no window, on both sides
+        x0, x1, y1, t = 0.05, 1.3, 1.3, 0.02
+        plates = [Box([sx * (x0 + x1) / 2, 0.0, 0.0], [x1 - x0, 2 * y1, t]) for sx in (1, -1)]
+        return design, plates, list(WORKING_MODES)
     raise ValueError(f"unknown scene {kind!r}")
 
 
@@ -352,6 +362,27 @@ def disconnected_queries(n: int, seed: int = 5) -> list[tuple[JointPosture, Join
     return out
 
 
+def wall_queries(n: int, seed: int = 8) -> list[tuple[JointPosture, JointPosture]]:
+    """n pairs of valid postures of the ``wall`` scene, start at theta1 > 0.3 and goal at
+    theta1 < -0.3 in random working modes of assembly mode '+': the plates close every path
+    (the arm cannot turn its plane through theta1 = 0), which only the 3-D grid proves."""
+    design, plates, modes = build_scene("wall")
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        ends = []
+        for side in (1.0, -1.0):
+            mode = modes[rng.integers(len(modes))]
+            q = rng.uniform(design.joint_min, design.joint_max, (2000, 3))
+            q[:, 0] = side * rng.uniform(0.3, 1.9, 2000)
+            ok = np.flatnonzero(ValidityChecker(design, Margins(), plates, "+", mode).is_valid(q))
+            if len(ok):
+                ends.append(JointPosture(q[ok[0]], "+"))
+        if len(ends) == 2:
+            out.append((ends[0], ends[1]))
+    return out
+
+
 def map_rows(args, options: PlanOptions) -> None:
     """The region map in the planner: the disconnected scene (map cached and cold), and the
     cost of consulting the map on the single-mode and mode-change scenes (map on vs off)."""
@@ -374,6 +405,16 @@ def map_rows(args, options: PlanOptions) -> None:
         t = np.asarray(times) * 1e3
         print(f"{label + ' (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
               f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}")  # fmt: skip
+    wall_design, plates, _ = build_scene("wall")
+    times, proven = [], 0
+    for start, goal in wall_queries(args.queries):
+        t0 = time.perf_counter()
+        res = plan(wall_design, start, goal, obstacles=plates, options=five)
+        times.append(time.perf_counter() - t0)
+        proven += res.diagnostics.proven_infeasible
+    t = np.asarray(times) * 1e3
+    print(f"{'wall of plates (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
+          f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}")  # fmt: skip
     scenes = [(k, None, build_queries(k, args.queries)) for k in ("free", "spheres", "boxes")]
     for name, design in DESIGNS.items():
         for kind in MODE_SCENES:

@@ -99,23 +99,39 @@ def test_free_space_takes_the_straight_motion():
     assert res.solved and res.diagnostics.planner == "direct" and len(res.path.waypoints) == 2
 
 
+WALL_DESIGN = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
+#: a plate at z = 0 for x >= 0.05: in a mode with w > 0 the arm cannot pass theta1 = 0 (every
+#: link would need to stay within 0.02 m of the axis while |w| >= serial_min (L1 + L2) = 0.04
+#: m), and this design's P never reaches the axis (no transit to the modes with w < 0)
+WALL = [Box([0.65, 0.0, 0.0], [1.2, 3.0, 0.02])]
+WALL_START = JointPosture([1.0, 2.0, 1.0], "+")
+WALL_GOAL = JointPosture([-1.0, 2.0, 1.0], "+")
+
+
 def test_wall_gives_no_path_within_budget():
-    """theta1 limited to [-2, 2] and a plate at z = 0 for x >= 0.05: in a mode with w > 0 the
-    arm cannot pass theta1 = 0 (every link would need to stay within 0.02 m of the axis while
-    |w| >= serial_min (L1 + L2) = 0.04 m)."""
-    design = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
-    wall = [Box([0.65, 0.0, 0.0], [1.2, 3.0, 0.02])]
-    start = JointPosture([1.0, 2.0, 1.0], "+")
-    goal = JointPosture([-1.0, 2.0, 1.0], "+")
+    """Without the region map the search runs its whole budget and says so."""
     budget = 0.3
     t0 = time.perf_counter()
-    res = plan(design, start, goal, obstacles=wall, options=PlanOptions(time_budget_s=budget))
+    res = plan(WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL,
+               options=PlanOptions(time_budget_s=budget, region_map=False))  # fmt: skip
     elapsed = time.perf_counter() - t0
     assert res.status is PlanStatus.NO_PATH and res.path is None
-    assert "no path" in res.message
+    assert "no path" in res.message and not res.diagnostics.proven_infeasible
     assert f"within {budget} s" in res.message  # the search ran on the budget it was given
     # and stopped there: the bound leaves set-up and answer seconds of room (not a speed test)
     assert elapsed < budget + 5.0
+
+
+def test_wall_is_proven_by_the_region_map_with_obstacles():
+    """With the map the first search slice finds nothing, and the 3-D grid proves the wall:
+    ``no_path`` with ``proven_infeasible``, one short search, the grid named."""
+    res = plan(WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL,
+               options=PlanOptions(time_budget_s=5.0))  # fmt: skip
+    assert res.status is PlanStatus.NO_PATH and res.path is None
+    assert res.diagnostics.proven_infeasible and res.diagnostics.planner == "region_map"
+    assert res.diagnostics.searches == 1
+    assert res.message.startswith("no valid path exists (proven by the region map with obstacles")
+    assert "cells over (theta1, theta3, theta2)" in res.message
 
 
 def test_invalid_start_and_goal_name_rule_and_value():

@@ -247,6 +247,25 @@ def segment_convex_distance(kind, ax, ay, az, bx, by, bz, row):  # pragma: no co
     return min(best, _seg_to_row(kind, 1.0, ax, ay, az, bx, by, bz, row))
 
 
+@njit(cache=True, inline="always")
+def _cmp_swap(a, b):  # pragma: no cover - compiled
+    return (a, b) if a <= b else (b, a)
+
+
+@njit(cache=True, inline="always")
+def _cuts(p, u, h):  # pragma: no cover - compiled
+    """The parameters t in (0, 1) where p + t u = -h and = +h; 1.0 for each one outside."""
+    lo = hi = 1.0
+    if u != 0.0:
+        t = (-h - p) / u
+        if 0.0 < t < 1.0:
+            lo = t
+        t = (h - p) / u
+        if 0.0 < t < 1.0:
+            hi = t
+    return lo, hi
+
+
 @njit(cache=True)
 def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - compiled
     """Signed distance from segment a-b to a packed box row, exactly when the segment stays
@@ -260,37 +279,51 @@ def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - com
     """
     dx, dy, dz = ax - box[0], ay - box[1], az - box[2]
     ex, ey, ez = bx - ax, by - ay, bz - az
-    p = np.empty(3)
-    u = np.empty(3)
-    for i in range(3):
-        # local = R^T d: column i of R (row-major at box[3:12]) dotted with d
-        p[i] = box[3 + i] * dx + box[6 + i] * dy + box[9 + i] * dz
-        u[i] = box[3 + i] * ex + box[6 + i] * ey + box[9 + i] * ez
-    cuts = np.empty(8)
-    n = 0
-    cuts[n] = 0.0
-    n += 1
-    cuts[n] = 1.0
-    n += 1
-    for i in range(3):
-        if u[i] != 0.0:
-            for sgn in (-1.0, 1.0):
-                t = (sgn * box[12 + i] - p[i]) / u[i]
-                if 0.0 < t < 1.0:
-                    cuts[n] = t
-                    n += 1
-    c = np.sort(cuts[:n])
+    # local = R^T d: column i of R (row-major at box[3:12]) dotted with d; scalars and
+    # tuples only (no array allocation: this runs for every link and box of every posture)
+    p = (
+        box[3] * dx + box[6] * dy + box[9] * dz,
+        box[4] * dx + box[7] * dy + box[10] * dz,
+        box[5] * dx + box[8] * dy + box[11] * dz,
+    )
+    u = (
+        box[3] * ex + box[6] * ey + box[9] * ez,
+        box[4] * ex + box[7] * ey + box[10] * ez,
+        box[5] * ex + box[8] * ey + box[11] * ez,
+    )
+    h = (box[12], box[13], box[14])
+    # the parameters where some |p_i(t)| = h_i, inside (0, 1); 1.0 where there is none (a
+    # piece of length zero changes nothing)
+    c0, c1 = _cuts(p[0], u[0], h[0])
+    c2, c3 = _cuts(p[1], u[1], h[1])
+    c4, c5 = _cuts(p[2], u[2], h[2])
+    # sorting network on the six cuts (12 compare-exchanges)
+    c0, c5 = _cmp_swap(c0, c5)
+    c1, c3 = _cmp_swap(c1, c3)
+    c2, c4 = _cmp_swap(c2, c4)
+    c1, c2 = _cmp_swap(c1, c2)
+    c3, c4 = _cmp_swap(c3, c4)
+    c0, c3 = _cmp_swap(c0, c3)
+    c2, c5 = _cmp_swap(c2, c5)
+    c0, c1 = _cmp_swap(c0, c1)
+    c2, c3 = _cmp_swap(c2, c3)
+    c4, c5 = _cmp_swap(c4, c5)
+    c1, c2 = _cmp_swap(c1, c2)
+    c3, c4 = _cmp_swap(c3, c4)
+    c = (0.0, c0, c1, c2, c3, c4, c5, 1.0)
     best = np.inf
-    for k in range(n - 1):
+    for k in range(7):
         t0, t1 = c[k], c[k + 1]
+        if t1 <= t0 and k > 0:
+            continue
         tm = 0.5 * (t0 + t1)
         saa = 0.0
         sab = 0.0
         for i in range(3):
             x = p[i] + tm * u[i]
-            if abs(x) > box[12 + i]:
+            if abs(x) > h[i]:
                 sg = 1.0 if x > 0.0 else -1.0
-                al = sg * p[i] - box[12 + i]
+                al = sg * p[i] - h[i]
                 be = sg * u[i]
                 saa += be * be
                 sab += al * be
@@ -299,7 +332,7 @@ def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - com
             t = min(max(-sab / saa, t0), t1)
         f = 0.0
         for i in range(3):
-            x = abs(p[i] + t * u[i]) - box[12 + i]
+            x = abs(p[i] + t * u[i]) - h[i]
             if x > 0.0:
                 f += x * x
         best = min(best, f)

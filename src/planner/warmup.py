@@ -127,6 +127,26 @@ def _region_map(state: _State) -> None:
     region_map(state.design, Margins(), PROOF_RESOLUTION)
 
 
+def _obstacle_proof(state: _State) -> None:
+    """The proof with obstacles (:mod:`planner.analysis.obstacle_regions`) on a plate the arm
+    cannot pass, both grid levels: its kernels compiled and the default design's coarser
+    maps cached, so that the first stuck search among obstacles pays only the proof."""
+    from planner.analysis.obstacle_regions import LEVELS, prove_disconnected_with_obstacles
+    from planner.geometry import Box, Capsule, Sphere
+    from planner.validity import Margins
+
+    scene = [
+        Box([0.65, 0.0, 0.0], [1.2, 3.0, 0.02]),
+        Sphere([0.0, 0.0, 2.0], 0.1),
+        Capsule([0.0, 2.0, 2.0], [0.0, 2.2, 2.0], 0.05),
+    ]
+    for level in LEVELS:
+        prove_disconnected_with_obstacles(
+            state.design, Margins(), scene, np.array([1.0, 2.0, 1.0]),
+            np.array([-1.0, 2.0, 1.0]), "+", levels=(level,),
+        )  # fmt: skip
+
+
 def _time_plans(state: _State, method: str) -> None:
     """Time every path found as the service does: the path's own validity rules re-checked
     densely, coming to rest at the transits of the mode-change path."""
@@ -185,6 +205,7 @@ STEPS: tuple[Step, ...] = (
     Step("numba kernels: kinematics", _kinematics),
     Step("numba kernels: validity and clearance", _validity),
     Step("region map: the default design's", _region_map),
+    Step("region map with obstacles: a wall's proof", _obstacle_proof),
     Step("OMPL: a plan around an obstacle", _plan_ompl),
     Step("OMPL: a working-mode change", _plan_mode_change),
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),

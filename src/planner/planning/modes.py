@@ -38,7 +38,11 @@ start and every goal candidate the request allows lie in different components of
 design's obstacle-free region map (:data:`PROOF_RESOLUTION` cells, cached per process, built
 only while :data:`PROOF_MIN_BUDGET_S` of the budget remains); if so the answer is ``no_path``
 at once with ``diagnostics.proven_infeasible`` and a message naming the regions. Obstacles only
-remove postures, so the proof holds with them; a wall of obstacles alone is never proven.
+remove postures, so the proof holds with them. A wall of obstacles needs theta1 too: with
+obstacles, a search that found nothing in its first :data:`OBSTACLE_PROOF_AFTER_S` asks
+:func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles` (the 3-D grid, a
+few to tens of milliseconds, so only for a plan that needs it) before it goes on with the rest
+of the budget (:meth:`_Request.obstacle_disproof`).
 
 Goals in the start's own mode go to the single-mode planner unchanged. A Cartesian target
 with ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
@@ -56,6 +60,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from planner.analysis import obstacle_regions
 from planner.analysis import regions as region_maps
 from planner.design import Design
 from planner.geometry import Obstacle
@@ -124,6 +129,11 @@ PROOF_RESOLUTION = 128
 #: A map not yet in the cache is built only when at least this much of the budget remains,
 #: s (a cached map is consulted whatever the budget: a look-up costs microseconds).
 PROOF_MIN_BUDGET_S = 0.1
+#: With obstacles, the search time (s) after which a search that found nothing asks the 3-D
+#: proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans among obstacles
+#: are found well within it (``benchmarks/planning.py``), and a stuck one can afford the
+#: proof's few to tens of milliseconds.
+OBSTACLE_PROOF_AFTER_S = 0.03
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
 _FLIP_NAMES = ("axis", "A", "B")
@@ -741,6 +751,8 @@ class _Request:
     #: :meth:`goal_candidates`), and why each mode has none
     _targets: dict[str, np.ndarray] = field(default_factory=dict)
     _whys: dict[str, str] = field(default_factory=dict)
+    #: every goal set :meth:`disproof` was asked about, in order (the 3-D proof reuses them)
+    _asked: list[np.ndarray] = field(default_factory=list)
 
     def single_mode(
         self,
@@ -750,15 +762,93 @@ class _Request:
         before_search: Callable[[np.ndarray], PlanResult | None] | None = None,
     ) -> PlanResult:
         """The single-mode plan to ``goal`` with ``share`` of the time budget; by default
-        the region map's proof (:meth:`disproof`) runs just before its first OMPL search."""
+        the region map's proof (:meth:`disproof`) runs just before its first OMPL search.
+        Among obstacles a search that found nothing within :data:`OBSTACLE_PROOF_AFTER_S`
+        stops there for :meth:`obstacle_disproof`, and goes on with the rest of its
+        budget when that cannot prove."""
+        t0 = time.perf_counter()
         options = self.options
         if share != 1.0:
             options = replace(options, time_budget_s=options.time_budget_s * share)
-        return plan_single_mode(
-            self.design, self.start, goal,
-            obstacles=self.obstacles, margins=self.margins, options=options,
-            before_search=self.disproof if before_search is None else before_search,
-        )  # fmt: skip
+        hook = self.disproof if before_search is None else before_search
+        sliced = self._sliced(options)
+        if sliced is not None:
+            self.region_map()  # built (or found) outside the slice, which is for the search
+
+        def run(opts: PlanOptions, before) -> PlanResult:
+            return plan_single_mode(
+                self.design, self.start, goal, obstacles=self.obstacles,
+                margins=self.margins, options=opts, before_search=before,
+            )  # fmt: skip
+
+        asked = len(self._asked)
+        first = run(sliced or options, hook)
+        if sliced is None or first.status is not PlanStatus.NO_PATH:
+            return first
+        if first.diagnostics.proven_infeasible or len(self._asked) == asked:
+            return first  # proven already, or no search ran (nothing was asked)
+        proof = self.obstacle_disproof(self._asked[-1], searched_s=time.perf_counter() - t0)
+        if proof is not None:
+            return replace(proof, diagnostics=replace(
+                proof.diagnostics, searches=first.diagnostics.searches))  # fmt: skip
+        rest = options.time_budget_s - (time.perf_counter() - t0)
+        if rest <= 0:
+            return first
+        second = run(replace(options, time_budget_s=rest), None)
+        diag = replace(
+            second.diagnostics,
+            planning_time_s=time.perf_counter() - t0,
+            searches=first.diagnostics.searches + second.diagnostics.searches,
+            attempts=first.diagnostics.attempts + second.diagnostics.attempts,
+        )
+        return replace(second, diagnostics=diag)
+
+    def _sliced(self, options: PlanOptions) -> PlanOptions | None:
+        """``options`` cut to :data:`OBSTACLE_PROOF_AFTER_S` when the 3-D proof may follow
+        (obstacles, the map on, a longer budget); None otherwise."""
+        if not (self.obstacles and options.region_map):
+            return None
+        if options.time_budget_s <= 2.0 * OBSTACLE_PROOF_AFTER_S:
+            return None
+        return replace(options, time_budget_s=OBSTACLE_PROOF_AFTER_S)
+
+    def obstacle_disproof(self, goals: np.ndarray, *, searched_s: float) -> PlanResult | None:
+        """``no_path`` with ``diagnostics.proven_infeasible`` when the obstacles close every
+        path from the start to the goal candidates ``goals`` (K, 3) (every candidate the
+        request allows), proven on the 3-D grid of
+        :func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles`; None
+        when it cannot. ``searched_s``: how long the search ran before (for the message)."""
+        if len(goals) == 0:
+            return None
+        asm = self.start.assembly_mode
+        proof = obstacle_regions.prove_disconnected_with_obstacles(
+            self.design, self.margins, self.obstacles, self.start.q, goals, asm
+        )
+        if not proof.proven:
+            return None
+        n1, n3, n2 = proof.shape
+        n_goals = len(np.atleast_2d(goals))
+        which = "the goal" if n_goals == 1 else f"any of its {n_goals} goal candidates"
+        message = (
+            f"no valid path exists (proven by the region map with obstacles, {n1} x {n3} x "
+            f"{n2} cells over (theta1, theta3, theta2), after {searched_s * 1e3:.0f} ms of "
+            f"search): in assembly mode {asm} the obstacles cut the start off from {which}: "
+            f"the {proof.visited} cells reachable from the start hold no goal, and every path "
+            "out of them crosses cells where a link surely comes closer to an obstacle than "
+            "link_radius + clearance, or a posture breaks a rule (joint limits, kappa_max, "
+            "serial_min)"
+        )
+        logger.info("plan no_path (proven with obstacles): %s", message)
+        return PlanResult(
+            PlanStatus.NO_PATH,
+            message,
+            None,
+            Diagnostics(
+                planning_time_s=time.perf_counter() - self.t0,
+                planner="region_map",
+                proven_infeasible=True,
+            ),
+        )
 
     def region_map(self) -> region_maps.RegionMap | None:
         """The design's obstacle-free region map at :data:`PROOF_RESOLUTION`, when it is
@@ -779,6 +869,7 @@ class _Request:
         The argument is :func:`planner.analysis.regions.prove_disconnected`'s: the map is
         obstacle-free, and obstacles only remove postures, so its proof holds with them. The
         answer names the regions of the start and of the goals, no search run."""
+        self._asked.append(goals)
         rmap = self.region_map()
         if rmap is None or len(goals) == 0:
             return None
@@ -808,14 +899,33 @@ class _Request:
         """:func:`plan_mode_change` to the goal candidates ``targets`` (mode -> (K, 3)),
         after the region map's proof (:meth:`disproof`) over all of them when ``prove``
         (only when ``targets`` are all the candidates the request allows)."""
-        proof = self.disproof(np.vstack(list(targets.values()))) if prove else None
+        goals = np.vstack(list(targets.values()))
+        proof = self.disproof(goals) if prove else None
         if proof is not None:
             return proof
-        return plan_mode_change(
-            self.design, self.start, start_mode, targets,
-            obstacles=self.obstacles, margins=self.margins, options=self.options,
-            t0=self.t0, deadline=self.deadline, rmap=self.region_map(),
-        )  # fmt: skip
+        t0 = time.perf_counter()
+        rmap = self.region_map()
+
+        def run(deadline: float) -> PlanResult:
+            return plan_mode_change(
+                self.design, self.start, start_mode, targets,
+                obstacles=self.obstacles, margins=self.margins, options=self.options,
+                t0=self.t0, deadline=deadline, rmap=rmap,
+            )  # fmt: skip
+
+        sliced = self._sliced(self.options) if prove else None
+        if sliced is None:
+            return run(self.deadline)
+        first = run(min(self.deadline, t0 + OBSTACLE_PROOF_AFTER_S))
+        if first.status is not PlanStatus.NO_PATH:
+            return first
+        proof = self.obstacle_disproof(goals, searched_s=time.perf_counter() - t0)
+        if proof is not None:
+            return replace(proof, diagnostics=replace(
+                proof.diagnostics, searches=first.diagnostics.searches))  # fmt: skip
+        second = run(self.deadline)
+        searches = first.diagnostics.searches + second.diagnostics.searches
+        return replace(second, diagnostics=replace(second.diagnostics, searches=searches))
 
     def goal_candidates(
         self, p: np.ndarray, modes: Sequence[str]

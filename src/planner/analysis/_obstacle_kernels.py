@@ -1,0 +1,302 @@
+"""The numba kernels of :mod:`planner.analysis.obstacle_regions`: which cells of the
+(theta1, theta2, theta3) grid surely break the clearance rule, and the flood fill that
+proves a start cut off from its goals.
+
+The bounds and the argument are explained in :mod:`planner.analysis.obstacle_regions`; here
+are the loops. Obstacles come packed (:func:`planner.geometry.pack_obstacles`). Every
+obstacle is convex, so its signed distance is a convex function of the point: its largest
+value over a box (here a planar rectangle) is at a corner.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from planner.geometry import box_sdf, point_segment_distance, segment_min_distance
+
+__all__ = ["all_states", "cell_passable", "corners_inside", "flood_reaches", "proximal_blocked"]
+
+
+@njit(cache=True)
+def proximal_blocked(
+    base_u, L1, theta1, a1, theta, a, spheres, capsules, boxes, limit, out
+):  # pragma: no cover - compiled
+    """``out[i, k]`` = the proximal link from (``base_u``, 0) to (base_u + L1 cos theta_k,
+    L1 sin theta_k) in the loop's plane, turned by theta1 about AB, is closer than ``limit``
+    (link radius + clearance, less the slack) to some obstacle for every (theta1, theta) of
+    the closed cell theta1_i +- a1, theta_k +- a.
+
+    The link's ends move by at most L1 (a1 + a) over the cell (its far end is at most L1 from
+    the axis and turns through at most a1 about it; in the plane it turns through at most
+    a about its fixed end), so its distance to an obstacle, the least signed distance of its
+    points, grows by at most that much: the cell is blocked when the centre's distance plus
+    L1 (a1 + a) is still below ``limit``."""
+    reach = L1 * (a1 + a)
+    for i in range(theta1.shape[0]):
+        c1, s1 = math.cos(theta1[i]), math.sin(theta1[i])
+        for k in range(theta.shape[0]):
+            eu = base_u + L1 * math.cos(theta[k])
+            ew = L1 * math.sin(theta[k])
+            # exact below the bound that matters (a cheap broad phase skips the rest)
+            dist = segment_min_distance(
+                0.0, base_u, 0.0, ew * c1, eu, -ew * s1, spheres, capsules, boxes, limit - reach
+            )
+            out[i, k] = dist < limit - reach
+
+
+@njit(cache=True, inline="always")
+def _point_sdf(kind, row, x, y, z):  # pragma: no cover - compiled
+    """Signed distance from a point to one packed obstacle row (kind 0 sphere, 1 capsule,
+    2 box)."""
+    if kind == 0:
+        return point_segment_distance(row[0], row[1], row[2], x, y, z, x, y, z) - row[3]
+    if kind == 1:
+        return (
+            point_segment_distance(x, y, z, row[0], row[1], row[2], row[3], row[4], row[5]) - row[6]
+        )
+    return box_sdf(x, y, z, row)
+
+
+@njit(cache=True, inline="always")
+def _rectangle_inside(kind, row, c1, s1, u0, u1, w0, w1, spread, limit):  # pragma: no cover
+    """Whether every point of the planar rectangle [u0, u1] x [w0, w1] of the loop's plane at
+    theta1 (cos c1, sin s1), each moved by up to ``spread``, is closer than ``limit`` to the
+    obstacle: the signed distance is convex, so its largest value on the rectangle is at a
+    corner, and moving a point by ``spread`` changes it by at most that."""
+    # the centre is the corners' mean: its value is at most their largest (a cheap reject)
+    uc, wc = 0.5 * (u0 + u1), 0.5 * (w0 + w1)
+    if _point_sdf(kind, row, wc * c1, uc, -wc * s1) + spread >= limit:
+        return False
+    worst = -np.inf
+    for u in (u0, u1):
+        for w in (w0, w1):
+            worst = max(worst, _point_sdf(kind, row, w * c1, u, -w * s1))
+    return worst + spread < limit
+
+
+@njit(cache=True)
+def corners_inside(
+    c1, s1, a1, boxes_uw, spheres, capsules, boxes, limit
+):  # pragma: no cover - compiled
+    """Whether, for some obstacle and some of the planar point sets ``boxes_uw`` (M, 4):
+    rows (u_lo, u_hi, w_lo, w_hi), every point of the set at every theta1 within ``a1`` of
+    the angle (c1, s1) is closer than ``limit`` to that obstacle. Turning by at most a1 about
+    AB moves a point at distance |w| from the axis by at most |w| a1."""
+    for m in range(boxes_uw.shape[0]):
+        u0, u1, w0, w1 = boxes_uw[m, 0], boxes_uw[m, 1], boxes_uw[m, 2], boxes_uw[m, 3]
+        if not (u0 <= u1 and w0 <= w1):  # NaN: no posture of the cell there
+            continue
+        spread = max(abs(w0), abs(w1)) * a1
+        for i in range(spheres.shape[0]):
+            if _rectangle_inside(0, spheres[i], c1, s1, u0, u1, w0, w1, spread, limit):
+                return True
+        for i in range(capsules.shape[0]):
+            if _rectangle_inside(1, capsules[i], c1, s1, u0, u1, w0, w1, spread, limit):
+                return True
+        for i in range(boxes.shape[0]):
+            if _rectangle_inside(2, boxes[i], c1, s1, u0, u1, w0, w1, spread, limit):
+                return True
+    return False
+
+
+@njit(cache=True)
+def cell_passable(
+    mask, blocked_a, blocked_b, point_sets, c1, s1, a1, spheres, capsules, boxes, limit, i, j, k
+):  # pragma: no cover - compiled
+    """Whether cell (i1, k3, k2) = (i, j, k) may hold a posture of the flood (see
+    :func:`flood_reaches`); theta1_i given by its cosine and sine."""
+    if not mask[j, k] or blocked_a[i, k] or blocked_b[i, j]:
+        return False
+    return not corners_inside(c1, s1, a1, point_sets[j, k], spheres, capsules, boxes, limit)
+
+
+@njit(cache=True)
+def flood_reaches(
+    mask,
+    blocked_a,
+    blocked_b,
+    point_sets,
+    theta1,
+    a1,
+    spheres,
+    capsules,
+    boxes,
+    limit,
+    start,
+    goals,
+    visits,
+):  # pragma: no cover - compiled
+    """Flood of the passable cells from ``start`` (i1, k3, k2) through 26-neighbours, nearest
+    to the goals first; 1 as soon as a cell of ``goals`` (G, 3) is reached, 0 when the
+    start's component holds none.
+
+    A cell (i1, k3, k2) is passable when ``mask[k3, k2]`` (the obstacle-free map allows it),
+    neither proximal link is blocked (``blocked_a[i1, k2]``, ``blocked_b[i1, k3]``) and no
+    point set of ``point_sets[k3, k2]`` (M, 4) lies inside an obstacle over the cell
+    (:func:`corners_inside`, evaluated only for cells the flood meets). ``visits`` (one int)
+    receives the number of passable cells met. Returns -1 when the start cell is not
+    passable (the start is then invalid: nothing is proven)."""
+    n1, n3, n2 = theta1.shape[0], mask.shape[0], mask.shape[1]
+    # 0 unknown, 1 passable (queued), 2 not passable
+    state = np.zeros((n1, n3, n2), dtype=np.uint8)
+    goal = np.zeros((n1, n3, n2), dtype=np.bool_)
+    for g in range(goals.shape[0]):
+        goal[goals[g, 0], goals[g, 1], goals[g, 2]] = True
+    cos1 = np.cos(theta1)
+    sin1 = np.sin(theta1)
+    # a binary heap of (distance in cells to the nearest goal, cell): the flood dives towards
+    # the goals first, so a connected query stops early; a proof visits the whole component
+    # whatever the order
+    cap = n1 * n3 * n2
+    key = np.empty(cap, dtype=np.int32)
+    cell = np.empty((cap, 3), dtype=np.int32)
+    size = 0
+    i, j, k = start[0], start[1], start[2]
+    if not cell_passable(
+        mask,
+        blocked_a,
+        blocked_b,
+        point_sets,
+        cos1[i],
+        sin1[i],
+        a1,
+        spheres,
+        capsules,
+        boxes,
+        limit,
+        i,
+        j,
+        k,
+    ):
+        visits[0] = 0
+        return -1
+    state[i, j, k] = 1
+    met = 1
+    if goal[i, j, k]:
+        visits[0] = met
+        return 1
+    size = _push(key, cell, size, _to_goals(goals, i, j, k), i, j, k)
+    while size > 0:
+        ci, cj, ck = cell[0, 0], cell[0, 1], cell[0, 2]
+        size = _pop(key, cell, size)
+        for di in range(-1, 2):
+            i = ci + di
+            if i < 0 or i >= n1:
+                continue
+            for dj in range(-1, 2):
+                j = cj + dj
+                if j < 0 or j >= n3:
+                    continue
+                for dk in range(-1, 2):
+                    k = ck + dk
+                    if k < 0 or k >= n2 or state[i, j, k] != 0:
+                        continue
+                    if not cell_passable(
+                        mask,
+                        blocked_a,
+                        blocked_b,
+                        point_sets,
+                        cos1[i],
+                        sin1[i],
+                        a1,
+                        spheres,
+                        capsules,
+                        boxes,
+                        limit,
+                        i,
+                        j,
+                        k,
+                    ):
+                        state[i, j, k] = 2
+                        continue
+                    state[i, j, k] = 1
+                    met += 1
+                    if goal[i, j, k]:
+                        visits[0] = met
+                        return 1
+                    size = _push(key, cell, size, _to_goals(goals, i, j, k), i, j, k)
+    visits[0] = met
+    return 0
+
+
+@njit(cache=True, inline="always")
+def _to_goals(goals, i, j, k):  # pragma: no cover - compiled
+    """Chebyshev distance in cells from (i, j, k) to the nearest goal cell."""
+    best = 1 << 30
+    for g in range(goals.shape[0]):
+        d = max(abs(goals[g, 0] - i), max(abs(goals[g, 1] - j), abs(goals[g, 2] - k)))
+        best = min(best, d)
+    return best
+
+
+@njit(cache=True, inline="always")
+def _push(key, cell, size, kv, i, j, k):  # pragma: no cover - compiled
+    pos = size
+    while pos > 0:
+        parent = (pos - 1) >> 1
+        if key[parent] <= kv:
+            break
+        key[pos] = key[parent]
+        cell[pos, 0], cell[pos, 1], cell[pos, 2] = cell[parent, 0], cell[parent, 1], cell[parent, 2]
+        pos = parent
+    key[pos] = kv
+    cell[pos, 0], cell[pos, 1], cell[pos, 2] = i, j, k
+    return size + 1
+
+
+@njit(cache=True, inline="always")
+def _pop(key, cell, size):  # pragma: no cover - compiled
+    size -= 1
+    kv = key[size]
+    i, j, k = cell[size, 0], cell[size, 1], cell[size, 2]
+    pos = 0
+    while True:
+        child = 2 * pos + 1
+        if child >= size:
+            break
+        if child + 1 < size and key[child + 1] < key[child]:
+            child += 1
+        if key[child] >= kv:
+            break
+        key[pos] = key[child]
+        cell[pos, 0], cell[pos, 1], cell[pos, 2] = cell[child, 0], cell[child, 1], cell[child, 2]
+        pos = child
+    key[pos] = kv
+    cell[pos, 0], cell[pos, 1], cell[pos, 2] = i, j, k
+    return size
+
+
+@njit(cache=True)
+def all_states(
+    mask, blocked_a, blocked_b, point_sets, theta1, a1, spheres, capsules, boxes, limit, out
+):  # pragma: no cover - compiled
+    """Every cell's state into ``out`` (n1, n, n) int8: 0 outside the mask, 1 blocked,
+    2 passable (:func:`cell_passable`), for tests and figures."""
+    for i in range(out.shape[0]):
+        c1, s1 = math.cos(theta1[i]), math.sin(theta1[i])
+        for j in range(out.shape[1]):
+            for k in range(out.shape[2]):
+                if not mask[j, k]:
+                    out[i, j, k] = 0
+                elif cell_passable(
+                    mask,
+                    blocked_a,
+                    blocked_b,
+                    point_sets,
+                    c1,
+                    s1,
+                    a1,
+                    spheres,
+                    capsules,
+                    boxes,
+                    limit,
+                    i,
+                    j,
+                    k,
+                ):
+                    out[i, j, k] = 2
+                else:
+                    out[i, j, k] = 1
