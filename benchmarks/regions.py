@@ -13,6 +13,10 @@ would be a false proof (the count must be 0). ``--queries N`` (default 1000).
 callable by the tests, ``tests/analysis/_region_reference.py``) and today's, interleaved
 in blocks of 5 (cold, cache cleared), medians of wall and CPU time at 128 and 256, side by
 side with their ratio and the page faults per build (``--runs``: builds of each).
+
+``--obstacles`` prints only the soak of the proof with obstacles
+(``planner.analysis.obstacle_regions``): ``--queries`` seeded scenes and queries planned by the
+search alone, the proof asked of each; false proofs counted (must be 0), proof times.
 """
 
 from __future__ import annotations
@@ -236,6 +240,78 @@ def proofs(count: int) -> None:
           f"[{time.perf_counter() - t0:.0f} s]")  # fmt: skip
 
 
+def obstacle_soak(queries: int, seed: int = 23) -> None:
+    """The 3-D proof's false-proof soak: seeded scenes (four designs, theta1 limited or not,
+    2-6 spheres and plates), start and goal in one assembly mode (the goal's working mode
+    random: mode changes included); the search alone (``region_map=False``, 0.5 s) plans
+    each, then the proof is asked. A proof claimed for a query the search solved is a false
+    proof (there must be none); the proof's time is printed for both outcomes."""
+    from planner.analysis.obstacle_regions import prove_disconnected_with_obstacles
+    from planner.geometry import Box, Sphere
+    from planner.kinematics import WORKING_MODES
+    from planner.planning import JointPosture, PlanOptions, PlanStatus, plan
+
+    designs = [Design.default(), Design.paper_optimum(), Design(0.3, 0.3, 0.4),
+               Design(0.6, 0.25, 0.45)]  # fmt: skip
+    from planner.warmup import warm_up
+
+    warm_up()  # numba kernels compiled (the proof's too) outside the measurements
+    rng = np.random.default_rng(seed)
+    solved = false = proven = 0
+    t_solved, t_other = [], []
+    done = 0
+    while done < queries:
+        base = designs[done % len(designs)]
+        design = base if done % 2 else Design(base.L0, base.L1, base.L2,
+                                              joint_min=(-2.0, -np.pi, -np.pi),
+                                              joint_max=(2.0, np.pi, np.pi))  # fmt: skip
+        obstacles = []
+        for _ in range(rng.integers(2, 7)):
+            c = rng.uniform(-0.7, 0.7, 3)
+            if rng.uniform() < 0.5:
+                obstacles.append(Sphere(c, rng.uniform(0.05, 0.2)))
+            else:
+                quat = rng.normal(size=4)
+                obstacles.append(Box(c, rng.uniform(0.02, 0.6, 3), quat / np.linalg.norm(quat)))
+        asm = "+" if rng.uniform() < 0.5 else "-"
+        q = rng.uniform(design.joint_min, design.joint_max, (4000, 3))
+        valid = {}
+        for mode in WORKING_MODES:
+            ok = ValidityChecker(design, Margins(), obstacles, asm, mode).is_valid(q)
+            if ok.sum() >= 2:
+                valid[mode] = q[ok]
+        if not valid:
+            continue
+        modes = sorted(valid)
+        m0, m1 = modes[rng.integers(len(modes))], modes[rng.integers(len(modes))]
+        start = valid[m0][rng.integers(len(valid[m0]))]
+        goal = valid[m1][rng.integers(len(valid[m1]))]
+        res = plan(design, JointPosture(start, asm), JointPosture(goal, asm), obstacles=obstacles,
+                   options=PlanOptions(time_budget_s=0.5, seed=done + 1, region_map=False))  # fmt: skip
+        t0 = time.perf_counter()
+        proof = prove_disconnected_with_obstacles(design, Margins(), obstacles, start, goal, asm)
+        dt = (time.perf_counter() - t0) * 1e3
+        done += 1
+        proven += proof.proven
+        if res.status is PlanStatus.SOLVED:
+            solved += 1
+            false += proof.proven
+            t_solved.append(dt)
+        else:
+            t_other.append(dt)
+        if done % 100 == 0:
+            print(f"  {done}/{queries} queries: {solved} solved, {proven} proven, {false} false proofs",
+                  flush=True)  # fmt: skip
+    print(f"\nobstacle proof soak: {done} queries, {solved} solved by the search, {proven} proven "
+          f"(of the {done - solved} unsolved), false proofs: {false}")  # fmt: skip
+    for label, t in (("solved queries", t_solved), ("unsolved queries", t_other)):
+        if t:
+            print(
+                f"  proof time on {label}: p50 {np.percentile(t, 50):.1f} ms, p95 "
+                f"{np.percentile(t, 95):.1f} ms, max {max(t):.1f} ms (n = {len(t)})"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--queries", type=int, default=1000)
@@ -243,6 +319,10 @@ def main() -> None:
     parser.add_argument("--builds-only", action="store_true", help="skip the proof checks")
     parser.add_argument("--claim", action="store_true", help="only the 'twice as large' table")
     parser.add_argument("--speed", action="store_true", help="only old against new builds")
+    parser.add_argument(
+        "--obstacles", action="store_true",
+        help="only the soak of the proof with obstacles (--queries of them)",
+    )  # fmt: skip
     args = parser.parse_args()
     print_machine()
     if args.speed:
@@ -250,6 +330,9 @@ def main() -> None:
         return
     if args.claim:
         twice_as_large()
+        return
+    if args.obstacles:
+        obstacle_soak(args.queries)
         return
     build_times(args.runs)
     if args.builds_only:
