@@ -761,6 +761,34 @@ def plan_mode_change(
     search = _ModeChangeSearch(
         design, start.assembly_mode, margins, obstacles, options, deadline, rmap
     )
+    tried: set[tuple[str, ...]] = set()
+
+    def attempt(seq: tuple[str, ...], regions: tuple[int, ...] | None) -> PlanResult | None:
+        tried.add(seq)
+        out = search.run(seq, start.q, targets[seq[-1]], regions)
+        if out is None:
+            return None
+        path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
+        diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
+        modes = " -> ".join(seq)
+        return PlanResult(
+            PlanStatus.SOLVED, f"solved through {len(seq) - 1} transit(s): {modes}", path, diag
+        )
+
+    # the map's region walks first (fewest transits first), when it can place the start and
+    # a goal: one round at the first share
+    walks_by_region = (
+        region_walks(rmap, start.assembly_mode, start_mode, start.q, targets)
+        if rmap is not None
+        else []
+    )
+    search.share = ROUND_SHARES[0]
+    for walk in walks_by_region:
+        if time.perf_counter() > deadline:
+            break
+        solved = attempt(tuple(rmap.regions[r].working_mode for r in walk), walk)
+        if solved is not None:
+            return solved
     seqs = mode_sequences(start_mode, list(targets))
     if rmap is not None:  # walks the region map's transit graph cannot realise go (all
         # kept when none is left: longer walks than these may exist, the search says so)
@@ -772,7 +800,6 @@ def plan_mode_change(
         if np.isfinite(est):
             ranked.append((len(seq), est, seq))
     ranked.sort(key=lambda x: (x[0], x[1]))
-    ranked_seqs = [seq for _, _, seq in ranked]
     if not ranked:
         reasons = sorted(set(search.pool_reasons.values()))
         return PlanResult(
@@ -784,45 +811,26 @@ def plan_mode_change(
             None,
             Diagnostics(planning_time_s=time.perf_counter() - t0),
         )
-    tried: set[tuple[str, ...]] = set()
-    walks: list[tuple[tuple[str, ...], tuple[int, ...] | None]] = [(s, None) for _, _, s in ranked]
-    guided_walks = walks
-    if rmap is not None:  # the map's region walks, when it can place the start and a goal
-        by_region = [
-            (tuple(rmap.regions[r].working_mode for r in w), w)
-            for w in region_walks(rmap, start.assembly_mode, start_mode, start.q, targets)
-        ]
-        cost = {w: search.estimate(m, start.q, targets[m[-1]][0]) for m, w in by_region}
-        by_region.sort(key=lambda x: (len(x[1]), cost[x[1]]))
-        guided_walks = [(m, w) for m, w in by_region if np.isfinite(cost[w])] or walks
-    # guided rounds first; where they fail, today's rounds on sampled surfaces
+    # guided by the map without regions (when it placed neither), then today's rounds on
+    # sampled surfaces
     rounds = [(share, False) for share in ROUND_SHARES]
-    if rmap is not None:
+    if rmap is not None and not walks_by_region:
         rounds = [(ROUND_SHARES[0], True), *rounds]
     for share, guided in rounds:
         search.share = share
         if not guided and search.rmap is not None:
             search.unguided()
-        for seq, regions in guided_walks if guided else walks:
+        for _, _, seq in ranked:
             if time.perf_counter() > deadline:
                 break
-            tried.add(seq)
-            out = search.run(seq, start.q, targets[seq[-1]], regions)
-            if out is None:
-                continue
-            path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-            diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
-            modes = " -> ".join(seq)
-            return PlanResult(
-                PlanStatus.SOLVED,
-                f"solved through {len(seq) - 1} transit(s): {modes}",
-                path,
-                diag,
-            )
+            solved = attempt(seq, None)
+            if solved is not None:
+                return solved
+    n_seqs = len({seq for _, _, seq in ranked} | tried)
     return PlanResult(
         PlanStatus.NO_PATH,
         f"no path found within {options.time_budget_s:g} s through transits "
-        f"({len(tried)} of {len(set(ranked_seqs) | tried)} mode sequences tried)",
+        f"({len(tried)} of {n_seqs} mode sequences tried)",
         None,
         Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
     )
