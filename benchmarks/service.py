@@ -368,6 +368,10 @@ def _modes_rows(url: str, n: int, budget: float) -> None:
         ("disconnected (cut 0.3/0.3/0.4)", CUT, disconnected_queries(n), [], 5.0, "proven")
     )
     print(
+        "load average (1, 5, 15 min) at the start: "
+        + ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    )
+    print(
         f"mode changes and proofs through /v1/plan (concurrency 1, timing none) against the "
         f"library's plan in-process; {budget:g} s budget (disconnected: 5 s); ms wall"
     )
@@ -396,6 +400,9 @@ def _modes_rows(url: str, n: int, budget: float) -> None:
                 f"{max(rest) * 1e3:8.1f}"
             )
     print("ok: solved (disconnected: proven_infeasible); first: the row's first request")
+    print(
+        "load average (1, 5, 15 min) at the end: " + ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    )
 
 
 def main() -> None:
