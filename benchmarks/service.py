@@ -13,6 +13,20 @@ which is work too).
 
     PYTHONPATH=src:. python benchmarks/service.py [--workers 2] [--requests 400]
         [--endpoints fk analyze timing plan plan+toppra cartesian]
+    PYTHONPATH=src:. python benchmarks/service.py --modes [--modes-queries 20]
+        [--modes-budget 2.0]
+
+``--modes`` (issue 17's goals measured through HTTP): mode changes and the proof of no path
+as ``/v1/plan`` requests, one at a time, against the library's :func:`planner.planning.plan`
+on the same queries in this process. The scenes are those of ``benchmarks/planning.py --map``
+(imported, not copied): for each design of its ``DESIGNS``, the mode-change queries of
+``build_mode_change_queries`` without and with the 5 spheres, and the ``disconnected_queries``
+of its cut design (5 s budget, ``proven_infeasible`` expected). The design travels in the
+request body; each worker builds a design's region map on the first request of that design
+and keeps it in its LRU cache (the default design's is built at warm-up), so the first
+request of each row is reported apart (``first``: cold when the row's design is new to the
+worker, and likewise in-process) from the rest (p50 / p95 / max). Sequential requests all go
+to the first idle worker, so one worker serves the whole table.
 """
 
 from __future__ import annotations
@@ -268,6 +282,129 @@ def _pct(values: list[float], p: float) -> float:
     return float(np.percentile(values, p)) * 1e3
 
 
+def _mode_change_body(design, start, goal, obstacles, budget: float) -> dict:
+    """A ``/v1/plan`` body (JSON) for a joint-goal query of ``benchmarks/planning.py``: the
+    design in the body, the scene's spheres, the search budget, no timing (the library's
+    ``plan`` does not time either, so the two columns compare)."""
+    from planner.wire import DesignModel
+
+    return PlanRequest(
+        design=DesignModel.from_design(design),
+        start={"q": start.q.tolist(), "assembly_mode": start.assembly_mode},
+        goal={"q": goal.q.tolist(), "assembly_mode": goal.assembly_mode},
+        obstacles=[
+            {"type": "sphere", "center": o.center.tolist(), "radius": float(o.radius)}
+            for o in obstacles
+        ],
+        planner={"time_budget_s": budget},
+        timing={"method": "none"},
+    ).model_dump(mode="json", exclude_none=True)
+
+
+def _http_plans(url: str, bodies: list[dict]) -> tuple[list[float], list[str], int]:
+    """POST each body in turn (concurrency 1); client-side wall times (s), statuses, and
+    how many answers say ``proven_infeasible``."""
+    times, statuses, proven = [], [], 0
+    with httpx.Client(timeout=120) as client:
+        for body in bodies:
+            t0 = time.perf_counter()
+            r = client.post(f"{url}/v1/plan", json=body)
+            times.append(time.perf_counter() - t0)
+            r.raise_for_status()
+            answer = r.json()
+            statuses.append(answer["status"])
+            proven += bool(answer["diagnostics"].get("proven_infeasible"))
+    return times, statuses, proven
+
+
+def _library_plans(design, queries, obstacles, budget: float) -> tuple[list[float], list[str], int]:
+    """The same queries through the library's ``plan`` in this process."""
+    from planner.planning import PlanOptions, plan
+    from planner.validity import Margins
+
+    times, statuses, proven = [], [], 0
+    options = PlanOptions(time_budget_s=budget)
+    for start, goal in queries:
+        t0 = time.perf_counter()
+        res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
+        times.append(time.perf_counter() - t0)
+        statuses.append(res.status.value)
+        proven += res.diagnostics.proven_infeasible
+    return times, statuses, proven
+
+
+def _flip_counts(design, queries) -> str:
+    """How many queries change 1, 2 and 3 signs of the working mode (start against goal)."""
+    from planner.planning import posture_mode
+
+    flips = [
+        sum(a != b for a, b in zip(posture_mode(design, s), posture_mode(design, g), strict=True))
+        for s, g in queries
+    ]
+    return "/".join(str(flips.count(k)) for k in (1, 2, 3))
+
+
+def _modes_rows(url: str, n: int, budget: float) -> None:
+    """The ``--modes`` table: per scene, HTTP and in-process side by side (module docstring)."""
+    from planning import (
+        CUT,
+        DESIGNS,
+        MODE_SCENES,
+        build_mode_change_queries,
+        build_scene,
+        disconnected_queries,
+    )
+
+    from planner.warmup import warm_up
+
+    warm_up()  # this process pays the library's first-call costs as a worker does
+    scenes = []
+    for name, design in DESIGNS.items():
+        for kind in MODE_SCENES:
+            queries = build_mode_change_queries(kind, n, design=design)
+            label = f"{'modes + spheres' if kind == 'modes_spheres' else 'modes'} {name}"
+            scenes.append((label, design, queries, build_scene(kind)[1], budget, "solved"))
+    scenes.append(
+        ("disconnected (cut 0.3/0.3/0.4)", CUT, disconnected_queries(n), [], 5.0, "proven")
+    )
+    print(
+        "load average (1, 5, 15 min) at the start: "
+        + ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    )
+    print(
+        f"mode changes and proofs through /v1/plan (concurrency 1, timing none) against the "
+        f"library's plan in-process; {budget:g} s budget (disconnected: 5 s); ms wall"
+    )
+    header = (
+        f"{'scene':<36} {'n':>3} {'flips 1/2/3':>11} {'set-up':>8} {'ok':>3} {'first':>8} "
+        f"{'p50':>8} {'p95':>8} {'max':>8}"
+    )
+    print(header)
+    print("-" * len(header))
+    _, design, queries, obstacles, scene_budget, _ = scenes[0]  # the default design's
+    _http_plans(url, [_mode_change_body(design, *queries[0], obstacles, scene_budget)])
+    # (the service's first request pays one-off costs: not counted in the table)
+    for label, design, queries, obstacles, scene_budget, want in scenes:
+        bodies = [_mode_change_body(design, s, g, obstacles, scene_budget) for s, g in queries]
+        flips = _flip_counts(design, queries) if want == "solved" else "-"
+        runs = (
+            ("HTTP", _http_plans(url, bodies)),
+            ("library", _library_plans(design, queries, obstacles, scene_budget)),
+        )
+        for setup, (times, statuses, proven) in runs:
+            ok = statuses.count("solved") if want == "solved" else proven
+            rest = times[1:]
+            print(
+                f"{label:<36} {len(times):>3} {flips:>11} {setup:>8} {ok:>3} "
+                f"{times[0] * 1e3:8.1f} {_pct(rest, 50):8.2f} {_pct(rest, 95):8.2f} "
+                f"{max(rest) * 1e3:8.1f}"
+            )
+    print("ok: solved (disconnected: proven_infeasible); first: the row's first request")
+    print(
+        "load average (1, 5, 15 min) at the end: " + ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    )
+
+
 def main() -> None:
     print_machine()
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -275,7 +412,21 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=400)
     parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
     parser.add_argument("--endpoints", nargs="*", help="only these rows (default: all)")
+    parser.add_argument(
+        "--modes", action="store_true", help="only the mode-change and proof table (issue 17)"
+    )
+    parser.add_argument("--modes-queries", type=int, default=20)
+    parser.add_argument("--modes-budget", type=float, default=2.0)
     args = parser.parse_args()
+    if args.modes:
+        proc, url = _start_server(args.workers)
+        try:
+            print(f"service on {url}, {args.workers} worker processes")
+            _modes_rows(url, args.modes_queries, args.modes_budget)
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+        return
     rng = np.random.default_rng(0)
     endpoints = [
         ("fk", "fk", compute.fk),

@@ -12,10 +12,16 @@ parallel singularity). For a goal in another working mode than the start:
    transits, then by an estimated cost (the straight joint-space length start -> transit
    postures -> goal through the best sampled transits); every order of the flips is a walk.
 2. *Transit postures*: with the design's region map (``options.region_map``, the map of
-   the proof below), first from its transit cells (:func:`map_transits`: cells of the flip
-   where the two other measures keep their signs with margin, moved onto the surface), walks
-   the map's transit graph cannot realise left out (:func:`walk_possible`), in one round at
-   the first share; then, and without a map, sampled on each singular surface of the right
+   the proof below), first along the map's *region walks* (:func:`region_walks`: chains of
+   regions joined by the map's transits, from the start's region to a goal's; a mode may
+   come back in another of its regions, which a mode walk cannot say), each step's transit
+   postures from the map's transit cells next to its two regions (:func:`map_transits`:
+   cells of the flip where the two other measures keep their signs with margin, moved onto
+   the surface) and its crossings kept only when q_in lies in the step's first region and
+   q_out in its second, in one round at the first share; where the map cannot place the
+   start or the goals, the mode walks it cannot realise are left out
+   (:func:`walk_possible`) and the rest guided the same way without regions; then, and
+   without a map, sampled on each singular surface of the right
    kind (:func:`planner.transits.sample_transits`, seeded with ``options.seed``). Either kind
    is kept when valid for every non-serial rule (joint limits, assembly, kappa(A),
    clearance), nearest first to the straight line from the segment's start to the goal. Each is crossed by the straight
@@ -97,6 +103,7 @@ __all__ = [
     "path_state_checker",
     "plan",
     "plan_mode_change",
+    "region_walks",
     "walk_possible",
 ]
 
@@ -121,6 +128,11 @@ BETTER_RATIO = 0.7
 #: literal joint limits or by parallel singularities) can never succeed, so short rounds over
 #: every candidate and mode sequence come first, longer searches after.
 ROUND_SHARES = (0.01, 0.1, 1.0)
+
+#: Region walks (:func:`region_walks`) tried by the guided round: at most this many, with
+#: up to :data:`REGION_DETOUR` transits more than the shortest.
+REGION_WALKS = 16
+REGION_DETOUR = 2
 
 #: Cells per axis of the region map the planner consults (:mod:`planner.analysis.regions`).
 #: 128 builds in about 25 ms on a loaded 2-core machine (256: 60-90 ms) and is as sound;
@@ -288,16 +300,24 @@ class _ModeChangeSearch:
         return total + float(np.linalg.norm(q_goal - prev))
 
     def crossings(
-        self, before: str, after: str, q_from: np.ndarray, q_goal: np.ndarray
+        self,
+        before: str,
+        after: str,
+        q_from: np.ndarray,
+        q_goal: np.ndarray,
+        regions: tuple[int, int] | None = None,
     ) -> list[_Candidate]:
         """Up to :data:`CROSSINGS_PER_STEP` valid crossings before -> after, nearest first to
-        the straight line q_from -> q_goal."""
+        the straight line q_from -> q_goal; with ``regions`` (ids of the region map), only
+        crossings from the first region (q_in in its cells) into the second (q_out)."""
         q, _ = self.pool(before, after)
         if len(q) == 0:
             return []
         j = next(i for i in range(3) if before[i] != after[i])
         if (before, after) in self.map_pools:
             q = _theta1_along(q, q_from, q_goal, self.design)
+            if regions is not None and self.rmap is not None:
+                q = q[_near_regions(self.rmap, self.asm, regions, q)]
             q = q[self.free.is_valid(q)]
             if len(q) == 0:
                 return []
@@ -306,7 +326,9 @@ class _ModeChangeSearch:
         # nearest to the straight line first, interleaved with nearest to each end: the mode
         # regions are split (joint limits, parallel singularities), and a transit near the
         # start (or the goal) is more likely in its connected component
-        rankings = [np.argsort(r, kind="stable") for r in (d_from + d_goal, d_from, d_goal)]
+        rankings = [
+            np.argsort(r, kind="stable")[:CROSSING_TRIES] for r in (d_from + d_goal, d_from, d_goal)
+        ]  # the first CROSSING_TRIES of the interleaving come from these
         order = list(dict.fromkeys(int(k) for k in np.stack(rankings, axis=1).ravel()))
         out: list[tuple[bool, float, _Candidate]] = []
         for k in order[:CROSSING_TRIES]:
@@ -322,17 +344,31 @@ class _ModeChangeSearch:
             )
             if c is None or not self._crossing_valid(c, before, after, j):
                 continue
+            if regions is not None and not self._joins(c, regions):
+                continue
             cost = float(np.linalg.norm(c.q_in - q_from) + np.linalg.norm(c.q_out - q_goal))
             # a straight first segment is a strong hint of the same connected component
             direct = self.checker(before).motion_valid(q_from, c.q_in)
             out.append((not direct, cost, _Candidate(c, before, after)))
             # from the map's cells (next to the regions' shared boundary) a crossing whose
-            # first segment is straight is the usual answer: two fallbacks are enough
+            # first segment is straight is the usual answer: two fallbacks are enough, and
+            # none between two given regions (another region walk is the fallback there)
             guided = (before, after) in self.map_pools
-            if len(out) >= CROSSINGS_PER_STEP or (guided and len(out) >= 3 and not out[0][0]):
+            enough = 1 if regions is not None else 3
+            if len(out) >= CROSSINGS_PER_STEP or (guided and len(out) >= enough and not out[0][0]):
                 break
         out.sort(key=lambda x: (x[0], x[1]))
         return [c for _, _, c in out]
+
+    def _joins(self, c: Crossing, regions: tuple[int, int]) -> bool:
+        """Whether the crossing leaves from the map region ``regions[0]`` (its q_in lies in
+        that region's cells) into ``regions[1]`` (q_out)."""
+        if self.rmap is None:
+            return True
+        return all(
+            rid in {r.id for r in region_maps.regions_at(self.rmap, q, self.asm)}
+            for rid, q in zip(regions, (c.q_in, c.q_out), strict=True)
+        )
 
     def _crossing_valid(self, c: Crossing, before: str, after: str, j: int) -> bool:
         if not (
@@ -367,10 +403,24 @@ class _ModeChangeSearch:
         return res
 
     def run(
-        self, seq: tuple[str, ...], q_start: np.ndarray, q_goals: np.ndarray
+        self,
+        seq: tuple[str, ...],
+        q_start: np.ndarray,
+        q_goals: np.ndarray,
+        regions: tuple[int, ...] | None = None,
     ) -> tuple[list[PlanResult], list[_Candidate]] | None:
         """Plan the walk ``seq`` (depth first over transit candidates); the segment results
-        and the crossings used, or None."""
+        and the crossings used, or None. With ``regions`` (a :func:`region_walks` walk, one
+        region id per mode of ``seq``) each crossing joins its step's two regions and the
+        last segment aims at the goal candidates of the last region."""
+        if regions is not None and self.rmap is not None:
+            last = regions[-1]
+            inside = [
+                last in {r.id for r in region_maps.regions_at(self.rmap, g, self.asm)}
+                for g in q_goals
+            ]
+            if any(inside):
+                q_goals = q_goals[np.asarray(inside)]
         q_goal = q_goals[0]
 
         def step(i: int, q_from: np.ndarray) -> tuple[list[PlanResult], list[_Candidate]] | None:
@@ -379,9 +429,11 @@ class _ModeChangeSearch:
             if i == len(seq) - 1:
                 res = self.segment(seq[i], q_from, q_goals)
                 return ([res], []) if res.solved else None
+            pair = None if regions is None else (regions[i], regions[i + 1])
             key = (seq[i] + seq[i + 1]).encode() + q_from.tobytes() + q_goal.tobytes()
+            key += b"" if pair is None else np.asarray(pair, dtype=np.int64).tobytes()
             if key not in self._crossings:
-                self._crossings[key] = self.crossings(seq[i], seq[i + 1], q_from, q_goal)
+                self._crossings[key] = self.crossings(seq[i], seq[i + 1], q_from, q_goal, pair)
             for cand in self._crossings[key]:
                 res = self.segment(seq[i], q_from, cand.crossing.q_in[None])
                 if not res.solved:
@@ -445,6 +497,104 @@ def walk_possible(
         if r.working_mode == seq[-1]
     }
     return bool(here & ends) or not ends
+
+
+def region_walks(
+    rmap: region_maps.RegionMap,
+    asm: str,
+    start_mode: str,
+    q_start: np.ndarray,
+    targets: dict[str, np.ndarray],
+    *,
+    detour: int = REGION_DETOUR,
+    limit: int = REGION_WALKS,
+) -> list[tuple[int, ...]]:
+    """Chains of region ids r_0, ..., r_k of the map's transit graph: r_0 a region of
+    ``start_mode`` holding ``q_start``, r_k a region of a mode of ``targets`` (mode -> (K, 3)
+    goal candidates) holding one of its candidates, each region joined to the next by a
+    transit of the map (so consecutive modes differ by one sign), no region twice; the
+    fewest transits first, up to ``detour`` more than the fewest, at most ``limit`` walks.
+    Empty when the map cannot place the start or any goal, or joins none of them.
+
+    Why regions, not modes: the regions of one working mode are split (literal joint limits,
+    parallel singularities), so the only chain from a start to its goal may be long (on the
+    design 0.3/0.3/0.4 a goal one sign away, --+ to ---, is reached only through five
+    transits, --+ -> +-+ -> +++ -> ++- -> +-- -> ---, beyond :data:`MAX_DETOUR`) or may come
+    back to a mode in another of its regions, which :func:`mode_sequences` (no mode twice)
+    cannot express; and a step between two given regions takes its crossings from where
+    those two meet, not from anywhere on the surface (a crossing into the wrong region of
+    the next mode dooms the rest of the walk)."""
+    adj: dict[int, set[int]] = {}
+    for t in rmap.transits:
+        adj.setdefault(t.a, set()).add(t.b)
+        adj.setdefault(t.b, set()).add(t.a)
+    starts = sorted(
+        r.id for r in region_maps.regions_at(rmap, q_start, asm) if r.working_mode == start_mode
+    )
+    ends = {
+        r.id
+        for mode, goals in targets.items()
+        for g in np.atleast_2d(goals)
+        for r in region_maps.regions_at(rmap, g, asm)
+        if r.working_mode == mode
+    }
+    # transits from every region to the nearest end (breadth first from the ends)
+    dist = dict.fromkeys(ends, 0)
+    frontier = sorted(ends)
+    while frontier:
+        nxt = []
+        for a in frontier:
+            for b in sorted(adj.get(a, ())):
+                if b not in dist:
+                    dist[b] = dist[a] + 1
+                    nxt.append(b)
+        frontier = nxt
+    reachable = [dist[s] for s in starts if s in dist]
+    if not reachable:
+        return []
+    fewest = max(1, min(reachable))
+    out: list[tuple[int, ...]] = []
+
+    def extend(path: list[int], length: int) -> None:
+        if len(out) >= limit:
+            return
+        if len(path) - 1 == length:
+            if path[-1] in ends:
+                out.append(tuple(path))
+            return
+        for b in sorted(adj.get(path[-1], ())):
+            if b not in path and len(path) + dist.get(b, length + 1) <= length:
+                extend([*path, b], length)
+
+    for length in range(fewest, fewest + detour + 1):
+        for s in starts:
+            extend([s], length)
+    return out
+
+
+def _near_regions(
+    rmap: region_maps.RegionMap, asm: str, regions: tuple[int, int], q: np.ndarray
+) -> np.ndarray:
+    """Which transit postures q (M, 3) lie within reach of a crossing (``max_step`` of
+    :func:`planner.transits.crossing_through`, 0.5 rad, in cells) of both regions' cells: the
+    candidates of a step between those two regions (the crossing's ends are then checked
+    exactly by :meth:`_ModeChangeSearch._joins`)."""
+    from scipy import ndimage
+
+    from planner.kinematics import ASSEMBLY_MODES
+
+    ai = ASSEMBLY_MODES.index(asm)
+    reach = int(np.ceil(0.5 / min(rmap.h2, rmap.h3))) + 1
+    lo = rmap.design.joint_min
+    k2 = np.clip(np.floor((q[:, 1] - lo[1]) / rmap.h2).astype(int), 0, rmap.n - 1)
+    k3 = np.clip(np.floor((q[:, 2] - lo[2]) / rmap.h3).astype(int), 0, rmap.n - 1)
+    keep = np.ones(len(q), dtype=bool)
+    for rid in regions:
+        r = rmap.regions[rid]
+        mask = rmap.labels[ai, WORKING_MODES.index(r.working_mode)] == r.label
+        near = ndimage.maximum_filter(mask, size=2 * reach + 1)
+        keep &= near[k3, k2]
+    return keep
 
 
 def map_transits(rmap: region_maps.RegionMap, asm: str, before: str, after: str) -> np.ndarray:
@@ -621,6 +771,34 @@ def plan_mode_change(
     search = _ModeChangeSearch(
         design, start.assembly_mode, margins, obstacles, options, deadline, rmap
     )
+    tried: set[tuple[str, ...]] = set()
+
+    def attempt(seq: tuple[str, ...], regions: tuple[int, ...] | None) -> PlanResult | None:
+        tried.add(seq)
+        out = search.run(seq, start.q, targets[seq[-1]], regions)
+        if out is None:
+            return None
+        path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
+        diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
+        modes = " -> ".join(seq)
+        return PlanResult(
+            PlanStatus.SOLVED, f"solved through {len(seq) - 1} transit(s): {modes}", path, diag
+        )
+
+    # the map's region walks first (fewest transits first), when it can place the start and
+    # a goal: one round at the first share
+    walks_by_region = (
+        region_walks(rmap, start.assembly_mode, start_mode, start.q, targets)
+        if rmap is not None
+        else []
+    )
+    search.share = ROUND_SHARES[0]
+    for walk in walks_by_region:
+        if time.perf_counter() > deadline:
+            break
+        solved = attempt(tuple(rmap.regions[r].working_mode for r in walk), walk)
+        if solved is not None:
+            return solved
     seqs = mode_sequences(start_mode, list(targets))
     if rmap is not None:  # walks the region map's transit graph cannot realise go (all
         # kept when none is left: longer walks than these may exist, the search says so)
@@ -643,10 +821,10 @@ def plan_mode_change(
             None,
             Diagnostics(planning_time_s=time.perf_counter() - t0),
         )
-    tried: set[tuple[str, ...]] = set()
-    # guided rounds first; where they fail, today's rounds on sampled surfaces
+    # guided by the map without regions (when it placed neither), then today's rounds on
+    # sampled surfaces
     rounds = [(share, False) for share in ROUND_SHARES]
-    if rmap is not None:
+    if rmap is not None and not walks_by_region:
         rounds = [(ROUND_SHARES[0], True), *rounds]
     for share, guided in rounds:
         search.share = share
@@ -655,23 +833,14 @@ def plan_mode_change(
         for _, _, seq in ranked:
             if time.perf_counter() > deadline:
                 break
-            tried.add(seq)
-            out = search.run(seq, start.q, targets[seq[-1]])
-            if out is None:
-                continue
-            path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-            diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
-            modes = " -> ".join(seq)
-            return PlanResult(
-                PlanStatus.SOLVED,
-                f"solved through {len(seq) - 1} transit(s): {modes}",
-                path,
-                diag,
-            )
+            solved = attempt(seq, None)
+            if solved is not None:
+                return solved
+    n_seqs = len({seq for _, _, seq in ranked} | tried)
     return PlanResult(
         PlanStatus.NO_PATH,
         f"no path found within {options.time_budget_s:g} s through transits "
-        f"({len(tried)} of {len(ranked)} mode sequences tried)",
+        f"({len(tried)} of {n_seqs} mode sequences tried)",
         None,
         Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
     )
