@@ -272,3 +272,21 @@ def test_no_obstacles_no_corridor():
     mode = posture_mode(Design.default(), start)
     free = ValidityChecker(Design.default(), Margins(), (), "+", mode)
     assert corridor.cached_corridor_grid(free) is None
+
+
+def test_a_stopped_build_is_remembered_and_not_retried_with_a_far_smaller_time():
+    checker = ValidityChecker(NARROW, Margins(), plate(), "+", "+-+")
+    assert corridor.corridor_grid(checker, (8, 16, 16), max_time_s=1e-9) is None
+    projected = corridor._TOO_COSTLY[corridor._cache_key(checker, (8, 16, 16))]
+    assert projected > 1e-9
+    calls = []
+    build = corridor._build
+    try:
+        corridor._build = lambda *a: calls.append(a) or build(*a)
+        assert corridor.corridor_grid(checker, (8, 16, 16), max_time_s=projected / 3) is None
+        assert not calls  # not tried again
+        grid = corridor.corridor_grid(checker, (8, 16, 16))  # no time limit: built
+    finally:
+        corridor._build = build
+    assert grid is not None and len(calls) == 1
+    assert corridor.cached_corridor_grid(checker, (8, 16, 16)) is grid

@@ -162,7 +162,10 @@ def corridor_grid(
     shape : cells per axis (theta1, theta2, theta3), each >= 2.
     max_time_s : when given, the build stops and returns None (nothing cached) as soon as
         its projected time exceeds this: the cells with obstacles are marked a slice of
-        theta1 at a time, and after the first slice the rest is projected from it.
+        theta1 at a time, and after each slice the whole is projected from them. The
+        projection is remembered, and a later call whose ``max_time_s`` is less than half of
+        it returns None at once (no repeated partial builds in a scene far too costly to
+        grid; within a factor 2, as under a passing load, the build is tried again).
 
     Returns
     -------
@@ -175,9 +178,18 @@ def corridor_grid(
     hit = _cached(key)
     if hit is not None:
         return hit
+    with _CACHE_LOCK:
+        projected = _TOO_COSTLY.get(key)
+    if max_time_s is not None and projected is not None and projected > 2 * max_time_s:
+        return None  # a build stopped before was projected to take far longer
     grid = _build(checker, key[-1], max_time_s)
-    if grid is not None:
-        _remember(key, grid)
+    if isinstance(grid, float):
+        with _CACHE_LOCK:
+            _TOO_COSTLY[key] = grid
+            while len(_TOO_COSTLY) > _CACHE_SIZE:
+                _TOO_COSTLY.popitem(last=False)
+        return None
+    _remember(key, grid)
     return grid
 
 
@@ -211,9 +223,9 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
 
 def _build(
     checker: ValidityChecker, shape: tuple[int, int, int], max_time_s: float | None
-) -> CorridorGrid | None:
-    """Mark and label the cells (the work of :func:`corridor_grid`, uncached); None when the
-    projected time exceeds ``max_time_s``."""
+) -> CorridorGrid | float:
+    """Mark and label the cells (the work of :func:`corridor_grid`, uncached); the projected
+    time (s) instead when it exceeds ``max_time_s``."""
     t0 = time.perf_counter()
     design = checker.design
     lo = np.asarray(design.joint_min, dtype=float)
@@ -237,10 +249,10 @@ def _build(
         for i in range(n[0]):
             q[:, 0] = axes[0][i]
             valid[i, columns] = checker.is_valid(q)
-            spent = time.perf_counter() - t0
-            if max_time_s is not None and spent * n[0] / (i + 1) > max_time_s:
-                logger.debug("corridor grid not built: projected %.3f s", spent * n[0] / (i + 1))
-                return None
+            projected = (time.perf_counter() - t0) * n[0] / (i + 1)
+            if max_time_s is not None and projected > max_time_s:
+                logger.debug("corridor grid not built: projected %.3f s", projected)
+                return projected
     elif len(columns):
         valid[:, columns] = True
     valid = valid.reshape(shape)
@@ -265,6 +277,8 @@ def _cached(key: tuple) -> CorridorGrid | None:
 #: The per-process LRU cache of :func:`corridor_grid`: key -> grid, oldest first.
 _CACHE: OrderedDict[tuple, CorridorGrid] = OrderedDict()
 _CACHE_LOCK = threading.Lock()
+#: Keys whose build was stopped, with its projected time (s), oldest first.
+_TOO_COSTLY: OrderedDict[tuple, float] = OrderedDict()
 
 
 def _remember(key: tuple, grid: CorridorGrid) -> None:
@@ -281,9 +295,11 @@ def _remember(key: tuple, grid: CorridorGrid) -> None:
 
 
 def clear_cache() -> None:
-    """Forget every cached corridor grid of this process."""
+    """Forget every cached corridor grid of this process (and every stopped build's
+    projection)."""
     with _CACHE_LOCK:
         _CACHE.clear()
+        _TOO_COSTLY.clear()
 
 
 # ----------------------------------------------------------------------------- the search
