@@ -63,9 +63,10 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: Cells per axis (theta1, theta2, theta3) of a corridor grid, picked on the benchmark's
-#: narrow scene (docs/planning.md "Narrow passages"): 16 x 32 x 32 and 16 x 48 x 48 leave
-#: a third of the queries unrepaired, 24 x 48 x 48 and 32 x 48 x 48 need repairs, 32 x 64 x
-#: 64 none (its build, about 40 k cells with obstacles, is paid once per scene and mode).
+#: narrow scene (docs/planning.md "Narrow passages"; 37 queries, measured while the search
+#: was being tuned): 16 x 32 x 32 and 16 x 48 x 48 found no certified path for 10-11 of them,
+#: 24 x 48 x 48 and 32 x 48 x 48 needed OMPL repairs, 32 x 64 x 64 none (its build, about
+#: 40 k cells with obstacles, is paid once per scene and mode).
 DEFAULT_SHAPE = (32, 64, 64)
 #: Cells searched around a posture (Chebyshev radius) for a marked cell to attach it to.
 ATTACH_RADIUS = 2
