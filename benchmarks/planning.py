@@ -35,7 +35,12 @@ no straight-motion shortcut and paths that are *not* certified (a resolution is 
 * ``naive-tuned``: our planner settings (range, seed, simplification), so that the ratio
   isolates the validity checking.
 
-Ratios are naive time / product time over the same queries (median and mean).
+Ratios are naive time / product time over the same queries (median and mean). The product
+runs three times per scene: ``product`` (the corridor of :mod:`planner.planning.corridor` on,
+its grids kept across the scene's queries: warm after a mode's first build), ``product cold``
+(grids forgotten before every query: each pays its build) and ``product off``
+(``PlanOptions.corridor=False``: the plain search); the last column counts the plans the
+corridor produced.
 
 ``--map``: the region map in the planner (``PlanOptions.region_map`` on and off on the same
 queries): the disconnected scene (the general design 0.3/0.3/0.4 cut by joint limits into two
@@ -57,7 +62,7 @@ from _machine import print_machine
 from planner import Design
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import JointPosture, PlanOptions, ompl_backend, plan
+from planner.planning import JointPosture, PlanOptions, corridor, ompl_backend, plan
 from planner.transits import sample_transits
 from planner.validity import Margins, ValidityChecker
 
@@ -257,12 +262,25 @@ def build_mode_change_queries(
 
 
 def run_product(
-    kind: str, queries, budget: float, options: PlanOptions, design: Design | None = None
+    kind: str,
+    queries,
+    budget: float,
+    options: PlanOptions,
+    design: Design | None = None,
+    *,
+    cold: bool = False,
 ) -> dict:
+    """The product set-up on ``queries``; the corridor grids are forgotten before the scene
+    (warm: later queries of a mode reuse the grid an earlier one built) or, with ``cold``,
+    before every query (each pays its build)."""
     scene_design, obstacles, _ = build_scene(kind)
     design = scene_design if design is None else design
     times, lengths, solved, direct, transits, proven = [], [], 0, 0, [], 0
+    guided = 0
+    corridor.clear_cache()
     for start, goal in queries:
+        if cold:
+            corridor.clear_cache()
         t0 = time.perf_counter()
         res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
         times.append(time.perf_counter() - t0)
@@ -270,11 +288,12 @@ def run_product(
             solved += 1
             lengths.append(res.diagnostics.path_length)
             direct += res.diagnostics.planner == "direct"
+            guided += res.diagnostics.planner == "corridor"
             transits.append(len(res.path.transits))
         proven += res.diagnostics.proven_infeasible
     return dict(
         times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries),
-        transits=transits, proven=proven,
+        transits=transits, proven=proven, guided=guided,
     )  # fmt: skip
 
 
@@ -309,7 +328,7 @@ def _row(label: str, r: dict) -> str:
     t = np.asarray(r["times"]) * 1e3
     length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
     return (
-        f"{label:<18} {r['n']:>5} {100 * r['solved'] / r['n']:>8.1f} {r['direct']:>7} "
+        f"{label:<21} {r['n']:>5} {100 * r['solved'] / r['n']:>8.1f} {r['direct']:>7} "
         f"{np.percentile(t, 50):>9.2f} {np.percentile(t, 95):>9.2f} {t.max():>9.1f} {length:>8.3f}"
     )
 
@@ -464,7 +483,7 @@ def main() -> None:
         f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "
         f"budget={args.budget}s naive_resolution={args.naive_resolution} rad"
     )
-    header = f"{'scene / set-up':<18} {'n':>5} {'success%':>8} {'direct':>7} {'p50 ms':>9} {'p95 ms':>9} {'max ms':>9} {'len rad':>8}"
+    header = f"{'scene / set-up':<21} {'n':>5} {'success%':>8} {'direct':>7} {'p50 ms':>9} {'p95 ms':>9} {'max ms':>9} {'len rad':>8} {'corridor':>8}"
     print(header)
     print("-" * len(header))
     for kind in args.scenes.split(","):
@@ -481,19 +500,33 @@ def main() -> None:
             )
             continue
         queries = build_queries(kind, max(args.queries, args.naive_queries))
-        prod = run_product(kind, queries[: args.queries], args.budget, options)
-        print(_row(f"{kind} product", prod))
+        # the corridor (PlanOptions.corridor) on, warm (grids kept across the scene's
+        # queries) and cold (forgotten before each query), and off, side by side
+        setups = {
+            "product": run_product(kind, queries[: args.queries], args.budget, options),
+            "product cold": run_product(
+                kind, queries[: args.queries], args.budget, options, cold=True
+            ),
+            "product off": run_product(
+                kind, queries[: args.queries], args.budget, replace(options, corridor=False)
+            ),
+        }
+        for label, prod in setups.items():
+            print(_row(f"{kind} {label}", prod) + f" {prod['guided']:>8}")
         if args.naive_queries > 0:
             sub = queries[: args.naive_queries]
-            prod_sub = dict(prod, times=prod["times"][: args.naive_queries])
             for label, defaults in (("naive", True), ("naive-tuned", False)):
                 naive = run_naive(kind, sub, args.budget, args.naive_resolution, defaults)
                 print(_row(f"{kind} {label}", naive))
-                ratio50 = np.median(naive["times"]) / np.median(prod_sub["times"])
-                ratio_mean = np.mean(naive["times"]) / np.mean(prod_sub["times"])
-                print(
-                    f"{'  ratio':<18} {label}/product time: median {ratio50:.0f}x, mean {ratio_mean:.0f}x"
-                )
+                ratios = []
+                for name, prod in setups.items():
+                    t = prod["times"][: args.naive_queries]
+                    ratios.append(
+                        f"{name.removeprefix('product').strip() or 'warm'} "
+                        f"{np.median(naive['times']) / np.median(t):.0f}x"
+                        f" (mean {np.mean(naive['times']) / np.mean(t):.0f}x)"
+                    )
+                print(f"{'  ratio':<21} {label}/product, median: " + ", ".join(ratios))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,8 @@ statuses and fields are the wire vocabulary's. It plans in the start's working m
 the goal needs another mode.
 :func:`plan_with_goal_options` is the same call with MoveIt-like goal options on top (a goal
 tolerance, and the working mode preferred for a Cartesian "any" goal); it calls :func:`plan`.
+With obstacles, :mod:`planner.planning.corridor` (a coarse 3-D grid of a mode's valid set)
+guides the search through narrow passages (``PlanOptions.corridor``).
 """
 
 from planner.planning.goal_options import plan_with_goal_options

@@ -24,7 +24,7 @@ import numpy as np
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
-from planner.planning import ompl_backend
+from planner.planning import corridor, ompl_backend
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker, assembly_reason
@@ -220,7 +220,12 @@ def plan_in_region(
     The building block of :func:`plan_single_mode` and of the mode-change planner, which
     plans each segment between postures it chose (e.g. next to a transit) with its own
     checker. Start and goals must be valid for ``checker`` (not re-checked here); the
-    straight motion is tried first, then OMPL within ``options.time_budget_s`` in total.
+    straight motion is tried first, then OMPL within ``options.time_budget_s`` in total;
+    with obstacles and ``options.corridor``, the search is guided by the corridor grid of
+    the checker's valid set (:func:`planner.planning.corridor.guided_search`: a short plain
+    search first when the grid is not cached, then the grid's path, shortcut and certified;
+    ``diagnostics.planner`` is 'corridor' when it produced the path), and the plain search
+    gets what remains of the budget when the corridor finds nothing.
     ``before_search``, when given, is called once with ``q_goals`` just before the first OMPL
     search (the straight motion failed); a result it returns is the answer, no search run
     (the planner's proof that no path exists, :func:`planner.planning.modes.plan`).
@@ -241,9 +246,9 @@ def plan_in_region(
     last_status = ""
     for q_goal in q_goals:
         attempts += 1
-        waypoints, name = None, ""
+        waypoints, name, certified = None, "", False
         if options.try_direct and checker.motion_valid(q_start, q_goal):
-            waypoints, name = np.stack([q_start, q_goal]), "direct"
+            waypoints, name, certified = np.stack([q_start, q_goal]), "direct", True
         else:
             if before_search is not None:
                 answer, before_search = before_search(q_goals), None
@@ -252,16 +257,24 @@ def plan_in_region(
             budget = deadline - time.perf_counter()
             if budget <= 0:
                 break
-            searches += 1
-            outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
-            last_status = outcome.ompl_status
-            if outcome.waypoints is not None:
-                waypoints, name = outcome.waypoints, options.name
+            if options.corridor and checker.obstacles:
+                guided = corridor.guided_search(checker, q_start, q_goal, options, deadline)
+                searches += guided.searches
+                last_status = guided.ompl_status or last_status
+                waypoints, name, certified = guided.waypoints, guided.name, guided.certified
+                budget = deadline - time.perf_counter()
+            if waypoints is None and budget > 0:
+                searches += 1
+                outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
+                last_status = outcome.ompl_status
+                if outcome.waypoints is not None:
+                    waypoints, name = outcome.waypoints, options.name
         if waypoints is None:
             continue
         waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
-        # final re-certification (the straight motion was certified just above)
-        report = checker.check_path(waypoints, certify=name != "direct")
+        # final re-certification, except of motions certified just above (the straight
+        # motion; a corridor path without OMPL repairs, each motion by the motion test)
+        report = checker.check_path(waypoints, certify=not certified)
         if not report.valid:  # pragma: no cover - would be a validator bug
             logger.error(
                 "a found path failed re-certification at motion %d (%s)",

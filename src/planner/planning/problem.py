@@ -86,6 +86,11 @@ class PlanOptions:
     region_map : consult the design's region map (:mod:`planner.analysis.regions`) before
         searching: answer ``no_path`` at once where it proves that no path exists. Default
         True; False runs the search alone (tests and benchmarks compare the two).
+    corridor : with obstacles, guide the search through narrow passages by a coarse 3-D
+        grid of the valid set (:mod:`planner.planning.corridor`; built after a short plain
+        search fails, cached per scene, a heuristic whose path is certified motion by
+        motion). Default True; False runs the plain OMPL search alone. Library only: the
+        wire has no field for it.
     """
 
     name: str = "rrtconnect"
@@ -96,6 +101,7 @@ class PlanOptions:
     try_direct: bool = True
     stop_at_transits: bool = False
     region_map: bool = True
+    corridor: bool = True
 
     def __post_init__(self) -> None:
         if self.name not in PLANNERS:
