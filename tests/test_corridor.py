@@ -177,8 +177,10 @@ def test_corridor_path_alone_certifies_every_motion():
 
 def test_cut_off_goal_falls_back_and_answers_no_path_within_the_budget():
     """A closed plate: no posture of a w > 0 mode passes theta1 = 0, so start and goal lie in
-    different components of the grid; the plain search then spends the budget and the
-    answer is ``no_path`` without a path (never an uncertified one)."""
+    different components of the grid; without the region map the plain search then spends
+    the budget and the answer is ``no_path`` without a path (never an uncertified one), the
+    grid never taken for a proof; with the map, the proof with obstacles (its own bounds,
+    not the grid's marks) answers ``proven_infeasible``."""
     open_checker = ValidityChecker(NARROW, Margins(), plate(), "+", "+-+")
     pairs = crossing_pairs(open_checker, corridor.corridor_grid(open_checker), 10)
     obstacles = plate(window=False)
@@ -199,7 +201,7 @@ def test_cut_off_goal_falls_back_and_answers_no_path_within_the_budget():
         JointPosture(q_start, "+"),
         JointPosture(q_goal, "+"),
         obstacles=obstacles,
-        options=PlanOptions(time_budget_s=budget, seed=2),
+        options=PlanOptions(time_budget_s=budget, seed=2, region_map=False),
     )
     assert res.status is PlanStatus.NO_PATH
     assert res.path is None
@@ -207,6 +209,10 @@ def test_cut_off_goal_falls_back_and_answers_no_path_within_the_budget():
     assert not res.diagnostics.proven_infeasible  # the grid is a guide, never a proof
     # the budget bounds the search (loose: one OMPL call may overrun its own limit a little)
     assert res.diagnostics.planning_time_s < budget + 1.0
+    proven = plan(NARROW, JointPosture(q_start, "+"), JointPosture(q_goal, "+"),
+                  obstacles=obstacles, options=PlanOptions(time_budget_s=budget, seed=2))  # fmt: skip
+    assert proven.status is PlanStatus.NO_PATH and proven.diagnostics.proven_infeasible
+    assert proven.diagnostics.planner == "region_map"
 
 
 def test_cache_hits_for_the_same_scene_and_misses_when_an_obstacle_moves():
@@ -233,8 +239,9 @@ def test_a_build_projected_over_its_time_is_not_kept():
 
 
 def test_corridor_off_is_the_plain_search():
-    """``corridor=False``: the plain OMPL search alone (no grid built), the same answer as
-    before the corridor existed: seeded, reproducible, planner 'rrtconnect'."""
+    """``corridor=False`` (and the region map off, whose proof with obstacles would split the
+    search in a first try and the rest): the plain OMPL search alone (no grid built), the
+    same answer as before the corridor existed: seeded, reproducible, planner 'rrtconnect'."""
     obstacles = plate()
     checker = ValidityChecker(NARROW, Margins(), obstacles, "+", "+-+")
     grid = corridor.corridor_grid(checker)
@@ -246,7 +253,7 @@ def test_corridor_off_is_the_plain_search():
             JointPosture(q_start, "+"),
             JointPosture(q_goal, "+"),
             obstacles=obstacles,
-            options=PlanOptions(seed=4, corridor=False),
+            options=PlanOptions(seed=4, corridor=False, region_map=False),
         )
         for _ in range(2)
     ]

@@ -147,6 +147,25 @@ def _obstacle_proof(state: _State) -> None:
         )  # fmt: skip
 
 
+def _corridor(state: _State) -> None:
+    """The corridor of narrow passages (:mod:`planner.planning.corridor`): a small grid built
+    (scipy's labelling loaded) and a path searched on it (its A* compiled)."""
+    from planner.geometry import Box
+    from planner.planning import PlanOptions, corridor
+    from planner.validity import Margins, ValidityChecker
+
+    checker = ValidityChecker(
+        state.design, Margins(), [Box([0.0, 0.0, 0.9], [0.2, 0.2, 0.2])], "+", "+-+"
+    )
+    grid = corridor.corridor_grid(checker, (8, 16, 16))
+    marked = np.argwhere(grid.labels == grid.labels.max())
+    if len(marked) >= 2:
+        a, b = grid.centres(marked[[0, -1]])
+        corridor.corridor_path(
+            checker, grid, a, b, options=PlanOptions(), deadline=time.perf_counter() + 1.0
+        )
+
+
 def _time_plans(state: _State, method: str) -> None:
     """Time every path found as the service does: the path's own validity rules re-checked
     densely, coming to rest at the transits of the mode-change path."""
@@ -206,6 +225,7 @@ STEPS: tuple[Step, ...] = (
     Step("numba kernels: validity and clearance", _validity),
     Step("region map: the default design's", _region_map),
     Step("region map with obstacles: a wall's proof", _obstacle_proof),
+    Step("corridor: a grid and a path on it", _corridor),
     Step("OMPL: a plan around an obstacle", _plan_ompl),
     Step("OMPL: a working-mode change", _plan_mode_change),
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),

@@ -565,6 +565,7 @@ def guided_search(
     deadline: float,
     *,
     shape: tuple[int, int, int] = DEFAULT_SHAPE,
+    first_try: bool = True,
 ) -> GuidedOutcome:
     """The corridor's part of :func:`planner.planning.planner.plan_in_region` (with obstacles).
 
@@ -575,11 +576,12 @@ def guided_search(
     built, if :data:`BUILD_MIN_BUDGET_S` of the budget remains and the build is projected to
     take at most :data:`BUILD_SHARE` of it (the build counts against the budget), and the
     corridor tried. A None ``waypoints`` leaves the plain search to the
-    caller, with what remains of the budget.
+    caller, with what remains of the budget. ``first_try=False``: the caller ran the first try
+    already (and found nothing).
     """
     grid = cached_corridor_grid(checker, shape)
     searches, status = 0, ""
-    if grid is None:
+    if grid is None and first_try:
         budget = min(FIRST_TRY_S, deadline - time.perf_counter())
         if budget <= 0:
             return GuidedOutcome(None, "", 0, "", False)
@@ -587,6 +589,7 @@ def guided_search(
         searches, status = 1, first.ompl_status
         if first.waypoints is not None:
             return GuidedOutcome(first.waypoints, options.name, searches, status, False)
+    if grid is None:
         left = deadline - time.perf_counter()
         if left < BUILD_MIN_BUDGET_S:
             return GuidedOutcome(None, "", searches, status, False)

@@ -45,7 +45,8 @@ design's obstacle-free region map (:data:`PROOF_RESOLUTION` cells, cached per pr
 only while :data:`PROOF_MIN_BUDGET_S` of the budget remains); if so the answer is ``no_path``
 at once with ``diagnostics.proven_infeasible`` and a message naming the regions. Obstacles only
 remove postures, so the proof holds with them. A wall of obstacles needs theta1 too: with
-obstacles, a search that found nothing in its first :data:`OBSTACLE_PROOF_AFTER_S` asks
+obstacles, a search whose first try found nothing (single mode: the corridor's, or a short
+plain search; mode change: :data:`OBSTACLE_PROOF_AFTER_S`) asks
 :func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles` (the 3-D grid, a
 few to tens of milliseconds, so only for a plan that needs it) before it goes on with the rest
 of the budget (:meth:`_Request.obstacle_disproof`).
@@ -141,10 +142,11 @@ PROOF_RESOLUTION = 128
 #: A map not yet in the cache is built only when at least this much of the budget remains,
 #: s (a cached map is consulted whatever the budget: a look-up costs microseconds).
 PROOF_MIN_BUDGET_S = 0.1
-#: With obstacles, the search time (s) after which a search that found nothing asks the 3-D
-#: proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans among obstacles
-#: are found well within it (``benchmarks/planning.py``), and a stuck one can afford the
-#: proof's few to tens of milliseconds.
+#: With obstacles, the search time (s) after which a mode-change search that found nothing
+#: asks the 3-D proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans
+#: among obstacles are found well within it (``benchmarks/planning.py``), and a stuck one can
+#: afford the proof's few to tens of milliseconds. A single-mode search asks it after its
+#: first try (:func:`planner.planning.planner.plan_in_region`).
 OBSTACLE_PROOF_AFTER_S = 0.03
 
 _INDEX = {"axis": 0, "A": 1, "B": 2}
@@ -932,54 +934,31 @@ class _Request:
     ) -> PlanResult:
         """The single-mode plan to ``goal`` with ``share`` of the time budget; by default
         the region map's proof (:meth:`disproof`) runs just before its first OMPL search.
-        Among obstacles a search that found nothing within :data:`OBSTACLE_PROOF_AFTER_S`
-        stops there for :meth:`obstacle_disproof`, and goes on with the rest of its
-        budget when that cannot prove."""
+        Among obstacles, a first try that found nothing asks :meth:`obstacle_disproof`
+        about the goals that proof was asked about (every candidate the request allows)
+        before the rest of the budget is searched."""
         t0 = time.perf_counter()
         options = self.options
         if share != 1.0:
             options = replace(options, time_budget_s=options.time_budget_s * share)
-        hook = self.disproof if before_search is None else before_search
-        sliced = self._sliced(options)
-        if sliced is not None:
-            self.region_map()  # built (or found) outside the slice, which is for the search
 
-        def run(opts: PlanOptions, before) -> PlanResult:
-            return plan_single_mode(
-                self.design, self.start, goal, obstacles=self.obstacles,
-                margins=self.margins, options=opts, before_search=before,
-            )  # fmt: skip
+        def when_stuck(goals: np.ndarray) -> PlanResult | None:
+            asked = self._asked[-1] if self._asked else goals
+            return self.obstacle_disproof(asked, searched_s=time.perf_counter() - t0)
 
-        asked = len(self._asked)
-        first = run(sliced or options, hook)
-        if sliced is None or first.status is not PlanStatus.NO_PATH:
-            return first
-        if first.diagnostics.proven_infeasible or len(self._asked) == asked:
-            return first  # proven already, or no search ran (nothing was asked)
-        proof = self.obstacle_disproof(self._asked[-1], searched_s=time.perf_counter() - t0)
-        if proof is not None:
-            return replace(proof, diagnostics=replace(
-                proof.diagnostics, searches=first.diagnostics.searches))  # fmt: skip
-        rest = options.time_budget_s - (time.perf_counter() - t0)
-        if rest <= 0:
-            return first
-        second = run(replace(options, time_budget_s=rest), None)
-        diag = replace(
-            second.diagnostics,
-            planning_time_s=time.perf_counter() - t0,
-            searches=first.diagnostics.searches + second.diagnostics.searches,
-            attempts=first.diagnostics.attempts + second.diagnostics.attempts,
+        return plan_single_mode(
+            self.design, self.start, goal,
+            obstacles=self.obstacles, margins=self.margins, options=options,
+            before_search=self.disproof if before_search is None else before_search,
+            when_stuck=when_stuck if options.region_map else None,
+        )  # fmt: skip
+
+    def _sliced(self, options: PlanOptions) -> bool:
+        """Whether a mode change among obstacles first searches for
+        :data:`OBSTACLE_PROOF_AFTER_S` only, then asks :meth:`obstacle_disproof`."""
+        return bool(self.obstacles and options.region_map) and (
+            options.time_budget_s > 2.0 * OBSTACLE_PROOF_AFTER_S
         )
-        return replace(second, diagnostics=diag)
-
-    def _sliced(self, options: PlanOptions) -> PlanOptions | None:
-        """``options`` cut to :data:`OBSTACLE_PROOF_AFTER_S` when the 3-D proof may follow
-        (obstacles, the map on, a longer budget); None otherwise."""
-        if not (self.obstacles and options.region_map):
-            return None
-        if options.time_budget_s <= 2.0 * OBSTACLE_PROOF_AFTER_S:
-            return None
-        return replace(options, time_budget_s=OBSTACLE_PROOF_AFTER_S)
 
     def obstacle_disproof(self, goals: np.ndarray, *, searched_s: float) -> PlanResult | None:
         """``no_path`` with ``diagnostics.proven_infeasible`` when the obstacles close every
@@ -1082,8 +1061,7 @@ class _Request:
                 t0=self.t0, deadline=deadline, rmap=rmap,
             )  # fmt: skip
 
-        sliced = self._sliced(self.options) if prove else None
-        if sliced is None:
+        if not (prove and self._sliced(self.options)):
             return run(self.deadline)
         first = run(min(self.deadline, t0 + OBSTACLE_PROOF_AFTER_S))
         if first.status is not PlanStatus.NO_PATH:

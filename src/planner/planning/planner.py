@@ -17,6 +17,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from itertools import product
 
 import numpy as np
@@ -120,6 +121,7 @@ def plan_single_mode(
     margins: Margins | None = None,
     options: PlanOptions | None = None,
     before_search: BeforeSearch | None = None,
+    when_stuck: BeforeSearch | None = None,
 ) -> PlanResult:
     """Plan a valid joint path from ``start`` to ``goal`` inside the start's working mode.
 
@@ -137,6 +139,9 @@ def plan_single_mode(
     options : default :class:`PlanOptions`.
     before_search : called once with the goal candidates (K, 3) after the checks and the
         straight motion, just before the first OMPL search (see :func:`plan_in_region`).
+    when_stuck : called once with the goal candidates when a first short search (and the
+        corridor) found nothing, before the rest of the budget is searched (see
+        :func:`plan_in_region`).
 
     Returns
     -------
@@ -201,7 +206,13 @@ def plan_single_mode(
             return finish(PlanStatus.UNREACHABLE, why)
 
     return plan_in_region(
-        checker, start.q, candidates, options=options, before_search=before_search, _t0=t0
+        checker,
+        start.q,
+        candidates,
+        options=options,
+        before_search=before_search,
+        when_stuck=when_stuck,
+        _t0=t0,
     )
 
 
@@ -212,6 +223,7 @@ def plan_in_region(
     *,
     options: PlanOptions | None = None,
     before_search: BeforeSearch | None = None,
+    when_stuck: BeforeSearch | None = None,
     _t0: float | None = None,
 ) -> PlanResult:
     """Plan inside the region of a validity checker from ``q_start`` to the first reachable
@@ -229,6 +241,11 @@ def plan_in_region(
     ``before_search``, when given, is called once with ``q_goals`` just before the first OMPL
     search (the straight motion failed); a result it returns is the answer, no search run
     (the planner's proof that no path exists, :func:`planner.planning.modes.plan`).
+    ``when_stuck``, when given and the scene has obstacles, is called once with ``q_goals``
+    when the first try found nothing (the corridor, when its grid is cached; else a plain
+    search of :data:`planner.planning.corridor.FIRST_TRY_S`), before a corridor grid is built:
+    a result it returns is the answer (the proof with obstacles, which costs too much to run
+    before every search but less than a grid build), else the search goes on.
 
     Returns
     -------
@@ -257,12 +274,37 @@ def plan_in_region(
             budget = deadline - time.perf_counter()
             if budget <= 0:
                 break
-            if options.corridor and checker.obstacles:
+            # with obstacles: the corridor at once when its grid is cached; else a short
+            # first try, the proof with obstacles when it fails (cheaper than a grid
+            # build), then the corridor with a grid built now
+            guide = bool(options.corridor and checker.obstacles)
+            stuck = when_stuck is not None and bool(checker.obstacles)
+            tried = False
+            if guide and corridor.cached_corridor_grid(checker) is not None:
                 guided = corridor.guided_search(checker, q_start, q_goal, options, deadline)
                 searches += guided.searches
                 last_status = guided.ompl_status or last_status
                 waypoints, name, certified = guided.waypoints, guided.name, guided.certified
-                budget = deadline - time.perf_counter()
+                guide = False
+            elif stuck or guide:
+                searches += 1
+                first_try = min(budget, corridor.FIRST_TRY_S)
+                outcome = ompl_backend.search(checker, q_start, q_goal, options, first_try)
+                last_status, tried = outcome.ompl_status, True
+                if outcome.waypoints is not None:
+                    waypoints, name = outcome.waypoints, options.name
+            if waypoints is None and stuck:
+                answer, when_stuck = when_stuck(q_goals), None
+                if answer is not None:
+                    return replace(answer, diagnostics=replace(answer.diagnostics,
+                                                               searches=searches))  # fmt: skip
+            if waypoints is None and guide:
+                guided = corridor.guided_search(checker, q_start, q_goal, options, deadline,
+                                                first_try=not tried)  # fmt: skip
+                searches += guided.searches
+                last_status = guided.ompl_status or last_status
+                waypoints, name, certified = guided.waypoints, guided.name, guided.certified
+            budget = deadline - time.perf_counter()
             if waypoints is None and budget > 0:
                 searches += 1
                 outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
