@@ -501,9 +501,11 @@ def main() -> None:
             continue
         queries = build_queries(kind, max(args.queries, args.naive_queries))
         # the corridor (PlanOptions.corridor) on, warm (grids kept across the scene's
-        # queries) and cold (forgotten before each query), and off, side by side
+        # queries), the same queries again (every grid they need built by the first pass),
+        # cold (forgotten before each query), and off, side by side
         setups = {
             "product": run_product(kind, queries[: args.queries], args.budget, options),
+            "product again": run_product(kind, queries[: args.queries], args.budget, options),
             "product cold": run_product(
                 kind, queries[: args.queries], args.budget, options, cold=True
             ),
