@@ -42,6 +42,7 @@ CORE = (
     "planner.analysis",
     "planner.exceptions",
     "planner.constants",
+    "planner.caching",
     "planner._kernels",
     "planner.warmup",
 )

@@ -284,7 +284,8 @@ def test_no_obstacles_no_corridor():
 def test_a_stopped_build_is_remembered_and_not_retried_with_a_far_smaller_time():
     checker = ValidityChecker(NARROW, Margins(), plate(), "+", "+-+")
     assert corridor.corridor_grid(checker, (8, 16, 16), max_time_s=1e-9) is None
-    projected = corridor._TOO_COSTLY[corridor._cache_key(checker, (8, 16, 16))]
+    projected = corridor._TOO_COSTLY.get(corridor._cache_key(checker, (8, 16, 16)))
+    assert projected is not None
     assert projected > 1e-9
     calls = []
     build = corridor._build

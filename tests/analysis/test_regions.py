@@ -235,7 +235,7 @@ def test_cache_keeps_at_most_its_bytes(monkeypatch):
     keep a map larger than the budget."""
     R.clear_cache()
     a = R.region_map(Design.default(), n=64)
-    monkeypatch.setattr(R, "_CACHE_BYTES", int(1.5 * R._nbytes(a)))
+    monkeypatch.setattr(R._CACHE, "max_bytes", int(1.5 * R._nbytes(a)))
     b = R.region_map(Design.paper_optimum(), n=64)
     assert R.region_map(Design.paper_optimum(), n=64) is b
     assert R.region_map(Design.default(), n=64) is not a  # dropped for b

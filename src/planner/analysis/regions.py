@@ -75,13 +75,12 @@ through B) form the components of the *union graph*.
 from __future__ import annotations
 
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.analysis import _region_kernels as K
+from planner.caching import BoundedCache
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
@@ -284,11 +283,11 @@ def region_map(
     if not isinstance(refine, int) or isinstance(refine, bool) or not 1 <= refine <= 16:
         raise InputError(f"refine must be an integer in [1, 16], got {refine!r}")
     key = _cache_key(design, margins, n, refine)
-    hit = _cached(key)
+    hit = _CACHE.get(key)
     if hit is not None:
         return hit
     rmap = _region_map(*key)
-    _remember(key, rmap)
+    _CACHE.put(key, rmap)
     return rmap
 
 
@@ -303,7 +302,7 @@ def cached_region_map(
     otherwise (nothing is built). The planner uses it to consult a map only when it is
     free."""
     margins = Margins() if margins is None else margins
-    return _cached(_cache_key(design, margins, n, refine))
+    return _CACHE.get(_cache_key(design, margins, n, refine))
 
 
 def _cache_key(design: Design, margins: Margins, n: int, refine: int) -> tuple:
@@ -312,44 +311,19 @@ def _cache_key(design: Design, margins: Margins, n: int, refine: int) -> tuple:
     return (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
 
 
-def _cached(key: tuple) -> RegionMap | None:
-    """The cached map of ``key`` (marked most recently used), or None."""
-    with _CACHE_LOCK:
-        hit = _CACHE.get(key)
-        if hit is not None:
-            _CACHE.move_to_end(key)
-        return hit
-
-
-#: The per-process LRU cache of :func:`region_map`: key -> map, oldest first.
-_CACHE: OrderedDict[tuple, RegionMap] = OrderedDict()
-_CACHE_LOCK = threading.Lock()
-
-
 def _nbytes(rmap: RegionMap) -> int:
     """Bytes of a map's arrays."""
     return sum(v.nbytes for v in (getattr(rmap, f) for f in rmap.__slots__)
                if isinstance(v, np.ndarray))  # fmt: skip
 
 
-def _remember(key: tuple, rmap: RegionMap) -> None:
-    """Keep ``rmap`` in the cache, dropping the least recently used maps beyond its bounds."""
-    size = _nbytes(rmap)
-    if size > _CACHE_BYTES:
-        return
-    with _CACHE_LOCK:
-        _CACHE[key] = rmap
-        _CACHE.move_to_end(key)
-        total = sum(_nbytes(m) for m in _CACHE.values())
-        while len(_CACHE) > _CACHE_SIZE or total > _CACHE_BYTES:
-            _, old = _CACHE.popitem(last=False)
-            total -= _nbytes(old)
+#: The per-process LRU cache of :func:`region_map`: key -> map.
+_CACHE: BoundedCache[RegionMap] = BoundedCache(_CACHE_SIZE, _CACHE_BYTES, _nbytes)
 
 
 def clear_cache() -> None:
     """Forget every cached region map of this process."""
-    with _CACHE_LOCK:
-        _CACHE.clear()
+    _CACHE.clear()
 
 
 def _sub_trig(centres: np.ndarray, a: float, split: int) -> np.ndarray:

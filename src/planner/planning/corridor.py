@@ -34,15 +34,14 @@ only means that the planner falls back to its plain search, never that no path e
 from __future__ import annotations
 
 import logging
-import threading
 import time
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from scipy import ndimage
 
+from planner.caching import BoundedCache
 from planner.geometry import pack_obstacles
 from planner.planning import ompl_backend
 from planner.planning.problem import PlanOptions
@@ -178,21 +177,17 @@ def corridor_grid(
         grids and 64 MB: the least recently used go first).
     """
     key = _cache_key(checker, shape)
-    hit = _cached(key)
+    hit = _CACHE.get(key)
     if hit is not None:
         return hit
-    with _CACHE_LOCK:
-        projected = _TOO_COSTLY.get(key)
+    projected = _TOO_COSTLY.get(key)
     if max_time_s is not None and projected is not None and projected > 2 * max_time_s:
         return None  # a build stopped before was projected to take far longer
     grid = _build(checker, key[-1], max_time_s)
     if isinstance(grid, float):
-        with _CACHE_LOCK:
-            _TOO_COSTLY[key] = grid
-            while len(_TOO_COSTLY) > _CACHE_SIZE:
-                _TOO_COSTLY.popitem(last=False)
+        _TOO_COSTLY.put(key, grid)
         return None
-    _remember(key, grid)
+    _CACHE.put(key, grid)
     return grid
 
 
@@ -201,7 +196,7 @@ def cached_corridor_grid(
 ) -> CorridorGrid | None:
     """The grid :func:`corridor_grid` would return, if it is in this process's cache now;
     None otherwise (nothing is built)."""
-    return _cached(_cache_key(checker, shape))
+    return _CACHE.get(_cache_key(checker, shape))
 
 
 def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
@@ -268,41 +263,17 @@ def _build(
     return CorridorGrid(shape, lo, step, valid, labels, weight, time.perf_counter() - t0)
 
 
-def _cached(key: tuple) -> CorridorGrid | None:
-    """The cached grid of ``key`` (marked most recently used), or None."""
-    with _CACHE_LOCK:
-        hit = _CACHE.get(key)
-        if hit is not None:
-            _CACHE.move_to_end(key)
-        return hit
-
-
-#: The per-process LRU cache of :func:`corridor_grid`: key -> grid, oldest first.
-_CACHE: OrderedDict[tuple, CorridorGrid] = OrderedDict()
-_CACHE_LOCK = threading.Lock()
-#: Keys whose build was stopped, with its projected time (s), oldest first.
-_TOO_COSTLY: OrderedDict[tuple, float] = OrderedDict()
-
-
-def _remember(key: tuple, grid: CorridorGrid) -> None:
-    """Keep ``grid`` in the cache, dropping the least recently used grids beyond its bounds."""
-    if grid.nbytes > _CACHE_BYTES:
-        return
-    with _CACHE_LOCK:
-        _CACHE[key] = grid
-        _CACHE.move_to_end(key)
-        total = sum(g.nbytes for g in _CACHE.values())
-        while len(_CACHE) > _CACHE_SIZE or total > _CACHE_BYTES:
-            _, old = _CACHE.popitem(last=False)
-            total -= old.nbytes
+#: The per-process LRU cache of :func:`corridor_grid`: key -> grid.
+_CACHE: BoundedCache[CorridorGrid] = BoundedCache(_CACHE_SIZE, _CACHE_BYTES, lambda g: g.nbytes)
+#: Keys whose build was stopped, with its projected time (s) (bounded in entries only).
+_TOO_COSTLY: BoundedCache[float] = BoundedCache(_CACHE_SIZE, 0, lambda _: 0)
 
 
 def clear_cache() -> None:
     """Forget every cached corridor grid of this process (and every stopped build's
     projection)."""
-    with _CACHE_LOCK:
-        _CACHE.clear()
-        _TOO_COSTLY.clear()
+    _CACHE.clear()
+    _TOO_COSTLY.clear()
 
 
 # ----------------------------------------------------------------------------- the search
