@@ -516,10 +516,10 @@ def _astar(valid, weight, n1, n2, n3, step, source, target, greed):  # pragma: n
 
 @dataclass(frozen=True, slots=True)
 class GuidedOutcome:
-    """What :func:`guided_search` did: ``waypoints`` (N, 3) rad or None; ``name``: who found
-    them ('corridor', or the OMPL planner's name for the first try); ``searches``: OMPL
-    searches run (first try and repairs); ``ompl_status``: the first try's OMPL status;
-    ``certified``: every motion was certified here by the motion test (no OMPL repair)."""
+    """What :func:`guided_search` did: ``waypoints`` (N, 3) rad or None; ``name``:
+    'corridor' when it found them; ``searches``: OMPL searches run (repairs); ``ompl_status``
+    (empty: the corridor runs no search of its own); ``certified``: every motion was
+    certified here by the motion test (no OMPL repair)."""
 
     waypoints: np.ndarray | None
     name: str
@@ -536,43 +536,32 @@ def guided_search(
     deadline: float,
     *,
     shape: tuple[int, int, int] = DEFAULT_SHAPE,
-    first_try: bool = True,
 ) -> GuidedOutcome:
     """The corridor's part of :func:`planner.planning.planner.plan_in_region` (with obstacles).
 
     Policy (measured on ``benchmarks/planning.py``, docs/planning.md "Narrow passages"): when
     the checker's grid is cached, the corridor is tried at once (a warm grid costs a look-up);
-    otherwise the plain OMPL search runs first for :data:`FIRST_TRY_S` (most queries of open
-    scenes end there, and they must not pay a build), and only when it fails is the grid
-    built, if :data:`BUILD_MIN_BUDGET_S` of the budget remains and the build is projected to
+    otherwise the caller has run a plain OMPL search of :data:`FIRST_TRY_S` first (most
+    queries of open scenes end there, and they must not pay a build), and the grid is built
+    here if :data:`BUILD_MIN_BUDGET_S` of the budget remains and the build is projected to
     take at most :data:`BUILD_SHARE` of it (the build counts against the budget), and the
-    corridor tried. A None ``waypoints`` leaves the plain search to the
-    caller, with what remains of the budget. ``first_try=False``: the caller ran the first try
-    already (and found nothing).
+    corridor tried. A None ``waypoints`` leaves the plain search to the caller, with what
+    remains of the budget.
     """
     grid = cached_corridor_grid(checker, shape)
-    searches, status = 0, ""
-    if grid is None and first_try:
-        budget = min(FIRST_TRY_S, deadline - time.perf_counter())
-        if budget <= 0:
-            return GuidedOutcome(None, "", 0, "", False)
-        first = ompl_backend.search(checker, q_start, q_goal, options, budget)
-        searches, status = 1, first.ompl_status
-        if first.waypoints is not None:
-            return GuidedOutcome(first.waypoints, options.name, searches, status, False)
     if grid is None:
         left = deadline - time.perf_counter()
         if left < BUILD_MIN_BUDGET_S:
-            return GuidedOutcome(None, "", searches, status, False)
+            return GuidedOutcome(None, "", 0, "", False)
         grid = corridor_grid(checker, shape, max_time_s=BUILD_SHARE * left)
         if grid is None:
-            return GuidedOutcome(None, "", searches, status, False)
+            return GuidedOutcome(None, "", 0, "", False)
     out = corridor_path(checker, grid, q_start, q_goal, options=options, deadline=deadline)
     logger.debug("corridor: %d cells, %d repairs, %s", out.cells, out.repairs, out.why or "found")
     return GuidedOutcome(
         out.waypoints,
         "corridor" if out.waypoints is not None else "",
-        searches + out.repairs,
-        status,
+        out.repairs,
+        "",
         out.waypoints is not None and out.repairs == 0,
     )

@@ -234,8 +234,8 @@ def plan_in_region(
     checker. Start and goals must be valid for ``checker`` (not re-checked here); the
     straight motion is tried first, then OMPL within ``options.time_budget_s`` in total;
     with obstacles and ``options.corridor``, the search is guided by the corridor grid of
-    the checker's valid set (:func:`planner.planning.corridor.guided_search`: a short plain
-    search first when the grid is not cached, then the grid's path, shortcut and certified;
+    the checker's valid set (a short plain search here first when the grid is not cached,
+    then :func:`planner.planning.corridor.guided_search`: the grid's path, shortcut and certified;
     ``diagnostics.planner`` is 'corridor' when it produced the path), and the plain search
     gets what remains of the budget when the corridor finds nothing.
     ``before_search``, when given, is called once with ``q_goals`` just before the first OMPL
@@ -279,7 +279,6 @@ def plan_in_region(
             # build), then the corridor with a grid built now
             guide = bool(options.corridor and checker.obstacles)
             stuck = when_stuck is not None and bool(checker.obstacles)
-            tried = False
             if guide and corridor.cached_corridor_grid(checker) is not None:
                 guided = corridor.guided_search(checker, q_start, q_goal, options, deadline)
                 searches += guided.searches
@@ -290,7 +289,7 @@ def plan_in_region(
                 searches += 1
                 first_try = min(budget, corridor.FIRST_TRY_S)
                 outcome = ompl_backend.search(checker, q_start, q_goal, options, first_try)
-                last_status, tried = outcome.ompl_status, True
+                last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
             if waypoints is None and stuck:
@@ -299,8 +298,7 @@ def plan_in_region(
                     return replace(answer, diagnostics=replace(answer.diagnostics,
                                                                searches=searches))  # fmt: skip
             if waypoints is None and guide:
-                guided = corridor.guided_search(checker, q_start, q_goal, options, deadline,
-                                                first_try=not tried)  # fmt: skip
+                guided = corridor.guided_search(checker, q_start, q_goal, options, deadline)
                 searches += guided.searches
                 last_status = guided.ompl_status or last_status
                 waypoints, name, certified = guided.waypoints, guided.name, guided.certified
