@@ -124,12 +124,13 @@ def test_wall_gives_no_path_within_budget():
 
 def test_wall_is_proven_by_the_region_map_with_obstacles():
     """With the map the first search slice finds nothing, and the 3-D grid proves the wall:
-    ``no_path`` with ``proven_infeasible``, one short search, the grid named."""
+    ``no_path`` with ``proven_infeasible``, at most the first try searched (none when this
+    scene's corridor grid is cached already and tried first), the grid named."""
     res = plan(WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL,
                options=PlanOptions(time_budget_s=5.0))  # fmt: skip
     assert res.status is PlanStatus.NO_PATH and res.path is None
     assert res.diagnostics.proven_infeasible and res.diagnostics.planner == "region_map"
-    assert res.diagnostics.searches == 1
+    assert res.diagnostics.searches <= 1
     assert res.message.startswith("no valid path exists (proven by the region map with obstacles")
     assert "cells over (theta1, theta3, theta2)" in res.message
 
