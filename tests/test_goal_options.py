@@ -19,7 +19,7 @@ from planner.planning import (
     plan,
     plan_with_goal_options,
 )
-from planner.planning.goal_options import goal_alternatives
+from planner.planning.tolerance import goal_alternatives
 
 START = JointPosture([-0.2187, 2.8609, 0.2807], "+")
 

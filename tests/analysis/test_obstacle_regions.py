@@ -14,6 +14,7 @@ import pytest
 
 from planner.analysis import obstacle_regions as O
 from planner.analysis import regions as R
+from planner.analysis.apex_bounds import point_sets
 from planner.design import Design
 from planner.geometry import Box, Capsule, Sphere
 from planner.kinematics import WORKING_MODES, forward_batch
@@ -57,7 +58,7 @@ def _in_cells(rmap: R.RegionMap, k3: np.ndarray, k2: np.ndarray, rng) -> np.ndar
 def test_point_sets_hold_p_and_the_distal_midpoints(design: Design, asm: str) -> None:
     margins = Margins()
     rmap = R.region_map(design, margins, 32)
-    sets = O.point_sets(design, margins, rmap, asm)
+    sets = point_sets(design, margins, rmap, asm)
     rng = np.random.default_rng(4)
     k3, k2 = np.nonzero(np.isfinite(sets[..., 0, 0]))
     pick = rng.integers(len(k3), size=6000)

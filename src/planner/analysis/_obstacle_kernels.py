@@ -126,12 +126,14 @@ def flood_reaches(
     boxes,
     limit,
     start,
-    goals,
+    goal,
+    guide,
     visits,
 ):  # pragma: no cover - compiled
     """Flood of the passable cells from ``start`` (i1, k3, k2) through 26-neighbours, nearest
-    to the goals first; 1 as soon as a cell of ``goals`` (G, 3) is reached, 0 when the
-    start's component holds none.
+    to the cells of ``guide`` (G, 3) first; 1 as soon as a cell where ``goal`` (n1, n3, n2)
+    bool is set is reached, 0 when the start's component holds none. ``guide`` only orders
+    the flood (a few goal cells; its length costs time per cell pushed), ``goal`` decides.
 
     A cell (i1, k3, k2) is passable when ``mask[k3, k2]`` (the obstacle-free map allows it),
     neither proximal link is blocked (``blocked_a[i1, k2]``, ``blocked_b[i1, k3]``) and no
@@ -142,9 +144,6 @@ def flood_reaches(
     n1, n3, n2 = theta1.shape[0], mask.shape[0], mask.shape[1]
     # 0 unknown, 1 passable (queued), 2 not passable
     state = np.zeros((n1, n3, n2), dtype=np.uint8)
-    goal = np.zeros((n1, n3, n2), dtype=np.bool_)
-    for g in range(goals.shape[0]):
-        goal[goals[g, 0], goals[g, 1], goals[g, 2]] = True
     cos1 = np.cos(theta1)
     sin1 = np.sin(theta1)
     # a binary heap of (distance in cells to the nearest goal, cell): the flood dives towards
@@ -178,7 +177,7 @@ def flood_reaches(
     if goal[i, j, k]:
         visits[0] = met
         return 1
-    size = _push(key, cell, size, _to_goals(goals, i, j, k), i, j, k)
+    size = _push(key, cell, size, _to_goals(guide, i, j, k), i, j, k)
     while size > 0:
         ci, cj, ck = cell[0, 0], cell[0, 1], cell[0, 2]
         size = _pop(key, cell, size)
@@ -217,17 +216,17 @@ def flood_reaches(
                     if goal[i, j, k]:
                         visits[0] = met
                         return 1
-                    size = _push(key, cell, size, _to_goals(goals, i, j, k), i, j, k)
+                    size = _push(key, cell, size, _to_goals(guide, i, j, k), i, j, k)
     visits[0] = met
     return 0
 
 
 @njit(cache=True, inline="always")
-def _to_goals(goals, i, j, k):  # pragma: no cover - compiled
-    """Chebyshev distance in cells from (i, j, k) to the nearest goal cell."""
+def _to_goals(guide, i, j, k):  # pragma: no cover - compiled
+    """Chebyshev distance in cells from (i, j, k) to the nearest cell of ``guide``."""
     best = 1 << 30
-    for g in range(goals.shape[0]):
-        d = max(abs(goals[g, 0] - i), max(abs(goals[g, 1] - j), abs(goals[g, 2] - k)))
+    for g in range(guide.shape[0]):
+        d = max(abs(guide[g, 0] - i), max(abs(guide[g, 1] - j), abs(guide[g, 2] - k)))
         best = min(best, d)
     return best
 

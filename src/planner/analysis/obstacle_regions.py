@@ -73,6 +73,9 @@ import numpy as np
 
 from planner.analysis import _obstacle_kernels as K
 from planner.analysis import regions as R
+from planner.analysis.apex_bounds import REL_SLACK as _REL_SLACK
+from planner.analysis.apex_bounds import point_sets
+from planner.analysis.goal_cells import GoalBall, grid_cells
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.geometry import Obstacle, pack_obstacles
@@ -86,7 +89,6 @@ __all__ = [
     "PASSABLE",
     "ObstacleProof",
     "cell_states",
-    "point_sets",
     "prove_disconnected_with_obstacles",
     "proximal_tables",
     "theta1_grid",
@@ -96,7 +98,8 @@ __all__ = [
 #: narrower walls): (cells per axis of (theta2, theta3), the obstacle-free map at this
 #: resolution; widest theta1 cell in rad, n1 = ceil(range / width), 8 .. 256 cells).
 LEVELS: tuple[tuple[int, float], ...] = ((32, 0.08), (64, 0.04))
-_REL_SLACK = 1e-9
+#: Goal cells of a goal ball that order the flood (:func:`_prove_on`), at most about.
+_GUIDE_CELLS = 32
 #: Lowered limit, m: computed signed depths are accurate to far less.
 _DIST_SLACK = 1e-6
 
@@ -144,62 +147,6 @@ def proximal_tables(
     return out[0], out[1]
 
 
-def _interval_product(a0, a1, b0, b1):
-    p = np.stack([a0 * b0, a0 * b1, a1 * b0, a1 * b1])
-    return p.min(axis=0), p.max(axis=0)
-
-
-def point_sets(
-    design: Design, margins: Margins, rmap: R.RegionMap, assembly_mode: str
-) -> np.ndarray:
-    """Shape (n, n, 3, 4) [k3, k2]: planar rectangles (u_lo, u_hi, w_lo, w_hi) of the loop's
-    plane holding P, the midpoint of C-P and the midpoint of D-P at every posture of the
-    2-D cell inside the kappa(A) band (NaN where no posture of the cell is in the band)."""
-    L0, L1, L2 = design.L0, design.L1, design.L2
-    a2 = 0.5 * rmap.h2 * (1.0 + _REL_SLACK)
-    a3 = 0.5 * rmap.h3 * (1.0 + _REL_SLACK)
-    t3, t2 = np.meshgrid(rmap.theta3, rmap.theta2, indexing="ij")
-    c2, s2, c3, s3 = np.cos(t2), np.sin(t2), np.cos(t3), np.sin(t3)
-    cu, cw = -0.5 * L0 + L1 * c2, L1 * s2
-    du, dw = 0.5 * L0 + L1 * c3, L1 * s3
-    rc, rd, re = L1 * a2, L1 * a3, L1 * (a2 + a3)
-    eu, ew = du - cu, dw - cw
-    d = np.hypot(eu, ew)
-    lo, hi = margins.cd_range
-    d_lo = np.maximum(d - re, 2.0 * L2 * lo)
-    d_hi = np.minimum(d + re, 2.0 * L2 * hi)
-    inside = d_lo <= d_hi
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g_lo = np.sqrt(np.maximum(L2 * L2 / (d_hi * d_hi) - 0.25, 0.0))
-        g_hi = np.sqrt(np.maximum(L2 * L2 / (d_lo * d_lo) - 0.25, 0.0))
-    s = 1.0 if assembly_mode == "+" else -1.0
-    # P = (C + D) / 2 + s g (-e_w, e_u)
-    gw0, gw1 = _interval_product(g_lo, g_hi, ew - re, ew + re)
-    gu0, gu1 = _interval_product(g_lo, g_hi, eu - re, eu + re)
-    mu, mw = 0.5 * (cu + du), 0.5 * (cw + dw)
-    half = 0.5 * (rc + rd)
-    if s > 0:
-        pu0, pu1 = mu - half - gw1, mu + half - gw0
-        pw0, pw1 = mw - half + gu0, mw + half + gu1
-    else:
-        pu0, pu1 = mu - half + gw0, mu + half + gw1
-        pw0, pw1 = mw - half - gu1, mw + half - gu0
-    out = np.full((*t2.shape, 3, 4), np.nan)
-    out[..., 0, :] = np.stack([pu0, pu1, pw0, pw1], axis=-1)
-    for m, (xu, xw, r) in enumerate(((cu, cw, rc), (du, dw, rd)), start=1):
-        out[..., m, :] = np.stack(
-            [
-                0.5 * (xu - r + pu0),
-                0.5 * (xu + r + pu1),
-                0.5 * (xw - r + pw0),
-                0.5 * (xw + r + pw1),
-            ],
-            axis=-1,
-        )
-    out[~inside] = np.nan
-    return out
-
-
 def _mask(rmap: R.RegionMap, ai: int, components: set[int]) -> np.ndarray:
     """(n, n) bool [k3, k2]: the 2-D cells a path from a start in ``components`` may use."""
     mask = np.zeros((rmap.n, rmap.n), dtype=np.bool_)
@@ -238,11 +185,16 @@ def prove_disconnected_with_obstacles(
     assembly_mode: str,
     *,
     levels: Sequence[tuple[int, float]] = LEVELS,
+    goal_ball: GoalBall | None = None,
 ) -> ObstacleProof:
     """Whether no valid path (mode changes through serial transits included) joins
     ``start_q`` to any of ``goal_q`` (3,) or (K, 3) in ``assembly_mode`` among
     ``obstacles``, proven on a 3-D grid of :data:`LEVELS` (the argument is the module's
     docstring); the grids are tried coarse first, up to the first proof.
+
+    ``goal_ball``: every goal a tolerance request allows; the proof then covers every cell
+    that may hold one of them (:func:`planner.analysis.goal_cells.grid_cells`) as well as
+    ``goal_q`` (which may then be empty, shape (0, 3)).
 
     ``proven`` is False where no grid can prove it (a path may exist; or the start or a
     goal lies outside the joint box or in a cell that no valid posture can be in).
@@ -251,11 +203,15 @@ def prove_disconnected_with_obstacles(
         raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
     start_q = np.asarray(start_q, dtype=float).reshape(3)
     goals = np.atleast_2d(np.asarray(goal_q, dtype=float))
-    if goals.ndim != 2 or goals.shape[1] != 3 or len(goals) == 0:
+    if goals.size == 0 and goal_ball is not None:
+        goals = np.empty((0, 3))
+    if goals.ndim != 2 or goals.shape[1] != 3 or (len(goals) == 0 and goal_ball is None):
         raise InputError(f"goal_q must have shape (3,) or (K, 3), got {np.shape(goal_q)}")
     answer = ObstacleProof(False, (0, 0, 0), 0)
     for n, width in levels:
-        answer = _prove_on(design, margins, obstacles, start_q, goals, assembly_mode, n, width)
+        answer = _prove_on(
+            design, margins, obstacles, start_q, goals, assembly_mode, n, width, goal_ball
+        )
         if answer.proven:
             break
     return answer
@@ -318,7 +274,9 @@ def cell_states(
     return out, grid.theta1, rmap
 
 
-def _prove_on(design, margins, obstacles, start_q, goals, assembly_mode, n, width) -> ObstacleProof:
+def _prove_on(
+    design, margins, obstacles, start_q, goals, assembly_mode, n, width, goal_ball=None
+) -> ObstacleProof:
     """The proof on one level's grid."""
     rmap = R.region_map(design, margins, n)
     theta1, h1 = theta1_grid(design, width)
@@ -339,12 +297,21 @@ def _prove_on(design, margins, obstacles, start_q, goals, assembly_mode, n, widt
         if cell is None or not _passable(grid, packed, cell):
             return no
         targets.append(cell)
-    if not targets:
+    goal = np.zeros(shape, dtype=np.bool_)
+    for cell in targets:
+        goal[cell] = True
+    if goal_ball is not None:
+        goal |= grid_cells(goal_ball, rmap, assembly_mode, components, theta1, h1)
+    if not goal.any():
         return ObstacleProof(True, shape, 0)
+    # the flood dives towards a few goal cells first (the order only; ``goal`` decides)
+    cells = np.argwhere(goal)
+    guide = np.vstack([np.asarray(targets, dtype=np.int64).reshape(-1, 3),
+                       cells[:: max(1, len(cells) // _GUIDE_CELLS)]])  # fmt: skip
     visits = np.zeros(1, dtype=np.int64)
     reached = K.flood_reaches(
         grid.mask, grid.blocked_a, grid.blocked_b, grid.sets, theta1,
         0.5 * h1 * (1.0 + _REL_SLACK), *packed, grid.limit,
-        np.asarray(start_cell, dtype=np.int64), np.asarray(targets, dtype=np.int64), visits,
+        np.asarray(start_cell, dtype=np.int64), goal, guide.astype(np.int64), visits,
     )  # fmt: skip
     return ObstacleProof(reached == 0, shape, int(visits[0]))

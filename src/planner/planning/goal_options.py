@@ -18,10 +18,11 @@ user gets the same options without the service.
   the candidates, the choice is never worse than "shortest" in that measure.
 
 ``tolerance`` (m for a Cartesian target, rad for a joint goal; 0 = exact): the exact goal is
-planned first; when it is answered ``invalid_goal``, ``unreachable`` or ``no_path``, goals
-within the tolerance are tried in turn (:func:`goal_alternatives`: towards the start first,
-then along the axes), and the first solved one is the answer, its message saying how far
-from the asked goal the path ends.
+planned first; when it is answered ``invalid_goal``, ``unreachable`` or ``no_path``, every goal
+within the tolerance is searched as a set, and a proof is claimed only when it covers that
+whole set (:func:`planner.planning.tolerance.plan_within_tolerance`). ``prefer`` chooses among
+the exact goal's working modes; a goal found within the tolerance is the first path the set
+search finds (its message names the mode and the distance from the asked goal).
 """
 
 from __future__ import annotations
@@ -36,44 +37,38 @@ import numpy as np
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.geometry import Obstacle
-from planner.kinematics import WORKING_MODES, Manipulator, forward_batch
+from planner.kinematics import WORKING_MODES, Manipulator
 from planner.planning.preference import PREFERENCES, choose_plan
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import PlanResult
+from planner.planning.tolerance import plan_within_tolerance
 from planner.validity import Margins
 
-__all__ = ["RETRIED_STATUSES", "goal_alternatives", "plan_with_goal_options"]
+__all__ = ["RETRIED_STATUSES", "plan_with_goal_options"]
 
 #: Statuses of the exact goal after which the goals within ``goal.tolerance`` are tried.
 RETRIED_STATUSES = frozenset({"invalid_goal", "unreachable", "no_path"})
-#: Alternatives are placed this much inside the tolerance (a rounding must not leave it).
-_INSIDE = 1.0 - 1e-9
 #: Time kept back from the searches for timing and answering before the deadline, s.
 _RESERVE_S = 0.25
 
 
-def goal_alternatives(goal: np.ndarray, towards: np.ndarray, tolerance: float) -> np.ndarray:
-    """Goals within ``tolerance`` (Euclidean) of ``goal`` (3,), in the order they are tried:
-    towards ``towards`` (the start's P or q) at the full tolerance and at half of it, then
-    +-x, +-y, +-z (+-theta1.. for joints) at the full tolerance. Shape (K, 3)."""
-    goal = np.asarray(goal, dtype=float)
-    r = tolerance * _INSIDE
-    d = np.asarray(towards, dtype=float) - goal
-    out = []
-    n = float(np.linalg.norm(d))
-    if n > 0.0:
-        u = d / n
-        out += [goal + min(r, n) * u, goal + min(0.5 * r, n) * u]
-    for axis in range(3):
-        for sign in (1.0, -1.0):
-            e = np.zeros(3)
-            e[axis] = sign * r
-            out.append(goal + e)
-    return np.asarray(out)
-
-
 def _left(deadline: float | None) -> float:
     return np.inf if deadline is None else deadline - time.monotonic() - _RESERVE_S
+
+
+def _unclaimed(result: PlanResult, tolerance: float) -> PlanResult:
+    """``result`` without a proof that covers the exact goal only (the deadline left no
+    time to search or prove the rest of the tolerance)."""
+    if not result.diagnostics.proven_infeasible:
+        return result
+    return replace(
+        result,
+        message=(
+            f"{result.message.rstrip('.')}; the deadline left no time for the other goals "
+            f"within goal.tolerance = {tolerance:g}, so no proof is claimed"
+        ),
+        diagnostics=replace(result.diagnostics, proven_infeasible=False),
+    )
 
 
 def _goal_mode(result: PlanResult) -> str:
@@ -178,40 +173,19 @@ def plan_with_goal_options(
         raise InputError(
             f"tolerance must be a finite number >= 0, got {tolerance!r}", field="tolerance"
         )
+    t0 = time.perf_counter()
     options = options or PlanOptions()
     problem = _Problem(design, start, obstacles, margins)
     result, note = _plan_preferring(problem, goal, prefer, options, deadline)
-    if tolerance > 0.0 and result.status.value in RETRIED_STATUSES:
-        cartesian = isinstance(goal, CartesianTarget)
-        if cartesian:
-            fb = forward_batch(design, start.q, start.assembly_mode)
-            towards = fb.p[0] if fb.ok[0] else goal.p
-            anchor = goal.p
-        else:
-            towards, anchor = start.q, goal.q
-        alternatives = goal_alternatives(anchor, towards, tolerance)
-        share = options.time_budget_s / len(alternatives)
-        for alt in alternatives:
-            if _left(deadline) <= 0.01:
-                break
-            target = (
-                CartesianTarget(alt, goal.working_mode)
-                if cartesian
-                else JointPosture(alt, goal.assembly_mode)
-            )
-            res, alt_note = _plan_preferring(
-                problem, target, prefer, _with_budget(options, share, deadline), deadline
-            )
-            if res.solved:
-                unit, field = ("m", "goal.p") if cartesian else ("rad", "goal.q")
-                dist = float(np.linalg.norm(alt - anchor))
-                why = result.message.rstrip(".")
-                within = (
-                    f"the path ends {dist:.3g} {unit} from {field}, within goal.tolerance = "
-                    f"{tolerance:g} {unit} (the exact goal: {result.status.value}: {why})"
-                )
-                result, note = res, "; ".join(x for x in (within, alt_note) if x)
-                break
+    if tolerance > 0.0 and result.status.value in RETRIED_STATUSES and _left(deadline) > 0.01:
+        result = plan_within_tolerance(
+            design, start, goal, tolerance, result, obstacles=obstacles, margins=margins,
+            options=_with_budget(options, options.time_budget_s, deadline), t0=t0,
+        )  # fmt: skip
+        note = ""
+    elif tolerance > 0.0 and result.status.value in RETRIED_STATUSES:
+        # no time left for the set: the exact goal's proof covers its point only
+        result = _unclaimed(result, tolerance)
     if note:
         result = replace(result, message="; ".join(x for x in (result.message, note) if x))
     return result

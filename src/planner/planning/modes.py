@@ -104,6 +104,7 @@ __all__ = [
     "path_state_checker",
     "plan",
     "plan_mode_change",
+    "proof_region_map",
     "region_walks",
     "walk_possible",
 ]
@@ -1002,12 +1003,7 @@ class _Request:
         """The design's obstacle-free region map at :data:`PROOF_RESOLUTION`, when it is
         cheap now: cached, or built while at least :data:`PROOF_MIN_BUDGET_S` of the budget
         remains; None otherwise, or when ``options.region_map`` is off."""
-        if not self.options.region_map:
-            return None
-        rmap = region_maps.cached_region_map(self.design, self.margins, PROOF_RESOLUTION)
-        if rmap is None and self.deadline - time.perf_counter() >= PROOF_MIN_BUDGET_S:
-            rmap = region_maps.region_map(self.design, self.margins, PROOF_RESOLUTION)
-        return rmap
+        return proof_region_map(self.design, self.margins, self.options, self.deadline)
 
     def disproof(self, goals: np.ndarray) -> PlanResult | None:
         """``no_path`` with ``diagnostics.proven_infeasible`` when the region map proves that
@@ -1204,6 +1200,21 @@ def _shorter_through_transits(
         return other
     planning_time_s = time.perf_counter() - request.t0
     return replace(first, diagnostics=replace(first.diagnostics, planning_time_s=planning_time_s))
+
+
+def proof_region_map(
+    design: Design, margins: Margins, options: PlanOptions, deadline: float
+) -> region_maps.RegionMap | None:
+    """The design's obstacle-free region map at :data:`PROOF_RESOLUTION` for a proof, when it
+    is cheap now: cached, or built while at least :data:`PROOF_MIN_BUDGET_S` remains before
+    ``deadline`` (a :func:`time.perf_counter` value); None otherwise, or when
+    ``options.region_map`` is off."""
+    if not options.region_map:
+        return None
+    rmap = region_maps.cached_region_map(design, margins, PROOF_RESOLUTION)
+    if rmap is None and deadline - time.perf_counter() >= PROOF_MIN_BUDGET_S:
+        rmap = region_maps.region_map(design, margins, PROOF_RESOLUTION)
+    return rmap
 
 
 def _disproof_message(rmap: region_maps.RegionMap, start: JointPosture, goals: np.ndarray) -> str:

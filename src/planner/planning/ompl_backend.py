@@ -87,7 +87,9 @@ def search(
     naive_resolution: float | None = None,
     naive_defaults: bool = False,
 ) -> SearchOutcome:
-    """Plan from ``q_start`` to ``q_goal`` (3,) rad inside the checker's region with OMPL.
+    """Plan from ``q_start`` to ``q_goal`` (3,) rad inside the checker's region with OMPL;
+    ``q_goal`` (K, 3) is a set of goal postures (OMPL's ``GoalStates``: the path ends at one
+    of them, whichever the search meets first).
 
     Parameters
     ----------
@@ -125,12 +127,26 @@ def search(
         si.setStateValidityCheckingResolution(naive_resolution / space.getMaximumExtent())
     si.setup()
     _seed(options.seed)
-    start, goal = space.allocState(), space.allocState()
+    goals_q = np.asarray(q_goal, dtype=float).reshape(-1, 3)
+    start = space.allocState()
     for i in range(3):
         start[i] = float(q_start[i])
-        goal[i] = float(q_goal[i])
     pdef = ob.ProblemDefinition(si)
-    pdef.setStartAndGoalStates(start, goal)
+    goal_set = None
+    if len(goals_q) == 1:
+        goal = space.allocState()
+        for i in range(3):
+            goal[i] = float(goals_q[0, i])
+        pdef.setStartAndGoalStates(start, goal)
+    else:
+        pdef.addStartState(start)
+        goal_set = ob.GoalStates(si)
+        for g in goals_q:
+            goal = space.allocState()
+            for i in range(3):
+                goal[i] = float(g[i])
+            goal_set.addState(goal)
+        pdef.setGoal(goal_set)
     planner = _FACTORIES[options.name](si)
     if options.name in _WITH_RANGE and not (naive_defaults and options.range is None):
         planner.setRange(options.range if options.range is not None else DEFAULT_RANGE)
@@ -162,7 +178,7 @@ def search(
         del path
     ompl_status = str(status)
     # drop OMPL objects in a safe order (planner, problem, validator, space information)
-    del planner, pdef, start, goal, validator, si, space, bounds
+    del planner, pdef, start, goal, goal_set, validator, si, space, bounds
     return SearchOutcome(waypoints, exact, ompl_status, simplified)
 
 

@@ -30,7 +30,14 @@ from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker, assembly_reason
 
-__all__ = ["goal_candidates", "plan_in_region", "plan_single_mode", "posture_mode"]
+__all__ = [
+    "goal_candidates",
+    "joint_shifts",
+    "plan_in_region",
+    "plan_single_mode",
+    "plan_to_goal_set",
+    "posture_mode",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -47,6 +54,18 @@ def posture_mode(design: Design, posture: JointPosture) -> str | None:
         return None
     label = mode_label(fb.working_mode_signs[0])
     return label if label in WORKING_MODES else None
+
+
+def joint_shifts(design: Design, q: np.ndarray) -> np.ndarray:
+    """Every posture q + 2 pi k (k integer per joint) inside the design's joint limits, (S, 3)
+    (S may be 0): the same posture of the robot reached with other joint values."""
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    shifts = []
+    for j in range(3):
+        k_lo = math.ceil((lo[j] - q[j]) / (2 * math.pi) - 1e-12)
+        k_hi = math.floor((hi[j] - q[j]) / (2 * math.pi) + 1e-12)
+        shifts.append([q[j] + 2 * math.pi * k for k in range(k_lo, k_hi + 1)])
+    return np.array(list(product(*shifts)), dtype=float).reshape(-1, 3)
 
 
 def goal_candidates(
@@ -80,13 +99,7 @@ def goal_candidates(
             f"in working mode {mode} the goal point is only reached in assembly mode "
             f"{'+' if asm > 0 else '-'}, not the start's {checker.assembly_mode}"
         )
-    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
-    shifts = []
-    for j in range(3):
-        k_lo = math.ceil((lo[j] - q[j]) / (2 * math.pi) - 1e-12)
-        k_hi = math.floor((hi[j] - q[j]) / (2 * math.pi) + 1e-12)
-        shifts.append([q[j] + 2 * math.pi * k for k in range(k_lo, k_hi + 1)])
-    cands = np.array(list(product(*shifts)), dtype=float).reshape(-1, 3)
+    cands = joint_shifts(design, q)
     if len(cands) == 0:
         return (
             cands,
@@ -257,7 +270,6 @@ def plan_in_region(
     options = options if options is not None else PlanOptions()
     q_start = np.array(q_start, dtype=float)
     q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
-    mode, asm = checker.working_mode, checker.assembly_mode
     deadline = time.perf_counter() + options.time_budget_s
     attempts = searches = 0
     last_status = ""
@@ -312,34 +324,53 @@ def plan_in_region(
         if waypoints is None:
             continue
         waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
-        # final re-certification, except of motions certified just above (the straight
-        # motion; a corridor path without OMPL repairs, each motion by the motion test)
-        report = checker.check_path(waypoints, certify=not certified)
-        if not report.valid:  # pragma: no cover - would be a validator bug
-            logger.error(
-                "a found path failed re-certification at motion %d (%s)",
-                report.bad_motion,
-                report.reason,
-            )
-            continue
-        path = PlanPath(waypoints, (Segment(mode, asm, 0, len(waypoints) - 1),), ())
-        return PlanResult(
-            PlanStatus.SOLVED,
-            f"solved in working mode {mode} ({name})",
-            path,
-            Diagnostics(
-                planning_time_s=time.perf_counter() - t0,
-                path_length=report.length,
-                min_clearance=report.min_clearance,
-                max_kappa_A=report.max_kappa_A,
-                min_serial_margin=report.min_serial_margin,
-                planner=name,
-                attempts=attempts,
-                searches=searches,
-            ),
+        solved = _certified(checker, waypoints, name, certified, t0, attempts, searches)
+        if solved is not None:
+            return solved
+    return _no_path(checker, options, last_status, t0, attempts, searches)
+
+
+def _certified(
+    checker: ValidityChecker, waypoints: np.ndarray, name: str, certified: bool, t0: float,
+    attempts: int, searches: int,
+) -> PlanResult | None:  # fmt: skip
+    """The ``solved`` answer of a found path after its final re-certification, except of
+    motions certified already (``certified``: the straight motion; a corridor path without
+    OMPL repairs, each motion by the motion test); None when it fails."""
+    report = checker.check_path(waypoints, certify=not certified)
+    if not report.valid:  # pragma: no cover - would be a validator bug
+        logger.error(
+            "a found path failed re-certification at motion %d (%s)",
+            report.bad_motion,
+            report.reason,
         )
-    message = f"no path found within {options.time_budget_s:g} s in working mode {mode}" + (
-        f" (OMPL: {last_status})" if last_status else ""
+        return None
+    mode, asm = checker.working_mode, checker.assembly_mode
+    path = PlanPath(waypoints, (Segment(mode, asm, 0, len(waypoints) - 1),), ())
+    return PlanResult(
+        PlanStatus.SOLVED,
+        f"solved in working mode {mode} ({name})",
+        path,
+        Diagnostics(
+            planning_time_s=time.perf_counter() - t0,
+            path_length=report.length,
+            min_clearance=report.min_clearance,
+            max_kappa_A=report.max_kappa_A,
+            min_serial_margin=report.min_serial_margin,
+            planner=name,
+            attempts=attempts,
+            searches=searches,
+        ),
+    )
+
+
+def _no_path(
+    checker: ValidityChecker, options: PlanOptions, last_status: str, t0: float, attempts: int,
+    searches: int,
+) -> PlanResult:  # fmt: skip
+    message = (
+        f"no path found within {options.time_budget_s:g} s in working mode "
+        f"{checker.working_mode}" + (f" (OMPL: {last_status})" if last_status else "")
     )
     logger.info("plan no_path: %s", message)
     return PlanResult(
@@ -348,3 +379,47 @@ def plan_in_region(
         None,
         Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts, searches=searches),
     )
+
+
+def plan_to_goal_set(
+    checker: ValidityChecker,
+    q_start: np.ndarray,
+    q_goals: np.ndarray,
+    *,
+    options: PlanOptions | None = None,
+    search_goals: int = 32,
+) -> PlanResult:
+    """Plan inside the checker's region from ``q_start`` to *any* of the goal postures
+    ``q_goals`` (K, 3) (valid for ``checker``, in order of preference): a set searched as a
+    set, for a goal tolerance. The straight motion to each goal first, in order (the first
+    that is certified is the answer); then one OMPL search towards at most ``search_goals``
+    of them at once (OMPL's ``GoalStates``; spread evenly over the list, the first one
+    included) within ``options.time_budget_s``; the path is re-certified.
+    ``diagnostics.attempts`` is the number of straight motions tried."""
+    t0 = time.perf_counter()
+    options = options if options is not None else PlanOptions()
+    q_start = np.array(q_start, dtype=float)
+    q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
+    attempts = 0
+    if options.try_direct:
+        for q_goal in q_goals:
+            attempts += 1
+            if checker.motion_valid(q_start, q_goal):
+                waypoints = np.stack([q_start, q_goal])
+                return _certified(checker, waypoints, "direct", True, t0, attempts, 0) or (
+                    _no_path(checker, options, "", t0, attempts, 0)
+                )
+    budget = options.time_budget_s - (time.perf_counter() - t0)
+    if budget <= 0:
+        return _no_path(checker, options, "", t0, attempts, 0)
+    if len(q_goals) > search_goals:
+        q_goals = q_goals[np.linspace(0, len(q_goals) - 1, search_goals).round().astype(int)]
+    outcome = ompl_backend.search(checker, q_start, q_goals, options, budget)
+    if outcome.waypoints is not None:
+        waypoints = outcome.waypoints
+        end = int(np.argmin(np.linalg.norm(q_goals - waypoints[-1], axis=1)))
+        waypoints[0], waypoints[-1] = q_start, q_goals[end]  # exact ends (OMPL's are copies)
+        solved = _certified(checker, waypoints, options.name, False, t0, attempts, 1)
+        if solved is not None:
+            return solved
+    return _no_path(checker, options, outcome.ompl_status, t0, attempts, 1)
