@@ -280,7 +280,10 @@ def _search(
         share = options.time_budget_s * (0.5 if others else 1.0)
         checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, start_mode)
         result = plan_to_goal_set(
-            checker, start.q, own, options=replace(options, time_budget_s=share),
+            checker,
+            start.q,
+            own,
+            options=replace(options, time_budget_s=share),
             search_goals=SEARCH_GOALS,
         )
         searches += result.diagnostics.searches
