@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 from plan_checker import PlanCheck, check_plan
+from scipy import ndimage
 
 from planner.design import Design
 from planner.geometry import Capsule, Sphere, segment_obstacle_distance
-from planner.kinematics import conditioning, forward_batch, link_points
+from planner.kinematics import WORKING_MODES, conditioning, forward_batch, link_points
+from planner.validity import Margins, ValidityChecker
 
 LINKS = ((0, 2), (1, 3), (2, 4), (3, 4))  # AC, BD, CP, DP in link_points order A, B, C, D, P
 
@@ -122,3 +124,19 @@ def check_library_plan(design, start, goal_wire: dict, margins, obstacles, respo
         plan_request(design, start, goal_wire, margins, obstacles), response
     )
     return report
+
+
+def dense_grid_components(design: Design, margins: Margins, asm: str, grid: int):
+    """The independent flood of the proofs' tests: 4-connected components of the valid grid
+    postures of each working mode on a ``grid`` x ``grid`` (theta2, theta3) grid over the
+    joint box, from the validity checker alone. Returns (theta2 (grid,), theta3 (grid,),
+    labels (8, grid, grid) [mode, theta3 row, theta2 column], 0 = invalid)."""
+    t2 = np.linspace(design.joint_min[1], design.joint_max[1], grid)
+    t3 = np.linspace(design.joint_min[2], design.joint_max[2], grid)
+    g3, g2 = np.meshgrid(t3, t2, indexing="ij")
+    q = np.stack([np.zeros(g2.size), g2.ravel(), g3.ravel()], axis=1)
+    labels = np.zeros((8, grid, grid), dtype=np.int32)
+    for mi, mode in enumerate(WORKING_MODES):
+        valid = ValidityChecker(design, margins, (), asm, mode).is_valid(q).reshape(grid, grid)
+        labels[mi] = ndimage.label(valid)[0]  # default structure: 4-connected
+    return t2, t3, labels

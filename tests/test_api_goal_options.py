@@ -147,3 +147,45 @@ def test_bad_goal_options_are_422_naming_the_field(api, goal, loc, words):
     assert r.status_code == 422, r.text
     detail = r.json()["detail"]
     assert any(d["loc"] == loc and words in d["msg"] for d in detail), detail
+
+
+#: The request an outside verifier broke the proof with: the exact point is cut off (the
+#: region map with obstacles proves it), but a goal 0.323 m away, inside the 0.35 m
+#: tolerance, is joined by a straight motion.
+CUT_OFF_POINT = {
+    "design": {"L0": 0.5, "L1": 0.2, "L2": 0.6, "link_radius": 0.02,
+               "joint_min": [-3.141593, -3.141593, -3.141593],
+               "joint_max": [3.141593, 3.141593, 3.141593]},
+    "start": {"q": [0, 2.0, 1.0], "assembly_mode": "+"},
+    "obstacles": [
+        {"type": "box", "center": [0.472765, 0.0, -0.736287], "size": [1.25, 2.4, 0.01],
+         "quaternion": [0.877583, 0, 0.479426, 0]},
+        {"type": "box", "center": [-0.472765, 0.0, 0.736287], "size": [1.25, 2.4, 0.01],
+         "quaternion": [0.877583, 0, 0.479426, 0]},
+        {"type": "box", "center": [-0.514938, 0.0, -0.707434], "size": [1.25, 2.4, 0.01],
+         "quaternion": [0.453596, 0, 0.891207, 0]},
+        {"type": "box", "center": [0.514938, 0.0, 0.707434], "size": [1.25, 2.4, 0.01],
+         "quaternion": [0.453596, 0, 0.891207, 0]},
+        {"type": "sphere", "center": [0.414591, 0.022037, -0.347592], "radius": 0.03}],
+    "planner": {"seed": 1, "time_budget_s": 2.0}, "timing": {"method": "none"},
+    "goal": {"p": [0.209807, 0.022037, -0.631429], "working_mode": "+-+", "tolerance": 0.35},
+    "margins": {"kappa_max": 10.0, "serial_min": 0.05, "clearance": 0.01},
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["none", "toppra"])
+def test_no_proof_while_a_goal_within_the_tolerance_is_reachable(api, method):
+    """The exact point alone is proven cut off, and was once answered so; a goal inside the
+    tolerance plans, so the answer is that plan (the independent checker accepts it and its
+    end within the tolerance), never ``proven_infeasible``."""
+    body = {**CUT_OFF_POINT, "timing": {"method": method}}
+    exact = api.post("/v1/plan", json={**body, "goal": {**body["goal"], "tolerance": 0}}).json()
+    assert exact["status"] == "no_path" and exact["diagnostics"]["proven_infeasible"]
+    answer = _plan(api, body)
+    assert answer["status"] == "solved", answer["message"]
+    assert not answer["diagnostics"]["proven_infeasible"]
+    design = {**DEFAULT_DESIGN, **body["design"]}
+    end = postures(design, np.array(answer["path"]["waypoints"][-1:]), 1).points["P"][0]
+    assert np.linalg.norm(end - body["goal"]["p"]) <= 0.35
+    assert "within goal.tolerance = 0.35 m" in answer["message"]
+    assert answer["path"]["segments"][-1]["working_mode"] == "+-+"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import ndimage
+from planning_factories import dense_grid_components
 
 from planner.analysis import regions as R
 from planner.design import Design
@@ -127,17 +127,7 @@ GRID = 2 * PROOF_RESOLUTION + 1  # grid step half a map cell: no step jumps over
 
 
 def _grid_components(design: Design, margins: Margins, asm: str):
-    """4-connected components of the valid grid postures of each working mode (labels
-    (8, GRID, GRID), rows theta3, columns theta2), from the validity checker alone."""
-    t2 = np.linspace(design.joint_min[1], design.joint_max[1], GRID)
-    t3 = np.linspace(design.joint_min[2], design.joint_max[2], GRID)
-    g3, g2 = np.meshgrid(t3, t2, indexing="ij")
-    q = np.stack([np.zeros(g2.size), g2.ravel(), g3.ravel()], axis=1)
-    labels = np.zeros((8, GRID, GRID), dtype=np.int32)
-    for mi, mode in enumerate(WORKING_MODES):
-        valid = ValidityChecker(design, margins, (), asm, mode).is_valid(q).reshape(GRID, GRID)
-        labels[mi] = ndimage.label(valid)[0]  # default structure: 4-connected
-    return t2, t3, labels
+    return dense_grid_components(design, margins, asm, GRID)
 
 
 def test_zero_false_proofs_over_1000_queries_joined_by_the_dense_grid():

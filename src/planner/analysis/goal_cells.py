@@ -130,16 +130,15 @@ def plane_cells(ball: GoalBall, rmap: R.RegionMap, assembly_mode: str) -> np.nda
 
 
 def _cell_components(rmap: R.RegionMap, ai: int, cells: np.ndarray) -> np.ndarray:
-    """(n, n) int -> per cell, per mode: the union-graph component of the region labelled
-    there, as (8, n, n) int (-1 where ``cells`` is False)."""
+    """(8, n, n) int: per working mode and cell, the union-graph component of the region
+    labelled there (-1 where ``cells`` (8, n, n) is False)."""
     out = np.full(cells.shape, -1, dtype=np.int64)
     for mi in range(len(WORKING_MODES)):
         if not cells[mi].any():
             continue
-        comp = np.array(
-            [-1] + [rmap.regions[int(i)].component for i in rmap.region_index[ai, mi][1:]],
-            dtype=np.int64,
-        )
+        ids = rmap.region_index[ai, mi]  # label -> region id (-1: no region has the label)
+        comp = np.array([rmap.regions[int(i)].component if i >= 0 else -1 for i in ids])
+        comp[0] = -1  # label 0: surely invalid
         out[mi] = np.where(cells[mi], comp[rmap.labels[ai, mi]], -1)
     return out
 

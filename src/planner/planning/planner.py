@@ -388,6 +388,7 @@ def plan_to_goal_set(
     *,
     options: PlanOptions | None = None,
     search_goals: int = 32,
+    before_search: BeforeSearch | None = None,
 ) -> PlanResult:
     """Plan inside the checker's region from ``q_start`` to *any* of the goal postures
     ``q_goals`` (K, 3) (valid for ``checker``, in order of preference): a set searched as a
@@ -395,7 +396,9 @@ def plan_to_goal_set(
     that is certified is the answer); then one OMPL search towards at most ``search_goals``
     of them at once (OMPL's ``GoalStates``; spread evenly over the list, the first one
     included) within ``options.time_budget_s``; the path is re-certified.
-    ``diagnostics.attempts`` is the number of straight motions tried."""
+    ``diagnostics.attempts`` is the number of straight motions tried. ``before_search``, when
+    given, is called once with ``q_goals`` after the straight motions failed, before the
+    search: a result it returns is the answer (the proof over the whole goal set)."""
     t0 = time.perf_counter()
     options = options if options is not None else PlanOptions()
     q_start = np.array(q_start, dtype=float)
@@ -409,6 +412,10 @@ def plan_to_goal_set(
                 return _certified(checker, waypoints, "direct", True, t0, attempts, 0) or (
                     _no_path(checker, options, "", t0, attempts, 0)
                 )
+    if before_search is not None:
+        answer = before_search(q_goals)
+        if answer is not None:
+            return answer
     budget = options.time_budget_s - (time.perf_counter() - t0)
     if budget <= 0:
         return _no_path(checker, options, "", t0, attempts, 0)

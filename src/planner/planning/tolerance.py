@@ -17,8 +17,9 @@ goal. :func:`plan_within_tolerance` runs when the exact goal's plan was not solv
    (:func:`planner.planning.planner.plan_to_goal_set`); goals of other modes through transits
    (:func:`planner.planning.modes.plan_mode_change`, which takes a set of goals per mode).
    The two share one more ``options.time_budget_s``.
-3. *The proof* when nothing was found: the region map's proofs asked about every cell that
-   may hold an allowed goal (:mod:`planner.analysis.goal_cells`: the obstacle-free map, then,
+3. *The proof*, asked once after the straight motions failed and before the first search
+   (milliseconds, where a search spends its budget), or when no goal was found: the region
+   map's proofs asked about every cell that may hold an allowed goal (:mod:`planner.analysis.goal_cells`: the obstacle-free map, then,
    with obstacles, the 3-D map). ``diagnostics.proven_infeasible`` is set only then: it is a
    promise about every goal the request allows. Where the proof cannot cover the set, the
    answer is a plain ``no_path`` whose message says so; the exact goal's own proof (which
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -266,9 +267,12 @@ def _search(
     obstacles: Sequence[Obstacle],
     margins: Margins,
     options: PlanOptions,
+    prove: Callable[[], PlanResult | None],
 ) -> tuple[PlanResult, str, float]:
     """The set search (module docstring, step 2): (result, mode of the goal reached, its
-    offset); the result is ``no_path`` when nothing was found within the budget."""
+    offset); the result is ``no_path`` when nothing was found within the budget, or the
+    proof's answer: ``prove`` is asked once, after the straight motions and before the
+    first search (it costs milliseconds, a search its budget)."""
     t0 = time.perf_counter()
     deadline = t0 + options.time_budget_s
     start_mode = posture_mode(design, start)
@@ -285,12 +289,19 @@ def _search(
             own,
             options=replace(options, time_budget_s=share),
             search_goals=SEARCH_GOALS,
+            before_search=lambda _: prove(),
         )
+        if result.diagnostics.proven_infeasible:
+            return result, "", float("nan")
         searches += result.diagnostics.searches
         if result.solved:
             end = result.path.waypoints[-1]
             k = int(np.argmin(np.linalg.norm(own - end, axis=1)))
             return result, start_mode, float(goals.offsets[start_mode][k])
+    if others and start_mode is not None and own is None:
+        proof = prove()
+        if proof is not None:
+            return proof, "", float("nan")
     if others and start_mode is not None and time.perf_counter() < deadline:
         result = plan_mode_change(
             design, start, start_mode, others, obstacles=obstacles, margins=margins,
@@ -341,8 +352,18 @@ def plan_within_tolerance(
         design, start, goal, tolerance, obstacles=obstacles, margins=margins, seed=options.seed
     )
     searches = exact.diagnostics.searches
+    asked: list[PlanResult | None] = []
+
+    def prove() -> PlanResult | None:
+        if not asked:
+            asked.append(prove_goal_set(
+                design, start, goals.ball, obstacles=obstacles, margins=margins,
+                options=options, deadline=time.perf_counter() + options.time_budget_s,
+            ))  # fmt: skip
+        return asked[0]
+
     if goals.count:
-        found, mode, offset = _search(design, start, goals, obstacles, margins, options)
+        found, mode, offset = _search(design, start, goals, obstacles, margins, options, prove)
         searches += found.diagnostics.searches
         if found.solved:
             note = (
@@ -354,10 +375,7 @@ def plan_within_tolerance(
                 found.diagnostics, planning_time_s=time.perf_counter() - t0, searches=searches
             )
             return replace(found, message=f"{found.message}; {note}", diagnostics=diag)
-    proof = prove_goal_set(
-        design, start, goals.ball, obstacles=obstacles, margins=margins, options=options,
-        deadline=time.perf_counter() + options.time_budget_s,
-    )  # fmt: skip
+    proof = prove()
     if proof is not None and (goals.count or exact.status is PlanStatus.NO_PATH):
         diag = replace(
             proof.diagnostics, planning_time_s=time.perf_counter() - t0, searches=searches
