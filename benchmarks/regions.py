@@ -16,7 +16,11 @@ side with their ratio and the page faults per build (``--runs``: builds of each)
 
 ``--obstacles`` prints only the soak of the proof with obstacles
 (``planner.analysis.obstacle_regions``): ``--queries`` seeded scenes and queries planned by the
-search alone, the proof asked of each; false proofs counted (must be 0), proof times.
+search alone, the proof asked of each; false proofs counted (must be 0), proof times. The
+same goals inside tolerance balls (point or joint, "any" with ``prefer``): the proof over the
+whole ball (:func:`planner.planning.tolerance.prove_goal_set`) and, every 4th solved query,
+the planner with the tolerance; a claim for a ball that holds a goal the search reached is a
+false proof (there must be none).
 """
 
 from __future__ import annotations
@@ -249,7 +253,15 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
     from planner.analysis.obstacle_regions import prove_disconnected_with_obstacles
     from planner.geometry import Box, Sphere
     from planner.kinematics import WORKING_MODES
-    from planner.planning import JointPosture, PlanOptions, PlanStatus, plan
+    from planner.planning import (
+        CartesianTarget,
+        JointPosture,
+        PlanOptions,
+        PlanStatus,
+        plan,
+        plan_with_goal_options,
+    )
+    from planner.planning.tolerance import goal_ball, prove_goal_set
 
     designs = [Design.default(), Design.paper_optimum(), Design(0.3, 0.3, 0.4),
                Design(0.6, 0.25, 0.45)]  # fmt: skip
@@ -257,8 +269,8 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
 
     warm_up()  # numba kernels compiled (the proof's too) outside the measurements
     rng = np.random.default_rng(seed)
-    solved = false = proven = 0
-    t_solved, t_other = [], []
+    solved = false = proven = ball_proven = false_ball = planned = false_plan = 0
+    t_solved, t_other, t_ball = [], [], []
     done = 0
     while done < queries:
         base = designs[done % len(designs)]
@@ -291,19 +303,48 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
         t0 = time.perf_counter()
         proof = prove_disconnected_with_obstacles(design, Margins(), obstacles, start, goal, asm)
         dt = (time.perf_counter() - t0) * 1e3
+        # the same goal inside a tolerance ball (point or joint, centre off the goal, radius
+        # up to 0.2 m or rad, "any" with prefer for a point): the proof over the ball, and
+        # every 4th query the planner with the tolerance
+        radius = float(rng.uniform(0.01, 0.2))
+        shift = rng.normal(size=3)
+        shift *= rng.uniform(0, radius) / np.linalg.norm(shift)
+        if done % 2:
+            target = CartesianTarget(forward_batch(design, goal, asm).p[0] + shift, "any")
+        else:
+            target = JointPosture(goal + shift, asm)
+        t0 = time.perf_counter()
+        ball = prove_goal_set(design, JointPosture(start, asm), goal_ball(target, radius),
+                              obstacles=obstacles) is not None  # fmt: skip
+        t_ball.append((time.perf_counter() - t0) * 1e3)
         done += 1
         proven += proof.proven
+        ball_proven += ball
         if res.status is PlanStatus.SOLVED:
             solved += 1
             false += proof.proven
+            false_ball += ball
             t_solved.append(dt)
+            if solved % 4 == 0:
+                planned += 1
+                answer = plan_with_goal_options(
+                    design, JointPosture(start, asm), target, obstacles=obstacles,
+                    options=PlanOptions(time_budget_s=0.2, seed=done), tolerance=radius,
+                    prefer="best_conditioned" if done % 2 else "shortest",
+                )  # fmt: skip
+                false_plan += answer.diagnostics.proven_infeasible
         else:
             t_other.append(dt)
         if done % 100 == 0:
-            print(f"  {done}/{queries} queries: {solved} solved, {proven} proven, {false} false proofs",
-                  flush=True)  # fmt: skip
+            print(f"  {done}/{queries} queries: {solved} solved, {proven} proven, {false} false "
+                  f"proofs; balls: {ball_proven} proven, {false_ball} false", flush=True)  # fmt: skip
     print(f"\nobstacle proof soak: {done} queries, {solved} solved by the search, {proven} proven "
           f"(of the {done - solved} unsolved), false proofs: {false}")  # fmt: skip
+    print(f"the same goals in a tolerance ball: {ball_proven} balls proven (of the "
+          f"{done - solved} unsolved), false ball proofs: {false_ball}; the planner with the "
+          f"tolerance and prefer on {planned} solved queries: false proofs {false_plan}; ball "
+          f"proof p50 {np.percentile(t_ball, 50):.1f} ms, p95 {np.percentile(t_ball, 95):.1f} "
+          "ms")  # fmt: skip
     for label, t in (("solved queries", t_solved), ("unsolved queries", t_other)):
         if t:
             print(
