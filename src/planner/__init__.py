@@ -2,34 +2,42 @@
 Chablat, Wenger and Angeles (a symmetric five-bar A-C-P-D-B whose plane turns about AB).
 
 Frames, mode labels and formulas: ``docs/conventions.md`` and :mod:`planner.kinematics`.
+
+The names below are imported on first use (PEP 562), so that importing a light module of
+the package (the client, ``planner.wire``, ``planner.design``) does not load the kinematics
+and their numba kernels, which cost seconds on a slow machine: ``from planner import
+Manipulator`` loads them, ``import planner.client`` does not.
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING
 
-from planner.design import Design
-from planner.exceptions import (
-    AssemblyError,
-    DesignError,
-    InputError,
-    KinematicsError,
-    PlannerError,
-    SingularPostureError,
-)
-from planner.kinematics import (
-    ASSEMBLY_MODES,
-    WORKING_MODES,
-    Conditioning,
-    Manipulator,
-    Posture,
-    PostureBatch,
-    conditioning,
-    forward_batch,
-    inverse_batch,
-    link_points,
-)
+if TYPE_CHECKING:
+    from planner.design import Design
+    from planner.exceptions import (
+        AssemblyError,
+        DesignError,
+        InputError,
+        KinematicsError,
+        PlannerError,
+        SingularPostureError,
+    )
+    from planner.kinematics import (
+        ASSEMBLY_MODES,
+        WORKING_MODES,
+        Conditioning,
+        Manipulator,
+        Posture,
+        PostureBatch,
+        conditioning,
+        forward_batch,
+        inverse_batch,
+        link_points,
+    )
 
 try:
     __version__ = version("hybrid-planner")
@@ -37,6 +45,41 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+#: Where each exported name lives (a submodule of the package), imported on first use.
+_HOMES = {
+    "Design": "design",
+    "AssemblyError": "exceptions",
+    "DesignError": "exceptions",
+    "InputError": "exceptions",
+    "KinematicsError": "exceptions",
+    "PlannerError": "exceptions",
+    "SingularPostureError": "exceptions",
+    "ASSEMBLY_MODES": "kinematics",
+    "WORKING_MODES": "kinematics",
+    "Conditioning": "kinematics",
+    "Manipulator": "kinematics",
+    "Posture": "kinematics",
+    "PostureBatch": "kinematics",
+    "conditioning": "kinematics",
+    "forward_batch": "kinematics",
+    "inverse_batch": "kinematics",
+    "link_points": "kinematics",
+}
+
+
+def __getattr__(name: str) -> object:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
 
 __all__ = [
     "ASSEMBLY_MODES",
