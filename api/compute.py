@@ -9,7 +9,6 @@ while converting one field is located there (:func:`planner.wire.located`), so
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -17,8 +16,8 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from planner.constants import KAPPA_SOLVABLE
-from planner.exceptions import AssemblyError, InputError, TimingError
+from planner.constants import ANSWER_RESERVE_S, KAPPA_SOLVABLE
+from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import SERIAL_KINDS, Manipulator
 from planner.wire import (
     AnalyzeRequest,
@@ -32,15 +31,12 @@ from planner.wire import (
     FKResponse,
     IKRequest,
     IKResponse,
-    PlanInputs,
     PlanRequest,
     PlanResponse,
     SerialMargins,
     cartesian_inputs,
     cartesian_response,
-    joint_limits_to_core,
     located,
-    plan_goal,
     plan_inputs,
     plan_response,
     posture_model,
@@ -93,10 +89,6 @@ def answer_sample_limit(max_samples: int, max_response_bytes: int, answers: int 
     """The most trajectory samples per answer when ``answers`` answers share one response
     of at most ``max_response_bytes`` and no answer may carry more than ``max_samples``."""
     return max(2, min(max_samples, max_response_bytes // (BYTES_PER_SAMPLE * max(answers, 1))))
-
-
-#: Time kept back from a plan's search for timing and answering before the deadline, s.
-_ANSWER_RESERVE_S = 0.25
 
 
 #: A job: request model and budget in, response model out.
@@ -195,7 +187,7 @@ def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> 
         seed=request.seed,
         # the sampled volume refines while the request's budget lasts (less a reserve for
         # the answer), then answers with the standard error it reached: never a 504
-        deadline=None if deadline is None else deadline - 4 * _ANSWER_RESERVE_S,
+        deadline=None if deadline is None else deadline - 4 * ANSWER_RESERVE_S,
     )
 
     return DesignCheckResponse(
@@ -213,66 +205,25 @@ def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> 
 
 
 def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
-    """``POST /v1/plan``: the request's library objects (:func:`planner.wire.plan_inputs`,
-    converted once), :func:`planner.planning.plan` with the goal's options ``prefer`` and
-    ``tolerance`` (:func:`planner.planning.plan_with_goal_options`), then the numpy path timed by
-    :func:`planner.timing.time_path` (unless ``timing.method`` is ``"none"``), and one
-    response built once (:func:`planner.wire.plan_response`).
+    """``POST /v1/plan``: convert (:func:`planner.wire.plan_inputs`, once), solve
+    (:func:`planner.solve`: the plan with the goal options ``prefer`` and ``tolerance``, then
+    the timing of its path under the path's own rules, re-checked densely; one deadline
+    policy, the library's), respond (:func:`planner.wire.plan_response`, built once).
 
     A library error is a 422 naming the field it came from. Timing outcomes: the request's
     deadline passing gives status ``timeout``; a path the timing cannot turn into a checked
     trajectory (no profile, or the dense re-check fails after the repairs) gives ``no_path``
     with the reason, the path kept and ``diagnostics.timing_error`` naming the failed rule.
     """
+    from planner.solver import solve
+
     inputs = plan_inputs(request)
-    options = inputs.options
-    deadline = budget.deadline
-    if deadline is not None:
-        # the search may not outlive the request: it gets what is left of the request's budget
-        # (minus a reserve for timing and the answer), so that it ends as no_path, not a 504
-        left = deadline - time.monotonic() - _ANSWER_RESERVE_S
-        if left < options.time_budget_s:
-            options = replace(options, time_budget_s=max(left, 0.01))
-    result = plan_goal(replace(inputs, options=options), deadline=deadline)
-    if request.timing.method == "none" or result.path is None:
-        return plan_response(result)
-    try:
-        trajectory = _time_plan(request, inputs, result.path, budget)
-    except TimingError as exc:  # deadline, no profile, or the dense re-check failed
-        return plan_response(result, timing_failure=exc)
-    return plan_response(result, trajectory=trajectory, format=request.timing.format)
-
-
-def _time_plan(request: PlanRequest, inputs: PlanInputs, path: Any, budget: JobBudget) -> Any:
-    """Time the planned numpy path under the planner's rules per piece (each segment's mode,
-    serial rules off near transits: :func:`planner.planning.path_state_checker`); joint
-    limits and assembly are always checked."""
-    from planner.planning import path_state_checker
-    from planner.timing import DEFAULT_MAX_DEVIATION, time_path
-
-    timing = request.timing
-    near = DEFAULT_MAX_DEVIATION if timing.max_deviation is None else timing.max_deviation
-    check = path_state_checker(inputs.design, inputs.margins, inputs.obstacles, path, near=near)
-    limits = joint_limits_to_core(request.limits)
-    options: dict[str, Any] = {}
-    if timing.max_deviation is not None:
-        options["max_deviation"] = timing.max_deviation
-    stop = request.planner.stop_at_transits or timing.stop_at_transits
-    with located("body", "timing"):
-        return time_path(
-            inputs.design,
-            np.asarray(path.waypoints, dtype=float),
-            limits,
-            method=timing.method,
-            assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
-            sample_rate_hz=timing.sample_rate_hz,
-            max_cartesian_speed=request.limits.cartesian_speed,
-            stop_at=[t.index for t in path.transits] if stop else [],
-            check_states=check,
-            deadline=budget.deadline,
-            max_samples=budget.max_samples,
-            **options,
-        )
+    timing = replace(inputs.timing, max_samples=budget.max_samples)
+    kwargs = {**inputs.solve_kwargs(), "timing": timing}
+    # an error of the timing step names its field under ``timing.`` (the default location of a
+    # library error is the body, :mod:`planner_api.errors`)
+    solution = solve(inputs.design, inputs.start, inputs.goal, deadline=budget.deadline, **kwargs)
+    return plan_response(solution, format=request.timing.format)
 
 
 def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> CartesianResponse:

@@ -33,22 +33,19 @@ warm_up_s = time.perf_counter() - t0
 
 def job():
     t = time.perf_counter()  # the imports count: a cold worker pays them in its first job
-    import numpy as np
     from planner import Design
     from planner.geometry import Box, Capsule, Sphere
-    from planner.planning import JointPosture, PlanOptions, path_state_checker, plan
-    from planner.timing import JointLimits, time_path
-    from planner.validity import Margins
+    from planner.planning import JointPosture, PlanOptions
+    from planner.solver import solve
+    from planner.timing import TimingOptions
 
     design = Design.default()
     obstacles = [Sphere([0.55, -0.02, -0.38], 0.1), Box([0, 0, -0.8], [2, 2, 0.1], [1, 0, 0, 0]),
                  Capsule([0.6, 0.5, 0.3], [0.6, 0.5, 0.6], 0.05)]
-    res = plan(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.3, 1.3], "+"),
-               obstacles=obstacles, options=PlanOptions(seed=1))
-    check = path_state_checker(design, Margins(), obstacles, res.path, near=0.05)
-    q = np.array(res.path.waypoints)
     for method in ("toppra", "ruckig"):
-        time_path(design, q, JointLimits.default(), method=method, check_states=check)
+        solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.3, 1.3], "+"),
+              obstacles=obstacles, options=PlanOptions(seed=1),
+              timing=TimingOptions(method=method))
     plan_s = time.perf_counter() - t
     t = time.perf_counter()
     from planner.plotting import render_figure

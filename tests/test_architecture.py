@@ -45,6 +45,7 @@ CORE = (
     "planner.caching",
     "planner._kernels",
     "planner.warmup",
+    "planner.solver",
 )
 #: What the core may never import (the wire, the client, the service, the CLI and their
 #: third-party libraries).
@@ -232,6 +233,36 @@ def test_no_room_reaches_into_the_private_parts_of_another() -> None:
     }
     assert sorted(breaches - PRIVATE_USE_KNOWN) == []
     assert PRIVATE_USE_KNOWN <= breaches, "a known breach is gone: drop it from the list"
+
+
+#: What the wire may take from the planning room: its data classes, never a search.
+WIRE_PLANNING = ("planner.planning.problem", "planner.planning.result")
+
+
+def test_the_wire_converts_and_runs_no_search() -> None:
+    """The wire holds conversions only: of the planning room it imports the data classes
+    (:data:`WIRE_PLANNING`), nothing that searches, and not :mod:`planner.solver`."""
+    breaches = sorted(
+        f"{name} imports {module}"
+        for name, imported in IMPORTS.items()
+        if _within(name, ("planner.wire",))
+        for module in imported
+        if (_within(module, ("planner.planning",)) and not _within(module, WIRE_PLANNING))
+        or _within(module, ("planner.solver",))
+    )
+    assert breaches == []
+
+
+def test_the_plan_job_is_convert_solve_respond() -> None:
+    """The service's plan job calls the library's plan-and-time step (:func:`planner.solve`),
+    not the planner and the timing one by one."""
+    imported = IMPORTS[f"{SERVICE_NAME}.compute"]
+    assert "planner.solver" in imported
+    assert not any(
+        _within(m, ("planner.planning.goal_options", "planner.timing.parameterize"))
+        or m in ("planner.timing", "planner.planning")
+        for m in imported
+    ), sorted(imported)
 
 
 def test_core_has_no_wire_conversions_of_its_own() -> None:

@@ -40,18 +40,18 @@ signatures_before, modules_before = compiled(), set(sys.modules)
 import numpy as np
 from planner import Design
 from planner.geometry import Box, Capsule, Sphere
-from planner.planning import JointPosture, PlanOptions, path_state_checker, plan
+from planner.planning import JointPosture, PlanOptions
 from planner.plotting import render_figure
-from planner.timing import JointLimits, time_path
-from planner.validity import Margins
+from planner.solver import solve
+from planner.timing import TimingOptions
 design = Design.default()
 obstacles = [Sphere([0.55, -0.02, -0.38], 0.1), Box([0, 0, -0.8], [2, 2, 0.1], [1, 0, 0, 0]),
              Capsule([0.6, 0.5, 0.3], [0.6, 0.5, 0.6], 0.05)]
-res = plan(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.3, 1.3], "+"),
-           obstacles=obstacles, options=PlanOptions(seed=1))
-check = path_state_checker(design, Margins(), obstacles, res.path, near=0.05)
-durations = [time_path(design, np.array(res.path.waypoints), JointLimits.default(),
-                       method=m, check_states=check).duration for m in ("toppra", "ruckig")]
+solved = [solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.3, 1.3], "+"),
+                obstacles=obstacles, options=PlanOptions(seed=1), timing=TimingOptions(method=m))
+          for m in ("toppra", "ruckig")]
+res = solved[0].plan
+durations = [s.trajectory.duration for s in solved]
 png = render_figure("joint_section", Design.paper_optimum(), n=24, fmt="png")
 print(json.dumps({
     "calls": calls, "steps": [s.name for s in STEPS], "backend": backend,

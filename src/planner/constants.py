@@ -9,6 +9,7 @@ would freeze a global's value at compile time.
 from __future__ import annotations
 
 __all__ = [
+    "ANSWER_RESERVE_S",
     "ASSEMBLY_TOL",
     "AXIS_TOL",
     "CIRCLES_MEET_TOL",
@@ -46,3 +47,8 @@ SIGN_TOL = 1e-7
 #: Largest kappa(A) at which A is still inverted (a Cartesian velocity is computed); beyond,
 #: the posture is treated as parallel-singular.
 KAPPA_SOLVABLE = 1e7
+#: Time a job keeps back from its searches before a deadline, s: for the timing and the
+#: answer (:func:`planner.solve`'s deadline policy; the service's design check keeps four of
+#: them for its sampling). A search that runs out then ends as ``no_path`` with time left to
+#: answer, not as a missed deadline.
+ANSWER_RESERVE_S = 0.25

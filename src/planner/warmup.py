@@ -9,7 +9,8 @@ on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's t
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
 entry points (the paths the service's jobs take: :func:`planner.planning.plan`,
-:func:`planner.timing.time_path` with TOPPRA and with Ruckig, the workspace analysis,
+:func:`planner.solver.time_plan` (the timing step of :func:`planner.solve`) with TOPPRA and
+with Ruckig, the workspace analysis,
 :func:`planner.plotting.render_figure`), so that afterwards the first job of each kind costs
 what the second one does. The service's workers call it when they start (``/v1/ready`` waits
 for them); ``make run`` / ``make test`` and the Docker build call ``planner warm-up`` so that
@@ -41,10 +42,11 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass
 class _State:
-    """What one step hands to the next (the plan found is the path the timing steps time)."""
+    """What one step hands to the next: the plans found, with their obstacles and margins,
+    are the paths the timing steps time."""
 
     design: Any = None
-    plans: list[Any] = field(default_factory=list)
+    plans: list[tuple[Any, Any, Any]] = field(default_factory=list)
 
 
 def _kinematics(state: _State) -> None:
@@ -92,20 +94,22 @@ def _plan_ompl(state: _State) -> None:
     from planner.planning import JointPosture, PlanOptions, plan
     from planner.validity import Margins
 
+    obstacles, margins = [Sphere(*_SPHERE)], Margins(clearance=0.01)
     result = plan(
         state.design,
         JointPosture(np.array(_START), "+"),
         JointPosture(np.array(_GOAL), "+"),
-        obstacles=[Sphere(*_SPHERE)],
-        margins=Margins(clearance=0.01),
+        obstacles=obstacles,
+        margins=margins,
         options=PlanOptions(seed=1, time_budget_s=2.0),
     )
-    state.plans.append(result)
+    state.plans.append((result, obstacles, margins))
 
 
 def _plan_mode_change(state: _State) -> None:
     """The mode-change search: a Cartesian goal in another working mode, through a transit."""
     from planner.planning import CartesianTarget, JointPosture, PlanOptions, plan
+    from planner.validity import Margins
 
     result = plan(
         state.design,
@@ -113,7 +117,7 @@ def _plan_mode_change(state: _State) -> None:
         CartesianTarget(np.array(_MODE_CHANGE_POINT), "+--"),
         options=PlanOptions(seed=1, time_budget_s=2.0),
     )
-    state.plans.append(result)
+    state.plans.append((result, (), Margins()))
 
 
 def _region_map(state: _State) -> None:
@@ -167,25 +171,21 @@ def _corridor(state: _State) -> None:
 
 
 def _time_plans(state: _State, method: str) -> None:
-    """Time every path found as the service does: the path's own validity rules re-checked
-    densely, coming to rest at the transits of the mode-change path."""
-    from planner.planning import path_state_checker
-    from planner.timing import DEFAULT_MAX_DEVIATION, JointLimits, time_path
-    from planner.validity import Margins
+    """Time every path found as :func:`planner.solve` does (:func:`planner.solver.time_plan`:
+    the path's own rules re-checked densely), coming to rest at the transits of the
+    mode-change path."""
+    from planner.solver import time_plan
+    from planner.timing import JointLimits, TimingOptions, time_path
 
-    limits = JointLimits.default()
-    for result in state.plans:
+    timing = TimingOptions(method=method)
+    for result, obstacles, margins in state.plans:
         if result.path is None:  # a budget too short on a very slow machine: time a line
-            waypoints, check, stop_at = np.array([_START, _GOAL]), None, []
-        else:
-            waypoints = np.array(result.path.waypoints)
-            check = path_state_checker(
-                state.design, Margins(), (), result.path, near=DEFAULT_MAX_DEVIATION
-            )
-            stop_at = [t.index for t in result.path.transits]
-        time_path(
-            state.design, waypoints, limits, method=method, check_states=check, stop_at=stop_at
-        )
+            time_path(state.design, np.array([_START, _GOAL]), JointLimits.default(), method=method)
+            continue
+        time_plan(
+            state.design, result.path, obstacles=obstacles, margins=margins, timing=timing,
+            stop_at_transits=bool(result.path.transits),
+        )  # fmt: skip
 
 
 def _analysis(state: _State) -> None:

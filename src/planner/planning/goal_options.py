@@ -48,12 +48,10 @@ __all__ = ["RETRIED_STATUSES", "plan_with_goal_options"]
 
 #: Statuses of the exact goal after which the goals within ``goal.tolerance`` are tried.
 RETRIED_STATUSES = frozenset({"invalid_goal", "unreachable", "no_path"})
-#: Time kept back from the searches for timing and answering before the deadline, s.
-_RESERVE_S = 0.25
 
 
 def _left(deadline: float | None) -> float:
-    return np.inf if deadline is None else deadline - time.monotonic() - _RESERVE_S
+    return np.inf if deadline is None else deadline - time.monotonic()
 
 
 def _unclaimed(result: PlanResult, tolerance: float) -> PlanResult:
@@ -162,7 +160,9 @@ def plan_with_goal_options(
     tolerance : float >= 0
         m for a Cartesian target, rad (Euclidean in joint space) for a joint goal; 0: exact.
     deadline : float or None
-        A :func:`time.monotonic` value every search is cut to; None: only the budgets.
+        A :func:`time.monotonic` value every search is cut to (the searches' own deadline:
+        :func:`planner.solve` keeps its answer reserve back before passing it); None: only
+        the budgets.
 
     ``options.time_budget_s`` is the budget of the exact goal's search; ``best_conditioned``
     and the tolerance's alternatives each share one more such budget.

@@ -19,13 +19,13 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from planner.timing.checks import LIMIT_RTOL, StateChecker
     from planner.timing.limits import JointLimits
-    from planner.timing.parameterize import (
-        DEFAULT_CHECK_RESOLUTION,
+    from planner.timing.options import (
         DEFAULT_MAX_DEVIATION,
         DEFAULT_SAMPLE_RATE_HZ,
         METHODS,
-        time_path,
+        TimingOptions,
     )
+    from planner.timing.parameterize import DEFAULT_CHECK_RESOLUTION, time_path
     from planner.timing.trajectory import Trajectory
 
 #: Where each exported name lives. Imported on first use (PEP 562), so that a module of the
@@ -36,9 +36,10 @@ _HOMES = {
     "StateChecker": "checks",
     "JointLimits": "limits",
     "DEFAULT_CHECK_RESOLUTION": "parameterize",
-    "DEFAULT_MAX_DEVIATION": "parameterize",
-    "DEFAULT_SAMPLE_RATE_HZ": "parameterize",
-    "METHODS": "parameterize",
+    "DEFAULT_MAX_DEVIATION": "options",
+    "DEFAULT_SAMPLE_RATE_HZ": "options",
+    "METHODS": "options",
+    "TimingOptions": "options",
     "time_path": "parameterize",
     "Trajectory": "trajectory",
 }
@@ -65,6 +66,7 @@ __all__ = [
     "METHODS",
     "JointLimits",
     "StateChecker",
+    "TimingOptions",
     "Trajectory",
     "time_path",
 ]

@@ -44,6 +44,7 @@ from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
 from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
 from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
+from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ, METHODS
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import SEED_REFINE, RuckigCurve, build_ruckig_curve
 from planner.timing.toppra_method import (
@@ -64,21 +65,13 @@ from planner.timing.trajectory import (
 
 __all__ = [
     "DEFAULT_CHECK_RESOLUTION",
-    "DEFAULT_MAX_DEVIATION",
-    "DEFAULT_SAMPLE_RATE_HZ",
     "MAX_OUTPUT_SAMPLES",
     "MAX_REPAIRS",
-    "METHODS",
     "time_path",
 ]
 
 logger = logging.getLogger(__name__)
 
-METHODS = ("toppra", "ruckig")
-#: Output sample rate, Hz.
-DEFAULT_SAMPLE_RATE_HZ = 100.0
-#: Largest distance from a vertex to its blend, rad (joint space).
-DEFAULT_MAX_DEVIATION = 0.05
 #: Largest joint-space step between two postures of the dense re-check, rad.
 DEFAULT_CHECK_RESOLUTION = 0.01
 #: Most output samples of one trajectory.

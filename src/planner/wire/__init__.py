@@ -5,9 +5,9 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.goal` (the goal
-options ``prefer`` and ``tolerance``, a thin adapter over the planner) and
-:mod:`~planner.wire.meta` (health, version, errors).
+:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
+(health, version, errors). The wire converts and runs nothing: a job calls the library
+(:func:`planner.solve` for a plan) between the conversions.
 
 Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored
 option) and check every number for finiteness and a sane range, so the library never sees
@@ -103,7 +103,6 @@ from planner.wire.design import (
     regions_model,
     sampled_value,
 )
-from planner.wire.goal import plan_goal
 from planner.wire.kinematics import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -153,6 +152,7 @@ from planner.wire.timing import (
     TrajectoryPointsModel,
     joint_limits_to_core,
     timing_error,
+    timing_to_core,
     trajectory_arrays,
     trajectory_model,
     trajectory_points,
@@ -264,13 +264,13 @@ __all__ = [
     "obstacle_from_dict",
     "obstacles_to_core",
     "path_model",
-    "plan_goal",
     "plan_inputs",
     "plan_response",
     "posture_model",
     "regions_model",
     "sampled_value",
     "timing_error",
+    "timing_to_core",
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",

@@ -176,7 +176,7 @@ def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
     ``waypoints``."""
     from planner.exceptions import InputError
     from planner.kinematics import forward_batch
-    from planner.planning import JointPosture as CorePosture
+    from planner.planning.problem import JointPosture as CorePosture
 
     design = design_to_core(request.design)
     with located("body", "start"):

@@ -40,7 +40,9 @@ from planner.wire.timing import (
     Limits,
     TimingOptions,
     TrajectoryFormat,
+    joint_limits_to_core,
     timing_error,
+    timing_to_core,
     trajectory_model,
 )
 
@@ -164,8 +166,9 @@ class PlanBatchResponse(_Response):
 @dataclass(frozen=True)
 class PlanInputs:
     """A plan request as the library's objects, converted once (each field's errors located
-    at its place in the body): the arguments of :func:`planner.planning.plan`, and the goal
-    options ``prefer`` and ``tolerance`` (:func:`planner.planning.plan_with_goal_options`)."""
+    at its place in the body): the arguments of :func:`planner.solve` (those of
+    :func:`planner.planning.plan`, the goal options ``prefer`` and ``tolerance``, the
+    :class:`planner.timing.TimingOptions` and :class:`planner.timing.JointLimits`)."""
 
     design: Design
     start: Any
@@ -173,16 +176,26 @@ class PlanInputs:
     obstacles: list[Any]
     margins: Any
     options: Any
+    timing: Any
+    limits: Any
     prefer: str = "shortest"
     tolerance: float = 0.0
+
+    def solve_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of :func:`planner.solve` after ``design, start, goal``."""
+        return {
+            "obstacles": self.obstacles, "margins": self.margins, "options": self.options,
+            "timing": self.timing, "limits": self.limits, "prefer": self.prefer,
+            "tolerance": self.tolerance,
+        }  # fmt: skip
 
 
 def plan_inputs(request: PlanRequest) -> PlanInputs:
     """The library objects of a plan request: design, start, goal, obstacles, margins and
     :class:`planner.planning.PlanOptions` (a bad value raises the library's error, located)."""
-    from planner.planning import CartesianTarget as CoreTarget
-    from planner.planning import JointPosture as CorePosture
-    from planner.planning import PlanOptions
+    from planner.planning.problem import CartesianTarget as CoreTarget
+    from planner.planning.problem import JointPosture as CorePosture
+    from planner.planning.problem import PlanOptions
 
     design = design_to_core(request.design)
     with located("body", "start"):
@@ -203,10 +216,13 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
                 include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
             )
         )
+    timing = timing_to_core(request.timing, request.limits)
+    limits = joint_limits_to_core(request.limits)
     prefer = getattr(request.goal, "prefer", "shortest")
     return PlanInputs(
-        design, start, goal, obstacles, margins, options, prefer, request.goal.tolerance
-    )
+        design, start, goal, obstacles, margins, options, timing, limits, prefer,
+        request.goal.tolerance,
+    )  # fmt: skip
 
 
 def _finite(x: float) -> float | None:
@@ -244,8 +260,13 @@ def plan_response(
     :class:`planner.timing.Trajectory` of its path (or the
     :class:`~planner.exceptions.TimingError` that stopped the timing: a passed deadline is
     status ``timeout``, any other timing failure ``no_path`` with the path kept and
-    ``diagnostics.timing_error`` naming the failed rule), the trajectory in ``format``."""
+    ``diagnostics.timing_error`` naming the failed rule), the trajectory in ``format``.
+    ``result`` may be a :class:`planner.Solution` (:func:`planner.solve`'s answer), which
+    carries all three."""
     from planner.exceptions import TimingDeadlineError
+
+    if hasattr(result, "plan"):  # a Solution: the plan, its trajectory or timing error
+        result, trajectory, timing_failure = result.plan, result.trajectory, result.timing_error
 
     d = result.diagnostics
     status, message = result.status.value, result.message

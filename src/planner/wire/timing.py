@@ -48,6 +48,7 @@ __all__ = [
     "TrajectoryPointsModel",
     "joint_limits_to_core",
     "timing_error",
+    "timing_to_core",
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",
@@ -235,6 +236,27 @@ def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "l
         if model.velocity_scaling != 1.0 or model.acceleration_scaling != 1.0:
             limits = limits.scaled(model.velocity_scaling, model.acceleration_scaling)
         return limits
+
+
+def timing_to_core(
+    model: TimingOptions, limits: Limits, loc: tuple[str | int, ...] = ("body", "timing")
+) -> Any:
+    """The request's ``timing`` (and ``limits.cartesian_speed``) as
+    :class:`planner.timing.TimingOptions` (an absent ``max_deviation``: the timing default);
+    a bad value raises the library's error located at ``loc.<field>``."""
+    from planner.timing.options import DEFAULT_MAX_DEVIATION
+    from planner.timing.options import TimingOptions as CoreTiming
+
+    with located(*loc):
+        return CoreTiming(
+            method=model.method,
+            sample_rate_hz=model.sample_rate_hz,
+            max_deviation=(
+                DEFAULT_MAX_DEVIATION if model.max_deviation is None else model.max_deviation
+            ),
+            stop_at_transits=model.stop_at_transits,
+            max_cartesian_speed=limits.cartesian_speed,
+        )
 
 
 def trajectory_model(
