@@ -256,3 +256,23 @@ def test_motion_test_is_the_certificate_of_check_motion():
         assert chk.motion_valid(a, b) == want
         verdicts.append(want)
     assert 0 < sum(verdicts) < len(verdicts)
+
+
+def test_a_checker_family_packs_its_obstacles_once(monkeypatch):
+    """``with_mode`` derives checkers of the other modes from one packing of the obstacles
+    (a plan with mode changes builds up to eight), and they check alike."""
+    from planner.validity import checker as checker_module
+
+    ValidityChecker(Design.default(), Margins(), [], "+", "+++")  # the kernels warm first
+    calls = []
+    real = checker_module.pack_obstacles
+    monkeypatch.setattr(checker_module, "pack_obstacles", lambda obs: calls.append(1) or real(obs))
+    obstacles = [Sphere([0.55, -0.02, -0.38], 0.1)]
+    base = ValidityChecker(Design.default(), Margins(), obstacles, "+", "+++")
+    family = [base.with_mode(m) for m in ("+-+", "++-", "+--")]
+    assert len(calls) == 1
+    q = np.random.default_rng(3).uniform(-np.pi, np.pi, (500, 3))
+    for chk in family:
+        fresh = ValidityChecker(Design.default(), Margins(), obstacles, "+", chk.working_mode)
+        a, b = chk.check_states(q), fresh.check_states(q)
+        assert np.array_equal(a.clearance, b.clearance) and np.array_equal(a.valid, b.valid)

@@ -131,7 +131,7 @@ class ValidityChecker:
     ----------
     design : Design
     margins : Margins
-    obstacles : sequence of Sphere, Box, Capsule (wire dictionaries are accepted too)
+    obstacles : sequence of Sphere, Box, Capsule (:mod:`planner.geometry`)
     assembly_mode : '+' | '-'
     working_mode : one of :data:`planner.kinematics.WORKING_MODES`, e.g. '+-+'
     coarse_step : float, rad
@@ -157,6 +157,9 @@ class ValidityChecker:
     coarse_step: float = DEFAULT_COARSE_STEP
     serial_rules: bool = True
     _warm: bool = field(default=True, repr=False)
+    #: the obstacles already packed (by the checker :meth:`with_mode` derives this one from):
+    #: a checker family packs its obstacles once
+    _packed_from: PackedObstacles | None = field(default=None, repr=False, compare=False)
     _packed: PackedObstacles = field(init=False, repr=False)
     _prm: np.ndarray = field(init=False, repr=False)
 
@@ -170,7 +173,11 @@ class ValidityChecker:
         if not (math.isfinite(self.coarse_step) and self.coarse_step > 0):
             raise InputError(f"coarse_step must be > 0, got {self.coarse_step}")
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
-        object.__setattr__(self, "_packed", pack_obstacles(self.obstacles))
+        packed = self._packed_from
+        object.__setattr__(
+            self, "_packed", pack_obstacles(self.obstacles) if packed is None else packed
+        )
+        object.__setattr__(self, "_packed_from", None)
         prm = pack_params(
             self.design,
             self.margins,
@@ -183,7 +190,8 @@ class ValidityChecker:
             warm_up()
 
     def with_mode(self, working_mode: str, *, serial_rules: bool | None = None) -> ValidityChecker:
-        """The same checker for another working mode (and optionally serial rules on/off)."""
+        """The same checker for another working mode (and optionally serial rules on/off),
+        sharing this one's packed obstacle arrays (built once per family)."""
         return ValidityChecker(
             self.design,
             self.margins,
@@ -192,6 +200,7 @@ class ValidityChecker:
             working_mode,
             self.coarse_step,
             self.serial_rules if serial_rules is None else serial_rules,
+            _packed_from=self._packed,
         )
 
     # ------------------------------------------------------------------ states

@@ -437,11 +437,19 @@ def obstacles_to_core(
     models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle],
     loc: tuple[str | int, ...] = ("body", "obstacles"),
 ) -> list[geometry.Obstacle]:
-    """The library obstacles of a request's ``obstacles`` (errors located at ``loc.<i>``)."""
-    out = []
+    """The library obstacles of a request's ``obstacles``, built from the models' fields
+    (errors located at ``loc.<i>``)."""
+    from planner.geometry import Box, Capsule, Sphere
+
+    out: list[geometry.Obstacle] = []
     for i, model in enumerate(models):
         with located(*loc, i):
-            out.append(obstacle_from_dict(model.model_dump()))
+            if isinstance(model, SphereObstacle):
+                out.append(Sphere(model.center, model.radius))
+            elif isinstance(model, BoxObstacle):
+                out.append(Box(model.center, model.size, model.quaternion))
+            else:
+                out.append(Capsule(model.a, model.b, model.radius))
     return out
 
 
