@@ -10,14 +10,8 @@ import pytest
 from planner import Design, InputError
 from planner.exceptions import LimitsError
 from planner.timing import JointLimits, time_path
-from planner.timing.export import (
-    CSV_UNITS,
-    arrays_from_points,
-    points_from_arrays,
-    read_csv,
-    to_points,
-    write_csv,
-)
+from planner.timing.export import CSV_UNITS, read_csv, write_csv
+from planner.wire.timing import arrays_from_points, points_from_arrays, trajectory_model
 
 DESIGN = Design.default()
 # theta1 alone turns by 3 rad: the loop (theta2, theta3) does not move, so it assembles all along
@@ -72,7 +66,7 @@ def _trajectory():
 
 def test_points_and_arrays_carry_the_same_samples():
     traj = _trajectory()
-    pts = to_points(traj)
+    pts = trajectory_model(traj, "points").model_dump()
     assert pts["joint_names"] == ["theta1", "theta2", "theta3"]
     assert pts["duration"] == traj.duration
     assert len(pts["points"]) == len(traj.t)

@@ -1,22 +1,13 @@
-"""Trajectories in a controller's shape: named joints and points, and CSV files.
+"""Trajectories as files: CSV written and read, and the parallel arrays of a sampled
+trajectory.
 
 The library's :class:`~planner.timing.Trajectory` holds parallel arrays (``t`` (M,), ``q``,
-``qd``, ``qdd`` (M, 3)). Controllers (ROS 2 ``JointTrajectory``, FollowJointTrajectory, CSV
-players) take a list of points with ``positions``, ``velocities``, ``accelerations`` and
-``time_from_start`` for named joints. This module converts either way, losslessly (the same
-floats), and writes and reads CSV files.
-
-The points form is the wire's ``timing.format = "points"`` (``docs/conventions.md``, "Wire,
-second part")::
-
-    {"duration": s, "joint_names": ["theta1", "theta2", "theta3"],
-     "points": [{"time_from_start": s, "positions": [3], "velocities": [3],
-                 "accelerations": [3]}, ...]}
-
-CSV: a first comment line naming the units, then the header
+``qd``, ``qdd`` (M, 3)). CSV: a first comment line naming the units, then the header
 ``t,theta1,theta2,theta3,dtheta1,dtheta2,dtheta3,ddtheta1,ddtheta2,ddtheta3`` (plus
 ``dddtheta1..3`` when jerks are given), one row per sample, floats written with 17
-significant digits so that reading gives back the same numbers.
+significant digits so that reading gives back the same numbers. The controller's points
+layout (``timing.format = "points"``) is the wire's: :mod:`planner.wire.timing`
+(:func:`~planner.wire.timing.points_from_arrays`, :func:`~planner.wire.timing.arrays_from_points`).
 """
 
 from __future__ import annotations
@@ -24,7 +15,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO
 
@@ -36,10 +26,8 @@ __all__ = [
     "CSV_UNITS",
     "JOINT_NAMES",
     "TrajectoryArrays",
-    "arrays_from_points",
-    "points_from_arrays",
+    "checked_arrays",
     "read_csv",
-    "to_points",
     "write_csv",
 ]
 
@@ -74,7 +62,9 @@ class TrajectoryArrays:
     duration: float = float("nan")
 
 
-def _arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
+def checked_arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
+    """The samples as float arrays, checked: t (M,) strictly increasing, q, qd, qdd (and
+    jerk, or None) (M, 3), all finite; :class:`~planner.exceptions.InputError` otherwise."""
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.shape[0] < 1:
         raise InputError(f"t must have shape (M,) with M >= 1, got {t.shape}")
@@ -94,87 +84,6 @@ def _arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
-def points_from_arrays(
-    t: np.ndarray,
-    q: np.ndarray,
-    qd: np.ndarray,
-    qdd: np.ndarray,
-    *,
-    duration: float | None = None,
-) -> dict:
-    """The points form (JSON-ready dict) of parallel arrays.
-
-    Parameters
-    ----------
-    t : shape (M,), s
-    q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
-    duration : float, s, optional (default ``t[-1]``)
-
-    Returns
-    -------
-    dict with ``duration``, ``joint_names`` (:data:`JOINT_NAMES`) and ``points`` (M dicts
-    with ``time_from_start``, ``positions``, ``velocities``, ``accelerations``).
-    """
-    t, q, qd, qdd, _ = _arrays(t, q, qd, qdd)
-    points = [
-        {
-            "time_from_start": ti,
-            "positions": qi,
-            "velocities": vi,
-            "accelerations": ai,
-        }
-        for ti, qi, vi, ai in zip(t.tolist(), q.tolist(), qd.tolist(), qdd.tolist(), strict=True)
-    ]
-    return {
-        "duration": float(t[-1] if duration is None else duration),
-        "joint_names": list(JOINT_NAMES),
-        "points": points,
-    }
-
-
-def to_points(trajectory: object) -> dict:
-    """The points form of a :class:`~planner.timing.Trajectory` (or any object with ``t``,
-    ``q``, ``qd``, ``qdd``, ``duration``)."""
-    return points_from_arrays(
-        trajectory.t, trajectory.q, trajectory.qd, trajectory.qdd,  # type: ignore[attr-defined]
-        duration=trajectory.duration,  # type: ignore[attr-defined]
-    )  # fmt: skip
-
-
-def arrays_from_points(points_form: Mapping) -> TrajectoryArrays:
-    """Parallel arrays of a points form (the inverse of :func:`points_from_arrays`).
-
-    Joints are reordered by ``joint_names`` when present (any order of theta1..theta3).
-
-    Raises
-    ------
-    InputError
-        A missing field, an unknown or missing joint name, or a point of the wrong length.
-    """
-    try:
-        pts = points_form["points"]
-    except (KeyError, TypeError) as exc:
-        raise InputError("a points trajectory needs a 'points' list") from exc
-    names = list(points_form.get("joint_names", JOINT_NAMES))
-    if sorted(names) != sorted(JOINT_NAMES) or len(names) != 3:
-        raise InputError(f"joint_names must be {list(JOINT_NAMES)} in some order, got {names}")
-    order = [names.index(n) for n in JOINT_NAMES]
-    if not isinstance(pts, Sequence) or len(pts) == 0:
-        raise InputError("points must be a non-empty list")
-    try:
-        t = np.array([p["time_from_start"] for p in pts], dtype=float)
-        q = np.array([p["positions"] for p in pts], dtype=float)[:, order]
-        qd = np.array([p["velocities"] for p in pts], dtype=float)[:, order]
-        qdd = np.array([p["accelerations"] for p in pts], dtype=float)[:, order]
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        raise InputError(
-            "every point needs time_from_start and 3 positions, velocities, accelerations"
-        ) from exc
-    t, q, qd, qdd, _ = _arrays(t, q, qd, qdd)
-    duration = float(points_form.get("duration", t[-1]))
-    return TrajectoryArrays(t, q, qd, qdd, None, duration)
-
-
 def write_csv(
     target: str | os.PathLike | IO[str],
     t: np.ndarray,
@@ -192,7 +101,7 @@ def write_csv(
     q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
     jerk : shape (M, 3), rad/s^3, optional (adds three columns)
     """
-    t, q, qd, qdd, jerk = _arrays(t, q, qd, qdd, jerk)
+    t, q, qd, qdd, jerk = checked_arrays(t, q, qd, qdd, jerk)
     header = ["t", *_POS, *_VEL, *_ACC] + (_JERK if jerk is not None else [])
     cols = [t[:, None], q, qd, qdd] + ([jerk] if jerk is not None else [])
     data = np.hstack(cols)

@@ -4,8 +4,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     Discriminator,
     Field,
@@ -14,6 +16,8 @@ from pydantic import (
     field_validator,
 )
 
+from planner.exceptions import InputError
+from planner.timing.export import JOINT_NAMES, TrajectoryArrays, checked_arrays
 from planner.wire.common import (
     _MAX_SAMPLES,
     MAX_OBSTACLES,
@@ -46,7 +50,9 @@ __all__ = [
     "TrajectoryModel",
     "TrajectoryPoint",
     "TrajectoryPointsModel",
+    "arrays_from_points",
     "joint_limits_to_core",
+    "points_from_arrays",
     "timing_error",
     "timing_to_core",
     "trajectory_arrays",
@@ -259,11 +265,84 @@ def timing_to_core(
         )
 
 
+# ------------------------------------------------------------------ the points layout
+def points_from_arrays(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    *,
+    duration: float | None = None,
+) -> dict:
+    """The points form (JSON-ready dict) of parallel arrays.
+
+    Parameters
+    ----------
+    t : shape (M,), s
+    q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
+    duration : float, s, optional (default ``t[-1]``)
+
+    Returns
+    -------
+    dict with ``duration``, ``joint_names`` (:data:`JOINT_NAMES`) and ``points`` (M dicts
+    with ``time_from_start``, ``positions``, ``velocities``, ``accelerations``).
+    """
+    t, q, qd, qdd, _ = checked_arrays(t, q, qd, qdd)
+    points = [
+        {
+            "time_from_start": ti,
+            "positions": qi,
+            "velocities": vi,
+            "accelerations": ai,
+        }
+        for ti, qi, vi, ai in zip(t.tolist(), q.tolist(), qd.tolist(), qdd.tolist(), strict=True)
+    ]
+    return {
+        "duration": float(t[-1] if duration is None else duration),
+        "joint_names": list(JOINT_NAMES),
+        "points": points,
+    }
+
+
+def arrays_from_points(points_form: Mapping) -> TrajectoryArrays:
+    """Parallel arrays of a points form (the inverse of :func:`points_from_arrays`).
+
+    Joints are reordered by ``joint_names`` when present (any order of theta1..theta3).
+
+    Raises
+    ------
+    InputError
+        A missing field, an unknown or missing joint name, or a point of the wrong length.
+    """
+    try:
+        pts = points_form["points"]
+    except (KeyError, TypeError) as exc:
+        raise InputError("a points trajectory needs a 'points' list") from exc
+    names = list(points_form.get("joint_names", JOINT_NAMES))
+    if sorted(names) != sorted(JOINT_NAMES) or len(names) != 3:
+        raise InputError(f"joint_names must be {list(JOINT_NAMES)} in some order, got {names}")
+    order = [names.index(n) for n in JOINT_NAMES]
+    if not isinstance(pts, Sequence) or len(pts) == 0:
+        raise InputError("points must be a non-empty list")
+    try:
+        t = np.array([p["time_from_start"] for p in pts], dtype=float)
+        q = np.array([p["positions"] for p in pts], dtype=float)[:, order]
+        qd = np.array([p["velocities"] for p in pts], dtype=float)[:, order]
+        qdd = np.array([p["accelerations"] for p in pts], dtype=float)[:, order]
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise InputError(
+            "every point needs time_from_start and 3 positions, velocities, accelerations"
+        ) from exc
+    t, q, qd, qdd, _ = checked_arrays(t, q, qd, qdd)
+    duration = float(points_form.get("duration", t[-1]))
+    return TrajectoryArrays(t, q, qd, qdd, None, duration)
+
+
 def trajectory_model(
     traj: Any, format: TrajectoryFormat = "arrays"
 ) -> TrajectoryModel | TrajectoryPointsModel:
     """The wire form of a :class:`planner.timing.Trajectory`, in ``format`` (``"points"``:
-    :func:`planner.timing.export.to_points`, the same samples)."""
+    :func:`points_from_arrays`, the same samples)."""
     if format == "points":
         return trajectory_points(_arrays_model(traj))
     return _arrays_model(traj)
@@ -303,8 +382,6 @@ def trajectory_points(model: TrajectoryModel | TrajectoryPointsModel) -> Traject
     trajectory is returned as it is."""
     if isinstance(model, TrajectoryPointsModel):
         return model
-    from planner.timing.export import points_from_arrays
-
     form = points_from_arrays(model.t, model.q, model.qd, model.qdd, duration=model.duration)
     return TrajectoryPointsModel(
         **form,
@@ -315,13 +392,11 @@ def trajectory_points(model: TrajectoryModel | TrajectoryPointsModel) -> Traject
 
 
 def trajectory_arrays(model: TrajectoryModel | TrajectoryPointsModel) -> TrajectoryModel:
-    """The arrays form of a wire trajectory (:func:`planner.timing.export.arrays_from_points`:
+    """The arrays form of a wire trajectory (:func:`arrays_from_points`:
     the same floats, joints ordered by ``joint_names``). An arrays trajectory is returned as
     it is."""
     if isinstance(model, TrajectoryModel):
         return model
-    from planner.timing.export import arrays_from_points
-
     a = arrays_from_points(model.model_dump(include={"duration", "joint_names", "points"}))
     return TrajectoryModel(
         duration=a.duration,
