@@ -12,6 +12,7 @@ import httpx
 import pytest
 
 import planner.client as client_module
+import planner.client_errors as client_errors
 from planner.client import (
     APIError,
     AsyncPlannerClient,
@@ -286,18 +287,33 @@ def test_sync_and_async_clients_have_the_same_endpoint_methods():
 
 
 def test_all_lists_exactly_the_public_names():
+    """``__all__`` is, in sorted order, exactly the client's public classes and functions,
+    its constants and the whole error tree of :mod:`planner.client_errors`: nothing missing,
+    nothing else (not a wire model or a helper the module merely imports)."""
     names = client_module.__all__
     assert names == sorted(names, key=lambda n: (not n.isupper(), n))
-    for name in names:
-        assert hasattr(client_module, name), name
-    public = {
+    defined = {
         n
         for n, v in vars(client_module).items()
         if not n.startswith("_")
         and getattr(v, "__module__", None) == client_module.__name__
         and (inspect.isclass(v) or inspect.isfunction(v))
     }
-    assert public <= set(names)
+    constants = {
+        n
+        for n, v in vars(client_module).items()
+        if n.isupper() and isinstance(v, int | float | str) and not isinstance(v, bool)
+    }
+    errors = set(client_errors.__all__)
+    assert errors == {
+        n
+        for n, v in vars(client_errors).items()
+        if inspect.isclass(v) and issubclass(v, PlannerClientError)
+    }
+    assert [n for n in errors if getattr(client_module, n) is not getattr(client_errors, n)] == []
+    assert sorted(names) == sorted(defined | constants | errors)
+    # the sets are read from the module, not empty by a mistake of the rules above
+    assert {"PlannerClient", "write_csv"} <= defined and "DEFAULT_BASE_URL" in constants
 
 
 def test_bad_options_are_rejected():

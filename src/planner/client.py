@@ -22,21 +22,9 @@ controller's points ("points"); :func:`to_points` and :func:`to_arrays` convert 
 (the same floats) and :func:`write_csv` writes either as CSV (``t,theta1,theta2,theta3,...``
 under a line naming the units: :func:`planner.timing.export.write_csv`).
 
-Exceptions (all carry a message; :class:`APIError` also the server's status and ``detail``)::
-
-    PlannerError                         (planner.exceptions)
-    └── PlannerClientError               base of every error raised here
-        ├── TransportError               the server could not be reached
-        │   └── RequestTimeoutError      no answer within the client's timeout
-        ├── ProtocolError                the answer is not what the API promises
-        └── APIError                     the server answered an error status
-            ├── InvalidRequestError      422 (or rejected locally: status_code None)
-            ├── AuthenticationError      401
-            ├── NotFoundError            404
-            ├── PayloadTooLargeError     413
-            ├── DeadlineExceededError    504: the request's time budget ran out
-            └── ServerError              other 5xx
-                └── ServiceUnavailableError  503 after the retries ran out
+Exceptions: the tree of :mod:`planner.client_errors` (every class importable from here),
+under :class:`planner.exceptions.PlannerError`; :class:`APIError` carries the server's status
+and ``detail``, and each status the API answers has its own class (table ``_STATUS_ERRORS``).
 """
 
 from __future__ import annotations
@@ -55,8 +43,21 @@ import httpx
 from pydantic import BaseModel, ValidationError
 
 import planner
+from planner.client_errors import (
+    APIError,
+    AuthenticationError,
+    DeadlineExceededError,
+    InvalidRequestError,
+    NotFoundError,
+    PayloadTooLargeError,
+    PlannerClientError,
+    ProtocolError,
+    RequestTimeoutError,
+    ServerError,
+    ServiceUnavailableError,
+    TransportError,
+)
 from planner.design import Design
-from planner.exceptions import PlannerError
 from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -127,88 +128,6 @@ DEFAULT_MAX_RETRIES = 3
 DEFAULT_BACKOFF_S = 0.25
 #: Longest single wait between retries, s.
 DEFAULT_MAX_BACKOFF_S = 10.0
-
-
-# ---------------------------------------------------------------------------- exceptions
-class PlannerClientError(PlannerError):
-    """Base of every error raised by the client."""
-
-
-class TransportError(PlannerClientError):
-    """The server could not be reached (connection refused, reset, DNS...)."""
-
-
-class RequestTimeoutError(TransportError):
-    """No answer within the client's ``timeout``."""
-
-
-class ProtocolError(PlannerClientError):
-    """The server's answer does not parse as the model the API promises."""
-
-
-class APIError(PlannerClientError):
-    """The server answered an error status.
-
-    Attributes
-    ----------
-    status_code : int or None
-        HTTP status (None for a request rejected locally, before sending).
-    detail : list of dict
-        The server's ``detail`` items, each with ``loc``, ``msg`` and ``type``.
-    message : str
-        The items joined as ``"body.design.L1: Input should be ..."``.
-    """
-
-    def __init__(
-        self, message: str, *, status_code: int | None, detail: list[dict[str, Any]] | None = None
-    ) -> None:
-        super().__init__(message)
-        self.message = message
-        self.status_code = status_code
-        self.detail = detail or []
-
-    def __str__(self) -> str:
-        return self.message if self.status_code is None else f"{self.status_code}: {self.message}"
-
-
-class InvalidRequestError(APIError):
-    """422: a field breaks a rule (``detail[i]["loc"]`` names it)."""
-
-
-class AuthenticationError(APIError):
-    """401: the API key is missing or wrong."""
-
-
-class NotFoundError(APIError):
-    """404: no such route (an older server?)."""
-
-
-class PayloadTooLargeError(APIError):
-    """413: the request body is larger than the server accepts."""
-
-
-class DeadlineExceededError(APIError):
-    """504: the server's time budget for the request ran out."""
-
-
-class ServerError(APIError):
-    """A 5xx answer other than 504."""
-
-
-class ServiceUnavailableError(ServerError):
-    """503 after every retry: all workers stayed busy. ``retry_after`` is the server's last
-    advice, s (None if it gave none)."""
-
-    def __init__(
-        self,
-        message: str,
-        *,
-        status_code: int | None,
-        detail: list[dict[str, Any]] | None = None,
-        retry_after: float | None = None,
-    ) -> None:
-        super().__init__(message, status_code=status_code, detail=detail)
-        self.retry_after = retry_after
 
 
 _STATUS_ERRORS: dict[int, type[APIError]] = {
