@@ -38,6 +38,7 @@ if TYPE_CHECKING:
         inverse_batch,
         link_points,
     )
+    from planner.solver import Solution, solve
 
 try:
     __version__ = version("hybrid-planner")
@@ -65,6 +66,8 @@ _HOMES = {
     "forward_batch": "kinematics",
     "inverse_batch": "kinematics",
     "link_points": "kinematics",
+    "Solution": "solver",
+    "solve": "solver",
 }
 
 
@@ -95,9 +98,11 @@ __all__ = [
     "Posture",
     "PostureBatch",
     "SingularPostureError",
+    "Solution",
     "__version__",
     "conditioning",
     "forward_batch",
     "inverse_batch",
     "link_points",
+    "solve",
 ]
