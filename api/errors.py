@@ -95,8 +95,18 @@ def error_response(
     return JSONResponse({"detail": [item]}, status_code=status, headers=headers)
 
 
+#: Tags of the wire's tagged unions that name no field: pydantic puts the member's tag in
+#: ``loc`` after the union's field (``goal.p.p``); the field's own path is ``goal.p``.
+_UNION_TAGS = {"goal": ("p", "q")}
+
+
 def _clean_loc(loc: Sequence[Any]) -> list[str | int]:
-    return [x if isinstance(x, int) else str(x) for x in loc]
+    out: list[str | int] = []
+    for i, x in enumerate(loc):
+        if i > 0 and x in _UNION_TAGS.get(str(loc[i - 1]), ()) and i + 1 < len(loc):
+            continue  # the union member's tag: the next element is the field itself
+        out.append(x if isinstance(x, int) else str(x))
+    return out
 
 
 async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:

@@ -95,8 +95,12 @@ def test_bad_fk_bodies_are_422_naming_the_field(api, body, loc):
     ("patch", "loc"),
     [
         ({"goal": {"x": 1}}, ("body", "goal")),
-        ({"goal": {"p": [0, 0, 0], "working_mode": "+0+"}}, ("body", "goal", "p", "working_mode")),
-        ({"goal": {"q": [0, 0, 0]}}, ("body", "goal", "q", "assembly_mode")),
+        ({"goal": {"p": [0, 0, 0], "working_mode": "+0+"}}, ("body", "goal", "working_mode")),
+        ({"goal": {"q": [0, 0, 0]}}, ("body", "goal", "assembly_mode")),
+        # the goal union's member tag is no field: goal.p, never goal.p.p
+        ({"goal": {"p": [0.3, 0.1]}}, ("body", "goal", "p")),
+        ({"goal": {"p": [0.3, "x", 0.1]}}, ("body", "goal", "p", 1)),
+        ({"goal": {"q": [0, 2]}}, ("body", "goal", "q")),
         ({"start": {"p": [0.3, 0, 0]}}, ("body", "start", "q")),
         ({"obstacles": [{"type": "cone"}]}, ("body", "obstacles", 0)),
         (
