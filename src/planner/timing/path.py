@@ -124,8 +124,11 @@ class BlendedPath:
         # Merge consecutive duplicates; a stop on either copy is kept.
         keep = np.ones(n_in, bool)
         keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
-        if n_in > 1 and not keep[1:].any() and not np.array_equal(w_in[0], w_in[-1]):
-            keep[-1] = True  # start and end differ (a little): keep both ends exact
+        if n_in > 1 and not keep[1:].any() and np.linalg.norm(w_in[-1] - w_in[0]) > 0.0:
+            # start and end differ (a little): keep both ends exact; not when the difference
+            # is so small (below ~1e-154 rad) that its length underflows to 0: that path is
+            # one point, at its end
+            keep[-1] = True
         index_map = np.cumsum(keep) - 1
         w = w_in[keep]
         w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
