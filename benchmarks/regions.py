@@ -39,7 +39,7 @@ from planner.analysis import regions as R
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning import JointPosture, PlanOptions, plan
-from planner.planning.modes import PROOF_RESOLUTION
+from planner.planning.proofs import PROOF_RESOLUTION
 from planner.validity import Margins, ValidityChecker
 
 DESIGNS = {

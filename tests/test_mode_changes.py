@@ -337,7 +337,7 @@ def test_no_transit_on_a_walk_is_unreachable_with_the_reason():
     """Paper optimum: +-+ -> +-- would flip B, but a stretched leg stretches both legs
     (C = D) and a folded one puts P on the base point (tests/test_transits.py checks that no
     such posture assembles regularly), and +++ is parallel-singular everywhere."""
-    from planner.planning.modes import plan_mode_change
+    from planner.planning.mode_change import plan_mode_change
 
     design = DESIGNS["paper"]
     start = JointPosture(_valid_postures(design, "+", "+-+", 1)[0], "+")

@@ -14,7 +14,8 @@ from planner.analysis import regions as R
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning import JointPosture, PlanOptions, mode_sequences, plan, posture_mode
-from planner.planning.modes import PROOF_RESOLUTION, map_transits, region_walks, walk_possible
+from planner.planning.proofs import PROOF_RESOLUTION
+from planner.planning.region_walks import map_transits, region_walks, walk_possible
 from planner.validity import Margins, ValidityChecker
 
 DESIGNS = [Design.default(), Design(0.6, 0.25, 0.45), Design(0.3, 0.3, 0.4), Design.paper_optimum()]

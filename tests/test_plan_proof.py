@@ -20,7 +20,7 @@ from planner.design import Design
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, plan
-from planner.planning.modes import PROOF_RESOLUTION
+from planner.planning.proofs import PROOF_RESOLUTION
 from planner.validity import Margins, ValidityChecker
 from planner.wire import plan_response
 

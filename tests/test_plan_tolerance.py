@@ -25,7 +25,7 @@ from planner.planning import (
     plan,
     plan_with_goal_options,
 )
-from planner.planning.modes import PROOF_RESOLUTION
+from planner.planning.proofs import PROOF_RESOLUTION
 from planner.planning.tolerance import goal_ball, prove_goal_set, sample_goal_set
 from planner.validity import Margins, ValidityChecker
 

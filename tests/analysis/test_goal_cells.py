@@ -18,7 +18,7 @@ from planner.analysis.goal_cells import GoalBall, grid_cells, plane_cells, prove
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import WORKING_MODES, forward_batch
-from planner.planning.modes import PROOF_RESOLUTION
+from planner.planning.proofs import PROOF_RESOLUTION
 from planner.validity import Margins, ValidityChecker
 
 DESIGNS = [

@@ -62,7 +62,7 @@ and any two are joined by a valid path (through shared corners, all valid).
 
 A mode change crosses one serial surface: the flipped measure goes through zero while the
 non-serial rules and the other two signed measures (>= ``serial_min``) hold, which is what
-:mod:`planner.planning.modes` builds. For flip j of mode M that set is
+:mod:`planner.planning.crossings` checks. For flip j of mode M that set is
 B = {kappa band, s_k m_k >= serial_min for k != j}; it contains V_M and V_M' (M' = M with sign j
 flipped), and two such sets for different sign pairs meet only inside a V. The over-
 approximation of B (cells not surely outside it) splits into 8-connected components; a

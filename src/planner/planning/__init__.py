@@ -13,7 +13,9 @@ guides the search through narrow passages (``PlanOptions.corridor``).
 """
 
 from planner.planning.goal_options import plan_with_goal_options
-from planner.planning.modes import mode_sequences, path_state_checker, plan
+from planner.planning.mode_graph import mode_sequences
+from planner.planning.modes import plan
+from planner.planning.path_rules import path_state_checker
 from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (

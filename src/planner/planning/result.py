@@ -1,17 +1,30 @@
 """Plan results: statuses and fields of the wire vocabulary (``docs/conventions.md``, /v1/plan).
 
 Pure data, no OMPL, no wire format: the response model is built from these by
-:func:`planner.wire.plan_response`.
+:func:`planner.wire.plan_response`. One constructor is shared by every proof that no path
+exists (:func:`proven_no_path`), so such an answer always carries the same diagnostics.
 """
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
 
-__all__ = ["Diagnostics", "PlanPath", "PlanResult", "PlanStatus", "Segment", "Transit"]
+__all__ = [
+    "Diagnostics",
+    "PlanPath",
+    "PlanResult",
+    "PlanStatus",
+    "Segment",
+    "Transit",
+    "proven_no_path",
+]
+
+logger = logging.getLogger(__name__)
 
 
 class PlanStatus(StrEnum):
@@ -100,3 +113,21 @@ class PlanResult:
     @property
     def solved(self) -> bool:
         return self.status is PlanStatus.SOLVED
+
+
+def proven_no_path(message: str, t0: float) -> PlanResult:
+    """``no_path`` with ``diagnostics.proven_infeasible``: the answer of a proof that no valid
+    path exists (the region map's, with or without obstacles, for the goal candidates or a
+    whole tolerance ball; :mod:`planner.planning.proofs`, :mod:`planner.planning.tolerance`).
+    ``message`` says which proof and why; ``planning_time_s`` runs from ``t0`` (a
+    :func:`time.perf_counter` value, the request's start); ``planner`` is 'region_map'.
+    Logged once here, at info level."""
+    logger.info("plan no_path (proven): %s", message)
+    return PlanResult(
+        PlanStatus.NO_PATH,
+        message,
+        None,
+        Diagnostics(
+            planning_time_s=time.perf_counter() - t0, planner="region_map", proven_infeasible=True
+        ),
+    )

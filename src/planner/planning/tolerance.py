@@ -15,7 +15,7 @@ goal. :func:`plan_within_tolerance` runs when the exact goal's plan was not solv
 2. *The search* over that set: in the start's working mode, the straight motion to each goal
    in turn, then one OMPL search towards all of them at once
    (:func:`planner.planning.planner.plan_to_goal_set`); goals of other modes through transits
-   (:func:`planner.planning.modes.plan_mode_change`, which takes a set of goals per mode).
+   (:func:`planner.planning.mode_change.plan_mode_change`, which takes a set of goals per mode).
    The two share one more ``options.time_budget_s``.
 3. *The proof*, asked once after the straight motions failed and before the first search
    (milliseconds, where a search spends its budget), or when no goal was found: the region
@@ -40,10 +40,11 @@ from planner.analysis.obstacle_regions import prove_disconnected_with_obstacles
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
-from planner.planning.modes import plan_mode_change, proof_region_map
+from planner.planning.mode_change import plan_mode_change
 from planner.planning.planner import joint_shifts, plan_to_goal_set, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
-from planner.planning.result import Diagnostics, PlanResult, PlanStatus
+from planner.planning.proofs import proof_region_map
+from planner.planning.result import Diagnostics, PlanResult, PlanStatus, proven_no_path
 from planner.validity import Margins, ValidityChecker
 
 __all__ = [
@@ -192,18 +193,6 @@ def sample_goal_set(
     return GoalSet(ball, targets, dists, len(points))
 
 
-def _proven(message: str, t0: float) -> PlanResult:
-    logger.info("plan no_path (proven over the goal tolerance): %s", message)
-    return PlanResult(
-        PlanStatus.NO_PATH,
-        message,
-        None,
-        Diagnostics(
-            planning_time_s=time.perf_counter() - t0, planner="region_map", proven_infeasible=True
-        ),
-    )
-
-
 def prove_goal_set(
     design: Design,
     start: JointPosture,
@@ -230,7 +219,7 @@ def prove_goal_set(
     within = f"any goal within goal.tolerance = {ball.radius:g} {unit}"
     rmap = proof_region_map(design, margins, options, t0 + 1.0 if deadline is None else deadline)
     if rmap is not None and prove_ball_disconnected(rmap, start.q, ball, asm):
-        return _proven(
+        return proven_no_path(
             f"no valid path exists to {within} (proven by the region map, {rmap.n} x "
             f"{rmap.n} cells, over every cell that can hold such a goal): in assembly mode "
             f"{asm} no chain of regions and serial transits joins the start to them, so every "
@@ -245,7 +234,7 @@ def prove_goal_set(
     if not proof.proven:
         return None
     n1, n3, n2 = proof.shape
-    return _proven(
+    return proven_no_path(
         f"no valid path exists to {within} (proven by the region map with obstacles, {n1} x "
         f"{n3} x {n2} cells over (theta1, theta3, theta2), over every cell that can hold such "
         f"a goal): in assembly mode {asm} the {proof.visited} cells reachable from the start "
