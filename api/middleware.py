@@ -215,10 +215,22 @@ def _route_label(scope: Scope) -> str:
     return UNMATCHED
 
 
+#: Headers every answer carries unless its route set its own (the viewer's page and the API
+#: documentation pages set a Content-Security-Policy for what they load): no MIME sniffing,
+#: no referrer, and a policy that loads nothing and may be framed by no one (a JSON answer,
+#: a script or a style sheet needs no more).
+SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
+    (b"x-content-type-options", b"nosniff"),
+    (b"referrer-policy", b"no-referrer"),
+    (b"content-security-policy", b"default-src 'none'; frame-ancestors 'none'"),
+)
+
+
 class RequestObserver:
     """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
     sane, else a new one; echoed in the answer and set in :data:`planner_api.logging.REQUEST_ID` for
-    every log line), records it in ``metrics`` and writes one access-log line."""
+    every log line), adds :data:`SECURITY_HEADERS` where the route set none, records it in
+    ``metrics`` and writes one access-log line."""
 
     def __init__(self, app: ASGIApp, *, metrics: Metrics) -> None:
         self.app = app
@@ -243,6 +255,8 @@ class RequestObserver:
                 status = message["status"]
                 headers = [(k, v) for k, v in message.get("headers", ()) if k != self._header]
                 headers.append((self._header, request_id.encode()))
+                present = {k.lower() for k, _ in headers}
+                headers += [(k, v) for k, v in SECURITY_HEADERS if k not in present]
                 message = {**message, "headers": headers}
             await send(message)
 

@@ -21,6 +21,7 @@ STATIC_PREFIX = "/viewer"
 
 
 @router.get("/", response_class=HTMLResponse, include_in_schema=False)
+@router.get(f"{STATIC_PREFIX}/index.html", response_class=HTMLResponse, include_in_schema=False)
 def page() -> HTMLResponse:
     """The viewer: plan, animate and inspect a motion in the browser."""
     return HTMLResponse(

@@ -13,12 +13,22 @@ import re
 from functools import cache
 from pathlib import Path
 
-__all__ = ["STATIC_DIR", "content_security_policy", "index_html"]
+__all__ = ["STATIC_DIR", "content_security_policy", "index_html", "script_hashes"]
 
 #: The folder of the page and its assets.
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 
 _INLINE_SCRIPT = re.compile(r"<script\b[^>]*>(.*?)</script>", re.DOTALL)
+
+
+def script_hashes(html: str) -> str:
+    """The CSP source list (``'sha256-...'`` ...) allowing exactly the inline scripts of
+    ``html``."""
+    return " ".join(
+        "'sha256-" + base64.b64encode(hashlib.sha256(body.encode()).digest()).decode() + "'"
+        for body in _INLINE_SCRIPT.findall(html)
+        if body.strip()
+    )
 
 
 @cache
@@ -35,11 +45,7 @@ def content_security_policy() -> str:
     file), allowed by its SHA-256 hash, computed here from the HTML itself so the two cannot
     drift apart.
     """
-    hashes = " ".join(
-        "'sha256-" + base64.b64encode(hashlib.sha256(body.encode()).digest()).decode() + "'"
-        for body in _INLINE_SCRIPT.findall(index_html())
-        if body.strip()
-    )
+    hashes = script_hashes(index_html())
     return "; ".join(
         [
             "default-src 'self'",
