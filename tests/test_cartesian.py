@@ -18,13 +18,13 @@ from planner import Design
 from planner.geometry import Sphere
 from planner.kinematics import WORKING_MODES, inverse_batch
 from planner.planning.cartesian import (
-    BISECT_TOL,
     CHORD_SHARE,
-    _narrow,
     chord_deviation_bound,
     inspect_cartesian,
     plan_cartesian,
 )
+from planner.planning.cartesian_walk import BISECT_TOL
+from planner.planning.cartesian_walk import narrow_bracket as _narrow
 from planner.planning.problem import JointPosture
 from planner.validity import Margins
 

@@ -1,0 +1,198 @@
+"""The walk along a Cartesian polyline in one working mode: the polyline parameterised by arc
+length, the inverse kinematics of the mode's branch at its points, joint values unwrapped
+continuously from the start, and the narrowing of a bracket where a rule changes.
+
+The polyline (:class:`Polyline`) starts at P of the start posture and runs through the
+waypoints in order. Its points are turned into postures by the inverse kinematics of the
+start's working mode (:func:`branch_ik`: one branch, the mode's sign triple fixes it; a point
+where the branch does not exist or changes assembly mode has none), unwrapped towards a
+reference (:func:`unwrap_to`, :func:`unwrap_chain`). :class:`Walker` holds what the steps of
+:func:`planner.planning.cartesian.plan_cartesian` share; :func:`narrow_bracket` locates the
+first change of a rule between two probes (:data:`PROBE_STEP` apart) to :data:`BISECT_TOL`,
+for the plan and for :func:`planner.planning.cartesian_inspect.inspect_cartesian`.
+"""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+import numpy as np
+
+from planner.design import Design
+from planner.exceptions import InputError
+from planner.kinematics import inverse_batch
+
+__all__ = [
+    "BISECT_TOL",
+    "NARROW_POINTS",
+    "PROBE_STEP",
+    "Polyline",
+    "Walker",
+    "as_points",
+    "branch_ik",
+    "distance_to_polyline_3d",
+    "narrow_bracket",
+    "unwrap_chain",
+    "unwrap_to",
+]
+
+#: Spacing of the rule probes along the polyline, m (the first broken rule is located within
+#: this, then bisected to :data:`BISECT_TOL`).
+PROBE_STEP = 2e-3
+#: Bisection tolerance on the stopping point along the polyline, m.
+BISECT_TOL = 1e-8
+#: Points classified at once per round of :func:`narrow_bracket` (one batched inverse kinematics
+#: each): a bracket shrinks by NARROW_POINTS + 1 per round, 3 rounds from PROBE_STEP to
+#: BISECT_TOL where bisection takes 18 single-point steps.
+NARROW_POINTS = 64
+
+
+def as_points(waypoints: object) -> np.ndarray:
+    try:
+        w = np.asarray(waypoints, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"waypoints must be numbers, got {waypoints!r}") from exc
+    if w.ndim == 1 and w.shape == (3,):
+        w = w[None]
+    if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 1:
+        raise InputError(f"waypoints must have shape (K, 3) with K >= 1, got {w.shape}")
+    if not np.all(np.isfinite(w)):
+        raise InputError("waypoints must be finite (no NaN or infinity)")
+    return w
+
+
+class Polyline:
+    """A Cartesian polyline parameterised by arc length s (m)."""
+
+    def __init__(self, vertices: np.ndarray) -> None:
+        seg = np.diff(vertices, axis=0)
+        lengths = np.linalg.norm(seg, axis=1)
+        keep = np.concatenate([[True], lengths > 1e-12])  # drop repeated points
+        self.vertices = vertices[keep]
+        seg = np.diff(self.vertices, axis=0)
+        self.lengths = np.linalg.norm(seg, axis=1)
+        self.cum = np.concatenate([[0.0], np.cumsum(self.lengths)])
+        self.length = float(self.cum[-1])
+        self.dirs = seg / np.maximum(self.lengths, 1e-300)[:, None]
+        # index of each kept vertex among the given ones (for segment numbers in messages)
+        self.given_index = np.flatnonzero(keep)
+
+    def segment_of(self, s: np.ndarray) -> np.ndarray:
+        i = np.searchsorted(self.cum, s, side="right") - 1
+        return np.clip(i, 0, max(len(self.lengths) - 1, 0))
+
+    def at(self, s: np.ndarray) -> np.ndarray:
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        if self.length == 0.0:
+            return np.broadcast_to(self.vertices[0], (*s.shape, 3)).copy()
+        i = self.segment_of(s)
+        return self.vertices[i] + (s - self.cum[i])[..., None] * self.dirs[i]
+
+
+def distance_to_polyline_3d(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance of each point (M, 3) to the polyline through ``vertices`` (K, 3), m.
+
+    Exact: the least point-segment distance over the segments (a single vertex: the distance
+    to it).
+    """
+    v = np.asarray(vertices, dtype=float)
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    if v.shape[0] == 1:
+        return np.linalg.norm(pts - v[0], axis=1)
+    best = np.full(pts.shape[0], np.inf)
+    for a, b in pairwise(v):
+        ab = b - a
+        den = float(ab @ ab)
+        t = np.clip((pts - a) @ ab / den, 0.0, 1.0) if den > 0 else np.zeros(pts.shape[0])
+        best = np.minimum(best, np.linalg.norm(a + t[:, None] * ab - pts, axis=1))
+    return best
+
+
+def branch_ik(design: Design, pts: np.ndarray, slot: int, asm_sign: int):
+    """IK of points (M, 3) in one working-mode slot: q wrapped (M, 3), ok (M,), w (M,),
+    flipped (M,) (the branch exists but in the other assembly mode)."""
+    ib = inverse_batch(design, pts)
+    q = ib.q[:, slot]
+    ok = ib.ok[:, slot] & ~ib.degenerate
+    asm = ib.assembly_mode_signs[:, slot]
+    flipped = ok & (asm != asm_sign)
+    return q, ok & ~flipped, ib.w[:, slot], flipped
+
+
+def unwrap_to(q: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """q shifted by multiples of 2 pi per joint to be nearest ``ref``."""
+    return q + 2 * np.pi * np.round((ref - q) / (2 * np.pi))
+
+
+def unwrap_chain(q: np.ndarray, q0: np.ndarray) -> np.ndarray:
+    """Postures ``q`` (M, 3) each unwrapped towards the one before it (``q0`` before the first),
+    vectorised: ``q0`` plus the cumulative sum of wrapped differences."""
+    d = np.diff(np.vstack([q0[None], q]), axis=0)
+    d = d - 2 * np.pi * np.round(d / (2 * np.pi))
+    return q0 + np.cumsum(d, axis=0)
+
+
+def narrow_bracket(
+    a: float,
+    b: float,
+    classify,
+    tol: float,
+    q_b: np.ndarray | None = None,
+    reason_b: str = "",
+) -> tuple[float, float, np.ndarray | None, str]:
+    """Shrink a bracket [a, b] (m along the polyline) of a change of a rule to ``b - a <= tol``.
+
+    ``classify(s)`` takes arc lengths (M,) inside the bracket and returns ``(same, q,
+    reason)``: ``same`` (M,) bool, True where s is on a's side of the change; ``q`` (M, 3) the
+    posture there (NaN where none); ``reason`` (M,) the rule broken there. Each round
+    classifies :data:`NARROW_POINTS` evenly spaced interior points at once and keeps the
+    interval from the last point on a's side before the first point on b's side to that
+    point, so the change found is the first one the points see (as with bisection, two
+    changes closer than a round's spacing can hide each other). Returns ``(a, b, q_b,
+    reason_b)``: the final bracket and the posture and rule at its end (the given ones when
+    b never moved)."""
+    while b - a > tol:
+        s = a + (b - a) * np.arange(1, NARROW_POINTS + 1) / (NARROW_POINTS + 1)
+        same, q, reason = classify(s)
+        if np.all(same):
+            a = float(s[-1])
+            continue
+        j = int(np.argmax(~same))
+        if j > 0:
+            a = float(s[j - 1])
+        b = float(s[j])
+        q_b = q[j] if np.all(np.isfinite(q[j])) else None
+        reason_b = str(reason[j])
+    return a, b, q_b, reason_b
+
+
+class Walker:
+    """State shared by the steps of :func:`planner.planning.cartesian.plan_cartesian`."""
+
+    def __init__(self, design, checker, poly, q0, slot, asm_sign):
+        self.design = design
+        self.checker = checker
+        self.poly = poly
+        self.q0 = q0
+        self.slot = slot
+        self.asm_sign = asm_sign
+
+    def posture_at(self, s: np.ndarray, ref: np.ndarray):
+        """(q unwrapped towards ref (M, 3), ok (M,), w (M,), flipped (M,)) at arc lengths s."""
+        pts = self.poly.at(s)
+        q, ok, w, flipped = branch_ik(self.design, pts, self.slot, self.asm_sign)
+        q = np.where(ok[:, None], unwrap_to(q, ref), np.nan)
+        return q, ok, w, flipped
+
+    def probe_valid(self, s: np.ndarray, ref: np.ndarray):
+        """Validity of the IK postures at arc lengths s (M,), unwrapped towards ``ref``:
+        (valid (M,), q (M, 3), reason (M,)); the reason is "workspace" or "assembly" where the
+        working mode's branch does not reach the point (or changes assembly mode)."""
+        q, ok, _, flipped = self.posture_at(np.asarray(s, dtype=float), ref)
+        valid = np.zeros(q.shape[0], dtype=bool)
+        reason = np.where(flipped, "assembly", "workspace").astype(object)
+        if np.any(ok):
+            rep = self.checker.check_states(q[ok])
+            valid[ok] = rep.valid
+            reason[ok] = rep.reason
+        return valid, q, reason
