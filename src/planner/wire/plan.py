@@ -12,6 +12,7 @@ from pydantic import (
     Field,
     field_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from planner.design import Design
 from planner.wire.common import (
@@ -154,6 +155,18 @@ class PlanBatchRequest(_Request):
     """Body of ``POST /v1/plan/batch``."""
 
     requests: list[PlanRequest] = Field(min_length=1, max_length=MAX_BATCH_REQUESTS)
+
+    @field_validator("requests", mode="before")
+    @classmethod
+    def _count_first(cls, value: Any) -> Any:
+        # the count is checked on the raw list, before its items are validated one by one
+        if isinstance(value, list) and len(value) > MAX_BATCH_REQUESTS:
+            raise PydanticCustomError(
+                "too_long",
+                "at most {limit} requests per batch, got {count}",
+                {"limit": MAX_BATCH_REQUESTS, "count": len(value)},
+            )
+        return value
 
 
 class PlanBatchResponse(_Response):
