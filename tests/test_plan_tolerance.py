@@ -10,6 +10,8 @@ a wall of plates that the arm cannot pass (tests/analysis/test_obstacle_regions.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -195,3 +197,14 @@ def test_no_proof_over_a_ball_that_holds_a_goal_the_search_reaches(part):
                                      prefer=prefer, tolerance=radius)  # fmt: skip
         assert not res.diagnostics.proven_infeasible, (trial, res.message)
     assert found >= 5
+
+
+def test_an_unreachable_message_names_each_working_mode_once():
+    """A point no mode reaches (a sphere swallows it): the answer says why per working mode,
+    each of the eight named once (it once read "in -++ in working mode -++")."""
+    design = Design.default()
+    res = plan(design, JointPosture([0.0, 2.0, 1.0], "+"), CartesianTarget([0.3, 0.1, -0.5]),
+               obstacles=[Sphere([0.3, 0.1, -0.5], 0.1)])  # fmt: skip
+    assert res.status is PlanStatus.UNREACHABLE
+    for mode in WORKING_MODES:
+        assert len(re.findall(rf"(?<![+-]){re.escape(mode)}(?![+-])", res.message)) == 1, mode

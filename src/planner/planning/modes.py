@@ -324,8 +324,8 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
             return first
         return request.finish(
             PlanStatus.UNREACHABLE,
-            f"the goal point is unreachable in every working mode: in {start_mode} "
-            f"{first.message}; " + "; ".join(f"in {m} {w}" for m, w in whys.items()),
+            "the goal point is unreachable in every working mode: "
+            + "; ".join(_in_mode(m, w) for m, w in {start_mode: first.message, **whys}.items()),
         )
     if first.solved:
         return _shorter_through_transits(request, first, start_mode, targets)
@@ -339,6 +339,11 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
     if other.solved or first.status is PlanStatus.UNREACHABLE:
         return other
     return other if other.status is PlanStatus.NO_PATH else first
+
+
+def _in_mode(mode: str, why: str) -> str:
+    """``why`` a goal is unreachable in ``mode``, naming the mode once."""
+    return why if f"working mode {mode}" in why else f"in {mode} {why}"
 
 
 def _shorter_through_transits(
