@@ -218,7 +218,7 @@ def plan_cartesian(
     start : JointPosture
         Its working mode (the sign triple of its posture) and assembly mode are kept.
     waypoints : array, shape (K, 3) or (3,), m
-    obstacles : sequence of obstacles (wire dictionaries accepted, as the checker does).
+    obstacles : spheres, boxes, capsules (:mod:`planner.geometry`).
     margins : Margins, optional (defaults).
     path_tolerance : float, m, > 0
         Largest distance of P from the polyline, along the joint path (certified by

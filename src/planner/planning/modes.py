@@ -92,7 +92,7 @@ def plan(
     start : joint posture (its working and assembly modes come from it).
     goal : joint posture (in any working mode of the start's assembly mode), or Cartesian
         target (a specific working mode, or 'any').
-    obstacles : spheres, boxes, capsules (or wire dictionaries).
+    obstacles : spheres, boxes, capsules (:mod:`planner.geometry`).
     margins : default :class:`Margins`.
     options : default :class:`PlanOptions`; ``options.time_budget_s`` bounds the whole
         search (every segment and fallback).

@@ -147,7 +147,7 @@ def plan_single_mode(
     design : the manipulator.
     start : joint posture; its working mode (from its signs) and assembly mode are the plan's.
     goal : joint posture, or Cartesian target (``working_mode`` 'any' or the start's).
-    obstacles : spheres, boxes, capsules (or wire dictionaries).
+    obstacles : spheres, boxes, capsules (:mod:`planner.geometry`).
     margins : default :class:`Margins`.
     options : default :class:`PlanOptions`.
     before_search : called once with the goal candidates (K, 3) after the checks and the
