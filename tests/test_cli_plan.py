@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -50,8 +51,17 @@ def test_plan_prints_a_summary_and_writes_the_full_response(api, tmp_path):
     assert served["status"] == "solved"
     assert served["path"]["waypoints"] == full.path.waypoints
     assert full.diagnostics.min_clearance >= 0.01 - 1e-9
-    # not on a terminal: what it is doing, as plain lines on stderr
-    assert r.stderr.splitlines()[-1].startswith("plan: planning (search budget 1 s) and timing")
+    # not on a terminal: what it is doing, as plain lines on stderr, each step with the time
+    # since the command began ("at"), then how long planning and timing took, in words (a bare
+    # "(2.2 s)" read as the duration of the trajectory)
+    loading, planning, done = r.stderr.splitlines()[-3:]
+    assert re.fullmatch(r"plan: loading the planner \(at \d+\.\d s\)", loading)
+    assert re.fullmatch(
+        r"plan: planning \(search budget 1 s\) and timing \(at \d+\.\d s\)", planning
+    )
+    took = re.fullmatch(r"plan: planned and timed in (\d+\.\d) s", done)
+    assert took, done
+    assert float(took[1]) >= full.diagnostics.planning_time_s - 0.05
 
 
 def test_plan_other_status_exits_1(tmp_path):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+from types import SimpleNamespace
 
 import pytest
 import typer
@@ -164,6 +165,24 @@ def test_progress_off_a_terminal_prints_one_plain_line_per_step(capsys):
     with Progress("plan") as progress:  # no known length: the step alone
         progress.step("planning", 0)
     assert capsys.readouterr().err.startswith("plan: planning (")
+
+
+def test_progress_times_read_as_what_they_are(capsys, monkeypatch):
+    """Off a terminal a step's line says when it began ("at" seconds since the command began,
+    not how long anything took); ``done`` says how long the last step took, in words."""
+    from planner_cli import _support
+
+    clock = iter([10.0, 10.0, 12.5, 13.0])  # created, step 1, step 2, done
+    monkeypatch.setattr(_support, "time", SimpleNamespace(perf_counter=lambda: next(clock)))
+    with Progress("plan", terminal=False) as progress:
+        progress.step("loading the planner", 0)
+        progress.step("planning and timing", 0)
+        progress.done("planned and timed")
+    assert capsys.readouterr().err.splitlines() == [
+        "plan: loading the planner (at 0.0 s)",
+        "plan: planning and timing (at 2.5 s)",
+        "plan: planned and timed in 0.5 s",
+    ]
 
 
 def test_optimize_design_shows_each_generation_and_prints_the_library_optimum():

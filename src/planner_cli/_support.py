@@ -1,7 +1,8 @@
 """Support of the ``planner`` command line: progress displays, negative numbers as
 arguments, and help texts that read cleanly on an 80-column terminal.
 
-Kept out of :mod:`planner_cli.app` so that the commands there read as what they do.
+Kept out of the command modules (:mod:`planner_cli.plan`, ...) so that they read as what
+they do.
 
 * :class:`Progress`: what a long command is doing and how far it is, on stderr (results go
   to stdout, so ``planner figures out/ > list.txt`` keeps only the results): a rich progress
@@ -35,9 +36,11 @@ class Progress:
     """Progress of one command on stderr: ``with Progress("figures", total=12) as p: ...``.
 
     ``p.step(name, index, total)`` announces a step (``index`` = steps finished so far, the
-    signature of :func:`planner.warmup.warm_up`'s ``progress``); ``p.echo(text)`` prints a
-    result on stdout without tearing the bar. ``total=None``: no known length (a spinner and
-    the elapsed time on a terminal).
+    signature of :func:`planner.warmup.warm_up`'s ``progress``); off a terminal its line ends
+    with ``(at 2.2 s)``, the time since the command began, when the step starts: not how long
+    anything took. ``p.done(what)`` says how long the last step took (``plan: planned and
+    timed in 0.4 s``). ``p.echo(text)`` prints a result on stdout without tearing the bar.
+    ``total=None``: no known length (a spinner and the elapsed time on a terminal).
     """
 
     def __init__(self, title: str, total: int | None = None, *, terminal: bool | None = None):
@@ -46,7 +49,7 @@ class Progress:
         self.terminal = sys.stderr.isatty() if terminal is None else terminal
         self._bar: Any = None
         self._task: Any = None
-        self._t0 = time.perf_counter()
+        self._t0 = self._step_t0 = time.perf_counter()
 
     def __enter__(self) -> Progress:
         if self.terminal:
@@ -84,14 +87,21 @@ class Progress:
         """Step ``name`` begins, ``index`` steps of ``total`` being done (``index == total``:
         all done)."""
         total = self.total if total is None else total
+        self._step_t0 = time.perf_counter()
         if self._bar is not None:
             self._bar.update(self._task, description=name, completed=index, total=total)
             return
         if total is not None and index >= total:
             return  # the command prints its own result
         count = f"[{index + 1}/{total}] " if total is not None else ""
-        elapsed = time.perf_counter() - self._t0
-        typer.echo(f"{self.title}: {count}{name} ({elapsed:.1f} s)", err=True)
+        elapsed = self._step_t0 - self._t0
+        typer.echo(f"{self.title}: {count}{name} (at {elapsed:.1f} s)", err=True)
+
+    def done(self, what: str) -> None:
+        """Say on stderr, on a terminal too, that the last step ended and how long it took:
+        ``plan: planned and timed in 0.4 s`` (the seconds of that step alone)."""
+        seconds = time.perf_counter() - self._step_t0
+        self.echo(f"{self.title}: {what} in {seconds:.1f} s", err=True)
 
     def echo(self, text: str, *, err: bool = False) -> None:
         """Print ``text`` (stdout, or stderr with ``err``) above the bar, not through it."""

@@ -1,0 +1,92 @@
+"""``planner fk`` and ``planner ik``: the service's kinematics jobs run in this process, their
+JSON printed as the endpoints answer it; ``ik`` says why when no posture reaches the point."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from planner_cli.common import DesignOption, L0Option, L1Option, L2Option, design_data
+from planner_cli.errors import EXIT_NO_ANSWER, fail
+
+if TYPE_CHECKING:
+    from planner.design import Design
+
+__all__ = ["fk", "ik", "no_posture_reason"]
+
+
+def fk(
+    q: Annotated[list[float], typer.Argument(help="Joint angles theta1 theta2 theta3, rad.")],
+    assembly_mode: Annotated[str | None, typer.Option(help="'+' or '-' (default: both).")] = None,
+    design: DesignOption = "default",
+    l0: L0Option = None,
+    l1: L1Option = None,
+    l2: L2Option = None,
+) -> None:
+    """Direct kinematics of q, computed locally.
+
+    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
+    from planner.wire import FKRequest
+    from planner_api.compute import fk as job
+
+    data = {"q": q, "assembly_mode": assembly_mode, "design": design_data(design, l0, l1, l2)}
+    typer.echo(job(FKRequest.model_validate(data)).model_dump_json(indent=2))
+
+
+def ik(
+    p: Annotated[list[float], typer.Argument(help="Coordinates x y z of the point P, m.")],
+    working_mode: Annotated[str, typer.Option(help="e.g. '+-+', or 'any'.")] = "any",
+    design: DesignOption = "default",
+    l0: L0Option = None,
+    l1: L1Option = None,
+    l2: L2Option = None,
+) -> None:
+    """Inverse kinematics of P, computed locally.
+
+    Prints the JSON that POST /v1/ik answers. Example: planner ik -0.25 0.1 0.3
+
+    Exit status: 0 one posture or more; 1 none (the JSON's list is empty, and stderr says why:
+    P out of reach of a leg, or reached only in other working modes); 2 an invalid input."""
+    from planner.wire import IKRequest
+    from planner_api.compute import ik as job
+
+    data = {"p": p, "working_mode": working_mode, "design": design_data(design, l0, l1, l2)}
+    body = IKRequest.model_validate(data)
+    answer = job(body)
+    typer.echo(answer.model_dump_json(indent=2))
+    if answer.postures:
+        return
+    modes = []  # the working modes that reach P, when the request asked for one of them
+    if working_mode != "any":
+        every = job(body.model_copy(update={"working_mode": "any"}))
+        modes = [posture.working_mode for posture in every.postures]
+    fail([no_posture_reason(body.design.to_design(), body.p, working_mode, modes)], EXIT_NO_ANSWER)
+
+
+def no_posture_reason(design: Design, p: list[float], working_mode: str, reached: list[str]) -> str:
+    """Why no posture of ``design`` in ``working_mode`` reaches P: the working modes that do
+    reach it (``reached``, the labels of ``planner ik``'s postures in any mode; a '0' marks a
+    posture on a serial singularity, where two modes meet), or, when none does, the leg that
+    cannot: without joint limits a leg reaches P exactly when its pivot's distance to P lies
+    between |L2 - L1| and L1 + L2 (A = (0, -L0/2, 0), B = (0, +L0/2, 0))."""
+    at = "(" + ", ".join(f"{x:.6g}" for x in p) + ")"
+    if reached:
+        on_singularity = any("0" in mode for mode in reached)
+        return (
+            f"no posture in working mode {working_mode} reaches P = {at}; it is reached in "
+            f"working mode{'s' if len(reached) > 1 else ''} {', '.join(reached)} only"
+            + (" (a 0 sign: P on that serial singularity, where the + and - modes meet)"
+               if on_singularity else "")
+        )  # fmt: skip
+    outer, inner = design.L1 + design.L2, abs(design.L2 - design.L1)
+    legs = []
+    for leg, pivot_y in (("A", -design.L0 / 2), ("B", design.L0 / 2)):
+        r = math.dist(p, (0.0, pivot_y, 0.0))
+        if r > outer:
+            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m > L1 + L2 = {outer:.6g} m)")
+        elif r < inner:
+            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m < |L2 - L1| = {inner:.6g} m)")
+    why = f": P is out of reach {' and '.join(legs)}" if legs else ""
+    return f"no posture reaches P = {at} in any working mode{why}"
