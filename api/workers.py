@@ -73,6 +73,9 @@ PoolState = Literal["starting", "ready", "recovering", "broken", "stopping"]
 
 #: Seconds between two attempts to replace a worker whose start or warm-up failed.
 RESPAWN_BACKOFF_S = 2.0
+#: Seconds between two progress lines while workers warm up (a first start, compiling the
+#: numba kernels, takes tens of seconds after "Uvicorn running": not in silence).
+WARMING_REPORT_S = 10.0
 #: Seconds between two checks of a worker that its parent is still alive (the portable
 #: fallback of ``PR_SET_PDEATHSIG``).
 PARENT_WATCH_S = 0.5
@@ -162,6 +165,7 @@ class _Worker:
     conn: Connection
     state: Literal["warming", "idle", "busy", "dead"] = "warming"
     job: _Job | None = None
+    started: float = field(default_factory=time.monotonic)
     reader: threading.Thread | None = field(default=None, repr=False)
 
 
@@ -249,7 +253,11 @@ class WorkerPool:
         """Spawn every worker, from this one long-lived thread (``PR_SET_PDEATHSIG`` fires
         when the *thread* that spawned a process ends)."""
         while True:
-            delay = self._spawn_requests.get()
+            try:
+                delay = self._spawn_requests.get(timeout=WARMING_REPORT_S)
+            except queue.Empty:
+                self._report_warming()
+                continue
             if delay is None or self._stopping:
                 return
             if delay > 0:
@@ -262,6 +270,16 @@ class WorkerPool:
                 logger.exception("could not start a worker process; retrying")
                 self._failed = True
                 self._spawn_requests.put(RESPAWN_BACKOFF_S)
+
+    def _report_warming(self) -> None:
+        """Log how many workers are warm while some still warm up (every WARMING_REPORT_S;
+        under the lock, so that no such line follows the one saying a worker is warm)."""
+        with self._lock:
+            warming = [w.started for w in self._workers if w.state == "warming"]
+            warm = sum(w.state in ("idle", "busy") for w in self._workers)
+            if warming and not self._stopping:
+                since = time.monotonic() - min(warming)
+                logger.info("%d of %d workers warm after %.1f s", warm, self.workers, since)
 
     def _spawn(self) -> None:
         parent_conn, child_conn = self._ctx.Pipe(duplex=True)

@@ -1,0 +1,40 @@
+"""``planner serve`` while its workers warm up: a progress line every
+:data:`planner_api.workers.WARMING_REPORT_S` seconds, so that the tens of seconds between
+"Uvicorn running" and the first warm worker on a first start (numba compiling) are not
+silent; none once every worker is warm."""
+
+from __future__ import annotations
+
+import functools
+import logging
+import re
+import time
+
+from planner_api import workers
+from planner_api.workers import WorkerPool
+
+PROGRESS = re.compile(r"(\d+) of (\d+) workers warm after (\d+\.\d) s")
+
+
+def test_the_pool_says_how_far_warm_up_is_until_every_worker_is_warm(monkeypatch, caplog):
+    monkeypatch.setattr(workers, "WARMING_REPORT_S", 0.2)
+    caplog.set_level(logging.INFO, logger="planner_api.workers")
+    pool = WorkerPool(1, 0, warm_up=functools.partial(time.sleep, 1.5))  # a picklable warm-up
+    pool.start_workers()
+    try:
+        deadline = time.monotonic() + 120
+        while pool.warm_workers < 1:
+            assert time.monotonic() < deadline, "the worker never warmed up"
+            time.sleep(0.05)
+        time.sleep(0.6)  # three more report periods with the worker warm: no progress line
+    finally:
+        pool.shutdown()
+    messages = [r.getMessage() for r in caplog.records if r.name == "planner_api.workers"]
+    ready = next(i for i, m in enumerate(messages) if re.fullmatch(r"worker \d+ warm in .*", m))
+    progress = [PROGRESS.fullmatch(m) for m in messages]
+    before = [m for m in progress[:ready] if m]
+    assert len(before) >= 3, messages  # a 1.5 s warm-up, one line per 0.2 s
+    assert all(m[1] == "0" and m[2] == "1" for m in before)
+    seconds = [float(m[3]) for m in before]
+    assert seconds == sorted(seconds) and seconds[-1] >= 1.0  # since the worker was started
+    assert not any(progress[ready:]), messages[ready:]
