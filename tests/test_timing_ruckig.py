@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ruckig import InputParameter, Ruckig
-from timing_factories import brute_distance_to_polyline, fine_times, random_walk
+from timing_factories import fine_times, random_walk, segment_distance_to_polyline
 
 from planner import Design
 from planner.exceptions import TimingInfeasibleError
@@ -76,7 +76,7 @@ def test_rest_to_rest_moves_stay_on_the_segments():
     w = random_walk(2, n=6)
     traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_deviation=0.0)
     q, _, _, _ = traj.at(fine_times(traj.duration, 3001))
-    assert brute_distance_to_polyline(w, q, per_seg=2000).max() < 1e-3
+    assert segment_distance_to_polyline(w, q).max() < 1e-3
     assert traj.max_deviation_q < 1e-9
 
 
@@ -146,7 +146,7 @@ def test_deviation_is_held_to_max_deviation(delta):
         w = random_walk(10 + seed, n=8)
         traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_deviation=delta)
         q, _, _, _ = traj.at(fine_times(traj.duration, 2001))
-        assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= delta + 1e-3
+        assert segment_distance_to_polyline(w, q).max() <= delta + 1e-3
         assert 0.0 < traj.max_deviation_q <= delta * (1 + 1e-9)
 
 
@@ -190,7 +190,7 @@ def test_short_segment_between_blends_becomes_one_middle_state():
     ruck = time_path(DESIGN, w, limits, method="ruckig")
     assert ruck.duration / top.duration <= 1.2
     q = ruck.at(fine_times(ruck.duration, 20001))[0]
-    assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= 0.05 + 1e-3
+    assert segment_distance_to_polyline(w, q).max() <= 0.05 + 1e-3
 
 
 def test_patience_chooses_as_trying_every_factor(monkeypatch):
@@ -222,5 +222,5 @@ def test_moves_through_middle_states_stand_for_their_blends():
                 assert np.abs(ends).max() < 1e-6, k
         chained += sum(len(m.corners) >= 3 for m in curve.moves)
         q = traj.at(fine_times(traj.duration, 20001))[0]
-        assert brute_distance_to_polyline(w, q, per_seg=1500).max() <= 0.05 + 0.005
+        assert segment_distance_to_polyline(w, q).max() <= 0.05 + 0.005
     assert chained > 0  # middle states in a row were exercised

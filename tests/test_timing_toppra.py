@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from timing_factories import brute_distance_to_polyline, fine_times, random_walk
+from timing_factories import fine_times, random_walk, segment_distance_to_polyline
 
 from planner import Design, Manipulator, forward_batch
 from planner.timing import LIMIT_RTOL, JointLimits, time_path
@@ -83,10 +83,10 @@ def test_deviation_stays_within_the_blend(delta):
     w = random_walk(5, n=8)
     traj = time_path(DESIGN, w, LIMITS, max_deviation=delta)
     q, _, _, _ = traj.at(fine_times(traj.duration, 2001))
-    brute = brute_distance_to_polyline(w, q, per_seg=1500)
-    assert brute.max() <= delta + 1e-3
+    exact = segment_distance_to_polyline(w, q)
+    assert exact.max() <= delta + 1e-3
     assert traj.max_deviation_q <= delta + 1e-9
-    assert traj.max_deviation_q == pytest.approx(brute.max(), abs=3e-3)
+    assert traj.max_deviation_q == pytest.approx(exact.max(), abs=3e-3)
     assert traj.max_deviation_p > 0
 
 
@@ -96,7 +96,7 @@ def test_blending_is_faster_than_stopping_and_zero_deviation_follows_the_polylin
     exact = time_path(DESIGN, w, LIMITS, max_deviation=0.0)
     assert blended.duration < exact.duration
     q, qd, _, _ = exact.at(fine_times(exact.duration, 8001))
-    assert brute_distance_to_polyline(w, q[::4], per_seg=1500).max() < 1e-3
+    assert segment_distance_to_polyline(w, q).max() < 1e-3
     assert exact.max_deviation_q == 0.0
     # It comes to rest at every interior vertex.
     for k in range(1, len(w) - 1):

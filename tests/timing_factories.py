@@ -42,8 +42,26 @@ def fine_times(duration: float, n: int = 20001) -> np.ndarray:
     return np.linspace(0.0, duration, n)
 
 
+def segment_distance_to_polyline(waypoints: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Exact distance of each posture to the polyline (independent of the library): the
+    closest point of every segment (the projection clamped to the segment), the least over
+    the segments. Exact where :func:`brute_distance_to_polyline` overestimates by up to half
+    its sample spacing, and a thousand times cheaper on 20,000 postures: the timing tests'
+    deviation checks use it (a pass with it is a pass of the rule itself, not of a sample)."""
+    q = np.asarray(q, float)
+    out = np.full(q.shape[0], np.inf)
+    for a, b in itertools.pairwise(np.asarray(waypoints, float)):
+        ab = b - a
+        length2 = float(ab @ ab)
+        s = np.zeros(q.shape[0]) if length2 == 0.0 else np.clip((q - a) @ ab / length2, 0, 1)
+        np.minimum(out, np.linalg.norm(q - a - s[:, None] * ab, axis=1), out=out)
+    return out
+
+
 def brute_distance_to_polyline(waypoints: np.ndarray, q: np.ndarray, per_seg: int = 2000):
-    """Distance of each posture to a densely sampled polyline (independent of the library)."""
+    """Distance of each posture to a densely sampled polyline (independent of the library,
+    and of :func:`segment_distance_to_polyline`'s projection: the check of the library's own
+    projection uses it)."""
     pts = np.concatenate([np.linspace(a, b, per_seg) for a, b in itertools.pairwise(waypoints)])
     out = np.empty(q.shape[0])
     for i in range(0, q.shape[0], 500):
