@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
+from planner.analysis.heap import heap_pop, heap_push
 from planner.geometry import box_sdf, point_segment_distance, segment_min_distance
 
 __all__ = ["all_states", "cell_passable", "corners_inside", "flood_reaches", "proximal_blocked"]
@@ -146,12 +147,16 @@ def flood_reaches(
     state = np.zeros((n1, n3, n2), dtype=np.uint8)
     cos1 = np.cos(theta1)
     sin1 = np.sin(theta1)
-    # a binary heap of (distance in cells to the nearest goal, cell): the flood dives towards
-    # the goals first, so a connected query stops early; a proof visits the whole component
-    # whatever the order
+    # a binary heap of (distance in cells to the nearest goal, cell) (planner.analysis.heap):
+    # the flood dives towards the goals first, so a connected query stops early; a proof
+    # visits the whole component whatever the order. Each cell is pushed at most once, so
+    # the heap never outgrows one entry per cell. A cell (i1, k3, k2) is packed into one
+    # int64 as i1 << 40 | k3 << 20 | k2 (a grid has at most 256 theta1 cells and 2048 per
+    # other axis, below 2^20): shifts and masks unpack it, where a flat index would cost
+    # three divisions per pop.
     cap = n1 * n3 * n2
-    key = np.empty(cap, dtype=np.int32)
-    cell = np.empty((cap, 3), dtype=np.int32)
+    keys = np.empty(cap, dtype=np.int32)
+    cells = np.empty(cap, dtype=np.int64)
     size = 0
     i, j, k = start[0], start[1], start[2]
     if not cell_passable(
@@ -177,10 +182,10 @@ def flood_reaches(
     if goal[i, j, k]:
         visits[0] = met
         return 1
-    size = _push(key, cell, size, _to_goals(guide, i, j, k), i, j, k)
+    size = heap_push(keys, cells, size, _to_goals(guide, i, j, k), (i << 40) | (j << 20) | k)
     while size > 0:
-        ci, cj, ck = cell[0, 0], cell[0, 1], cell[0, 2]
-        size = _pop(key, cell, size)
+        flat, size = heap_pop(keys, cells, size)
+        ci, cj, ck = flat >> 40, (flat >> 20) & 0xFFFFF, flat & 0xFFFFF
         for di in range(-1, 2):
             i = ci + di
             if i < 0 or i >= n1:
@@ -216,7 +221,9 @@ def flood_reaches(
                     if goal[i, j, k]:
                         visits[0] = met
                         return 1
-                    size = _push(key, cell, size, _to_goals(guide, i, j, k), i, j, k)
+                    size = heap_push(
+                        keys, cells, size, _to_goals(guide, i, j, k), (i << 40) | (j << 20) | k
+                    )
     visits[0] = met
     return 0
 
@@ -229,43 +236,6 @@ def _to_goals(guide, i, j, k):  # pragma: no cover - compiled
         d = max(abs(guide[g, 0] - i), max(abs(guide[g, 1] - j), abs(guide[g, 2] - k)))
         best = min(best, d)
     return best
-
-
-@njit(cache=True, inline="always")
-def _push(key, cell, size, kv, i, j, k):  # pragma: no cover - compiled
-    pos = size
-    while pos > 0:
-        parent = (pos - 1) >> 1
-        if key[parent] <= kv:
-            break
-        key[pos] = key[parent]
-        cell[pos, 0], cell[pos, 1], cell[pos, 2] = cell[parent, 0], cell[parent, 1], cell[parent, 2]
-        pos = parent
-    key[pos] = kv
-    cell[pos, 0], cell[pos, 1], cell[pos, 2] = i, j, k
-    return size + 1
-
-
-@njit(cache=True, inline="always")
-def _pop(key, cell, size):  # pragma: no cover - compiled
-    size -= 1
-    kv = key[size]
-    i, j, k = cell[size, 0], cell[size, 1], cell[size, 2]
-    pos = 0
-    while True:
-        child = 2 * pos + 1
-        if child >= size:
-            break
-        if child + 1 < size and key[child + 1] < key[child]:
-            child += 1
-        if key[child] >= kv:
-            break
-        key[pos] = key[child]
-        cell[pos, 0], cell[pos, 1], cell[pos, 2] = cell[child, 0], cell[child, 1], cell[child, 2]
-        pos = child
-    key[pos] = kv
-    cell[pos, 0], cell[pos, 1], cell[pos, 2] = i, j, k
-    return size
 
 
 @njit(cache=True)

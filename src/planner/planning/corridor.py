@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 from scipy import ndimage
 
+from planner.analysis.heap import heap_grow, heap_pop, heap_push
 from planner.caching import BoundedCache
 from planner.geometry import pack_obstacles
 from planner.planning import ompl_backend
@@ -418,8 +419,8 @@ def _astar(valid, weight, n1, n2, n3, step, source, target, greed):  # pragma: n
     cells of the flat mask ``valid`` (n1 * n2 * n3), edge costs the Euclidean distance of the
     centres (``step`` the cell edges, rad) times the entered cell's ``weight``; empty when
     none. A* with the Euclidean distance to the target times ``greed`` as its heuristic
-    (weighted A*: a path at most that factor costlier than the least costly) and a binary
-    heap of (cost, cell)."""
+    (weighted A*: a path at most that factor costlier than the least costly) and the binary
+    heap of :mod:`planner.analysis.heap` (cost, cell)."""
     n = n1 * n2 * n3
     cost = np.full(n, np.inf)
     parent = np.full(n, -1, dtype=np.int64)
@@ -437,30 +438,12 @@ def _astar(valid, weight, n1, n2, n3, step, source, target, greed):  # pragma: n
                         (di * step[0]) ** 2 + (dj * step[1]) ** 2 + (dk * step[2]) ** 2
                     )
                     e += 1
-    cap = 4096
-    hkey = np.empty(cap)
-    hval = np.empty(cap, dtype=np.int64)
-    size = 0
+    hkey = np.empty(4096)  # the heap of (cost + heuristic, cell), grown as it fills
+    hval = np.empty(4096, dtype=np.int64)
     cost[source] = 0.0
-    hkey[0], hval[0], size = 0.0, source, 1
+    size = heap_push(hkey, hval, 0, 0.0, source)
     while size > 0:
-        # pop the least key
-        cell = hval[0]
-        size -= 1
-        key, val = hkey[size], hval[size]
-        i = 0
-        while True:
-            c = 2 * i + 1
-            if c >= size:
-                break
-            if c + 1 < size and hkey[c + 1] < hkey[c]:
-                c += 1
-            if hkey[c] >= key:
-                break
-            hkey[i], hval[i] = hkey[c], hval[c]
-            i = c
-        if size > 0:
-            hkey[i], hval[i] = key, val
+        cell, size = heap_pop(hkey, hval, size)
         if done[cell]:
             continue
         done[cell] = True
@@ -482,23 +465,8 @@ def _astar(valid, weight, n1, n2, n3, step, source, target, greed):  # pragma: n
             h = np.sqrt(
                 ((ti - ni) * step[0]) ** 2 + ((tj - nj) * step[1]) ** 2 + ((tk - nk) * step[2]) ** 2
             )
-            if size == cap:  # grow the heap
-                cap *= 2
-                k2 = np.empty(cap)
-                v2 = np.empty(cap, dtype=np.int64)
-                k2[:size], v2[:size] = hkey[:size], hval[:size]
-                hkey, hval = k2, v2
-            # push (new + h, nb)
-            i = size
-            size += 1
-            key = new + greed * h
-            while i > 0:
-                p = (i - 1) // 2
-                if hkey[p] <= key:
-                    break
-                hkey[i], hval[i] = hkey[p], hval[p]
-                i = p
-            hkey[i], hval[i] = key, nb
+            hkey, hval = heap_grow(hkey, hval, size)
+            size = heap_push(hkey, hval, size, new + greed * h, nb)
     if not done[target]:
         return np.empty(0, dtype=np.int64)
     count = 1
