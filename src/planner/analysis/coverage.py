@@ -79,15 +79,20 @@ class Coverage:
     reached: dict[int, np.ndarray]
     theta1_span: float = 2.0 * math.pi
 
-    def area(self, region_ids) -> float:
-        """Area (m^2) of the union of the given regions' images."""
+    def _union(self, region_ids) -> np.ndarray | None:
+        """The union (m, m) bool of the given regions' images; None for no region."""
         ids = list(region_ids)
         if not ids:
-            return 0.0
+            return None
         union = np.zeros_like(self.reached[ids[0]])
         for i in ids:
             union |= self.reached[i]
-        return float(union.sum()) * self.pixel_area
+        return union
+
+    def area(self, region_ids) -> float:
+        """Area (m^2) of the union of the given regions' images."""
+        union = self._union(region_ids)
+        return 0.0 if union is None else float(union.sum()) * self.pixel_area
 
     def volume(self, region_ids) -> float:
         """Volume (m^3) of the 3-D points the given regions reach as theta1 turns.
@@ -102,12 +107,9 @@ class Coverage:
             raise InputError(
                 f"volume needs theta1 limits spanning a full turn, got {self.theta1_span:.6g} rad"
             )
-        ids = list(region_ids)
-        if not ids:
+        union = self._union(region_ids)
+        if union is None:
             return 0.0
-        union = np.zeros_like(self.reached[ids[0]])
-        for i in ids:
-            union |= self.reached[i]
         folded = union | union[::-1]  # the raster is symmetric about w = 0
         upper = self.w > 0.0
         ring = 2.0 * math.pi * self.w[upper] * self.pixel_area
