@@ -32,11 +32,13 @@ _ERRORS = {422: {"model": ErrorResponse}}
 _KILL_AFTER_DRAIN_S = 2.0
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
+def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> FastAPI:
     """The service, configured by ``settings`` (default: from the environment).
 
     The worker pool starts with the application's lifespan (``with TestClient(app)`` in
-    tests, or a server).
+    tests, or a server). ``warm_up=False`` (tests of the gate, the key, the limits, the
+    metrics) announces each worker ready as soon as it has started, without
+    :func:`~planner_api.warmup.warm_up_worker`: its first job pays the imports instead.
     """
     settings = settings or get_settings()
 
@@ -47,7 +49,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             settings.queue_size or 0,
             retry_after_s=settings.retry_after_s,
             log_setup=(settings.log_level, settings.log_format),
-            warm_up=warm_up_worker,
+            warm_up=warm_up_worker if warm_up else None,
         )
         await pool.start()
         app.state.pool = pool

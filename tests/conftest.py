@@ -63,11 +63,17 @@ def wait_ready(client: httpx.Client | TestClient, timeout_s: float = STARTUP_TIM
         time.sleep(0.05)
 
 
-def make_client(*, wait_ready: bool = True, **settings: object) -> TestClient:
+def make_client(*, wait_ready: bool = True, warm: bool = True, **settings: object) -> TestClient:
     """A TestClient of an app built with these settings (one worker unless told); entering
-    it waits for readiness unless ``wait_ready`` is False."""
+    it waits for readiness unless ``wait_ready`` is False.
+
+    ``warm=False``: the workers skip the service's warm-up (a worker is ready once started,
+    under a second, against several seconds of CPU for a warm one); for tests of what the
+    service does before or around a job (gate, key, limits, metrics, the pool), whose jobs,
+    if any, are cheap and not timed against a tight budget."""
     settings.setdefault("workers", 1)
-    client = ReadyClient(create_app(Settings(**settings)), raise_server_exceptions=False)
+    app = create_app(Settings(**settings), warm_up=warm)
+    client = ReadyClient(app, raise_server_exceptions=False)
     client.wait_ready = wait_ready
     return client
 
@@ -89,6 +95,44 @@ def api() -> Iterator[TestClient]:
     """One in-process service (one worker process) for the whole session."""
     with make_client() as client:
         yield client
+
+
+#: The settings the routes read from ``app.state.settings`` on every request; the others are
+#: fixed when the app is built (the gate's API key, body size and request budget; the pool).
+PER_REQUEST_SETTINGS = frozenset(
+    {
+        "default_design",
+        "max_batch",
+        "max_obstacles",
+        "max_response_bytes",
+        "max_section_resolution",
+        "max_trajectory_samples",
+    }
+)
+
+
+@pytest.fixture
+def api_with(api: TestClient) -> Iterator[Callable[..., TestClient]]:
+    """The session's warm ``api`` with some settings changed for one test:
+    ``api_with(max_section_resolution=8)`` returns ``api``, whose routes then read the new
+    settings (validated like the environment's); restored at the test's end. A test of a
+    per-request limit or default needs no pool of its own. Only
+    :data:`PER_REQUEST_SETTINGS`: a test of the gate's or the pool's settings builds its own
+    app (``client_factory(..., warm=False)``). Should a route stop reading its settings per
+    request, the test sees the default instead and fails: it cannot pass by mistake."""
+
+    saved: Settings = api.app.state.settings
+
+    def use(**changes: object) -> TestClient:
+        unknown = set(changes) - PER_REQUEST_SETTINGS
+        assert not unknown, f"fixed when the app is built, not per request: {unknown}"
+        api.app.state.settings = Settings(**{**dict(saved), **changes})
+        return api
+
+    try:
+        yield use
+    finally:
+        api.app.state.settings = saved
 
 
 def wait_live_ready(url: str, process: subprocess.Popen[bytes], log: Path) -> None:
@@ -122,9 +166,13 @@ def serve(log: Path, **env_vars: str) -> Iterator[str]:
 
 @contextmanager
 def serve_process(
-    log: Path, *, log_level: str = "warning", **env_vars: str
+    log: Path, *, log_level: str = "warning", warm: bool = True, **env_vars: str
 ) -> Iterator[tuple[subprocess.Popen[bytes], str]]:
-    """:func:`serve`, yielding the process too (process, base URL)."""
+    """:func:`serve`, yielding the process too (process, base URL).
+
+    ``warm=False``: the same server (:func:`planner_api.server.run`, through
+    ``ops_jobs.serve``) with workers that skip the warm-up, for tests of the server around
+    the jobs (the gate on a real socket, signals) whose jobs are cheap."""
     port = free_port()
     env = {
         **os.environ,
@@ -135,20 +183,16 @@ def serve_process(
     }
     env.pop("PLANNER_API_KEY", None)
     env.update(env_vars)
+    if warm:
+        options = ["--host", "127.0.0.1", "--port", str(port), "--log-level", log_level]
+        command = [sys.executable, "-m", "planner_cli", "serve", *options]
+    else:
+        env.update(PLANNER_HOST="127.0.0.1", PLANNER_PORT=str(port), PLANNER_LOG_LEVEL=log_level)
+        env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "tests"), env["PYTHONPATH"]])
+        command = [sys.executable, "-c", "import ops_jobs; ops_jobs.serve(None, warm_up=False)"]
     with log.open("wb") as out:
         process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "planner_cli",
-                "serve",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(port),
-                "--log-level",
-                log_level,
-            ],
+            command,
             cwd=ROOT,
             env=env,
             stdout=out,
@@ -185,17 +229,21 @@ def server_factory(
     tmp_path: Path,
 ) -> Iterator[Callable[..., tuple[subprocess.Popen[bytes], str, Path]]]:
     """Start ``planner serve`` processes with extra ``PLANNER_*`` settings (keyword
-    arguments, e.g. ``workers="2"``), JSON logs at INFO, each ready (every worker warm);
-    yields the starter, which returns (process, base URL, log path), for tests that signal or
-    kill the process. Every process is stopped at the end of the test."""
+    arguments, e.g. ``workers="2"``; ``warm=False``: see :func:`serve_process`), JSON logs
+    at INFO, each ready (every worker warm); yields the starter, which returns (process, base
+    URL, log path), for tests that signal or kill the process. Every process is stopped at
+    the end of the test."""
     count = iter(range(1_000))
     with ExitStack() as stack:
 
-        def start(**settings: str) -> tuple[subprocess.Popen[bytes], str, Path]:
+        def start(
+            *, warm: bool = True, **settings: str
+        ) -> tuple[subprocess.Popen[bytes], str, Path]:
             log = tmp_path / f"server-{next(count)}.log"
             env = {"PLANNER_LOG_FORMAT": "json"}
             env.update({f"PLANNER_{k.upper()}": v for k, v in settings.items()})
-            process, url = stack.enter_context(serve_process(log, log_level="info", **env))
+            context = serve_process(log, log_level="info", warm=warm, **env)
+            process, url = stack.enter_context(context)
             return process, url, log
 
         yield start

@@ -38,16 +38,19 @@ def sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRespon
     return PlanResponse(status="timeout", message=str(os.getpid()))
 
 
-def serve(job_name: str) -> None:
+def serve(job_name: str | None, *, warm_up: bool = True) -> None:
     """Serve the app of the environment's settings with the plan job ``job_name`` of this
-    module (``python -c 'import ops_jobs; ops_jobs.serve("sleep_pid")'``)."""
+    module (``python -c 'import ops_jobs; ops_jobs.serve("sleep_pid")'``; None: the real
+    plan job), its workers warmed up unless ``warm_up`` is False (as ``planner serve`` does:
+    :func:`planner_api.server.run`)."""
     from planner_api.app import create_app
     from planner_api.routes.plan import get_plan_function
     from planner_api.server import run
     from planner_api.settings import Settings
 
     settings = Settings()
-    app = create_app(settings)
-    job = getattr(sys.modules[__name__], job_name)
-    app.dependency_overrides[get_plan_function] = lambda: job
+    app = create_app(settings, warm_up=warm_up)
+    if job_name is not None:
+        job = getattr(sys.modules[__name__], job_name)
+        app.dependency_overrides[get_plan_function] = lambda: job
     run(settings, app)
