@@ -289,10 +289,10 @@ def test_bad_values_are_422_naming_the_field_and_the_rule(api, change, loc, word
     assert any(d["loc"] == loc and words in d["msg"] for d in detail), detail
 
 
-def test_too_many_samples_is_422_naming_the_rate(client_factory):
+def test_too_many_samples_is_422_naming_the_rate(api_with):
     body = {"start": START, "waypoints": [[0.45, 0.3, 0.1]], "timing": {"sample_rate_hz": 9000}}
-    with client_factory(max_trajectory_samples=100) as small:
-        r = small.post("/v1/cartesian", json=body)
+    small = api_with(max_trajectory_samples=100)  # the session's service, read per request
+    r = small.post("/v1/cartesian", json=body)
     assert r.status_code == 422, r.text
     item = r.json()["detail"][0]
     assert item["loc"] == ["body", "timing", "sample_rate_hz"] and "lower the rate" in item["msg"]

@@ -10,11 +10,11 @@ from planner import Design, Manipulator
 from planner_api.settings import Settings
 
 
-@pytest.fixture(scope="module")
-def optimum_client(client_factory):
-    # ready before the first request: a request sent during the warm-up spends its budget
-    with client_factory(default_design="paper-optimum") as client:
-        yield client
+@pytest.fixture
+def optimum_client(api_with):
+    """The session's warm service, its default design the paper's optimum (the routes read
+    it per request)."""
+    return api_with(default_design="paper-optimum")
 
 
 def test_absent_design_is_the_configured_preset(optimum_client):
@@ -36,9 +36,9 @@ def test_partial_design_takes_the_rest_from_the_configured_robot(optimum_client)
     assert body["singularity_free"] is False
 
 
-def test_merged_design_breaking_a_rule_is_a_422_naming_the_field(client_factory):
-    with client_factory(default_design='{"L1": 0.3, "L2": 0.4, "joint_max": [1, 1, 1]}') as client:
-        r = client.post("/v1/fk", json={"design": {"joint_min": [2, 0, 0]}, "q": [0.5, 0.5, 0.5]})
+def test_merged_design_breaking_a_rule_is_a_422_naming_the_field(api_with):
+    client = api_with(default_design='{"L1": 0.3, "L2": 0.4, "joint_max": [1, 1, 1]}')
+    r = client.post("/v1/fk", json={"design": {"joint_min": [2, 0, 0]}, "q": [0.5, 0.5, 0.5]})
     assert r.status_code == 422
     locs = [tuple(d["loc"]) for d in r.json()["detail"]]
     assert any(loc[:2] == ("body", "design") for loc in locs), locs

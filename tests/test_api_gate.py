@@ -28,7 +28,9 @@ HUGE = {
 
 @pytest.fixture(scope="module")
 def keyed(client_factory):
-    with client_factory(api_key="s3cret") as c:
+    """An app with an API key whose worker is not warmed: every request here is answered by
+    the gate or the validation before any job runs."""
+    with client_factory(api_key="s3cret", warm=False) as c:
         yield c
 
 
@@ -49,7 +51,7 @@ def test_without_a_key_even_a_malformed_body_is_401(keyed):
 
 
 def test_size_is_checked_before_the_key(client_factory):
-    with client_factory(api_key="s3cret", max_body_bytes=1024) as c:
+    with client_factory(api_key="s3cret", max_body_bytes=1024, warm=False) as c:
         r = c.post("/v1/fk", content=b"x" * 2000, headers={"content-type": "application/json"})
         assert r.status_code == 413 and r.json()["detail"][0]["type"] == "body_too_large"
 
@@ -115,20 +117,21 @@ def test_timing_endpoint_has_the_same_bound(api):
     assert r.json()["detail"][0]["loc"] == ["body", "sample_rate_hz"]
 
 
-def test_a_batch_shares_the_response_bytes(client_factory):
-    """Two answers share max_response_bytes: each gets half the samples one answer gets."""
+def test_a_batch_shares_the_response_bytes(api_with):
+    """Two answers share max_response_bytes: each gets half the samples one answer gets (on
+    the session's warm service: the routes read the limit per request)."""
     single = answer_sample_limit(50_000, 4_000_000)
     assert single == 4_000_000 // BYTES_PER_SAMPLE
     assert answer_sample_limit(50_000, 4_000_000, answers=2) == single // 2
     body = {**HUGE, "timing": {"method": "toppra", "sample_rate_hz": 100}}  # ~7,330 samples
-    with client_factory(max_response_bytes=4_000_000) as c:
-        r = c.post("/v1/plan", json=body)
-        assert r.status_code == 200 and r.json()["status"] == "solved"
-        assert len(r.content) < 4_000_000
-        r = c.post("/v1/plan/batch", json={"requests": [body, body]})
-        assert r.status_code == 422, r.text[:300]
-        item = r.json()["detail"][0]
-        assert item["loc"][-1] == "sample_rate_hz" and str(single // 2) in item["msg"]
+    c = api_with(max_response_bytes=4_000_000)
+    r = c.post("/v1/plan", json=body)
+    assert r.status_code == 200 and r.json()["status"] == "solved"
+    assert len(r.content) < 4_000_000
+    r = c.post("/v1/plan/batch", json={"requests": [body, body]})
+    assert r.status_code == 422, r.text[:300]
+    item = r.json()["detail"][0]
+    assert item["loc"][-1] == "sample_rate_hz" and str(single // 2) in item["msg"]
 
 
 # ------------------------------------------------------------------ on a real server process
@@ -140,7 +143,7 @@ def _raw(url: str, request: bytes) -> socket.socket:
 
 
 def test_a_stalled_body_is_408_and_a_vanished_client_is_499_not_500(server_factory):
-    _, url, _ = server_factory(workers="1", body_timeout_s="1")
+    _, url, _ = server_factory(workers="1", body_timeout_s="1", warm=False)
     head = b"POST /v1/fk HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
     # 15 of 30 declared bytes, then silence: 408 after the body timeout, connection closed
     sock = _raw(url, head + b"Content-Length: 30\r\n\r\n" + b'{"q": [0, 1, 2')

@@ -77,7 +77,7 @@ def test_settings_from_environment(monkeypatch):
 
 # ---------------------------------------------------------------- API key
 def test_api_key_guards_every_v1_route_but_the_probes(client_factory):
-    with client_factory(api_key="s3cret") as c:
+    with client_factory(api_key="s3cret", warm=False) as c:  # the key is the gate's
         assert c.get("/v1/health").status_code == 200
         assert c.get("/v1/ready").status_code == 200  # probes need no key
         for method, path, body in [
@@ -113,7 +113,11 @@ def test_no_key_configured_means_open(api):
 
 # ---------------------------------------------------------------- readiness and saturation
 def test_ready_turns_200_once_workers_answer(client_factory):
-    with client_factory(wait_ready=False) as c:
+    """'starting' (503, Retry-After) until the worker has announced itself, then 'ready'.
+    The worker is not warmed: that ready waits for the warm-up is guarded by
+    test_ops_workers.py (the first plan on a just-ready server is cheap) and by the dead
+    worker's warm replacement below."""
+    with client_factory(wait_ready=False, warm=False) as c:
         r = c.get("/v1/ready")
         if r.status_code == 503:  # the usual case: spawning and warming take a while
             assert r.json()["status"] == "starting" and r.headers["retry-after"] == "1"
@@ -123,7 +127,7 @@ def test_ready_turns_200_once_workers_answer(client_factory):
 
 
 def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory):
-    with client_factory(workers=1, queue_size=0, retry_after_s=2) as c:
+    with client_factory(workers=1, queue_size=0, retry_after_s=2, warm=False) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
         busy = pool.submit(time.sleep, 0.5)
@@ -137,7 +141,8 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factor
 
 
 def test_request_over_its_time_budget_is_504(client_factory):
-    # a budget that an fk job keeps even on a loaded machine, and a job twice as long
+    # a budget that an fk job keeps even on a loaded machine, and a job twice as long; the
+    # worker is warm: the last fk must not pay its imports within those 3 s
     with client_factory(workers=1, queue_size=2, request_timeout_s=3.0) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
@@ -199,7 +204,7 @@ def test_batch_answers_in_request_order(two_workers):
 
 def test_batch_larger_than_the_pool_capacity_is_served_in_rounds(client_factory):
     """workers=1, queue_size=1: capacity 2, yet an idle service answers a batch of 5."""
-    with client_factory(workers=1, queue_size=1) as c:
+    with client_factory(workers=1, queue_size=1, warm=False) as c:
         _wait_ready(c)
         c.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
         seeds = [5, 3, 9, 1, 7]

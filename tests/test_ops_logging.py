@@ -109,7 +109,7 @@ def test_configure_logging_and_uvicorn_config_write_json(capsys):
 
 
 def test_request_id_echoed_and_in_access_log(client_factory, access_lines):
-    with client_factory() as c:
+    with client_factory(warm=False) as c:  # the observer's work: no warm worker needed
         given = c.post("/v1/fk", json={"q": [0.1, 1.0, 2.0]}, headers={"X-Request-ID": "req-42"})
         made = c.post("/v1/fk", json={"q": [0.1, 1.0]})
         refused = c.get("/v1/fk", headers={"X-Request-ID": "bad id"})
@@ -127,7 +127,7 @@ def test_request_id_echoed_and_in_access_log(client_factory, access_lines):
 
 def test_worker_log_lines_carry_the_request_id(client_factory, capfd):
     # the worker processes inherit the test's stderr and log JSON (log_setup of the pool)
-    with client_factory(log_format="json", log_level="warning") as c:
+    with client_factory(log_format="json", log_level="warning", warm=False) as c:
         c.app.dependency_overrides[get_plan_function] = lambda: sleep_pid
         body = {"start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},
                 "goal": {"p": [0.3, 0.1, 0.2]}, "planner": {"time_budget_s": 0.01}}  # fmt: skip

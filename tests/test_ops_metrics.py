@@ -45,7 +45,8 @@ def _wait_ready(client, timeout_s: float = 180.0) -> None:
 
 
 def test_request_counts_and_latencies_per_route(client_factory):
-    with client_factory() as c:
+    # a fresh app counts from zero; its worker is not warmed (fk jobs pay their imports)
+    with client_factory(warm=False) as c:
         for q in ([0.1, 1.0, 2.0], [0.2, 1.1, 2.1]):
             assert c.post("/v1/fk", json={"q": q}).status_code == 200
         assert c.post("/v1/fk", json={"q": [0.1, 1.0]}).status_code == 422
@@ -68,7 +69,7 @@ def test_request_counts_and_latencies_per_route(client_factory):
 
 
 def test_oversized_body_is_counted_on_its_route(client_factory):
-    with client_factory(max_body_bytes=1024) as c:
+    with client_factory(max_body_bytes=1024, warm=False) as c:
         r = c.post("/v1/fk", content=b"[" * 2000, headers={"content-type": "application/json"})
         assert r.status_code == 413
         m = scrape(c)
@@ -78,7 +79,7 @@ def test_oversized_body_is_counted_on_its_route(client_factory):
 
 def test_plan_outcomes_and_durations_come_from_the_workers(client_factory):
     budgets = [0.5, 0.25, 2.0, 0.125]  # reported as planning times; a tenth as timing times
-    with client_factory() as c:
+    with client_factory(warm=False) as c:
         c.app.dependency_overrides[get_plan_function] = lambda: timed_outcome
         for seed, budget in zip((6, 1), budgets[:2], strict=True):  # solved, no_path
             r = c.post("/v1/plan", json=_plan(seed, budget))
@@ -104,7 +105,7 @@ def test_plan_outcomes_and_durations_come_from_the_workers(client_factory):
 
 
 def test_pool_saturation_and_rejections(client_factory):
-    with client_factory(workers=1, queue_size=1) as c:
+    with client_factory(workers=1, queue_size=1, warm=False) as c:
         c.app.dependency_overrides[get_plan_function] = lambda: sleep_pid
         _wait_ready(c)
         idle = scrape(c)
@@ -144,31 +145,39 @@ def test_pool_saturation_and_rejections(client_factory):
 
 
 def test_metrics_can_be_switched_off(client_factory):
-    with client_factory(metrics=False) as c:
+    with client_factory(metrics=False, warm=False) as c:
         assert c.get("/metrics").status_code == 404
         assert c.post("/v1/fk", json={"q": [0.1, 1.0, 2.0]}).status_code == 200
 
 
-def test_real_plan_reports_its_diagnostics(client_factory):
+def test_real_plan_reports_its_diagnostics(api):
+    """One real plan on the session's warm service: what the metrics gained across it (they
+    count every request of the session, so the test reads the difference of two scrapes, one
+    request at a time in this process) are the answer's own diagnostics."""
     body = {
         "start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"},
         "goal": {"q": [0.2, 1.1, 2.1], "assembly_mode": "+"},
         "planner": {"seed": 1, "time_budget_s": 5.0},
         "timing": {"method": "toppra"},
     }
-    with client_factory() as c:
-        r = c.post("/v1/plan", json=body)
-        assert r.status_code == 200, r.text
-        m = scrape(c)
+    before = scrape(api)
+    r = api.post("/v1/plan", json=body)
+    assert r.status_code == 200, r.text
+    after = scrape(api)
+
+    def gained(name: str, **labels: str) -> float:
+        return sample(after, name, **labels) - sample(before, name, **labels)
+
     answer = r.json()
     assert answer["status"] == "solved"
     d = answer["diagnostics"]
-    assert sample(m, "planner_plan_outcomes_total", status="solved") == 1
-    assert sample(m, "planner_planning_duration_seconds_sum") == pytest.approx(d["planning_time_s"])
-    assert sample(m, "planner_timing_duration_seconds_sum") == pytest.approx(d["timing_time_s"])
-    assert sample(m, "planner_job_duration_seconds_count", job="plan") == 1
+    assert gained("planner_plan_outcomes_total", status="solved") == 1
+    assert gained("planner_planning_duration_seconds_count") == 1
+    assert gained("planner_planning_duration_seconds_sum") == pytest.approx(d["planning_time_s"])
+    assert gained("planner_timing_duration_seconds_sum") == pytest.approx(d["timing_time_s"])
+    assert gained("planner_job_duration_seconds_count", job="plan") == 1
     # the job's time in the worker covers planning and timing, the request's covers the job
-    job_s = sample(m, "planner_job_duration_seconds_sum", job="plan")
-    request_s = sample(m, "planner_http_request_duration_seconds_sum", method="POST",
+    job_s = gained("planner_job_duration_seconds_sum", job="plan")
+    request_s = gained("planner_http_request_duration_seconds_sum", method="POST",
                        route="/v1/plan")  # fmt: skip
     assert d["planning_time_s"] + d["timing_time_s"] <= job_s <= request_s

@@ -10,10 +10,10 @@ from planner.wire import DesignModel
 from planner_cli import app as cli_app
 
 
-@pytest.fixture(scope="module")
-def client(client_factory):
-    with client_factory() as c:  # starts the worker pool, ready (warm) on entry
-        yield c
+@pytest.fixture
+def client(api):
+    """The session's service (default settings, warm): these tests only read."""
+    return api
 
 
 def test_design_check_answers_the_wire_fields(client):
