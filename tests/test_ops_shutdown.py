@@ -1,7 +1,10 @@
 """Graceful shutdown of a real service process (uvicorn, planner_api.server): on SIGTERM a plan in
 flight finishes and is answered when it fits the grace; one that does not is answered with a
 clean 503 ``shutting_down`` at the end of the grace and its worker is stopped; the process
-exits cleanly either way, leaving no worker behind. Its log is JSON with the request ids."""
+exits cleanly either way, leaving no worker behind. Its log is JSON with the request ids.
+
+The servers here run the tests' ``sleep_pid`` job on workers that skip the warm-up: what is
+tested is the server around a job, not the job."""
 
 from __future__ import annotations
 
@@ -33,6 +36,8 @@ def _alive(pid: int) -> bool:
 
 
 def _start(tmp_path: Path, port: int, **env: str) -> tuple[subprocess.Popen[bytes], Path]:
+    """A server process (JSON logs, one worker unless told) whose plan job is ``sleep_pid``,
+    its workers not warmed up; (process, log) once ``/v1/ready`` answers."""
     log = tmp_path / "server.log"
     full_env = {
         **os.environ,
@@ -47,11 +52,11 @@ def _start(tmp_path: Path, port: int, **env: str) -> tuple[subprocess.Popen[byte
     full_env.pop("PLANNER_API_KEY", None)
     with log.open("wb") as out:
         process = subprocess.Popen(
-            [sys.executable, "-c", "import ops_jobs; ops_jobs.serve('sleep_pid')"],
+            [sys.executable, "-c", "import ops_jobs; ops_jobs.serve('sleep_pid', warm_up=False)"],
             cwd=ROOT, env=full_env, stdout=out, stderr=subprocess.STDOUT,
         )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
-    end = time.monotonic() + 180  # every worker warm: slow on a fresh, slow machine
+    end = time.monotonic() + 180  # every worker started: slow on a loaded machine
     while True:
         assert process.poll() is None, log.read_text()[-3000:]
         try:

@@ -64,10 +64,18 @@ def _workers(server: int) -> list[int]:
     return pids
 
 
-@pytest.fixture
-def server(server_factory):
-    """A ``planner serve`` process with two workers, ready; (process, url, log)."""
-    return server_factory(workers="2")
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """One ``planner serve`` process with two warm workers and JSON logs at INFO, ready;
+    (process, url, log). Shared by the module's tests in file order: the first plan's test
+    first (its workers never used before), the SIGTERM test last (it stops the server). A
+    test that runs without the other one (xdist, -k) gets a server of its own, as fresh."""
+    from conftest import serve_process
+
+    log = tmp_path_factory.mktemp("ops_workers") / "server.log"
+    env = {"PLANNER_WORKERS": "2", "PLANNER_LOG_FORMAT": "json"}
+    with serve_process(log, log_level="info", **env) as (process, url):
+        yield process, url, log
 
 
 def _post_all(url: str, bodies: list[dict]) -> list[httpx.Response | Exception]:
@@ -105,8 +113,9 @@ def test_first_plan_on_every_worker_after_ready_is_warm(server):
 def test_a_worker_killed_mid_job_fails_only_its_request(tmp_path):
     """Two long jobs, one per worker (the tests' ``sleep_pid`` job: a real search of this
     length is proven infeasible by the planner within milliseconds now); one worker is
-    killed: its request gets a 502 ``worker_crashed``, the other's answer arrives, and a warm
-    replacement restores readiness."""
+    killed: its request gets a 502 ``worker_crashed``, the other's answer arrives, and a
+    replacement restores readiness. The workers skip the warm-up (the jobs need none); that
+    a replacement is warm before it counts is test_api_service.py's dead-worker test."""
     from conftest import free_port
     from test_ops_shutdown import _start
 
@@ -148,16 +157,26 @@ def test_a_worker_killed_mid_job_fails_only_its_request(tmp_path):
         process.wait(timeout=30)
 
 
-def test_a_killed_server_leaves_no_process_behind(server):
-    process, _, _ = server
-    ours = _children(process.pid)  # the workers and multiprocessing's resource tracker
-    assert len(ours) >= 2
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    end = time.monotonic() + 10
-    while any(_alive(p) for p in ours):
-        assert time.monotonic() < end, [p for p in ours if _alive(p)]
-        time.sleep(0.1)
+def test_a_killed_server_leaves_no_process_behind(tmp_path):
+    """SIGKILL on the server: its two workers (not warmed up: the rule is the parent's
+    death, whatever the worker was doing) and multiprocessing's resource tracker exit."""
+    from conftest import free_port
+    from test_ops_shutdown import _start
+
+    process, _ = _start(tmp_path, free_port(), PLANNER_WORKERS="2")
+    try:
+        ours = _children(process.pid)  # the workers and multiprocessing's resource tracker
+        assert len(_workers(process.pid)) == 2 and len(ours) >= 2
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        end = time.monotonic() + 10
+        while any(_alive(p) for p in ours):
+            assert time.monotonic() < end, [p for p in ours if _alive(p)]
+            time.sleep(0.1)
+    finally:
+        if process.poll() is None:  # pragma: no cover - the kill failed
+            process.kill()
+            process.wait()
 
 
 def test_every_log_line_is_json_and_an_idle_stop_is_quiet(server):
