@@ -21,6 +21,7 @@ from planner_api.settings import Settings
 from planner_api.workers import WorkerPool
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
+STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py: imports on a fresh, loaded machine
 PLAN = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]}}
 
 
@@ -41,6 +42,14 @@ def _die(_request: PlanRequest, _budget: JobBudget = UNBOUNDED) -> PlanResponse:
 def _sleep_then_pid(seconds: float) -> int:
     time.sleep(seconds)
     return os.getpid()
+
+
+def _fk_once(q: list[float]) -> int:
+    """The fk job once, with no deadline: its imports and kernels loaded in this worker."""
+    from planner.wire import FKRequest
+    from planner_api import compute
+
+    return len(compute.fk(FKRequest.model_validate({"q": q})).postures)
 
 
 def _wait_ready(client, timeout_s: float = 180.0) -> None:
@@ -142,10 +151,12 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factor
 
 def test_request_over_its_time_budget_is_504(client_factory):
     # a budget that an fk job keeps even on a loaded machine, and a job twice as long; the
-    # worker is warm: the last fk must not pay its imports within those 3 s
-    with client_factory(workers=1, queue_size=2, request_timeout_s=3.0) as c:
+    # last fk must not pay its imports within those 3 s: the worker runs fk once first,
+    # without a deadline (what the whole warm-up would do for it, and no more)
+    with client_factory(workers=1, queue_size=2, request_timeout_s=3.0, warm=False) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
+        assert pool.submit(_fk_once, [0, 1, 2]).result(timeout=STARTUP_TIMEOUT_S) == 2
         busy = pool.submit(time.sleep, 6.0)  # the fk job waits behind it past its deadline
         r = c.post("/v1/fk", json={"q": [0, 1, 2]})
         assert r.status_code == 504
