@@ -22,7 +22,6 @@ os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 # it. The test is about serving the app, not Ray's start-up speed: give it room.
 os.environ.setdefault("RAY_SERVE_PROXY_READY_CHECK_TIMEOUT_S", "240")
 os.environ.setdefault("RAY_SERVE_PROXY_HEALTH_CHECK_TIMEOUT_S", "60")
-pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -45,6 +44,8 @@ PROXY_START_S = 300
 
 
 def test_ray_serve_serves_the_app(unused_port, monkeypatch):
+    # imported here, not at collection: Ray's import alone is most of a second of every run
+    pytest.importorskip("ray.serve", reason="Ray Serve is not installed (pip install '.[ray]')")
     import ray
     import ray.serve._private.api as serve_api
     from ray import serve
