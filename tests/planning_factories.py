@@ -8,8 +8,9 @@ import numpy as np
 from plan_checker import PlanCheck, check_plan
 from scipy import ndimage
 
+from planner.analysis import regions as R
 from planner.design import Design
-from planner.geometry import Capsule, Sphere, segment_obstacle_distance
+from planner.geometry import Box, Capsule, Sphere, segment_obstacle_distance
 from planner.kinematics import WORKING_MODES, conditioning, forward_batch, link_points
 from planner.validity import Margins, ValidityChecker
 
@@ -140,3 +141,37 @@ def dense_grid_components(design: Design, margins: Margins, asm: str, grid: int)
         valid = ValidityChecker(design, margins, (), asm, mode).is_valid(q).reshape(grid, grid)
         labels[mi] = ndimage.label(valid)[0]  # default structure: 4-connected
     return t2, t3, labels
+
+
+#: The general design cut by a box of joint limits into two components in assembly mode '-'.
+CUT = Design(0.3, 0.3, 0.4, joint_min=(-3.14, -0.49, -2.81), joint_max=(3.14, 0.51, -1.72))
+
+
+def cut_ends(resolution: int) -> tuple[np.ndarray, np.ndarray]:
+    """A surely valid cell centre in each of CUT's two big components of assembly mode '-'
+    (its region map at ``resolution``)."""
+    rmap = R.region_map(CUT, n=resolution)
+    big = [r for r in rmap.regions if r.assembly_mode == "-" and r.valid_cells > 200]
+    ends = []
+    for comp in sorted({r.component for r in big}):
+        region = next(r for r in big if r.component == comp)
+        mi = WORKING_MODES.index(region.working_mode)
+        k3, k2 = np.nonzero((rmap.labels[1, mi] == region.label) & (rmap.status[1, mi] == R.VALID))
+        k = len(k3) // 2
+        ends.append(np.array([0.3, rmap.theta2[k2[k]], rmap.theta3[k3[k]]]))
+    assert len(ends) == 2
+    return ends[0], ends[1]
+
+
+def seeded_scene(rng: np.random.Generator, most: int = 6) -> list:
+    """2 to ``most`` spheres (radius 0.05-0.2 m) and boxes (edges 0.02-0.6 m, random
+    orientation) centred in [-0.7, 0.7]^3: the seeded scenes of the false-proof tests."""
+    obs = []
+    for _ in range(rng.integers(2, most + 1)):
+        c = rng.uniform(-0.7, 0.7, 3)
+        if rng.uniform() < 0.5:
+            obs.append(Sphere(c, rng.uniform(0.05, 0.2)))
+        else:
+            quat = rng.normal(size=4)
+            obs.append(Box(c, rng.uniform(0.02, 0.6, 3), quat / np.linalg.norm(quat)))
+    return obs

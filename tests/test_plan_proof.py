@@ -13,36 +13,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from planning_factories import dense_grid_components
+from planning_factories import CUT, cut_ends, dense_grid_components
 
 from planner.analysis import regions as R
 from planner.design import Design
 from planner.geometry import Box, Sphere
-from planner.kinematics import WORKING_MODES, forward_batch
+from planner.kinematics import forward_batch
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, plan
 from planner.planning.proofs import PROOF_RESOLUTION
 from planner.validity import Margins, ValidityChecker
 from planner.wire import plan_response
 
-#: The general design cut by a box of joint limits into two components in assembly mode '-'.
-CUT = Design(0.3, 0.3, 0.4, joint_min=(-3.14, -0.49, -2.81), joint_max=(3.14, 0.51, -1.72))
 FULL = Design(0.3, 0.3, 0.4)
 BUDGET = PlanOptions(time_budget_s=5.0, seed=3)
-
-
-def _cut_ends() -> tuple[np.ndarray, np.ndarray]:
-    """A surely valid cell centre in each of CUT's two big components of assembly mode '-'."""
-    rmap = R.region_map(CUT, n=PROOF_RESOLUTION)
-    big = [r for r in rmap.regions if r.assembly_mode == "-" and r.valid_cells > 200]
-    ends = []
-    for comp in sorted({r.component for r in big}):
-        region = next(r for r in big if r.component == comp)
-        mi = WORKING_MODES.index(region.working_mode)
-        k3, k2 = np.nonzero((rmap.labels[1, mi] == region.label) & (rmap.status[1, mi] == R.VALID))
-        k = len(k3) // 2
-        ends.append(np.array([0.3, rmap.theta2[k2[k]], rmap.theta3[k3[k]]]))
-    assert len(ends) == 2
-    return ends[0], ends[1]
 
 
 def _assert_proven(res, start_mode: str) -> None:
@@ -60,7 +43,7 @@ def _mode(design: Design, q: np.ndarray, asm: str) -> str:
 
 
 def test_joint_limits_cut_scene_is_proven_without_a_search():
-    start, goal = _cut_ends()
+    start, goal = cut_ends(PROOF_RESOLUTION)
     res = plan(CUT, JointPosture(start, "-"), JointPosture(goal, "-"), options=BUDGET)
     _assert_proven(res, _mode(CUT, start, "-"))
 
@@ -69,7 +52,7 @@ def test_the_proof_holds_with_obstacles_and_for_cartesian_goals():
     """Obstacles only remove postures, so the obstacle-free proof stands; a Cartesian target
     in the goal's working mode (all its candidates) is proven too, while in working mode
     'any' another branch of the inverse kinematics is reachable: no proof there."""
-    start, goal = _cut_ends()
+    start, goal = cut_ends(PROOF_RESOLUTION)
     far = [Sphere([1.5, 1.5, 1.5], 0.1)]
     res = plan(CUT, JointPosture(start, "-"), JointPosture(goal, "-"), obstacles=far,
                options=BUDGET)  # fmt: skip
@@ -89,7 +72,7 @@ def test_the_proof_holds_with_obstacles_and_for_cartesian_goals():
 def test_no_proof_without_the_cut_or_with_the_map_off():
     """The same postures under full-turn limits are joined (the planner solves, no proof);
     with ``region_map=False`` the search runs and spends its budget, never proving."""
-    start, goal = _cut_ends()
+    start, goal = cut_ends(PROOF_RESOLUTION)
     res = plan(FULL, JointPosture(start, "-"), JointPosture(goal, "-"), options=BUDGET)
     assert res.solved and not res.diagnostics.proven_infeasible
     off = PlanOptions(time_budget_s=0.2, seed=3, region_map=False)

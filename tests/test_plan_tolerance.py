@@ -14,8 +14,8 @@ import re
 
 import numpy as np
 import pytest
+from planning_factories import CUT, cut_ends, seeded_scene
 
-from planner.analysis import regions as R
 from planner.design import Design
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES, forward_batch
@@ -31,8 +31,6 @@ from planner.planning.proofs import PROOF_RESOLUTION
 from planner.planning.tolerance import goal_ball, prove_goal_set, sample_goal_set
 from planner.validity import Margins, ValidityChecker
 
-#: Cut by a box of joint limits into two components in assembly mode '-' (tests/test_plan_proof.py).
-CUT = Design(0.3, 0.3, 0.4, joint_min=(-3.14, -0.49, -2.81), joint_max=(3.14, 0.51, -1.72))
 #: theta1 within [-2, 2] and plates at z = 0 on both sides of the axis: the plane cannot turn
 #: from theta1 > 0 to theta1 < 0 (tests/analysis/test_obstacle_regions.py)
 LIMITED = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
@@ -47,22 +45,8 @@ def _mode(design: Design, q: np.ndarray, asm: str) -> str:
     return "".join("+" if s > 0 else "-" for s in signs)
 
 
-def _cut_ends() -> tuple[np.ndarray, np.ndarray]:
-    """A surely valid cell centre in each of CUT's two big components (assembly mode '-')."""
-    rmap = R.region_map(CUT, n=PROOF_RESOLUTION)
-    big = [r for r in rmap.regions if r.assembly_mode == "-" and r.valid_cells > 200]
-    ends = []
-    for comp in sorted({r.component for r in big}):
-        region = next(r for r in big if r.component == comp)
-        mi = WORKING_MODES.index(region.working_mode)
-        k3, k2 = np.nonzero((rmap.labels[1, mi] == region.label) & (rmap.status[1, mi] == R.VALID))
-        k = len(k3) // 2
-        ends.append(np.array([0.3, rmap.theta2[k2[k]], rmap.theta3[k3[k]]]))
-    return ends[0], ends[1]
-
-
 def test_a_joint_goal_cut_off_with_its_whole_tolerance_is_proven_and_a_wider_one_is_not():
-    start, goal = _cut_ends()
+    start, goal = cut_ends(PROOF_RESOLUTION)
     options = PlanOptions(time_budget_s=2.0, seed=3)
     s, g = JointPosture(start, "-"), JointPosture(goal, "-")
     small = plan_with_goal_options(CUT, s, g, options=options, tolerance=0.02)
@@ -138,18 +122,6 @@ def test_a_blocked_exact_goal_finds_a_valid_one_in_the_set():
     assert 0.06 + design.link_radius < np.linalg.norm(end - p) <= 0.15
 
 
-def _scene(rng) -> list:
-    obs = []
-    for _ in range(rng.integers(2, 6)):
-        c = rng.uniform(-0.7, 0.7, 3)
-        if rng.uniform() < 0.5:
-            obs.append(Sphere(c, rng.uniform(0.05, 0.2)))
-        else:
-            quat = rng.normal(size=4)
-            obs.append(Box(c, rng.uniform(0.02, 0.6, 3), quat / np.linalg.norm(quat)))
-    return obs
-
-
 @pytest.mark.parametrize("part", range(2))
 def test_no_proof_over_a_ball_that_holds_a_goal_the_search_reaches(part):
     """Seeded scenes (two designs, theta1 limited or not, spheres and boxes): a goal the
@@ -164,7 +136,7 @@ def test_no_proof_over_a_ball_that_holds_a_goal_the_search_reaches(part):
             base.L0, base.L1, base.L2, joint_min=(-2.0, -np.pi, -np.pi),
             joint_max=(2.0, np.pi, np.pi),
         )  # fmt: skip
-        obstacles = _scene(rng)
+        obstacles = seeded_scene(rng, most=5)
         asm = "+-"[trial % 2]
         q = rng.uniform(design.joint_min, design.joint_max, (3000, 3))
         valid = {}

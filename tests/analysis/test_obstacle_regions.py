@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planning_factories import seeded_scene
 
 from planner.analysis import obstacle_regions as O
 from planner.analysis import regions as R
@@ -168,18 +169,6 @@ def test_a_wall_is_proven_and_its_window_is_not() -> None:
     assert solved >= 4
 
 
-def _scene(rng, design: Design) -> list:
-    obs = []
-    for _ in range(rng.integers(2, 7)):
-        c = rng.uniform(-0.7, 0.7, 3)
-        if rng.uniform() < 0.5:
-            obs.append(Sphere(c, rng.uniform(0.05, 0.2)))
-        else:
-            quat = rng.normal(size=4)
-            obs.append(Box(c, rng.uniform(0.02, 0.6, 3), quat / np.linalg.norm(quat)))
-    return obs
-
-
 def test_no_false_proof_for_queries_a_found_path_joins() -> None:
     """Seeded scenes (four designs, theta1 limited or not, 2-6 spheres and plates), start
     and goal in one assembly mode, the goal in any working mode (mode changes included):
@@ -192,7 +181,7 @@ def test_no_false_proof_for_queries_a_found_path_joins() -> None:
             base.L0, base.L1, base.L2, joint_min=(-2.0, -np.pi, -np.pi),
             joint_max=(2.0, np.pi, np.pi),
         )  # fmt: skip
-        obstacles = _scene(rng, design)
+        obstacles = seeded_scene(rng)
         asm = "+" if trial % 3 else "-"
         q = rng.uniform(design.joint_min, design.joint_max, (4000, 3))
         valid = {}
