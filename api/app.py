@@ -16,7 +16,7 @@ from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
-from planner_api.routes import design, designs, kinematics, meta, plan
+from planner_api.routes import design, kinematics, meta, plan
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -83,7 +83,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)
-    for router in (design.router, designs.router, kinematics.router, plan.router):
+    for router in (design.router, kinematics.router, plan.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)

@@ -34,8 +34,7 @@ def warm_up_worker() -> float:
 
 def _run_jobs() -> None:
     from planner.wire import CartesianRequest, FKRequest, IKRequest, PlanRequest
-    from planner_api import compute
-    from planner_api.compute import JobBudget
+    from planner_api.jobs import JobBudget, cartesian, kinematics, plan
     from planner_api.metrics import run_measured
 
     budget = JobBudget(deadline=time.monotonic() + 120.0)
@@ -47,8 +46,8 @@ def _run_jobs() -> None:
             "planner": {"seed": 1},
             "timing": {"method": method},
         }
-        run_measured(compute.plan, PlanRequest.model_validate(body), budget=budget)
-    cartesian = {"start": _CARTESIAN_START, "waypoints": [[0.45, 0.3, 0.1]]}
-    run_measured(compute.cartesian, CartesianRequest.model_validate(cartesian), budget=budget)
-    run_measured(compute.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), budget=budget)
-    run_measured(compute.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), budget=budget)
+        run_measured(plan.plan, PlanRequest.model_validate(body), budget=budget)
+    straight = {"start": _CARTESIAN_START, "waypoints": [[0.45, 0.3, 0.1]]}
+    run_measured(cartesian.cartesian, CartesianRequest.model_validate(straight), budget=budget)
+    run_measured(kinematics.fk, FKRequest.model_validate({"q": _POSTURE["q"]}), budget=budget)
+    run_measured(kinematics.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}), budget=budget)

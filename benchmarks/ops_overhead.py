@@ -1,6 +1,6 @@
 """Cost of the observability layer per request: the request-id / metrics / access-log
 middleware (:class:`planner_api.middleware.RequestObserver`) and the job sample returned by the
-workers (:func:`planner_api.metrics.run_measured` against :func:`planner_api.compute.as_json`).
+workers (:func:`planner_api.metrics.run_measured` against :func:`planner_api.jobs.as_json`).
 
 Both are timed in-process, with and without the layer, in the same run, on the same inputs
 (medians of batches; the ratio is of those medians):
@@ -25,7 +25,8 @@ from collections.abc import Awaitable, Callable
 from _machine import print_machine
 
 from planner.wire import FKRequest
-from planner_api import compute
+from planner_api.jobs import as_json
+from planner_api.jobs import kinematics as jobs
 from planner_api.logging import JsonFormatter, RequestIdFilter
 from planner_api.metrics import Metrics, run_measured
 from planner_api.middleware import RequestObserver
@@ -91,10 +92,10 @@ def main() -> None:
     wrapped = _time_asgi(observed, args.n)
 
     request = FKRequest(q=[0.2, 1.0, 2.0])
-    compute.fk(request)
+    jobs.fk(request)
     plain_job, measured_job = _time_pair(
-        lambda: compute.as_json(compute.fk, request),
-        lambda: run_measured(compute.fk, request, request_id="bench-1"),
+        lambda: as_json(jobs.fk, request),
+        lambda: run_measured(jobs.fk, request, request_id="bench-1"),
         args.n // 10,
     )
 

@@ -55,7 +55,10 @@ from planner.wire import (
     PlanRequest,
     TimingRequest,
 )
-from planner_api import compute, compute_analysis
+from planner_api.jobs import cartesian as cartesian_jobs
+from planner_api.jobs import kinematics as kinematics_jobs
+from planner_api.jobs import plan as plan_jobs
+from planner_api.jobs import timing as timing_jobs
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -167,8 +170,8 @@ def _floor_rows(url: str, n: int, rng: np.random.Generator) -> None:
         fk_bodies = [r.model_dump(mode="json") for r in _requests("fk", n, rng)]
         plans = _solvable("plan", n, rng)
         plan_bodies = [r.model_dump(mode="json", exclude_none=True) for r in plans]
-        _in_process(compute.plan, plans[:20])
-        plan_local = statistics.median(_in_process(compute.plan, plans)) * 1e3
+        _in_process(plan_jobs.plan, plans[:20])
+        plan_local = statistics.median(_in_process(plan_jobs.plan, plans)) * 1e3
         rows = {}
         for name, target, bodies in (
             ("bare FastAPI POST", f"{bare_url}/echo", fk_bodies),
@@ -241,7 +244,7 @@ def _solvable(kind: str, n: int, rng: np.random.Generator) -> list:
     serial singularity are invalid starts: they are drawn again)."""
     found: list = []
     while len(found) < n:
-        found += [r for r in _requests(kind, n, rng) if compute.plan(r).status == "solved"]
+        found += [r for r in _requests(kind, n, rng) if plan_jobs.plan(r).status == "solved"]
     return found[:n]
 
 
@@ -429,14 +432,14 @@ def main() -> None:
         return
     rng = np.random.default_rng(0)
     endpoints = [
-        ("fk", "fk", compute.fk),
-        ("analyze", "analyze", compute.analyze),
-        ("timing", "timing", compute_analysis.timing),
+        ("fk", "fk", kinematics_jobs.fk),
+        ("analyze", "analyze", kinematics_jobs.analyze),
+        ("timing", "timing", timing_jobs.timing),
     ]
     if importlib.util.find_spec("planner.planning") is not None:
-        endpoints.append(("plan", "plan", compute.plan))
-        endpoints.append(("plan+toppra", "plan", compute.plan))
-        endpoints.append(("cartesian", "cartesian", compute.cartesian))
+        endpoints.append(("plan", "plan", plan_jobs.plan))
+        endpoints.append(("plan+toppra", "plan", plan_jobs.plan))
+        endpoints.append(("cartesian", "cartesian", cartesian_jobs.cartesian))
     if args.endpoints:
         endpoints = [e for e in endpoints if e[0] in args.endpoints]
     proc, url = _start_server(args.workers)

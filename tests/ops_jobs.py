@@ -9,7 +9,7 @@ import sys
 import time
 
 from planner.wire import Diagnostics, PlanRequest, PlanResponse
-from planner_api.compute import UNBOUNDED, JobBudget
+from planner_api.jobs import UNBOUNDED, JobBudget
 
 logger = logging.getLogger("tests.ops_jobs")
 

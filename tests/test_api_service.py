@@ -14,8 +14,8 @@ import pytest
 from pydantic import ValidationError
 
 from planner.wire import PlanRequest, PlanResponse
-from planner_api.compute import UNBOUNDED, JobBudget
 from planner_api.exceptions import PoolSaturatedError
+from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 from planner_api.settings import Settings
 from planner_api.workers import WorkerPool
@@ -47,9 +47,9 @@ def _sleep_then_pid(seconds: float) -> int:
 def _fk_once(q: list[float]) -> int:
     """The fk job once, with no deadline: its imports and kernels loaded in this worker."""
     from planner.wire import FKRequest
-    from planner_api import compute
+    from planner_api.jobs import kinematics as jobs
 
-    return len(compute.fk(FKRequest.model_validate({"q": q})).postures)
+    return len(jobs.fk(FKRequest.model_validate({"q": q})).postures)
 
 
 def _wait_ready(client, timeout_s: float = 180.0) -> None:

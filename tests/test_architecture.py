@@ -118,7 +118,7 @@ def test_the_tree_is_read() -> None:
     """The rules below see the whole tree (a wrong root would make every rule vacuous)."""
     assert "planner.validity" in SOURCES
     assert "planner.planning.ompl_backend" in SOURCES
-    assert f"{SERVICE_NAME}.compute" in SOURCES
+    assert f"{SERVICE_NAME}.jobs.plan" in SOURCES
 
 
 def test_the_packages_installed_are_the_folders() -> None:
@@ -256,7 +256,7 @@ def test_the_wire_converts_and_runs_no_search() -> None:
 def test_the_plan_job_is_convert_solve_respond() -> None:
     """The service's plan job calls the library's plan-and-time step (:func:`planner.solve`),
     not the planner and the timing one by one."""
-    imported = IMPORTS[f"{SERVICE_NAME}.compute"]
+    imported = IMPORTS[f"{SERVICE_NAME}.jobs.plan"]
     assert "planner.solver" in imported
     assert not any(
         _within(m, ("planner.planning.goal_options", "planner.timing.parameterize"))
@@ -332,3 +332,20 @@ def test_the_library_is_typed() -> None:
     assert (LIBRARY / "py.typed").is_file()
     pyproject = (ROOT / "pyproject.toml").read_text()
     assert "py.typed" in pyproject
+
+
+def test_the_jobs_mirror_the_routes() -> None:
+    """One jobs module per resource: ``jobs/<name>.py`` is run by ``routes/<name>.py``, and a
+    route module runs no other resource's jobs."""
+    jobs = {n.rsplit(".", 1)[1] for n in SOURCES if n.startswith(f"{SERVICE_NAME}.jobs.")}
+    routes = {n.rsplit(".", 1)[1] for n in SOURCES if n.startswith(f"{SERVICE_NAME}.routes.")}
+    assert jobs and jobs <= routes, sorted(jobs - routes)
+    for name in routes:
+        used = {
+            m.rsplit(".", 1)[1]
+            for m in IMPORTS[f"{SERVICE_NAME}.routes.{name}"]
+            if m.startswith(f"{SERVICE_NAME}.jobs.")
+            and m.count(".") == 2
+            and m.rsplit(".", 1)[1] in jobs
+        }
+        assert used <= {name}, (name, sorted(used))

@@ -12,7 +12,7 @@ import pytest
 from planner import Design
 from planner.timing import JointLimits, time_path
 from planner.wire import PlanRequest
-from planner_api.compute import plan
+from planner_api.jobs.plan import plan
 
 TINY = [0.0, 0.0, -2.225073858507e-311]
 

@@ -1,6 +1,6 @@
 """POST /v1/cartesian: straight tool paths, computed in a worker like a plan.
 
-The job is :func:`planner_api.compute.cartesian`. A finished path is a 200 whatever its
+The job is :func:`planner_api.jobs.cartesian.cartesian`. A finished path is a 200 whatever its
 status (``solved`` exactly when ``fraction`` = 1); errors are for invalid input (422), a full
 pool (503) or the request's deadline (504).
 """
@@ -10,9 +10,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from planner.wire import CartesianRequest, CartesianResponse
-from planner_api import compute
-from planner_api.compute import answer_sample_limit
 from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.jobs import answer_sample_limit
+from planner_api.jobs import cartesian as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
 
 __all__ = ["cartesian", "router"]
@@ -32,7 +32,7 @@ async def cartesian(
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool,
-        compute.cartesian,
+        jobs.cartesian,
         body,
         deadline,
         design_defaults=settings.design_defaults,

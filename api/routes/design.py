@@ -1,4 +1,4 @@
-"""POST /v1/design/check: what a design's geometry allows (parallel singularities, operative
+"""GET /v1/designs: the preset designs; POST /v1/design/check: what a design's geometry allows (parallel singularities, operative
 working modes, workspace volume and conditioning); /v1/design/optimize: the best link lengths;
 /v1/design/regions: the region map. Each computed in a worker."""
 
@@ -6,35 +6,39 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from planner.design import Design
 from planner.wire import (
     DesignCheckRequest,
     DesignCheckResponse,
+    DesignModel,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
+    DesignPreset,
+    DesignsResponse,
     RegionsRequest,
     RegionsResponse,
 )
-from planner_api import compute, compute_analysis
 from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.jobs import design as jobs
 from planner_api.routes._common import run_job
 
-__all__ = ["design_check", "design_optimize", "design_regions", "router"]
+__all__ = ["design_check", "design_optimize", "design_regions", "designs", "presets", "router"]
 
-router = APIRouter(prefix="/v1/design", tags=["design"])
+router = APIRouter(prefix="/v1", tags=["design"])
 
 
-@router.post("/check", response_model=DesignCheckResponse)
+@router.post("/design/check", response_model=DesignCheckResponse)
 async def design_check(
     body: DesignCheckRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
 ) -> Response:
     """Check a design: which parallel singularities can occur and why, which working modes are
     operative, the closed-form and sampled workspace volumes, the well-conditioned fraction."""
     return await run_job(
-        pool, compute.design_check, body, deadline, design_defaults=settings.design_defaults
+        pool, jobs.design_check, body, deadline, design_defaults=settings.design_defaults
     )
 
 
-@router.post("/optimize", response_model=DesignOptimizeResponse)
+@router.post("/design/optimize", response_model=DesignOptimizeResponse)
 async def design_optimize(
     body: DesignOptimizeRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
 ) -> Response:
@@ -43,14 +47,14 @@ async def design_optimize(
     budget is bounded by ``n_samples`` and ``maxiter`` (both capped)."""
     return await run_job(
         pool,
-        compute_analysis.optimize_design,
+        jobs.optimize_design,
         body,
         deadline,
         design_defaults=settings.design_defaults,
     )
 
 
-@router.post("/regions", response_model=RegionsResponse)
+@router.post("/design/regions", response_model=RegionsResponse)
 async def design_regions(
     body: RegionsRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
 ) -> Response:
@@ -59,5 +63,37 @@ async def design_regions(
     the transits joining regions across serial surfaces. ``resolution`` (cells per axis,
     16 .. 512) bounds the work: time and memory grow as its square."""
     return await run_job(
-        pool, compute_analysis.regions, body, deadline, design_defaults=settings.design_defaults
+        pool, jobs.regions, body, deadline, design_defaults=settings.design_defaults
     )
+
+
+def presets() -> DesignsResponse:
+    """The named designs of ``docs/conventions.md``, ``default`` first."""
+    return DesignsResponse(
+        presets=[
+            DesignPreset(
+                name="default",
+                description="What a request without a design gets: the singularity-free "
+                "design (no parallel singularity anywhere, all eight working modes usable).",
+                design=DesignModel.from_design(Design.default()),
+            ),
+            DesignPreset(
+                name="singularity-free",
+                description="2 L1 < L0 < 2 (L2 - L1): neither C = D nor a stretched CD can "
+                "occur (the paper's figures 10-11).",
+                design=DesignModel.from_design(Design.singularity_free()),
+            ),
+            DesignPreset(
+                name="paper-optimum",
+                description="L0 = 0, L1 = L2 (reach 0.8 m): the largest workspace for its size, "
+                "but only two working modes are operative (figures 8-9).",
+                design=DesignModel.from_design(Design.paper_optimum()),
+            ),
+        ]
+    )
+
+
+@router.get("/designs", response_model=DesignsResponse)
+def designs() -> DesignsResponse:
+    """The preset designs, each usable as the ``design`` of any request."""
+    return presets()

@@ -12,8 +12,8 @@ from planner.wire import (
     IKRequest,
     IKResponse,
 )
-from planner_api import compute
 from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.jobs import kinematics as jobs
 from planner_api.routes._common import run_job
 
 __all__ = ["analyze", "fk", "ik", "router"]
@@ -25,13 +25,13 @@ router = APIRouter(prefix="/v1", tags=["kinematics"])
 async def fk(body: FKRequest, pool: Pool, deadline: Deadline, settings: SettingsDep) -> Response:
     """Direct kinematics: the postures of the actuated joints ``q`` (both assembly modes
     unless one is asked; none when q does not close the loop)."""
-    return await run_job(pool, compute.fk, body, deadline, design_defaults=settings.design_defaults)
+    return await run_job(pool, jobs.fk, body, deadline, design_defaults=settings.design_defaults)
 
 
 @router.post("/ik", response_model=IKResponse)
 async def ik(body: IKRequest, pool: Pool, deadline: Deadline, settings: SettingsDep) -> Response:
     """Inverse kinematics: one posture per working mode reaching ``p``."""
-    return await run_job(pool, compute.ik, body, deadline, design_defaults=settings.design_defaults)
+    return await run_job(pool, jobs.ik, body, deadline, design_defaults=settings.design_defaults)
 
 
 @router.post("/analyze", response_model=AnalyzeResponse)
@@ -40,5 +40,5 @@ async def analyze(
 ) -> Response:
     """Jacobians A and B, kappa(A), kappa(B), singularity margins and modes of a posture."""
     return await run_job(
-        pool, compute.analyze, body, deadline, design_defaults=settings.design_defaults
+        pool, jobs.analyze, body, deadline, design_defaults=settings.design_defaults
     )

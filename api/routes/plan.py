@@ -1,6 +1,6 @@
 """POST /v1/plan and /v1/plan/batch.
 
-The job is :func:`planner_api.compute.plan`, resolved through the ``get_plan_function`` dependency
+The job is :func:`planner_api.jobs.plan.plan`, resolved through the ``get_plan_function`` dependency
 (tests override it). A finished search is a 200 whatever its status; errors are for invalid
 input (422), a full pool (503) or the request's deadline (504).
 """
@@ -13,10 +13,10 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Response
 
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
-from planner_api import compute
-from planner_api.compute import JobBudget, answer_sample_limit
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.exceptions import LimitExceededError
+from planner_api.jobs import JobBudget, answer_sample_limit
+from planner_api.jobs import plan as jobs
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
@@ -35,7 +35,7 @@ PlanFunction = Callable[[PlanRequest, JobBudget], PlanResponse]
 
 def get_plan_function() -> PlanFunction:
     """The job that answers one plan request (a module-level, picklable function)."""
-    return compute.plan
+    return jobs.plan
 
 
 PlanJob = Annotated[PlanFunction, Depends(get_plan_function)]

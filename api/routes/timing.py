@@ -5,9 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from planner.wire import TimingRequest, TimingResponse
-from planner_api import compute_analysis
-from planner_api.compute import answer_sample_limit
 from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.jobs import answer_sample_limit
+from planner_api.jobs import timing as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
 
 __all__ = ["router", "timing"]
@@ -28,7 +28,7 @@ async def timing(
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool,
-        compute_analysis.timing,
+        jobs.timing,
         body,
         deadline,
         design_defaults=settings.design_defaults,

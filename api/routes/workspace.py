@@ -8,10 +8,10 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Query, Response
 
 from planner.wire import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
-from planner_api import compute_analysis
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.errors import error_response
 from planner_api.exceptions import LimitExceededError
+from planner_api.jobs import workspace as jobs
 from planner_api.routes._common import run_job
 
 __all__ = ["figure", "router", "workspace"]
@@ -62,7 +62,7 @@ async def workspace(
     )
     return await run_job(
         pool,
-        compute_analysis.workspace,
+        jobs.workspace,
         body,
         deadline,
         design_defaults=settings.design_defaults,
@@ -113,5 +113,5 @@ async def figure(
     if absent:  # absent lengths: the configured default robot's
         defaults = settings.design_defaults
         query = query.model_copy(update={k: getattr(defaults, k) for k in absent})
-    content = await pool.run(compute_analysis.figure, (name, fmt, query), deadline=deadline)
+    content = await pool.run(jobs.figure, (name, fmt, query), deadline=deadline)
     return Response(content=content, media_type=MEDIA_TYPES[fmt])

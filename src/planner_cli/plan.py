@@ -50,11 +50,11 @@ def plan(
     with Progress("plan") as progress:
         progress.step("loading the planner", 0)
         from planner.wire import PlanRequest
-        from planner_api import compute
+        from planner_api.jobs.plan import plan as job
 
         body = PlanRequest.model_validate_json(text)
         progress.step(f"planning (search budget {body.planner.time_budget_s:g} s) and timing", 0)
-        response = compute.plan(body)
+        response = job(body)
         progress.done("planned and timed")
     _answer(response, out, csv)
 
@@ -109,7 +109,7 @@ def cartesian(
     with Progress("cartesian") as progress:
         progress.step("loading the planner", 0)
         from planner.wire import CartesianRequest
-        from planner_api import compute
+        from planner_api.jobs.cartesian import cartesian as job
 
         data = {
             "design": design_data(design, l0, l1, l2),
@@ -125,7 +125,7 @@ def cartesian(
         }
         body = CartesianRequest.model_validate(data)
         progress.step(f"following {len(body.waypoints)} segment(s) and timing", 0)
-        response = compute.cartesian(body)
+        response = job(body)
         progress.done("followed and timed")
     _answer(response, out, csv)
 

@@ -1,0 +1,146 @@
+"""The job of ``/v1/timing``: a client's joint path timed and checked densely."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from planner.exceptions import AssemblyError, InputError
+from planner.kinematics import WORKING_MODES, forward_batch, mode_label
+from planner.wire import (
+    Diagnostics,
+    TimingErrorInfo,
+    TimingRequest,
+    TimingResponse,
+    joint_limits_to_core,
+    located,
+    margins_to_core,
+    obstacles_to_core,
+    timing_error,
+    trajectory_model,
+)
+from planner_api.jobs import UNBOUNDED, JobBudget
+
+__all__ = ["timing"]
+
+
+def _check_waypoints(design: Any, q: np.ndarray, assembly_mode: str) -> None:
+    """Each waypoint inside the literal joint limits and assembling in ``assembly_mode``
+    (a 422 naming ``waypoints[i]`` otherwise)."""
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    outside = np.nonzero(np.any((q < lo) | (q > hi), axis=1))[0]
+    if outside.size:
+        i = int(outside[0])
+        j = int(np.argmax((q[i] < lo) | (q[i] > hi)))
+        raise InputError(
+            f"waypoints[{i}] is outside the joint limits: theta{j + 1} = {q[i, j]:.6g} rad not "
+            f"in [{lo[j]:.6g}, {hi[j]:.6g}]",
+            field=("waypoints", i, j),
+        )
+    batch = forward_batch(design, q, assembly_mode)
+    bad = np.nonzero(~batch.ok | (batch.assembly_mode_signs == 0))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise AssemblyError(
+            f"waypoints[{i}] = {q[i].tolist()} does not assemble in assembly mode "
+            f"{assembly_mode!r} (the loop does not close, or it is a parallel singularity)",
+            field=("waypoints", i),
+        )
+
+
+def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
+    """The planner's validity rules as a ``check_states`` callable, or None when the request
+    asks for none (no margins, no obstacles)."""
+    if request.margins is None and not request.obstacles:
+        return None
+    from planner.validity import ValidityChecker
+    from planner.wire import Margins as WireMargins
+
+    obstacles = obstacles_to_core(request.obstacles)
+    margins = margins_to_core(request.margins or WireMargins())
+    working_mode = request.working_mode
+    if working_mode is None:
+        working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
+                                  .working_mode_signs[0])  # fmt: skip
+        if working_mode not in WORKING_MODES:  # the first waypoint sits on a serial singularity
+            with located("body", "waypoints", 0):
+                raise InputError(
+                    f"the first waypoint is on a serial singularity (working mode "
+                    f"{working_mode!r}): give working_mode explicitly"
+                )
+    with located("body", "working_mode"):
+        checker = ValidityChecker(design, margins, obstacles, request.assembly_mode, working_mode)
+
+    def check(q: np.ndarray) -> np.ndarray:
+        return checker.is_valid(q)
+
+    check.explain = checker.explain  # type: ignore[attr-defined]
+    return check
+
+
+def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingResponse:
+    """``POST /v1/timing``: :func:`planner.timing.time_path` on the client's joint path,
+    checked densely (joint limits, assembly, and the planner's rules when asked).
+
+    Bad input (a waypoint outside the joint limits or not assembling, bad limits) is a 422
+    naming the field; an outcome of the timing itself is a 200 with a ``status``."""
+    from planner.exceptions import (
+        TimingDeadlineError,
+        TimingInfeasibleError,
+        TrajectoryCheckError,
+    )
+    from planner.timing import time_path
+
+    with located("body", "design"):
+        design = request.design.to_design()
+    q = np.asarray(request.waypoints, dtype=float)
+    with located("body"):
+        _check_waypoints(design, q, request.assembly_mode)
+    check = _validity_check(request, design, q[0])
+    if check is not None:
+        bad = np.nonzero(~check(q))[0]
+        if bad.size:
+            i = int(bad[0])
+            diagnostics = Diagnostics(
+                timing_error=TimingErrorInfo(
+                    type="InvalidWaypoint", rule="validity", q=q[i].tolist(), index=i
+                )
+            )
+            return TimingResponse(
+                status="invalid_path",
+                message=f"waypoints[{i}] breaks a validity rule: {check.explain(q[i])}",
+                diagnostics=diagnostics,
+            )
+    limits = joint_limits_to_core(request.limits)
+    options: dict[str, Any] = {}
+    if request.max_deviation is not None:
+        options["max_deviation"] = request.max_deviation
+    try:
+        with located("body"):  # an input error names its field (sample_rate_hz, stop_at...)
+            traj = time_path(
+                design,
+                q,
+                limits,
+                method=request.method,
+                assembly_mode=request.assembly_mode,
+                sample_rate_hz=request.sample_rate_hz,
+                max_cartesian_speed=request.limits.cartesian_speed,
+                stop_at=request.stop_at,
+                check_states=check,
+                deadline=budget.deadline,
+                max_samples=budget.max_samples,
+                **options,
+            )
+    except TimingDeadlineError as exc:
+        return TimingResponse(status="timeout", message=f"timing ran out of time: {exc}")
+    except TimingInfeasibleError as exc:
+        return TimingResponse(status="infeasible", message=f"no time profile found: {exc}")
+    except TrajectoryCheckError as exc:
+        diagnostics = Diagnostics(timing_error=timing_error(exc))
+        return TimingResponse(
+            status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
+        )
+    trajectory = trajectory_model(traj, request.format)
+    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
+    return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

@@ -1,0 +1,358 @@
+"""What each endpoint of the client sends: one request builder per endpoint, returning a
+:class:`_Call` (method, path, validated body, answer model). :class:`planner.client.PlannerClient`
+and :class:`~planner.client.AsyncPlannerClient` make their public methods from these builders
+(the same builder for both, so the two cannot drift apart); the transport, the retry policy
+and the error translation live in :mod:`planner.client`.
+
+A new endpoint is one builder here plus one line in each client class.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+from planner.client_errors import InvalidRequestError
+from planner.design import Design
+from planner.wire import (
+    AnalyzeRequest,
+    AnalyzeResponse,
+    CartesianRequest,
+    CartesianResponse,
+    DesignCheckRequest,
+    DesignCheckResponse,
+    DesignModel,
+    DesignOptimizeRequest,
+    DesignOptimizeResponse,
+    DesignsResponse,
+    FigureQuery,
+    FKRequest,
+    FKResponse,
+    Health,
+    IKRequest,
+    IKResponse,
+    PlanBatchRequest,
+    PlanBatchResponse,
+    PlanRequest,
+    PlanResponse,
+    Readiness,
+    RegionsRequest,
+    RegionsResponse,
+    TimingRequest,
+    TimingResponse,
+    VersionInfo,
+    WorkspaceRequest,
+    WorkspaceResponse,
+)
+
+__all__ = ["DesignLike", "MarginsLike", "Requests"]
+
+M = TypeVar("M", bound=BaseModel | bytes)
+
+
+@dataclass(frozen=True, slots=True)
+class _Call(Generic[M]):
+    """One API call: what to send and what to parse the answer into (``bytes``: the raw
+    body, e.g. an image)."""
+
+    method: str
+    path: str
+    body: BaseModel | None
+    model: type[M]
+    ok_statuses: frozenset[int] = frozenset({200})
+    retry: bool = True
+    params: Mapping[str, Any] | None = None
+
+
+DesignLike = DesignModel | Design | Mapping[str, Any] | None
+#: Margins as a wire model, the library's :class:`planner.validity.Margins` or a mapping.
+MarginsLike = BaseModel | Mapping[str, Any] | Any | None
+
+
+def _validated(model: type[M], data: Any) -> M:
+    """``model`` from ``data``, a local validation error raised as InvalidRequestError."""
+    try:
+        return data if isinstance(data, model) else model.model_validate(data)
+    except ValidationError as exc:
+        detail = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in exc.errors()]
+        raise InvalidRequestError(
+            "; ".join(_describe_item(d) for d in detail), status_code=None, detail=detail
+        ) from None
+
+
+def _design(design: DesignLike) -> DesignModel | dict[str, Any]:
+    if design is None:
+        return {}
+    if isinstance(design, Design):
+        return DesignModel.from_design(design)
+    return design if isinstance(design, DesignModel) else dict(design)
+
+
+def _margins(margins: MarginsLike) -> dict[str, Any]:
+    """Margins as the wire's mapping: a wire model, the library's dataclass or a mapping."""
+    if isinstance(margins, BaseModel):
+        return margins.model_dump(exclude_none=True)
+    if dataclasses.is_dataclass(margins) and not isinstance(margins, type):
+        return dataclasses.asdict(margins)
+    return dict(margins or {})
+
+
+def _floats(values: Any) -> Any:
+    """A numpy array or other sequence as a list of floats (anything else left to pydantic)."""
+    try:
+        return [float(x) for x in values]
+    except (TypeError, ValueError):
+        return values
+
+
+def _describe_item(item: Any) -> str:
+    if not isinstance(item, dict):
+        return str(item)
+    loc = ".".join(str(x) for x in item.get("loc", []))
+    msg = str(item.get("msg", ""))
+    return f"{loc}: {msg}" if loc else msg
+
+
+class Requests:
+    """The request builders, one per endpoint (``_fk`` -> the clients' ``fk``)."""
+
+    def _health(self) -> _Call[Health]:
+        """Liveness of the server."""
+        return _Call("GET", "/v1/health", None, Health)
+
+    def _ready(self) -> _Call[Readiness]:
+        """Readiness of the server's workers (a 503 answer is returned, not raised)."""
+        return _Call("GET", "/v1/ready", None, Readiness, frozenset({200, 503}), retry=False)
+
+    def _version(self) -> _Call[VersionInfo]:
+        """Versions of the server and its libraries."""
+        return _Call("GET", "/v1/version", None, VersionInfo)
+
+    def _designs(self) -> _Call[DesignsResponse]:
+        """The preset designs (``default`` first)."""
+        return _Call("GET", "/v1/designs", None, DesignsResponse)
+
+    def _fk(
+        self, q: Sequence[float], assembly_mode: str | None = None, *, design: DesignLike = None
+    ) -> _Call[FKResponse]:
+        """Direct kinematics of q (rad): the postures in both assembly modes, or in the one
+        given ('+' or '-')."""
+        body = _validated(
+            FKRequest, {"q": _floats(q), "assembly_mode": assembly_mode, "design": _design(design)}
+        )
+        return _Call("POST", "/v1/fk", body, FKResponse)
+
+    def _ik(
+        self, p: Sequence[float], working_mode: str = "any", *, design: DesignLike = None
+    ) -> _Call[IKResponse]:
+        """Inverse kinematics of P (m): one posture per working mode reaching it (or the one
+        asked, e.g. '+-+')."""
+        body = _validated(
+            IKRequest, {"p": _floats(p), "working_mode": working_mode, "design": _design(design)}
+        )
+        return _Call("POST", "/v1/ik", body, IKResponse)
+
+    def _analyze(
+        self,
+        q: Sequence[float],
+        assembly_mode: str,
+        *,
+        qd: Sequence[float] | None = None,
+        design: DesignLike = None,
+    ) -> _Call[AnalyzeResponse]:
+        """Jacobians, kappa(A), kappa(B), singularity margins and modes of one posture
+        (and the velocity of P for joint rates ``qd``, rad/s)."""
+        data: dict[str, Any] = {
+            "q": _floats(q),
+            "assembly_mode": assembly_mode,
+            "design": _design(design),
+        }
+        if qd is not None:
+            data["qd"] = _floats(qd)
+        return _Call("POST", "/v1/analyze", _validated(AnalyzeRequest, data), AnalyzeResponse)
+
+    def _check_design(
+        self,
+        design: DesignLike = None,
+        *,
+        kappa_max: float | None = None,
+        rel_se: float | None = None,
+        seed: int | None = None,
+    ) -> _Call[DesignCheckResponse]:
+        """Design check: parallel-singularity kinds and why, operative working modes,
+        closed-form and sampled workspace volumes (absent options: the server's defaults)."""
+        data: dict[str, Any] = {"design": _design(design)}
+        for name, value in (("kappa_max", kappa_max), ("rel_se", rel_se), ("seed", seed)):
+            if value is not None:
+                data[name] = value
+        body = _validated(DesignCheckRequest, data)
+        return _Call("POST", "/v1/design/check", body, DesignCheckResponse)
+
+    def _regions(
+        self,
+        design: DesignLike = None,
+        *,
+        margins: MarginsLike = None,
+        resolution: int | None = None,
+    ) -> _Call[RegionsResponse]:
+        """Region map of a design: the connected regions of each working and assembly mode in
+        the (theta2, theta3) grid and the transits joining them across serial surfaces.
+        ``margins``: ``kappa_max``, ``serial_min`` (absent: the server's defaults);
+        ``resolution``: cells per axis, 16 .. 512 (absent: 256)."""
+        data: dict[str, Any] = {"design": _design(design)}
+        if margins is not None:
+            data["margins"] = _margins(margins)
+        if resolution is not None:
+            data["resolution"] = resolution
+        body = _validated(RegionsRequest, data)
+        return _Call("POST", "/v1/design/regions", body, RegionsResponse)
+
+    def _plan(
+        self, request: PlanRequest | Mapping[str, Any] | None = None, **fields: Any
+    ) -> _Call[PlanResponse]:
+        """Plan a motion: a :class:`PlanRequest` (or its dict), and/or its fields as keywords
+        (``start=..., goal=..., obstacles=...``). A finished search returns its ``status``."""
+        if isinstance(request, PlanRequest) and not fields:
+            body = request
+        else:
+            data = dict(
+                request.model_dump(exclude_unset=True)
+                if isinstance(request, PlanRequest)
+                else request or {}
+            )
+            body = _validated(PlanRequest, {**data, **fields})
+        return _Call("POST", "/v1/plan", body, PlanResponse)
+
+    def _cartesian(
+        self, request: CartesianRequest | Mapping[str, Any] | None = None, **fields: Any
+    ) -> _Call[CartesianResponse]:
+        """A straight tool path: P moves on straight segments from the start's P through
+        ``waypoints`` (m) in the start's working mode, within ``path_tolerance`` (m, default
+        1 mm). A :class:`CartesianRequest` (or its dict), and/or its fields as keywords
+        (``start=..., waypoints=..., timing=..., limits=...``). The answer's ``status`` is
+        ``solved`` exactly when ``fraction`` = 1; otherwise ``message`` and ``stop`` say which
+        rule stopped it, the value measured and where."""
+        if isinstance(request, CartesianRequest) and not fields:
+            body = request
+        else:
+            data = dict(
+                request.model_dump(exclude_unset=True)
+                if isinstance(request, CartesianRequest)
+                else request or {}
+            )
+            if "waypoints" in fields:
+                fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
+            body = _validated(CartesianRequest, {**data, **fields})
+        return _Call("POST", "/v1/cartesian", body, CartesianResponse)
+
+    def _plan_batch(
+        self, requests: Sequence[PlanRequest | Mapping[str, Any]]
+    ) -> _Call[PlanBatchResponse]:
+        """Many plan requests in one call; ``results`` come in the same order."""
+        body = _validated(
+            PlanBatchRequest,
+            {
+                "requests": [
+                    r if isinstance(r, PlanRequest) else _validated(PlanRequest, r)
+                    for r in requests
+                ]
+            },
+        )
+        return _Call("POST", "/v1/plan/batch", body, PlanBatchResponse)
+
+    def _workspace(
+        self,
+        design: DesignLike = None,
+        *,
+        resolution: int | None = None,
+        theta1: float | None = None,
+        cartesian: bool | None = None,
+        joint: bool | None = None,
+        **options: Any,
+    ) -> _Call[WorkspaceResponse]:
+        """Workspace of a design: closed-form and sampled volumes (per working mode, well
+        conditioned, GCI, with standard errors) and the Cartesian (u, w) and joint
+        (theta2, theta3) sections as grids of ``resolution`` cells per axis. ``options``:
+        ``rel_se``, ``kappa_max``, ``working_modes``, ``joint_limits``, ``seed``."""
+        sections = {
+            k: v
+            for k, v in (
+                ("resolution", resolution),
+                ("theta1", theta1),
+                ("cartesian", cartesian),
+                ("joint", joint),
+            )
+            if v is not None
+        }
+        data: dict[str, Any] = {"design": _design(design), **options}
+        if sections:
+            data["sections"] = sections
+        return _Call("POST", "/v1/workspace", _validated(WorkspaceRequest, data), WorkspaceResponse)
+
+    def _figure(
+        self,
+        name: str,
+        fmt: str = "png",
+        *,
+        design: DesignLike = None,
+        resolution: int | None = None,
+        dpi: int | None = None,
+    ) -> _Call[bytes]:
+        """A figure of a design as PNG or SVG bytes (``name``: e.g. ``"cartesian_section"``,
+        ``"joint_section"``, ``"isoconditioning"``; an unknown name raises NotFoundError
+        listing the names). Only L0, L1 and L2 of ``design`` are drawn."""
+        d = _design(design)
+        d = d.model_dump() if isinstance(d, DesignModel) else d
+        data = {k: d[k] for k in ("L0", "L1", "L2") if k in d}
+        for k, v in (("resolution", resolution), ("dpi", dpi)):
+            if v is not None:
+                data[k] = v
+        query = _validated(FigureQuery, data)
+        if fmt not in ("png", "svg") or not name or "/" in name:
+            raise InvalidRequestError(
+                f"figure: fmt must be 'png' or 'svg' and name a figure name, got {name!r}.{fmt!r}",
+                status_code=None,
+            )
+        params = query.model_dump(exclude_unset=True)
+        return _Call("GET", f"/v1/figures/{name}.{fmt}", None, bytes, params=params)
+
+    def _timing(
+        self,
+        waypoints: Any,
+        *,
+        design: DesignLike = None,
+        method: str = "toppra",
+        limits: Mapping[str, Any] | None = None,
+        **options: Any,
+    ) -> _Call[TimingResponse]:
+        """Time-parameterise a joint path (N x 3 waypoints, rad) from rest to rest with
+        ``method`` ('toppra' or 'ruckig') under ``limits`` (``velocity``, ``acceleration``,
+        ``jerk``, ``cartesian_speed``). ``options``: ``assembly_mode``, ``sample_rate_hz``,
+        ``max_deviation``, ``stop_at``, ``margins``, ``obstacles``, ``working_mode``. The
+        answer's ``status`` is ``solved`` with a ``trajectory``, or why not."""
+        data: dict[str, Any] = {
+            "waypoints": [_floats(w) for w in waypoints],
+            "design": _design(design),
+            "method": method,
+            **options,
+        }
+        if limits is not None:
+            data["limits"] = {
+                k: (_floats(v) if k != "cartesian_speed" else v) for k, v in dict(limits).items()
+            }
+        return _Call("POST", "/v1/timing", _validated(TimingRequest, data), TimingResponse)
+
+    def _optimize_design(
+        self, objective: str = "volume", *, design: DesignLike = None, **options: Any
+    ) -> _Call[DesignOptimizeResponse]:
+        """Maximise ``objective`` ('volume', 'well_conditioned_volume' or 'gci') over the link
+        lengths; ``design`` is the template (link radius, joint limits) of the candidates.
+        ``options``: ``reach``, ``L0_bounds``, ``L1_bounds``, ``L2_bounds``, ``kappa_max``,
+        ``n_samples``, ``maxiter``, ``seed``."""
+        data = {"objective": objective, "design": _design(design), **options}
+        body = _validated(DesignOptimizeRequest, data)
+        return _Call("POST", "/v1/design/optimize", body, DesignOptimizeResponse)
