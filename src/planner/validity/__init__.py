@@ -17,8 +17,9 @@ Motions are the straight joint-space segments between two postures. :meth:`Valid
 check_motion` certifies a whole segment, it does not sample it at a fixed step; the argument
 is in its docstring. Everything runs in compiled numba kernels over many states at once.
 
-The package has three modules, one job each: :mod:`planner.validity.checker` (``Margins``,
-``ValidityChecker`` and their helpers: what callers use), :mod:`planner.validity.reports`
+The package has four modules, one job each: :mod:`planner.validity.margins` (``Margins``
+and their defaults), :mod:`planner.validity.checker` (``ValidityChecker`` and its helpers:
+what callers use), :mod:`planner.validity.reports`
 (the records it returns) and :mod:`planner.validity._kernels` (the compiled kernels, private).
 Every public name is importable from ``planner.validity`` itself.
 
@@ -31,17 +32,19 @@ theta3 only and moves by at most ``L1 (|dtheta2| + |dtheta3|)``, a global bound.
 
 from planner.validity._kernels import REASONS
 from planner.validity.checker import (
-    DEFAULT_CLEARANCE,
     DEFAULT_COARSE_STEP,
-    DEFAULT_KAPPA_MAX,
-    DEFAULT_SERIAL_MIN,
     DIAGNOSTIC_STEP,
     MIN_CERTIFIED_STEP,
-    Margins,
     ValidityChecker,
     assembly_reason,
     densify,
     warm_up,
+)
+from planner.validity.margins import (
+    DEFAULT_CLEARANCE,
+    DEFAULT_KAPPA_MAX,
+    DEFAULT_SERIAL_MIN,
+    Margins,
 )
 from planner.validity.reports import MotionReport, PathReport, StateReport
 

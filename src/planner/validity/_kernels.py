@@ -30,7 +30,7 @@ from planner.kinematics import mode_signs
 
 if TYPE_CHECKING:
     from planner.design import Design
-    from planner.validity.checker import Margins
+    from planner.validity.margins import Margins
 
 #: Reason codes of the kernels, index -> rule name (0 means valid).
 REASONS: tuple[str, ...] = (
