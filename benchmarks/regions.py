@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 from _machine import print_machine
 
+from planner.analysis import coverage as C
 from planner.analysis import regions as R
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch
@@ -162,7 +163,7 @@ def twice_as_large(m: int = 400) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, design in DESIGNS.items():
         rmap = R.region_map(design, n=256)
-        cov = R.cartesian_coverage(rmap, m)
+        cov = C.cartesian_coverage(rmap, m)
         mine = [r for r in rmap.regions if r.assembly_mode == "+" and r.valid_cells]
         for comp in sorted({r.component for r in mine}):
             ids = [r.id for r in mine if r.component == comp]

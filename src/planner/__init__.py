@@ -11,10 +11,11 @@ Manipulator`` loads them, ``import planner.client`` does not.
 
 from __future__ import annotations
 
-import importlib
 import logging
 from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING
+
+from planner._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from planner.design import Design
@@ -71,19 +72,6 @@ _HOMES = {
 }
 
 
-def __getattr__(name: str) -> object:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
-
-
 __all__ = [
     "ASSEMBLY_MODES",
     "WORKING_MODES",
@@ -106,3 +94,5 @@ __all__ = [
     "link_points",
     "solve",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES, __all__)

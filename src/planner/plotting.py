@@ -895,7 +895,8 @@ def figure_region_images(design: Design, n: int = PRINT_RESOLUTION, *, margins=N
     """Each region's image in the Cartesian section (the linkage plane (u, w), m): the apex
     P of its certified cells, coloured as in :func:`figure_region_map`, one panel per
     assembly mode; the legend names each region's working mode and component."""
-    from planner.analysis.regions import cartesian_images, region_map
+    from planner.analysis.coverage import cartesian_images
+    from planner.analysis.regions import region_map
 
     rmap = region_map(design, margins, n)
     images = cartesian_images(rmap)
@@ -946,7 +947,8 @@ def _figure_mode_regions(
     working modes (the mode and its mirror about AB), one panel per assembly mode, over the
     grey area that all certified regions of that assembly mode reach (the workspace a change
     of working mode opens); the title of each panel gives both areas and their ratio."""
-    from planner.analysis.regions import cartesian_coverage, region_map
+    from planner.analysis.coverage import cartesian_coverage
+    from planner.analysis.regions import region_map
 
     rmap = region_map(design, margins, n)
     cov = cartesian_coverage(rmap, min(max(2 * n, 256), 512))

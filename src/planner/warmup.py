@@ -122,10 +122,10 @@ def _plan_mode_change(state: _State) -> None:
 
 def _region_map(state: _State) -> None:
     """The region map the planner consults before a search (default design and margins,
-    :data:`planner.planning.modes.PROOF_RESOLUTION`): its kernels compiled and the map kept
+    :data:`planner.planning.proofs.PROOF_RESOLUTION`): its kernels compiled and the map kept
     in this process's cache, so that the first plans of the default design pay nothing."""
     from planner.analysis.regions import region_map
-    from planner.planning.modes import PROOF_RESOLUTION
+    from planner.planning.proofs import PROOF_RESOLUTION
     from planner.validity import Margins
 
     region_map(state.design, Margins(), PROOF_RESOLUTION)

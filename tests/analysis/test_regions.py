@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from planner.analysis import _region_kernels as K
+from planner.analysis import coverage as C
 from planner.analysis import regions as R
 from planner.design import Design
 from planner.exceptions import InputError
@@ -250,7 +251,7 @@ def test_coverage_areas_match_the_jacobian_integral():
     |det d(u, w)/d(theta2, theta3)| h2 h3 by finite differences (direct kinematics)."""
     design = DESIGNS["singularity-free"]
     rmap = R.region_map(design, n=128)
-    cov = R.cartesian_coverage(rmap, 400)
+    cov = C.cartesian_coverage(rmap, 400)
     h = 1e-6
     for region in rmap.regions:
         if region.valid_cells < 500:
@@ -281,11 +282,11 @@ def test_coverage_volume_with_loose_margins_is_the_closed_form(name):
 
     design = DESIGNS[name]
     rmap = R.region_map(design, Margins(kappa_max=1e4, serial_min=1e-3), 256)
-    cov = R.cartesian_coverage(rmap, 400)
+    cov = C.cartesian_coverage(rmap, 400)
     for asm in "+-":
         ids = [r.id for r in rmap.regions if r.assembly_mode == asm]
         assert cov.volume(ids) == pytest.approx(closed_form_volume(design), rel=0.01)
-    limited = R.cartesian_coverage(R.region_map(DESIGNS["limits"], n=32), 32)
+    limited = C.cartesian_coverage(R.region_map(DESIGNS["limits"], n=32), 32)
     with pytest.raises(InputError):
         limited.volume([0])
 
@@ -296,7 +297,7 @@ def test_twice_as_large_holds_in_the_section_of_the_paper_optimum_only():
     covers, but the 3-D volume swept as theta1 turns is the same (the second half of the
     section is the first's mirror about AB, i.e. the same points half a turn later)."""
     rmap = R.region_map(Design.paper_optimum(), n=256)
-    cov = R.cartesian_coverage(rmap, 300)
+    cov = C.cartesian_coverage(rmap, 300)
     mine = [r for r in rmap.regions if r.assembly_mode == "+" and r.valid_cells]
     for comp in {r.component for r in mine}:
         ids = [r.id for r in mine if r.component == comp]

@@ -723,18 +723,3 @@ def prove_disconnected(
         if not comps or comps & start:
             return False
     return True
-
-
-#: Names that moved to :mod:`planner.analysis.coverage` (which is built on this module), still
-#: reached through this one by callers outside the analysis room; imported on first use so
-#: that this module imports nothing of the coverage.
-_MOVED_TO_COVERAGE = ("Coverage", "cartesian_coverage", "cartesian_images")
-
-
-def __getattr__(name: str):
-    """The names of :data:`_MOVED_TO_COVERAGE`, from :mod:`planner.analysis.coverage`."""
-    if name in _MOVED_TO_COVERAGE:
-        from planner.analysis import coverage
-
-        return getattr(coverage, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

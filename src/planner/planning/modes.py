@@ -36,7 +36,6 @@ from planner.planning.mode_change import estimated_transit_length, plan_mode_cha
 from planner.planning.planner import goal_candidates, plan_single_mode, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.proofs import (
-    PROOF_RESOLUTION,
     disprove_with_map,
     disprove_with_obstacles,
     proof_region_map,
@@ -47,8 +46,6 @@ from planner.validity import Margins, ValidityChecker
 __all__ = [
     "BETTER_RATIO",
     "OBSTACLE_PROOF_AFTER_S",
-    # the proofs' resolution, still imported from here by planner.warmup
-    "PROOF_RESOLUTION",
     "plan",
 ]
 

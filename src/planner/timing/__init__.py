@@ -13,8 +13,9 @@ The only package that imports toppra and ruckig. Entry point: :func:`time_path`.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from planner._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from planner.timing.checks import LIMIT_RTOL, StateChecker
@@ -45,19 +46,6 @@ _HOMES = {
 }
 
 
-def __getattr__(name: str) -> object:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
-
-
 __all__ = [
     "DEFAULT_CHECK_RESOLUTION",
     "DEFAULT_MAX_DEVIATION",
@@ -70,3 +58,5 @@ __all__ = [
     "Trajectory",
     "time_path",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES, __all__)
