@@ -8,7 +8,7 @@ import os
 import sys
 import time
 
-from planner.wire import Diagnostics, PlanRequest, PlanResponse
+from planner.wire import DiagnosticsModel, PlanRequest, PlanResponse
 from planner_api.jobs import UNBOUNDED, JobBudget
 
 logger = logging.getLogger("tests.ops_jobs")
@@ -22,7 +22,7 @@ def timed_outcome(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRe
     seconds = request.planner.time_budget_s
     return PlanResponse(
         status=statuses[(request.planner.seed or 0) % len(statuses)],
-        diagnostics=Diagnostics(planning_time_s=seconds, timing_time_s=seconds / 10),
+        diagnostics=DiagnosticsModel(planning_time_s=seconds, timing_time_s=seconds / 10),
     )
 
 

@@ -316,8 +316,8 @@ def test_the_route_is_documented_with_its_errors(api):
             "limits"} == set(request)  # fmt: skip
     response = schemas["CartesianResponse"]["properties"]
     assert {"status", "message", "fraction", "path", "trajectory", "diagnostics"} <= set(response)
-    assert "max_path_deviation" in schemas["CartesianDiagnostics"]["properties"]
-    assert "proven_infeasible" in schemas["Diagnostics"]["properties"]
+    assert "max_path_deviation" in schemas["CartesianDiagnosticsModel"]["properties"]
+    assert "proven_infeasible" in schemas["DiagnosticsModel"]["properties"]
 
 
 def test_the_worker_warm_up_runs_a_straight_path_through_its_timing(monkeypatch):

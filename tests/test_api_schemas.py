@@ -11,9 +11,9 @@ from pydantic import ValidationError
 from planner import schemas
 from planner.wire import (
     BoxObstacle,
-    CartesianTarget,
-    Diagnostics,
-    JointPosture,
+    CartesianTargetModel,
+    DiagnosticsModel,
+    JointPostureModel,
     PlanBatchRequest,
     PlanBatchResponse,
     PlanRequest,
@@ -36,11 +36,11 @@ def test_plan_request_fields_and_required():
     }
     required = {n for n, f in PlanRequest.model_fields.items() if f.is_required()}
     assert required == {"start", "goal"}
-    assert set(schemas.Margins.model_fields) == {"kappa_max", "serial_min", "clearance"}
+    assert set(schemas.MarginsModel.model_fields) == {"kappa_max", "serial_min", "clearance"}
     assert {"name", "time_budget_s", "seed", "simplify"} <= set(schemas.PlannerOptions.model_fields)
-    assert {"method", "sample_rate_hz"} <= set(schemas.TimingOptions.model_fields)
+    assert {"method", "sample_rate_hz"} <= set(schemas.TimingOptionsModel.model_fields)
     assert {"velocity", "acceleration", "jerk"} <= set(schemas.Limits.model_fields)
-    assert typing.get_args(schemas.TimingOptions.model_fields["method"].annotation) == (
+    assert typing.get_args(schemas.TimingOptionsModel.model_fields["method"].annotation) == (
         "toppra",
         "ruckig",
         "none",
@@ -94,7 +94,7 @@ def test_plan_response_vocabulary():
         "min_clearance",
         "max_kappa_A",
         "min_serial_margin",
-    } <= set(Diagnostics.model_fields)
+    } <= set(DiagnosticsModel.model_fields)
     assert set(PlanBatchRequest.model_fields) == {"requests"}
     assert set(PlanBatchResponse.model_fields) == {"results"}
 
@@ -121,9 +121,9 @@ def test_a_full_response_parses_with_declared_diagnostics_and_ignores_unknown_on
 
 def test_goal_is_a_posture_or_a_target():
     joint = PlanRequest(start=START, goal={"q": [0, 1, 2], "assembly_mode": "-"})
-    assert isinstance(joint.goal, JointPosture)
+    assert isinstance(joint.goal, JointPostureModel)
     cart = PlanRequest(start=START, goal={"p": [0.3, 0.1, 0.2]})
-    assert isinstance(cart.goal, CartesianTarget) and cart.goal.working_mode == "any"
+    assert isinstance(cart.goal, CartesianTargetModel) and cart.goal.working_mode == "any"
     with pytest.raises(ValidationError):
         PlanRequest(start=START, goal={"q": [0, 1, 2], "p": [0, 0, 0], "assembly_mode": "+"})
 
@@ -171,17 +171,17 @@ def test_second_part_vocabulary():
     limits = schemas.Limits.model_fields
     for name in ("velocity_scaling", "acceleration_scaling"):
         assert limits[name].default == 1.0
-    assert typing.get_args(schemas.TimingOptions.model_fields["format"].annotation) == (
+    assert typing.get_args(schemas.TimingOptionsModel.model_fields["format"].annotation) == (
         "arrays",
         "points",
     )
-    assert schemas.TimingOptions.model_fields["format"].default == "arrays"
-    assert typing.get_args(CartesianTarget.model_fields["prefer"].annotation) == (
+    assert schemas.TimingOptionsModel.model_fields["format"].default == "arrays"
+    assert typing.get_args(CartesianTargetModel.model_fields["prefer"].annotation) == (
         "shortest",
         "best_conditioned",
     )
-    assert CartesianTarget.model_fields["prefer"].default == "shortest"
-    assert CartesianTarget.model_fields["tolerance"].default == 0.0
+    assert CartesianTargetModel.model_fields["prefer"].default == "shortest"
+    assert CartesianTargetModel.model_fields["tolerance"].default == 0.0
     assert JointGoal.model_fields["tolerance"].default == 0.0
     assert set(TrajectoryPointsModel.model_fields) >= {"duration", "joint_names", "points"}
     assert TrajectoryPointsModel.model_fields["joint_names"].default_factory() == [
@@ -216,4 +216,4 @@ def test_second_part_vocabulary():
         "max_path_deviation"
         in CartesianResponse.model_fields["diagnostics"].annotation.model_fields
     )
-    assert Diagnostics().proven_infeasible is False
+    assert DiagnosticsModel().proven_infeasible is False

@@ -18,6 +18,7 @@ import inspect
 import subprocess
 import sys
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -345,3 +346,21 @@ def test_the_jobs_mirror_the_routes() -> None:
             and m.rsplit(".", 1)[1] in jobs
         }
         assert used <= {name}, (name, sorted(used))
+
+
+def _public_classes(modules: Iterable[str]) -> dict[str, str]:
+    return {
+        node.name: name
+        for name in modules
+        for node in ast.parse(SOURCES[name].read_text()).body
+        if isinstance(node, ast.ClassDef) and not node.name.startswith("_")
+    }
+
+
+def test_wire_names_do_not_shadow_library_names() -> None:
+    """A wire class never has a library class's name (``MarginsModel`` beside the library's
+    ``Margins``): a module that needs both can import both by name."""
+    wire = _public_classes(n for n in SOURCES if _within(n, ("planner.wire",)))
+    core = _public_classes(n for n in SOURCES if _within(n, CORE))
+    assert len(wire) > 20 and "Margins" in core and "MarginsModel" in wire
+    assert sorted(f"{c}: {wire[c]} and {core[c]}" for c in wire.keys() & core.keys()) == []

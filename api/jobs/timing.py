@@ -9,7 +9,7 @@ import numpy as np
 from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.wire import (
-    Diagnostics,
+    DiagnosticsModel,
     TimingErrorInfo,
     TimingRequest,
     TimingResponse,
@@ -55,10 +55,10 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     if request.margins is None and not request.obstacles:
         return None
     from planner.validity import ValidityChecker
-    from planner.wire import Margins as WireMargins
+    from planner.wire import MarginsModel
 
     obstacles = obstacles_to_core(request.obstacles)
-    margins = margins_to_core(request.margins or WireMargins())
+    margins = margins_to_core(request.margins or MarginsModel())
     working_mode = request.working_mode
     if working_mode is None:
         working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
@@ -102,7 +102,7 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
         bad = np.nonzero(~check(q))[0]
         if bad.size:
             i = int(bad[0])
-            diagnostics = Diagnostics(
+            diagnostics = DiagnosticsModel(
                 timing_error=TimingErrorInfo(
                     type="InvalidWaypoint", rule="validity", q=q[i].tolist(), index=i
                 )
@@ -137,10 +137,12 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
     except TimingInfeasibleError as exc:
         return TimingResponse(status="infeasible", message=f"no time profile found: {exc}")
     except TrajectoryCheckError as exc:
-        diagnostics = Diagnostics(timing_error=timing_error(exc))
+        diagnostics = DiagnosticsModel(timing_error=timing_error(exc))
         return TimingResponse(
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
     trajectory = trajectory_model(traj, request.format)
-    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
+    diagnostics = DiagnosticsModel(
+        timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs
+    )
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

@@ -19,9 +19,10 @@ is written ``null`` on the wire: JSON has no infinity.
 
 Conversions are functions named for what they give: ``*_to_core`` (wire -> library, errors
 located at the field's place in the body, see :func:`located`) and ``*_model`` /
-:func:`plan_response` (library -> wire). Class names are the OpenAPI component names (the
-contract): where one matches a library class (``JointPosture``, ``Margins``, ``Diagnostics``,
-``PlanStatus``, ``Obstacle``), import the module, not the name.
+:func:`plan_response` (library -> wire). Class names are the OpenAPI component names; none
+shadows a library class: where the library has the same notion, the wire's class ends in
+``Model`` (``JointPostureModel``, ``MarginsModel``, ``DiagnosticsModel``, ``DesignModel``), and a
+test keeps the two sets of names apart.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from planner.wire.analysis import (
 from planner.wire.cartesian import (
     MAX_CARTESIAN_WAYPOINTS,
     MAX_POLYLINE_REACHES,
-    CartesianDiagnostics,
+    CartesianDiagnosticsModel,
     CartesianInputs,
     CartesianRequest,
     CartesianResponse,
@@ -57,17 +58,17 @@ from planner.wire.common import (
     AssemblyModeLabel,
     BoxObstacle,
     CapsuleObstacle,
-    CartesianTarget,
+    CartesianTargetModel,
     Coordinate,
     DesignModel,
-    Diagnostics,
+    DiagnosticsModel,
     Finite,
     Goal,
     JointGoal,
-    JointPosture,
+    JointPostureModel,
     Length,
     LinkLength,
-    Margins,
+    MarginsModel,
     Matrix3,
     Obstacle,
     Point3,
@@ -142,7 +143,7 @@ from planner.wire.timing import (
     AnyTrajectory,
     Limits,
     Scaling,
-    TimingOptions,
+    TimingOptionsModel,
     TimingRequest,
     TimingResponse,
     TimingStatus,
@@ -180,12 +181,12 @@ __all__ = [
     "AssemblyModeLabel",
     "BoxObstacle",
     "CapsuleObstacle",
-    "CartesianDiagnostics",
+    "CartesianDiagnosticsModel",
     "CartesianInputs",
     "CartesianRequest",
     "CartesianResponse",
     "CartesianStop",
-    "CartesianTarget",
+    "CartesianTargetModel",
     "CartesianTimingOptions",
     "Coordinate",
     "DesignCheckRequest",
@@ -195,7 +196,7 @@ __all__ = [
     "DesignOptimizeResponse",
     "DesignPreset",
     "DesignsResponse",
-    "Diagnostics",
+    "DiagnosticsModel",
     "ErrorItem",
     "ErrorResponse",
     "FKRequest",
@@ -207,12 +208,12 @@ __all__ = [
     "IKRequest",
     "IKResponse",
     "JointGoal",
-    "JointPosture",
+    "JointPostureModel",
     "Length",
     "LengthBounds",
     "Limits",
     "LinkLength",
-    "Margins",
+    "MarginsModel",
     "Matrix3",
     "Obstacle",
     "PathModel",
@@ -241,7 +242,7 @@ __all__ = [
     "SerialMargins",
     "SphereObstacle",
     "TimingErrorInfo",
-    "TimingOptions",
+    "TimingOptionsModel",
     "TimingRequest",
     "TimingResponse",
     "TimingStatus",

@@ -17,9 +17,9 @@ from planner.design import Design
 from planner.wire.common import (
     MAX_OBSTACLES,
     DesignModel,
-    Diagnostics,
-    JointPosture,
-    Margins,
+    DiagnosticsModel,
+    JointPostureModel,
+    MarginsModel,
     Obstacle,
     Point3,
     Vec3,
@@ -45,7 +45,7 @@ from planner.wire.timing import (
 __all__ = [
     "MAX_CARTESIAN_WAYPOINTS",
     "MAX_POLYLINE_REACHES",
-    "CartesianDiagnostics",
+    "CartesianDiagnosticsModel",
     "CartesianInputs",
     "CartesianRequest",
     "CartesianResponse",
@@ -87,7 +87,7 @@ class CartesianRequest(_Request):
     ``waypoints`` are required."""
 
     design: DesignModel = _DesignField
-    start: JointPosture
+    start: JointPostureModel
     waypoints: Annotated[list[Point3], Field(min_length=1, max_length=MAX_CARTESIAN_WAYPOINTS)] = (
         Field(description="Points P goes through in order, m (at least one).")
     )
@@ -99,7 +99,7 @@ class CartesianRequest(_Request):
         "[1e-5, 0.1]; default 1 mm.",
     )
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
-    margins: Margins = Field(default_factory=Margins)
+    margins: MarginsModel = Field(default_factory=MarginsModel)
     timing: CartesianTimingOptions = Field(default_factory=CartesianTimingOptions)
     limits: Limits = Field(default_factory=Limits)
 
@@ -119,7 +119,7 @@ class CartesianStop(_Response):
     fraction: float = Field(ge=0.0, le=1.0, description="Share of the polyline achieved.")
 
 
-class CartesianDiagnostics(Diagnostics):
+class CartesianDiagnosticsModel(DiagnosticsModel):
     """A plan's diagnostics plus the measures of a straight path."""
 
     max_path_deviation: float | None = Field(
@@ -147,7 +147,7 @@ class CartesianResponse(_Response):
     fraction: float = Field(ge=0.0, le=1.0, description="Share of the polyline's length achieved.")
     path: PathModel | None = None
     trajectory: AnyTrajectory | None = None
-    diagnostics: CartesianDiagnostics = Field(default_factory=CartesianDiagnostics)
+    diagnostics: CartesianDiagnosticsModel = Field(default_factory=CartesianDiagnosticsModel)
     stop: CartesianStop | None = Field(None, description="Where and why the path stopped short.")
     working_mode: WorkingModeLabel | None = Field(
         None, description="The start's working mode, kept along the path."
@@ -216,7 +216,7 @@ def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> C
     :class:`planner.planning.cartesian.CartesianResult`."""
     d = result.diagnostics
     timed = result.trajectory is not None
-    diagnostics = CartesianDiagnostics(
+    diagnostics = CartesianDiagnosticsModel(
         planning_time_s=d.planning_time_s,
         timing_time_s=d.timing_time_s if timed else None,
         timing_repairs=getattr(result.trajectory, "repairs", None) if timed else None,

@@ -39,17 +39,17 @@ __all__ = [
     "AssemblyModeLabel",
     "BoxObstacle",
     "CapsuleObstacle",
-    "CartesianTarget",
+    "CartesianTargetModel",
     "Coordinate",
     "DesignModel",
-    "Diagnostics",
+    "DiagnosticsModel",
     "Finite",
     "Goal",
     "JointGoal",
-    "JointPosture",
+    "JointPostureModel",
     "Length",
     "LinkLength",
-    "Margins",
+    "MarginsModel",
     "Matrix3",
     "Obstacle",
     "Point3",
@@ -198,7 +198,7 @@ _DesignField = Field(default_factory=DesignModel, description="The robot; defaul
 
 
 # ---------------------------------------------------------------------------- postures, targets
-class JointPosture(_Request):
+class JointPostureModel(_Request):
     """A joint posture: actuated joints and the assembly mode (sign of sin(theta5 - theta4))."""
 
     q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
@@ -212,7 +212,7 @@ MAX_GOAL_TOLERANCE_RAD = math.pi
 Preference = Literal["shortest", "best_conditioned"]
 
 
-class JointGoal(JointPosture):
+class JointGoal(JointPostureModel):
     """A joint goal: a joint posture, and how far from it (rad) the path may end."""
 
     tolerance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_GOAL_TOLERANCE_RAD)] = (
@@ -225,7 +225,7 @@ class JointGoal(JointPosture):
     )
 
 
-class CartesianTarget(_Request):
+class CartesianTargetModel(_Request):
     """A Cartesian target for P, with the working mode to reach it in (or ``"any"``)."""
 
     p: Point3 = Field(description="(x, y, z) of P, m.")
@@ -264,9 +264,9 @@ def _goal_kind(value: Any) -> str | None:
         if "q" in value:
             return "q"
         return "p" if "p" in value else None
-    if isinstance(value, CartesianTarget):
+    if isinstance(value, CartesianTargetModel):
         return "p"
-    if isinstance(value, JointPosture):
+    if isinstance(value, JointPostureModel):
         return "q"
     return None
 
@@ -274,7 +274,7 @@ def _goal_kind(value: Any) -> str | None:
 #: A goal: a joint goal (has ``q``) or a Cartesian target (has ``p``). Validation errors
 #: name the branch taken: ``goal.q.<field>`` or ``goal.p.<field>``.
 Goal = Annotated[
-    Annotated[JointGoal, Tag("q")] | Annotated[CartesianTarget, Tag("p")],
+    Annotated[JointGoal, Tag("q")] | Annotated[CartesianTargetModel, Tag("p")],
     Discriminator(
         _goal_kind,
         custom_error_type="goal_kind",
@@ -326,7 +326,7 @@ Obstacle = Annotated[SphereObstacle | BoxObstacle | CapsuleObstacle, Field(discr
 
 
 # ---------------------------------------------------------------------------- plan options
-class Margins(_Request):
+class MarginsModel(_Request):
     """Validity margins of a plan; an absent field takes the planner's documented default."""
 
     kappa_max: Annotated[float, Field(allow_inf_nan=False, gt=1.0, le=1e12)] | None = Field(
@@ -358,7 +358,7 @@ class TimingErrorInfo(_Response):
     index: int | None = Field(None, ge=0, description="The failing waypoint (POST /v1/timing).")
 
 
-class Diagnostics(_Response):
+class DiagnosticsModel(_Response):
     """Timings and margins met, every field declared (an unknown one, from a newer server, is
     ignored like any response field). A quantity that does not apply is ``null``."""
 
@@ -456,7 +456,7 @@ def obstacles_to_core(
     return out
 
 
-def margins_to_core(model: Margins, loc: tuple[str | int, ...] = ("body", "margins")) -> Any:
+def margins_to_core(model: MarginsModel, loc: tuple[str | int, ...] = ("body", "margins")) -> Any:
     """The library's :class:`planner.validity.Margins` (absent fields: its defaults)."""
     from planner.validity import Margins as CoreMargins
 

@@ -15,7 +15,7 @@ from planner.wire.common import (
     AssemblyModeLabel,
     DesignModel,
     Length,
-    Margins,
+    MarginsModel,
     WorkingModeLabel,
     _DesignField,
     _Request,
@@ -181,7 +181,7 @@ class RegionsRequest(_Request):
     plays no part)."""
 
     design: DesignModel = _DesignField
-    margins: Margins = Field(default_factory=Margins)
+    margins: MarginsModel = Field(default_factory=MarginsModel)
     resolution: int = Field(
         256,
         ge=MIN_REGION_RESOLUTION,
@@ -225,7 +225,7 @@ class RegionsResponse(_Response):
     """Answer of ``POST /v1/design/regions``."""
 
     design: DesignModel
-    margins: Margins = Field(description="The margins used (kappa_max, serial_min).")
+    margins: MarginsModel = Field(description="The margins used (kappa_max, serial_min).")
     resolution: int
     regions: list[RegionModel]
     transits: list[RegionTransitModel]
@@ -255,7 +255,7 @@ def regions_model(rmap: Any, computation_time_s: float = 0.0) -> RegionsResponse
     m = rmap.margins
     return RegionsResponse(
         design=DesignModel.from_design(rmap.design),
-        margins=Margins(kappa_max=m.kappa_max, serial_min=m.serial_min),
+        margins=MarginsModel(kappa_max=m.kappa_max, serial_min=m.serial_min),
         resolution=rmap.n,
         regions=regions,
         transits=transits,

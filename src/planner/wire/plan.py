@@ -21,10 +21,10 @@ from planner.wire.common import (
     MAX_OBSTACLES,
     AssemblyModeLabel,
     DesignModel,
-    Diagnostics,
+    DiagnosticsModel,
     Goal,
-    JointPosture,
-    Margins,
+    JointPostureModel,
+    MarginsModel,
     Obstacle,
     Vec3,
     WorkingModeLabel,
@@ -39,7 +39,7 @@ from planner.wire.common import (
 from planner.wire.timing import (
     AnyTrajectory,
     Limits,
-    TimingOptions,
+    TimingOptionsModel,
     TrajectoryFormat,
     joint_limits_to_core,
     timing_error,
@@ -100,12 +100,12 @@ class PlanRequest(_Request):
     """Body of ``POST /v1/plan``. Only ``start`` and ``goal`` are required."""
 
     design: DesignModel = _DesignField
-    start: JointPosture
+    start: JointPostureModel
     goal: Goal
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
-    margins: Margins = Field(default_factory=Margins)
+    margins: MarginsModel = Field(default_factory=MarginsModel)
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
-    timing: TimingOptions = Field(default_factory=TimingOptions)
+    timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
     limits: Limits = Field(default_factory=Limits)
 
 
@@ -148,7 +148,7 @@ class PlanResponse(_Response):
     message: str = ""
     path: PathModel | None = None
     trajectory: AnyTrajectory | None = None
-    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+    diagnostics: DiagnosticsModel = Field(default_factory=DiagnosticsModel)
 
 
 class PlanBatchRequest(_Request):
@@ -217,7 +217,7 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
         g = request.goal
         goal = (
             CorePosture(np.array(g.q), g.assembly_mode)
-            if isinstance(g, JointPosture)
+            if isinstance(g, JointPostureModel)
             else CoreTarget(np.array(g.p), g.working_mode)
         )
     obstacles = obstacles_to_core(request.obstacles)
@@ -294,7 +294,7 @@ def plan_response(
     elif trajectory is not None:
         timing["timing_time_s"] = trajectory.computation_time_s
         timing["timing_repairs"] = trajectory.repairs
-    diagnostics = Diagnostics(
+    diagnostics = DiagnosticsModel(
         planning_time_s=d.planning_time_s,
         path_length=_finite(d.path_length),
         min_clearance=_finite(d.min_clearance),

@@ -24,8 +24,8 @@ from planner.wire.common import (
     Angles3,
     AssemblyModeLabel,
     DesignModel,
-    Diagnostics,
-    Margins,
+    DiagnosticsModel,
+    MarginsModel,
     Obstacle,
     Rates3,
     TimingErrorInfo,
@@ -42,7 +42,7 @@ __all__ = [
     "AnyTrajectory",
     "Limits",
     "Scaling",
-    "TimingOptions",
+    "TimingOptionsModel",
     "TimingRequest",
     "TimingResponse",
     "TimingStatus",
@@ -71,7 +71,7 @@ _FORMAT_DESCRIPTION = (
 )
 
 
-class TimingOptions(_Request):
+class TimingOptionsModel(_Request):
     """How the planned path is turned into a trajectory."""
 
     method: Literal["toppra", "ruckig", "none"] = "toppra"
@@ -188,7 +188,7 @@ class TimingRequest(_Request):
         max_length=MAX_TIMING_WAYPOINTS,
         description="Waypoint indices where the trajectory comes to rest.",
     )
-    margins: Margins | None = Field(
+    margins: MarginsModel | None = Field(
         None, description="Validity margins of the dense re-check (the planner's rules)."
     )
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
@@ -221,7 +221,7 @@ class TimingResponse(_Response):
     status: TimingStatus
     message: str = ""
     trajectory: AnyTrajectory | None = None
-    diagnostics: Diagnostics = Field(default_factory=Diagnostics)
+    diagnostics: DiagnosticsModel = Field(default_factory=DiagnosticsModel)
 
 
 # ---------------------------------------------------------------------------- conversions
@@ -245,7 +245,7 @@ def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "l
 
 
 def timing_to_core(
-    model: TimingOptions, limits: Limits, loc: tuple[str | int, ...] = ("body", "timing")
+    model: TimingOptionsModel, limits: Limits, loc: tuple[str | int, ...] = ("body", "timing")
 ) -> Any:
     """The request's ``timing`` (and ``limits.cartesian_speed``) as
     :class:`planner.timing.TimingOptions` (an absent ``max_deviation``: the timing default);
