@@ -15,7 +15,7 @@ import pytest
 
 from planner.viewer import STATIC_DIR, content_security_policy
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TEST_IDS = ("plan-button", "status", "scene", "timeline", "mode", "kappa-plot", "joint-plot")
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())

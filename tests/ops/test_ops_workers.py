@@ -20,7 +20,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
 #: A real plan: a joint goal in free space, timed by TOPPRA (the default timing); the tests'
 #: ``sleep_pid`` job sleeps its ``time_budget_s`` instead.

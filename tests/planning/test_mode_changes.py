@@ -205,7 +205,7 @@ def test_goal_in_the_other_assembly_mode_is_unreachable(name, target_mode):
 def test_no_axis_transit_makes_the_axis_sign_unreachable():
     """Singularity-free design with theta1 limited and a mirrored goal: the same point in
     the other axis mode needs the other assembly mode (the two are tied), and P never
-    reaches the axis (independent interval check in tests/test_transits.py)."""
+    reaches the axis (independent interval check in tests/planning/test_transits.py)."""
     design = DESIGNS["free"]
     start = JointPosture([0.0, 2.0, 1.0], "+")
     assert forward_batch(design, start.q, "+").working_mode_signs[0, 0] == 1
@@ -335,7 +335,7 @@ def test_path_state_checker_accepts_the_crossing_only_near_it():
 
 def test_no_transit_on_a_walk_is_unreachable_with_the_reason():
     """Paper optimum: +-+ -> +-- would flip B, but a stretched leg stretches both legs
-    (C = D) and a folded one puts P on the base point (tests/test_transits.py checks that no
+    (C = D) and a folded one puts P on the base point (tests/planning/test_transits.py checks that no
     such posture assembles regularly), and +++ is parallel-singular everywhere."""
     from planner.planning.mode_change import plan_mode_change
 

@@ -18,7 +18,7 @@ import pytest
 
 import planner
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Modules a client must not load: numba (and llvmlite under it), the kinematics and their
 #: kernels, and the native or heavy libraries of the core and the pictures.

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from planner.wire import PlanResponse
 from planner_cli import app
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 runner = CliRunner()
 
 REQUEST = {

@@ -74,9 +74,9 @@ def test_batch_of_timed_plans_in_order(api):
 def test_search_as_long_as_the_request_budget_ends_as_no_path_not_504(client_factory):
     """time_budget_s equal to the service's request budget: the search gets what is left of
     the request's deadline, so the answer is a 200 no_path, not a 504 (wall scene of
-    tests/test_planning.py: theta1 cannot pass a plate at z = 0; since the proof with
+    tests/planning/test_planning.py: theta1 cannot pass a plate at z = 0; since the proof with
     obstacles the planner answers it proven after its first try, well inside the budget: so
-    this checks the answer; a request over its budget is tests/test_api_service.py's 504)."""
+    this checks the answer; a request over its budget is tests/service/test_api_service.py's 504)."""
     body = {
         "design": {
             "L0": 0.5, "L1": 0.2, "L2": 0.6,

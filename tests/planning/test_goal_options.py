@@ -1,6 +1,6 @@
 """The library's goal options (:func:`planner.planning.plan_with_goal_options`), without the
 service: the same behaviour as ``goal.prefer`` / ``goal.tolerance`` of ``POST /v1/plan``
-(tests/test_api_goal_options.py holds the HTTP side), checked by the test's own arithmetic."""
+(tests/service/test_api_goal_options.py holds the HTTP side), checked by the test's own arithmetic."""
 
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ import pytest
 
 from planner_api.routes.workspace import FIGURE_NAMES
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_every_operation_documents_what_it_can_answer(api):

@@ -15,7 +15,7 @@ from planner_api.server import job_grace_s
 from planner_api.settings import Settings
 from planner_cli import app as cli
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "operations.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "operations.md"
 
 
 def _doc_rows() -> dict[str, str]:

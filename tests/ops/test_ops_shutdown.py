@@ -20,7 +20,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PLAN = {"start": {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}, "goal": {"p": [0.3, 0.1, 0.2]}}
 
 
