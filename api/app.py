@@ -70,6 +70,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         redoc_url=None,
     )
     app.state.settings = settings
+    #: Set on SIGTERM by planner_api.server: /v1/ready answers 503 "stopping" from then on.
+    app.state.stopping = False
     install_error_handlers(app)
     app.add_middleware(
         RequestGate,
@@ -79,7 +81,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         api_key=settings.api_key.get_secret_value() if settings.api_key else None,
     )
     app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
-    app.add_middleware(RequestObserver, metrics=app.state.metrics)  # outermost: sees all
+    app.add_middleware(
+        RequestObserver, metrics=app.state.metrics, stopping=lambda: app.state.stopping
+    )  # outermost: sees all
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)

@@ -29,6 +29,7 @@ import json
 import logging
 import secrets
 import time
+from collections.abc import Callable
 
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -226,15 +227,23 @@ SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
 )
 
 
+_CONNECTION_CLOSE = (b"connection", b"close")
+
+
 class RequestObserver:
     """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
     sane, else a new one; echoed in the answer and set in :data:`planner_api.logging.REQUEST_ID` for
     every log line), adds :data:`SECURITY_HEADERS` where the route set none, records it in
-    ``metrics`` and writes one access-log line."""
+    ``metrics`` and writes one access-log line. While ``stopping()`` (the drain after a
+    SIGTERM, :mod:`planner_api.server`) every answer carries ``Connection: close``, so that
+    keep-alive clients reconnect, through their load balancer, to another replica."""
 
-    def __init__(self, app: ASGIApp, *, metrics: Metrics) -> None:
+    def __init__(
+        self, app: ASGIApp, *, metrics: Metrics, stopping: Callable[[], bool] = lambda: False
+    ) -> None:
         self.app = app
         self.metrics = metrics
+        self.stopping = stopping
         self._header = REQUEST_ID_HEADER.lower().encode()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -257,6 +266,8 @@ class RequestObserver:
                 headers.append((self._header, request_id.encode()))
                 present = {k.lower() for k, _ in headers}
                 headers += [(k, v) for k, v in SECURITY_HEADERS if k not in present]
+                if self.stopping():
+                    headers.append(_CONNECTION_CLOSE)
                 message = {**message, "headers": headers}
             await send(message)
 
