@@ -140,7 +140,7 @@ class _Guard:
 
 
 def _peer(client: Any) -> str:
-    return "%s:%d" % tuple(client) if client else "unknown client"
+    return f"{client[0]}:{client[1]}" if client else "unknown client"
 
 
 if importlib.util.find_spec("httptools") is not None:
