@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -21,7 +22,7 @@ from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
-from planner_api.warmup import warm_up_worker
+from planner_api.warmup import warm_up_inline, warm_up_worker
 from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
@@ -53,6 +54,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         )
         await pool.start()
         app.state.pool = pool
+        if warm_up:  # the event loop's own jobs (fk, ik, analyze): /v1/ready waits for them
+            app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
         try:
             yield
         finally:
@@ -72,6 +75,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.state.settings = settings
     #: Set on SIGTERM by planner_api.server: /v1/ready answers 503 "stopping" from then on.
     app.state.stopping = False
+    #: The start-up warm-up of the jobs run in the event loop (None: nothing to wait for).
+    app.state.warming = None
     install_error_handlers(app)
     app.add_middleware(
         RequestGate,

@@ -32,7 +32,12 @@ async def ready(
     ``/v1/health`` it never needs the API key: load-balancer health checks often cannot send
     one, and it tells nothing but the worker counts. From a SIGTERM on it answers 503
     ``stopping`` while the service still serves (the drain, :mod:`planner_api.server`)."""
-    state = "stopping" if request.app.state.stopping else pool.state
+    state = pool.state
+    warming = request.app.state.warming
+    if request.app.state.stopping:
+        state = "stopping"
+    elif warming is not None and not warming.done() and state == "ready":
+        state = "starting"  # the event loop's own jobs are not warm yet
     if state != "ready":
         response.status_code = 503
         response.headers["Retry-After"] = str(settings.retry_after_s)
