@@ -42,13 +42,13 @@ async def get_pool(request: Request) -> WorkerPool:
     return pool
 
 
-async def get_deadline(
-    request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
-) -> float:
+async def get_deadline(request: Request) -> float:
     """The request's deadline, a :func:`time.monotonic` value (stamped on arrival by
     :mod:`planner_api.middleware`)."""
     deadline = getattr(request.state, "deadline", None)
-    return deadline if deadline is not None else time.monotonic() + settings.request_timeout_s
+    if deadline is not None:
+        return deadline
+    return time.monotonic() + request.app.state.settings.request_timeout_s
 
 
 async def require_api_key(

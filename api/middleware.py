@@ -57,14 +57,32 @@ def api_key_given(headers: dict[str, str]) -> str | None:
     return given
 
 
+#: How many (method, path) answers of :func:`_route_takes` are remembered per application.
+_ROUTE_CACHE_SIZE = 1024
+
+
 def _route_takes(scope: Scope) -> bool:
     """Whether a route of the app takes this path with this method (else routing answers
-    404 or 405, which the content type must not pre-empt)."""
-    router = getattr(scope.get("app"), "router", None)
-    for route in getattr(router, "routes", ()):
-        if route.matches(scope)[0] is Match.FULL:
-            return True
-    return False
+    404 or 405, which the content type must not pre-empt). Remembered per application for
+    the last :data:`_ROUTE_CACHE_SIZE` (method, path) pairs: matching every route's pattern
+    is a tenth of the cheapest request's cost."""
+    app = scope.get("app")
+    router = getattr(app, "router", None)
+    cache = getattr(router, "_planner_takes", None)
+    if cache is None:
+        cache = {}
+        if router is not None:
+            router._planner_takes = cache  # type: ignore[union-attr]
+    key = (scope.get("method"), scope.get("path"))
+    found = cache.get(key)
+    if found is None:
+        found = any(
+            route.matches(scope)[0] is Match.FULL for route in getattr(router, "routes", ())
+        )
+        if len(cache) >= _ROUTE_CACHE_SIZE:
+            cache.pop(next(iter(cache)))
+        cache[key] = found
+    return found
 
 
 def _is_json(content_type: str) -> bool:
