@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -27,10 +28,18 @@ from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
 
+logger = logging.getLogger(__name__)
+
 #: Error answers of the job routes' own (the gate's and the pool's: planner_api.openapi).
 _ERRORS = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
+
+
+def _log_failure(task: asyncio.Task[float]) -> None:
+    """Log the start-up warm-up's error, if any (its jobs then pay their loading later)."""
+    if not task.cancelled() and task.exception() is not None:
+        logger.error("the event loop's warm-up failed", exc_info=task.exception())
 
 
 def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> FastAPI:
@@ -56,6 +65,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         app.state.pool = pool
         if warm_up:  # the event loop's own jobs (fk, ik, analyze): /v1/ready waits for them
             app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
+            app.state.warming.add_done_callback(_log_failure)
         try:
             yield
         finally:

@@ -46,8 +46,9 @@ async def _app(scope, receive, send) -> None:  # type: ignore[no-untyped-def]
 class _Served:
     def __init__(self, base: type) -> None:
         protocol = guarded_protocol(HEADER_TIMEOUT_S, SEND_TIMEOUT_S, base)
+        # log_config=None: uvicorn leaves the process's logging as it is (other tests' state)
         config = uvicorn.Config(_app, host="127.0.0.1", port=0, http=protocol, lifespan="off",
-                                log_level="warning")  # fmt: skip
+                                log_config=None)  # fmt: skip
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()
