@@ -4,8 +4,8 @@
 #   docker run --rm -p 8000:8000 -e PLANNER_WORKERS=4 -e PLANNER_API_KEY=s3cret hybrid-planner
 # Every setting is a PLANNER_* environment variable (docs/operations.md). Logs are JSON lines on
 # stderr; Prometheus metrics at /metrics. `docker stop` sends SIGTERM and kills after 10 s:
-# the image's shutdown grace (PLANNER_SHUTDOWN_TIMEOUT_S=8) fits in it; raise both together
-# (`docker stop -t 35` with PLANNER_SHUTDOWN_TIMEOUT_S=30).
+# the image's drain and shutdown grace (PLANNER_DRAIN_S=2 + PLANNER_SHUTDOWN_TIMEOUT_S=6) fit
+# in it; raise them together (`docker stop -t 40` with 5 + 30).
 # Stage 1 installs the project and its pinned dependencies into a virtual environment and
 # compiles the numba kernels once; stage 2 copies only that environment onto a slim base and
 # runs it as an unprivileged user.
@@ -31,7 +31,8 @@ ENV PATH=/opt/venv/bin:$PATH \
     PLANNER_HOST=0.0.0.0 \
     PLANNER_PORT=8000 \
     PLANNER_LOG_FORMAT=json \
-    PLANNER_SHUTDOWN_TIMEOUT_S=8
+    PLANNER_DRAIN_S=2 \
+    PLANNER_SHUTDOWN_TIMEOUT_S=6
 USER planner
 WORKDIR /home/planner
 EXPOSE 8000

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -21,15 +23,23 @@ from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
-from planner_api.warmup import warm_up_worker
+from planner_api.warmup import warm_up_inline, warm_up_worker
 from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
+
+logger = logging.getLogger(__name__)
 
 #: Error answers of the job routes' own (the gate's and the pool's: planner_api.openapi).
 _ERRORS = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
+
+
+def _log_failure(task: asyncio.Task[float]) -> None:
+    """Log the start-up warm-up's error, if any (its jobs then pay their loading later)."""
+    if not task.cancelled() and task.exception() is not None:
+        logger.error("the event loop's warm-up failed", exc_info=task.exception())
 
 
 def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> FastAPI:
@@ -53,6 +63,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         )
         await pool.start()
         app.state.pool = pool
+        if warm_up:  # the event loop's own jobs (fk, ik, analyze): /v1/ready waits for them
+            app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
+            app.state.warming.add_done_callback(_log_failure)
         try:
             yield
         finally:
@@ -70,6 +83,10 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         redoc_url=None,
     )
     app.state.settings = settings
+    #: Set on SIGTERM by planner_api.server: /v1/ready answers 503 "stopping" from then on.
+    app.state.stopping = False
+    #: The start-up warm-up of the jobs run in the event loop (None: nothing to wait for).
+    app.state.warming = None
     install_error_handlers(app)
     app.add_middleware(
         RequestGate,
@@ -79,7 +96,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         api_key=settings.api_key.get_secret_value() if settings.api_key else None,
     )
     app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
-    app.add_middleware(RequestObserver, metrics=app.state.metrics)  # outermost: sees all
+    app.add_middleware(
+        RequestObserver, metrics=app.state.metrics, stopping=lambda: app.state.stopping
+    )  # outermost: sees all
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)

@@ -1,5 +1,8 @@
 """Dependencies of the routes, as ``Annotated`` aliases: settings, worker pool, the request's
-deadline, and the API-key check."""
+deadline, and the API-key check.
+
+All are ``async def``: none of them blocks, and FastAPI runs a plain ``def`` dependency in its
+thread pool, a thread hop per dependency per request (~0.5 ms of the cheapest requests)."""
 
 from __future__ import annotations
 
@@ -26,12 +29,12 @@ __all__ = [
 ]
 
 
-def get_app_settings(request: Request) -> Settings:
+async def get_app_settings(request: Request) -> Settings:
     """The settings the application was built with."""
     return request.app.state.settings
 
 
-def get_pool(request: Request) -> WorkerPool:
+async def get_pool(request: Request) -> WorkerPool:
     """The application's worker pool (started by the application's lifespan)."""
     pool = getattr(request.app.state, "pool", None)
     if pool is None:
@@ -39,16 +42,16 @@ def get_pool(request: Request) -> WorkerPool:
     return pool
 
 
-def get_deadline(
-    request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
-) -> float:
+async def get_deadline(request: Request) -> float:
     """The request's deadline, a :func:`time.monotonic` value (stamped on arrival by
     :mod:`planner_api.middleware`)."""
     deadline = getattr(request.state, "deadline", None)
-    return deadline if deadline is not None else time.monotonic() + settings.request_timeout_s
+    if deadline is not None:
+        return deadline
+    return time.monotonic() + request.app.state.settings.request_timeout_s
 
 
-def require_api_key(
+async def require_api_key(
     request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
 ) -> None:
     """Nothing when no key is configured; else the key must come in ``X-API-Key`` or

@@ -29,6 +29,7 @@ import json
 import logging
 import secrets
 import time
+from collections.abc import Callable
 
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -56,14 +57,32 @@ def api_key_given(headers: dict[str, str]) -> str | None:
     return given
 
 
+#: How many (method, path) answers of :func:`_route_takes` are remembered per application.
+_ROUTE_CACHE_SIZE = 1024
+
+
 def _route_takes(scope: Scope) -> bool:
     """Whether a route of the app takes this path with this method (else routing answers
-    404 or 405, which the content type must not pre-empt)."""
-    router = getattr(scope.get("app"), "router", None)
-    for route in getattr(router, "routes", ()):
-        if route.matches(scope)[0] is Match.FULL:
-            return True
-    return False
+    404 or 405, which the content type must not pre-empt). Remembered per application for
+    the last :data:`_ROUTE_CACHE_SIZE` (method, path) pairs: matching every route's pattern
+    is a tenth of the cheapest request's cost."""
+    app = scope.get("app")
+    router = getattr(app, "router", None)
+    cache = getattr(router, "_planner_takes", None)
+    if cache is None:
+        cache = {}
+        if router is not None:
+            router._planner_takes = cache  # type: ignore[union-attr]
+    key = (scope.get("method"), scope.get("path"))
+    found = cache.get(key)
+    if found is None:
+        found = any(
+            route.matches(scope)[0] is Match.FULL for route in getattr(router, "routes", ())
+        )
+        if len(cache) >= _ROUTE_CACHE_SIZE:
+            cache.pop(next(iter(cache)))
+        cache[key] = found
+    return found
 
 
 def _is_json(content_type: str) -> bool:
@@ -226,15 +245,23 @@ SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
 )
 
 
+_CONNECTION_CLOSE = (b"connection", b"close")
+
+
 class RequestObserver:
     """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
     sane, else a new one; echoed in the answer and set in :data:`planner_api.logging.REQUEST_ID` for
     every log line), adds :data:`SECURITY_HEADERS` where the route set none, records it in
-    ``metrics`` and writes one access-log line."""
+    ``metrics`` and writes one access-log line. While ``stopping()`` (the drain after a
+    SIGTERM, :mod:`planner_api.server`) every answer carries ``Connection: close``, so that
+    keep-alive clients reconnect, through their load balancer, to another replica."""
 
-    def __init__(self, app: ASGIApp, *, metrics: Metrics) -> None:
+    def __init__(
+        self, app: ASGIApp, *, metrics: Metrics, stopping: Callable[[], bool] = lambda: False
+    ) -> None:
         self.app = app
         self.metrics = metrics
+        self.stopping = stopping
         self._header = REQUEST_ID_HEADER.lower().encode()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -257,6 +284,8 @@ class RequestObserver:
                 headers.append((self._header, request_id.encode()))
                 present = {k.lower() for k, _ in headers}
                 headers += [(k, v) for k, v in SECURITY_HEADERS if k not in present]
+                if self.stopping():
+                    headers.append(_CONNECTION_CLOSE)
                 message = {**message, "headers": headers}
             await send(message)
 

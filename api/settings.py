@@ -16,7 +16,10 @@ PLANNER_MAX_SECTION_RESOLUTION 256                        cells per axis of a se
 PLANNER_API_KEY           (none)                          when set, required on /v1 but health
 PLANNER_LOG_LEVEL         info                            debug, info, warning, error, critical
 PLANNER_LOG_FORMAT        json                            json (one object a line) or text
-PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight work on SIGTERM, s
+PLANNER_HEADER_TIMEOUT_S  10                              time to send the request line and headers, s
+PLANNER_SEND_TIMEOUT_S    30                              time a client has to take a buffered answer, s
+PLANNER_DRAIN_S           5                               on SIGTERM: still listening, ready 503, s
+PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight work after the drain, s
 PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
 PLANNER_DEFAULT_DESIGN    default                         design of a request without one: a
                                                           preset name or a JSON design object
@@ -90,6 +93,24 @@ class Settings(BaseSettings):
         description="Time a client has to send its whole request body, s (at most the request "
         "budget); a slower or stalled body is answered 408 and its connection closed.",
     )
+    header_timeout_s: float = Field(
+        10.0,
+        gt=0.0,
+        le=3600.0,
+        allow_inf_nan=False,
+        description="Time a connection has to send a request's line and headers, s (from "
+        "its opening, or from the previous answer of a keep-alive connection); a slower one is "
+        "answered 408 and closed (planner_api.protocol).",
+    )
+    send_timeout_s: float = Field(
+        30.0,
+        gt=0.0,
+        le=3600.0,
+        allow_inf_nan=False,
+        description="Time a client has to take an answer the service could not hand to the "
+        "socket at once (the connection's write buffer drained), s; a client that reads more "
+        "slowly has its connection aborted and the answer's bytes dropped.",
+    )
     max_body_bytes: int = Field(
         4 * 1024 * 1024, ge=1024, le=1024**3, description="Largest request body, bytes."
     )
@@ -130,12 +151,21 @@ class Settings(BaseSettings):
     log_format: Literal["json", "text"] = Field(
         "json", description="json: one JSON object a line with the request id; text: for people."
     )
+    drain_s: float = Field(
+        5.0,
+        ge=0.0,
+        le=3600.0,
+        allow_inf_nan=False,
+        description="On SIGTERM/SIGINT: how long the service keeps listening and serving, "
+        "its /v1/ready answering 503 'stopping' so that load balancers take it out, before it "
+        "closes its listener, s (a second signal ends the drain at once).",
+    )
     shutdown_timeout_s: float = Field(
         30.0,
         ge=0.0,
         le=3600.0,
         allow_inf_nan=False,
-        description="On SIGTERM/SIGINT: how long in-flight requests may finish before they "
+        description="After the drain: how long in-flight requests may finish before they "
         "are cancelled and the workers stopped, s.",
     )
     metrics: bool = Field(True, description="Serve Prometheus metrics at GET /metrics.")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["warm_up_worker"]
+__all__ = ["warm_up_inline", "warm_up_worker"]
 
 _POSTURE = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
 #: A start from which a short straight line of P is valid (docs/cartesian.md's example).
@@ -29,6 +29,25 @@ def warm_up_worker() -> float:
     warm_up()
     with quiet_library_logs():
         _run_jobs()
+    return time.perf_counter() - t0
+
+
+def warm_up_inline() -> float:
+    """The warm-up of the serving process itself, for the jobs it runs in its event loop
+    (:func:`planner_api.routes._common.run_inline`): fk, ik and analyze once each, which loads
+    their numba kernels (~2 s on a loaded 2-core machine, which would otherwise block the event
+    loop on the first such request). Run in a thread at start-up; ``/v1/ready`` waits for it.
+    Returns its seconds."""
+    from planner.warmup import quiet_library_logs
+    from planner.wire import AnalyzeRequest, FKRequest, IKRequest
+    from planner_api.jobs import kinematics
+    from planner_api.metrics import run_measured
+
+    t0 = time.perf_counter()
+    with quiet_library_logs():
+        run_measured(kinematics.fk, FKRequest.model_validate({"q": _POSTURE["q"]}))
+        run_measured(kinematics.ik, IKRequest.model_validate({"p": [0.5, 0.05, 0.2]}))
+        run_measured(kinematics.analyze, AnalyzeRequest.model_validate(_POSTURE))
     return time.perf_counter() - t0
 
 

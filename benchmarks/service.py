@@ -1,9 +1,12 @@
 """Service benchmark: latency and throughput of the HTTP service on loopback.
 
-Starts ``planner serve`` (uvicorn, ``--workers`` processes) on a free port, then sends a fixed,
-seeded set of requests with the async client at concurrency 1, 8 and 32, and prints p50 / p95
-/ p99 latency and throughput per endpoint, next to the same work done in-process (the job
-function called directly), and their ratio (the service overhead).
+Starts ``planner serve`` (uvicorn, ``--workers`` processes) on a free port. First the
+per-request overhead: a bare FastAPI app on uvicorn (the floor) and the service, each with one
+light keep-alive client (``http.client``), interleaved request by request in the same run;
+then a small plans' throughput from light clients against workers x the in-process rate.
+Then a fixed, seeded set of requests with the typed async client at concurrency 1, 8 and 32:
+p50 / p95 / p99 latency and throughput per endpoint, next to the same work done in-process
+(the job function called directly), and their ratio.
 
 Endpoints: ``/v1/fk`` (the cheapest call: the overhead floor), ``/v1/analyze``, and
 ``/v1/plan`` with free-space joint goals (without timing, and with toppra) when the planner
@@ -33,15 +36,18 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import http.client
 import importlib.util
 import os
 import socket
 import statistics
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
@@ -140,66 +146,123 @@ def _start_bare() -> tuple[subprocess.Popen[bytes], str]:
     raise RuntimeError("the bare app did not start")
 
 
-async def _raw_load(url: str, bodies: list[dict], concurrency: int) -> tuple[list, float]:
-    """POST each body with a plain httpx client (no response models), ``concurrency`` at a
-    time: the same client for the bare app and the service's routes, so the rows compare."""
-    latencies: list[float] = []
-    queue = list(bodies)
+class _Light:
+    """One keep-alive ``http.client`` connection: the lightest client the standard library
+    has (httpx spends ~2 ms of its own per request, which hid the server's cost)."""
 
-    async def worker(client: httpx.AsyncClient) -> None:
-        while queue:
-            body = queue.pop()
-            t0 = time.perf_counter()
-            r = await client.post(url, json=body)
-            r.raise_for_status()
-            latencies.append(time.perf_counter() - t0)
+    def __init__(self, url: str) -> None:
+        parts = urlsplit(url)
+        self.conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=60)
 
-    async with httpx.AsyncClient(timeout=60) as client:
+    def call(self, method: str, path: str, body: bytes | None = None) -> float:
+        """One request, its answer read whole; seconds, client side."""
+        headers = {"Content-Type": "application/json"} if body is not None else {}
         t0 = time.perf_counter()
-        await asyncio.gather(*(worker(client) for _ in range(concurrency)))
-        wall = time.perf_counter() - t0
-    return latencies, wall
+        self.conn.request(method, path, body=body, headers=headers)
+        r = self.conn.getresponse()
+        data = r.read()
+        seconds = time.perf_counter() - t0
+        if r.status != 200:
+            raise RuntimeError(f"{method} {path}: {r.status} {data[:300]!r}")
+        return seconds
 
 
-def _floor_rows(url: str, n: int, rng: np.random.Generator) -> None:
-    """The per-request overhead against the bare-FastAPI floor, measured side by side at
-    concurrency 1 (issue goals: /v1/fk p50 <= 1.3 x bare p50; a small free-space plan p50
-    <= bare p50 + 1.5 x its in-process time)."""
+def _cpu_s(pid: int) -> float:
+    """User + system CPU seconds of process ``pid`` so far (/proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: int) -> None:
+    """The per-request overhead against a bare FastAPI app on uvicorn (the floor), with one
+    light keep-alive client per server, interleaved request by request so that both see the
+    same machine load (issue goals: /v1/fk p50 <= 1.3 x bare p50; a small free-space plan p50
+    <= bare p50 + 1.5 x its in-process time; throughput >= 0.9 x workers x in-process rate)."""
     bare, bare_url = _start_bare()
     try:
-        fk_bodies = [r.model_dump(mode="json") for r in _requests("fk", n, rng)]
+        fk_bodies = [r.model_dump_json().encode() for r in _requests("fk", n, rng)]
         plans = _solvable("plan", n, rng)
-        plan_bodies = [r.model_dump(mode="json", exclude_none=True) for r in plans]
+        plan_bodies = [r.model_dump_json(exclude_none=True).encode() for r in plans]
         _in_process(plan_jobs.plan, plans[:20])
         plan_local = statistics.median(_in_process(plan_jobs.plan, plans)) * 1e3
-        rows = {}
-        for name, target, bodies in (
-            ("bare FastAPI POST", f"{bare_url}/echo", fk_bodies),
-            ("/v1/health (GET)", None, None),
-            ("/v1/fk", f"{url}/v1/fk", fk_bodies),
-            ("/v1/plan (free, none)", f"{url}/v1/plan", plan_bodies),
-        ):
-            if target is None:
-                lat = []
-                with httpx.Client() as client:
-                    for _ in range(n):
-                        t0 = time.perf_counter()
-                        client.get(f"{url}/v1/health")
-                        lat.append(time.perf_counter() - t0)
-            else:
-                asyncio.run(_raw_load(target, bodies[:30], 1))  # warm connections and caches
-                lat, _ = asyncio.run(_raw_load(target, bodies, 1))
-            rows[name] = _pct(lat, 50)
-            print(f"{name:24} p50 {rows[name]:7.2f} ms   p95 {_pct(lat, 95):7.2f} ms")
-        bare_p50 = rows["bare FastAPI POST"]
-        print(f"/v1/fk p50 / bare p50 = {rows['/v1/fk'] / bare_p50:.2f} (goal <= 1.3)")
+        floor, service = _Light(bare_url), _Light(url)
+        rows: dict[str, list[float]] = {
+            "bare FastAPI POST": [], "/v1/health (GET)": [], "/v1/fk": [],
+            "/v1/plan (free, none)": [],
+        }  # fmt: skip
+        for i in range(min(n, 50)):  # warm connections, caches and workers
+            floor.call("POST", "/echo", fk_bodies[i])
+            service.call("POST", "/v1/fk", fk_bodies[i])
+            service.call("POST", "/v1/plan", plan_bodies[i])
+        load = os.getloadavg()[0]
+        cpu = {"fk": 0.0, "bare": 0.0}
+        for i in range(n):
+            c0 = _cpu_s(bare.pid)
+            rows["bare FastAPI POST"].append(floor.call("POST", "/echo", fk_bodies[i]))
+            c1 = _cpu_s(bare.pid)
+            rows["/v1/health (GET)"].append(service.call("GET", "/v1/health"))
+            c2 = _cpu_s(pid)
+            rows["/v1/fk"].append(service.call("POST", "/v1/fk", fk_bodies[i]))
+            c3 = _cpu_s(pid)
+            rows["/v1/plan (free, none)"].append(service.call("POST", "/v1/plan", plan_bodies[i]))
+            cpu["bare"] += c1 - c0
+            cpu["fk"] += c3 - c2
         print(
-            f"plan p50 - bare p50 = {rows['/v1/plan (free, none)'] - bare_p50:.2f} ms against "
-            f"1.5 x in-process {plan_local:.2f} ms = {1.5 * plan_local:.2f} ms"
+            f"light client (http.client, one keep-alive connection per server), {n} requests "
+            f"per row interleaved with the bare app; load average {load:.1f} at the start, "
+            f"{os.getloadavg()[0]:.1f} at the end"
         )
+        for name, lat in rows.items():
+            print(f"{name:24} p50 {_pct(lat, 50):7.2f} ms   p95 {_pct(lat, 95):7.2f} ms")
+        bare_p50 = _pct(rows["bare FastAPI POST"], 50)
+        fk_p50 = _pct(rows["/v1/fk"], 50)
+        plan_p50 = _pct(rows["/v1/plan (free, none)"], 50)
+        print(f"/v1/fk p50 / bare p50 = {fk_p50 / bare_p50:.2f} (goal <= 1.3)")
+        print(
+            f"server CPU per request (/proc, 10 ms ticks, so coarse): /v1/fk "
+            f"{cpu['fk'] / n * 1e3:.2f} ms, bare {cpu['bare'] / n * 1e3:.2f} ms"
+        )
+        print(
+            f"plan p50 - bare p50 = {plan_p50 - bare_p50:.2f} ms against 1.5 x in-process "
+            f"{plan_local:.2f} ms = {1.5 * plan_local:.2f} ms (goal: at most that)"
+        )
+        timed = _solvable("plan+toppra", 200, rng)
+        _throughput_row(url, timed, [r.model_dump_json().encode() for r in timed], workers)
     finally:
         bare.terminate()
         bare.wait(timeout=30)
+
+
+def _throughput_row(url: str, plans: list, bodies: list[bytes], workers: int) -> None:
+    """Plans from ``2 x workers`` light clients at once, against ``workers`` x the in-process
+    rate measured just before (goal: >= 0.9). The plans are timed by TOPPRA (a few ms of work
+    each): for sub-millisecond jobs the HTTP parsing itself, on the same cores, bounds the rate."""
+    local = statistics.median(_in_process(plan_jobs.plan, plans[:100]))
+    clients = 2 * workers
+    counts = [0] * clients
+    stop = time.perf_counter() + 10.0
+
+    def client(k: int) -> None:
+        light = _Light(url)
+        i = k
+        while time.perf_counter() < stop:
+            light.call("POST", "/v1/plan", bodies[i % len(bodies)])
+            counts[k] += 1
+            i += clients
+
+    t0 = time.perf_counter()
+    threads = [threading.Thread(target=client, args=(k,)) for k in range(clients)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    rate = sum(counts) / (time.perf_counter() - t0)
+    ideal = workers / local
+    print(
+        f"throughput, small plans + toppra, {clients} light clients, 10 s: {rate:.0f} req/s against "
+        f"{workers} x in-process {1 / local:.0f}/s = {ideal:.0f}/s: {rate / ideal:.2f} "
+        f"(goal >= 0.9; load average {os.getloadavg()[0]:.1f})"
+    )
 
 
 #: The start of the Cartesian rows and its P (docs/cartesian.md's example).
@@ -452,8 +515,8 @@ def main() -> None:
             f"{'endpoint':11} {'conc':>4} {'p50':>8} {'p95':>8} {'p99':>8} {'req/s':>8} "
             f"{'in-proc p50':>12} {'p50 ratio':>10}"
         )
-        print("per-request overhead, concurrency 1, plain httpx client")
-        _floor_rows(url, min(args.requests, 300), rng)
+        print("per-request overhead, concurrency 1")
+        _floor_rows(url, proc.pid, min(args.requests, 300), rng, args.workers)
         print()
         if args.floor_only:
             return

@@ -180,6 +180,7 @@ def serve_process(
             [str(ROOT / "src"), str(ROOT), os.environ.get("PYTHONPATH", "")]
         ),
         "PLANNER_WORKERS": "2",
+        "PLANNER_DRAIN_S": "0",  # stopped at once at the end (the drain: test_ops_drain.py)
     }
     env.pop("PLANNER_API_KEY", None)
     env.update(env_vars)

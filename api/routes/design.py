@@ -4,6 +4,8 @@ working modes, workspace volume and conditioning); /v1/design/optimize: the best
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 from fastapi import APIRouter, Response
 
 from planner.design import Design
@@ -20,7 +22,7 @@ from planner.wire import (
 )
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import design as jobs
-from planner_api.routes._common import run_job
+from planner_api.routes._common import json_response, run_job
 
 __all__ = ["design_check", "design_optimize", "design_regions", "designs", "presets", "router"]
 
@@ -93,7 +95,12 @@ def presets() -> DesignsResponse:
     )
 
 
+@lru_cache(maxsize=1)
+def _presets_json() -> bytes:
+    return presets().model_dump_json().encode()
+
+
 @router.get("/designs", response_model=DesignsResponse)
-def designs() -> DesignsResponse:
+async def designs() -> Response:
     """The preset designs, each usable as the ``design`` of any request."""
-    return presets()
+    return json_response(_presets_json())  # a constant: serialised once

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 
 import planner
 from planner.wire import ErrorResponse, Health, Readiness, VersionInfo
@@ -14,7 +14,7 @@ router = APIRouter(prefix="/v1", tags=["meta"])
 
 
 @router.get("/health", response_model=Health)
-def health() -> Health:
+async def health() -> Health:
     """Liveness: the process answers (never needs the API key)."""
     return Health(status="ok")
 
@@ -24,12 +24,20 @@ def health() -> Health:
     response_model=Readiness,
     responses={503: {"model": Readiness, "description": "Not every worker is warm (yet)."}},
 )
-def ready(pool: Pool, settings: SettingsDep, response: Response) -> Readiness:
+async def ready(
+    request: Request, pool: Pool, settings: SettingsDep, response: Response
+) -> Readiness:
     """Readiness: every configured worker process is alive and warm (503 otherwise: while
     starting, while a dead worker's replacement warms up, while stopping). Like
     ``/v1/health`` it never needs the API key: load-balancer health checks often cannot send
-    one, and it tells nothing but the worker counts."""
+    one, and it tells nothing but the worker counts. From a SIGTERM on it answers 503
+    ``stopping`` while the service still serves (the drain, :mod:`planner_api.server`)."""
     state = pool.state
+    warming = request.app.state.warming
+    if request.app.state.stopping:
+        state = "stopping"
+    elif warming is not None and not warming.done() and state == "ready":
+        state = "starting"  # the event loop's own jobs are not warm yet
     if state != "ready":
         response.status_code = 503
         response.headers["Retry-After"] = str(settings.retry_after_s)

@@ -33,7 +33,7 @@ router = APIRouter(prefix="/v1", tags=["plan"])
 PlanFunction = Callable[[PlanRequest, JobBudget], PlanResponse]
 
 
-def get_plan_function() -> PlanFunction:
+async def get_plan_function() -> PlanFunction:
     """The job that answers one plan request (a module-level, picklable function)."""
     return jobs.plan
 

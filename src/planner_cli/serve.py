@@ -38,8 +38,8 @@ def serve(
         float | None,
         typer.Option(
             metavar="SECONDS",
-            help="Seconds in-flight requests may finish after SIGTERM "
-            "(env PLANNER_SHUTDOWN_TIMEOUT_S).",
+            help="Seconds in-flight requests may finish after SIGTERM and the drain "
+            "(env PLANNER_SHUTDOWN_TIMEOUT_S; the drain: PLANNER_DRAIN_S).",
             min=0.0,
         ),
     ] = None,

@@ -46,6 +46,7 @@ def _start(tmp_path: Path, port: int, **env: str) -> tuple[subprocess.Popen[byte
         "PLANNER_PORT": str(port),
         "PLANNER_WORKERS": "1",
         "PLANNER_LOG_FORMAT": "json",
+        "PLANNER_DRAIN_S": "0",  # the stop after the drain (the drain: test_ops_drain.py)
         "OPS_PID_FILE": str(tmp_path / "worker.pid"),
         **env,
     }

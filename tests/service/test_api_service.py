@@ -44,14 +44,6 @@ def _sleep_then_pid(seconds: float) -> int:
     return os.getpid()
 
 
-def _fk_once(q: list[float]) -> int:
-    """The fk job once, with no deadline: its imports and kernels loaded in this worker."""
-    from planner.wire import FKRequest
-    from planner_api.jobs import kinematics as jobs
-
-    return len(jobs.fk(FKRequest.model_validate({"q": q})).postures)
-
-
 def _wait_ready(client, timeout_s: float = 180.0) -> None:
     end = time.monotonic() + timeout_s
     while client.get("/v1/ready").status_code != 200:
@@ -110,7 +102,7 @@ def test_api_key_guards_every_v1_route_but_the_probes(client_factory):
 
 def test_app_without_its_lifespan_answers_503_not_500(client_factory):
     c = client_factory()  # not entered: the worker pool never starts
-    r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+    r = c.post("/v1/plan", json=PLAN)  # (fk, run in the event loop, needs no pool)
     assert r.status_code == 503
     assert r.json()["detail"][0]["type"] == "not_running"
     assert c.get("/v1/health").status_code == 200
@@ -139,31 +131,36 @@ def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factor
     with client_factory(workers=1, queue_size=0, retry_after_s=2, warm=False) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
+        c.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
         busy = pool.submit(time.sleep, 0.5)
-        r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+        r = c.post("/v1/plan", json=PLAN)  # (fk runs in the event loop: no worker needed)
         assert r.status_code == 503
         assert r.headers["retry-after"] == "2"
         assert r.json()["detail"][0]["type"] == "saturated"
         busy.result(timeout=30)
         _wait_idle(pool)
-        assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
+        assert c.post("/v1/plan", json=PLAN).status_code == 200
+        c.app.dependency_overrides.clear()
 
 
 def test_request_over_its_time_budget_is_504(client_factory):
-    # a budget that an fk job keeps even on a loaded machine, and a job twice as long; the
-    # last fk must not pay its imports within those 3 s: the worker runs fk once first,
-    # without a deadline (what the whole warm-up would do for it, and no more)
+    # a budget that a cheap plan job keeps even on a loaded machine, and a job twice as long;
+    # the last plan must not pay its imports within those 3 s: the worker runs the job once
+    # first, without a deadline (what the whole warm-up would do for it, and no more)
     with client_factory(workers=1, queue_size=2, request_timeout_s=3.0, warm=False) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
-        assert pool.submit(_fk_once, [0, 1, 2]).result(timeout=STARTUP_TIMEOUT_S) == 2
-        busy = pool.submit(time.sleep, 6.0)  # the fk job waits behind it past its deadline
-        r = c.post("/v1/fk", json={"q": [0, 1, 2]})
+        c.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
+        once = pool.submit(_echo_seed, PlanRequest.model_validate(PLAN))
+        assert once.result(timeout=STARTUP_TIMEOUT_S).status == "no_path"
+        busy = pool.submit(time.sleep, 6.0)  # the plan job waits behind it past its deadline
+        r = c.post("/v1/plan", json=PLAN)
         assert r.status_code == 504
         assert r.json()["detail"][0]["type"] == "deadline_exceeded"
         busy.result(timeout=30)
         _wait_idle(pool)
-        assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
+        assert c.post("/v1/plan", json=PLAN).status_code == 200
+        c.app.dependency_overrides.clear()
 
 
 def test_pool_reserves_a_batch_all_or_nothing():
