@@ -6,14 +6,13 @@ thread pool, a thread hop per dependency per request (~0.5 ms of the cheapest re
 
 from __future__ import annotations
 
-import secrets
 import time
 from typing import Annotated
 
 from fastapi import Depends, Request
 
 from planner_api.exceptions import AuthenticationError, PoolNotRunningError
-from planner_api.middleware import api_key_given
+from planner_api.middleware import API_KEY_REQUIRED, api_key_accepted
 from planner_api.settings import Settings
 from planner_api.workers import WorkerPool
 
@@ -58,12 +57,8 @@ async def require_api_key(
     ``Authorization: Bearer <key>`` (compared in constant time)."""
     if settings.api_key is None:
         return
-    given = api_key_given(dict(request.headers))
-    expected = settings.api_key.get_secret_value()
-    if given is None or not secrets.compare_digest(given.encode(), expected.encode()):
-        raise AuthenticationError(
-            "a valid API key is required (X-API-Key or Authorization: Bearer)"
-        )
+    if not api_key_accepted(request.headers, settings.api_key.get_secret_value()):
+        raise AuthenticationError(API_KEY_REQUIRED)
 
 
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]

@@ -29,7 +29,7 @@ import json
 import logging
 import secrets
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -37,7 +37,13 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from planner_api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
 from planner_api.metrics import CURRENT, UNMATCHED, Metrics
 
-__all__ = ["CLIENT_CLOSED_REQUEST", "RequestGate", "RequestObserver", "api_key_given"]
+__all__ = [
+    "API_KEY_REQUIRED",
+    "CLIENT_CLOSED_REQUEST",
+    "RequestGate",
+    "RequestObserver",
+    "api_key_accepted",
+]
 
 access_logger = logging.getLogger("api.access")
 
@@ -48,13 +54,19 @@ _OPEN_PATHS = frozenset({"/v1/health", "/v1/ready"})
 _BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
 
-def api_key_given(headers: dict[str, str]) -> str | None:
-    """The key a request presents: ``X-API-Key``, else ``Authorization: Bearer <key>``."""
+#: The 401's message, the gate's and the routes' alike.
+API_KEY_REQUIRED = "a valid API key is required (X-API-Key or Authorization: Bearer)"
+
+
+def api_key_accepted(headers: Mapping[str, str], expected: str) -> bool:
+    """Whether a request presents the key ``expected`` in ``X-API-Key``, else in
+    ``Authorization: Bearer <key>``, compared in constant time: the one key check, made by
+    the gate before a body is read and again by the routes' dependency."""
     given = headers.get("x-api-key")
     if given is None:
         scheme, _, token = headers.get("authorization", "").partition(" ")
         given = token.strip() if scheme.lower() == "bearer" else None
-    return given
+    return given is not None and secrets.compare_digest(given.encode(), expected.encode())
 
 
 #: How many (method, path) answers of :func:`_route_takes` are remembered per application.
@@ -127,10 +139,9 @@ class RequestGate:
         path = scope.get("path", "")
         guarded = path.startswith("/v1/") and path not in _OPEN_PATHS
         if guarded and self.api_key is not None:
-            given = api_key_given(headers)
-            if given is None or not secrets.compare_digest(given.encode(), self.api_key.encode()):
+            if not api_key_accepted(headers, self.api_key):
                 await _answer(
-                    send, 401, "a valid API key is required (X-API-Key or Authorization: Bearer)",
+                    send, 401, API_KEY_REQUIRED,
                     "unauthorized", [], [(b"www-authenticate", b"Bearer")],
                 )  # fmt: skip
                 return
