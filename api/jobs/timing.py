@@ -13,6 +13,7 @@ from planner.wire import (
     TimingErrorInfo,
     TimingRequest,
     TimingResponse,
+    inertia_to_core,
     joint_limits_to_core,
     located,
     margins_to_core,
@@ -130,6 +131,8 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
                 check_states=check,
                 deadline=budget.deadline,
                 max_samples=budget.max_samples,
+                inertia=inertia_to_core(request.design),
+                gravity=tuple(request.gravity),
                 **options,
             )
     except TimingDeadlineError as exc:
@@ -142,5 +145,9 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
             status="invalid_path", message=f"the path breaks a rule: {exc}", diagnostics=diagnostics
         )
     trajectory = trajectory_model(traj, request.format)
-    diagnostics = Diagnostics(timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs)
+    diagnostics = Diagnostics(
+        timing_time_s=traj.computation_time_s,
+        timing_repairs=traj.repairs,
+        max_torque_ratio=traj.max_torque_ratio,
+    )
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

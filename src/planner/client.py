@@ -354,6 +354,7 @@ class PlannerClient(_BaseClient):
     workspace = _sync(_BaseClient._workspace)
     figure = _sync(_BaseClient._figure)
     timing = _sync(_BaseClient._timing)
+    dynamics = _sync(_BaseClient._dynamics)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
 
@@ -409,5 +410,6 @@ class AsyncPlannerClient(_BaseClient):
     workspace = _async(_BaseClient._workspace)
     figure = _async(_BaseClient._figure)
     timing = _async(_BaseClient._timing)
+    dynamics = _async(_BaseClient._dynamics)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)

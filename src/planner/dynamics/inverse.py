@@ -23,6 +23,7 @@ import numpy as np
 
 from planner.constants import KAPPA_SOLVABLE
 from planner.design import Design
+from planner.dynamics import _kernels
 from planner.dynamics.inertia import Inertia, check_gravity
 from planner.exceptions import InputError
 from planner.kinematics import forward_batch
@@ -52,40 +53,29 @@ def _rates(name: str, value: object, n: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _Kin:
-    """Positions, passive angles and first-order kinematics of N postures (internal)."""
+    """Actuated and passive angles of N postures (internal)."""
 
-    q: np.ndarray  # (N, 3)
-    t4: np.ndarray
-    t5: np.ndarray
-    s: np.ndarray  # sin(theta5 - theta4), 0 where not ok
-    jt4: np.ndarray  # (N, 3): d theta4 / d q
-    jt5: np.ndarray
+    q: np.ndarray  # (N, 3), C-contiguous
+    passive: np.ndarray  # (N, 2), (theta4, theta5); 0 where not ok
     ok: np.ndarray  # assembled and kappa(A) <= KAPPA_SOLVABLE
     kappa: np.ndarray
 
 
 def _kinematics(design: Design, q: np.ndarray, assembly_mode: object) -> _Kin:
     batch = forward_batch(design, q, assembly_mode)
-    t4 = batch.passive[:, 0]
-    t5 = batch.passive[:, 1]
-    d = t5 - t4
-    s = np.sin(d)
+    d = batch.passive[:, 1] - batch.passive[:, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
-        kappa = (1.0 + np.abs(np.cos(d))) / np.abs(s)
+        kappa = (1.0 + np.abs(np.cos(d))) / np.abs(np.sin(d))  # kappa(A), erratum 2
     ok = batch.ok & (kappa <= KAPPA_SOLVABLE)
-    s = np.where(ok, s, 1.0)
-    t4 = np.where(ok, t4, 0.0)
-    t5 = np.where(ok, t5, 0.0)
-    q2 = batch.q
-    k = design.L1 / (design.L2 * s)
-    # d theta4 / d q_j = -+ L1 (n_j . a5) / (L2 s), n_j . a_i = sin(theta_i - theta_j)
-    jt4 = np.zeros_like(q2)
-    jt5 = np.zeros_like(q2)
-    jt4[:, 1] = -k * np.sin(t5 - q2[:, 1])
-    jt4[:, 2] = k * np.sin(t5 - q2[:, 2])
-    jt5[:, 1] = -k * np.sin(t4 - q2[:, 1])
-    jt5[:, 2] = k * np.sin(t4 - q2[:, 2])
-    return _Kin(q2, t4, t5, s, jt4, jt5, ok, kappa)
+    passive = np.ascontiguousarray(np.where(ok[:, None], batch.passive, 0.0))
+    return _Kin(np.ascontiguousarray(batch.q), passive, ok, kappa)
+
+
+def _params(inertia: Inertia) -> np.ndarray:
+    """The inertia as the kernel's parameter vector (order :data:`_kernels.PARAMS`)."""
+    p, d = inertia.proximal, inertia.distal
+    return np.array([p.mass, p.com, p.I_perp, p.I_axial, d.mass, d.com, d.I_perp, d.I_axial,
+                     inertia.payload_mass, inertia.base_inertia, *inertia.rotor])  # fmt: skip
 
 
 def _forces(
@@ -96,90 +86,15 @@ def _forces(
     qdd: np.ndarray,
     gravity: np.ndarray,
 ) -> np.ndarray:
-    """Generalised forces (N, 3) of the motion (q, qd, qdd) under ``gravity``."""
-    l0, l1, l2 = design.L0, design.L1, design.L2
-    q = kin.q
-    t1, t2, t3, t4, t5 = q[:, 0], q[:, 1], q[:, 2], kin.t4, kin.t5
-    d1, d2, d3 = qd[:, 0], qd[:, 1], qd[:, 2]
-    dd1, dd2, dd3 = qdd[:, 0], qdd[:, 1], qdd[:, 2]
-    c2, s2, c3, s3 = np.cos(t2), np.sin(t2), np.cos(t3), np.sin(t3)
-    c4, s4, c5, s5 = np.cos(t4), np.sin(t4), np.cos(t5), np.sin(t5)
-    # passive rates and accelerations from the loop closure (docs/dynamics.md, eq. P)
-    d4 = kin.jt4[:, 1] * d2 + kin.jt4[:, 2] * d3
-    d5 = kin.jt5[:, 1] * d2 + kin.jt5[:, 2] * d3
-    # R2 = L1 (dd3 n3 - d3^2 a3 - dd2 n2 + d2^2 a2) + L2 (d4^2 a4 - d5^2 a5), (u, w) parts
-    r2u = l1 * (-dd3 * s3 - d3**2 * c3 + dd2 * s2 + d2**2 * c2) + l2 * (d4**2 * c4 - d5**2 * c5)
-    r2w = l1 * (dd3 * c3 - d3**2 * s3 - dd2 * c2 + d2**2 * s2) + l2 * (d4**2 * s4 - d5**2 * s5)
-    ls = l2 * kin.s
-    dd4 = (r2u * c5 + r2w * s5) / ls
-    dd5 = (r2u * c4 + r2w * s4) / ls
-    # gravity in the plane's frame (e, y, k)
-    ct1, st1 = np.cos(t1), np.sin(t1)
-    g_e = gravity[0] * ct1 - gravity[2] * st1
-    g_y = gravity[1]
-    g_k = gravity[0] * st1 + gravity[2] * ct1
-    tau = np.zeros_like(q)
-    tau[:, 0] += inertia.base_inertia * dd1
-    tau += inertia.rotor_array * qdd
-    prox, dist = inertia.proximal, inertia.distal
-    half = l0 / 2
-
-    def translation(m, u, w, du, dw, ddu, ddw, ju, jw):  # type: ignore[no-untyped-def]
-        # F = m (a - g) in (e, y, k); tau_j = F . dv/dqd_j (v = du y + dw e - w d1 k)
-        f_e = m * (ddw - w * d1**2 - g_e)
-        f_y = m * (ddu - g_y)
-        f_k = m * (-(2 * dw * d1 + w * dd1) - g_k)
-        tau[:] += ju * f_y[:, None] + jw * f_e[:, None]
-        tau[:, 0] += -w * f_k
-
-    def rotation(link, phi, dphi, ddphi, jphi):  # type: ignore[no-untyped-def]
-        # omega = d1 y - dphi k, alpha = dd1 y - ddphi k - dphi d1 e; link direction
-        # e_link = (sin phi, cos phi, 0); I = I_perp Id + dI e_link e_link^T
-        cp, sp = np.cos(phi), np.sin(phi)
-        di = link.I_axial - link.I_perp
-        e_alpha = -sp * dphi * d1 + cp * dd1
-        e_omega = cp * d1
-        mo_y = link.I_perp * dd1 + di * e_alpha * cp - di * e_omega * dphi * sp
-        mo_k = -link.I_perp * ddphi - di * e_omega * d1 * sp
-        tau[:, 0] += mo_y
-        tau[:] += -jphi * mo_k[:, None]
-
-    # proximal links: pivot A (u = -L0/2) with theta2, pivot B (+L0/2) with theta3
-    for sign, c, s, d, dd, j in ((-1.0, c2, s2, d2, dd2, 1), (1.0, c3, s3, d3, dd3, 2)):
-        a = prox.com * l1
-        ju = np.zeros_like(q)
-        jw = np.zeros_like(q)
-        ju[:, j] = -a * s
-        jw[:, j] = a * c
-        translation(prox.mass, sign * half + a * c, a * s, -a * s * d, a * c * d,
-                    a * (-dd * s - d**2 * c), a * (dd * c - d**2 * s), ju, jw)  # fmt: skip
-        jphi = np.zeros_like(q)
-        jphi[:, j] = 1.0
-        rotation(prox, t2 if j == 1 else t3, d, dd, jphi)
-    # distal links (C with theta4, D with theta5) and the payload at P (on the C side)
-    legs = (
-        (-1.0, c2, s2, d2, dd2, 1, c4, s4, t4, d4, dd4, kin.jt4),
-        (1.0, c3, s3, d3, dd3, 2, c5, s5, t5, d5, dd5, kin.jt5),
-    )
-    for sign, c, s, d, dd, j, cp, sp, phi, dp, ddp, jp in legs:
-        bodies = [(dist.mass, dist.com * l2, dist)]
-        if j == 1:
-            bodies.append((inertia.payload_mass, l2, None))
-        for m, b, link in bodies:
-            ju = -b * sp[:, None] * jp
-            jw = b * cp[:, None] * jp
-            ju[:, j] += -l1 * s
-            jw[:, j] += l1 * c
-            u = sign * half + l1 * c + b * cp
-            w = l1 * s + b * sp
-            du = -l1 * s * d - b * sp * dp
-            dw = l1 * c * d + b * cp * dp
-            ddu = l1 * (-dd * s - d**2 * c) + b * (-ddp * sp - dp**2 * cp)
-            ddw = l1 * (dd * c - d**2 * s) + b * (ddp * cp - dp**2 * sp)
-            translation(m, u, w, du, dw, ddu, ddw, ju, jw)
-            if link is not None:
-                rotation(link, phi, dp, ddp, jp)
-    return tau
+    """Generalised forces (N, 3) of the motion (q, qd, qdd) under ``gravity`` (the compiled
+    loop of :mod:`planner.dynamics._kernels`; NaN where the posture is not ``ok``)."""
+    out = np.empty_like(kin.q)
+    _kernels.inverse_kernel(
+        design.L1, design.L2, _params(inertia), kin.q, kin.passive, kin.ok,
+        np.ascontiguousarray(qd, dtype=float), np.ascontiguousarray(qdd, dtype=float),
+        np.asarray(gravity, dtype=float), out,
+    )  # fmt: skip
+    return out
 
 
 @dataclass(frozen=True, eq=False)

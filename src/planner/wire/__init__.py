@@ -5,7 +5,8 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
+(torques and mass matrices) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
@@ -47,6 +48,7 @@ from planner.wire.cartesian import (
     cartesian_response,
 )
 from planner.wire.common import (
+    GRAVITY_FIELD,
     MAX_BATCH_REQUESTS,
     MAX_COORDINATE,
     MAX_GOAL_TOLERANCE_M,
@@ -55,6 +57,7 @@ from planner.wire.common import (
     Angle,
     Angles3,
     AssemblyModeLabel,
+    BaseInertiaModel,
     BoxObstacle,
     CapsuleObstacle,
     CartesianTarget,
@@ -63,13 +66,17 @@ from planner.wire.common import (
     Diagnostics,
     Finite,
     Goal,
+    Gravity,
+    InertiaModel,
     JointGoal,
     JointPosture,
     Length,
+    LinkInertiaModel,
     LinkLength,
     Margins,
     Matrix3,
     Obstacle,
+    PayloadModel,
     Point3,
     PositiveSize,
     Preference,
@@ -80,6 +87,7 @@ from planner.wire.common import (
     WorkingModeLabel,
     WorkingModeOrAny,
     design_to_core,
+    inertia_to_core,
     located,
     margins_to_core,
     obstacle_from_dict,
@@ -102,6 +110,12 @@ from planner.wire.design import (
     SampledValue,
     regions_model,
     sampled_value,
+)
+from planner.wire.dynamics import (
+    MAX_DYNAMICS_POSTURES,
+    DynamicsRequest,
+    DynamicsResponse,
+    dynamics_answer,
 )
 from planner.wire.kinematics import (
     AnalyzeRequest,
@@ -161,9 +175,11 @@ from planner.wire.timing import (
 )
 
 __all__ = [
+    "GRAVITY_FIELD",
     "MAX_BATCH_REQUESTS",
     "MAX_CARTESIAN_WAYPOINTS",
     "MAX_COORDINATE",
+    "MAX_DYNAMICS_POSTURES",
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
@@ -178,6 +194,7 @@ __all__ = [
     "Angles3",
     "AnyTrajectory",
     "AssemblyModeLabel",
+    "BaseInertiaModel",
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianDiagnostics",
@@ -196,6 +213,8 @@ __all__ = [
     "DesignPreset",
     "DesignsResponse",
     "Diagnostics",
+    "DynamicsRequest",
+    "DynamicsResponse",
     "ErrorItem",
     "ErrorResponse",
     "FKRequest",
@@ -203,19 +222,23 @@ __all__ = [
     "FigureQuery",
     "Finite",
     "Goal",
+    "Gravity",
     "Health",
     "IKRequest",
     "IKResponse",
+    "InertiaModel",
     "JointGoal",
     "JointPosture",
     "Length",
     "LengthBounds",
     "Limits",
+    "LinkInertiaModel",
     "LinkLength",
     "Margins",
     "Matrix3",
     "Obstacle",
     "PathModel",
+    "PayloadModel",
     "PlanBatchRequest",
     "PlanBatchResponse",
     "PlanInputs",
@@ -261,6 +284,8 @@ __all__ = [
     "cartesian_inputs",
     "cartesian_response",
     "design_to_core",
+    "dynamics_answer",
+    "inertia_to_core",
     "joint_limits_to_core",
     "located",
     "margins_to_core",
