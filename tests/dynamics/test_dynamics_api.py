@@ -189,3 +189,20 @@ def test_cli_dynamics_and_mjcf(tmp_path) -> None:
     assert "<connect" in out.read_text() and 'site1="tip_C"' in out.read_text()
     r = runner.invoke(app, ["mjcf", "--home", "0,3.14159,0", "--L2", "0.3"])  # |CD| > 2 L2
     assert r.exit_code == 2 and "home" in r.output
+
+
+def test_cli_plan_csv_has_the_torque_columns(tmp_path) -> None:
+    from planner.timing.export import read_csv
+
+    body = {"start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+            "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
+            "limits": {"torque": [9.0, 2.0, 2.0]}}  # fmt: skip
+    request = tmp_path / "plan.json"
+    request.write_text(json.dumps(body))
+    out, csv = tmp_path / "answer.json", tmp_path / "traj.csv"
+    r = CliRunner().invoke(app, ["plan", str(request), "--out", str(out), "--csv", str(csv)])
+    assert r.exit_code == 0, r.output
+    header = csv.read_text().splitlines()[1].split(",")
+    assert header[-3:] == ["tau1", "tau2", "tau3"]
+    arrays = read_csv(csv)
+    np.testing.assert_array_equal(arrays.tau, json.loads(out.read_text())["trajectory"]["tau"])

@@ -413,8 +413,9 @@ def timing_error(exc: Exception) -> TimingErrorInfo:
 
 
 def trajectory_points(model: TrajectoryModel | TrajectoryPointsModel) -> TrajectoryPointsModel:
-    """The points form of a wire trajectory (the same floats, one point per sample; the
-    arrays' per-sample extras ``jerk``, ``p``, ``p_speed`` have no place there). A points
+    """The points form of a wire trajectory (the same floats, one point per sample, ``tau``
+    as each point's ``effort``; the arrays' other per-sample extras ``jerk``, ``p``,
+    ``p_speed`` have no place there). A points
     trajectory is returned as it is."""
     if isinstance(model, TrajectoryPointsModel):
         return model
@@ -436,12 +437,16 @@ def trajectory_arrays(model: TrajectoryModel | TrajectoryPointsModel) -> Traject
     if isinstance(model, TrajectoryModel):
         return model
     a = arrays_from_points(model.model_dump(include={"duration", "joint_names", "points"}))
+    efforts = [p.effort for p in model.points]
+    order = [list(model.joint_names).index(n) for n in JOINT_NAMES]
+    tau = None if any(e is None for e in efforts) else np.asarray(efforts)[:, order].tolist()
     return TrajectoryModel(
         duration=a.duration,
         t=a.t.tolist(),
         q=a.q.tolist(),
         qd=a.qd.tolist(),
         qdd=a.qdd.tolist(),
+        tau=tau,
         method=model.method,
         max_deviation_q=model.max_deviation_q,
         max_deviation_p=model.max_deviation_p,
