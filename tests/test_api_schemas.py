@@ -207,6 +207,7 @@ def test_second_part_vocabulary():
         "margins",
         "timing",
         "limits",
+        "gravity",
     }
     assert {n for n, f in CartesianRequest.model_fields.items() if f.is_required()} == {
         "start",

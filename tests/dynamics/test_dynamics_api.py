@@ -206,3 +206,27 @@ def test_cli_plan_csv_has_the_torque_columns(tmp_path) -> None:
     assert header[-3:] == ["tau1", "tau2", "tau3"]
     arrays = read_csv(csv)
     np.testing.assert_array_equal(arrays.tau, json.loads(out.read_text())["trajectory"]["tau"])
+
+
+def test_cartesian_with_torque_limits_and_an_inertia(api) -> None:
+    """A straight tool path timed under torque limits with the request's inertia and
+    gravity: tau equals the library's torques of the samples with that inertia."""
+    start = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
+    p0 = api.post("/v1/fk", json={"q": start["q"], "assembly_mode": "+"}).json()
+    p = np.array(p0["postures"][0]["p"])
+    body = {"start": start, "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
+            "design": {"inertia": INERTIA}, "gravity": [0.0, 0.0, -5.0],
+            "limits": {"torque": [20.0, 8.0, 8.0]}}  # fmt: skip
+    out = api.post("/v1/cartesian", json=body).json()
+    assert out["status"] == "solved", out["message"]
+    traj = out["trajectory"]
+    ref = inverse_dynamics(
+        Design.default(),
+        LIB_INERTIA,
+        np.array(traj["q"]),
+        np.array(traj["qd"]),
+        np.array(traj["qdd"]),
+        gravity=(0, 0, -5.0),
+    )
+    np.testing.assert_allclose(traj["tau"], ref.tau, atol=1e-9)
+    assert out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6

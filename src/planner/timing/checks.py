@@ -110,6 +110,7 @@ def dense_check(
     max_cartesian_speed: float | None,
     deviation_limit: np.ndarray | None = None,
     torque_model: TorqueModel | None = None,
+    torque_in_time: bool = True,
 ) -> CheckReport:
     """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
 
@@ -128,9 +129,13 @@ def dense_check(
         posture farther from the segments it stands for fails with rule ``"deviation"``.
     torque_model : TorqueModel, optional
         With ``limits.torque``: the actuator torques checked too (rule ``"torque"``).
+    torque_in_time : also check them on a :data:`TORQUE_CHECK_RATE_HZ` grid in time (needed
+        for jerk-limited moves; a toppra curve's path acceleration is constant between its
+        grid points, each of which is checked with subsamples, so near rest, where time
+        passes but s does not, its torques do not change).
     """
     times = [curve.check_times(resolution), extra_times]
-    if torque_model is not None and limits.torque is not None:
+    if torque_model is not None and limits.torque is not None and torque_in_time:
         times.append(torque_check_times(curve.duration))
     t = np.unique(np.concatenate(times))
     q, qd, qdd, jerk = curve.evaluate(t)
