@@ -1,8 +1,9 @@
 """Dynamics of the manipulator: its inertial model and the inverse dynamics of the closed
 chain in actuated coordinates (``docs/dynamics.md``).
 
-Core: numpy only (no wire formats, no toppra). The timing uses it through
-:mod:`planner.timing` for torque limits.
+Core: numpy and numba (no wire formats, no toppra); :mod:`planner.dynamics.mjcf` writes the
+MJCF export, :mod:`planner.dynamics.analysis` the design-side maps. The timing uses it
+through :mod:`planner.timing.torque` for torque limits.
 """
 
 from __future__ import annotations
