@@ -19,6 +19,7 @@ from pydantic import (
     Tag,
     ValidationInfo,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -222,6 +223,16 @@ class DesignModel(_Request):
                     f"joint_max[{i}] must be above joint_min[{i}], got {value[i]} <= {lo[i]}"
                 )
         return value
+
+    @model_serializer(mode="wrap")
+    def _without_absent_inertia(self, handler: Any):  # type: ignore[no-untyped-def]
+        """No ``inertia`` key when none was given: a design without one is written as it
+        was before the field existed (clients compare designs by their JSON, e.g. the
+        viewer against the presets). Not annotated: the schema stays the model's."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("inertia", 0) is None:
+            del data["inertia"]
+        return data
 
     #: The library design, built once when the model is validated (the check of every rule
     #: of :class:`planner.Design` is that construction); pickled with the model.
