@@ -13,6 +13,7 @@ from planner.wire import (
     TimingErrorInfo,
     TimingRequest,
     TimingResponse,
+    inertia_to_core,
     joint_limits_to_core,
     located,
     margins_to_core,
@@ -130,6 +131,8 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
                 check_states=check,
                 deadline=budget.deadline,
                 max_samples=budget.max_samples,
+                inertia=inertia_to_core(request.design),
+                gravity=tuple(request.gravity),
                 **options,
             )
     except TimingDeadlineError as exc:
@@ -143,6 +146,8 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
         )
     trajectory = trajectory_model(traj, request.format)
     diagnostics = DiagnosticsModel(
-        timing_time_s=traj.computation_time_s, timing_repairs=traj.repairs
+        timing_time_s=traj.computation_time_s,
+        timing_repairs=traj.repairs,
+        max_torque_ratio=traj.max_torque_ratio,
     )
     return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)

@@ -168,12 +168,12 @@ def write_csv(trajectory: _Trajectory, target: Any) -> None:
     """Write a trajectory of an answer (either form) as CSV to ``target`` (a path or a text
     file): a comment line naming the units, the header
     ``t,theta1,theta2,theta3,dtheta1,...,ddtheta3`` (and ``dddtheta1..3`` with ruckig's
-    jerks), one row per sample with 17 significant digits (:func:`planner.timing.export.read_csv`
-    gives back the same numbers)."""
+    jerks, ``tau1..3`` with torques), one row per sample with 17 significant digits
+    (:func:`planner.timing.export.read_csv` gives back the same numbers)."""
     from planner.timing.export import write_csv as write
 
     a = to_arrays(trajectory)
-    write(target, a.t, a.q, a.qd, a.qdd, jerk=a.jerk)
+    write(target, a.t, a.q, a.qd, a.qdd, jerk=a.jerk, tau=a.tau)
 
 
 class _BaseClient(Requests):
@@ -354,6 +354,7 @@ class PlannerClient(_BaseClient):
     workspace = _sync(_BaseClient._workspace)
     figure = _sync(_BaseClient._figure)
     timing = _sync(_BaseClient._timing)
+    dynamics = _sync(_BaseClient._dynamics)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
 
@@ -409,5 +410,6 @@ class AsyncPlannerClient(_BaseClient):
     workspace = _async(_BaseClient._workspace)
     figure = _async(_BaseClient._figure)
     timing = _async(_BaseClient._timing)
+    dynamics = _async(_BaseClient._dynamics)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)

@@ -29,6 +29,8 @@ from planner.wire import (
     DesignOptimizeRequest,
     DesignOptimizeResponse,
     DesignsResponse,
+    DynamicsRequest,
+    DynamicsResponse,
     FigureQuery,
     FKRequest,
     FKResponse,
@@ -345,6 +347,30 @@ class Requests:
                 k: (_floats(v) if k != "cartesian_speed" else v) for k, v in dict(limits).items()
             }
         return _Call("POST", "/v1/timing", _validated(TimingRequest, data), TimingResponse)
+
+    def _dynamics(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        *,
+        design: DesignLike = None,
+        assembly_mode: str = "+",
+        gravity: Sequence[float] | None = None,
+    ) -> _Call[DynamicsResponse]:
+        """Inverse dynamics of N motions (q, qd, qdd: N x 3 each, rad, rad/s, rad/s^2): the
+        actuator torques ``tau`` (N m) and mass matrices ``M(q)``; ``design`` may carry
+        ``inertia``; ``gravity`` m/s^2 (default [0, 0, -9.81])."""
+        data: dict[str, Any] = {
+            "q": [_floats(r) for r in q],
+            "qd": [_floats(r) for r in qd],
+            "qdd": [_floats(r) for r in qdd],
+            "design": _design(design),
+            "assembly_mode": assembly_mode,
+        }
+        if gravity is not None:
+            data["gravity"] = _floats(gravity)
+        return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
 
     def _optimize_design(
         self, objective: str = "volume", *, design: DesignLike = None, **options: Any

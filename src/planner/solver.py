@@ -34,6 +34,7 @@ import numpy as np
 
 from planner.constants import ANSWER_RESERVE_S
 from planner.design import Design
+from planner.dynamics import DEFAULT_GRAVITY, Inertia
 from planner.exceptions import InputError, TimingError
 from planner.geometry import Obstacle
 from planner.planning import (
@@ -46,6 +47,7 @@ from planner.planning import (
     path_state_checker,
     plan_with_goal_options,
 )
+from planner.planning.result import Diagnostics
 from planner.timing.limits import JointLimits
 from planner.timing.options import TimingOptions
 from planner.timing.trajectory import Trajectory
@@ -115,6 +117,8 @@ def solve(
     prefer: str = "shortest",
     tolerance: float = 0.0,
     deadline: float | None = None,
+    inertia: Inertia | None = None,
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
 ) -> Solution:
     """Plan a valid path from ``start`` to ``goal`` and time it: the library's one call for
     a timed motion (see the module docstring).
@@ -130,6 +134,13 @@ def solve(
     prefer, tolerance :
         The goal options of :func:`planner.planning.plan_with_goal_options`.
     deadline : a :func:`time.monotonic` value for the whole answer, or None.
+    inertia, gravity :
+        The robot's inertial model (:class:`~planner.dynamics.Inertia`; default
+        :meth:`~planner.dynamics.Inertia.default` when ``limits.torque`` is given) and gravity
+        (m/s^2, base frame): with either an inertia or torque limits, the trajectory carries
+        its torques, and torque limits bound them (:func:`planner.timing.time_path`). A start
+        where gravity alone needs more than a joint's torque limit is ``invalid_start``,
+        naming the joint and the torque.
 
     Returns
     -------
@@ -154,6 +165,9 @@ def solve(
     margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
     timing = timing if timing is not None else TimingOptions()
+    held = _gravity_at_start(design, start, limits, inertia, gravity)
+    if held is not None and timing.method != "none":
+        return Solution(PlanResult(PlanStatus.INVALID_START, held, None, Diagnostics(0.0)))
     result = plan_with_goal_options(
         design, start, goal, obstacles=obstacles, margins=margins,
         options=search_budget(options, deadline), prefer=prefer, tolerance=tolerance,
@@ -165,6 +179,7 @@ def solve(
         trajectory = time_plan(
             design, result.path, obstacles=obstacles, margins=margins, timing=timing,
             limits=limits, stop_at_transits=options.stop_at_transits, deadline=deadline,
+            inertia=inertia, gravity=gravity,
         )  # fmt: skip
     except TimingError as exc:  # deadline, no profile, or the dense re-check failed
         return Solution(result, timing_error=exc)
@@ -181,6 +196,8 @@ def time_plan(
     limits: JointLimits | None = None,
     stop_at_transits: bool = False,
     deadline: float | None = None,
+    inertia: Inertia | None = None,
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
 ) -> Trajectory:
     """The timing step of :func:`solve` for a planned path: :func:`planner.timing.time_path`
     under the path's own rules per piece (:func:`planner.planning.path_state_checker`),
@@ -208,8 +225,34 @@ def time_plan(
             check_states=check,
             deadline=deadline,
             max_samples=timing.max_samples,
+            inertia=inertia,
+            gravity=gravity,
         )
     except InputError as exc:
         if exc.field is not None and not exc.field_path[:1] == ("timing",):
             exc.field = ("timing", *exc.field_path)
         raise
+
+
+def _gravity_at_start(
+    design: Design,
+    start: JointPosture,
+    limits: JointLimits | None,
+    inertia: Inertia | None,
+    gravity: tuple[float, float, float],
+) -> str | None:
+    """The ``invalid_start`` message when gravity alone, at rest at the start, needs more
+    torque than a joint's limit (no motion can leave it), else None."""
+    if limits is None or limits.torque is None:
+        return None
+    from planner.timing.torque import TorqueModel, gravity_excess
+
+    model = TorqueModel(design, inertia, gravity, start.assembly_mode)
+    excess = gravity_excess(model, np.asarray(start.q, dtype=float), limits.torque_array)
+    if excess is None:
+        return None
+    j, value = excess
+    return (
+        f"invalid start: gravity alone needs |tau{j + 1}| = {value:.6g} N m at rest there, "
+        f"above limits.torque[{j}] = {limits.torque[j]:.6g} N m"
+    )

@@ -60,6 +60,15 @@ def _kinematics(state: _State) -> None:
     conditioning(state.design, batch.q, batch.passive, batch.w)
 
 
+def _dynamics(state: _State) -> None:
+    """The inverse-dynamics kernel of :mod:`planner.dynamics._kernels` (and its mass matrix)."""
+    from planner.dynamics import Inertia, inverse_dynamics
+
+    q = np.array([[0.0, 2.0, 1.0]])
+    inverse_dynamics(state.design, Inertia.default(state.design), q, q, q,
+                     with_mass_matrix=True)  # fmt: skip
+
+
 def _validity(state: _State) -> None:
     """The validity rules and the clearance kernels of every obstacle type."""
     from planner.geometry import Box, Capsule, Sphere
@@ -222,6 +231,7 @@ class Step:
 #: The steps of :func:`warm_up`, in order (each may use what the steps before it left).
 STEPS: tuple[Step, ...] = (
     Step("numba kernels: kinematics", _kinematics),
+    Step("numba kernels: inverse dynamics", _dynamics),
     Step("numba kernels: validity and clearance", _validity),
     Step("region map: the default design's", _region_map),
     Step("region map with obstacles: a wall's proof", _obstacle_proof),

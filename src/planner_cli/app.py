@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from planner_cli import analysis, figures, kinematics, plan, serve, tools
+from planner_cli import analysis, dynamics, figures, kinematics, plan, serve, tools
 from planner_cli._support import Command, Group
 from planner_cli.errors import reported
 
@@ -53,3 +53,5 @@ register(analysis.regions)
 register(plan.plan)
 register(plan.cartesian)
 register(tools.bench)
+register(dynamics.dynamics)
+register(dynamics.mjcf)

@@ -25,8 +25,9 @@ CsvOption = Annotated[
     Path | None,
     typer.Option(
         "--csv",
-        help="Write the trajectory as CSV here: columns t, theta1 to theta3 and their rates, "
-        "under a line naming the units.",
+        help="Write the trajectory as CSV here: columns t, theta1 to theta3 and their rates "
+        "(and tau1 to tau3 with design.inertia or limits.torque), under a line naming the "
+        "units.",
     ),
 ]
 

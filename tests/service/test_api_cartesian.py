@@ -313,7 +313,7 @@ def test_the_route_is_documented_with_its_errors(api):
     schemas = api.get("/openapi.json").json()["components"]["schemas"]
     request = schemas["CartesianRequest"]["properties"]
     assert {"design", "start", "waypoints", "path_tolerance", "obstacles", "margins", "timing",
-            "limits"} == set(request)  # fmt: skip
+            "limits", "gravity"} == set(request)  # fmt: skip
     response = schemas["CartesianResponse"]["properties"]
     assert {"status", "message", "fraction", "path", "trajectory", "diagnostics"} <= set(response)
     assert "max_path_deviation" in schemas["CartesianDiagnosticsModel"]["properties"]

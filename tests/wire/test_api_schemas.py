@@ -33,6 +33,7 @@ def test_plan_request_fields_and_required():
         "planner",
         "timing",
         "limits",
+        "gravity",
     }
     required = {n for n, f in PlanRequest.model_fields.items() if f.is_required()}
     assert required == {"start", "goal"}
@@ -52,6 +53,7 @@ def test_plan_request_fields_and_required():
         "link_radius",
         "joint_min",
         "joint_max",
+        "inertia",
     }
 
 
@@ -194,6 +196,7 @@ def test_second_part_vocabulary():
         "positions",
         "velocities",
         "accelerations",
+        "effort",
     }
     assert set(CartesianRequest.model_fields) == {
         "design",
@@ -204,6 +207,7 @@ def test_second_part_vocabulary():
         "margins",
         "timing",
         "limits",
+        "gravity",
     }
     assert {n for n, f in CartesianRequest.model_fields.items() if f.is_required()} == {
         "start",
@@ -217,3 +221,26 @@ def test_second_part_vocabulary():
         in CartesianResponse.model_fields["diagnostics"].annotation.model_fields
     )
     assert DiagnosticsModel().proven_infeasible is False
+
+
+def test_third_part_dynamics_vocabulary():
+    """docs/conventions.md, "Wire, third part": design.inertia, gravity, /v1/dynamics,
+    limits.torque, trajectory.tau, point effort, diagnostics.max_torque_ratio."""
+    from planner.wire import (
+        DynamicsRequest,
+        DynamicsResponse,
+        InertiaModel,
+        LinkInertiaModel,
+        TrajectoryModel,
+    )
+
+    assert set(InertiaModel.model_fields) == {"proximal", "distal", "payload", "base", "rotor"}
+    assert set(LinkInertiaModel.model_fields) == {"mass", "com", "I_perp", "I_axial"}
+    assert set(DynamicsRequest.model_fields) == {
+        "design", "gravity", "assembly_mode", "q", "qd", "qdd"
+    }  # fmt: skip
+    assert {"tau", "mass_matrix"} <= set(DynamicsResponse.model_fields)
+    assert PlanRequest.model_fields["gravity"].default_factory() == [0.0, 0.0, -9.81]
+    assert "torque" in schemas.Limits.model_fields
+    assert "tau" in TrajectoryModel.model_fields
+    assert "max_torque_ratio" in DiagnosticsModel.model_fields

@@ -208,6 +208,8 @@ def plan_cartesian(
     chord_share: float = CHORD_SHARE,
     time_partial: bool = True,
     inspect: bool = True,
+    inertia: object | None = None,
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81),
 ) -> CartesianResult:
     """Move P on the straight segments start-P -> waypoints[0] -> ... in the start's working
     and assembly mode, stopping at the last valid point where a rule would break.
@@ -235,6 +237,8 @@ def plan_cartesian(
     chord_share : float in (0, 1) -- share of the tolerance for the chords.
     time_partial : bool -- also time a path that stops short (default True).
     inspect : bool -- run :func:`inspect_cartesian` and attach its events.
+    inertia, gravity : the robot's :class:`planner.dynamics.Inertia` and gravity (m/s^2) for
+        the timing's torques (:func:`planner.timing.time_path`).
 
     Returns
     -------
@@ -530,6 +534,7 @@ def plan_cartesian(
                 sample_rate_hz=sample_rate_hz, max_cartesian_speed=cartesian_speed,
                 max_deviation=dev, check_states=checker.is_valid,
                 check_resolution=check_resolution or DEFAULT_CHECK_RESOLUTION,
+                inertia=inertia, gravity=gravity,
             )  # fmt: skip
 
         try:

@@ -26,9 +26,17 @@ from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
 from planner.timing.path import distance_to_polyline
+from planner.timing.torque import TorqueModel
 from planner.timing.trajectory import Curve, p_velocity
 
-__all__ = ["LIMIT_RTOL", "CheckReport", "StateChecker", "dense_check"]
+__all__ = [
+    "LIMIT_RTOL",
+    "TORQUE_CHECK_RATE_HZ",
+    "CheckReport",
+    "StateChecker",
+    "dense_check",
+    "torque_check_times",
+]
 
 #: Relative tolerance on every velocity, acceleration, jerk and Cartesian-speed limit: a sample
 #: passes when |value| <= limit * (1 + LIMIT_RTOL) (solver round-off, not a slack).
@@ -38,6 +46,10 @@ DEVIATION_RTOL = 1e-9
 #: Absolute tolerance on the design's joint limits, rad.
 JOINT_LIMIT_TOL = 1e-9
 
+#: With torque limits, the re-check also samples the motion at this rate, Hz: the check times
+#: are spaced in joint space, but near rest a jerk-limited move changes its acceleration, and
+#: so its torques, while the joints barely move (a 1.2 % excess was missed between them).
+TORQUE_CHECK_RATE_HZ = 1000.0
 #: Q (M, 3) -> valid (M,) bool, True = valid.
 StateChecker = Callable[[np.ndarray], np.ndarray]
 
@@ -51,7 +63,7 @@ class CheckReport:
     t, q : check times (M,), s, and postures (M, 3), rad.
     bad_state : shape (M,), bool -- fails validity, joint limits or assembly.
     limit_ratio : dict rule -> largest |value| / limit over the samples (velocity,
-        acceleration, jerk, cartesian_speed).
+        acceleration, jerk, cartesian_speed, torque).
     max_deviation_q, max_deviation_p : rad, m (see :class:`~planner.timing.Trajectory`).
     state_rule : shape (M,), str -- the failing rule of each bad state ("assembly",
         "joint_limits", "validity", "deviation"), "" for a good one.
@@ -79,6 +91,12 @@ class CheckReport:
         return rule, self.limit_ratio[rule]
 
 
+def torque_check_times(duration: float) -> np.ndarray:
+    """Times at :data:`TORQUE_CHECK_RATE_HZ` over [0, duration], s."""
+    n = max(2, int(np.ceil(duration * TORQUE_CHECK_RATE_HZ)) + 1)
+    return np.linspace(0.0, duration, n)
+
+
 def dense_check(
     curve: Curve,
     *,
@@ -91,6 +109,8 @@ def dense_check(
     check_states: StateChecker | None,
     max_cartesian_speed: float | None,
     deviation_limit: np.ndarray | None = None,
+    torque_model: TorqueModel | None = None,
+    torque_in_time: bool = True,
 ) -> CheckReport:
     """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
 
@@ -107,8 +127,17 @@ def dense_check(
     deviation_limit : shape (N,), rad, optional
         Largest allowed distance from the plan near each vertex (``max_deviation``); a
         posture farther from the segments it stands for fails with rule ``"deviation"``.
+    torque_model : TorqueModel, optional
+        With ``limits.torque``: the actuator torques checked too (rule ``"torque"``).
+    torque_in_time : also check them on a :data:`TORQUE_CHECK_RATE_HZ` grid in time (needed
+        for jerk-limited moves; a toppra curve's path acceleration is constant between its
+        grid points, each of which is checked with subsamples, so near rest, where time
+        passes but s does not, its torques do not change).
     """
-    t = np.unique(np.concatenate([curve.check_times(resolution), extra_times]))
+    times = [curve.check_times(resolution), extra_times]
+    if torque_model is not None and limits.torque is not None and torque_in_time:
+        times.append(torque_check_times(curve.duration))
+    t = np.unique(np.concatenate(times))
     q, qd, qdd, jerk = curve.evaluate(t)
     ratio = {
         "velocity": float(np.max(np.abs(qd) / limits.velocity_array)),
@@ -117,6 +146,10 @@ def dense_check(
     if jerk is not None and limits.jerk is not None:
         finite = np.isfinite(jerk)
         ratio["jerk"] = float(np.max(np.where(finite, np.abs(jerk), 0.0) / limits.jerk_array))
+    if torque_model is not None and limits.torque is not None:
+        tau = torque_model.torques(q, qd, qdd)
+        # a singular posture (NaN torque) fails the assembly or validity rules, not this one
+        ratio["torque"] = float(np.max(np.nan_to_num(np.abs(tau), nan=0.0) / limits.torque_array))
     p, v_p, assembled = p_velocity(design, q, qd, assembly_mode)
     if max_cartesian_speed is not None:
         speed = np.linalg.norm(v_p, axis=1)

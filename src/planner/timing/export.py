@@ -4,7 +4,7 @@ trajectory.
 The library's :class:`~planner.timing.Trajectory` holds parallel arrays (``t`` (M,), ``q``,
 ``qd``, ``qdd`` (M, 3)). CSV: a first comment line naming the units, then the header
 ``t,theta1,theta2,theta3,dtheta1,dtheta2,dtheta3,ddtheta1,ddtheta2,ddtheta3`` (plus
-``dddtheta1..3`` when jerks are given), one row per sample, floats written with 17
+``dddtheta1..3`` when jerks are given, ``tau1..3`` when torques are), one row per sample, floats written with 17
 significant digits so that reading gives back the same numbers. The controller's points
 layout (``timing.format = "points"``) is the wire's: :mod:`planner.wire.timing`
 (:func:`~planner.wire.timing.points_from_arrays`, :func:`~planner.wire.timing.arrays_from_points`).
@@ -34,12 +34,13 @@ __all__ = [
 #: Joint names of the points form, in the order of q.
 JOINT_NAMES: tuple[str, str, str] = ("theta1", "theta2", "theta3")
 #: The first line of a CSV file (a comment naming the units of every column).
-CSV_UNITS = "# units: t s; theta rad; dtheta rad/s; ddtheta rad/s^2; dddtheta rad/s^3"
+CSV_UNITS = "# units: t s; theta rad; dtheta rad/s; ddtheta rad/s^2; dddtheta rad/s^3; tau N m"
 
 _POS = list(JOINT_NAMES)
 _VEL = [f"d{n}" for n in JOINT_NAMES]
 _ACC = [f"dd{n}" for n in JOINT_NAMES]
 _JERK = [f"ddd{n}" for n in JOINT_NAMES]
+_TAU = ["tau1", "tau2", "tau3"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +53,7 @@ class TrajectoryArrays:
     q, qd, qdd : shape (M, 3) -- rad, rad/s, rad/s^2.
     jerk : shape (M, 3), rad/s^3, or None.
     duration : float, s -- ``t[-1]`` for a trajectory sampled to its end.
+    tau : shape (M, 3), N m, or None -- actuator torques.
     """
 
     t: np.ndarray
@@ -60,6 +62,7 @@ class TrajectoryArrays:
     qdd: np.ndarray
     jerk: np.ndarray | None = None
     duration: float = float("nan")
+    tau: np.ndarray | None = None
 
 
 def checked_arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
@@ -91,6 +94,7 @@ def write_csv(
     qd: np.ndarray,
     qdd: np.ndarray,
     jerk: np.ndarray | None = None,
+    tau: np.ndarray | None = None,
 ) -> None:
     """Write samples as CSV: the units line, the header, one row per sample.
 
@@ -100,10 +104,15 @@ def write_csv(
     t : shape (M,), s
     q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
     jerk : shape (M, 3), rad/s^3, optional (adds three columns)
+    tau : shape (M, 3), N m, optional (adds the columns tau1..3)
     """
     t, q, qd, qdd, jerk = checked_arrays(t, q, qd, qdd, jerk)
+    if tau is not None:
+        tau = checked_arrays(t, tau, tau, tau)[1]
     header = ["t", *_POS, *_VEL, *_ACC] + (_JERK if jerk is not None else [])
+    header += _TAU if tau is not None else []
     cols = [t[:, None], q, qd, qdd] + ([jerk] if jerk is not None else [])
+    cols += [tau] if tau is not None else []
     data = np.hstack(cols)
     buf = io.StringIO()
     buf.write(CSV_UNITS + "\n")
@@ -149,5 +158,6 @@ def read_csv(source: str | os.PathLike | IO[str]) -> TrajectoryArrays:
         return data[:, [header.index(n) for n in names]]
 
     jerk = cols(_JERK) if all(n in header for n in _JERK) else None
+    tau = cols(_TAU) if all(n in header for n in _TAU) else None
     t = data[:, header.index("t")]
-    return TrajectoryArrays(t, cols(_POS), cols(_VEL), cols(_ACC), jerk, float(t[-1]))
+    return TrajectoryArrays(t, cols(_POS), cols(_VEL), cols(_ACC), jerk, float(t[-1]), tau)

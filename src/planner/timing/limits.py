@@ -68,6 +68,9 @@ class JointLimits:
     jerk : 3 floats, rad/s^3, each > 0 and finite, or None
         Needed by the jerk-limited method (``ruckig``); toppra ignores it (its acceleration is
         piecewise constant, so its jerk is not defined).
+    torque : 3 floats, N m, each > 0 and finite, or None
+        ``|tau_j| <= torque[j]`` for the actuator torques of the inverse dynamics
+        (:mod:`planner.timing.torque`); both methods meet it.
 
     Raises
     ------
@@ -79,6 +82,7 @@ class JointLimits:
     velocity: tuple[float, float, float]
     acceleration: tuple[float, float, float]
     jerk: tuple[float, float, float] | None = None
+    torque: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "velocity", _positive_triple("velocity", self.velocity))
@@ -87,6 +91,8 @@ class JointLimits:
         )
         if self.jerk is not None:
             object.__setattr__(self, "jerk", _positive_triple("jerk", self.jerk))
+        if self.torque is not None:
+            object.__setattr__(self, "torque", _positive_triple("torque", self.torque))
 
     @classmethod
     def default(cls) -> JointLimits:
@@ -124,6 +130,7 @@ class JointLimits:
             velocity=tuple(x * v for x in self.velocity),  # type: ignore[arg-type]
             acceleration=tuple(x * a for x in self.acceleration),  # type: ignore[arg-type]
             jerk=self.jerk,
+            torque=self.torque,
         )
 
     @property
@@ -140,3 +147,8 @@ class JointLimits:
     def jerk_array(self) -> np.ndarray | None:
         """Shape (3,), rad/s^3, or None."""
         return None if self.jerk is None else np.asarray(self.jerk)
+
+    @property
+    def torque_array(self) -> np.ndarray | None:
+        """Shape (3,), N m, or None."""
+        return None if self.torque is None else np.asarray(self.torque)

@@ -40,9 +40,21 @@ from typing import Literal
 import numpy as np
 
 from planner.design import Design
-from planner.exceptions import InputError, LimitsError, TrajectoryCheckError
+from planner.dynamics import DEFAULT_GRAVITY, Inertia
+from planner.exceptions import (
+    InputError,
+    LimitsError,
+    TimingInfeasibleError,
+    TrajectoryCheckError,
+)
 from planner.kinematics import ASSEMBLY_MODES
-from planner.timing.checks import LIMIT_RTOL, CheckReport, StateChecker, dense_check
+from planner.timing.checks import (
+    LIMIT_RTOL,
+    CheckReport,
+    StateChecker,
+    dense_check,
+    torque_check_times,
+)
 from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
 from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ, METHODS
 from planner.timing.path import BlendedPath
@@ -53,6 +65,7 @@ from planner.timing.toppra_method import (
     min_blend_radius,
     solve_toppra,
 )
+from planner.timing.torque import TorqueModel, gravity_excess, torque_time_scale
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -81,6 +94,12 @@ MAX_REPAIRS = 6
 #: A corner's blend shrinks by this factor per repair; below ``max_deviation / 16`` it stops.
 _SHRINK = 4.0
 _SHRINK_STEPS = 2
+#: With torque limits, a toppra profile that its fit slows by more than 2 % (the torques
+#: overshoot between grid points where M(q) changes fast, on tight blends: up to 26 % was
+#: measured) is solved again on a grid twice as fine, at most this many times; the fastest
+#: fitted profile is kept.
+_TORQUE_REFINES = 2
+_TORQUE_REFINE_BELOW = 1.02
 #: The time scaling of a toppra profile aims this far (relative) inside the limits, so the
 #: output samples, which fall between the fitted positions, pass too (the excess found there
 #: was at most 2e-4 on the benchmark paths).
@@ -154,6 +173,7 @@ def _fit_time_scale(
     resolution: float,
     speed_gain: Callable[[np.ndarray], np.ndarray] | None,
     v_cart: float | None,
+    torque_model: TorqueModel | None = None,
 ) -> PathProfile:
     """The toppra profile slowed uniformly in time just enough that the limits hold at every
     check position, not only at toppra's grid points.
@@ -162,12 +182,13 @@ def _fit_time_scale(
     (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
     the Cartesian speed by c and accelerations by c^2 at the same path positions, so
     ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
-    all exactly at those positions.
+    all exactly at those positions; torques scale by c^2 in their dynamic part only, and
+    :func:`~planner.timing.torque.torque_time_scale` gives their c.
     """
     prof = curve.profile
     s = curve.check_path_positions(resolution)
     _, sd, sdd = prof.at_path(s)
-    _, d1, d2 = curve.path.evaluate_all(s)
+    q, d1, d2 = curve.path.evaluate_all(s)
     r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
     qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
     r_a = np.max(np.abs(qdd) / limits.acceleration_array)
@@ -176,6 +197,9 @@ def _fit_time_scale(
     if speed_gain is not None and v_cart is not None:
         gain = speed_gain(s)
         c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
+    if torque_model is not None and limits.torque is not None:
+        dyn, grav = torque_model.split(q, d1 * sd[:, None], qdd)
+        c = min(c, torque_time_scale(dyn, grav, limits.torque_array, target))
     if c >= 1.0:
         return prof
     logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
@@ -202,6 +226,30 @@ def _fit_cartesian_speed(
     if peak <= target:
         return curve
     return TimeScaledCurve(curve, target / peak)
+
+
+def _fit_torque(curve: Curve, job: _Job) -> Curve:
+    """A ruckig chain slowed uniformly in time just enough that the torque limits hold at
+    the check times (the through-states come from a torque-limited toppra profile, but the
+    jerk-limited moves between them may overshoot): the dynamic part of the torques scales
+    by c^2 (:func:`~planner.timing.torque.torque_time_scale`), every joint limit still holds."""
+    if job.torque is None or job.limits.torque is None:
+        return curve
+    t = np.union1d(curve.check_times(job.resolution), torque_check_times(curve.duration))
+    q, qd, qdd, _ = curve.evaluate(t)
+    dyn, grav = job.torque.split(q, qd, qdd)
+    c = torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
+    return curve if c >= 1.0 else TimeScaledCurve(curve, c)
+
+
+def _torque_slow_down(curve: Curve, job: _Job, report: CheckReport) -> float:
+    """The uniform slow-down that brings the torques of the failed check back within the
+    limits (1 without torque limits)."""
+    if job.torque is None or job.limits.torque is None:
+        return 1.0
+    q, qd, qdd, _ = curve.evaluate(report.t)
+    dyn, grav = job.torque.split(q, qd, qdd)
+    return torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
 
 
 def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | None:
@@ -254,6 +302,8 @@ def time_path(
     check_resolution: float = DEFAULT_CHECK_RESOLUTION,
     deadline: float | None = None,
     max_samples: int | None = None,
+    inertia: Inertia | None = None,
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -298,6 +348,13 @@ def time_path(
         duration x ``sample_rate_hz`` beyond it raises
         :class:`~planner.exceptions.InputError` (``field="sample_rate_hz"``) once the
         profile is known, before any sample is computed.
+    inertia : Inertia, optional
+        The robot's inertial model: with it, or with ``limits.torque`` (then default
+        :meth:`~planner.dynamics.Inertia.default`), the trajectory carries its torques
+        ``tau``; with ``limits.torque`` the timing is time-optimal under them as well
+        (toppra's second-order constraint; ruckig: checked and slowed) and the dense
+        re-check includes them.
+    gravity : shape (3,), m/s^2, base frame (with torques)
 
     Returns
     -------
@@ -319,7 +376,7 @@ def time_path(
     job = _validate_inputs(
         design, waypoints, limits, method, assembly_mode, sample_rate_hz,
         max_cartesian_speed, max_deviation, stop_at, check_resolution, check_states,
-        deadline, max_samples,
+        deadline, max_samples, inertia, gravity,
     )  # fmt: skip
     state = _build_blended_path(job)
     while True:
@@ -351,6 +408,7 @@ class _Job:
     resolution: float
     deadline: float | None
     max_samples: int
+    torque: TorqueModel | None = None
 
     def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
         """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
@@ -405,6 +463,8 @@ def _validate_inputs(
     check_states: StateChecker | None,
     deadline: float | None,
     max_samples: int | None,
+    inertia: Inertia | None = None,
+    gravity: object = DEFAULT_GRAVITY,
 ) -> _Job:
     """Step 1: every argument checked, with a typed error naming the field and the rule."""
     if not isinstance(limits, JointLimits):
@@ -431,9 +491,20 @@ def _validate_inputs(
     stop = _stop_mask(stop_at, n)
     dev_in = _deviation(max_deviation, n)
     cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
+    torque = None
+    if inertia is not None or limits.torque is not None:
+        torque = TorqueModel(design, inertia, gravity, str(assembly_mode))  # type: ignore[arg-type]
+    if torque is not None and limits.torque is not None:
+        excess = gravity_excess(torque, w[0], limits.torque_array)
+        if excess is not None:
+            j, value = excess
+            raise TimingInfeasibleError(
+                f"gravity alone needs |tau{j + 1}| = {value:.6g} N m at the start, above "
+                f"limits.torque[{j}] = {limits.torque[j]:.6g} N m"
+            )
     return _Job(
         design, w, limits, str(method), str(assembly_mode), rate, v_cart, dev_in, stop,
-        check_states, resolution, deadline, cap,
+        check_states, resolution, deadline, cap, torque,
     )  # fmt: skip
 
 
@@ -467,19 +538,24 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
     lim = job.limits if state.scale == 1.0 else job.limits.scaled(state.scale)
     gain = job.speed_gain(path)
     if state.profile is None:
-        profile = solve_toppra(
-            path,
-            lim,
-            speed_gain=gain,
-            max_cartesian_speed=job.v_cart,
-            refine=state.refine * (SEED_REFINE if job.method == "ruckig" else 1),
-            deadline=job.deadline,
-        )
-        if job.method == "toppra":
-            profile = _fit_time_scale(
-                ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart
+        refine = state.refine * (SEED_REFINE if job.method == "ruckig" else 1)
+        best: PathProfile | None = None
+        for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
+            profile = solve_toppra(
+                path, lim, speed_gain=gain, max_cartesian_speed=job.v_cart, refine=refine,
+                deadline=job.deadline, torque_model=job.torque,
+            )  # fmt: skip
+            if job.method != "toppra":
+                break
+            fitted = _fit_time_scale(
+                ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart, job.torque
             )
-        state.profile = profile
+            if best is None or fitted.duration < best.duration:
+                best = fitted
+            if fitted.duration <= profile.duration * _TORQUE_REFINE_BELOW:
+                break
+            refine *= 2  # the torques overshoot between grid points: a finer grid
+        state.profile = best if best is not None else profile
     elif state.slow_down < 1.0:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":
@@ -489,7 +565,7 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
         curve = _fit_cartesian_speed(
             curve, job.design, job.assembly_mode, job.resolution, job.v_cart
         )
-    return curve
+    return _fit_torque(curve, job)
 
 
 def _output_times(job: _Job, curve: Curve) -> np.ndarray:
@@ -522,6 +598,8 @@ def _dense_check(job: _Job, state: _State, curve: Curve, t_out: np.ndarray) -> C
         check_states=job.check_states,
         max_cartesian_speed=job.v_cart,
         deviation_limit=state.dev0,
+        torque_model=job.torque,
+        torque_in_time=job.method == "ruckig",
     )
 
 
@@ -556,9 +634,11 @@ def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None
         )
         state.profile = None
         logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
-    elif job.method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed"}:
+    elif job.method == "ruckig" and set(_exceeded(report)) <= {"cartesian_speed", "torque"}:
         # Slow the same chain down uniformly (every joint limit still holds).
-        c = (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN)
+        c = _torque_slow_down(curve, job, report)
+        if "cartesian_speed" in report.limit_ratio:
+            c = min(c, (1.0 / report.limit_ratio["cartesian_speed"]) * (1.0 - _FIT_MARGIN))
         state.rescaled = TimeScaledCurve(curve, c)
         logger.info("timing repair %d: ruckig chain slowed by %.6f", repairs, c)
     elif job.method == "toppra":
@@ -567,8 +647,10 @@ def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None
         c = min(
             (1.0 / np.sqrt(r) if rule == "acceleration" else 1.0 / r)
             for rule, r in report.limit_ratio.items()
+            if rule != "torque"
         )
-        state.slow_down = min(c, 1.0) * (1.0 - _FIT_MARGIN)
+        c = min(c * (1.0 - _FIT_MARGIN), _torque_slow_down(curve, job, report))
+        state.slow_down = min(c, 1.0 - _FIT_MARGIN)
         logger.info("timing repair %d: profile slowed by %.6f", repairs, state.slow_down)
     else:
         rule, ratio = report.worst_limit
@@ -596,6 +678,7 @@ def _result(
     if jerk is not None and not np.all(np.isfinite(jerk)):
         jerk = None
     p, v_p, _ = p_velocity(job.design, q, qd, job.assembly_mode)
+    tau = None if job.torque is None else job.torque.torques(q, qd, qdd)
     return Trajectory(
         method=job.method,
         duration=curve.duration,
@@ -612,6 +695,8 @@ def _result(
         checked_samples=int(report.t.shape[0]),
         computation_time_s=time.perf_counter() - t_start,
         curve=curve,
+        tau=tau,
+        max_torque_ratio=report.limit_ratio.get("torque"),
     )
 
 

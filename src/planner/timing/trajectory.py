@@ -191,6 +191,10 @@ class Trajectory:
         Postures in the dense re-check of the returned trajectory.
     computation_time_s : float
     curve : the continuous trajectory (``evaluate(t)`` at any time).
+    tau : shape (M, 3), N m, or None -- actuator torques of the samples (with an inertial
+        model or torque limits: :mod:`planner.timing.torque`).
+    max_torque_ratio : float or None -- largest |tau_j| / torque limit over the dense
+        re-check (with torque limits; <= 1 when they hold).
     """
 
     method: str
@@ -208,6 +212,8 @@ class Trajectory:
     checked_samples: int
     computation_time_s: float
     curve: Curve
+    tau: np.ndarray | None = None
+    max_torque_ratio: float | None = None
 
     def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """(q, qd, qdd, jerk or None) at any times t (M,) in [0, duration]."""

@@ -5,7 +5,8 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
+(torques and mass matrices) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
@@ -48,6 +49,7 @@ from planner.wire.cartesian import (
     cartesian_response,
 )
 from planner.wire.common import (
+    GRAVITY_FIELD,
     MAX_BATCH_REQUESTS,
     MAX_COORDINATE,
     MAX_GOAL_TOLERANCE_M,
@@ -56,6 +58,7 @@ from planner.wire.common import (
     Angle,
     Angles3,
     AssemblyModeLabel,
+    BaseInertiaModel,
     BoxObstacle,
     CapsuleObstacle,
     CartesianTargetModel,
@@ -64,13 +67,17 @@ from planner.wire.common import (
     DiagnosticsModel,
     Finite,
     Goal,
+    Gravity,
+    InertiaModel,
     JointGoal,
     JointPostureModel,
     Length,
+    LinkInertiaModel,
     LinkLength,
     MarginsModel,
     Matrix3,
     Obstacle,
+    PayloadModel,
     Point3,
     PositiveSize,
     Preference,
@@ -81,6 +88,7 @@ from planner.wire.common import (
     WorkingModeLabel,
     WorkingModeOrAny,
     design_to_core,
+    inertia_to_core,
     located,
     margins_to_core,
     obstacle_from_dict,
@@ -103,6 +111,12 @@ from planner.wire.design import (
     SampledValue,
     regions_model,
     sampled_value,
+)
+from planner.wire.dynamics import (
+    MAX_DYNAMICS_POSTURES,
+    DynamicsRequest,
+    DynamicsResponse,
+    dynamics_answer,
 )
 from planner.wire.kinematics import (
     AnalyzeRequest,
@@ -162,9 +176,11 @@ from planner.wire.timing import (
 )
 
 __all__ = [
+    "GRAVITY_FIELD",
     "MAX_BATCH_REQUESTS",
     "MAX_CARTESIAN_WAYPOINTS",
     "MAX_COORDINATE",
+    "MAX_DYNAMICS_POSTURES",
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
@@ -179,6 +195,7 @@ __all__ = [
     "Angles3",
     "AnyTrajectory",
     "AssemblyModeLabel",
+    "BaseInertiaModel",
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianDiagnosticsModel",
@@ -197,6 +214,8 @@ __all__ = [
     "DesignPreset",
     "DesignsResponse",
     "DiagnosticsModel",
+    "DynamicsRequest",
+    "DynamicsResponse",
     "ErrorItem",
     "ErrorResponse",
     "FKRequest",
@@ -204,19 +223,23 @@ __all__ = [
     "FigureQuery",
     "Finite",
     "Goal",
+    "Gravity",
     "Health",
     "IKRequest",
     "IKResponse",
+    "InertiaModel",
     "JointGoal",
     "JointPostureModel",
     "Length",
     "LengthBounds",
     "Limits",
+    "LinkInertiaModel",
     "LinkLength",
     "MarginsModel",
     "Matrix3",
     "Obstacle",
     "PathModel",
+    "PayloadModel",
     "PlanBatchRequest",
     "PlanBatchResponse",
     "PlanInputs",
@@ -262,6 +285,8 @@ __all__ = [
     "cartesian_inputs",
     "cartesian_response",
     "design_to_core",
+    "dynamics_answer",
+    "inertia_to_core",
     "joint_limits_to_core",
     "located",
     "margins_to_core",

@@ -15,9 +15,11 @@ from pydantic import Field
 
 from planner.design import Design
 from planner.wire.common import (
+    GRAVITY_FIELD,
     MAX_OBSTACLES,
     DesignModel,
     DiagnosticsModel,
+    Gravity,
     JointPostureModel,
     MarginsModel,
     Obstacle,
@@ -28,6 +30,7 @@ from planner.wire.common import (
     _Request,
     _Response,
     design_to_core,
+    inertia_to_core,
     located,
     margins_to_core,
     obstacles_to_core,
@@ -102,6 +105,7 @@ class CartesianRequest(_Request):
     margins: MarginsModel = Field(default_factory=MarginsModel)
     timing: CartesianTimingOptions = Field(default_factory=CartesianTimingOptions)
     limits: Limits = Field(default_factory=Limits)
+    gravity: Gravity = GRAVITY_FIELD
 
 
 class CartesianStop(_Response):
@@ -203,6 +207,8 @@ def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
         "timing": request.timing.method,
         "sample_rate_hz": request.timing.sample_rate_hz,
         "cartesian_speed": request.limits.cartesian_speed,
+        "inertia": inertia_to_core(request.design),
+        "gravity": tuple(request.gravity),
     }
     return CartesianInputs(design, start, waypoints, obstacles, margins, limits, options)
 
@@ -220,6 +226,7 @@ def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> C
         planning_time_s=d.planning_time_s,
         timing_time_s=d.timing_time_s if timed else None,
         timing_repairs=getattr(result.trajectory, "repairs", None) if timed else None,
+        max_torque_ratio=getattr(result.trajectory, "max_torque_ratio", None) if timed else None,
         path_length=_finite(d.path_length),
         min_clearance=_finite(d.min_clearance),
         max_kappa_A=_finite(d.max_kappa_A),

@@ -19,6 +19,7 @@ from pydantic import (
     Tag,
     ValidationInfo,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
     from planner import geometry
 
 __all__ = [
+    "GRAVITY_FIELD",
     "MAX_BATCH_REQUESTS",
     "MAX_COORDINATE",
     "MAX_GOAL_TOLERANCE_M",
@@ -37,6 +39,7 @@ __all__ = [
     "Angle",
     "Angles3",
     "AssemblyModeLabel",
+    "BaseInertiaModel",
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianTargetModel",
@@ -45,13 +48,17 @@ __all__ = [
     "DiagnosticsModel",
     "Finite",
     "Goal",
+    "Gravity",
+    "InertiaModel",
     "JointGoal",
     "JointPostureModel",
     "Length",
+    "LinkInertiaModel",
     "LinkLength",
     "MarginsModel",
     "Matrix3",
     "Obstacle",
+    "PayloadModel",
     "Point3",
     "PositiveSize",
     "Preference",
@@ -62,6 +69,7 @@ __all__ = [
     "WorkingModeLabel",
     "WorkingModeOrAny",
     "design_to_core",
+    "inertia_to_core",
     "located",
     "margins_to_core",
     "obstacle_from_dict",
@@ -121,6 +129,65 @@ class _Response(BaseModel):
     model_config = ConfigDict(extra="ignore")
 
 
+# ---------------------------------------------------------------------------- inertia
+#: A mass (kg) or an inertia (kg m^2): finite, >= 0, below the library's sanity bound.
+Mass = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1e6)]
+Moment = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1e6)]
+
+
+class LinkInertiaModel(_Request):
+    """One link as a rigid body: inertia tensor ``I_perp (Id - e e^T) + I_axial e e^T`` about
+    its centre of mass, e the link's direction."""
+
+    mass: Mass = Field(description="kg, >= 0.")
+    com: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] = Field(
+        description="Centre of mass as a fraction of the link's length from its proximal "
+        "pivot (A or B for a proximal link, C or D for a distal one), in [0, 1]."
+    )
+    I_perp: Moment = Field(description="kg m^2 about an axis normal to the link, >= 0.")
+    I_axial: Moment = Field(
+        description="kg m^2 about the link's own line, >= 0 and <= 2 I_perp (the triangle "
+        "inequality of a rod's inertia tensor)."
+    )
+
+    @field_validator("I_axial")
+    @classmethod
+    def _triangle(cls, value: float, info: ValidationInfo) -> float:
+        perp = info.data.get("I_perp")
+        if perp is not None and value > 2 * perp * (1 + 1e-12):
+            raise ValueError(
+                f"I_axial must be <= 2 I_perp (the triangle inequality of a rod's inertia "
+                f"tensor), got I_axial = {value:g} > 2 x {perp:g}"
+            )
+        return value
+
+
+class PayloadModel(_Request):
+    """The payload: a point mass at P."""
+
+    mass: Mass = Field(description="kg, >= 0.")
+
+
+class BaseInertiaModel(_Request):
+    """The body that turns with theta1 (carrying the motors of theta2 and theta3)."""
+
+    inertia: Moment = Field(description="kg m^2 about AB, >= 0.")
+
+
+class InertiaModel(_Request):
+    """``design.inertia``: the inertial model; an absent part takes the product's documented
+    default for the design (:meth:`planner.dynamics.Inertia.default`: aluminium tubes of the
+    design's link_radius, a 0.5 kg payload, docs/dynamics.md)."""
+
+    proximal: LinkInertiaModel | None = Field(None, description="AC and BD (com from A, B).")
+    distal: LinkInertiaModel | None = Field(None, description="CP and DP (com from C, D).")
+    payload: PayloadModel | None = None
+    base: BaseInertiaModel | None = None
+    rotor: Annotated[list[Moment], Field(min_length=3, max_length=3)] | None = Field(
+        None, description="Each actuator's rotor inertia reflected to its joint, kg m^2."
+    )
+
+
 # ---------------------------------------------------------------------------- design
 class DesignModel(_Request):
     """A design on the wire; every field defaults to the default robot
@@ -140,6 +207,11 @@ class DesignModel(_Request):
         default_factory=lambda: list(_DEFAULT.joint_max),
         description="Upper limits of (theta1, theta2, theta3), rad, literal (never wrapped).",
     )
+    inertia: InertiaModel | None = Field(
+        None,
+        description="Masses and inertias (docs/dynamics.md); absent: the documented defaults "
+        "for this design.",
+    )
 
     @field_validator("joint_max")
     @classmethod
@@ -151,6 +223,16 @@ class DesignModel(_Request):
                     f"joint_max[{i}] must be above joint_min[{i}], got {value[i]} <= {lo[i]}"
                 )
         return value
+
+    @model_serializer(mode="wrap")
+    def _without_absent_inertia(self, handler: Any):  # type: ignore[no-untyped-def]
+        """No ``inertia`` key when none was given: a design without one is written as it
+        was before the field existed (clients compare designs by their JSON, e.g. the
+        viewer against the presets). Not annotated: the schema stays the model's."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("inertia", 0) is None:
+            del data["inertia"]
+        return data
 
     #: The library design, built once when the model is validated (the check of every rule
     #: of :class:`planner.Design` is that construction); pickled with the model.
@@ -195,6 +277,17 @@ class DesignModel(_Request):
 
 
 _DesignField = Field(default_factory=DesignModel, description="The robot; default robot if absent.")
+
+
+#: ``gravity``: m/s^2 in the base frame, a top-level request field.
+Gravity = Annotated[
+    list[Annotated[float, Field(allow_inf_nan=False, ge=-1e4, le=1e4)]],
+    Field(min_length=3, max_length=3),
+]
+GRAVITY_FIELD = Field(
+    default_factory=lambda: [0.0, 0.0, -9.81],
+    description="Gravity in the base frame, m/s^2 (default [0, 0, -9.81]).",
+)
 
 
 # ---------------------------------------------------------------------------- postures, targets
@@ -388,6 +481,11 @@ class DiagnosticsModel(_Response):
         description="True only with status no_path, when the product proved that no valid "
         "path exists (not merely that the search budget ran out).",
     )
+    max_torque_ratio: float | None = Field(
+        None,
+        description="Largest |tau_j| / limits.torque[j] over the checked samples (<= 1 when "
+        "the torque limits hold); null without limits.torque.",
+    )
 
 
 # ---------------------------------------------------------------------------- wire -> core
@@ -468,3 +566,31 @@ def design_to_core(model: DesignModel, loc: tuple[str | int, ...] = ("body", "de
     """The library design of a request's ``design`` (errors located at ``loc``)."""
     with located(*loc):
         return model.to_design()
+
+
+def inertia_to_core(
+    model: DesignModel, loc: tuple[str | int, ...] = ("body", "design", "inertia")
+) -> Any:
+    """The library's :class:`planner.dynamics.Inertia` of a request's ``design.inertia``
+    (absent parts: :meth:`~planner.dynamics.Inertia.default` of the design), or None when
+    the request gives no inertia (the caller decides whether defaults apply)."""
+    if model.inertia is None:
+        return None
+    from planner.dynamics import Inertia, LinkInertia
+
+    default = Inertia.default(model.to_design())
+    wire = model.inertia
+    with located(*loc):
+
+        def link(part: LinkInertiaModel | None, name: str) -> LinkInertia:
+            if part is None:
+                return getattr(default, name)
+            return LinkInertia(part.mass, part.com, part.I_perp, part.I_axial, name)
+
+        return Inertia(
+            proximal=link(wire.proximal, "proximal"),
+            distal=link(wire.distal, "distal"),
+            payload_mass=default.payload_mass if wire.payload is None else wire.payload.mass,
+            base_inertia=default.base_inertia if wire.base is None else wire.base.inertia,
+            rotor=default.rotor if wire.rotor is None else tuple(wire.rotor),
+        )

@@ -17,12 +17,14 @@ from pydantic_core import PydanticCustomError
 from planner.design import Design
 from planner.wire.common import (
     _MAX_SAMPLES,
+    GRAVITY_FIELD,
     MAX_BATCH_REQUESTS,
     MAX_OBSTACLES,
     AssemblyModeLabel,
     DesignModel,
     DiagnosticsModel,
     Goal,
+    Gravity,
     JointPostureModel,
     MarginsModel,
     Obstacle,
@@ -32,6 +34,7 @@ from planner.wire.common import (
     _Request,
     _Response,
     design_to_core,
+    inertia_to_core,
     located,
     margins_to_core,
     obstacles_to_core,
@@ -107,6 +110,7 @@ class PlanRequest(_Request):
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
     limits: Limits = Field(default_factory=Limits)
+    gravity: Gravity = GRAVITY_FIELD
 
 
 PlanStatus = Literal["solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout"]
@@ -193,13 +197,15 @@ class PlanInputs:
     limits: Any
     prefer: str = "shortest"
     tolerance: float = 0.0
+    inertia: Any = None
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
 
     def solve_kwargs(self) -> dict[str, Any]:
         """The keyword arguments of :func:`planner.solve` after ``design, start, goal``."""
         return {
             "obstacles": self.obstacles, "margins": self.margins, "options": self.options,
             "timing": self.timing, "limits": self.limits, "prefer": self.prefer,
-            "tolerance": self.tolerance,
+            "tolerance": self.tolerance, "inertia": self.inertia, "gravity": self.gravity,
         }  # fmt: skip
 
 
@@ -232,9 +238,10 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
     timing = timing_to_core(request.timing, request.limits)
     limits = joint_limits_to_core(request.limits)
     prefer = getattr(request.goal, "prefer", "shortest")
+    inertia = inertia_to_core(request.design)
     return PlanInputs(
         design, start, goal, obstacles, margins, options, timing, limits, prefer,
-        request.goal.tolerance,
+        request.goal.tolerance, inertia, tuple(request.gravity),  # type: ignore[arg-type]
     )  # fmt: skip
 
 
@@ -294,6 +301,7 @@ def plan_response(
     elif trajectory is not None:
         timing["timing_time_s"] = trajectory.computation_time_s
         timing["timing_repairs"] = trajectory.repairs
+        timing["max_torque_ratio"] = getattr(trajectory, "max_torque_ratio", None)
     diagnostics = DiagnosticsModel(
         planning_time_s=d.planning_time_s,
         path_length=_finite(d.path_length),

@@ -20,11 +20,13 @@ from planner.exceptions import InputError
 from planner.timing.export import JOINT_NAMES, TrajectoryArrays, checked_arrays
 from planner.wire.common import (
     _MAX_SAMPLES,
+    GRAVITY_FIELD,
     MAX_OBSTACLES,
     Angles3,
     AssemblyModeLabel,
     DesignModel,
     DiagnosticsModel,
+    Gravity,
     MarginsModel,
     Obstacle,
     Rates3,
@@ -95,6 +97,17 @@ class Limits(_Request):
     cartesian_speed: Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e3)] | None = Field(
         None, description="Bound on the speed of P, m/s (optional)."
     )
+    torque: (
+        Annotated[
+            list[Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=1e6)]],
+            Field(min_length=3, max_length=3),
+        ]
+        | None
+    ) = Field(
+        None,
+        description="Actuator torque limits, N m, each > 0 (optional): the timing is "
+        "time-optimal under |tau_j| <= torque[j] too, and the trajectory carries tau.",
+    )
     velocity_scaling: Scaling = Field(
         1.0,
         description="Factor in (0, 1] multiplying the velocity limits (default 1: as given).",
@@ -121,6 +134,9 @@ class TrajectoryModel(_Response):
     method: Literal["toppra", "ruckig"] | None = None
     max_deviation_q: float | None = None
     max_deviation_p: float | None = None
+    tau: Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)] | None = Field(
+        None, description="Actuator torques, N m (with design.inertia or limits.torque)."
+    )
 
 
 class TrajectoryPoint(_Response):
@@ -131,6 +147,9 @@ class TrajectoryPoint(_Response):
     positions: Vec3
     velocities: Vec3
     accelerations: Vec3
+    effort: Vec3 | None = Field(
+        None, description="Actuator torques, N m (with design.inertia or limits.torque)."
+    )
 
 
 class TrajectoryPointsModel(_Response):
@@ -180,6 +199,7 @@ class TimingRequest(_Request):
     sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = 100.0
     format: TrajectoryFormat = Field("arrays", description=_FORMAT_DESCRIPTION)
     limits: Limits = Field(default_factory=Limits)
+    gravity: Gravity = GRAVITY_FIELD
     max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
         None, description="Largest distance from a waypoint to its corner blend, rad."
     )
@@ -238,6 +258,7 @@ def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "l
             velocity=model.velocity or default.velocity,
             acceleration=model.acceleration or default.acceleration,
             jerk=model.jerk or default.jerk,
+            torque=model.torque,
         )
         if model.velocity_scaling != 1.0 or model.acceleration_scaling != 1.0:
             limits = limits.scaled(model.velocity_scaling, model.acceleration_scaling)
@@ -273,6 +294,7 @@ def points_from_arrays(
     qdd: np.ndarray,
     *,
     duration: float | None = None,
+    tau: np.ndarray | None = None,
 ) -> dict:
     """The points form (JSON-ready dict) of parallel arrays.
 
@@ -281,6 +303,7 @@ def points_from_arrays(
     t : shape (M,), s
     q, qd, qdd : shape (M, 3), rad, rad/s, rad/s^2
     duration : float, s, optional (default ``t[-1]``)
+    tau : shape (M, 3), N m, optional: each point's ``effort``
 
     Returns
     -------
@@ -297,6 +320,9 @@ def points_from_arrays(
         }
         for ti, qi, vi, ai in zip(t.tolist(), q.tolist(), qd.tolist(), qdd.tolist(), strict=True)
     ]
+    if tau is not None:
+        for point, effort in zip(points, np.asarray(tau, dtype=float).tolist(), strict=True):
+            point["effort"] = effort
     return {
         "duration": float(t[-1] if duration is None else duration),
         "joint_names": list(JOINT_NAMES),
@@ -361,7 +387,17 @@ def _arrays_model(traj: Any) -> TrajectoryModel:
         p_speed=traj.p_speed.tolist(),
         max_deviation_q=traj.max_deviation_q,
         max_deviation_p=traj.max_deviation_p,
+        tau=_tau_list(traj),
     )
+
+
+def _tau_list(traj: Any) -> list[list[float]] | None:
+    """The trajectory's torques as lists (None without them; a NaN, which a checked
+    trajectory does not have, would not be JSON)."""
+    tau = getattr(traj, "tau", None)
+    if tau is None or not np.all(np.isfinite(tau)):
+        return None
+    return np.asarray(tau, dtype=float).tolist()
 
 
 def timing_error(exc: Exception) -> TimingErrorInfo:
@@ -377,12 +413,15 @@ def timing_error(exc: Exception) -> TimingErrorInfo:
 
 
 def trajectory_points(model: TrajectoryModel | TrajectoryPointsModel) -> TrajectoryPointsModel:
-    """The points form of a wire trajectory (the same floats, one point per sample; the
-    arrays' per-sample extras ``jerk``, ``p``, ``p_speed`` have no place there). A points
+    """The points form of a wire trajectory (the same floats, one point per sample, ``tau``
+    as each point's ``effort``; the arrays' other per-sample extras ``jerk``, ``p``,
+    ``p_speed`` have no place there). A points
     trajectory is returned as it is."""
     if isinstance(model, TrajectoryPointsModel):
         return model
-    form = points_from_arrays(model.t, model.q, model.qd, model.qdd, duration=model.duration)
+    form = points_from_arrays(
+        model.t, model.q, model.qd, model.qdd, duration=model.duration, tau=model.tau
+    )
     return TrajectoryPointsModel(
         **form,
         method=model.method,
@@ -398,12 +437,16 @@ def trajectory_arrays(model: TrajectoryModel | TrajectoryPointsModel) -> Traject
     if isinstance(model, TrajectoryModel):
         return model
     a = arrays_from_points(model.model_dump(include={"duration", "joint_names", "points"}))
+    efforts = [p.effort for p in model.points]
+    order = [list(model.joint_names).index(n) for n in JOINT_NAMES]
+    tau = None if any(e is None for e in efforts) else np.asarray(efforts)[:, order].tolist()
     return TrajectoryModel(
         duration=a.duration,
         t=a.t.tolist(),
         q=a.q.tolist(),
         qd=a.qd.tolist(),
         qdd=a.qdd.tolist(),
+        tau=tau,
         method=model.method,
         max_deviation_q=model.max_deviation_q,
         max_deviation_p=model.max_deviation_p,

@@ -1,0 +1,103 @@
+"""``POST /v1/dynamics``: actuator torques and the mass matrix of N motions."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import Field, ValidationInfo, field_validator
+
+from planner.wire.common import (
+    GRAVITY_FIELD,
+    Angles3,
+    AssemblyModeLabel,
+    DesignModel,
+    Gravity,
+    Matrix3,
+    Vec3,
+    _DesignField,
+    _Request,
+    _Response,
+    design_to_core,
+    inertia_to_core,
+    located,
+)
+
+__all__ = ["MAX_DYNAMICS_POSTURES", "DynamicsRequest", "DynamicsResponse", "dynamics_answer"]
+
+#: Most postures in one ``POST /v1/dynamics`` (each answer row is ~12 numbers of M and tau).
+MAX_DYNAMICS_POSTURES = 100_000
+
+_Rate = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
+_Rates = Annotated[list[_Rate], Field(min_length=3, max_length=3)]
+
+
+class DynamicsRequest(_Request):
+    """Body of ``POST /v1/dynamics``: N motions (q, qd, qdd) of one robot in one assembly
+    mode. ``design.inertia`` absent: the documented defaults (docs/dynamics.md)."""
+
+    design: DesignModel = _DesignField
+    gravity: Gravity = GRAVITY_FIELD
+    assembly_mode: AssemblyModeLabel = Field("+", description="'+' or '-'.")
+    q: Annotated[list[Angles3], Field(min_length=1, max_length=MAX_DYNAMICS_POSTURES)] = Field(
+        description="N x 3 actuated joints, rad."
+    )
+    qd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] = Field(
+        description="N x 3 joint velocities, rad/s."
+    )
+    qdd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] = Field(
+        description="N x 3 joint accelerations, rad/s^2."
+    )
+
+    @field_validator("qd", "qdd")
+    @classmethod
+    def _one_row_per_posture(cls, value: list, info: ValidationInfo) -> list:
+        q = info.data.get("q")
+        if q is not None and len(value) != len(q):
+            raise ValueError(
+                f"{info.field_name} must have one row per posture of q: {len(q)} rows, got "
+                f"{len(value)}"
+            )
+        return value
+
+
+class DynamicsResponse(_Response):
+    """Answer of ``POST /v1/dynamics``: ``tau = M(q) qdd + h(q, qd)`` per posture."""
+
+    tau: list[Vec3] = Field(description="N x 3 actuator torques producing the motions, N m.")
+    mass_matrix: list[Matrix3] = Field(
+        description="N x 3 x 3 inertia matrices in actuated coordinates (kg m^2)."
+    )
+    kappa_A: list[float] = Field(description="kappa(A) of each posture.")
+
+
+def dynamics_answer(request: DynamicsRequest) -> DynamicsResponse:
+    """The torques and mass matrices of a request; a posture that does not assemble or is
+    parallel-singular (kappa(A) above the solvable bound: M is unbounded there) raises
+    :class:`~planner.exceptions.SingularPostureError` located at ``q.<i>``."""
+    from planner.constants import KAPPA_SOLVABLE
+    from planner.dynamics import Inertia, inverse_dynamics
+    from planner.exceptions import SingularPostureError
+
+    design = design_to_core(request.design)
+    inertia = inertia_to_core(request.design)
+    inertia = inertia if inertia is not None else Inertia.default(design)
+    q = np.asarray(request.q, dtype=float)
+    batch = inverse_dynamics(
+        design, inertia, q, np.asarray(request.qd, dtype=float),
+        np.asarray(request.qdd, dtype=float), assembly_mode=request.assembly_mode,
+        gravity=request.gravity, with_mass_matrix=True,
+    )  # fmt: skip
+    bad = np.flatnonzero(~batch.ok)
+    if bad.size:
+        i = int(bad[0])
+        with located("body", "q", i):
+            raise SingularPostureError(
+                f"q[{i}] = {q[i].tolist()} is singular in assembly mode "
+                f"{request.assembly_mode!r}: it does not assemble, or kappa(A) exceeds "
+                f"{KAPPA_SOLVABLE:g} (a parallel singularity, where M is unbounded)"
+            )
+    m: Any = batch.mass_matrix
+    return DynamicsResponse(
+        tau=batch.tau.tolist(), mass_matrix=m.tolist(), kappa_A=batch.kappa_A.tolist()
+    )

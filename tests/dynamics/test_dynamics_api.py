@@ -1,0 +1,232 @@
+"""POST /v1/dynamics, design.inertia and gravity on the wire, torque-limited plans and timing,
+the client's dynamics() and the CLI's dynamics and mjcf: answers against the library, bad
+input as 422s naming the field and the rule."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from planner import Design
+from planner.dynamics import Inertia, LinkInertia, inverse_dynamics
+from planner_cli import app
+
+Q = [[0.0, 2.0, 1.0], [0.4, 2.2, 1.1], [-0.5, 1.8, 0.7]]
+QD = [[0.3, -0.2, 0.5], [0.0, 0.0, 0.0], [1.0, 1.0, -1.0]]
+QDD = [[1.0, 2.0, -3.0], [0.0, 0.0, 0.0], [-2.0, 0.5, 4.0]]
+INERTIA = {
+    "proximal": {"mass": 0.7, "com": 0.3, "I_perp": 0.004, "I_axial": 0.0075},
+    "distal": {"mass": 1.1, "com": 0.65, "I_perp": 0.02, "I_axial": 0.001},
+    "payload": {"mass": 0.8},
+    "base": {"inertia": 0.03},
+    "rotor": [0.002, 0.001, 0.003],
+}
+LIB_INERTIA = Inertia(LinkInertia(0.7, 0.3, 0.004, 0.0075), LinkInertia(1.1, 0.65, 0.02, 0.001),
+                      0.8, 0.03, (0.002, 0.001, 0.003))  # fmt: skip
+
+
+def _loc(r) -> list:
+    assert r.status_code == 422, r.text
+    return r.json()["detail"][0]["loc"]
+
+
+def test_dynamics_endpoint_answers_the_library(api) -> None:
+    body = {"q": Q, "qd": QD, "qdd": QDD, "gravity": [0.0, 1.0, -9.81], "assembly_mode": "-",
+            "design": {"inertia": INERTIA}}  # fmt: skip
+    r = api.post("/v1/dynamics", json=body)
+    assert r.status_code == 200, r.text
+    out = r.json()
+    ref = inverse_dynamics(Design.default(), LIB_INERTIA, np.array(Q), np.array(QD),
+                           np.array(QDD), assembly_mode="-", gravity=(0.0, 1.0, -9.81),
+                           with_mass_matrix=True)  # fmt: skip
+    np.testing.assert_allclose(out["tau"], ref.tau, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out["mass_matrix"], ref.mass_matrix, rtol=1e-12, atol=1e-14)
+    # absent inertia: the documented defaults; a part given alone keeps the others' defaults
+    default = api.post("/v1/dynamics", json={"q": Q, "qd": QD, "qdd": QDD}).json()
+    ref = inverse_dynamics(Design.default(), Inertia.default(Design.default()), np.array(Q),
+                           np.array(QD), np.array(QDD))  # fmt: skip
+    np.testing.assert_allclose(default["tau"], ref.tau, rtol=1e-12, atol=1e-12)
+    part = api.post(
+        "/v1/dynamics",
+        json={"q": Q, "qd": QD, "qdd": QDD, "design": {"inertia": {"payload": {"mass": 2.0}}}},
+    )
+    heavier = np.array(part.json()["mass_matrix"]) - np.array(default["mass_matrix"])
+    assert np.all(np.linalg.eigvalsh(heavier) > -1e-12) and np.max(heavier) > 0.05
+
+
+def test_a_singular_posture_is_a_422_naming_it(api) -> None:
+    body = {"q": [[0.0, 1.0, 1.3], [0.0, 1.0, 1.0]], "qd": [[0, 0, 0]] * 2,
+            "qdd": [[0, 0, 0]] * 2, "design": {"L0": 0.0, "L1": 0.4, "L2": 0.4}}  # fmt: skip
+    r = api.post("/v1/dynamics", json=body)
+    assert _loc(r) == ["body", "q", 1]
+    assert "singular" in r.json()["detail"][0]["msg"]
+
+
+@pytest.mark.parametrize(
+    ("inertia", "loc", "words"),
+    [
+        ({"proximal": {"mass": -1, "com": 0.5, "I_perp": 1, "I_axial": 1}},
+         ["proximal", "mass"], "greater than or equal"),
+        ({"distal": {"mass": 1, "com": 1.5, "I_perp": 1, "I_axial": 1}},
+         ["distal", "com"], "less than or equal"),
+        ({"distal": {"mass": 1, "com": 0.5, "I_perp": 0.1, "I_axial": 0.3}},
+         ["distal", "I_axial"], "triangle inequality"),
+        ({"base": {"inertia": -0.1}}, ["base", "inertia"], "greater than or equal"),
+        ({"payload": {"mass": 1e9}}, ["payload", "mass"], "less than or equal"),
+        ({"rotor": [0.1, -1, 0.1]}, ["rotor", 1], "greater than or equal"),
+    ],
+)  # fmt: skip
+def test_bad_inertia_is_a_422_naming_the_field(api, inertia, loc, words) -> None:
+    body = {"q": Q[:1], "qd": QD[:1], "qdd": QDD[:1], "design": {"inertia": inertia}}
+    r = api.post("/v1/dynamics", json=body)
+    assert _loc(r)[:4] == ["body", "design", "inertia", loc[0]]
+    assert _loc(r)[4:] == loc[1:]
+    assert words in r.json()["detail"][0]["msg"]
+
+
+@pytest.mark.parametrize(
+    ("change", "loc"),
+    [
+        ({"gravity": [0, 0, 1e5]}, ["body", "gravity", 2]),
+        ({"gravity": [0, 0]}, ["body", "gravity"]),
+        ({"qd": QD[:2]}, ["body", "qd"]),
+        ({"qdd": [[0, 0, "x"]] * 3}, ["body", "qdd", 0, 2]),
+        ({"q": []}, ["body", "q"]),
+    ],
+)
+def test_bad_motions_and_gravity_are_422s(api, change, loc) -> None:
+    body = {"q": Q, "qd": QD, "qdd": QDD, **change}
+    assert _loc(api.post("/v1/dynamics", json=body)) == loc
+
+
+def test_plan_with_torque_limits_carries_tau_and_the_ratio(api) -> None:
+    """A torque-limited plan: tau in the arrays form (= the library's torques of the samples),
+    effort in the points form, max_torque_ratio <= 1; gravity alone above a limit at the
+    start is invalid_start naming the joint; a zero limit is a 422 at limits.torque.0."""
+    base = {"start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+            "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
+            "limits": {"velocity": [3, 3, 3], "acceleration": [30, 30, 30],
+                       "torque": [9.0, 2.0, 2.0]}}  # fmt: skip
+    out = api.post("/v1/plan", json=base).json()
+    assert out["status"] == "solved", out["message"]
+    traj = out["trajectory"]
+    ref = inverse_dynamics(
+        Design.default(),
+        Inertia.default(Design.default()),
+        np.array(traj["q"]),
+        np.array(traj["qd"]),
+        np.array(traj["qdd"]),
+    )
+    np.testing.assert_allclose(traj["tau"], ref.tau, atol=1e-9)
+    assert 0.9 < out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6
+    points = api.post("/v1/plan", json={**base, "timing": {"format": "points"}}).json()
+    efforts = [p["effort"] for p in points["trajectory"]["points"]]
+    np.testing.assert_allclose(efforts, traj["tau"], atol=1e-12)
+    weak = {**base, "limits": {**base["limits"], "torque": [5.0, 2.0, 2.0]}}
+    held = api.post("/v1/plan", json=weak).json()
+    assert held["status"] == "invalid_start" and "tau1| = 6.67" in held["message"]
+    zero = {**base, "limits": {**base["limits"], "torque": [0.0, 2.0, 2.0]}}
+    assert _loc(api.post("/v1/plan", json=zero)) == ["body", "limits", "torque", 0]
+    plain = api.post("/v1/plan", json={**base, "limits": {}}).json()
+    assert plain["trajectory"]["tau"] is None and plain["diagnostics"]["max_torque_ratio"] is None
+    with_inertia = api.post(
+        "/v1/plan", json={**base, "limits": {}, "design": {"inertia": INERTIA}}
+    ).json()
+    assert with_inertia["trajectory"]["tau"] is not None
+
+
+def test_timing_endpoint_with_torque_limits(api) -> None:
+    body = {"waypoints": [[0, 2.0, 1.0], [0.8, 2.3, 1.2], [1.5, 1.9, 0.9]],
+            "method": "ruckig", "gravity": [0, 0, -9.81],
+            "limits": {"velocity": [3, 3, 3], "acceleration": [30, 30, 30],
+                       "jerk": [500, 500, 500], "torque": [9.0, 2.0, 2.0]}}  # fmt: skip
+    out = api.post("/v1/timing", json=body).json()
+    assert out["status"] == "solved", out["message"]
+    assert out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6
+    assert np.max(np.abs(out["trajectory"]["tau"]) / [9.0, 2.0, 2.0]) <= 1.0 + 1e-6
+
+
+def test_client_dynamics(api) -> None:
+    """The typed client's dynamics() builds the body and reads the answer (through a
+    transport that hands each request to the session's service)."""
+    import httpx
+
+    from planner.client import PlannerClient
+
+    def forward(request: httpx.Request) -> httpx.Response:
+        r = api.request(request.method, request.url.path, content=request.content,
+                        headers={"content-type": "application/json"})  # fmt: skip
+        return httpx.Response(r.status_code, content=r.content, headers=r.headers)
+
+    with PlannerClient("http://x", transport=httpx.MockTransport(forward)) as client:
+        out = client.dynamics(Q, QD, QDD, design={"inertia": INERTIA}, gravity=[0, 0, -9.81])
+    ref = inverse_dynamics(Design.default(), LIB_INERTIA, np.array(Q), np.array(QD),
+                           np.array(QDD))  # fmt: skip
+    np.testing.assert_allclose(out.tau, ref.tau, rtol=1e-12, atol=1e-12)
+
+
+def test_cli_dynamics_and_mjcf(tmp_path) -> None:
+    runner = CliRunner()
+    r = runner.invoke(app, ["dynamics", "0", "2", "1", "--qdd", "1,0,0"])
+    assert r.exit_code == 0, r.output
+    tau = json.loads(r.output)["tau"][0]
+    ref = inverse_dynamics(
+        Design.default(),
+        Inertia.default(Design.default()),
+        np.array([0, 2.0, 1.0]),
+        np.zeros(3),
+        np.array([1.0, 0, 0]),
+    ).tau[0]
+    np.testing.assert_allclose(tau, ref, rtol=1e-12)
+    bad = runner.invoke(app, ["dynamics", "0", "2", "1", "--qd", "1,2"])
+    assert bad.exit_code == 2 and "--qd" in bad.output
+    out = tmp_path / "robot.xml"
+    r = runner.invoke(app, ["mjcf", "--output", str(out), "--design", "singularity-free"])
+    assert r.exit_code == 0, r.output
+    assert "<connect" in out.read_text() and 'site1="tip_C"' in out.read_text()
+    r = runner.invoke(app, ["mjcf", "--home", "0,3.14159,0", "--L2", "0.3"])  # |CD| > 2 L2
+    assert r.exit_code == 2 and "home" in r.output
+
+
+def test_cli_plan_csv_has_the_torque_columns(tmp_path) -> None:
+    from planner.timing.export import read_csv
+
+    body = {"start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+            "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
+            "limits": {"torque": [9.0, 2.0, 2.0]}}  # fmt: skip
+    request = tmp_path / "plan.json"
+    request.write_text(json.dumps(body))
+    out, csv = tmp_path / "answer.json", tmp_path / "traj.csv"
+    r = CliRunner().invoke(app, ["plan", str(request), "--out", str(out), "--csv", str(csv)])
+    assert r.exit_code == 0, r.output
+    header = csv.read_text().splitlines()[1].split(",")
+    assert header[-3:] == ["tau1", "tau2", "tau3"]
+    arrays = read_csv(csv)
+    np.testing.assert_array_equal(arrays.tau, json.loads(out.read_text())["trajectory"]["tau"])
+
+
+def test_cartesian_with_torque_limits_and_an_inertia(api) -> None:
+    """A straight tool path timed under torque limits with the request's inertia and
+    gravity: tau equals the library's torques of the samples with that inertia."""
+    start = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
+    p0 = api.post("/v1/fk", json={"q": start["q"], "assembly_mode": "+"}).json()
+    p = np.array(p0["postures"][0]["p"])
+    body = {"start": start, "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
+            "design": {"inertia": INERTIA}, "gravity": [0.0, 0.0, -5.0],
+            "limits": {"torque": [20.0, 8.0, 8.0]}}  # fmt: skip
+    out = api.post("/v1/cartesian", json=body).json()
+    assert out["status"] == "solved", out["message"]
+    traj = out["trajectory"]
+    ref = inverse_dynamics(
+        Design.default(),
+        LIB_INERTIA,
+        np.array(traj["q"]),
+        np.array(traj["qd"]),
+        np.array(traj["qdd"]),
+        gravity=(0, 0, -5.0),
+    )
+    np.testing.assert_allclose(traj["tau"], ref.tau, atol=1e-9)
+    assert out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6

@@ -1,0 +1,88 @@
+"""Torque-limited timing: toppra time-optimal under |tau| <= limit, ruckig checked and slowed,
+the dense re-check and the trajectory's torques, gravity at the start."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner import Design, solve
+from planner.dynamics import Inertia, inverse_dynamics
+from planner.exceptions import LimitsError, TimingInfeasibleError
+from planner.planning import JointPosture, PlanStatus
+from planner.timing import JointLimits, time_path
+from planner.timing.torque import TorqueModel, torque_time_scale
+
+DESIGN = Design.default()
+PATH = np.array([[0, 2.0, 1.0], [0.8, 2.3, 1.2], [1.5, 1.9, 0.9], [0.5, 2.1, 1.3]])
+FAST = {"velocity": (3.0,) * 3, "acceleration": (30.0,) * 3, "jerk": (500.0,) * 3}
+TORQUE = (9.0, 2.0, 2.0)  # theta1 holds 6.7 N m of gravity at the start
+
+
+def _fine_torques(traj, inertia: Inertia) -> np.ndarray:
+    t = np.linspace(0.0, traj.duration, 4001)
+    q, qd, qdd, _ = traj.at(t)
+    return inverse_dynamics(DESIGN, inertia, q, qd, qdd).tau
+
+
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_torque_limits_hold_and_bind(method: str) -> None:
+    """With limits.torque the torques (recomputed by the inverse dynamics at 4001 times, off
+    the check grid) stay within the limits to 1e-6 relative (LIMIT_RTOL; off the checked
+    times, between samples 1/4000 of the motion apart, 1e-3), the limits bind (some joint
+    reaches 90 % of its own) and the motion is slower than without them."""
+    free = time_path(DESIGN, PATH, JointLimits(**FAST), method=method)
+    limited = time_path(DESIGN, PATH, JointLimits(**FAST, torque=TORQUE), method=method)
+    inertia = Inertia.default(DESIGN)
+    ratio = np.max(np.abs(_fine_torques(limited, inertia)) / TORQUE, axis=0)
+    assert np.max(ratio) <= 1.0 + 1e-3
+    assert limited.max_torque_ratio is not None and limited.max_torque_ratio <= 1.0 + 1e-6
+    assert np.max(ratio) > 0.9
+    assert limited.duration > free.duration
+    assert np.max(np.abs(_fine_torques(free, inertia)) / TORQUE) > 1.1  # the limits mattered
+    sampled = inverse_dynamics(DESIGN, inertia, limited.q, limited.qd, limited.qdd).tau
+    np.testing.assert_allclose(limited.tau, sampled, rtol=0, atol=1e-12)
+
+
+def test_torque_limited_toppra_beats_a_uniform_slow_down() -> None:
+    """The usual practice, the velocity/acceleration-limited trajectory slowed uniformly until
+    its torques hold (closed form, :func:`torque_time_scale` on the dense samples), is slower
+    than the torque-limited time-optimal one."""
+    free = time_path(DESIGN, PATH, JointLimits(**FAST), method="toppra")
+    t = np.linspace(0.0, free.duration, 20001)
+    q, qd, qdd, _ = free.at(t)
+    dyn, grav = TorqueModel(DESIGN).split(q, qd, qdd)
+    c = torque_time_scale(dyn, grav, np.asarray(TORQUE))
+    limited = time_path(DESIGN, PATH, JointLimits(**FAST, torque=TORQUE), method="toppra")
+    assert limited.duration < free.duration / c
+    assert limited.duration < 0.95 * free.duration / c
+
+
+def test_trajectory_carries_torques_with_an_inertia_alone() -> None:
+    odd = Inertia.default(DESIGN)
+    traj = time_path(DESIGN, PATH, JointLimits(**FAST), inertia=odd, gravity=(0, 0, -3.0))
+    assert traj.tau is not None and traj.max_torque_ratio is None
+    ref = inverse_dynamics(DESIGN, odd, traj.q, traj.qd, traj.qdd, gravity=(0, 0, -3.0)).tau
+    np.testing.assert_allclose(traj.tau, ref, atol=1e-12)
+    assert time_path(DESIGN, PATH, JointLimits(**FAST)).tau is None
+
+
+def test_gravity_at_the_start_breaking_a_limit() -> None:
+    """time_path: TimingInfeasibleError naming the joint and the torque; solve: invalid_start
+    with the same message, before any search."""
+    limits = JointLimits(**FAST, torque=(5.0, 2.0, 2.0))
+    with pytest.raises(TimingInfeasibleError, match=r"tau1\| = 6\.67.* limits\.torque\[0\]"):
+        time_path(DESIGN, PATH, limits)
+    s = solve(DESIGN, JointPosture(PATH[0]), JointPosture(PATH[1]), limits=limits)
+    assert s.status is PlanStatus.INVALID_START
+    assert "tau1| = 6.67" in s.message and "limits.torque[0] = 5" in s.message
+    ok = solve(DESIGN, JointPosture(PATH[0]), JointPosture(PATH[1]),
+               limits=JointLimits(**FAST, torque=TORQUE))  # fmt: skip
+    assert ok.solved and ok.trajectory.max_torque_ratio <= 1 + 1e-6
+
+
+@pytest.mark.parametrize("bad", [(0.0, 1.0, 1.0), (1.0, -2.0, 1.0), (1.0, float("nan"), 1.0)])
+def test_bad_torque_limits_are_named(bad: tuple[float, float, float]) -> None:
+    with pytest.raises(LimitsError, match=r"limits\.torque\[") as info:
+        JointLimits(**FAST, torque=bad)
+    assert info.value.field == "torque"
