@@ -9,7 +9,7 @@ from fastapi import FastAPI
 
 import planner
 from planner.wire import ErrorResponse
-from planner_api.deps import ApiKey
+from planner_api.deps import ApiKey, WatchClient
 from planner_api.errors import install_error_handlers
 from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
@@ -50,6 +50,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             retry_after_s=settings.retry_after_s,
             log_setup=(settings.log_level, settings.log_format),
             warm_up=warm_up_worker if warm_up else None,
+            overrun_grace_s=settings.overrun_grace_s,
+            max_rss_mb=settings.worker_max_rss_mb or None,
         )
         await pool.start()
         app.state.pool = pool
@@ -83,11 +85,14 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)
+    # the job routes: a client that disconnects has its job cancelled (WatchClient)
     for router in (design.router, kinematics.router, plan.router):
-        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
+        app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
     for router in (timing_routes.router, workspace_routes.router):
-        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
-    app.include_router(cartesian_routes.router, dependencies=[ApiKey], responses=_ERRORS)
+        app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
+    app.include_router(
+        cartesian_routes.router, dependencies=[ApiKey, WatchClient], responses=_ERRORS
+    )
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)

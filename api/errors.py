@@ -20,10 +20,15 @@ body not sent within body_timeout  408     (answered by :mod:`planner_api.middle
 a POST body that is not JSON       415     (answered by :mod:`planner_api.middleware`)
 an integer too long to read        422     ``number_too_long``
 WorkerCrashedError                 502
+JobCancelledError,                 499     never read: the client is gone (nginx's "client
+ClientDisconnectedError                    closed request"; recorded in the metrics and log)
+JobNotFoundError                   404     a long job's id unknown or expired
+TooManyJobsError                   503     ``Retry-After``; the long-job list is full
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
 PoolNotRunningError                503     the app's lifespan was not started
-DeadlineExceededError              504
+DeadlineExceededError,             504     the request's budget ran out (a job past its
+planner DeadlineError                      deadline stops with DeadlineError, or is killed)
 any other exception                500     logged with its traceback; never the answer to any
                                            input (the tests send bad inputs of every kind)
 =================================  ======  =====================================================
@@ -42,6 +47,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from planner.exceptions import (
     AssemblyError,
+    DeadlineError,
     DesignError,
     InputError,
     KinematicsError,
@@ -50,11 +56,15 @@ from planner.exceptions import (
 )
 from planner_api.exceptions import (
     AuthenticationError,
+    ClientDisconnectedError,
     DeadlineExceededError,
+    JobCancelledError,
+    JobNotFoundError,
     LimitExceededError,
     PoolNotRunningError,
     PoolSaturatedError,
     ShuttingDownError,
+    TooManyJobsError,
     WorkerCrashedError,
 )
 
@@ -64,6 +74,7 @@ logger = logging.getLogger(__name__)
 
 #: Library errors: (HTTP status, error type, default loc). The most derived class wins.
 _LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]] = {
+    DeadlineError: (504, "deadline_exceeded", ()),
     DesignError: (422, "design_error", ("body", "design")),
     InputError: (422, "input_error", ("body",)),
     AssemblyError: (422, "assembly_error", ("body", "q")),
@@ -76,6 +87,10 @@ _LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]
 _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     AuthenticationError: (401, "unauthorized"),
     WorkerCrashedError: (502, "worker_crashed"),
+    ClientDisconnectedError: (499, "client_disconnected"),  # before JobCancelledError
+    JobCancelledError: (499, "job_cancelled"),
+    JobNotFoundError: (404, "job_not_found"),
+    TooManyJobsError: (503, "too_many_jobs"),  # before PoolSaturatedError
     ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),
     PoolNotRunningError: (503, "not_running"),
