@@ -11,12 +11,14 @@ import planner
 from planner.wire import ErrorResponse
 from planner_api.deps import ApiKey, WatchClient
 from planner_api.errors import install_error_handlers
+from planner_api.job_store import JobStore
 from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan
+from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -55,9 +57,16 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         )
         await pool.start()
         app.state.pool = pool
+        app.state.jobs = jobs = JobStore(
+            max_jobs=settings.max_jobs,
+            ttl_s=settings.job_ttl_s,
+            running=settings.jobs_running or 1,
+            timeout_s=settings.job_timeout_s,
+        )
         try:
             yield
         finally:
+            jobs.close()  # the job list lives in this process only: nothing survives it
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
@@ -93,6 +102,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(
         cartesian_routes.router, dependencies=[ApiKey, WatchClient], responses=_ERRORS
     )
+    # long jobs outlive the request that submits them: no client watch
+    app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)

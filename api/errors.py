@@ -44,6 +44,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from planner.exceptions import (
     AssemblyError,
@@ -68,7 +69,7 @@ from planner_api.exceptions import (
     WorkerCrashedError,
 )
 
-__all__ = ["error_response", "install_error_handlers"]
+__all__ = ["error_answer", "error_response", "install_error_handlers"]
 
 logger = logging.getLogger(__name__)
 
@@ -137,7 +138,7 @@ async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
     return JSONResponse({"detail": items}, status_code=422)
 
 
-async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
         cause = exc.__cause__
         if isinstance(cause, ValueError) and "integer string conversion" in str(cause):
@@ -154,9 +155,20 @@ async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
         return error_response(
             422, f"the body is not valid JSON: {exc.detail}", "json_invalid", ("body",)
         )
-    return error_response(
-        exc.status_code, str(exc.detail), "http_error", (), headers=getattr(exc, "headers", None)
-    )
+    headers = getattr(exc, "headers", None)
+    if exc.status_code == 405 and request is not None:
+        headers = {**(headers or {}), "Allow": _allowed_methods(request)}
+    return error_response(exc.status_code, str(exc.detail), "http_error", (), headers=headers)
+
+
+def _allowed_methods(request: Request) -> str:
+    """Every method some route takes at this path (Starlette's 405 names only the first
+    matching route's, e.g. GET of ``/v1/jobs/{id}`` without its DELETE)."""
+    methods: set[str] = set()
+    for route in request.app.router.routes:
+        if route.matches(request.scope)[0] is not Match.NONE:
+            methods |= set(getattr(route, "methods", None) or ())
+    return ", ".join(sorted(methods))
 
 
 async def _library(_: Request, exc: PlannerError) -> JSONResponse:
@@ -184,6 +196,19 @@ async def _service(_: Request, exc: Exception) -> JSONResponse:
 
 async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
     logger.exception("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
+    return error_response(500, "internal error (logged on the server)", "internal_error")
+
+
+async def error_answer(exc: Exception) -> JSONResponse:
+    """The answer a route raising ``exc`` gets, outside a request (a long job's error, kept
+    for ``GET /v1/jobs/{id}``): the same table as the handlers."""
+    if isinstance(exc, RequestValidationError):
+        return await _validation(None, exc)  # type: ignore[arg-type]
+    if isinstance(exc, PlannerError):
+        return await _library(None, exc)  # type: ignore[arg-type]
+    if isinstance(exc, LimitExceededError) or any(isinstance(exc, k) for k in _SERVICE_ERRORS):
+        return await _service(None, exc)  # type: ignore[arg-type]
+    logger.error("unhandled error in a long job", exc_info=exc)
     return error_response(500, "internal error (logged on the server)", "internal_error")
 
 

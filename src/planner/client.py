@@ -356,6 +356,9 @@ class PlannerClient(_BaseClient):
     timing = _sync(_BaseClient._timing)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
+    submit_job = _sync(_BaseClient._submit_job)
+    job = _sync(_BaseClient._job)
+    cancel_job = _sync(_BaseClient._cancel_job)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -411,3 +414,6 @@ class AsyncPlannerClient(_BaseClient):
     timing = _async(_BaseClient._timing)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)
+    submit_job = _async(_BaseClient._submit_job)
+    job = _async(_BaseClient._job)
+    cancel_job = _async(_BaseClient._cancel_job)

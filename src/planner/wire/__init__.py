@@ -5,8 +5,8 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
-(health, version, errors). The wire converts and runs nothing: a job calls the library
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.jobs` (long jobs)
+and :mod:`~planner.wire.meta` (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
 Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored
@@ -103,6 +103,14 @@ from planner.wire.design import (
     regions_model,
     sampled_value,
 )
+from planner.wire.jobs import (
+    JOB_KINDS,
+    JobError,
+    JobKind,
+    JobRequest,
+    JobState,
+    JobStatus,
+)
 from planner.wire.kinematics import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -161,6 +169,7 @@ from planner.wire.timing import (
 )
 
 __all__ = [
+    "JOB_KINDS",
     "MAX_BATCH_REQUESTS",
     "MAX_CARTESIAN_WAYPOINTS",
     "MAX_COORDINATE",
@@ -206,6 +215,11 @@ __all__ = [
     "Health",
     "IKRequest",
     "IKResponse",
+    "JobError",
+    "JobKind",
+    "JobRequest",
+    "JobState",
+    "JobStatus",
     "JointGoal",
     "JointPosture",
     "Length",
