@@ -44,7 +44,6 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
 
 from planner.exceptions import (
     AssemblyError,
@@ -157,18 +156,22 @@ async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         )
     headers = getattr(exc, "headers", None)
     if exc.status_code == 405 and request is not None:
-        headers = {**(headers or {}), "Allow": _allowed_methods(request)}
+        headers = dict(headers or {})
+        headers["Allow"] = _allowed_methods(request, headers.get("Allow", ""))
     return error_response(exc.status_code, str(exc.detail), "http_error", (), headers=headers)
 
 
-def _allowed_methods(request: Request) -> str:
-    """Every method some route takes at this path (Starlette's 405 names only the first
-    matching route's, e.g. GET of ``/v1/jobs/{id}`` without its DELETE)."""
-    methods: set[str] = set()
-    for route in request.app.router.routes:
-        if route.matches(request.scope)[0] is not Match.NONE:
-            methods |= set(getattr(route, "methods", None) or ())
-    return ", ".join(sorted(methods))
+def _allowed_methods(request: Request, given: str) -> str:
+    """Every method the OpenAPI document lists at this request's path template (Starlette's
+    405 names only the first matching route's, e.g. GET of ``/v1/jobs/{id}`` without its
+    DELETE); ``given`` when the path is not documented."""
+    path = getattr(request.scope.get("route"), "path", None)
+    operations = request.app.openapi().get("paths", {}).get(path, {}) if path else {}
+    methods = sorted(m.upper() for m in operations if m in _HTTP_METHODS)
+    return ", ".join(methods) if methods else given
+
+
+_HTTP_METHODS = frozenset({"get", "put", "post", "delete", "options", "head", "patch", "trace"})
 
 
 async def _library(_: Request, exc: PlannerError) -> JSONResponse:

@@ -547,9 +547,9 @@ class WorkerPool:
 
     @property
     def warm_workers(self) -> int:
-        """Worker processes alive and warm (idle or busy)."""
+        """Worker processes alive and warm (idle or busy; not one being killed)."""
         with self._lock:
-            return sum(w.state in ("idle", "busy") for w in self._workers)
+            return sum(w.state in ("idle", "busy") and not w.killed for w in self._workers)
 
     @property
     def pids(self) -> list[int]:

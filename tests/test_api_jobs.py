@@ -161,6 +161,11 @@ def test_a_full_job_list_of_unfinished_jobs_refuses_with_503(svc):
             svc.delete(f"/v1/jobs/{job_id}")
 
 
+def test_a_method_the_job_path_does_not_take_is_405_naming_both_it_takes(svc):
+    r = svc.request("PUT", "/v1/jobs/abc", json={})
+    assert r.status_code == 405 and r.headers["allow"] == "DELETE, GET"
+
+
 def _forwarding(c) -> httpx.MockTransport:
     def handle(request: httpx.Request) -> httpx.Response:
         r = c.request(request.method, request.url.path, content=request.content,
