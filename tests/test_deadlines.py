@@ -1,7 +1,7 @@
 """Every long loop of the library checks its deadline: the issue's reproducers (a Cartesian
 path over 1000 m links through 50 far waypoints, a design optimisation over 8192 samples, a
 region map) stop with :class:`DeadlineError` soon after the deadline instead of running for
-minutes, and a service job past its deadline stops itself (its worker stays, warm).
+minutes, and the service's jobs hand the request's deadline to the library.
 
 Bounds are the property's (deadline + a generous slack), never a speed; the reference runs
 are what the same calls take without a deadline (measured: the Cartesian path over 200 s,
@@ -68,32 +68,27 @@ def test_a_region_map_past_its_deadline_is_not_built_nor_cached():
     assert region_map(design, n=64).n == 64  # without a deadline: built as before
 
 
-def _cartesian_once(body: dict) -> str:
-    """The cartesian job once, without a deadline: its imports and kernels loaded here."""
-    from planner.wire import CartesianRequest
+def test_the_service_jobs_pass_their_request_deadline_to_the_library():
+    """The jobs of /v1/cartesian, /v1/design/optimize and /v1/design/regions hand the
+    request's deadline (``JobBudget.deadline``) to the library: with one already past, each
+    stops at its first check (DeadlineError, answered 504 by the error table) instead of
+    running the issue's requests for minutes (the pool's watchdog bounds any other job)."""
+    from planner.wire import CartesianRequest, DesignOptimizeRequest, RegionsRequest
+    from planner_api.jobs import JobBudget
     from planner_api.jobs.cartesian import cartesian
+    from planner_api.jobs.design import optimize_design as optimize_job
+    from planner_api.jobs.design import regions
 
-    return cartesian(CartesianRequest.model_validate(body)).status
-
-
-def test_the_service_job_stops_itself_at_the_deadline(client_factory):
-    """The issue's /v1/cartesian through a real worker: 504 at the deadline, and the job
-    stops itself there (no kill: the grace is long here), so the same warm worker answers
-    the next request at once."""
-    with client_factory(workers=1, request_timeout_s=3.0, overrun_grace_s=30.0, warm=False) as c:
-        small = {
-            "start": {"q": list(SMALL_START.q), "assembly_mode": "+"},
-            "waypoints": SMALL_WAYPOINT.tolist(),
-        }
-        pool = c.app.state.pool
-        assert pool.submit(_cartesian_once, small).result(timeout=180) == "solved"
-        (pid,) = pool.pids
+    past = JobBudget(deadline=time.monotonic() - 1.0)
+    cases = [
+        (cartesian, CartesianRequest.model_validate(_huge_cartesian_body())),
+        (optimize_job, DesignOptimizeRequest.model_validate(
+            {"objective": "well_conditioned_volume", "n_samples": 8192})),
+        (regions, RegionsRequest.model_validate(
+            {"design": {"L0": 0.32, "L1": 0.5, "L2": 0.6}, "resolution": 512})),
+    ]  # fmt: skip
+    for job, request in cases:
         t0 = time.monotonic()
-        r = c.post("/v1/cartesian", json=_huge_cartesian_body())
-        assert r.status_code == 504, r.text
-        end = t0 + 3.0 + SLACK_S
-        while pool.in_flight:
-            assert time.monotonic() < end, "the job did not stop at its deadline"
-            time.sleep(0.02)
-        assert pool.pids == [pid] and pool.kills == 0
-        assert c.post("/v1/fk", json={"q": [0, 1, 2]}).status_code == 200
+        with pytest.raises(DeadlineError):
+            job(request, past)
+        assert time.monotonic() - t0 < SLACK_S, job.__name__
