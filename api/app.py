@@ -11,8 +11,9 @@ from fastapi import FastAPI
 
 import planner
 from planner.wire import ErrorResponse
-from planner_api.deps import ApiKey
+from planner_api.deps import ApiKey, WatchClient
 from planner_api.errors import install_error_handlers
+from planner_api.job_store import JobStore
 from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
@@ -20,6 +21,7 @@ from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan
 from planner_api.routes import dynamics as dynamics_routes
+from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -61,15 +63,24 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             retry_after_s=settings.retry_after_s,
             log_setup=(settings.log_level, settings.log_format),
             warm_up=warm_up_worker if warm_up else None,
+            overrun_grace_s=settings.overrun_grace_s,
+            max_rss_mb=settings.worker_max_rss_mb or None,
         )
         await pool.start()
         app.state.pool = pool
         if warm_up:  # the event loop's own jobs (fk, ik, analyze): /v1/ready waits for them
             app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
             app.state.warming.add_done_callback(_log_failure)
+        app.state.jobs = jobs = JobStore(
+            max_jobs=settings.max_jobs,
+            ttl_s=settings.job_ttl_s,
+            running=settings.jobs_running or 1,
+            timeout_s=settings.job_timeout_s,
+        )
         try:
             yield
         finally:
+            jobs.close()  # the job list lives in this process only: nothing survives it
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
@@ -103,12 +114,14 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)
-    for router in (design.router, kinematics.router, plan.router):
-        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
-    for router in (timing_routes.router, workspace_routes.router):
-        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
-    app.include_router(cartesian_routes.router, dependencies=[ApiKey], responses=_ERRORS)
-    app.include_router(dynamics_routes.router, dependencies=[ApiKey], responses=_ERRORS)
+    # the routes that wait on a worker: a client that disconnects has its job cancelled
+    # (WatchClient); the kinematics answer in the event loop, so nothing is left to cancel
+    watched = (design.router, plan.router, timing_routes.router, workspace_routes.router)
+    for router in (*watched, cartesian_routes.router, dynamics_routes.router):
+        app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
+    app.include_router(kinematics.router, dependencies=[ApiKey], responses=_ERRORS)
+    # long jobs outlive the request that submits them: no client watch
+    app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)

@@ -1,12 +1,14 @@
 """Dependencies of the routes, as ``Annotated`` aliases: settings, worker pool, the request's
-deadline, and the API-key check.
+deadline, the API-key check, and the watch on the client's connection.
 
 All are ``async def``: none of them blocks, and FastAPI runs a plain ``def`` dependency in its
 thread pool, a thread hop per dependency per request (~0.5 ms of the cheapest requests)."""
 
 from __future__ import annotations
 
+import asyncio
 import time
+from collections.abc import AsyncIterator
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -14,17 +16,19 @@ from fastapi import Depends, Request
 from planner_api.exceptions import AuthenticationError, PoolNotRunningError
 from planner_api.middleware import API_KEY_REQUIRED, api_key_accepted
 from planner_api.settings import Settings
-from planner_api.workers import WorkerPool
+from planner_api.workers import CLIENT_GONE, WorkerPool
 
 __all__ = [
     "ApiKey",
     "Deadline",
     "Pool",
     "SettingsDep",
+    "WatchClient",
     "get_app_settings",
     "get_deadline",
     "get_pool",
     "require_api_key",
+    "watch_client",
 ]
 
 
@@ -61,7 +65,38 @@ async def require_api_key(
         raise AuthenticationError(API_KEY_REQUIRED)
 
 
+async def watch_client(request: Request) -> AsyncIterator[None]:
+    """While the route runs, watch its connection: when the client disconnects, the event in
+    :data:`planner_api.workers.CLIENT_GONE` is set, and the job the route awaits is cancelled
+    (its worker stopped and replaced) instead of computing an answer nobody reads.
+
+    The body has been read when this runs (FastAPI reads it before the dependencies), so the
+    next ASGI message is the client's disconnect; a route that reads no body has its empty
+    one skipped here.
+    """
+    gone = asyncio.Event()
+
+    async def watch() -> None:
+        while True:
+            message = await request.receive()
+            if message["type"] == "http.disconnect":
+                gone.set()
+                return
+
+    watcher = asyncio.create_task(watch())
+    token = CLIENT_GONE.set(gone)
+    try:
+        yield
+    finally:
+        watcher.cancel()
+        try:
+            CLIENT_GONE.reset(token)
+        except ValueError:  # the exit ran in another context: nothing of ours to undo there
+            pass
+
+
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 Pool = Annotated[WorkerPool, Depends(get_pool)]
 Deadline = Annotated[float, Depends(get_deadline)]
 ApiKey = Depends(require_api_key)
+WatchClient = Depends(watch_client)

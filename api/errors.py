@@ -20,10 +20,15 @@ body not sent within body_timeout  408     (answered by :mod:`planner_api.middle
 a POST body that is not JSON       415     (answered by :mod:`planner_api.middleware`)
 an integer too long to read        422     ``number_too_long``
 WorkerCrashedError                 502
+JobCancelledError,                 499     never read: the client is gone (nginx's "client
+ClientDisconnectedError                    closed request"; recorded in the metrics and log)
+JobNotFoundError                   404     a long job's id unknown or expired
+TooManyJobsError                   503     ``Retry-After``; the long-job list is full
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
 PoolNotRunningError                503     the app's lifespan was not started
-DeadlineExceededError              504
+DeadlineExceededError,             504     the request's budget ran out (a job past its
+planner DeadlineError                      deadline stops with DeadlineError, or is killed)
 any other exception                500     logged with its traceback; never the answer to any
                                            input (the tests send bad inputs of every kind)
 =================================  ======  =====================================================
@@ -42,6 +47,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from planner.exceptions import (
     AssemblyError,
+    DeadlineError,
     DesignError,
     InputError,
     KinematicsError,
@@ -50,20 +56,25 @@ from planner.exceptions import (
 )
 from planner_api.exceptions import (
     AuthenticationError,
+    ClientDisconnectedError,
     DeadlineExceededError,
+    JobCancelledError,
+    JobNotFoundError,
     LimitExceededError,
     PoolNotRunningError,
     PoolSaturatedError,
     ShuttingDownError,
+    TooManyJobsError,
     WorkerCrashedError,
 )
 
-__all__ = ["error_response", "install_error_handlers"]
+__all__ = ["error_answer", "error_response", "install_error_handlers"]
 
 logger = logging.getLogger(__name__)
 
 #: Library errors: (HTTP status, error type, default loc). The most derived class wins.
 _LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]] = {
+    DeadlineError: (504, "deadline_exceeded", ()),
     DesignError: (422, "design_error", ("body", "design")),
     InputError: (422, "input_error", ("body",)),
     AssemblyError: (422, "assembly_error", ("body", "q")),
@@ -76,6 +87,10 @@ _LIBRARY_ERRORS: dict[type[PlannerError], tuple[int, str, tuple[str | int, ...]]
 _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     AuthenticationError: (401, "unauthorized"),
     WorkerCrashedError: (502, "worker_crashed"),
+    ClientDisconnectedError: (499, "client_disconnected"),  # before JobCancelledError
+    JobCancelledError: (499, "job_cancelled"),
+    JobNotFoundError: (404, "job_not_found"),
+    TooManyJobsError: (503, "too_many_jobs"),  # before PoolSaturatedError
     ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),
     PoolNotRunningError: (503, "not_running"),
@@ -122,7 +137,7 @@ async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
     return JSONResponse({"detail": items}, status_code=422)
 
 
-async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
         cause = exc.__cause__
         if isinstance(cause, ValueError) and "integer string conversion" in str(cause):
@@ -139,9 +154,24 @@ async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
         return error_response(
             422, f"the body is not valid JSON: {exc.detail}", "json_invalid", ("body",)
         )
-    return error_response(
-        exc.status_code, str(exc.detail), "http_error", (), headers=getattr(exc, "headers", None)
-    )
+    headers = getattr(exc, "headers", None)
+    if exc.status_code == 405 and request is not None:
+        headers = dict(headers or {})
+        headers["Allow"] = _allowed_methods(request, headers.get("Allow", ""))
+    return error_response(exc.status_code, str(exc.detail), "http_error", (), headers=headers)
+
+
+def _allowed_methods(request: Request, given: str) -> str:
+    """Every method the OpenAPI document lists at this request's path template (Starlette's
+    405 names only the first matching route's, e.g. GET of ``/v1/jobs/{id}`` without its
+    DELETE); ``given`` when the path is not documented."""
+    path = getattr(request.scope.get("route"), "path", None)
+    operations = request.app.openapi().get("paths", {}).get(path, {}) if path else {}
+    methods = sorted(m.upper() for m in operations if m in _HTTP_METHODS)
+    return ", ".join(methods) if methods else given
+
+
+_HTTP_METHODS = frozenset({"get", "put", "post", "delete", "options", "head", "patch", "trace"})
 
 
 async def _library(_: Request, exc: PlannerError) -> JSONResponse:
@@ -169,6 +199,19 @@ async def _service(_: Request, exc: Exception) -> JSONResponse:
 
 async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
     logger.exception("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
+    return error_response(500, "internal error (logged on the server)", "internal_error")
+
+
+async def error_answer(exc: Exception) -> JSONResponse:
+    """The answer a route raising ``exc`` gets, outside a request (a long job's error, kept
+    for ``GET /v1/jobs/{id}``): the same table as the handlers."""
+    if isinstance(exc, RequestValidationError):
+        return await _validation(None, exc)  # type: ignore[arg-type]
+    if isinstance(exc, PlannerError):
+        return await _library(None, exc)  # type: ignore[arg-type]
+    if isinstance(exc, LimitExceededError) or any(isinstance(exc, k) for k in _SERVICE_ERRORS):
+        return await _service(None, exc)  # type: ignore[arg-type]
+    logger.error("unhandled error in a long job", exc_info=exc)
     return error_response(500, "internal error (logged on the server)", "internal_error")
 
 

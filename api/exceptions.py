@@ -9,6 +9,10 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
     ├── PoolNotRunningError       503: the worker pool was not started (no lifespan)
     ├── DeadlineExceededError     504: the request's time budget ran out
     ├── WorkerCrashedError        502: a worker process died during the job
+    ├── JobCancelledError         499: the job was cancelled (its worker stopped)
+    │   └── ClientDisconnectedError  499: the client went away; its job was cancelled
+    ├── JobNotFoundError          404: no long job of that id (never, or expired)
+    ├── TooManyJobsError          503 + Retry-After: the long-job list is full
     ├── LimitExceededError        422: a request exceeds a size limit of the service settings
     └── AuthenticationError       401: missing or wrong API key
 """
@@ -17,12 +21,16 @@ from __future__ import annotations
 
 __all__ = [
     "AuthenticationError",
+    "ClientDisconnectedError",
     "DeadlineExceededError",
+    "JobCancelledError",
+    "JobNotFoundError",
     "LimitExceededError",
     "PoolNotRunningError",
     "PoolSaturatedError",
     "ServiceError",
     "ShuttingDownError",
+    "TooManyJobsError",
     "WorkerCrashedError",
 ]
 
@@ -60,6 +68,24 @@ class DeadlineExceededError(ServiceError):
 class WorkerCrashedError(ServiceError):
     """The worker process running the job died; only this job fails, and a replacement
     worker is started (and warmed) in the background."""
+
+
+class JobCancelledError(ServiceError):
+    """The job was cancelled while it ran: its worker was stopped (and is replaced)."""
+
+
+class ClientDisconnectedError(JobCancelledError):
+    """The client closed its connection before the answer: its job was cancelled. Nobody
+    reads the answer (recorded as 499, nginx's "client closed request")."""
+
+
+class JobNotFoundError(ServiceError):
+    """No long job has this id: it never existed, or its result expired (kept a bounded
+    time and count, ``PLANNER_JOB_TTL_S`` and ``PLANNER_MAX_JOBS``)."""
+
+
+class TooManyJobsError(PoolSaturatedError):
+    """The long-job list is full of jobs not finished yet: retry later."""
 
 
 class LimitExceededError(ServiceError):

@@ -28,6 +28,9 @@ planner_pool_queue_depth                   gauge      jobs waiting for a worker
 planner_pool_saturation                    gauge      in flight / capacity, 0..1
 planner_pool_ready                         gauge      1 once every worker answered, else 0
 planner_pool_rejected_total                counter    jobs refused with 503 (pool full)
+planner_pool_worker_kills_total            counter    workers killed: job past deadline + grace,
+                                                      or cancelled (client gone, DELETE)
+planner_pool_worker_recycles_total         counter    workers recycled over the memory bound
 planner_build_info                         gauge      version; always 1
 =========================================  =========  ==========================================
 """
@@ -161,6 +164,16 @@ class _PoolCollector:
         yield CounterMetricFamily(
             "planner_pool_worker_restarts", "Worker processes that died and were replaced.",
             value=pool.restarts,
+        )  # fmt: skip
+        yield CounterMetricFamily(
+            "planner_pool_worker_kills", "Workers killed because their job ran past its "
+            "deadline plus the overrun grace, or was cancelled (replaced warm).",
+            value=pool.kills,
+        )  # fmt: skip
+        yield CounterMetricFamily(
+            "planner_pool_worker_recycles", "Workers recycled because their memory after a "
+            "job exceeded PLANNER_WORKER_MAX_RSS_MB (replacement warm first).",
+            value=pool.recycles,
         )  # fmt: skip
 
 

@@ -23,6 +23,14 @@ PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight wo
 PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
 PLANNER_DEFAULT_DESIGN    default                         design of a request without one: a
                                                           preset name or a JSON design object
+PLANNER_OVERRUN_GRACE_S   0.5                             a job running this long past its
+                                                          deadline has its worker killed, s
+PLANNER_WORKER_MAX_RSS_MB 2048                            a worker holding more memory after a
+                                                          job is recycled (0: never), MB
+PLANNER_JOB_TIMEOUT_S     600                             time budget of one long job, s
+PLANNER_JOB_TTL_S         3600                            a finished long job is kept this long
+PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
+PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once
 ========================  ==============================  ======================================
 """
 
@@ -176,6 +184,51 @@ class Settings(BaseSettings):
         '{"L0": 0, "L1": 0.4, "L2": 0.4}. A request\'s partial design takes its missing '
         "fields from it.",
     )
+    overrun_grace_s: float = Field(
+        0.5,
+        ge=0.0,
+        le=60.0,
+        allow_inf_nan=False,
+        description="A job still running this long after its deadline has its worker killed "
+        "(SIGKILL) and replaced by a warm one, s. The jobs check their deadline in every long "
+        "loop; this bounds the rest (a native loop, a job that ignores it).",
+    )
+    worker_max_rss_mb: int = Field(
+        2048,
+        ge=0,
+        le=1024**2,
+        description="A worker whose resident memory after a job exceeds this many MB is "
+        "recycled: a replacement warms up first, then the old worker stops (0: never).",
+    )
+    job_timeout_s: float = Field(
+        600.0,
+        gt=0.0,
+        le=86400.0,
+        allow_inf_nan=False,
+        description="Time budget of one long job (POST /v1/jobs), s, from when it starts.",
+    )
+    job_ttl_s: float = Field(
+        3600.0,
+        gt=0.0,
+        le=7 * 86400.0,
+        allow_inf_nan=False,
+        description="How long a finished long job's status and result are kept, s; then its "
+        "id answers 404.",
+    )
+    max_jobs: int = Field(
+        256,
+        ge=1,
+        le=100_000,
+        description="Long jobs kept at once (finished or not): a new one evicts the oldest "
+        "finished job; when none is finished, POST /v1/jobs answers 503.",
+    )
+    jobs_running: int | None = Field(
+        None,
+        ge=1,
+        le=256,
+        description="Long jobs running at once (the others wait, 'queued'), so that long jobs "
+        "leave workers to the interactive requests (default: half the workers, at least 1).",
+    )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
 
     @field_validator("default_design")
@@ -188,6 +241,8 @@ class Settings(BaseSettings):
     def _fill_queue(self) -> Settings:
         if self.queue_size is None:
             self.queue_size = 4 * self.workers
+        if self.jobs_running is None:
+            self.jobs_running = max(1, self.workers // 2)
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
         self._design_defaults = _parse_design(self.default_design)

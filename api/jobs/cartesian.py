@@ -23,7 +23,9 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
 
     The answer's samples are bounded by ``budget.max_samples`` (a 422 naming
     ``timing.sample_rate_hz`` beyond it, checked once the trajectory is known).
-    ``plan_cartesian`` takes no deadline: the worker pool's deadline (504) bounds it.
+    ``plan_cartesian`` stops at the request's deadline (``budget.deadline``, checked between
+    its chunks of probes, its refinement rounds and in the timing) with
+    :class:`planner.exceptions.DeadlineError` (504).
     """
     from planner.planning.cartesian import plan_cartesian
 
@@ -36,6 +38,7 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
             obstacles=inputs.obstacles,
             margins=inputs.margins,
             limits=inputs.limits,
+            deadline=budget.deadline,
             **inputs.options,
         )
     except InputError as exc:  # the sample bound names sample_rate_hz, a field of timing

@@ -75,7 +75,8 @@ def optimize_design(
     request: DesignOptimizeRequest, budget: JobBudget = UNBOUNDED
 ) -> DesignOptimizeResponse:
     """``POST /v1/design/optimize``: :func:`planner.analysis.optimize.optimize_design` with the
-    request's (bounded) sample size and generations."""
+    request's (bounded) sample size and generations, stopped at the request's deadline
+    (:class:`planner.exceptions.DeadlineError`, 504)."""
     from planner.analysis.optimize import optimize_design as optimize
     from planner.analysis.workspace import closed_form_volume
 
@@ -99,6 +100,7 @@ def optimize_design(
             n_samples=request.n_samples,
             maxiter=request.maxiter,
             seed=request.seed,
+            deadline=budget.deadline,
         )
     return DesignOptimizeResponse(
         design=DesignModel.from_design(best.design),
@@ -122,5 +124,5 @@ def regions(request: RegionsRequest, budget: JobBudget = UNBOUNDED) -> RegionsRe
     margins = margins_to_core(request.margins)
     t0 = time.perf_counter()
     with located("body", "resolution"):
-        rmap = region_map(design, margins, request.resolution)
+        rmap = region_map(design, margins, request.resolution, deadline=budget.deadline)
     return regions_model(rmap, computation_time_s=time.perf_counter() - t0)

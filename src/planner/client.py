@@ -357,6 +357,9 @@ class PlannerClient(_BaseClient):
     dynamics = _sync(_BaseClient._dynamics)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
+    submit_job = _sync(_BaseClient._submit_job)
+    job = _sync(_BaseClient._job)
+    cancel_job = _sync(_BaseClient._cancel_job)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -413,3 +416,6 @@ class AsyncPlannerClient(_BaseClient):
     dynamics = _async(_BaseClient._dynamics)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)
+    submit_job = _async(_BaseClient._submit_job)
+    job = _async(_BaseClient._job)
+    cancel_job = _async(_BaseClient._cancel_job)

@@ -37,6 +37,8 @@ from planner.wire import (
     Health,
     IKRequest,
     IKResponse,
+    JobRequest,
+    JobStatus,
     PlanBatchRequest,
     PlanBatchResponse,
     PlanRequest,
@@ -382,3 +384,26 @@ class Requests:
         data = {"objective": objective, "design": _design(design), **options}
         body = _validated(DesignOptimizeRequest, data)
         return _Call("POST", "/v1/design/optimize", body, DesignOptimizeResponse)
+
+    def _submit_job(self, kind: str, request: BaseModel | Mapping[str, Any]) -> _Call[JobStatus]:
+        """Run an endpoint's request as a long job (``kind``: one of
+        :data:`planner.wire.JOB_KINDS`, e.g. ``"design_optimize"``; ``request``: that
+        endpoint's body, a wire model or a mapping): its :class:`JobStatus` (``id``, ``status``
+        ``queued`` or ``running``). Poll with :meth:`job`, cancel with :meth:`cancel_job`."""
+        data = (
+            request.model_dump(mode="json", exclude_unset=True)
+            if isinstance(request, BaseModel)
+            else dict(request)
+        )
+        body = _validated(JobRequest, {"kind": kind, "request": data})
+        return _Call("POST", "/v1/jobs", body, JobStatus, frozenset({202}))
+
+    def _job(self, job_id: str) -> _Call[JobStatus]:
+        """A long job's status; with status ``done``, ``result`` is the endpoint's response
+        body (parse it with the endpoint's response model, e.g.
+        ``DesignOptimizeResponse.model_validate(status.result)``)."""
+        return _Call("GET", f"/v1/jobs/{job_id}", None, JobStatus)
+
+    def _cancel_job(self, job_id: str) -> _Call[JobStatus]:
+        """Cancel a queued or running long job (its worker is freed at once)."""
+        return _Call("DELETE", f"/v1/jobs/{job_id}", None, JobStatus)

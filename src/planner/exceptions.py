@@ -9,6 +9,7 @@ one place.
     PlannerError
     ├── DesignError            (ValueError)  a design's numbers break a rule
     ├── InputError             (ValueError)  an argument has the wrong shape or a non-finite value
+    ├── DeadlineError                        the caller's deadline passed (:func:`check_deadline`)
     ├── KinematicsError
     │   ├── AssemblyError                    q does not close the five-bar loop
     │   └── SingularPostureError             the asked quantity is undefined at a singularity
@@ -23,8 +24,11 @@ one place.
 
 from __future__ import annotations
 
+import time
+
 __all__ = [
     "AssemblyError",
+    "DeadlineError",
     "DesignError",
     "InputError",
     "KinematicsError",
@@ -35,6 +39,7 @@ __all__ = [
     "TimingError",
     "TimingInfeasibleError",
     "TrajectoryCheckError",
+    "check_deadline",
 ]
 
 
@@ -136,6 +141,18 @@ class TrajectoryCheckError(TimingError):
         self.rule = rule
         self.time = time
         self.q = q
+
+
+class DeadlineError(PlannerError):
+    """The caller's deadline passed before the work finished (a long computation checks it
+    in its loops, :func:`check_deadline`): nothing is answered, the work is abandoned."""
+
+
+def check_deadline(deadline: float | None, what: str) -> None:
+    """:class:`DeadlineError` naming ``what`` was under way if :func:`time.monotonic` is past
+    ``deadline`` (None: no deadline). Cheap enough for every round of a long loop."""
+    if deadline is not None and time.monotonic() > deadline:
+        raise DeadlineError(f"the deadline passed {what}")
 
 
 class TimingDeadlineError(TimingError):

@@ -25,7 +25,7 @@ from scipy import optimize
 
 from planner.analysis.workspace import closed_form_volume, sample_workspace
 from planner.design import MIN_LENGTH, Design
-from planner.exceptions import InputError
+from planner.exceptions import InputError, check_deadline
 
 __all__ = ["OBJECTIVES", "DesignOptimum", "optimize_design"]
 
@@ -83,6 +83,7 @@ def optimize_design(
     maxiter: int = 30,
     seed: int = 0,
     progress: Callable[[str, int, int], None] | None = None,
+    deadline: float | None = None,
 ) -> DesignOptimum:
     """Maximise an objective of :data:`OBJECTIVES` over the link lengths.
 
@@ -109,6 +110,9 @@ def optimize_design(
         Told each local start (``'volume'``) or generation (sampled objectives) as it begins,
         with the number done so far, then ``("done", total, total)``; a long optimisation can
         so show how far it is (the optimiser may stop before ``maxiter`` generations).
+    deadline : float, optional
+        A :func:`time.monotonic` value, checked before every evaluation of the objective:
+        past it, :class:`~planner.exceptions.DeadlineError` (the optimisation is abandoned).
     """
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
@@ -156,6 +160,7 @@ def optimize_design(
 
     def loss(x: np.ndarray) -> float:
         nonlocal calls
+        check_deadline(deadline, f"while optimising the design ({calls} evaluations done)")
         calls += 1
         return -value(make(x)) / scale**3 if objective != "gci" else -value(make(x))
 

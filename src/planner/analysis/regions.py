@@ -82,7 +82,7 @@ import numpy as np
 from planner.analysis import _region_kernels as K
 from planner.caching import BoundedCache
 from planner.design import Design
-from planner.exceptions import InputError
+from planner.exceptions import InputError, check_deadline
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
 from planner.transits import TRANSIT_KINDS
 from planner.validity import Margins
@@ -251,6 +251,7 @@ def region_map(
     n: int = DEFAULT_RESOLUTION,
     *,
     refine: int = DEFAULT_REFINE,
+    deadline: float | None = None,
 ) -> RegionMap:
     """The region map of ``design`` under ``margins`` at ``n x n`` cells (cached).
 
@@ -265,6 +266,9 @@ def region_map(
     refine : int
         A cell undecided in some mode is re-bounded on ``refine x refine`` sub-cells (1: no
         refinement), 1 .. 16. The map keeps n x n cells; only the verdicts get sharper.
+    deadline : float, optional
+        A :func:`time.monotonic` value, checked between the steps of a build (classify,
+        label, join): past it, :class:`~planner.exceptions.DeadlineError` (nothing cached).
 
     Returns
     -------
@@ -282,7 +286,7 @@ def region_map(
     hit = _CACHE.get(key)
     if hit is not None:
         return hit
-    rmap = _region_map(*key)
+    rmap = _region_map(*key, deadline=deadline)
     _CACHE.put(key, rmap)
     return rmap
 
@@ -556,14 +560,19 @@ def _components(count: int, groups: list[list[int]]) -> list[int]:
     return [comp_of[find(i)] for i in range(count)]
 
 
-def _region_map(design: Design, margins: Margins, n: int, split: int) -> RegionMap:
+def _region_map(
+    design: Design, margins: Margins, n: int, split: int, *, deadline: float | None = None
+) -> RegionMap:
     """Build the map (the work of :func:`region_map`, uncached): classify the cells, label
     every layer, join regions through the transit sets' components."""
+    check_deadline(deadline, "before the region map was built")
     theta2, theta3, h2, h3 = _grid(design, n)
     out = _map_arrays(n)
     cells = _classify(design, margins, n, split, out=out)
+    check_deadline(deadline, "while building the region map (cells classified)")
     _drop_unused_transit_sets(cells.bits)
     labels, certified, layers = _label_layers(cells, out)
+    check_deadline(deadline, "while building the region map (regions labelled)")
     counts = np.stack([lay[0][:8] for lay in layers])
     region_index = np.full((2, 8, int(counts.max()) + 1), -1, dtype=np.int32)
     raw: list[tuple[int, int, int]] = []  # (assembly, mode, label) of each region id

@@ -45,7 +45,13 @@ from typing import Literal
 import numpy as np
 
 from planner.design import Design
-from planner.exceptions import InputError, TimingError
+from planner.exceptions import (
+    DeadlineError,
+    InputError,
+    TimingDeadlineError,
+    TimingError,
+    check_deadline,
+)
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, conditioning, forward_batch
 from planner.planning.cartesian_chords import (
@@ -109,6 +115,10 @@ MAX_ROUNDS = 60
 MAX_PARTS = 16
 #: Where a piece whose motion cannot be certified is split (shares of its length).
 GRADED_SPLIT = (0.5, 0.75, 0.875)
+#: Probes of step 1 computed at once: a long polyline is walked chunk by chunk, its
+#: deadline checked between chunks, and the walk ends at the chunk of the first broken rule
+#: (memory bounded by the chunk, not by the polyline's length).
+PROBE_CHUNK = 8192
 
 
 def _fmt_value(value: float, bound: float) -> str:
@@ -210,6 +220,7 @@ def plan_cartesian(
     inspect: bool = True,
     inertia: object | None = None,
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81),
+    deadline: float | None = None,
 ) -> CartesianResult:
     """Move P on the straight segments start-P -> waypoints[0] -> ... in the start's working
     and assembly mode, stopping at the last valid point where a rule would break.
@@ -239,6 +250,10 @@ def plan_cartesian(
     inspect : bool -- run :func:`inspect_cartesian` and attach its events.
     inertia, gravity : the robot's :class:`planner.dynamics.Inertia` and gravity (m/s^2) for
         the timing's torques (:func:`planner.timing.time_path`).
+    deadline : float, optional
+        A :func:`time.monotonic` value: checked between chunks of probes, in every round of
+        the refinement and by the timing; past it, :class:`~planner.exceptions.DeadlineError`
+        (the work is abandoned, nothing is answered).
 
     Returns
     -------
@@ -250,6 +265,8 @@ def plan_cartesian(
     ------
     InputError
         A malformed argument (the message names it).
+    DeadlineError
+        ``deadline`` passed before the path was built (and timed).
     """
     from planner.timing import DEFAULT_CHECK_RESOLUTION, JointLimits, time_path
 
@@ -295,30 +312,40 @@ def plan_cartesian(
     slot = WORKING_MODES.index(mode)
     asm_sign = 1 if asm == "+" else -1
     walker = Walker(design, checker, poly, q0, slot, asm_sign)
-    events = inspect_cartesian(design, start, pts, margins=margins) if inspect else ()
+    events = (
+        inspect_cartesian(design, start, pts, margins=margins, deadline=deadline) if inspect else ()
+    )
 
     # 1. probes: the first broken rule along the polyline, bisected
     end_s = poly.length
     stop_rule, q_stop_bad, p_stop_bad = "", None, None
     if poly.length > 0:
         n = max(2, math.ceil(poly.length / PROBE_STEP) + 1)
-        s_probe = np.unique(np.concatenate([np.linspace(0.0, poly.length, n), poly.cum]))
-        qw, ok, _, flipped = branch_ik(design, poly.at(s_probe), slot, asm_sign)
-        qw[0] = q0
-        first_missing = int(np.argmax(~ok)) if not np.all(ok) else len(s_probe)
-        qp = np.full_like(qw, np.nan)
-        if first_missing > 1:
-            qp[1:first_missing] = unwrap_chain(qw[1:first_missing], q0)
-        qp[0] = q0
-        valid = np.zeros(len(s_probe), dtype=bool)
-        if first_missing > 0:
-            valid[:first_missing] = checker.is_valid(qp[:first_missing])
-        valid[0] = True
-        if not np.all(valid):
+        step = poly.length / (n - 1)
+        s_prev, q_prev = 0.0, q0  # the last valid probe
+        for c0 in range(1, n, PROBE_CHUNK):
+            check_deadline(deadline, "while probing the Cartesian path")
+            c1 = min(c0 + PROBE_CHUNK, n)
+            s_lin = np.arange(c0, c1) * step
+            if c1 == n:
+                s_lin[-1] = poly.length
+            corners = poly.cum[(poly.cum > s_prev) & (poly.cum < s_lin[-1])]
+            s_probe = np.unique(np.concatenate([s_lin, corners]))
+            qw, ok, _, flipped = branch_ik(design, poly.at(s_probe), slot, asm_sign)
+            first_missing = int(np.argmax(~ok)) if not np.all(ok) else len(s_probe)
+            qp = np.full_like(qw, np.nan)
+            if first_missing > 0:
+                qp[:first_missing] = unwrap_chain(qw[:first_missing], q_prev)
+            valid = np.zeros(len(s_probe), dtype=bool)
+            if first_missing > 0:
+                valid[:first_missing] = checker.is_valid(qp[:first_missing])
+            if np.all(valid):
+                s_prev, q_prev = float(s_probe[-1]), qp[-1]
+                continue
             j = int(np.argmax(~valid))
-            a, b = float(s_probe[j - 1]), float(s_probe[j])
-            q_ref = qp[j - 1]
-            good_q = q_ref
+            a = float(s_probe[j - 1]) if j > 0 else s_prev
+            b = float(s_probe[j])
+            good_q = qp[j - 1] if j > 0 else q_prev
             bad_reason = "workspace" if j >= first_missing else ""
             bad_q = None
             if j < first_missing:
@@ -327,11 +354,17 @@ def plan_cartesian(
             elif flipped[j]:
                 bad_reason = "assembly"
             a, b, bad_q, bad_reason = narrow_bracket(
-                a, b, lambda s_: walker.probe_valid(s_, good_q), BISECT_TOL, bad_q, bad_reason
+                a,
+                b,
+                lambda s_, good_q=good_q: walker.probe_valid(s_, good_q),
+                BISECT_TOL,
+                bad_q,
+                bad_reason,
             )
             end_s = a
             stop_rule, q_stop_bad = bad_reason, bad_q
             p_stop_bad = poly.at(np.array([b]))[0]
+            break
 
     # 2-3. joint waypoints up to end_s: chords within the tolerance, motions certified
     tol_chord = chord_share * tol
@@ -356,6 +389,7 @@ def plan_cartesian(
     for _ in range(MAX_ROUNDS * 4):
         if certified >= len(s) - 1:
             break
+        check_deadline(deadline, "while refining the Cartesian path")
         # chord bounds of the uncertified pieces
         tail = slice(certified, len(s) - 1)
         b_tail = chord_deviation_bound(
@@ -535,10 +569,13 @@ def plan_cartesian(
                 max_deviation=dev, check_states=checker.is_valid,
                 check_resolution=check_resolution or DEFAULT_CHECK_RESOLUTION,
                 inertia=inertia, gravity=gravity,
+                deadline=deadline,
             )  # fmt: skip
 
         try:
             trajectory = timed(timing)
+        except TimingDeadlineError as exc:
+            raise DeadlineError(str(exc)) from exc
         except TimingError as exc:
             timing_error = str(exc)
             if timing == "ruckig":

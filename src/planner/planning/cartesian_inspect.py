@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from planner.design import Design
+from planner.exceptions import check_deadline
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning.cartesian_chords import cd_length
 from planner.planning.cartesian_result import PathEvent
@@ -30,6 +31,10 @@ from planner.planning.cartesian_walk import (
 from planner.planning.planner import posture_mode
 from planner.planning.problem import JointPosture
 from planner.validity import Margins
+
+#: Most probes of the pre-check's probed rules (kappa_max, joint limits, parallel
+#: singularities): bounds its time and memory whatever the polyline's length.
+MAX_INSPECT_PROBES = 20_000
 
 __all__ = ["inspect_cartesian"]
 
@@ -73,6 +78,7 @@ def inspect_cartesian(
     *,
     margins: Margins | None = None,
     probe_step: float = PROBE_STEP,
+    deadline: float | None = None,
 ) -> tuple[PathEvent, ...]:
     """Where the polyline start-P -> waypoints meets the singular surfaces of the start's
     working mode, before planning (a pre-check; obstacles are not considered).
@@ -84,7 +90,11 @@ def inspect_cartesian(
     of radius serial_min (L1 + L2) about it. Their crossings with each straight segment are
     roots of quadratics. kappa(A) depends on the working mode's inverse kinematics, so the
     kappa_max and parallel surfaces are found by probing every ``probe_step`` m and bisecting;
-    so are the joint limits (literal, unwrapped from the start).
+    so are the joint limits (literal, unwrapped from the start). At most
+    :data:`MAX_INSPECT_PROBES` probes: a longer polyline is probed more coarsely (a pre-check's
+    hints; :func:`planner.planning.cartesian.plan_cartesian` itself probes every
+    :data:`PROBE_STEP` m). Past ``deadline`` (a :func:`time.monotonic` value),
+    :class:`~planner.exceptions.DeadlineError`.
 
     Returns
     -------
@@ -150,7 +160,8 @@ def inspect_cartesian(
     if mode is not None:
         slot = WORKING_MODES.index(mode)
         asm_sign = 1 if start.assembly_mode == "+" else -1
-        n = max(2, math.ceil(poly.length / probe_step) + 1)
+        check_deadline(deadline, "before probing the Cartesian pre-check")
+        n = min(max(2, math.ceil(poly.length / probe_step) + 1), MAX_INSPECT_PROBES)
         s = np.linspace(0.0, poly.length, n)
         q, ok, _, _ = branch_ik(design, poly.at(s), slot, asm_sign)
         q[0] = start.q

@@ -8,6 +8,8 @@ diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
 (torques and mass matrices) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.jobs` (long jobs)
+and :mod:`~planner.wire.meta` (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
 Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored
@@ -118,6 +120,14 @@ from planner.wire.dynamics import (
     DynamicsResponse,
     dynamics_answer,
 )
+from planner.wire.jobs import (
+    JOB_KINDS,
+    JobError,
+    JobKind,
+    JobRequest,
+    JobState,
+    JobStatus,
+)
 from planner.wire.kinematics import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -177,6 +187,7 @@ from planner.wire.timing import (
 
 __all__ = [
     "GRAVITY_FIELD",
+    "JOB_KINDS",
     "MAX_BATCH_REQUESTS",
     "MAX_CARTESIAN_WAYPOINTS",
     "MAX_COORDINATE",
@@ -228,6 +239,11 @@ __all__ = [
     "IKRequest",
     "IKResponse",
     "InertiaModel",
+    "JobError",
+    "JobKind",
+    "JobRequest",
+    "JobState",
+    "JobStatus",
     "JointGoal",
     "JointPostureModel",
     "Length",

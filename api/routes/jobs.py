@@ -1,0 +1,94 @@
+"""POST /v1/jobs, GET /v1/jobs/{id}, DELETE /v1/jobs/{id}: long jobs, run in the background.
+
+The kinds and the job list are :mod:`planner_api.job_store` (what the list keeps and survives
+is said there and in ``docs/service.md``). A job runs its endpoint's job function through
+:func:`planner_api.routes._common.run_job`, as the endpoint does, with the long job's budget
+as its deadline. These routes have no client watch: a long job is meant to outlive the
+request that submitted it.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Request, Response
+
+from planner.wire import ErrorResponse, JobRequest, JobStatus
+from planner_api.deps import Pool, SettingsDep
+from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
+from planner_api.job_store import LONG_JOBS, JobStore
+from planner_api.jobs import answer_sample_limit
+from planner_api.routes._common import run_job
+from planner_api.routes.plan import PlanJob
+
+__all__ = ["cancel_job", "get_job", "get_job_store", "router", "submit_job"]
+
+router = APIRouter(prefix="/v1", tags=["jobs"])
+
+_NOT_FOUND = {404: {"model": ErrorResponse, "description": "No such job (or it expired)."}}
+
+
+def get_job_store(request: Request) -> JobStore:
+    """The application's long-job list (created by its lifespan)."""
+    store = getattr(request.app.state, "jobs", None)
+    if store is None:
+        raise PoolNotRunningError("the job list is not running (application not started)")
+    return store
+
+
+Jobs = Annotated[JobStore, Depends(get_job_store)]
+
+
+@router.post("/jobs", status_code=202, response_model=JobStatus)
+async def submit_job(
+    body: JobRequest, pool: Pool, settings: SettingsDep, store: Jobs, plan_job: PlanJob
+) -> Response:
+    """Run an endpoint's request in the background (``kind`` names the endpoint): 202 with
+    the job's ``id`` and ``status``, then poll ``GET /v1/jobs/{id}``. The request is
+    validated now (a 422 under ``body.request``); errors found while it runs make the job
+    ``failed`` with the error answer the endpoint would have given."""
+    if pool.state == "stopping":
+        raise ShuttingDownError(
+            "the service is shutting down; submit the job to another replica",
+            settings.retry_after_s,
+        )
+    kind = LONG_JOBS[body.kind]
+    request = kind.validate(body.request)
+    kind.check_limits(
+        request, max_obstacles=settings.max_obstacles, job_timeout_s=settings.job_timeout_s
+    )
+    job = plan_job if body.kind == "plan" else kind.job
+    samples = (
+        answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+        if kind.trajectory
+        else None
+    )
+    defaults = settings.design_defaults
+
+    async def run(deadline: float) -> bytes:
+        answer = await run_job(
+            pool, job, request, deadline, design_defaults=defaults, max_samples=samples
+        )
+        return bytes(answer.body)
+
+    entry = store.submit(body.kind, run)
+    return Response(
+        store.status_json(entry),
+        status_code=202,
+        media_type="application/json",
+        headers={"Location": f"/v1/jobs/{entry.id}"},
+    )
+
+
+@router.get("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
+def get_job(job_id: str, store: Jobs) -> Response:
+    """A job's status; with status ``done`` its ``result`` (the endpoint's response body),
+    with ``failed`` its ``error``. 404 once it is no longer kept."""
+    return Response(store.status_json(store.get(job_id)), media_type="application/json")
+
+
+@router.delete("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
+def cancel_job(job_id: str, store: Jobs) -> Response:
+    """Cancel a queued or running job: its worker is stopped at once (and replaced), its
+    status is ``cancelled``. A finished job is answered as it is."""
+    return Response(store.status_json(store.cancel(job_id)), media_type="application/json")

@@ -1,0 +1,116 @@
+"""The worker side of :mod:`planner_api.workers`: the loop of one worker process.
+
+A worker warms up, says so, then runs one job at a time until told to stop (or until its pipe
+closes: the parent is gone). After each job it reports its resident memory (RSS, measured once
+the job's answer is sent and released), which the pool compares with
+``PLANNER_WORKER_MAX_RSS_MB`` to recycle a worker that keeps memory it no longer uses.
+
+Messages, worker to parent (each a pickled tuple): ``("ready", warm_up_s)``,
+``("warm_failed", traceback)``, ``("ok", value)`` or ``("error", exception)`` (one per job),
+then ``("rss", bytes)``. Parent to worker: ``("job", fn, arg)`` and ``("stop",)``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import pickle
+import signal
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any
+
+__all__ = ["PARENT_WATCH_S", "resident_bytes", "worker_main"]
+
+#: Seconds between two checks of a worker that its parent is still alive (the portable
+#: fallback of ``PR_SET_PDEATHSIG``).
+PARENT_WATCH_S = 0.5
+_PR_SET_PDEATHSIG = 1
+
+
+def resident_bytes() -> int | None:
+    """This process's resident memory now, bytes (``/proc/self/statm``; None where there is
+    no such file). Not ``ru_maxrss``: that is the peak, which never comes down."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
+        return None
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Exit when the parent does: SIGKILL from the kernel when the spawning thread ends
+    (Linux), and a watcher thread that polls the parent's pid (everywhere)."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no prctl in this libc
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_WATCH_S)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def worker_main(
+    conn: Connection,
+    parent_pid: int,
+    log_setup: tuple[str, str] | None,
+    warm_up: Callable[[], object] | None,
+) -> None:
+    """A worker process: warm up, say so, then run one job at a time until told to stop
+    (or until the pipe closes: the parent is gone)."""
+    _die_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if log_setup is not None:
+        from planner_api.logging import configure_logging
+
+        configure_logging(*log_setup)  # type: ignore[arg-type]
+    try:
+        t0 = time.perf_counter()
+        if warm_up is not None:
+            warm_up()
+        conn.send_bytes(pickle.dumps(("ready", time.perf_counter() - t0)))
+    except BaseException:
+        conn.send_bytes(pickle.dumps(("warm_failed", traceback.format_exc())))
+        return
+    while True:
+        try:
+            message = pickle.loads(conn.recv_bytes())
+        except (EOFError, OSError):
+            return
+        if message[0] == "stop":
+            # nothing to clean up (no job, no file): skip the interpreter's teardown of
+            # numba, OMPL and matplotlib, which takes seconds on a loaded machine
+            for stream in (sys.stdout, sys.stderr):
+                stream.flush()
+            os._exit(0)
+        _, fn, arg = message
+        del message
+        try:
+            outcome: tuple[str, Any] = ("ok", fn(arg))
+        except BaseException as exc:
+            outcome = ("error", exc)
+        del arg
+        try:
+            data = pickle.dumps(outcome)
+        except Exception as exc:  # an unpicklable result or exception
+            data = pickle.dumps(
+                ("error", RuntimeError(f"the job's {outcome[0]} could not be sent: {exc!r}"))
+            )
+        del outcome
+        conn.send_bytes(data)
+        del data  # the answer's memory is released before it is measured
+        conn.send_bytes(pickle.dumps(("rss", resident_bytes())))

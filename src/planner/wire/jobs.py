@@ -1,0 +1,63 @@
+"""``POST /v1/jobs``, ``GET /v1/jobs/{id}``, ``DELETE /v1/jobs/{id}``: long jobs.
+
+A long job is one endpoint's request run in the background: submitted (202 with its ``id``),
+polled, and cancelled by id; its ``result`` is the endpoint's response body, the same JSON
+the endpoint would have answered. ``docs/service.md`` says what the job list survives (not a
+restart: it lives in one service process).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field
+
+from planner.wire.common import _Request, _Response
+from planner.wire.meta import ErrorItem
+
+__all__ = ["JOB_KINDS", "JobError", "JobKind", "JobRequest", "JobState", "JobStatus"]
+
+#: The endpoints a long job can run, by kind: ``plan`` is ``POST /v1/plan``, ``cartesian``
+#: ``/v1/cartesian``, ``timing`` ``/v1/timing``, ``design_check`` ``/v1/design/check``,
+#: ``design_optimize`` ``/v1/design/optimize``, ``regions`` ``/v1/design/regions``.
+JOB_KINDS = ("plan", "cartesian", "timing", "design_check", "design_optimize", "regions")
+JobKind = Literal["plan", "cartesian", "timing", "design_check", "design_optimize", "regions"]
+#: ``queued`` (waiting for a slot), ``running``, then one of ``done`` (``result`` set),
+#: ``failed`` (``error`` set), ``cancelled``.
+JobState = Literal["queued", "running", "done", "failed", "cancelled"]
+
+
+class JobRequest(_Request):
+    """Body of ``POST /v1/jobs``."""
+
+    kind: JobKind = Field(description="The endpoint the job runs (see JOB_KINDS).")
+    request: dict[str, Any] = Field(
+        description="That endpoint's request body, validated as the endpoint validates it "
+        "(a 422 locates a bad field under body.request)."
+    )
+
+
+class JobError(_Response):
+    """Why a job failed: the HTTP status and error body the endpoint would have answered."""
+
+    status_code: int = Field(description="e.g. 422 (bad input found by the job), 504.")
+    detail: list[ErrorItem]
+
+
+class JobStatus(_Response):
+    """Answer of ``POST /v1/jobs`` (202), ``GET /v1/jobs/{id}`` and ``DELETE /v1/jobs/{id}``."""
+
+    id: str
+    kind: JobKind
+    status: JobState
+    submitted_at: float = Field(description="When the job was submitted, Unix time, s.")
+    started_at: float | None = Field(None, description="When it started running, Unix s.")
+    finished_at: float | None = Field(None, description="When it ended, Unix time, s.")
+    expires_at: float | None = Field(
+        None,
+        description="When a finished job is forgotten (its id then answers 404), Unix s.",
+    )
+    result: dict[str, Any] | None = Field(
+        None, description="With status 'done': the endpoint's response body."
+    )
+    error: JobError | None = Field(None, description="With status 'failed'.")
