@@ -38,6 +38,7 @@ if TYPE_CHECKING:
         inverse_batch,
         link_points,
     )
+    from planner.sequence import SequenceResult, SequenceTarget, solve_sequence
     from planner.solver import Solution, solve
 
 try:
@@ -66,6 +67,9 @@ _HOMES = {
     "forward_batch": "kinematics",
     "inverse_batch": "kinematics",
     "link_points": "kinematics",
+    "SequenceResult": "sequence",
+    "SequenceTarget": "sequence",
+    "solve_sequence": "sequence",
     "Solution": "solver",
     "solve": "solver",
 }
@@ -97,6 +101,8 @@ __all__ = [
     "PlannerError",
     "Posture",
     "PostureBatch",
+    "SequenceResult",
+    "SequenceTarget",
     "SingularPostureError",
     "Solution",
     "__version__",
@@ -105,4 +111,5 @@ __all__ = [
     "inverse_batch",
     "link_points",
     "solve",
+    "solve_sequence",
 ]
