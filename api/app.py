@@ -17,6 +17,7 @@ from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan
+from planner_api.routes import sequence as sequence_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -88,6 +89,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     app.include_router(cartesian_routes.router, dependencies=[ApiKey], responses=_ERRORS)
+    app.include_router(sequence_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)

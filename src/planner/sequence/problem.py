@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from planner.constants import MAX_SEQUENCE_TARGETS
 from planner.exceptions import InputError
 from planner.planning.problem import CartesianTarget, JointPosture
 from planner.planning.result import PlanPath, PlanResult, PlanStatus
@@ -21,10 +22,6 @@ __all__ = [
     "SequenceTarget",
 ]
 
-#: Most targets of one sequence (the service's ``PLANNER_MAX_SEQUENCE_TARGETS`` may lower
-#: it): 64 legs of a few milliseconds each keep a sequence within a request's budget, and a
-#: production cycle rarely has more than a few dozen.
-MAX_SEQUENCE_TARGETS = 64
 #: ``"time"``: choose each Cartesian "any" target's working mode for the shortest cycle;
 #: ``"fixed"``: each target as given ("any" is the single plan's rule).
 OBJECTIVES = ("time", "fixed")

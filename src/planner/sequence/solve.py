@@ -31,7 +31,7 @@ from dataclasses import replace
 import numpy as np
 
 from planner.design import Design
-from planner.exceptions import InputError, TimingError
+from planner.exceptions import InputError, TimingDeadlineError, TimingError
 from planner.geometry import Obstacle
 from planner.planning import (
     CartesianTarget,
@@ -443,9 +443,8 @@ def solve_with_goals(
             max_deviation=deviation, stop_at=stop_at,
         )  # fmt: skip
     except TimingError as exc:
-        status = (
-            PlanStatus.TIMEOUT if "deadline" in type(exc).__name__.lower() else PlanStatus.NO_PATH
-        )
+        late = isinstance(exc, TimingDeadlineError)
+        status = PlanStatus.TIMEOUT if late else PlanStatus.NO_PATH
         return SequenceResult(
             status, f"the legs were planned but could not be timed: {exc}", legs_with(None),
             joined, timing_error=exc, diagnostics=diagnostics,

@@ -5,7 +5,8 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.sequence`
+(task sequences) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
@@ -136,6 +137,19 @@ from planner.wire.plan import (
     path_model,
     plan_inputs,
     plan_response,
+    planner_options_to_core,
+)
+from planner.wire.sequence import (
+    MAX_SEQUENCE_TARGETS,
+    LegModel,
+    Objective,
+    SequenceDiagnostics,
+    SequenceInputs,
+    SequenceRequest,
+    SequenceResponse,
+    SequenceTargetModel,
+    sequence_inputs,
+    sequence_response,
 )
 from planner.wire.timing import (
     MAX_TIMING_WAYPOINTS,
@@ -170,6 +184,7 @@ __all__ = [
     "MAX_POLYLINE_REACHES",
     "MAX_REGION_RESOLUTION",
     "MAX_SECTION_RESOLUTION",
+    "MAX_SEQUENCE_TARGETS",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
     "AnalyzeRequest",
@@ -208,12 +223,14 @@ __all__ = [
     "IKResponse",
     "JointGoal",
     "JointPosture",
+    "LegModel",
     "Length",
     "LengthBounds",
     "Limits",
     "LinkLength",
     "Margins",
     "Matrix3",
+    "Objective",
     "Obstacle",
     "PathModel",
     "PlanBatchRequest",
@@ -238,6 +255,11 @@ __all__ = [
     "SectionGrid",
     "SectionOptions",
     "SegmentModel",
+    "SequenceDiagnostics",
+    "SequenceInputs",
+    "SequenceRequest",
+    "SequenceResponse",
+    "SequenceTargetModel",
     "SerialMargins",
     "SphereObstacle",
     "TimingErrorInfo",
@@ -269,10 +291,13 @@ __all__ = [
     "path_model",
     "plan_inputs",
     "plan_response",
+    "planner_options_to_core",
     "points_from_arrays",
     "posture_model",
     "regions_model",
     "sampled_value",
+    "sequence_inputs",
+    "sequence_response",
     "timing_error",
     "timing_to_core",
     "trajectory_arrays",
