@@ -42,6 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.design import Design
+from planner.exceptions import InputError
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, goal_candidates
@@ -198,6 +199,8 @@ def choose_modes(
     kwargs = {"obstacles": obstacles, "margins": margins, "options": options,
               "timing": timing, "limits": limits, "deadline": deadline}  # fmt: skip
     cache: dict = {}
+    refused: InputError | None = None
+    attempts = 0
     evaluated: list[tuple[float, tuple[str, ...], SequenceResult]] = []
     gap, first_bound = 0.0, math.nan
     for bound, assignment in assignment_bounds(np.asarray(start.q), layers, stops, blends, limits):
@@ -206,18 +209,29 @@ def choose_modes(
         best = min((e[0] for e in evaluated), default=math.inf)
         if len(evaluated) >= 2 and bound >= best:
             break  # no assignment left can beat the best: it is the optimum
-        if len(evaluated) >= MAX_REFINED or (deadline is not None and time.monotonic() > deadline):
+        attempts += 1
+        over = len(evaluated) >= MAX_REFINED or attempts > 4 * MAX_REFINED
+        if over or (deadline is not None and time.monotonic() > deadline):
             gap = max(best - bound, 0.0)
             break
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
-        result = solve_with_goals(
-            design, start, targets, [c.goal for c in chosen], stops, cycle, t0,
-            plan_cache=cache, **kwargs,
-        )  # fmt: skip
+        try:
+            result = solve_with_goals(
+                design, start, targets, [c.goal for c in chosen], stops, cycle, t0,
+                plan_cache=cache, **kwargs,
+            )  # fmt: skip
+        except InputError as exc:
+            # a blend larger than half a leg of this assignment (its legs differ from the
+            # others'): this assignment is out, the error kept in case every one is
+            refused = refused or exc
+            continue
         cost = result.cycle_time if result.solved else math.inf
         if timing.method == "none" and result.status is PlanStatus.SOLVED:
             cost = bound  # no timing asked: the bound is all there is to compare
         evaluated.append((cost, tuple(c.mode for c in chosen), result))
+    if not evaluated:
+        assert refused is not None
+        raise refused
     evaluated.sort(key=lambda e: e[0])
     cost, modes, result = evaluated[0]
     if not math.isfinite(cost):  # every assignment failed: the first one's answer says why
