@@ -41,7 +41,7 @@ ADEPT_UP, ADEPT_ACROSS = 0.025, 0.305
 
 
 def adept_targets(pick: np.ndarray, h: float, d: float, modes, stops, blends):
-    up_a, up_b, place = pick + [0, 0, h], pick + [0, d, h], pick + [0, d, 0]
+    up_a, up_b, place = (pick + np.array(v) for v in ([0, 0, h], [0, d, h], [0, d, 0]))
     points = [up_a, up_b, place, up_b, up_a]
     return [
         SequenceTarget(CartesianTarget(p, m), stop=s, blend=b)
@@ -150,13 +150,11 @@ def main() -> None:
               f"{r.diagnostics.runner_up[1] if r.diagnostics.runner_up else float('nan'):.4f} s")  # fmt: skip
 
     print()
-    rng = np.random.default_rng(0)
     spheres = [Sphere(center=c, radius=0.04) for c in
                ([0.0, 0.0, 0.5], [0.3, 0.5, 0.4], [-0.4, 0.3, 0.3], [0.2, -0.6, 0.3],
                 [-0.3, -0.5, 0.4])]  # fmt: skip
-    ring = [pick + [0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)), 0.05 * np.sin(2 * a)]
+    ring = [pick + np.array([0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)), 0.05 * np.sin(2 * a)])
             for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)]  # fmt: skip
-    rng.shuffle(ring[1:])
     mode = stops_result.diagnostics.modes[0]
     print("12-target sequence, default design, 5 spheres (p50 of "
           f"{args.repeats}, planned and timed in this process)")  # fmt: skip
