@@ -213,3 +213,24 @@ def test_modes_chosen_for_time_are_the_brute_force_optimum(stop):
     assert "runner-up" in r.message and "working modes chosen for time" in r.message
     # fewer assignments evaluated than brute force
     assert r.diagnostics.estimates < len(brute)
+
+
+def test_a_target_where_the_path_turns_back_is_a_stop():
+    # out and back along one line: the middle target cannot be passed at speed
+    out = SequenceTarget(JointPosture([0.3, 2.0, 1.0]), stop=False, blend=0.1)
+    for method in ("toppra", "ruckig"):
+        from planner.timing import TimingOptions
+
+        r = solve_sequence(DESIGN, START, [out], cycle=True, timing=TimingOptions(method=method))
+        assert r.solved, r.message
+        assert r.diagnostics.stopped_targets == (0,)
+        assert "turns back" in r.message
+        qk, qdk = r.trajectory.curve.evaluate(np.array([r.legs[0].end_time]))[:2]
+        np.testing.assert_allclose(qk[0], [0.3, 2.0, 1.0], atol=1e-9)
+        assert np.all(np.abs(qdk[0]) <= 1e-9)
+
+
+def test_a_sequence_that_does_not_move_has_a_zero_cycle():
+    r = solve_sequence(DESIGN, START, [SequenceTarget(JointPosture(START.q))], cycle=True)
+    assert r.solved and r.cycle_time == 0.0
+    assert [(leg.start_time, leg.end_time) for leg in r.legs] == [(0.0, 0.0), (0.0, 0.0)]

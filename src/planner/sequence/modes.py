@@ -252,8 +252,10 @@ def choose_modes(
         modes=shown,
         runner_up=runner,
         estimates=len(evaluated),
-        extra={"gap_s": gap, "bound_s": first_bound},
+        extra={**result.diagnostics.extra, "gap_s": gap, "bound_s": first_bound},
     )
     duration = result.cycle_time if result.trajectory is not None else None
-    message = _solved_message(n, cycle, shown, extra, duration, result.diagnostics.stopped_targets)
+    turning = result.diagnostics.extra.get("turning", ())
+    by_timing = [i for i in result.diagnostics.stopped_targets if i not in turning]
+    message = _solved_message(n, cycle, shown, extra, duration, by_timing, turning)
     return replace(result, message=message, diagnostics=diagnostics)

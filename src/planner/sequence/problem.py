@@ -85,9 +85,12 @@ class SequenceDiagnostics:
     """Measures of a sequence: ``planning_time_s`` (every leg's search, s),
     ``timing_time_s`` (the one timing of the joined path, s), ``modes`` (the working mode
     chosen at each target, "" for a joint goal), ``runner_up`` (the second best assignment's
-    modes and cycle time, s, when the objective compared several), ``estimates`` (leg plans
-    run by the mode search), ``stopped_targets`` (pass-through targets where the timing's
-    repairs had to come to rest)."""
+    modes and cycle time, s, when the objective compared several), ``estimates`` (the
+    assignments the mode search planned and timed), ``stopped_targets`` (pass-through
+    targets where the trajectory comes to rest: the path turns back there, or the timing's
+    repairs had to stop), ``extra``: ``turning`` (those where the path turns back), and from
+    the mode search ``gap_s`` (how far the answer may be from the optimum, s; 0 when proven)
+    and ``bound_s`` (the best assignment's lower bound, s)."""
 
     planning_time_s: float = 0.0
     timing_time_s: float = 0.0

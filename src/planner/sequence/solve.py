@@ -187,18 +187,39 @@ def _check_blends(
             )
 
 
+def _turning_back(w: np.ndarray, at: list[int], passes: list[bool]) -> list[int]:
+    """The pass-through targets that cannot be passed at speed: the path turns back there
+    (a corner within :data:`_REVERSAL` of pi) or does not move on either side (a leg of
+    zero length). They are stops."""
+    out = []
+    for i, k in enumerate(at):
+        if not passes[i]:
+            continue
+        if k <= 0 or k >= len(w) - 1:
+            out.append(i)
+            continue
+        d_in, d_out = w[k] - w[k - 1], w[k + 1] - w[k]
+        l_in, l_out = float(np.linalg.norm(d_in)), float(np.linalg.norm(d_out))
+        if l_in == 0.0 or l_out == 0.0:
+            out.append(i)
+            continue
+        cos = float(np.clip(d_in @ d_out / (l_in * l_out), -1.0, 1.0))
+        if math.acos(cos) > math.pi - _REVERSAL:
+            out.append(i)
+    return out
+
+
 def _smooth_pass_through(
     path: PlanPath, at: list[int], exact: list[bool]
-) -> tuple[PlanPath, list[int], list[int]]:
+) -> tuple[PlanPath, list[int]]:
     """An exact pass-through target (blend 0) at a corner: the waypoints
     ``T - e b`` and ``T + e b`` inserted around it (``b`` the corner's bisecting direction,
     ``e`` = :data:`PASS_OFFSET` or a quarter of the shorter segment), so the path runs
-    straight through T and the trajectory passes it exactly, at speed. A reversal cannot be
-    passed at speed: that target is returned among the stops. Returns the new path, the
-    targets' new waypoint indices and the indices of targets that must stop."""
+    straight through T and the trajectory passes it exactly, at speed (a target where the
+    path turns back is a stop already, :func:`_turning_back`). Returns the new path and the
+    targets' new waypoint indices."""
     w = np.asarray(path.waypoints, dtype=float)
     insert: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    forced: list[int] = []
     for i, k in enumerate(at):
         if not exact[i] or k <= 0 or k >= len(w) - 1:
             continue
@@ -208,16 +229,13 @@ def _smooth_pass_through(
             continue
         u1, u2 = d_in / l_in, d_out / l_out
         angle = math.acos(float(np.clip(u1 @ u2, -1.0, 1.0)))
-        if angle < 1e-9:
-            continue  # straight already
-        if angle > math.pi - _REVERSAL:
-            forced.append(i)
-            continue
+        if angle < 1e-9 or angle > math.pi - _REVERSAL:
+            continue  # straight already, or a stop
         b = (u1 + u2) / np.linalg.norm(u1 + u2)
         e = min(PASS_OFFSET, 0.25 * l_in, 0.25 * l_out)
         insert[k] = (w[k] - e * b, w[k] + e * b)
     if not insert:
-        return path, list(at), forced
+        return path, list(at)
     new_index = np.zeros(len(w), dtype=int)
     rows: list[np.ndarray] = []
     for k, q in enumerate(w):
@@ -235,7 +253,7 @@ def _smooth_pass_through(
         for s in path.segments
     )
     transits = tuple(replace(t, index=int(new_index[t.index])) for t in path.transits)
-    return PlanPath(np.array(rows), segs, transits), [int(new_index[k]) for k in at], forced
+    return PlanPath(np.array(rows), segs, transits), [int(new_index[k]) for k in at]
 
 
 def _leg_times(
@@ -404,12 +422,14 @@ def solve_with_goals(
         )
 
     joined, at = _join_legs(np.asarray(start.q, dtype=float), plans)
+    asked = [not s for s in stops]  # the pass-through targets asked for
+    turning = _turning_back(np.asarray(joined.waypoints), at, asked)
+    for i in turning:
+        stops[i] = True
     passes = [not s for s in stops]
     _check_blends(np.asarray(joined.waypoints), at, passes, targets)
     exact = [p and (i >= n or targets[i].blend == 0.0) for i, p in enumerate(passes)]
-    joined, at, forced = _smooth_pass_through(joined, at, exact)
-    for i in forced:
-        stops[i] = True
+    joined, at = _smooth_pass_through(joined, at, exact)
     w = np.asarray(joined.waypoints, dtype=float)
     deviation = np.full(len(w), timing.max_deviation)
     for i, k in enumerate(at):
@@ -454,11 +474,14 @@ def solve_with_goals(
         for i in range(len(at))
     ]
     times = _leg_times(trajectory, w, at, stops, reach)
-    stopped = tuple(i for i, (_, _, v) in enumerate(times) if passes[i] and v <= 1e-9)
+    by_timing = tuple(i for i, (_, _, v) in enumerate(times) if passes[i] and v <= 1e-9)
     diagnostics = replace(
-        diagnostics, timing_time_s=trajectory.computation_time_s, stopped_targets=stopped
+        diagnostics,
+        timing_time_s=trajectory.computation_time_s,
+        stopped_targets=tuple(sorted({*turning, *by_timing})),
+        extra={"turning": tuple(turning)},
     )
-    message = _solved_message(n, cycle, modes, extra, trajectory.duration, stopped)
+    message = _solved_message(n, cycle, modes, extra, trajectory.duration, by_timing, turning)
     return SequenceResult(
         PlanStatus.SOLVED, message, legs_with(times), joined, trajectory, diagnostics=diagnostics
     )
@@ -471,10 +494,12 @@ def _solved_message(
     extra: dict,
     duration: float | None = None,
     stopped: Sequence[int] = (),
+    turning: Sequence[int] = (),
 ) -> str:
     """The message of a solved sequence: its legs, its cycle time, the modes chosen for
     time and the runner-up, and any pass-through target the timing had to stop at."""
-    parts = [f"{n + cycle} legs" + (" (a cycle)" if cycle else "")]
+    legs = n + cycle
+    parts = [f"{legs} leg{'s' if legs != 1 else ''}" + (" (a cycle)" if cycle else "")]
     if duration is not None:
         parts.append(f"cycle time {duration:.4g} s")
     runner = extra.get("runner_up")
@@ -484,6 +509,12 @@ def _solved_message(
         if runner is not None:
             text += f"; runner-up {' '.join(m for m in runner[0] if m)} at {runner[1]:.4g} s"
         parts.append(text)
+    if turning:
+        parts.append(
+            "at rest at pass-through "
+            + ", ".join(f"target {i}" for i in turning)
+            + " (the path turns back there, or does not move)"
+        )
     if stopped:
         parts.append(
             "the timing came to rest at pass-through "
