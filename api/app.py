@@ -22,6 +22,7 @@ from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan
 from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
+from planner_api.routes import sequence as sequence_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -117,7 +118,12 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     # the routes that wait on a worker: a client that disconnects has its job cancelled
     # (WatchClient); the kinematics answer in the event loop, so nothing is left to cancel
     watched = (design.router, plan.router, timing_routes.router, workspace_routes.router)
-    for router in (*watched, cartesian_routes.router, dynamics_routes.router):
+    for router in (
+        *watched,
+        cartesian_routes.router,
+        dynamics_routes.router,
+        sequence_routes.router,
+    ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
     app.include_router(kinematics.router, dependencies=[ApiKey], responses=_ERRORS)
     # long jobs outlive the request that submits them: no client watch

@@ -11,6 +11,7 @@ PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one req
 PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
 PLANNER_MAX_BATCH         64                              plan requests in one batch
 PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
+PLANNER_MAX_SEQUENCE_TARGETS 64                           targets in one sequence request
 PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
 PLANNER_MAX_SECTION_RESOLUTION 256                        cells per axis of a section or figure
 PLANNER_API_KEY           (none)                          when set, required on /v1 but health
@@ -57,6 +58,7 @@ from planner.wire import (
     MAX_BATCH_REQUESTS,
     MAX_OBSTACLES,
     MAX_SECTION_RESOLUTION,
+    MAX_SEQUENCE_TARGETS,
     DesignModel,
 )
 
@@ -139,6 +141,13 @@ class Settings(BaseSettings):
     max_batch: int = Field(64, ge=1, le=MAX_BATCH_REQUESTS, description="Plans in one batch.")
     max_obstacles: int = Field(
         256, ge=0, le=MAX_OBSTACLES, description="Obstacles in one plan request."
+    )
+    max_sequence_targets: int = Field(
+        MAX_SEQUENCE_TARGETS,
+        ge=1,
+        le=MAX_SEQUENCE_TARGETS,
+        description="Targets in one sequence request (PLANNER_MAX_SEQUENCE_TARGETS; beyond: "
+        "422 at targets).",
     )
     retry_after_s: int = Field(1, ge=1, le=3600, description="Retry-After of a 503, s.")
     max_section_resolution: int = Field(

@@ -106,6 +106,7 @@ PER_REQUEST_SETTINGS = frozenset(
         "max_obstacles",
         "max_response_bytes",
         "max_section_resolution",
+        "max_sequence_targets",
         "max_trajectory_samples",
     }
 )

@@ -20,6 +20,7 @@ EXPECTED = {
     "03_obstacles.py": ["status: solved", "check: smallest link-to-ball gap", "obstacles: ok"],
     "04_design_study.py": ["paper-optimum", "C=D, CD_stretched", "figure:", "design study: ok"],
     "05_cartesian.py": ["status: solved", "check: P within", "status: no_path", "cartesian: ok"],
+    "06_pick_and_place.py": ["status: solved", "check: passing the corners", "pick and place: ok"],
 }
 
 
@@ -48,6 +49,8 @@ def test_example_runs_against_the_live_server(live_server, tmp_path, name):
         assert line in result.stdout, (line, result.stdout)
     if name == "04_design_study.py":
         assert (tmp_path / "default_cartesian_section.png").read_bytes().startswith(b"\x89PNG")
+    if name == "06_pick_and_place.py":
+        assert (tmp_path / "pick_and_place.csv").read_text().splitlines()[1].startswith("t,")
     if name == "05_cartesian.py":
         assert (tmp_path / "cartesian.csv").read_text().splitlines()[1].startswith("t,theta1,")
 

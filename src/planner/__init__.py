@@ -39,6 +39,7 @@ if TYPE_CHECKING:
         inverse_batch,
         link_points,
     )
+    from planner.sequence import SequenceResult, SequenceTarget, solve_sequence
     from planner.solver import Solution, solve
 
 try:
@@ -67,6 +68,9 @@ _HOMES = {
     "forward_batch": "kinematics",
     "inverse_batch": "kinematics",
     "link_points": "kinematics",
+    "SequenceResult": "sequence",
+    "SequenceTarget": "sequence",
+    "solve_sequence": "sequence",
     "Solution": "solver",
     "solve": "solver",
 }
@@ -85,6 +89,8 @@ __all__ = [
     "PlannerError",
     "Posture",
     "PostureBatch",
+    "SequenceResult",
+    "SequenceTarget",
     "SingularPostureError",
     "Solution",
     "__version__",
@@ -93,6 +99,7 @@ __all__ = [
     "inverse_batch",
     "link_points",
     "solve",
+    "solve_sequence",
 ]
 
 __getattr__, __dir__ = lazy_exports(__name__, _HOMES, __all__)

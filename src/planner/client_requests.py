@@ -46,6 +46,8 @@ from planner.wire import (
     Readiness,
     RegionsRequest,
     RegionsResponse,
+    SequenceRequest,
+    SequenceResponse,
     TimingRequest,
     TimingResponse,
     VersionInfo,
@@ -252,6 +254,24 @@ class Requests:
                 fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
             body = _validated(CartesianRequest, {**data, **fields})
         return _Call("POST", "/v1/cartesian", body, CartesianResponse)
+
+    def _sequence(
+        self, request: SequenceRequest | Mapping[str, Any] | None = None, **fields: Any
+    ) -> _Call[SequenceResponse]:
+        """A task sequence: one trajectory from ``start`` through ``targets`` (each
+        ``{"goal", "stop", "blend"}``), back to the start with ``cycle=True``; a
+        :class:`SequenceRequest` (or its dict), and/or its fields as keywords. The answer
+        lists the ``legs`` with their time spans and the ``cycle_time``."""
+        if isinstance(request, SequenceRequest) and not fields:
+            body = request
+        else:
+            data = dict(
+                request.model_dump(exclude_unset=True)
+                if isinstance(request, SequenceRequest)
+                else request or {}
+            )
+            body = _validated(SequenceRequest, {**data, **fields})
+        return _Call("POST", "/v1/sequence", body, SequenceResponse)
 
     def _plan_batch(
         self, requests: Sequence[PlanRequest | Mapping[str, Any]]

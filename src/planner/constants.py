@@ -14,6 +14,7 @@ __all__ = [
     "AXIS_TOL",
     "CIRCLES_MEET_TOL",
     "KAPPA_SOLVABLE",
+    "MAX_SEQUENCE_TARGETS",
     "REACH_TOL",
     "SIGN_TOL",
 ]
@@ -52,3 +53,9 @@ KAPPA_SOLVABLE = 1e7
 #: them for its sampling). A search that runs out then ends as ``no_path`` with time left to
 #: answer, not as a missed deadline.
 ANSWER_RESERVE_S = 0.25
+
+#: Most targets of one sequence (:func:`planner.solve_sequence`; the service's
+#: ``PLANNER_MAX_SEQUENCE_TARGETS`` may lower it): 64 legs of a few milliseconds each keep a
+#: sequence within a request's budget, and a production cycle rarely has more than a few
+#: dozen targets.
+MAX_SEQUENCE_TARGETS = 64

@@ -198,11 +198,16 @@ def time_plan(
     deadline: float | None = None,
     inertia: Inertia | None = None,
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
+    max_deviation: float | np.ndarray | None = None,
+    stop_at: Sequence[int] = (),
 ) -> Trajectory:
     """The timing step of :func:`solve` for a planned path: :func:`planner.timing.time_path`
     under the path's own rules per piece (:func:`planner.planning.path_state_checker`),
     coming to rest at the transits when ``stop_at_transits`` or ``timing.stop_at_transits``.
-    Raises :class:`~planner.exceptions.TimingError` as ``time_path`` does; an
+    A sequence (:func:`planner.sequence.solve_sequence`) times its joined legs here too, with
+    its own corner allowance per waypoint (``max_deviation``, shape (N,), rad; default
+    ``timing.max_deviation`` everywhere) and its stop targets (``stop_at``: waypoint indices
+    where the trajectory comes to rest, besides the transits). Raises :class:`~planner.exceptions.TimingError` as ``time_path`` does; an
     :class:`~planner.exceptions.InputError` names its field under ``timing.``."""
     from planner.timing import time_path
 
@@ -211,6 +216,8 @@ def time_plan(
     limits = limits if limits is not None else JointLimits.default()
     check = path_state_checker(design, margins, obstacles, path, near=timing.max_deviation)
     stop = stop_at_transits or timing.stop_at_transits
+    rests = sorted({*(t.index for t in path.transits if stop), *(int(i) for i in stop_at)})
+    deviation = timing.max_deviation if max_deviation is None else max_deviation
     try:
         return time_path(
             design,
@@ -220,8 +227,8 @@ def time_plan(
             assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
             sample_rate_hz=timing.sample_rate_hz,
             max_cartesian_speed=timing.max_cartesian_speed,
-            max_deviation=timing.max_deviation,
-            stop_at=[t.index for t in path.transits] if stop else [],
+            max_deviation=deviation,
+            stop_at=rests,
             check_states=check,
             deadline=deadline,
             max_samples=timing.max_samples,

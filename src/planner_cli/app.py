@@ -3,7 +3,7 @@
 The commands live in modules of one group each: :mod:`planner_cli.serve`,
 :mod:`planner_cli.kinematics` (fk, ik), :mod:`planner_cli.analysis` (check-design,
 optimize-design, regions), :mod:`planner_cli.figures`, :mod:`planner_cli.plan` (plan,
-cartesian) and :mod:`planner_cli.tools` (version, warm-up, bench). Each is registered through
+cartesian), :mod:`planner_cli.sequence` and :mod:`planner_cli.tools` (version, warm-up, bench). Each is registered through
 :func:`planner_cli.errors.reported`, the one path from a bad input or a library error to an
 ``error: ...`` message and exit status 2.
 
@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from planner_cli import analysis, dynamics, figures, kinematics, plan, serve, tools
+from planner_cli import analysis, dynamics, figures, kinematics, plan, sequence, serve, tools
 from planner_cli._support import Command, Group
 from planner_cli.errors import reported
 
@@ -52,6 +52,7 @@ register(analysis.optimize_design_command, "optimize-design")
 register(analysis.regions)
 register(plan.plan)
 register(plan.cartesian)
+register(sequence.sequence)
 register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)

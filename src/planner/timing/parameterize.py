@@ -34,7 +34,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -58,9 +58,15 @@ from planner.timing.checks import (
 from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
 from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ, METHODS
 from planner.timing.path import BlendedPath
-from planner.timing.ruckig_method import SEED_REFINE, RuckigCurve, build_ruckig_curve
+from planner.timing.ruckig_method import (
+    SEED_REFINE,
+    MoveCache,
+    RuckigCurve,
+    build_ruckig_curve,
+)
 from planner.timing.toppra_method import (
     PathProfile,
+    SectionCache,
     check_deadline,
     min_blend_radius,
     solve_toppra,
@@ -434,6 +440,9 @@ class _State:
     slow_down : a pending uniform time scaling of ``profile`` (toppra limit repairs).
     profile : the toppra profile of ``path``, None when it must be solved again.
     rescaled : a ruckig chain slowed down by a repair, used as is in the next round.
+    sections, moves : the toppra section profiles and Ruckig moves solved so far, so that a
+        repair round solves again only what its repair changed (the work of all rounds stays
+        linear in the number of waypoints; ``benchmarks/timing.py --scaling``).
     """
 
     path: BlendedPath
@@ -447,6 +456,8 @@ class _State:
     slow_down: float = 1.0
     profile: PathProfile | None = None
     rescaled: Curve | None = None
+    sections: SectionCache = field(default_factory=dict)
+    moves: MoveCache = field(default_factory=MoveCache)
 
 
 def _validate_inputs(
@@ -543,7 +554,7 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
         for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
             profile = solve_toppra(
                 path, lim, speed_gain=gain, max_cartesian_speed=job.v_cart, refine=refine,
-                deadline=job.deadline, torque_model=job.torque,
+                deadline=job.deadline, torque_model=job.torque, cache=state.sections,
             )  # fmt: skip
             if job.method != "toppra":
                 break
@@ -560,7 +571,9 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":
         return ToppraCurve(path, state.profile)
-    curve: Curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline)
+    curve: Curve = build_ruckig_curve(
+        path, state.profile, lim, deadline=job.deadline, cache=state.moves
+    )
     if job.v_cart is not None:
         curve = _fit_cartesian_speed(
             curve, job.design, job.assembly_mode, job.resolution, job.v_cart

@@ -111,10 +111,13 @@ class BlendedPath:
             solver's tolerances are absolute.
 
         The blend at a corner turning by ``alpha`` between segments of lengths ``L_in``,
-        ``L_out`` has tangent length ``l = min(L_in / 2, L_out / 2,
+        ``L_out`` has tangent length ``l = min(f_in L_in, f_out L_out,
         delta sin(alpha/2) / (1 - cos(alpha/2)))`` and radius ``r = l / tan(alpha/2)``, so its
-        vertex distance ``r (1 / cos(alpha/2) - 1)`` is at most ``delta`` and neighbouring
-        blends never overlap (each takes at most half a segment).
+        vertex distance ``r (1 / cos(alpha/2) - 1)`` is at most ``delta``. ``f`` is 1/2 when
+        the segment's other end is a corner that may be blended too, and 1 when it is one that
+        never is (an end of the path, a stop, a straight corner, a reversal): neighbouring
+        blends never overlap, and a short segment between a stop and a corner (the lift of a
+        pick-and-place cycle) can be rounded over its whole length.
         """
         w_in = np.asarray(waypoints, dtype=float)
         n_in = w_in.shape[0]
@@ -151,12 +154,19 @@ class BlendedPath:
 
         tangent = np.zeros(n)  # l at each vertex (0: not blended)
         alpha = np.zeros(n)
+        alpha[1:-1] = np.arccos(np.clip(np.sum(seg_dir[:-1] * seg_dir[1:], axis=1), -1.0, 1.0))
+        # vertices that take no blend whatever the lengths: the ends, stops, straight corners
+        # and reversals; a blend next to one may take the whole segment, else half of it
+        unblended = np.ones(n, bool)
+        unblended[1:-1] = (
+            stop[1:-1] | (dev[1:-1] <= 0.0) | (alpha[1:-1] > np.pi - REVERSAL_ANGLE)
+            | (alpha[1:-1] < STRAIGHT_ANGLE)
+        )  # fmt: skip
+        share = np.where(unblended, 1.0, 0.5)
         is_stop = np.zeros(n, bool)
         is_stop[0] = is_stop[-1] = True
         for k in range(1, n - 1):
-            cos_a = float(np.clip(seg_dir[k - 1] @ seg_dir[k], -1.0, 1.0))
-            a = float(np.arccos(cos_a))
-            alpha[k] = a
+            a = float(alpha[k])
             if a < STRAIGHT_ANGLE and not stop[k]:
                 continue
             if stop[k] or dev[k] <= 0.0 or a > np.pi - REVERSAL_ANGLE or a < STRAIGHT_ANGLE:
@@ -164,8 +174,8 @@ class BlendedPath:
                 continue
             half = a / 2
             tangent[k] = min(
-                seg_len[k - 1] / 2,
-                seg_len[k] / 2,
+                seg_len[k - 1] * share[k - 1],
+                seg_len[k] * share[k + 1],
                 dev[k] / np.tan(half / 2),  # = delta sin(a/2) / (1 - cos(a/2))
             )
             if tangent[k] / np.tan(half) < min_radius:

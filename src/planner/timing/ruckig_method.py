@@ -33,6 +33,7 @@ continuous. Position limits are not in the community version: the caller checks 
 from __future__ import annotations
 
 import functools
+import itertools
 import logging
 from dataclasses import dataclass
 
@@ -43,10 +44,17 @@ from ruckig import Trajectory as RuckigTrajectory
 from planner.exceptions import TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
-from planner.timing.toppra_method import PathProfile, check_deadline
+from planner.timing.toppra_method import PathProfile, check_deadline, section_key
 from planner.timing.trajectory import check_sample_count
 
-__all__ = ["PATIENCE", "SEED_REFINE", "SPEED_FACTORS", "RuckigCurve", "build_ruckig_curve"]
+__all__ = [
+    "PATIENCE",
+    "SEED_REFINE",
+    "SPEED_FACTORS",
+    "MoveCache",
+    "RuckigCurve",
+    "build_ruckig_curve",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -167,17 +175,30 @@ def _calculate(
     return ""
 
 
-def _moves_from(trajs: list[RuckigTrajectory], corners: list[tuple[int, ...]]) -> list[_Move]:
+def _phase_rows(traj: RuckigTrajectory) -> tuple[list, list, bool]:
+    """One solved trajectory's phase table as lists: per joint (t, j) of its 7 phases, (p, v,
+    a) at its 8 phase starts, and whether a brake phase precedes the profile."""
+    profiles = traj.profiles[0]
+    rows = [(pr.t, pr.j) for pr in profiles]
+    states = [(pr.p, pr.v, pr.a) for pr in profiles]
+    braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in profiles)
+    return rows, states, braking
+
+
+def _moves_from(
+    trajs: list[RuckigTrajectory],
+    corners: list[tuple[int, ...]],
+    cache: MoveCache | None = None,
+) -> list[_Move]:
     """The phase tables of solved Ruckig trajectories, for vectorised evaluation (read in one
-    pass: per-move numpy conversions would cost as much as the solves)."""
-    rows = [[(pr.t, pr.j) for pr in tr.profiles[0]] for tr in trajs]
-    states = [[(pr.p, pr.v, pr.a) for pr in tr.profiles[0]] for tr in trajs]
-    phases = np.array(rows, dtype=float).reshape(len(trajs), 3, 2, 7)
-    at = np.array(states, dtype=float).reshape(len(trajs), 3, 3, 8)
+    pass: per-move numpy conversions would cost as much as the solves; a trajectory read in
+    an earlier round is taken from ``cache``)."""
+    read = [cache.rows(tr) if cache is not None else _phase_rows(tr) for tr in trajs]
+    phases = np.array([r[0] for r in read], dtype=float).reshape(len(trajs), 3, 2, 7)
+    at = np.array([r[1] for r in read], dtype=float).reshape(len(trajs), 3, 3, 8)
     cum = np.concatenate([np.zeros((len(trajs), 3, 1)), np.cumsum(phases[:, :, 0], axis=2)], 2)
     out = []
     for k, tr in enumerate(trajs):
-        braking = any(pr.brake.duration > 0 or pr.accel.duration > 0 for pr in tr.profiles[0])
         out.append(
             _Move(
                 duration=float(tr.duration),
@@ -188,10 +209,54 @@ def _moves_from(trajs: list[RuckigTrajectory], corners: list[tuple[int, ...]]) -
                 a=at[k, :, 2],
                 corners=corners[k],
                 source=tr,
-                braking=braking,
+                braking=read[k][2],
             )
         )
     return out
+
+
+class MoveCache:
+    """The Ruckig moves of every rest-to-rest section already chained in one
+    :func:`~planner.timing.time_path` call, and the phase tables already read.
+
+    Why: a repair round re-times the whole path, but a blend shrunk at one corner changes
+    only the section (between two stops) that holds it. A section's chain starts and ends at
+    rest, so it is a function of the section alone: its vertices and blends (the key of its
+    toppra profile, :func:`~planner.timing.toppra_method.section_key`), the profile's path
+    velocities on it (exactly those of the earlier round when toppra took the section from
+    its own cache), the limits and the speed factors. With the cache a round chains again
+    only the sections its repair changed, so the work of all rounds is linear in the number
+    of waypoints; a cached chain is the very chain of the earlier round, so nothing changes
+    but the work.
+    """
+
+    def __init__(self) -> None:
+        self._chains: dict[tuple, tuple[list[RuckigTrajectory], list[tuple[int, ...]]]] = {}
+        self._rows: dict[int, tuple[list, list, bool]] = {}
+
+    def chain(self, key: tuple) -> tuple[list[RuckigTrajectory], list[tuple[int, ...]]] | None:
+        """The moves and their corners of a section chained before, or None."""
+        return self._chains.get(key)
+
+    def keep(
+        self, key: tuple, trajs: list[RuckigTrajectory], corners: list[tuple[int, ...]]
+    ) -> None:
+        self._chains[key] = (trajs, corners)
+
+    def rows(self, traj: RuckigTrajectory) -> tuple[list, list, bool]:
+        """:func:`_phase_rows` of ``traj``, read once (the cache keeps ``traj`` alive)."""
+        got = self._rows.get(id(traj))
+        if got is None:
+            got = self._rows[id(traj)] = _phase_rows(traj)
+        return got
+
+
+def _solve_duration(
+    otg: Ruckig, inp: InputParameter, start: tuple, target: tuple
+) -> RuckigTrajectory | None:
+    """A candidate move of the greedy chain (:func:`_calculate`), None when Ruckig has none."""
+    traj = RuckigTrajectory(3)
+    return None if _calculate(otg, inp, start, target, traj) else traj
 
 
 def _solve_move(
@@ -374,6 +439,7 @@ def build_ruckig_curve(
     through_acceleration: bool = True,
     speed_factors: tuple[float, ...] = SPEED_FACTORS,
     deadline: float | None = None,
+    cache: MoveCache | None = None,
 ) -> RuckigCurve:
     """Chain Ruckig moves through the entry and exit states of every blend (module docstring).
 
@@ -391,6 +457,9 @@ def build_ruckig_curve(
     speed_factors : candidate slow-downs of each through-state, tried greedily in order.
     deadline : float, optional
         ``time.monotonic()`` value checked every 16 moves.
+    cache : MoveCache, optional
+        Sections chained earlier in the same timing (see :class:`MoveCache`); a fresh one
+        when absent.
 
     Measured on seeded random 20-waypoint paths (``benchmarks/timing.py``): resting at every
     waypoint costs about 1.45x (jerk = 25 x acceleration /s) to 1.65x (10x) the toppra duration;
@@ -413,6 +482,9 @@ def build_ruckig_curve(
     inp.max_acceleration = a_max.tolist()
     inp.max_jerk = j_max.tolist()
     inp.synchronization = Synchronization.Phase
+    cache = cache if cache is not None else MoveCache()
+    settings = (*v_max.tolist(), *a_max.tolist(), *j_max.tolist(), through_acceleration,
+                *speed_factors)  # fmt: skip
 
     # the time a joint needs to bring its largest acceleration to zero under its jerk limit
     marks = _through_marks(path, profile, t_merge=float(np.max(a_max / j_max)))
@@ -455,46 +527,62 @@ def build_ruckig_curve(
     # slower factors stop being tried after PATIENCE worse ones. Candidate moves are solved
     # for their durations only (:func:`_calculate`); the phase tables are read from the
     # chosen ones.
-    chosen = state(0, 0)
+    def chain_section(r0: int, r1: int) -> tuple[list, list]:
+        """The greedy chain from the rest state r0 to the rest state r1."""
+        chosen = state(r0, 0)
+        trajs: list[RuckigTrajectory] = []
+        corners: list[tuple[int, ...]] = []
+        known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
+        for i in range(r0 + 1, r1 + 1):
+            if i % 16 == 0:
+                check_deadline(deadline, "while timing the path with ruckig")
+            moving = tags[i] != _REST
+            look_ahead = moving and n_f > 1 and i + 1 < len(marks)
+            best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
+            worse = 0
+            for k in range(n_f if moving else 1):
+                target = state(i, k)
+                if known is not None and k == ahead_k:
+                    traj, known = known, None  # solved as the previous state's look-ahead
+                else:
+                    traj = _solve_duration(otg, inp, chosen, target)
+                    if traj is None:
+                        continue
+                cost = traj.duration
+                ahead: RuckigTrajectory | None = None
+                if look_ahead:
+                    ahead = _solve_duration(otg, inp, target, state(i + 1, ahead_k))
+                    cost = np.inf if ahead is None else cost + ahead.duration
+                if best is None or cost < best[0]:
+                    best, worse = (cost, traj, target, ahead), 0
+                elif best[0] < cost < np.inf:
+                    worse += 1
+                    if worse >= PATIENCE:
+                        break
+            if best is None:
+                raise TimingInfeasibleError(
+                    f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
+                )
+            corners.append(tuple(sorted(set(marks[i - 1][2]) | set(marks[i][2]))))
+            trajs.append(best[1])
+            chosen, known = best[2], best[3]
+        return trajs, corners
+
+    # Section by section (rest to rest): a section chained in an earlier round of the same
+    # timing, with the same profile on it, is taken from the cache (:class:`MoveCache`).
     trajs: list[RuckigTrajectory] = []
     corners: list[tuple[int, ...]] = []
-    known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
-    for i in range(1, len(marks)):
-        if i % 16 == 0:
-            check_deadline(deadline, "while timing the path with ruckig")
-        moving = tags[i] != _REST
-        look_ahead = moving and n_f > 1 and i + 1 < len(marks)
-        best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
-        worse = 0
-        for k in range(n_f if moving else 1):
-            target = state(i, k)
-            if known is not None and k == ahead_k:
-                traj, known = known, None  # solved as the previous state's look-ahead
-            else:
-                traj = RuckigTrajectory(3)
-                if _calculate(otg, inp, chosen, target, traj):
-                    continue
-            cost = traj.duration
-            ahead: RuckigTrajectory | None = None
-            if look_ahead:
-                ahead = RuckigTrajectory(3)
-                if _calculate(otg, inp, target, state(i + 1, ahead_k), ahead):
-                    cost, ahead = np.inf, None
-                else:
-                    cost += ahead.duration
-            if best is None or cost < best[0]:
-                best, worse = (cost, traj, target, ahead), 0
-            elif best[0] < cost < np.inf:
-                worse += 1
-                if worse >= PATIENCE:
-                    break
-        if best is None:
-            raise TimingInfeasibleError(
-                f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
-            )
-        corners.append(tuple(sorted(set(marks[i - 1][2]) | set(marks[i][2]))))
-        trajs.append(best[1])
-        chosen, known = best[2], best[3]
-    moves = _moves_from(trajs, corners)
+    rests = np.flatnonzero(tags == _REST)
+    for r0, r1 in itertools.pairwise(rests):
+        lo, hi = s_marks[r0], s_marks[r1]
+        inside = (profile.s >= lo) & (profile.s <= hi)
+        key = (section_key(path, lo, hi), profile.sd[inside].tobytes(), settings)
+        got = cache.chain(key)
+        if got is None:
+            got = chain_section(int(r0), int(r1))
+            cache.keep(key, *got)
+        trajs += got[0]
+        corners += got[1]
+    moves = _moves_from(trajs, corners, cache)
     start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
     return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))

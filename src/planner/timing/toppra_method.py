@@ -32,7 +32,15 @@ from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
 from planner.timing.torque import TorqueModel
 
-__all__ = ["PathProfile", "check_deadline", "min_blend_radius", "section_grid", "solve_toppra"]
+__all__ = [
+    "PathProfile",
+    "SectionCache",
+    "check_deadline",
+    "min_blend_radius",
+    "section_grid",
+    "section_key",
+    "solve_toppra",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -264,6 +272,34 @@ def _joint_constraints(v: tuple[float, ...], a: tuple[float, ...]) -> tuple:
     )
 
 
+#: A cache of section profiles (:func:`solve_toppra`'s ``cache``): key -> (grid - s_start, sd).
+SectionCache = dict[tuple, tuple[np.ndarray, np.ndarray]]
+
+
+def section_key(path: BlendedPath, s_start: float, s_end: float) -> tuple:
+    """What fixes a rest-to-rest section's geometry, independent of where it lies along the
+    path: its vertices (joint values) and their blend deviations (which fix every arc, the
+    vertices given). A repair that shrinks a blend
+    elsewhere shifts this section's ``s`` but leaves its key, hence its profile, unchanged."""
+    at = np.flatnonzero((path.vertex_s >= s_start) & (path.vertex_s <= s_end))
+    i0, i1 = int(at[0]), int(at[-1])
+    return (
+        path.waypoints[i0 : i1 + 1].tobytes(),
+        path.blend_deviation[i0 : i1 + 1].tobytes(),
+    )
+
+
+def _shifted_grid(path: BlendedPath, lo: int, hi: int, grid: np.ndarray) -> np.ndarray:
+    """A cached section grid moved to where the section now lies, its piece boundaries set
+    to the path's own (``path.s0``) exactly, as :func:`section_grid` makes them: a through-state
+    on a boundary then takes the same interval's acceleration as after a fresh solve."""
+    bounds = path.s0[lo : hi + 2]
+    at = np.clip(np.searchsorted(grid, bounds), 1, grid.shape[0] - 1)
+    nearer = np.abs(grid[at - 1] - bounds) < np.abs(grid[at] - bounds)
+    grid[at - nearer] = bounds
+    return grid
+
+
 def solve_toppra(
     path: BlendedPath,
     limits: JointLimits,
@@ -273,6 +309,7 @@ def solve_toppra(
     refine: float = 1,
     deadline: float | None = None,
     torque_model: TorqueModel | None = None,
+    cache: SectionCache | None = None,
 ) -> PathProfile:
     """Time-optimal rest-to-rest profile of every section of ``path``, joined in time.
 
@@ -290,6 +327,13 @@ def solve_toppra(
         ``time.monotonic()`` value checked before each section.
     torque_model : TorqueModel, optional
         With ``limits.torque``: the actuator torques bounded too (a second-order constraint).
+    cache : dict, optional
+        Profiles of sections already solved (filled here): a section whose key
+        (:func:`section_key`: its vertices and blends, and these settings) is in it is not
+        solved again but shifted to where it lies. :func:`planner.timing.time_path` passes
+        one per call, so that a repair round re-solves only the sections its repair changed
+        (the rounds' work is then linear in the waypoints, not rounds x waypoints). Only
+        valid for one ``speed_gain`` (one design and assembly mode).
 
     Raises
     ------
@@ -323,6 +367,16 @@ def solve_toppra(
             s_all.append(grid[1:])
             sd_all.append(sd[1:] / c)
             continue
+        key = None
+        if cache is not None:
+            settings = (refine, *v.tolist(), *a.tolist(), v_cart)
+            key = (section_key(path, float(s_start), float(s_end)), settings)
+            hit = cache.get(key)
+            if hit is not None:
+                grid = _shifted_grid(path, lo, hi, float(s_start) + hit[0])
+                s_all.append(grid[1:])
+                sd_all.append(hit[1][1:])
+                continue
         grid = section_grid(path, lo, hi, refine=refine)
         constraints = list(joint_constraints)
         if v_cart is not None and speed_gain is not None:
@@ -341,6 +395,8 @@ def solve_toppra(
             )
         sd = np.asarray(sd, dtype=float) / c
         sd[0] = sd[-1] = 0.0
+        if key is not None:
+            cache[key] = (grid - float(s_start), sd)
         s_all.append(grid[1:])
         sd_all.append(sd[1:])
     s = np.concatenate(s_all)

@@ -6,7 +6,7 @@ endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margi
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
 :mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
-(torques and mass matrices) and :mod:`~planner.wire.meta`
+(torques and mass matrices), :mod:`~planner.wire.sequence` (task sequences) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 :mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.jobs` (long jobs)
 and :mod:`~planner.wire.meta` (health, version, errors). The wire converts and runs nothing: a job calls the library
@@ -161,6 +161,19 @@ from planner.wire.plan import (
     path_model,
     plan_inputs,
     plan_response,
+    planner_options_to_core,
+)
+from planner.wire.sequence import (
+    MAX_SEQUENCE_TARGETS,
+    LegModel,
+    Objective,
+    SequenceDiagnosticsModel,
+    SequenceInputs,
+    SequenceRequest,
+    SequenceResponse,
+    SequenceTargetModel,
+    sequence_inputs,
+    sequence_response,
 )
 from planner.wire.timing import (
     MAX_TIMING_WAYPOINTS,
@@ -198,6 +211,7 @@ __all__ = [
     "MAX_POLYLINE_REACHES",
     "MAX_REGION_RESOLUTION",
     "MAX_SECTION_RESOLUTION",
+    "MAX_SEQUENCE_TARGETS",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
     "AnalyzeRequest",
@@ -246,6 +260,7 @@ __all__ = [
     "JobStatus",
     "JointGoal",
     "JointPostureModel",
+    "LegModel",
     "Length",
     "LengthBounds",
     "Limits",
@@ -253,6 +268,7 @@ __all__ = [
     "LinkLength",
     "MarginsModel",
     "Matrix3",
+    "Objective",
     "Obstacle",
     "PathModel",
     "PayloadModel",
@@ -278,6 +294,11 @@ __all__ = [
     "SectionGrid",
     "SectionOptions",
     "SegmentModel",
+    "SequenceDiagnosticsModel",
+    "SequenceInputs",
+    "SequenceRequest",
+    "SequenceResponse",
+    "SequenceTargetModel",
     "SerialMargins",
     "SphereObstacle",
     "TimingErrorInfo",
@@ -311,10 +332,13 @@ __all__ = [
     "path_model",
     "plan_inputs",
     "plan_response",
+    "planner_options_to_core",
     "points_from_arrays",
     "posture_model",
     "regions_model",
     "sampled_value",
+    "sequence_inputs",
+    "sequence_response",
     "timing_error",
     "timing_to_core",
     "trajectory_arrays",

@@ -65,6 +65,7 @@ __all__ = [
     "path_model",
     "plan_inputs",
     "plan_response",
+    "planner_options_to_core",
 ]
 
 
@@ -214,7 +215,6 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
     :class:`planner.planning.PlanOptions` (a bad value raises the library's error, located)."""
     from planner.planning.problem import CartesianTarget as CoreTarget
     from planner.planning.problem import JointPosture as CorePosture
-    from planner.planning.problem import PlanOptions
 
     design = design_to_core(request.design)
     with located("body", "start"):
@@ -228,13 +228,7 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
         )
     obstacles = obstacles_to_core(request.obstacles)
     margins = margins_to_core(request.margins)
-    with located("body", "planner"):
-        options = PlanOptions(
-            **request.planner.model_dump(
-                exclude_none=True,
-                include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
-            )
-        )
+    options = planner_options_to_core(request.planner)
     timing = timing_to_core(request.timing, request.limits)
     limits = joint_limits_to_core(request.limits)
     prefer = getattr(request.goal, "prefer", "shortest")
@@ -243,6 +237,22 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
         design, start, goal, obstacles, margins, options, timing, limits, prefer,
         request.goal.tolerance, inertia, tuple(request.gravity),  # type: ignore[arg-type]
     )  # fmt: skip
+
+
+def planner_options_to_core(
+    model: PlannerOptions, loc: tuple[str | int, ...] = ("body", "planner")
+) -> Any:
+    """The :class:`planner.planning.PlanOptions` of a request's ``planner`` field (a plan's,
+    or every leg's of a sequence)."""
+    from planner.planning.problem import PlanOptions
+
+    with located(*loc):
+        return PlanOptions(
+            **model.model_dump(
+                exclude_none=True,
+                include={"name", "time_budget_s", "seed", "simplify", "stop_at_transits"},
+            )
+        )
 
 
 def _finite(x: float) -> float | None:

@@ -1,0 +1,55 @@
+"""POST /v1/sequence: task sequences, computed in a worker like a plan.
+
+The job is :func:`planner_api.jobs.sequence.sequence`. A finished sequence is a 200 whatever
+its status (``solved`` only when every leg is; else the status of the first leg that failed,
+its index in ``message``); errors are for invalid input (422: no targets, more than
+``PLANNER_MAX_SEQUENCE_TARGETS``, a negative blend or one larger than half its shorter leg),
+a full pool (503) or the request's deadline (504).
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response
+
+from planner.wire import SequenceRequest, SequenceResponse
+from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.exceptions import LimitExceededError
+from planner_api.jobs import answer_sample_limit
+from planner_api.jobs import sequence as jobs
+from planner_api.routes._common import check_obstacle_count, run_job
+
+__all__ = ["router", "sequence"]
+
+router = APIRouter(prefix="/v1", tags=["plan"])
+
+
+@router.post("/sequence", response_model=SequenceResponse)
+async def sequence(
+    body: SequenceRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
+    """One trajectory from ``start`` through every target in order (and back with
+    ``cycle``): at rest at each ``stop`` target, passing through the others within their
+    ``blend``; with ``objective`` "time" the working modes of Cartesian "any" targets are
+    chosen for the shortest cycle."""
+    if len(body.targets) > settings.max_sequence_targets:
+        raise LimitExceededError(
+            f"at most {settings.max_sequence_targets} targets per sequence "
+            f"(PLANNER_MAX_SEQUENCE_TARGETS), got {len(body.targets)}",
+            ("body", "targets"),
+        )
+    if body.planner.time_budget_s > settings.request_timeout_s:
+        raise LimitExceededError(
+            f"planner.time_budget_s must be at most the service's request budget "
+            f"{settings.request_timeout_s:g} s, got {body.planner.time_budget_s:g}",
+            ("body", "planner", "time_budget_s"),
+        )
+    check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+    return await run_job(
+        pool,
+        jobs.sequence,
+        body,
+        deadline,
+        design_defaults=settings.design_defaults,
+        max_samples=samples,
+    )

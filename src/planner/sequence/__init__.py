@@ -1,0 +1,29 @@
+"""Task sequences: one trajectory from a start through many targets (and back, for a cycle),
+stopping at some and passing through the others, with the working modes chosen for the
+shortest cycle.
+
+:func:`solve_sequence` (:mod:`planner.sequence.solve`) is the call, exported as
+``planner.solve_sequence`` beside :func:`planner.solve`; its inputs and answer are the data
+classes of :mod:`planner.sequence.problem` (light: the wire imports them alone), and the
+working-mode search of ``objective="time"`` is :mod:`planner.sequence.modes`.
+"""
+
+from planner.sequence.problem import (
+    MAX_SEQUENCE_TARGETS,
+    OBJECTIVES,
+    Leg,
+    SequenceDiagnostics,
+    SequenceResult,
+    SequenceTarget,
+)
+from planner.sequence.solve import solve_sequence
+
+__all__ = [
+    "MAX_SEQUENCE_TARGETS",
+    "OBJECTIVES",
+    "Leg",
+    "SequenceDiagnostics",
+    "SequenceResult",
+    "SequenceTarget",
+    "solve_sequence",
+]

@@ -1,0 +1,131 @@
+"""The inputs and the answer of a task sequence (:func:`planner.sequence.solve_sequence`):
+plain data classes, light to import (the wire converts to and from them without loading the
+planner or the timing)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from planner.constants import MAX_SEQUENCE_TARGETS
+from planner.exceptions import InputError
+from planner.planning.problem import CartesianTarget, JointPosture
+from planner.planning.result import PlanPath, PlanResult, PlanStatus
+
+__all__ = [
+    "MAX_SEQUENCE_TARGETS",
+    "OBJECTIVES",
+    "Leg",
+    "SequenceDiagnostics",
+    "SequenceResult",
+    "SequenceTarget",
+]
+
+#: ``"time"``: choose each Cartesian "any" target's working mode for the shortest cycle;
+#: ``"fixed"``: each target as given ("any" is the single plan's rule).
+OBJECTIVES = ("time", "fixed")
+
+
+@dataclass(frozen=True, slots=True)
+class SequenceTarget:
+    """One target of a sequence: ``goal`` (a joint posture or a Cartesian target), ``stop``
+    (at rest there; else passed at speed) and ``blend`` (rad, >= 0: how far, in joint space,
+    the trajectory may pass from the target's posture when it does not stop; 0 passes
+    exactly through it)."""
+
+    goal: JointPosture | CartesianTarget
+    stop: bool = True
+    blend: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.goal, JointPosture | CartesianTarget):
+            raise InputError(
+                f"goal must be a joint posture or a Cartesian target, got {self.goal!r}",
+                field="goal",
+            )
+        b = self.blend
+        if isinstance(b, bool) or not isinstance(b, int | float) or not math.isfinite(b):
+            raise InputError(f"blend must be a finite number, got {b!r}", field="blend")
+        if b < 0:
+            raise InputError(f"blend must be >= 0 rad, got {b!r}", field="blend")
+
+
+@dataclass(frozen=True, slots=True)
+class Leg:
+    """One leg of a sequence: the plan from the previous target (or the start) to target
+    ``target_index`` (``len(targets)`` for a cycle's return to the start).
+
+    Attributes
+    ----------
+    target_index : int
+    plan : the leg's :class:`~planner.planning.PlanResult` (its ``path`` as planned).
+    working_mode : the working mode at arrival ("" when not solved).
+    start_time, end_time : s, on the sequence's trajectory: when the trajectory leaves the
+        previous target (0 for the first leg) and reaches this one (at rest for a stop;
+        the instant of closest approach for a pass-through); NaN when not timed.
+    waypoint_index : the target's waypoint in the joined path (-1 when not solved).
+    pass_distance : rad, joint-space distance of the trajectory from the target's posture
+        at ``end_time`` (0 at a stop; at most the blend); NaN when not timed.
+    pass_speed : rad/s, joint speed there (0 at a stop); NaN when not timed.
+    """
+
+    target_index: int
+    plan: PlanResult
+    working_mode: str = ""
+    start_time: float = math.nan
+    end_time: float = math.nan
+    waypoint_index: int = -1
+    pass_distance: float = math.nan
+    pass_speed: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class SequenceDiagnostics:
+    """Measures of a sequence: ``planning_time_s`` (every leg's search, s),
+    ``timing_time_s`` (the one timing of the joined path, s), ``modes`` (the working mode
+    chosen at each target, "" for a joint goal), ``runner_up`` (the second best assignment's
+    modes and cycle time, s, when the objective compared several), ``estimates`` (the
+    assignments the mode search planned and timed), ``stopped_targets`` (pass-through
+    targets where the trajectory comes to rest: the path turns back there, or the timing's
+    repairs had to stop), ``extra``: ``turning`` (those where the path turns back), and from
+    the mode search ``gap_s`` (how far the answer may be from the optimum, s; 0 when proven)
+    and ``bound_s`` (the best assignment's lower bound, s)."""
+
+    planning_time_s: float = 0.0
+    timing_time_s: float = 0.0
+    modes: tuple[str, ...] = ()
+    runner_up: tuple[tuple[str, ...], float] | None = None
+    estimates: int = 0
+    stopped_targets: tuple[int, ...] = ()
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class SequenceResult:
+    """What :func:`planner.sequence.solve_sequence` returns.
+
+    ``status`` is solved only when every leg is (and the joined path was timed when timing
+    was asked); else the status of the first leg that failed, its index in ``message``.
+    ``path`` is the joined path the trajectory follows (the legs' waypoints, and for an
+    exact pass-through two short straight pieces around the target so that the path is
+    smooth there); ``trajectory`` the one :class:`~planner.timing.Trajectory` through every
+    leg; ``timing_error`` what stopped the timing, if anything.
+    """
+
+    status: PlanStatus
+    message: str
+    legs: tuple[Leg, ...]
+    path: PlanPath | None = None
+    trajectory: Any = None
+    timing_error: Exception | None = None
+    diagnostics: SequenceDiagnostics = field(default_factory=SequenceDiagnostics)
+
+    @property
+    def solved(self) -> bool:
+        return self.status is PlanStatus.SOLVED and self.timing_error is None
+
+    @property
+    def cycle_time(self) -> float:
+        """Duration of the whole trajectory, s (NaN when not timed)."""
+        return math.nan if self.trajectory is None else float(self.trajectory.duration)

@@ -1,0 +1,297 @@
+"""``POST /v1/sequence``: a start, an ordered list of targets (each a stop or passed through
+within a blend), optionally back to the start; one trajectory through all of them, its legs
+with their time spans, and the cycle time (names: CONVENTIONS "Wire, third part")."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from planner.constants import MAX_SEQUENCE_TARGETS
+from planner.design import Design
+from planner.wire.common import (
+    GRAVITY_FIELD,
+    MAX_OBSTACLES,
+    DesignModel,
+    DiagnosticsModel,
+    Goal,
+    Gravity,
+    JointGoal,
+    JointPostureModel,
+    MarginsModel,
+    Obstacle,
+    _DesignField,
+    _Request,
+    _Response,
+    design_to_core,
+    inertia_to_core,
+    located,
+    margins_to_core,
+    obstacles_to_core,
+)
+from planner.wire.plan import (
+    PathModel,
+    PlannerOptions,
+    PlanStatus,
+    path_model,
+    planner_options_to_core,
+)
+from planner.wire.timing import (
+    AnyTrajectory,
+    Limits,
+    TimingOptionsModel,
+    TrajectoryFormat,
+    joint_limits_to_core,
+    timing_error,
+    timing_to_core,
+    trajectory_model,
+)
+
+__all__ = [
+    "MAX_SEQUENCE_TARGETS",
+    "LegModel",
+    "Objective",
+    "SequenceDiagnosticsModel",
+    "SequenceInputs",
+    "SequenceRequest",
+    "SequenceResponse",
+    "SequenceTargetModel",
+    "sequence_inputs",
+    "sequence_response",
+]
+
+#: ``"time"`` (default): each Cartesian "any" target's working mode chosen for the shortest
+#: cycle; ``"fixed"``: each as given ("any" = the single plan's rule).
+Objective = Literal["time", "fixed"]
+
+
+class SequenceTargetModel(_Request):
+    """One target of a sequence."""
+
+    goal: Goal = Field(description="A joint posture or a Cartesian target.")
+    stop: bool = Field(True, description="At rest there (default); false: passed at speed.")
+    blend: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=math.pi)] = Field(
+        0.0,
+        description="When passing through: the largest joint-space distance (rad) of the "
+        "trajectory from the target's posture; 0 (default): exactly through it. At most half "
+        "the shorter adjacent leg.",
+    )
+
+
+class SequenceRequest(_Request):
+    """Body of ``POST /v1/sequence``. Only ``start`` and ``targets`` are required."""
+
+    design: DesignModel = _DesignField
+    start: JointPostureModel
+    targets: list[SequenceTargetModel] = Field(
+        min_length=1,
+        max_length=MAX_SEQUENCE_TARGETS,
+        description=f"In order, 1 to {MAX_SEQUENCE_TARGETS} (the service may allow fewer: "
+        "PLANNER_MAX_SEQUENCE_TARGETS).",
+    )
+    cycle: bool = Field(False, description="Return to the start at the end.")
+    objective: Objective = Field(
+        "time",
+        description="'time' (default): choose each Cartesian 'any' target's working mode for "
+        "the shortest whole trajectory; 'fixed': each target as given.",
+    )
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    margins: MarginsModel = Field(default_factory=MarginsModel)
+    planner: PlannerOptions = Field(
+        default_factory=PlannerOptions, description="Search options of every leg."
+    )
+    timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
+    limits: Limits = Field(default_factory=Limits)
+    gravity: Gravity = GRAVITY_FIELD
+
+
+class LegModel(_Response):
+    """One leg: the plan to target ``target_index`` (``len(targets)``: a cycle's return)."""
+
+    target_index: int = Field(ge=0)
+    status: PlanStatus = Field(description="The leg's plan status.")
+    path: PathModel | None = Field(None, description="The leg's path as planned.")
+    working_mode: str = Field("", description="Working mode at arrival ('' if not planned).")
+    start_time: float | None = Field(None, description="Leaves the previous target, s.")
+    end_time: float | None = Field(
+        None, description="Reaches the target (at rest for a stop; closest approach else), s."
+    )
+    pass_distance: float | None = Field(
+        None, description="Joint-space distance from the target's posture at end_time, rad."
+    )
+    pass_speed: float | None = Field(None, description="Joint speed at end_time, rad/s.")
+
+
+class SequenceDiagnosticsModel(DiagnosticsModel):
+    """The plan diagnostics over the whole sequence (extremes over every leg), and the mode
+    search's."""
+
+    modes: list[str] = Field(
+        default_factory=list, description="Working mode at each target ('' for a joint goal)."
+    )
+    runner_up_modes: list[str] | None = Field(
+        None, description="The second best assignment of the mode search (objective 'time')."
+    )
+    runner_up_cycle_time: float | None = Field(None, description="Its cycle time, s.")
+    assignments_evaluated: int = Field(
+        0, ge=0, description="Mode assignments planned and timed by the search."
+    )
+    optimality_gap_s: float | None = Field(
+        None, description="How far the answer may be from the optimal assignment, s (0: proven)."
+    )
+    stopped_targets: list[int] = Field(
+        default_factory=list,
+        description="Pass-through targets where the timing had to come to rest.",
+    )
+
+
+class SequenceResponse(_Response):
+    """Answer of ``POST /v1/sequence``: ``solved`` only when every leg is."""
+
+    status: PlanStatus
+    message: str = ""
+    legs: list[LegModel] = Field(default_factory=list)
+    trajectory: AnyTrajectory | None = None
+    cycle_time: float | None = Field(None, description="Duration of the trajectory, s.")
+    diagnostics: SequenceDiagnosticsModel = Field(default_factory=SequenceDiagnosticsModel)
+
+
+# ---------------------------------------------------------------------------- conversions
+@dataclass(frozen=True)
+class SequenceInputs:
+    """A sequence request as the library's objects (the arguments of
+    :func:`planner.solve_sequence`)."""
+
+    design: Design
+    start: Any
+    targets: list[Any]
+    cycle: bool
+    objective: str
+    obstacles: list[Any]
+    margins: Any
+    options: Any
+    timing: Any
+    limits: Any
+    inertia: Any = None
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+    def solve_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of :func:`planner.solve_sequence` after ``design, start,
+        targets``."""
+        return {
+            "cycle": self.cycle, "objective": self.objective, "obstacles": self.obstacles,
+            "margins": self.margins, "options": self.options, "timing": self.timing,
+            "limits": self.limits, "inertia": self.inertia, "gravity": self.gravity,
+        }  # fmt: skip
+
+
+def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
+    """The library objects of a sequence request (a bad value raises the library's error,
+    located at its field). A target's goal takes no ``tolerance`` nor ``prefer``: a sequence
+    reaches each target exactly, and chooses the modes by its ``objective``."""
+    from planner.planning.problem import CartesianTarget as CoreTarget
+    from planner.planning.problem import JointPosture as CorePosture
+    from planner.sequence.problem import SequenceTarget
+
+    design = design_to_core(request.design)
+    with located("body", "start"):
+        start = CorePosture(np.array(request.start.q), request.start.assembly_mode)
+    targets = []
+    for i, t in enumerate(request.targets):
+        g = t.goal
+        loc = ("body", "targets", i, "goal")
+        if g.tolerance != 0.0:
+            _refuse((*loc, "tolerance"), "a sequence target takes no tolerance (0)")
+        if getattr(g, "prefer", "shortest") != "shortest":
+            _refuse((*loc, "prefer"), "a sequence chooses the modes by its objective")
+        with located(*loc):
+            goal = (
+                CorePosture(np.array(g.q), g.assembly_mode)
+                if isinstance(g, JointGoal | JointPostureModel)
+                else CoreTarget(np.array(g.p), g.working_mode)
+            )
+        with located("body", "targets", i):
+            targets.append(SequenceTarget(goal, t.stop, t.blend))
+    return SequenceInputs(
+        design, start, targets, request.cycle, request.objective,
+        obstacles_to_core(request.obstacles), margins_to_core(request.margins),
+        planner_options_to_core(request.planner), timing_to_core(request.timing, request.limits),
+        joint_limits_to_core(request.limits), inertia_to_core(request.design),
+        tuple(request.gravity),  # type: ignore[arg-type]
+    )  # fmt: skip
+
+
+def _refuse(loc: tuple, message: str) -> None:
+    from planner.exceptions import InputError
+
+    with located(*loc):
+        raise InputError(message)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+def _extreme(values: list[float], fn) -> float | None:
+    finite = [v for v in values if v is not None and np.isfinite(v)]
+    return _finite(fn(finite)) if finite else None
+
+
+def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> SequenceResponse:
+    """The answer of a :class:`planner.sequence.SequenceResult`, built once: its legs (each
+    leg's path as planned), the one trajectory in ``format``, the cycle time, the plans'
+    extremes over every leg and the mode search's diagnostics (a timing failure: ``no_path``
+    with ``diagnostics.timing_error``, or ``timeout``)."""
+    legs = [
+        LegModel(
+            target_index=leg.target_index,
+            status=leg.plan.status.value,
+            path=path_model(leg.plan.path) if leg.plan.path is not None else None,
+            working_mode=leg.working_mode,
+            start_time=_finite(leg.start_time),
+            end_time=_finite(leg.end_time),
+            pass_distance=_finite(leg.pass_distance),
+            pass_speed=_finite(leg.pass_speed),
+        )
+        for leg in result.legs
+    ]
+    d = result.diagnostics
+    plans = [leg.plan.diagnostics for leg in result.legs]
+    traj = result.trajectory
+    extra: dict[str, Any] = {}
+    if result.timing_error is not None:
+        from planner.exceptions import TimingDeadlineError
+
+        if not isinstance(result.timing_error, TimingDeadlineError):
+            extra["timing_error"] = timing_error(result.timing_error)
+    elif traj is not None:
+        extra["timing_time_s"] = d.timing_time_s
+        extra["timing_repairs"] = traj.repairs
+    runner = d.runner_up
+    diagnostics = SequenceDiagnosticsModel(
+        planning_time_s=d.planning_time_s,
+        path_length=_extreme([p.path_length for p in plans], sum),
+        min_clearance=_extreme([p.min_clearance for p in plans], min),
+        max_kappa_A=_extreme([p.max_kappa_A for p in plans], max),
+        min_serial_margin=_extreme([p.min_serial_margin for p in plans], min),
+        planner=",".join(sorted({p.planner for p in plans if p.planner})) or None,
+        modes=list(d.modes),
+        runner_up_modes=list(runner[0]) if runner is not None else None,
+        runner_up_cycle_time=_finite(runner[1]) if runner is not None else None,
+        assignments_evaluated=d.estimates,
+        optimality_gap_s=_finite(d.extra.get("gap_s")) if "gap_s" in d.extra else None,
+        stopped_targets=list(d.stopped_targets),
+        **extra,
+    )
+    return SequenceResponse(
+        status=result.status.value,
+        message=result.message,
+        legs=legs,
+        trajectory=trajectory_model(traj, format) if traj is not None else None,
+        cycle_time=_finite(result.cycle_time),
+        diagnostics=diagnostics,
+    )
