@@ -10,6 +10,8 @@ import * as exporter from './export.js';
 import * as regions from './regions.js';
 
 const $ = (id) => document.getElementById(id);
+let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
+presetsAsked.catch(() => { /* handled where it is awaited (loadPresets) */ });
 const scene = new Scene($('scene'));
 const timeline = $('timeline');
 const DEFAULT_MARGINS = { kappa_max: 10, serial_min: 0.05 };
@@ -78,6 +80,7 @@ function designChanged(force = false) {
   designKey = key;
   setState('section-box', 'loading');
   setState('regions-box', 'loading');
+  regions.setTrace(null);  // an answer for another design
   scene.setDesign(d);
   clearTimeout(analysisTimer);
   analysisTimer = setTimeout(() => analyse(d), 300);
@@ -114,9 +117,8 @@ async function analyse(d) {
     design: d, margins: { kappa_max: kappaMax, serial_min: serialMin }, resolution: 128, cell_regions: true,
   }).then((answer) => {
     if (seq !== analysisSeq) return;
-    regions.setMap(answer, d);
+    regions.setMap(answer, d);  // with the trace of the plan shown for this design, if any
     setState('regions-box', 'loaded');
-    if (shown) regions.setTrace(shown.regionTrace);
   });
   const jobs = [[work, 'section-box', (m) => { $('section-note').textContent = `Workspace section unavailable: ${m}`; }],
     [rmap, 'regions-box', (m) => { $('regions-note').textContent = `Region map unavailable: ${m}`; }]];
@@ -157,7 +159,9 @@ $('iso-details').addEventListener('toggle', () => {
 async function loadPresets() {
   const select = $('preset');
   try {
-    presets = (await getJSON('/v1/designs')).presets;
+    const asked = presetsAsked || getJSON('/v1/designs');
+    presetsAsked = null;
+    presets = (await asked).presets;
   } catch (err) {
     const hint = err instanceof ApiError && err.status === 401
       ? 'The service needs an API key: type it into the API key field (Service).' : `presets unavailable: ${err.message}`;
@@ -483,3 +487,24 @@ legendInit();
 designChanged();
 preview();
 loadPresets();
+
+/** Start over: every field as the page first had it, the first example, the default design,
+ * no plan on the screen. */
+function startOver() {
+  clearPlan();
+  lastPlan = null;
+  $('download-json').disabled = true;
+  $('download-csv').disabled = true;
+  const key = $('api-key').value;
+  $('request-form').reset();
+  $('api-key').value = key;
+  form.clearErrors();
+  exportKind = null;
+  $('export-text').hidden = true;
+  $('fraction-wrap').hidden = true;
+  $('example').value = '0';
+  setStatus('not planned', '');
+  exampleChosen(form.EXAMPLES[0]);
+  pickMode();
+}
+$('start-over').addEventListener('click', startOver);

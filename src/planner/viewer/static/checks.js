@@ -51,8 +51,8 @@ function pick(s, path, hint) {
   return s;
 }
 
-/** A bound as Python writes it (1e-06, not 0.000001). */
-const num = (x) => (x !== 0 && Math.abs(x) < 1e-4 ? x.toExponential().replace(/e([+-])(\d)$/, 'e$10$2') : String(x));
+/** A bound as pydantic's messages write it (Rust's float display: 0.000001, never 1e-6). */
+const num = (x) => (String(x).includes('e') ? x.toFixed(20).replace(/\.?0+$/, '') : String(x));
 
 /** Pydantic's message for a number `x` against schema `s`, or '' when it holds. */
 export function numberMessage(s, x, required) {

@@ -234,7 +234,7 @@ export function locPath(loc) {
 /** Remove the service's messages (before a new request; the typed checks stay). */
 export function clearErrors() {
   form.querySelectorAll('.field-error:not(.general)[data-source=service]').forEach((e) => e.remove());
-  form.querySelectorAll('[aria-invalid=service]').forEach((e) => e.removeAttribute('aria-invalid'));
+  form.querySelectorAll('[data-invalid=service]').forEach((e) => { e.removeAttribute('aria-invalid'); delete e.dataset.invalid; });
   const general = document.getElementById('general-error');
   general.hidden = true;
   general.textContent = '';
@@ -269,14 +269,19 @@ function showError(path, msg, source) {
   el.textContent = text;
   target.appendChild(el);
   const box = exact || target.querySelector('input, select, textarea');
-  if (box && box.getAttribute('aria-invalid') !== 'typed') box.setAttribute('aria-invalid', source === 'typed' ? 'typed' : 'service');
+  if (box && box.dataset.invalid !== 'typed') { box.setAttribute('aria-invalid', 'true'); box.dataset.invalid = source; }
   target.closest('details')?.setAttribute('open', '');
 }
 
 /** Show each error of a 422 detail list next to the most precise field its loc names. */
 export function showErrors(detail) {
   clearErrors();
-  for (const item of detail) showError(locPath(item.loc || []), item.msg, 'service');
+  for (const item of detail) {
+    const path = locPath(item.loc || []);
+    // the service's word replaces the typed check's at the same field (they say the same)
+    form.querySelectorAll(`.field-error[data-source=typed][data-loc="${path.join('.')}"]`).forEach((e) => e.remove());
+    showError(path, item.msg, 'service');
+  }
 }
 
 // ------------------------------------------------------------------ checked as typed
@@ -317,11 +322,12 @@ export function typed(el) {
   if (!loc) return;
   const { target } = targetOf(loc.split('.'));
   target?.querySelectorAll(`.field-error[data-source=typed][data-loc="${loc}"]`).forEach((e) => e.remove());
-  if (el.getAttribute('aria-invalid') === 'typed') el.removeAttribute('aria-invalid');
+  if (el.dataset.invalid === 'typed') { el.removeAttribute('aria-invalid'); delete el.dataset.invalid; }
   const msg = typedMessage(el);
   if (msg) {
     showError(loc.split('.'), msg, 'typed');
-    el.setAttribute('aria-invalid', 'typed');
+    el.setAttribute('aria-invalid', 'true');
+    el.dataset.invalid = 'typed';
   }
 }
 
@@ -334,6 +340,7 @@ export function recheck() {
 /** The schema the checks read, then every field checked. */
 export async function loadChecks(getJSON) {
   await checks.load(getJSON);
+  form.dataset.checks = 'loaded';
   recheck();
 }
 

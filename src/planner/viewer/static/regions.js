@@ -178,6 +178,8 @@ function lists(asm, mode, highlight) {
   note.textContent = `${all.length} regions in assembly mode ${asm} (${map.regions.length} in all, `
     + `${map.components} components joined by ${map.transits.length} transits), κ(A) ≤ ${map.margins.kappa_max}, `
     + `serial margin ≥ ${map.margins.serial_min}, ${map.resolution} × ${map.resolution} cells.`;
+  const startId = trace?.start && trace.assembly === asm ? regionAt(trace.start[1], trace.start[2], asm) : -1;
+  if (startId >= 0) note.dataset.startRegion = String(startId); else delete note.dataset.startRegion;
   if (highlight) {
     const { s, g } = highlight;
     note.textContent += s.component === g.component
@@ -194,13 +196,18 @@ function lists(asm, mode, highlight) {
     li.append(swatch(shade(r)), `region ${r.id}: ${r.working_mode} / ${r.assembly_mode}, ${r.cells} cells, component ${r.component}`);
     return li;
   }));
-  document.getElementById('regions-transits').replaceChildren(...map.transits
-    .filter((t) => ids.has(t.from) || ids.has(t.to)).map((t) => {
-      const li = document.createElement('li');
-      const a = regionById(t.from), b = regionById(t.to);
-      li.textContent = `transit ${t.from} (${a?.working_mode}) ↔ ${t.to} (${b?.working_mode}): ${t.kind}, sign ${t.flipped} flips`;
-      return li;
-    }));
+  const pairs = new Map();  // one line per pair of regions, with every kind of surface between them
+  for (const t of map.transits.filter((x) => ids.has(x.from) || ids.has(x.to))) {
+    const key = `${t.from}-${t.to}`;
+    if (!pairs.has(key)) pairs.set(key, { ...t, kinds: [] });
+    pairs.get(key).kinds.push(t.kind);
+  }
+  document.getElementById('regions-transits').replaceChildren(...[...pairs.values()].map((t) => {
+    const li = document.createElement('li');
+    const a = regionById(t.from), b = regionById(t.to);
+    li.textContent = `transit ${t.from} (${a?.working_mode}) ↔ ${t.to} (${b?.working_mode}): sign ${t.flipped} flips across ${t.kinds.join(', ')}`;
+    return li;
+  }));
 }
 
 document.getElementById('regions-assembly').addEventListener('change', draw);

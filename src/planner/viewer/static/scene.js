@@ -105,7 +105,15 @@ export class Scene {
     this.controls.update();
   }
 
-  render() { this.renderer.render(this.scene, this.camera); }
+  /** Draw at the next frame (many changes in one task cost one drawing). */
+  render() {
+    if (this.pending) return;
+    this.pending = true;
+    requestAnimationFrame(() => {
+      this.pending = false;
+      this.renderer.render(this.scene, this.camera);
+    });
+  }
 
   /** Build the robot and the static world for a design (call again when it changes). */
   setDesign(design) {
