@@ -125,6 +125,22 @@ def test_the_csv_download_is_the_library_writers_format(page, method):
     page.watch.check()
 
 
+#: Numbers whose 17-digit forms take every branch of Python's "g" format: zero and its sign,
+#: the exponent's thresholds (1e-4, 1e16, 1e17), rounding up to a new power of ten, the
+#: smallest and largest floats.
+AWKWARD = [0.0, -0.0, 0.1, -1 / 3, 1e-4, 9.99999999999999e-5, 1e-5, 1.5e-300, 5e-324, 1e16,
+           1e17, 123456789012345678.0, 0.99999999999999999, 2.0**-30, 1.7976931348623157e308,
+           -2.5, 100.0, 6.02214076e23]  # fmt: skip
+
+
+def test_the_pages_number_format_is_pythons(page):
+    got = page.evaluate(
+        "async (xs) => { const m = await import('/viewer/export.js'); return xs.map(m.g17); }",
+        AWKWARD,
+    )
+    assert got == [f"{x:.17g}" for x in AWKWARD]
+
+
 # ---------------------------------------------------------------------------- loading states
 class Held:
     """Requests to the given paths kept waiting until ``release()``."""
@@ -338,22 +354,6 @@ def test_waypoints_are_picked_on_the_workspace_section(page, live_server):
 
 
 # ---------------------------------------------------------------------------- region map
-def _closed_form_mode(design: dict, q2: float, q3: float, asm: str) -> str | None:
-    """The working mode at (theta2, theta3) from the formulas of docs/conventions.md."""
-    L0, L1, L2 = design["L0"], design["L1"], design["L2"]
-    c = np.array([-L0 / 2 + L1 * np.cos(q2), L1 * np.sin(q2)])
-    d = np.array([L0 / 2 + L1 * np.cos(q3), L1 * np.sin(q3)])
-    e = d - c
-    h2 = L2**2 - e @ e / 4
-    if h2 <= 0:
-        return None
-    s = (1 if asm == "+" else -1) * np.sqrt(h2 / (e @ e))
-    p = (c + d) / 2 + s * np.array([-e[1], e[0]])
-    t4, t5 = np.arctan2(*(p - c)[::-1]), np.arctan2(*(p - d)[::-1])
-    signs = (p[1], np.sin(t4 - q2), np.sin(t5 - q3))
-    return "".join("+" if v > 0 else "-" for v in signs)
-
-
 def test_the_region_map_and_the_paths_trace(page, live_server, tmp_path):
     e = expect()
     view = page.get_by_test_id("regions-view")
@@ -363,25 +363,9 @@ def test_the_region_map_and_the_paths_trace(page, live_server, tmp_path):
     rmap = got.value.json()
     e(page.locator("#regions-box")).to_have_attribute("data-state", "loaded")
     design = rmap["design"]
-    # the cells' regions agree with the closed-form working mode of each cell's centre
     n = rmap["resolution"]
-    cells = np.asarray(rmap["cell_regions"])
-    by_id = {r["id"]: r for r in rmap["regions"]}
+    cells = np.asarray(rmap["cell_regions"])  # checked against the map: test_viewer_static.py
     lo, hi = np.asarray(design["joint_min"]), np.asarray(design["joint_max"])
-    rng = np.random.default_rng(3)
-    checked = 0
-    for _ in range(400):
-        ai, k3, k2 = rng.integers(2), rng.integers(n), rng.integers(n)
-        rid = int(cells[ai, k3, k2])
-        if rid < 0:
-            continue
-        q2 = lo[1] + (k2 + 0.5) * (hi[1] - lo[1]) / n
-        q3 = lo[2] + (k3 + 0.5) * (hi[2] - lo[2]) / n
-        asm = "+-"[ai]
-        assert by_id[rid]["assembly_mode"] == asm
-        assert by_id[rid]["working_mode"] == _closed_form_mode(design, q2, q3, asm)
-        checked += 1
-    assert checked > 100
     # the page lists the regions of the assembly mode shown, and the transits
     plus = [r for r in rmap["regions"] if r["assembly_mode"] == "+"]
     e(page.locator("#regions-list li")).to_have_count(len(plus))
