@@ -10,7 +10,7 @@ const canvas = document.getElementById('regions-canvas');
 let map = null;        // the /v1/design/regions answer
 let design = null;
 let trace = null;      // {q2: [], q3: [], assembly, start, goal, proof}
-const MARGIN = { left: 46, right: 10, top: 10, bottom: 34 };
+const MARGIN = { left: 46, right: 20, top: 10, bottom: 34 };
 
 const hex = (h) => [1, 3, 5].map((i) => parseInt(h.slice(i, i + 2), 16));
 
@@ -152,10 +152,13 @@ function drawTrace(ctx, plot, ai) {
     if (!q) continue;
     const x = toX(q[1], plot), y = toY(q[2], plot);
     ctx.fillStyle = colour;
-    ctx.beginPath(); ctx.arc(x, y, 5, 0, 2 * Math.PI); ctx.fill();
-    ctx.fillStyle = '#111';
+    ctx.strokeStyle = '#fff';  // ringed: it may lie on a region of its own colour
+    ctx.lineWidth = 2;
+    ctx.beginPath(); ctx.arc(x, y, 5, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
     ctx.font = '600 12px system-ui, sans-serif';
     ctx.textAlign = 'left';
+    ctx.strokeText(name, x + 7, y - 7);
+    ctx.fillStyle = '#111';
     ctx.fillText(name, x + 7, y - 7);
   }
   ctx.restore();

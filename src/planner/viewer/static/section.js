@@ -86,6 +86,10 @@ function draw(u) {
   const x0 = u.valToPos(grid.x[0] - dx, 'x', true), x1 = u.valToPos(grid.x.at(-1) + dx, 'x', true);
   const y0 = u.valToPos(grid.y.at(-1) + dy, 'y', true), y1 = u.valToPos(grid.y[0] - dy, 'y', true);
   ctx.save();
+  const { left, top, width, height } = u.bbox;
+  ctx.beginPath();
+  ctx.rect(left, top, width, height);
+  ctx.clip();  // a waypoint out of reach may lie beyond the axes
   ctx.imageSmoothingEnabled = false;
   ctx.drawImage(image, x0, y0, x1 - x0, y1 - y0);
   if (rest && rest.u.length >= 2) {
