@@ -125,4 +125,6 @@ def regions(request: RegionsRequest, budget: JobBudget = UNBOUNDED) -> RegionsRe
     t0 = time.perf_counter()
     with located("body", "resolution"):
         rmap = region_map(design, margins, request.resolution, deadline=budget.deadline)
-    return regions_model(rmap, computation_time_s=time.perf_counter() - t0)
+    return regions_model(
+        rmap, computation_time_s=time.perf_counter() - t0, with_cells=request.cell_regions
+    )

@@ -28,7 +28,7 @@ SLACK_S = 5.0
 HUGE = Design(0.0, 1000.0, 1000.0)
 START = JointPosture((0.3, 2.0, 1.0), "+")
 FAR = np.random.default_rng(0).uniform(-1500.0, 1500.0, size=(50, 3))
-#: A short straight path of the default robot (tests/test_api_cartesian.py's start).
+#: A short straight path of the default robot (tests/service/test_api_cartesian.py's start).
 SMALL_START = JointPosture((-0.2187, 2.8609, 0.2807), "+")
 SMALL_WAYPOINT = np.array([[0.45, 0.3, 0.1]])
 

@@ -2,139 +2,49 @@
 real service process (the ``live_server`` fixture).
 
 Every test also checks that the page logged no console error, that no request failed and
-that no request left the service's own origin (the page works offline). Screenshots go to
-the test's temporary folder.
-
-Without chromium (``/usr/bin/chromium``) or the ``playwright`` package the tests are skipped,
-except in CI (``CI=true``), where they fail: CI installs chromium (``.ci/run``).
+that no request left the service's own origin (the page works offline). The helpers (the
+browser, what a page logged, the ready states) are in ``viewer_browser.py``; the second
+round's rows (examples, CSV, loading states, typed checks, exports, narrow windows, straight
+paths, the region map) are tested in ``test_viewer_page.py``.
 """
 
 from __future__ import annotations
 
-import io
 import json
-import os
 import re
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pytest
+from viewer_browser import Watch, blue, launch, open_viewer, orange, pixels, plan
 
-CHROMIUM = Path(os.environ.get("PLANNER_CHROMIUM", "/usr/bin/chromium"))
-ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
-#: Generous waits (ms): a plan takes well under a second, a cold worker a few.
-WAIT_MS = 30_000
 VIEWPORT = {"width": 1600, "height": 1000}
-STATUS_PENDING = re.compile(r"^(not planned|planning…)$")
-
-
-def _unavailable(reason: str) -> None:
-    if os.environ.get("CI") == "true":
-        pytest.fail(f"{reason}: CI must run the browser tests (.ci/run installs chromium)")
-    pytest.skip(reason)
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[object]:
     """One headless chromium for the module."""
-    if not CHROMIUM.exists():
-        _unavailable(f"no chromium at {CHROMIUM} (apt-get install chromium)")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:  # pragma: no cover - the dev extra installs it
-        _unavailable("the playwright package is not installed (pip install -e '.[dev]')")
-    from playwright.sync_api import expect
-
-    expect.set_options(timeout=WAIT_MS)
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+    with launch() as b:
         yield b
-        b.close()
 
 
-class Watch:
-    """What a page logged and requested."""
-
-    def __init__(self, page, origin: str) -> None:
-        self.origin = origin
-        self.errors: list[str] = []
-        self.failed: list[str] = []
-        self.foreign: list[str] = []
-        page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
-        page.on("pageerror", lambda e: self.errors.append(f"page error: {e}"))
-        page.on("requestfailed", lambda r: self.failed.append(f"{r.url}: {r.failure}"))
-        page.on("request", self._request)
-
-    def _request(self, request) -> None:
-        url = request.url
-        if not (
-            url.startswith((self.origin + "/", f"blob:{self.origin}/")) or url.startswith("data:")
-        ):
-            self.foreign.append(url)
-
-    def check(self, allowed_errors: re.Pattern[str] | None = None) -> None:
-        errors = [e for e in self.errors if not (allowed_errors and allowed_errors.search(e))]
-        assert errors == [], errors
-        assert self.failed == [], self.failed
-        assert self.foreign == [], self.foreign
-
-
-@pytest.fixture
-def page(browser, live_server):
+@pytest.fixture(scope="module")
+def module_page(browser, live_server):
+    """One page for the module's tests on the ``live_server`` (each test loads it again)."""
     context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
     pg = context.new_page()
-    pg.set_default_timeout(WAIT_MS)
+    pg.set_default_timeout(30_000)
     pg.watch = Watch(pg, live_server)
     yield pg
     context.close()
 
 
-def open_viewer(page, url: str) -> None:
-    """Load the page and wait until its presets and design analysis have arrived."""
-    from playwright.sync_api import expect
-
-    page.goto(url + "/")
-    expect(page.locator("#preset")).to_have_value("default")
-    expect(page.locator("#iso-figure")).to_have_attribute("data-state", "loaded")
-    expect(page.locator("#section-note")).to_have_attribute("data-state", "loaded")
-
-
-def plan(page) -> dict:
-    """Click Plan; the service's answer, once the page shows its status."""
-    from playwright.sync_api import expect
-
-    with page.expect_response(lambda r: r.url.endswith("/v1/plan")) as answer:
-        page.get_by_test_id("plan-button").click()
-    expect(page.get_by_test_id("status")).not_to_have_text(STATUS_PENDING)
-    return answer.value.json()
-
-
-def pixels(page, selector: str, like) -> int:
-    """How many pixels of an element's screenshot have a colour ``like(r, g, b)``."""
-    from PIL import Image
-
-    image = Image.open(io.BytesIO(page.locator(selector).screenshot())).convert("RGB")
-    rgb = np.asarray(image, dtype=float)
-    return int(np.count_nonzero(like(rgb[..., 0], rgb[..., 1], rgb[..., 2])))
-
-
-def orange(r, g, b):  # links CP, DP (#ff7f0e, shaded)
-    return (r > 150) & (g > 40) & (g < 150) & (b < 60) & (r > 1.6 * g)
-
-
-def blue(r, g, b):  # legs AC, BD (#1f77b4, shaded)
-    return (b > 100) & (r < 70) & (g > 60) & (g < 150) & (b > 1.3 * g)
+@pytest.fixture
+def page(module_page):
+    module_page.watch.reset()
+    return module_page
 
 
 def test_default_request_solves_and_animates(page, live_server, tmp_path):
@@ -169,7 +79,10 @@ def test_default_request_solves_and_animates(page, live_server, tmp_path):
     with page.expect_download() as download:
         page.locator("#download-csv").click()
     rows = Path(download.value.path()).read_text().splitlines()
-    assert rows[0].startswith("t,q1,q2,q3") and len(rows) == len(answer["trajectory"]["t"]) + 1
+    assert (
+        rows[1].startswith("t,theta1,theta2,theta3")
+        and len(rows) == len(answer["trajectory"]["t"]) + 2
+    )
     page.screenshot(path=tmp_path / "viewer_default.png", full_page=True)
     page.watch.check()
 
@@ -282,6 +195,7 @@ def test_api_key_typed_into_the_page_is_sent(browser, keyed_server):
     context = browser.new_context(viewport=VIEWPORT)
     try:
         page = context.new_page()
+        page.set_default_timeout(30_000)
         watch = Watch(page, keyed_server)
         keys: dict[str, str | None] = {}
         page.on("request", lambda r: keys.setdefault(r.url, r.headers.get("x-api-key")))

@@ -16,7 +16,17 @@ import pytest
 from planner.viewer import STATIC_DIR, content_security_policy
 
 ROOT = Path(__file__).resolve().parents[2]
-TEST_IDS = ("plan-button", "status", "scene", "timeline", "mode", "kappa-plot", "joint-plot")
+TEST_IDS = (
+    "plan-button",
+    "status",
+    "scene",
+    "timeline",
+    "mode",
+    "kappa-plot",
+    "joint-plot",
+    "cartesian-mode",
+    "regions-view",
+)
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())
 
@@ -108,3 +118,51 @@ def test_vendored_libraries_have_their_licences_and_sums():
     assert set(listed) == files
     for name, digest in listed.items():
         assert hashlib.sha256((vendor / name).read_bytes()).hexdigest() == digest, name
+
+
+def test_the_region_map_the_viewer_draws_names_each_cells_region(api):
+    """``cell_regions`` (asked by the viewer): the region of each cell centre's posture, checked
+    against the map's own layers (the cell is in that region's label set) and the region's
+    working mode against the closed-form signs of the posture (docs/conventions.md)."""
+    import numpy as np
+
+    from planner.analysis.regions import region_map
+    from planner.design import Design
+    from planner.kinematics import WORKING_MODES as modes
+    from planner.validity import Margins
+
+    n = 48
+    r = api.post("/v1/design/regions", json={"resolution": n, "cell_regions": True})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    cells = np.asarray(body["cell_regions"])
+    assert cells.shape == (2, n, n)
+    assert api.post("/v1/design/regions", json={"resolution": n}).json()["cell_regions"] is None
+    by_id = {reg["id"]: reg for reg in body["regions"]}
+    rmap = region_map(Design.default(), Margins(), n)
+    d = Design.default()
+    theta2, theta3 = rmap.theta2, rmap.theta3
+    checked = 0
+    for ai, asm in enumerate("+-"):
+        for k3 in range(0, n, 3):
+            for k2 in range(0, n, 3):
+                rid = int(cells[ai, k3, k2])
+                if rid < 0:
+                    continue
+                reg = by_id[rid]
+                assert reg["assembly_mode"] == asm
+                mi = modes.index(reg["working_mode"])
+                assert rmap.labels[ai, mi, k3, k2] > 0
+                assert rmap.region_index[ai, mi, rmap.labels[ai, mi, k3, k2]] == rid
+                # the closed form: C, D, then P on the side of the assembly mode
+                q2, q3 = theta2[k2], theta3[k3]
+                c = np.array([-d.L0 / 2 + d.L1 * np.cos(q2), d.L1 * np.sin(q2)])
+                e = np.array([d.L0 / 2 + d.L1 * np.cos(q3), d.L1 * np.sin(q3)]) - c
+                h = np.sqrt(d.L2**2 - e @ e / 4) / np.sqrt(e @ e) * (1 if asm == "+" else -1)
+                p = c + e / 2 + h * np.array([-e[1], e[0]])
+                t4 = np.arctan2(*(p - c)[::-1])
+                t5 = np.arctan2(*(p - c - e)[::-1])
+                signs = (p[1], np.sin(t4 - q2), np.sin(t5 - q3))
+                assert reg["working_mode"] == "".join("+" if v > 0 else "-" for v in signs)
+                checked += 1
+    assert checked > 50

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     ConfigDict,
     Field,
@@ -188,6 +189,11 @@ class RegionsRequest(_Request):
         le=MAX_REGION_RESOLUTION,
         description="Cells per axis of the (theta2, theta3) grid over the joint limits.",
     )
+    cell_regions: bool = Field(
+        False,
+        description="Also answer ``cell_regions``: the region of each cell's centre posture "
+        "(what the viewer draws).",
+    )
 
 
 class RegionModel(_Response):
@@ -231,9 +237,31 @@ class RegionsResponse(_Response):
     transits: list[RegionTransitModel]
     components: int = Field(ge=0, description="Components of the union graph.")
     computation_time_s: float = Field(description="Time to build the map (0 when cached), s.")
+    cell_regions: list[list[list[int]]] | None = Field(
+        None,
+        description="With ``cell_regions: true``: shape (2, n, n), per assembly mode ('+', "
+        "'-'), rows theta3, columns theta2 (cell centres ``joint_min + (k + 0.5) (joint_max - "
+        "joint_min) / n``), the id of the region holding the posture at the cell's centre, "
+        "-1 where that posture is in none (surely invalid, or not assembled).",
+    )
 
 
-def regions_model(rmap: Any, computation_time_s: float = 0.0) -> RegionsResponse:
+def _cell_regions(rmap: Any) -> np.ndarray:
+    """Shape (2, n, n), int: the region id of each cell centre's posture per assembly mode
+    (its working mode ``rmap.centre_mode``, its label in that mode's layer), -1 where none."""
+    mode = np.asarray(rmap.centre_mode, dtype=np.int64)  # (2, n, n), -1: no mode
+    a = np.arange(2)[:, None, None]
+    k3 = np.arange(rmap.n)[None, :, None]
+    k2 = np.arange(rmap.n)[None, None, :]
+    safe = np.maximum(mode, 0)
+    label = np.asarray(rmap.labels)[a, safe, k3, k2]
+    ids = np.asarray(rmap.region_index)[a, safe, label]
+    return np.where((mode >= 0) & (label > 0), ids, -1)
+
+
+def regions_model(
+    rmap: Any, computation_time_s: float = 0.0, *, with_cells: bool = False
+) -> RegionsResponse:
     """The wire form of a :class:`planner.analysis.regions.RegionMap`: its regions, and one
     transit per pair of regions and kind of serial surface between them."""
     regions = [
@@ -261,4 +289,5 @@ def regions_model(rmap: Any, computation_time_s: float = 0.0) -> RegionsResponse
         transits=transits,
         components=len({r.component for r in rmap.regions}),
         computation_time_s=computation_time_s,
+        cell_regions=_cell_regions(rmap).tolist() if with_cells else None,
     )

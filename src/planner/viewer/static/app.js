@@ -1,4 +1,5 @@
-// The viewer's wiring: form -> POST /v1/plan -> scene, timeline, plots and section.
+// The viewer's wiring: form -> POST /v1/plan (or /v1/cartesian for a straight tool path) ->
+// scene, timeline, plots, the workspace section and the region map.
 import { ApiError, getBlob, getJSON, postJSON, setApiKey } from './api.js';
 import * as form from './form.js';
 import { along, fkCheck, posture, transitSamples } from './kin.js';
@@ -6,8 +7,11 @@ import { Scene } from './scene.js';
 import * as plots from './plots.js';
 import * as section from './section.js';
 import * as exporter from './export.js';
+import * as regions from './regions.js';
 
 const $ = (id) => document.getElementById(id);
+let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
+presetsAsked.catch(() => { /* handled where it is awaited (loadPresets) */ });
 const scene = new Scene($('scene'));
 const timeline = $('timeline');
 const DEFAULT_MARGINS = { kappa_max: 10, serial_min: 0.05 };
@@ -20,6 +24,7 @@ let tNow = 0;
 let lastFrame = null;
 let designKey = '';
 let analysisSeq = 0;
+let exportKind = null;  // 'curl' | 'python' once the export box is shown: it follows the form
 
 // ------------------------------------------------------------------ status and messages
 function setStatus(text, kind, message = '') {
@@ -31,6 +36,8 @@ function setStatus(text, kind, message = '') {
 }
 
 const fmt = (x, d = 3) => (x === null || x === undefined ? '—' : Number.isFinite(x) ? x.toFixed(d) : '∞');
+/** Points [x, y, z] as in-plane coordinates of the plane theta1 (u = y, w along e(theta1)). */
+const inPlane = (pts, t1) => ({ u: pts.map((p) => p[1]), w: pts.map((p) => p[0] * Math.cos(t1) - p[2] * Math.sin(t1)) });
 const allNumbers = (d) => [d.L0, d.L1, d.L2, d.link_radius, ...(d.joint_min || []), ...(d.joint_max || [])]
   .every((x) => typeof x === 'number');
 
@@ -43,7 +50,7 @@ function currentDesign() {
 function preview() {
   const d = currentDesign();
   if (!d) return;
-  const req = form.request();
+  const req = form.request.plan();
   scene.setObstacles(req.obstacles);
   if (shown) return;
   const x = req.start.q.every((v) => typeof v === 'number') && posture(d, req.start.q, req.start.assembly_mode);
@@ -54,66 +61,107 @@ function preview() {
   const g = req.goal;
   const gx = g.q ? g.q.every((v) => typeof v === 'number') && posture(d, g.q, g.assembly_mode) : null;
   const goalP = g.p && g.p.every((v) => typeof v === 'number') ? g.p : gx ? gx.P : null;
-  scene.setPath([], [], [], [], goalP);
+  const path = form.endpoint() === 'cartesian' && x
+    ? [x.P, ...form.waypoints().filter((w) => w.length === 3 && w.every((v) => typeof v === 'number'))] : null;
+  scene.setPath([], [], [], [], path ? null : goalP, path);
 }
 
+function legendInit() { section.legend($('kappa-bands')); }
+
 let analysisTimer = null;
-function designChanged() {
+/** The design (or, with `force`, the margins the analysis uses) changed: analyse it again. */
+function designChanged(force = false) {
   const d = currentDesign();
   if (!d) return;
-  const key = JSON.stringify(d);
-  const match = presets.find((p) => JSON.stringify(p.design) === key);
+  const key = JSON.stringify(d) + (force ? JSON.stringify(form.request.plan().margins) : '');
+  const match = presets.find((p) => JSON.stringify(p.design) === JSON.stringify(d));
   $('preset').value = match ? match.name : '';
   if (key === designKey) return;
   designKey = key;
+  setState('section-box', 'loading');
+  setState('regions-box', 'loading');
+  regions.setTrace(null);  // an answer for another design
   scene.setDesign(d);
   clearTimeout(analysisTimer);
   analysisTimer = setTimeout(() => analyse(d), 300);
 }
 
-/** The design's workspace section and isoconditioning figure (analysis endpoints). */
+/** Mark a panel loading (its old content dimmed under a notice) or done. */
+const setState = (id, state) => { $(id).dataset.state = state; };
+
+/** The design's workspace section, region map and (when open) the service's isoconditioning
+ * figure: each panel shows that it is loading from the moment the design changes. */
 async function analyse(d) {
   const seq = ++analysisSeq;
-  const margins = form.request().margins;
+  const margins = form.request.plan().margins;
   const kappaMax = typeof margins.kappa_max === 'number' && margins.kappa_max > 1 ? margins.kappa_max : DEFAULT_MARGINS.kappa_max;
+  const serialMin = typeof margins.serial_min === 'number' && margins.serial_min > 0 && margins.serial_min < 1 ? margins.serial_min : DEFAULT_MARGINS.serial_min;
+  setState('section-box', 'loading');
   $('section-note').dataset.state = 'loading';
-  const img = $('iso-figure');
-  img.dataset.state = 'loading';
-  const query = new URLSearchParams({ L0: d.L0, L1: d.L1, L2: d.L2 });
+  setState('regions-box', 'loading');
   const work = postJSON('/v1/workspace', {
     design: d, rel_se: 0.05, kappa_max: kappaMax, sections: { resolution: 64, joint: false },
   }).then((ws) => {
     if (seq !== analysisSeq) return;
     section.setSection(ws.cartesian_section, kappaMax);
     if (shown) section.setPath(shown.sectionPath);
+    setState('section-box', 'loaded');
     $('section-note').dataset.state = 'loaded';
     $('section-note').textContent = `Volume ${fmt(ws.volume)} m³ (closed form), ${fmt(ws.sampled_volume.value)} m³ within the joint limits; `
       + `well-conditioned (κ ≤ ${kappaMax}) ${fmt(100 * ws.well_conditioned_fraction.value, 0)} %; GCI ${fmt(ws.gci.value)}. `
-      + 'Colour: the smallest κ(A) over the working modes reaching the cell (teal: isotropic, yellow: κ max, orange: above); '
-      + 'faded: not reached in the current working mode. Line: the path of P in the linkage plane (u, w), which does not depend on θ1; numbered dots: the transits.';
+      + 'Colour: the smallest κ(A) over the working modes reaching the cell, in the bands of the paper\'s isoconditioning figure; '
+      + 'faded: not reached in the current working mode. Line: the path of P in the linkage plane (u, w), which does not depend on θ1; numbered dots: the transits'
+      + (form.endpoint() === 'cartesian' ? '. Click to add a waypoint (in the start\'s plane θ1).' : '.');
   });
-  const fig = getBlob(`/v1/figures/isoconditioning.png?${query}`).then((blob) => {
+  const rmap = postJSON('/v1/design/regions', {
+    design: d, margins: { kappa_max: kappaMax, serial_min: serialMin }, resolution: 128, cell_regions: true,
+  }).then((answer) => {
     if (seq !== analysisSeq) return;
-    if (img.src.startsWith('blob:')) URL.revokeObjectURL(img.src);
-    img.src = URL.createObjectURL(blob);
-    img.alt = `isoconditioning map of L0 = ${d.L0}, L1 = ${d.L1}, L2 = ${d.L2} (the service's figure)`;
-    img.dataset.state = 'loaded';
+    regions.setMap(answer, d);  // with the trace of the plan shown for this design, if any
+    setState('regions-box', 'loaded');
   });
-  for (const [job, el] of [[work, $('section-note')], [fig, img]]) {
+  const jobs = [[work, 'section-box', (m) => { $('section-note').textContent = `Workspace section unavailable: ${m}`; }],
+    [rmap, 'regions-box', (m) => { $('regions-note').textContent = `Region map unavailable: ${m}`; }]];
+  if ($('iso-details').open) jobs.push([figure(d, seq), 'iso-box', (m) => { $('iso-figure').alt = `isoconditioning figure unavailable: ${m}`; }]);
+  else setState('iso-box', 'stale');
+  for (const [job, id, say] of jobs) {
     job.catch((err) => {
       if (seq !== analysisSeq) return;
-      el.dataset.state = 'failed';
-      if (el === img) img.alt = `isoconditioning map unavailable: ${err.message}`;
-      else el.textContent = `Workspace section unavailable: ${err.message}`;
+      setState(id, 'failed');
+      if (id === 'section-box') $('section-note').dataset.state = 'failed';
+      say(err.message);
       if (err instanceof ApiError && err.status === 422) form.showErrors(err.detail);
     });
   }
 }
 
+/** The service's figure 15 for design d, at its own size (shown only when asked for). */
+function figure(d, seq) {
+  const img = $('iso-figure');
+  setState('iso-box', 'loading');
+  const query = new URLSearchParams({ L0: d.L0, L1: d.L1, L2: d.L2 });
+  return getBlob(`/v1/figures/isoconditioning.png?${query}`).then((blob) => {
+    if (seq !== analysisSeq) return;
+    if (img.src.startsWith('blob:')) URL.revokeObjectURL(img.src);
+    img.src = URL.createObjectURL(blob);
+    img.alt = `isoconditioning figure of L0 = ${d.L0}, L1 = ${d.L1}, L2 = ${d.L2} (the service's figure)`;
+    setState('iso-box', 'loaded');
+  });
+}
+
+$('iso-details').addEventListener('toggle', () => {
+  const d = currentDesign();
+  if ($('iso-details').open && d && $('iso-box').dataset.state !== 'loaded' && $('iso-box').dataset.state !== 'loading') {
+    figure(d, analysisSeq).catch((err) => { setState('iso-box', 'failed'); $('iso-figure').alt = `isoconditioning figure unavailable: ${err.message}`; });
+  }
+});
+
 async function loadPresets() {
   const select = $('preset');
   try {
-    presets = (await getJSON('/v1/designs')).presets;
+    const asked = presetsAsked || getJSON('/v1/designs');
+    presetsAsked = null;
+    presets = (await asked).presets;
   } catch (err) {
     const hint = err instanceof ApiError && err.status === 401
       ? 'The service needs an API key: type it into the API key field (Service).' : `presets unavailable: ${err.message}`;
@@ -130,6 +178,16 @@ async function loadPresets() {
   form.setDesign(presets[0].design);  // "default" comes first
   designChanged();  // analysed again only if the service's default differs from the page's
   preview();
+  form.loadChecks(getJSON).catch(() => { /* no schema: the service still says it on Plan */ });
+}
+
+/** An example: the service's default design, then its start, goal and obstacles. */
+function exampleChosen(ex) {
+  if (shown) clearPlan();
+  form.setExample(ex, presets[0]?.design);
+  designChanged();
+  preview();
+  followExport();
 }
 
 $('preset').addEventListener('change', () => {
@@ -139,6 +197,7 @@ $('preset').addEventListener('change', () => {
   form.setDesign(p.design);
   designChanged();
   preview();
+  followExport();
 });
 
 // ------------------------------------------------------------------ plan
@@ -147,13 +206,16 @@ async function plan(ev) {
   form.clearErrors();
   stop();
   const request = form.request();
+  const endpoint = form.endpoint();
   setStatus('planning…', 'busy');
+  $('fraction-wrap').hidden = true;
   $('plan-button').disabled = true;
   try {
-    const response = await postJSON('/v1/plan', request);
+    const response = await postJSON(`/v1/${endpoint}`, request);
     const kind = response.status === 'solved' ? 'solved' : 'failed';
     setStatus(response.status, kind, response.message);
-    showPlan(request, response);
+    showFraction(endpoint, response);
+    showPlan(request, response, endpoint);
   } catch (err) {
     if (err instanceof ApiError && err.status === 422) {
       setStatus('invalid request', 'failed', 'The service refused the request: see the messages next to the fields.');
@@ -164,6 +226,29 @@ async function plan(ev) {
   } finally {
     $('plan-button').disabled = false;
   }
+}
+
+/** A straight path's answer: the share achieved and, when it stopped short, why. */
+function showFraction(endpoint, response) {
+  $('fraction-wrap').hidden = endpoint !== 'cartesian';
+  if (endpoint !== 'cartesian') return;
+  $('fraction').textContent = `${(100 * response.fraction).toFixed(1)} %`;
+  $('fraction').dataset.value = String(response.fraction);
+  const stop = response.stop;
+  $('stop-rule').textContent = stop ? `stopped by ${stop.rule}${stop.value === null || stop.value === undefined ? '' : ` (${fmt(stop.value, 4)})`}` : '';
+}
+
+/** The polyline of a straight path beyond its stop: the stopping point, then the waypoints
+ * not reached (their share of the length from the start's P is above the fraction). */
+function restOf(request, response, startP) {
+  const stop = response.stop;
+  if (!stop || response.fraction >= 1) return null;
+  const pts = [startP, ...request.waypoints];
+  const seg = pts.slice(1).map((p, i) => Math.hypot(p[0] - pts[i][0], p[1] - pts[i][1], p[2] - pts[i][2]));
+  const total = seg.reduce((a, b) => a + b, 0);
+  let acc = 0, k = 0;
+  while (k < seg.length && (acc + seg[k]) / total <= stop.fraction + 1e-12) acc += seg[k++];
+  return [stop.p, ...request.waypoints.slice(k)];
 }
 
 /** The trajectory, or the untimed path (timing "none") at one waypoint per second. */
@@ -188,15 +273,24 @@ function clearPlan() {
   renderTransits([], []);
   plots.clear();
   section.setPath(null);
+  section.setRest(null);
+  regions.setTrace(null);
 }
 
-function showPlan(request, response) {
+function showPlan(request, response, endpoint = 'plan') {
   clearPlan();
   $('download-json').disabled = false;
   $('download-csv').disabled = !response.trajectory;
-  lastPlan = { request, response };
+  lastPlan = { endpoint, request, response };
+  const goalQ = request.goal?.q;
+  const trace = (qs) => ({
+    q2: qs.map((q) => q[1]), q3: qs.map((q) => q[2]), assembly: request.start.assembly_mode,
+    start: request.start.q, goal: goalQ || qs.at(-1) || null, goalAssembly: request.goal?.assembly_mode,
+    proof: Boolean(response.diagnostics?.proven_infeasible),
+  });
   if (!response.path) {
     preview();
+    regions.setTrace({ ...trace([]), goal: goalQ || null });
     return;
   }
   const d = request.design;
@@ -212,15 +306,21 @@ function showPlan(request, response) {
   const modes = segs.map((s) => s.working_mode);
   const transits = trs.map((tr, i) => ({ ...tr, sample: ks[i], t: traj.t[ks[i]], p: postures[ks[i]]?.P, from: modes[i], to: modes[i + 1] }));
   const margins = { ...DEFAULT_MARGINS, ...request.margins };
+  const rest = endpoint === 'cartesian' ? restOf(request, response, postures[0].P) : null;
   shown = {
     request, response, traj, postures, segmentOf, modes, transits,
     sectionPath: { u: postures.map((x) => x?.u ?? NaN), w: postures.map((x) => x?.w ?? NaN), segmentOf, modes, transits },
+    regionTrace: trace(traj.q),
   };
   scene.setDesign(d);
   designKey = JSON.stringify(d);
   scene.setObstacles(request.obstacles);
-  scene.setPath(postures.map((x) => x.P), segmentOf, modes, transits, request.goal.p || postures.at(-1).P);
+  const goalP = request.goal?.p || request.waypoints?.at(-1) || postures.at(-1).P;
+  scene.setPath(postures.map((x) => x.P), segmentOf, modes, transits, goalP, rest);
+  $('scene').dataset.rest = rest ? String(rest.length) : '0';
   section.setPath(shown.sectionPath);
+  section.setRest(rest && inPlane(rest, traj.q[0][0]));
+  regions.setTrace(shown.regionTrace);
   plots.show({
     t: traj.t, q: traj.q, qd: traj.qd, qdd: traj.qdd,
     kappa: postures.map((x) => x.kappa), serial: postures.map((x) => x.serial),
@@ -333,10 +433,15 @@ async function exportText(text) {
 }
 
 const withKey = () => $('api-key').value.trim() !== '';
-$('copy-curl').addEventListener('click', () => exportText(exporter.curl(location.origin, form.request(), withKey())));
-$('copy-python').addEventListener('click', () => exportText(exporter.python(location.origin, form.request(), withKey())));
+const exportOf = (kind) => exporter[kind](location.origin, form.request(), withKey(), form.endpoint());
+$('copy-curl').addEventListener('click', () => { exportKind = 'curl'; exportText(exportOf('curl')); });
+$('copy-python').addEventListener('click', () => { exportKind = 'python'; exportText(exportOf('python')); });
+/** Keep the export box on the form's current request (not copied again: it is shown). */
+function followExport() {
+  if (exportKind && !$('export-text').hidden) $('export-text').value = exportOf(exportKind);
+}
 $('download-json').addEventListener('click', () => {
-  if (lastPlan) exporter.download('plan.json', JSON.stringify(lastPlan, null, 1), 'application/json');
+  if (lastPlan) exporter.download('plan.json', JSON.stringify({ request: lastPlan.request, response: lastPlan.response }, null, 1), 'application/json');
 });
 $('download-csv').addEventListener('click', () => {
   if (lastPlan?.response.trajectory) exporter.download('trajectory.csv', exporter.csv(lastPlan.response.trajectory), 'text/csv');
@@ -350,15 +455,56 @@ $('api-key').addEventListener('change', () => {
   designChanged();
 });
 $('request-form').addEventListener('submit', plan);
-window.addEventListener('resize', () => plots.resize());
+let resizeTimer = null;
+window.addEventListener('resize', () => {
+  clearTimeout(resizeTimer);
+  resizeTimer = setTimeout(() => { plots.resize(); section.resize(); regions.draw(); }, 100);
+});
+$('clear-waypoints').addEventListener('click', () => { form.setWaypoints([]); form.recheck(); followExport(); });
+
+/** In straight-path mode, a click on the workspace section adds a waypoint there (in the
+ * linkage plane of the start's theta1). */
+function pickMode() {
+  const on = form.endpoint() === 'cartesian';
+  section.setPick(on ? (u, w) => {
+    const t1 = Number(form.request.plan().start.q[0]) || 0;
+    form.addWaypoint([w * Math.cos(t1), u, -w * Math.sin(t1)]);
+  } : null);
+}
 
 form.init({
   changed: (name = '') => {
     if (name.startsWith('design.') && shown) clearPlan();  // the plan was for another design
-    if (name.startsWith('design.')) designChanged();
+    if (name.startsWith('design.') || name.startsWith('margins.')) designChanged(name.startsWith('margins.'));
+    if (name === 'goal-kind') pickMode();
     preview();
+    followExport();
   },
+  exampleChosen,
 });
+pickMode();
+legendInit();
 designChanged();
 preview();
 loadPresets();
+
+/** Start over: every field as the page first had it, the first example, the default design,
+ * no plan on the screen. */
+function startOver() {
+  clearPlan();
+  lastPlan = null;
+  $('download-json').disabled = true;
+  $('download-csv').disabled = true;
+  const key = $('api-key').value;
+  $('request-form').reset();
+  $('api-key').value = key;
+  form.clearErrors();
+  exportKind = null;
+  $('export-text').hidden = true;
+  $('fraction-wrap').hidden = true;
+  $('example').value = '0';
+  setStatus('not planned', '');
+  exampleChosen(form.EXAMPLES[0]);
+  pickMode();
+}
+$('start-over').addEventListener('click', startOver);

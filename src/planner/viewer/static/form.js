@@ -1,12 +1,16 @@
 // The request form: values <-> a /v1/plan request body, the obstacle list, presets,
 // examples, and the service's 422 messages shown next to the field that caused them.
 // The service is the one validator: a field that is not a number is sent as typed, so the
-// answer names it (detail[].loc) in the service's own words.
+// answer names it (detail[].loc) in the service's own words; checks.js says the same sooner,
+// as each field is typed, from the service's own schema.
+import * as checks from './checks.js';
+import { posture } from './kin.js';
 
 const form = document.getElementById('request-form');
 const obstacleList = document.getElementById('obstacles');
 
-/** Examples on the default design (start in working mode +-+). */
+/** Examples on the default design (start in working mode +-+): choosing one sets the design
+ * back to the service's default and every start, goal and obstacle field, hidden ones too. */
 export const EXAMPLES = [
   {
     name: 'Around a sphere (default)',
@@ -26,7 +30,16 @@ export const EXAMPLES = [
     goal: { p: [-0.25, 0.07, -0.38], working_mode: '+++' },
     obstacles: [{ type: 'box', center: [0.0, -0.45, 0.45], size: [0.1, 0.1, 0.1], quaternion: [1, 0, 0, 0] }],
   },
+  {
+    name: 'Straight tool path: a square in the plane, then out of reach',
+    start: { q: [0.0, 2.0, 1.0], assembly_mode: '+' },
+    waypoints: [[0.5, 0.1, 0.0], [0.5, 0.1, -0.1], [0.5, 0.0, -0.1], [1.5, 0.0, -0.1]],
+    obstacles: [],
+  },
 ];
+
+/** The working mode labels a Cartesian target accepts. */
+export const WORKING_MODES = ['any', '+++', '++-', '+-+', '+--', '-++', '-+-', '--+', '---'];
 
 let obstacles = [];
 let onChange = () => {};
@@ -62,10 +75,37 @@ function showGoalKind() {
   const kind = goalKind();
   document.getElementById('goal-q').hidden = kind !== 'q';
   document.getElementById('goal-p').hidden = kind !== 'p';
+  document.getElementById('goal-path').hidden = kind !== 'path';
+  document.getElementById('plan-button').textContent = kind === 'path' ? 'Plan straight path' : 'Plan';
 }
 
-/** The /v1/plan request body the form holds. */
+/** The endpoint the form's request goes to: 'plan' (/v1/plan) or 'cartesian' (/v1/cartesian). */
+export const endpoint = () => (goalKind() === 'path' ? 'cartesian' : 'plan');
+
+/** The straight path's waypoints as typed: one "x y z" per line (numbers, or the text typed). */
+export function waypoints() {
+  return input('waypoints').value.split('\n').map((l) => l.trim()).filter((l) => l)
+    .map((l) => l.split(/[\s,;]+/).map((x) => (Number.isFinite(Number(x)) ? Number(x) : x)));
+}
+
+export function setWaypoints(points) {
+  input('waypoints').value = points.map((p) => p.map((x) => +x.toFixed(4)).join(' ')).join('\n');
+}
+
+/** Append a waypoint (e.g. picked on the workspace section) and say so. */
+export function addWaypoint(p) {
+  setWaypoints([...waypoints().filter((w) => w.length === 3 && w.every((x) => typeof x === 'number')), p]);
+  typed(input('waypoints'));
+  onChange('waypoints');
+}
+
+/** The request body the form holds, for its endpoint (see endpoint()). */
 export function request() {
+  return endpoint() === 'cartesian' ? cartesianRequest() : request.plan();
+}
+
+/** The /v1/plan request body (whatever the goal kind shown, a joint or Cartesian goal). */
+request.plan = function planRequest() {
   const goal = goalKind() === 'q'
     ? { q: vector('goal.q'), assembly_mode: input('goal.assembly_mode').value }
     : { p: vector('goal.p'), working_mode: input('goal.working_mode').value };
@@ -86,6 +126,16 @@ export function request() {
     timing: drop({ method: input('timing.method').value, sample_rate_hz: read('timing.sample_rate_hz') }),
     limits: drop({ velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration') }),
   };
+};
+
+/** The /v1/cartesian request body: the plan's fields that a straight path takes. */
+function cartesianRequest() {
+  const r = request.plan();
+  return drop({
+    design: r.design, start: r.start, waypoints: waypoints(),
+    path_tolerance: read('path_tolerance'),
+    obstacles: r.obstacles, margins: r.margins, timing: r.timing, limits: r.limits,
+  });
 }
 
 /** The design part of the form. */
@@ -100,20 +150,33 @@ export function design() {
 export function setDesign(d) {
   for (const k of ['L0', 'L1', 'L2', 'link_radius']) setValue(`design.${k}`, d[k]);
   for (const k of ['joint_min', 'joint_max']) d[k].forEach((x, i) => setValue(`design.${k}.${i}`, x));
+  recheck();
 }
 
-/** Put an example's start, goal and obstacles into the form. */
-export function setExample(ex) {
+/** Put an example into the form: its design (`d`, the service's default), start, goal and
+ * obstacles, and every field a goal kind not shown would use, so none keeps a value from
+ * before: a joint goal also fills the Cartesian point with its P (working mode "any") and the
+ * straight path with that point; a Cartesian goal leaves the joint goal empty (to be typed). */
+export function setExample(ex, d) {
+  if (d) setDesign(d);
   ex.start.q.forEach((x, i) => setValue(`start.q.${i}`, x));
   setValue('start.assembly_mode', ex.start.assembly_mode);
-  const kind = 'q' in ex.goal ? 'q' : 'p';
+  const kind = ex.waypoints ? 'path' : 'q' in ex.goal ? 'q' : 'p';
   form.querySelector(`input[name=goal-kind][value=${kind}]`).checked = true;
-  ex.goal[kind].forEach((x, i) => setValue(`goal.${kind}.${i}`, x));
-  if (kind === 'q') setValue('goal.assembly_mode', ex.goal.assembly_mode);
-  else setValue('goal.working_mode', ex.goal.working_mode);
+  const g = ex.goal || {};
+  const dd = d || design();
+  const x = g.q && [dd.L0, dd.L1, dd.L2].every((v) => typeof v === 'number') ? posture(dd, g.q, g.assembly_mode) : null;
+  const p = g.p || x?.P || ex.waypoints?.at(-1);
+  [0, 1, 2].forEach((i) => setValue(`goal.q.${i}`, g.q ? g.q[i] : ''));
+  setValue('goal.assembly_mode', g.assembly_mode || ex.start.assembly_mode);
+  [0, 1, 2].forEach((i) => setValue(`goal.p.${i}`, p ? +p[i].toFixed(6) : ''));
+  setValue('goal.working_mode', g.working_mode || 'any');
+  setWaypoints(ex.waypoints || (p ? [p] : []));
+  setValue('path_tolerance', '');
   showGoalKind();
   obstacles = ex.obstacles.map((o) => structuredClone(o));
   renderObstacles();
+  recheck();
 }
 
 // ------------------------------------------------------------------ obstacles
@@ -131,6 +194,7 @@ function renderObstacles() {
         ? `<label class="field" data-loc="obstacles.${i}.radius">radius m<input type="number" step="any" data-o="${i}" data-key="radius" value="${o.radius}"></label>`
         : vecInputs(i, 'size', o.size)}
     </div>`).join('') || '<div class="note">none</div>';
+  recheck();
   onChange();
 }
 
@@ -167,12 +231,46 @@ export function locPath(loc) {
   return path.map(String);
 }
 
+/** Remove the service's messages (before a new request; the typed checks stay). */
 export function clearErrors() {
-  form.querySelectorAll('.field-error:not(.general)').forEach((e) => e.remove());
-  form.querySelectorAll('[aria-invalid]').forEach((e) => e.removeAttribute('aria-invalid'));
+  form.querySelectorAll('.field-error:not(.general)[data-source=service]').forEach((e) => e.remove());
+  form.querySelectorAll('[data-invalid=service]').forEach((e) => { e.removeAttribute('aria-invalid'); delete e.dataset.invalid; });
   const general = document.getElementById('general-error');
   general.hidden = true;
   general.textContent = '';
+}
+
+/** The field element a loc (list of strings) points at, and its input. */
+function targetOf(path) {
+  let target = null, exact = null;
+  for (let n = path.length; n > 0 && !target; n--) {
+    const loc = path.slice(0, n).join('.');
+    exact = form.querySelector(`[name="${loc}"], input[data-loc="${loc}"]`);
+    target = form.querySelector(`.field[data-loc="${loc}"], fieldset[data-loc="${loc}"], .obstacle[data-loc="${loc}"], label[data-loc="${loc}"]`)
+      || (exact && exact.closest('[data-loc]'));
+  }
+  return { target, exact };
+}
+
+function showError(path, msg, source) {
+  const text = `${path.join('.') || 'request'}: ${msg}`;
+  const { target, exact } = targetOf(path);
+  if (!target) {
+    const general = document.getElementById('general-error');
+    general.hidden = false;
+    general.textContent += (general.textContent ? '\n' : '') + text;
+    return;
+  }
+  const el = document.createElement('div');
+  el.className = 'field-error';
+  el.dataset.testid = 'field-error';
+  el.dataset.loc = path.join('.');
+  el.dataset.source = source;
+  el.textContent = text;
+  target.appendChild(el);
+  const box = exact || target.querySelector('input, select, textarea');
+  if (box && box.dataset.invalid !== 'typed') { box.setAttribute('aria-invalid', 'true'); box.dataset.invalid = source; }
+  target.closest('details')?.setAttribute('open', '');
 }
 
 /** Show each error of a 422 detail list next to the most precise field its loc names. */
@@ -180,39 +278,83 @@ export function showErrors(detail) {
   clearErrors();
   for (const item of detail) {
     const path = locPath(item.loc || []);
-    let target = null, exact = null;
-    for (let n = path.length; n > 0 && !target; n--) {
-      const loc = path.slice(0, n).join('.');
-      exact = form.querySelector(`[name="${loc}"], input[data-loc="${loc}"]`);
-      target = form.querySelector(`.field[data-loc="${loc}"], fieldset[data-loc="${loc}"], .obstacle[data-loc="${loc}"], label[data-loc="${loc}"]`)
-        || (exact && exact.closest('[data-loc]'));
-    }
-    const text = `${path.join('.') || 'request'}: ${item.msg}`;
-    if (!target) {
-      const general = document.getElementById('general-error');
-      general.hidden = false;
-      general.textContent += (general.textContent ? '\n' : '') + text;
-      continue;
-    }
-    const el = document.createElement('div');
-    el.className = 'field-error';
-    el.dataset.testid = 'field-error';
-    el.dataset.loc = path.join('.');
-    el.textContent = text;
-    target.appendChild(el);
-    (exact || target.querySelector('input, select'))?.setAttribute('aria-invalid', 'true');
-    target.closest('details')?.setAttribute('open', '');
+    // the service's word replaces the typed check's at the same field (they say the same)
+    form.querySelectorAll(`.field-error[data-source=typed][data-loc="${path.join('.')}"]`).forEach((e) => e.remove());
+    showError(path, item.msg, 'service');
   }
 }
 
+// ------------------------------------------------------------------ checked as typed
+/** The loc of a number field of the form ("design.L1", "obstacles.0.center.2"), or null. */
+function locOf(el) {
+  if (el.dataset.loc) return el.dataset.key === 'radius' ? `obstacles.${el.dataset.o}.radius` : el.dataset.loc;
+  return el.name && el.type === 'number' ? el.name : null;
+}
+
+const REQUIRED = /^(design\.(L0|L1|L2|link_radius|joint_m(in|ax)\.\d)|start\.q\.\d|goal\.[qp]\.\d|obstacles\..*)$/;
+
+function typedMessage(el) {
+  if (el.name === 'waypoints') return waypointMessage();
+  const loc = locOf(el);
+  if (!loc || el.closest('[hidden]')) return '';
+  const ep = endpoint();
+  const hint = (p) => (p === 'goal' ? goalKind() : /^obstacles\.\d+$/.test(p) ? obstacles[Number(p.split('.')[1])]?.type : null);
+  return checks.check(ep === 'cartesian' && loc.startsWith('goal.') ? 'plan' : ep, loc, number(el), { required: REQUIRED.test(loc), hint });
+}
+
+function waypointMessage() {
+  if (goalKind() !== 'path') return '';
+  const points = waypoints();
+  if (!points.length) return 'at least one waypoint: one "x y z" per line (m)';
+  for (const [i, w] of points.entries()) {
+    if (w.length !== 3 || w.some((x) => typeof x !== 'number')) return `line ${i + 1}: three numbers x y z (m)`;
+    for (const [k, x] of w.entries()) {
+      const m = checks.check('cartesian', `waypoints.${i}.${k}`, x);
+      if (m) return `line ${i + 1}: ${m}`;
+    }
+  }
+  return '';
+}
+
+/** Check one field as typed: its message next to it, or none. */
+export function typed(el) {
+  const loc = el.name === 'waypoints' ? 'waypoints' : locOf(el);
+  if (!loc) return;
+  const { target } = targetOf(loc.split('.'));
+  target?.querySelectorAll(`.field-error[data-source=typed][data-loc="${loc}"]`).forEach((e) => e.remove());
+  if (el.dataset.invalid === 'typed') { el.removeAttribute('aria-invalid'); delete el.dataset.invalid; }
+  const msg = typedMessage(el);
+  if (msg) {
+    showError(loc.split('.'), msg, 'typed');
+    el.setAttribute('aria-invalid', 'true');
+    el.dataset.invalid = 'typed';
+  }
+}
+
+/** Check every field again (after an example, a preset or a goal kind changed them). */
+export function recheck() {
+  if (!checks.loaded()) return;
+  form.querySelectorAll('input[type=number], textarea[name=waypoints]').forEach(typed);
+}
+
+/** The schema the checks read, then every field checked. */
+export async function loadChecks(getJSON) {
+  await checks.load(getJSON);
+  form.dataset.checks = 'loaded';
+  recheck();
+}
+
 /** Wire the form: examples, goal kind, change notifications. */
-export function init({ changed }) {
+export function init({ changed, exampleChosen }) {
   onChange = changed;
   const select = document.getElementById('example');
   select.innerHTML = EXAMPLES.map((e, i) => `<option value="${i}">${e.name}</option>`).join('');
-  select.addEventListener('change', () => setExample(EXAMPLES[Number(select.value)]));
-  form.querySelectorAll('input[name=goal-kind]').forEach((r) => r.addEventListener('change', () => { showGoalKind(); changed(); }));
-  form.addEventListener('input', (ev) => { if (!ev.target.dataset.key) changed(ev.target.name || ''); });
+  select.addEventListener('change', () => exampleChosen(EXAMPLES[Number(select.value)]));
+  form.querySelectorAll('input[name=goal-kind]').forEach((r) => r.addEventListener('change', () => { showGoalKind(); recheck(); changed('goal-kind'); }));
+  form.addEventListener('input', (ev) => {
+    typed(ev.target);
+    if (!ev.target.dataset.key) changed(ev.target.name || '');
+  });
   form.addEventListener('change', (ev) => { if (ev.target.tagName === 'SELECT') changed(ev.target.name || ''); });
   setExample(EXAMPLES[0]);
 }

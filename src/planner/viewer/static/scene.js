@@ -84,10 +84,36 @@ export class Scene {
     this.renderer.setSize(w, h, false);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
+    if (this.design) this.fit();
     this.render();
   }
 
-  render() { this.renderer.render(this.scene, this.camera); }
+  /** Put the camera where the ball of reach (every posture of the arm, the base AB, the
+   * linkage plane) fits the canvas, whatever its aspect: the smaller of the two fields of
+   * view decides the distance. */
+  fit() {
+    const radius = this.reach + this.design.L0 / 2 + 0.02;
+    const vfov = THREE.MathUtils.degToRad(this.camera.fov);
+    const hfov = 2 * Math.atan(Math.tan(vfov / 2) * this.camera.aspect);
+    const dist = (1.08 * radius) / Math.sin(Math.min(vfov, hfov) / 2);
+    const dir = this.camera.position.clone().sub(this.controls.target);
+    if (dir.lengthSq() === 0) dir.set(0.8, -0.45, 0.5);
+    this.camera.position.copy(this.controls.target).addScaledVector(dir.normalize(), dist);
+    this.camera.near = Math.max(0.001, dist - 3 * radius);
+    this.camera.far = dist + 3 * radius;
+    this.camera.updateProjectionMatrix();
+    this.controls.update();
+  }
+
+  /** Draw at the next frame (many changes in one task cost one drawing). */
+  render() {
+    if (this.pending) return;
+    this.pending = true;
+    requestAnimationFrame(() => {
+      this.pending = false;
+      this.renderer.render(this.scene, this.camera);
+    });
+  }
 
   /** Build the robot and the static world for a design (call again when it changes). */
   setDesign(design) {
@@ -135,10 +161,9 @@ export class Scene {
       this.labels[k] = label(k);
       this.robot.add(j, this.labels[k]);
     }
-    const dist = 2.6 * (R + half);
-    this.camera.position.set(0.8 * dist, -0.45 * dist, 0.5 * dist);
+    this.camera.position.set(0.8, -0.45, 0.5);
     this.controls.target.set(0, 0, 0);
-    this.controls.update();
+    this.fit();
     this.render();
   }
 
@@ -184,8 +209,9 @@ export class Scene {
     this.render();
   }
 
-  /** The path of P (one line per segment, coloured by its working mode) and the transits. */
-  setPath(points, segmentOf, modes, transits, goalP) {
+  /** The path of P (one line per segment, coloured by its working mode), the transits, the
+   * goal and, for a straight path stopped short, the rest of its polyline (dashed). */
+  setPath(points, segmentOf, modes, transits, goalP, rest = null) {
     this.pathGroup.clear();
     let start = 0;
     for (let i = 1; i <= points.length; i++) {
@@ -208,6 +234,17 @@ export class Scene {
       l.position.copy(v3(tr.p));
       this.pathGroup.add(m, l);
     });
+    if (rest && rest.length >= 2) {  // the part of a straight path not achieved: dashed
+      const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(rest.map(v3)),
+        new THREE.LineDashedMaterial({ color: 0x555555, dashSize: 0.02, gapSize: 0.015 }));
+      line.computeLineDistances();
+      this.pathGroup.add(line);
+      for (const p of rest.slice(1)) {
+        const m = new THREE.Mesh(new THREE.SphereGeometry(0.01, 12, 8), new THREE.MeshBasicMaterial({ color: 0x555555, wireframe: true }));
+        m.position.copy(v3(p));
+        this.pathGroup.add(m);
+      }
+    }
     if (goalP) {
       const g = new THREE.Mesh(new THREE.SphereGeometry(0.015, 16, 10), new THREE.MeshBasicMaterial({ color: 0x2e7d32, wireframe: true }));
       g.position.copy(v3(goalP));

@@ -1,7 +1,9 @@
 // The design's workspace section in the linkage plane (u along AB, w in the plane) from
-// POST /v1/workspace, coloured by the smallest kappa(A) of the cell (an isoconditioning map),
-// with the path of P drawn on it. uPlot draws the axes; the grid and the path are drawn in
-// its draw hook at the axes' scale.
+// POST /v1/workspace, coloured by the smallest kappa(A) of the cell in the bands of the
+// paper's isoconditioning figure (fig. 15: levels 1.25, 1.5, 2, 3, 5, 10): the page's own
+// isoconditioning map, drawn for the size it is shown at (its text is the page's), with the
+// path of P drawn on it. uPlot draws the axes; the grid and the path are drawn in its draw
+// hook at the axes' scale. A click on it reports the (u, w) point (to pick waypoints).
 import { MODE_COLORS } from './scene.js';
 
 const uPlot = globalThis.uPlot;
@@ -12,13 +14,45 @@ let imageMode = null;
 let path = null;        // {u, w, segmentOf, modes, transits}
 let index = 0;
 let kappaMax = 10;
+let rest = null;        // {u, w}: the part of a straight path not achieved
+let onPick = null;
 
-/** kappa in [1, kappaMax] -> a colour from teal (isotropic) to yellow; above: orange. */
+/** The levels of figure 15 (planner.plotting.ISO_LEVELS) and one colour per band between
+ * them (pale to dark blue-green; beyond the last: the pink of near-parallel-singular). */
+export const ISO_LEVELS = [1, 1.25, 1.5, 2, 3, 5, 10];
+const BAND_COLORS = [[222, 242, 184], [186, 228, 181], [136, 208, 187], [90, 184, 194], [55, 146, 190], [42, 102, 168], [245, 158, 158]];
+
+/** The band of kappa: i such that ISO_LEVELS[i] <= k < ISO_LEVELS[i + 1] (6: k >= 10). */
+export function band(k) {
+  let i = 0;
+  while (i < ISO_LEVELS.length - 1 && k >= ISO_LEVELS[i + 1]) i++;
+  return i;
+}
+
 function kappaColor(k) {
   if (k === null || !Number.isFinite(k)) return [120, 120, 120];
-  if (k > kappaMax) return [240, 140, 60];
-  const s = Math.min(1, Math.log(k) / Math.log(kappaMax));
-  return [Math.round(40 + 215 * s), Math.round(150 + 80 * s), Math.round(170 - 120 * s)];
+  return BAND_COLORS[band(k)];
+}
+
+/** A colour swatch (styled through the CSSOM: the page's CSP forbids inline style text). */
+export function swatch(c) {
+  const i = document.createElement('i');
+  i.style.background = `rgb(${c.join(',')})`;
+  return i;
+}
+
+/** The legend of the bands (HTML, so it reads at any size). */
+export function legend(el) {
+  el.replaceChildren(...BAND_COLORS.map((c, i) => {
+    const s = document.createElement('span');
+    const lo = ISO_LEVELS[i], hi = ISO_LEVELS[i + 1];
+    s.append(swatch(c), hi ? `${lo} – ${hi}` : `κ ≥ ${lo}`);
+    s.title = hi ? `${lo} <= κ(A) < ${hi}` : `κ(A) >= ${lo}: near a parallel singularity`;
+    return s;
+  }));
+  const head = document.createElement('strong');
+  head.textContent = 'κ(A):';
+  el.prepend(head);
 }
 
 function buildImage(mode) {
@@ -52,8 +86,24 @@ function draw(u) {
   const x0 = u.valToPos(grid.x[0] - dx, 'x', true), x1 = u.valToPos(grid.x.at(-1) + dx, 'x', true);
   const y0 = u.valToPos(grid.y.at(-1) + dy, 'y', true), y1 = u.valToPos(grid.y[0] - dy, 'y', true);
   ctx.save();
+  const { left, top, width, height } = u.bbox;
+  ctx.beginPath();
+  ctx.rect(left, top, width, height);
+  ctx.clip();  // a waypoint out of reach may lie beyond the axes
   ctx.imageSmoothingEnabled = false;
   ctx.drawImage(image, x0, y0, x1 - x0, y1 - y0);
+  if (rest && rest.u.length >= 2) {
+    ctx.strokeStyle = '#555';
+    ctx.setLineDash([5 * devicePixelRatio, 4 * devicePixelRatio]);
+    ctx.lineWidth = 2 * devicePixelRatio;
+    ctx.beginPath();
+    rest.u.forEach((uu, i) => {
+      const x = u.valToPos(uu, 'x', true), y = u.valToPos(rest.w[i], 'y', true);
+      if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
+    });
+    ctx.stroke();
+    ctx.setLineDash([]);
+  }
   if (path) {
     const px = (i) => u.valToPos(path.u[i], 'x', true), py = (i) => u.valToPos(path.w[i], 'y', true);
     ctx.lineWidth = 2 * devicePixelRatio;
@@ -78,11 +128,17 @@ export function setSection(section, kappa_max) {
   grid = section;
   kappaMax = kappa_max;
   image = null;
+  build();
+}
+
+/** Draw the chart for the width of its box (again when that changes). */
+function build() {
   const el = document.getElementById('section');
+  if (!grid) return;
   chart?.destroy();
   el.replaceChildren();
   const ux = [grid.x[0], grid.x.at(-1)], wy = [grid.y[0], grid.y.at(-1)];
-  const width = Math.max(220, el.clientWidth);
+  const width = Math.max(220, el.clientWidth);  // the box's own width: drawn 1:1
   const plotH = Math.min(420, Math.max(160, ((width - 60) * (wy[1] - wy[0])) / (ux[1] - ux[0])));
   chart = new uPlot({
     width, height: plotH + 40,
@@ -93,7 +149,28 @@ export function setSection(section, kappa_max) {
     series: [{}, { show: false }],
     hooks: { draw: [draw] },
   }, [ux, [null, null]], el);
+  chart.over.addEventListener('click', (ev) => {
+    if (!onPick) return;
+    const r = chart.over.getBoundingClientRect();
+    onPick(chart.posToVal(ev.clientX - r.left, 'x'), chart.posToVal(ev.clientY - r.top, 'y'));
+  });
+  chart.over.style.cursor = onPick ? 'crosshair' : '';
 }
+
+/** Redraw at the box's width when it changed. */
+export function resize() {
+  const el = document.getElementById('section');
+  if (chart && Math.abs(chart.width - Math.max(220, el.clientWidth)) > 2) build();
+}
+
+/** Call f(u, w) on a click (m, in the linkage plane), or stop (f = null). */
+export function setPick(f) {
+  onPick = f;
+  if (chart) chart.over.style.cursor = f ? 'crosshair' : '';
+}
+
+/** The part of a straight path not achieved (in-plane coordinates), or null. */
+export function setRest(r) { rest = r; chart?.redraw(false, false); }
 
 /** Draw the path of P (in-plane coordinates of each sample). */
 export function setPath(p) { path = p; index = 0; chart?.redraw(false, false); }
