@@ -371,3 +371,16 @@ def test_wire_names_do_not_shadow_library_names() -> None:
     core = _public_classes(n for n in SOURCES if _within(n, CORE))
     assert len(wire) > 20 and "Margins" in core and "MarginsModel" in wire
     assert sorted(f"{c}: {wire[c]} and {core[c]}" for c in wire.keys() & core.keys()) == []
+
+
+#: The most lines a module of src/ or api/ may have: past it, a module holds more than one job.
+MAX_MODULE_LINES = 750
+
+
+def test_no_module_is_over_the_line_budget() -> None:
+    long = {
+        name: n
+        for name, path in SOURCES.items()
+        if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES
+    }
+    assert long == {}
