@@ -8,7 +8,7 @@ PLANNER_PORT              8000                            TCP port
 PLANNER_WORKERS           number of CPUs                  worker processes for CPU-bound work
 PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
 PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
-PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
+PLANNER_MAX_BODY_BYTES    32 MiB                          largest request body; beyond: 413
 PLANNER_MAX_BATCH         64                              plan requests in one batch
 PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
 PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
@@ -91,7 +91,11 @@ class Settings(BaseSettings):
         "budget); a slower or stalled body is answered 408 and its connection closed.",
     )
     max_body_bytes: int = Field(
-        4 * 1024 * 1024, ge=1024, le=1024**3, description="Largest request body, bytes."
+        32 * 1024 * 1024,
+        ge=1024,
+        le=1024**3,
+        description="Largest request body, bytes (the default lets in a point cloud of "
+        "planner.constants.MAX_POINTS points, about 65 bytes each at full precision).",
     )
     max_response_bytes: int = Field(
         32 * 1024 * 1024,

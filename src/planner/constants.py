@@ -14,6 +14,7 @@ __all__ = [
     "AXIS_TOL",
     "CIRCLES_MEET_TOL",
     "KAPPA_SOLVABLE",
+    "MAX_POINTS",
     "REACH_TOL",
     "SIGN_TOL",
 ]
@@ -52,3 +53,7 @@ KAPPA_SOLVABLE = 1e7
 #: them for its sampling). A search that runs out then ends as ``no_path`` with time left to
 #: answer, not as a missed deadline.
 ANSWER_RESERVE_S = 0.25
+#: Most points of the point clouds of one obstacle set (all clouds of a request or a scene
+#: together): a depth camera's frame thinned to a few millimetres. Their JSON fits the
+#: service's default body limit (32 MiB; about 65 bytes a point at full float precision).
+MAX_POINTS = 250_000

@@ -5,7 +5,8 @@ Shared by the service, the client and the CLI, and importable without FastAPI. S
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths) and :mod:`~planner.wire.meta`
+:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.scenes` (named
+scenes) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 (:func:`planner.solve` for a plan) between the conversions.
 
@@ -52,6 +53,7 @@ from planner.wire.common import (
     MAX_GOAL_TOLERANCE_M,
     MAX_GOAL_TOLERANCE_RAD,
     MAX_OBSTACLES,
+    MAX_POINTS,
     Angle,
     Angles3,
     AssemblyModeLabel,
@@ -71,6 +73,7 @@ from planner.wire.common import (
     Matrix3,
     Obstacle,
     Point3,
+    PointsObstacle,
     PositiveSize,
     Preference,
     Rates3,
@@ -137,6 +140,16 @@ from planner.wire.plan import (
     plan_inputs,
     plan_response,
 )
+from planner.wire.scenes import (
+    SCENE_NAME_PATTERN,
+    SceneInfo,
+    SceneList,
+    SceneName,
+    SceneRequest,
+    scene_hash,
+    scene_obstacles,
+    with_scene,
+)
 from planner.wire.timing import (
     MAX_TIMING_WAYPOINTS,
     AnyTrajectory,
@@ -167,11 +180,13 @@ __all__ = [
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
+    "MAX_POINTS",
     "MAX_POLYLINE_REACHES",
     "MAX_REGION_RESOLUTION",
     "MAX_SECTION_RESOLUTION",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
+    "SCENE_NAME_PATTERN",
     "AnalyzeRequest",
     "AnalyzeResponse",
     "Angle",
@@ -224,6 +239,7 @@ __all__ = [
     "PlanStatus",
     "PlannerOptions",
     "Point3",
+    "PointsObstacle",
     "PositiveSize",
     "PostureModel",
     "Preference",
@@ -235,6 +251,10 @@ __all__ = [
     "RegionsResponse",
     "SampledValue",
     "Scaling",
+    "SceneInfo",
+    "SceneList",
+    "SceneName",
+    "SceneRequest",
     "SectionGrid",
     "SectionOptions",
     "SegmentModel",
@@ -273,9 +293,12 @@ __all__ = [
     "posture_model",
     "regions_model",
     "sampled_value",
+    "scene_hash",
+    "scene_obstacles",
     "timing_error",
     "timing_to_core",
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",
+    "with_scene",
 ]
