@@ -16,7 +16,7 @@ from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
-from planner_api.routes import design, kinematics, meta, plan
+from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -59,6 +59,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
+            store = getattr(app.state, "scene_store", None)
+            if store is not None:
+                store.close()
 
     app = FastAPI(
         title="hybrid-planner",
@@ -88,6 +91,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     for router in (timing_routes.router, workspace_routes.router):
         app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     app.include_router(cartesian_routes.router, dependencies=[ApiKey], responses=_ERRORS)
+    app.include_router(scenes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     install_openapi(app, api_key=settings.api_key is not None)

@@ -20,7 +20,12 @@ PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight wo
 PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
 PLANNER_DEFAULT_DESIGN    default                         design of a request without one: a
                                                           preset name or a JSON design object
+PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
+                                                          file path, or a postgresql:// URL
 ========================  ==============================  ======================================
+
+Without ``PLANNER_SCENE_STORE`` scenes live in ``$XDG_DATA_HOME/planner/scenes.sqlite3``
+(``~/.local/share/planner/...``), created on the first scene request.
 """
 
 from __future__ import annotations
@@ -149,6 +154,11 @@ class Settings(BaseSettings):
         f"({', '.join(PRESET_NAMES)}) or a JSON design object such as "
         '{"L0": 0, "L1": 0.4, "L2": 0.4}. A request\'s partial design takes its missing '
         "fields from it.",
+    )
+    scene_store: str | None = Field(
+        None,
+        description="Where named scenes persist: a SQLite file path (default "
+        "$XDG_DATA_HOME/planner/scenes.sqlite3), or a postgresql:// URL shared by replicas.",
     )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
 

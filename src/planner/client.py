@@ -356,6 +356,10 @@ class PlannerClient(_BaseClient):
     timing = _sync(_BaseClient._timing)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
+    put_scene = _sync(_BaseClient._put_scene)
+    scene = _sync(_BaseClient._scene)
+    delete_scene = _sync(_BaseClient._delete_scene)
+    scenes = _sync(_BaseClient._scenes)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -411,3 +415,7 @@ class AsyncPlannerClient(_BaseClient):
     timing = _async(_BaseClient._timing)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)
+    put_scene = _async(_BaseClient._put_scene)
+    scene = _async(_BaseClient._scene)
+    delete_scene = _async(_BaseClient._delete_scene)
+    scenes = _async(_BaseClient._scenes)

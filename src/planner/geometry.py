@@ -414,16 +414,16 @@ def _tree_min(kind, rows, nodes, ax, ay, az, bx, by, bz, best):  # pragma: no co
     slo1, shi1 = min(ay, by), max(ay, by)
     slo2, shi2 = min(az, bz), max(az, bz)
     first_leaf = (nodes.shape[0] + 1) // 2 - 1
-    # a path from the root holds at most two entries per level: 64 covers any tree
-    stack = np.empty(64, dtype=np.int64)
-    bounds = np.empty(64)
-    stack[0] = 0
-    bounds[0] = -np.inf
+    # (node, bound) pairs, the node as a float (exact below 2^53): one allocation per walk;
+    # a path from the root holds at most two entries per level, 64 cover any tree
+    stack = np.empty((64, 2))
+    stack[0, 0] = 0.0
+    stack[0, 1] = -np.inf
     top = 1
     while top > 0:
         top -= 1
-        i = stack[top]
-        if bounds[top] >= best:
+        i = int(stack[top, 0])
+        if stack[top, 1] >= best:
             continue
         if i >= first_leaf:
             k = i - first_leaf
@@ -442,12 +442,12 @@ def _tree_min(kind, rows, nodes, ax, ay, az, bx, by, bz, best):  # pragma: no co
             left, right = right, left
             lb_l, lb_r = lb_r, lb_l
         if lb_r < best:  # the farther child first: the nearer one is popped next
-            stack[top] = right
-            bounds[top] = lb_r
+            stack[top, 0] = right
+            stack[top, 1] = lb_r
             top += 1
         if lb_l < best:
-            stack[top] = left
-            bounds[top] = lb_l
+            stack[top, 0] = left
+            stack[top, 1] = lb_l
             top += 1
     return best
 

@@ -12,7 +12,8 @@ compiled code, so the tree is a few flat arrays that the numba kernels read.
 Layout (one tree per obstacle kind, :func:`build_tree`):
 
 * the kind's rows are reordered along a Morton (Z-order) curve of their box centres, so that
-  consecutive rows are near each other; leaf ``k`` holds rows ``k * LEAF .. (k + 1) * LEAF``;
+  consecutive rows are near each other; leaf ``k`` holds rows ``k * LEAF .. (k + 1) * LEAF``
+  (a kind of at most :data:`TREE_FROM` rows has one leaf, its whole loop);
 * the tree is complete and implicit, ``M`` leaves (a power of two), ``2 M - 1`` nodes, the
   children of node ``i`` at ``2 i + 1`` and ``2 i + 2``, leaf ``k`` at node ``M - 1 + k``;
 * node row ``[lo (3), hi (3), rho]``: the axis-aligned box holding every obstacle below the
@@ -41,6 +42,7 @@ from numba import njit
 __all__ = [
     "BOUND_SLACK",
     "LEAF",
+    "TREE_FROM",
     "build_tree",
     "local_segment_box_sq",
     "node_lower_bound",
@@ -53,7 +55,10 @@ __all__ = [
 #: 1e-17 m where the true signed distance was -1e-9 m before it was there.
 BOUND_SLACK = 1e-9
 #: Obstacle rows per leaf of a tree.
-LEAF = 8
+LEAF = 16
+#: Kinds with at most this many rows get a one-leaf tree: the plain loop (cheaper than a
+#: walk below about a hundred obstacles, measured in benchmarks/scenes.py).
+TREE_FROM = 64
 #: Bits per axis of the Morton code (30-bit codes).
 _MORTON_BITS = 10
 
@@ -225,7 +230,7 @@ def build_tree(kind: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lo, hi, rho = row_boxes(kind, rows)
     order = np.argsort(_morton(0.5 * (lo + hi)), kind="stable")
     rows = np.ascontiguousarray(rows[order])
-    n_leaves = 1 << max(0, math.ceil(math.log2(math.ceil(n / LEAF))))
+    n_leaves = 1 if n <= TREE_FROM else 1 << math.ceil(math.log2(math.ceil(n / LEAF)))
     nodes = np.empty((2 * n_leaves - 1, 7))
     _fill_nodes(
         np.ascontiguousarray(lo[order]),

@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from planner_cli import analysis, figures, kinematics, plan, serve, tools
+from planner_cli import analysis, figures, kinematics, plan, scenes, serve, tools
 from planner_cli._support import Command, Group
 from planner_cli.errors import reported
 
@@ -53,3 +53,4 @@ register(analysis.regions)
 register(plan.plan)
 register(plan.cartesian)
 register(tools.bench)
+app.add_typer(scenes.scene_app, name="scene")

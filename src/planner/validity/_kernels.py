@@ -93,7 +93,7 @@ def evaluate(
     Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
     serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
     False the evaluation stops at the first broken rule (unset entries are -inf) and the
-    clearance is exact only below clearance + 1 m (a lower bound above: enough for rules and
+    clearance is exact only below clearance + 0.25 m (a lower bound above: enough for rules and
     certificates).
     """
     evaluate_bounded(
@@ -188,7 +188,10 @@ def evaluate_bounded(
     # links in 3-D: rotate in-plane (u, w) about +y by theta1
     c1, s1 = math.cos(q0), math.sin(q0)
     rad = prm[P_RAD]
-    upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 1.0
+    # outside full mode the clearance is exact up to clearance + 0.25 m only: a motion's
+    # certificate spends at most ~0.1 m of clearance per coarse step (rate_clear times the
+    # step), so larger values certify nothing more, and the obstacle trees stop early
+    upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 0.25
     best = upper
     half = 0.5 * L0
     ends_u = (-half, half, cu, du)

@@ -142,10 +142,12 @@ from planner.wire.plan import (
 )
 from planner.wire.scenes import (
     SCENE_NAME_PATTERN,
+    Scene,
     SceneInfo,
     SceneList,
     SceneName,
     SceneRequest,
+    count_points,
     scene_hash,
     scene_obstacles,
     with_scene,
@@ -251,6 +253,7 @@ __all__ = [
     "RegionsResponse",
     "SampledValue",
     "Scaling",
+    "Scene",
     "SceneInfo",
     "SceneList",
     "SceneName",
@@ -280,6 +283,7 @@ __all__ = [
     "arrays_from_points",
     "cartesian_inputs",
     "cartesian_response",
+    "count_points",
     "design_to_core",
     "joint_limits_to_core",
     "located",

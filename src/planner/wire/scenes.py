@@ -30,10 +30,12 @@ from planner.wire.common import (
 
 __all__ = [
     "SCENE_NAME_PATTERN",
+    "Scene",
     "SceneInfo",
     "SceneList",
     "SceneName",
     "SceneRequest",
+    "count_points",
     "scene_hash",
     "scene_obstacles",
     "with_scene",
@@ -71,6 +73,12 @@ class SceneInfo(_Response):
     updated_at: float = Field(description="Time of the last PUT, s since the Unix epoch.")
     obstacles: int = Field(ge=0, description="Obstacles in the scene (a cloud counts once).")
     points: int = Field(ge=0, description="Points of its point clouds, all together.")
+
+
+class Scene(SceneInfo):
+    """Answer of ``GET /v1/scenes/{name}``: the metadata and the scene as stored."""
+
+    scene: SceneRequest
 
 
 class SceneList(_Response):
