@@ -19,7 +19,11 @@ over queries known to be solvable (up to the grid's resolution). Each scene's in
 once (its first query pays it, as the first plan of a named scene does; the ``build ms``
 column is that build alone, measured apart), then every query is planned with
 ``planner.planning.plan``; the table gives the median and the 90th percentile of the plan
-times and the share solved, and the checker's cost for 2,000 random postures.
+times and the share solved, and the checker's cost for 2,000 random postures (``states``:
+every measure, exact clearance; ``valid``: the rules only, as the planner asks).
+
+Last, the 100,000-point cloud over HTTP (the service in this process, one worker): a plan
+naming the stored scene against the same plan with the cloud inline, median request times.
 """
 
 from __future__ import annotations
@@ -127,9 +131,13 @@ def run(name: str, obstacles: list, queries: list, budget: float, design: Design
     # the checker's cost for 2,000 random postures (index built)
     chk = ValidityChecker(design, Margins(), obstacles, "+", "+-+")
     q = np.random.default_rng(1).uniform(-np.pi, np.pi, (2000, 3))
+    chk.is_valid(q[:10])
     t0 = time.perf_counter()
     chk.check_states(q)
     states = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    chk.is_valid(q)
+    valid = time.perf_counter() - t0
     times, solved = [], 0
     options = PlanOptions(time_budget_s=budget, seed=1)
     for start, goal in queries:
@@ -142,8 +150,58 @@ def run(name: str, obstacles: list, queries: list, budget: float, design: Design
     rows = sum(len(o.points) if isinstance(o, Points) else 1 for o in obstacles)
     return (
         f"| {name} | {rows} | {build * 1e3:.1f} | {statistics.median(times) * 1e3:.2f} | "
-        f"{p90 * 1e3:.2f} | {solved}/{len(queries)} | {states * 1e3:.2f} |"
+        f"{p90 * 1e3:.2f} | {solved}/{len(queries)} | {states * 1e3:.2f} | {valid * 1e3:.2f} |"
     )
+
+
+def http_named_vs_inline(obstacles: list, queries: list, repeats: int) -> list[str]:
+    """Plans over HTTP (the service in this process, one worker) in a named scene against
+    the same obstacles inline: median request time of each, and their ratio."""
+    import json
+    import tempfile
+    from pathlib import Path
+
+    from fastapi.testclient import TestClient
+
+    from planner.wire import PointsObstacle
+    from planner_api.app import create_app
+    from planner_api.settings import Settings
+
+    wire = [
+        PointsObstacle(points=o.points.tolist(), radius=o.radius).model_dump() for o in obstacles
+    ]
+    store = Path(tempfile.mkdtemp()) / "scenes.db"
+    settings = Settings(workers=1, scene_store=str(store), request_timeout_s=120)
+    out = []
+    with TestClient(create_app(settings)) as client:
+        while client.get("/v1/ready").status_code != 200:
+            time.sleep(0.2)
+        t0 = time.perf_counter()
+        client.put("/v1/scenes/bench", json={"obstacles": wire})
+        put_s = time.perf_counter() - t0
+        times: dict[str, list[float]] = {"named": [], "inline": []}
+        for k in range(repeats):
+            start, goal = queries[k % len(queries)]
+            body = {
+                "start": {"q": start.q.tolist(), "assembly_mode": start.assembly_mode},
+                "goal": {"q": goal.q.tolist(), "assembly_mode": goal.assembly_mode},
+                "timing": {"method": "none"},
+            }
+            for kind, extra in (("named", {"scene": "bench"}), ("inline", {"obstacles": wire})):
+                text = json.dumps({**body, **extra})
+                t0 = time.perf_counter()
+                r = client.post(
+                    "/v1/plan", content=text, headers={"content-type": "application/json"}
+                )
+                times[kind].append(time.perf_counter() - t0)
+                assert r.status_code == 200, r.text[:200]
+        named, inline = (statistics.median(times[k]) for k in ("named", "inline"))
+        out.append(f"PUT of the scene: {put_s * 1e3:.0f} ms")
+        out.append(
+            f"plan over HTTP, median of {repeats}: named {named * 1e3:.1f} ms, inline "
+            f"{inline * 1e3:.1f} ms, named / inline = {named / inline:.3f}"
+        )
+    return out
 
 
 def main() -> None:
@@ -151,17 +209,23 @@ def main() -> None:
     ap.add_argument("--queries", type=int, default=20)
     ap.add_argument("--budget", type=float, default=1.0)
     ap.add_argument("--skip-large", action="store_true", help="no 100,000-point cloud")
+    ap.add_argument("--http", type=int, default=5, help="plans of the HTTP comparison")
     args = ap.parse_args()
     print_machine()
     design = Design.default()
     box = [Box([0.0, 0.0, -5.0], [0.1, 0.1, 0.1])]  # compiles the box path before timing
     ValidityChecker(design, Margins(), box, "+", "+-+").check_states([[0.0, 2.0, 1.0]])
     print(f"{args.queries} queries per scene, budget {args.budget} s, seed 1")
-    print("| scene | rows | build ms | plan p50 ms | plan p90 ms | solved | 2,000 states ms |")
-    print("|---|---|---|---|---|---|---|")
+    print("| scene | rows | build ms | plan p50 ms | plan p90 ms | solved | 2,000 states ms "
+          "| 2,000 valid ms |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
     for name, obstacles in scenes(args.skip_large).items():
         queries = build_queries(design, obstacles, args.queries)
         print(run(name, obstacles, queries, args.budget, design), flush=True)
+    if not args.skip_large:
+        print(f"\n100,000-point cloud, named scene against inline obstacles ({args.http} plans)")
+        for line in http_named_vs_inline(obstacles, queries, args.http):
+            print(line)
 
 
 if __name__ == "__main__":
