@@ -109,14 +109,14 @@ def _check_bounds(packed, a: np.ndarray, b: np.ndarray) -> int:
 @pytest.mark.parametrize("seed", range(4))
 def test_node_bounds_never_exceed_the_true_distance(seed):
     rng = np.random.default_rng(seed)
-    obs = _random_set(rng, 300, 100, 100)  # above TREE_FROM of each kind: three trees
+    obs = _random_set(rng, 1100, 1100, 1100)  # above TREE_FROM of each kind: three trees
     packed = pack_obstacles(obs)
     assert min(len(packed.sphere_nodes), len(packed.capsule_nodes), len(packed.box_nodes)) > 1
     checked = 0
-    for _ in range(10):
+    for _ in range(4):
         a = rng.uniform(-0.8, 0.8, 3)
         checked += _check_bounds(packed, a, a + rng.normal(0, 0.3, 3))
-    assert checked > 400
+    assert checked > 1000
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -186,3 +186,30 @@ def test_bad_clouds_name_the_field(points, radius, field, words):
     with pytest.raises(InputError, match=words) as err:
         Points(points, radius)
     assert err.value.field == field
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_the_relaxed_walk_keeps_its_guarantees(seed):
+    """segment_min_distance relaxed (relax 0.5 from a threshold t): a lower bound of the
+    exact distance D, equal to it below t, at least t above it, and keeping half the margin:
+    L - t >= (D - t) / 2."""
+    from planner.geometry import segment_min_distance
+
+    rng = np.random.default_rng(300 + seed)
+    cloud = Points(rng.uniform(-0.6, 0.6, (6000, 3)), 0.004)
+    packed = pack_obstacles([cloud, *_random_set(rng, 1200, 0, 0)])
+    below = above = 0
+    for _ in range(300):
+        a = rng.uniform(-0.8, 0.8, 3)
+        b = a + rng.normal(0, 0.3, 3)
+        exact = segment_min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
+        for t in (exact - 0.01, exact + 0.01, 0.02, 0.1):
+            got = segment_min_distance(*a, *b, *packed, np.inf, t, 0.5)
+            assert got <= exact + 1e-12
+            if exact < t:
+                assert got == exact
+                below += 1
+            else:
+                assert got >= t and got - t >= 0.5 * (exact - t) - 1e-12
+                above += 1
+    assert below > 100 and above > 100

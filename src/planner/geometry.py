@@ -401,10 +401,14 @@ def _rows_min(kind, rows, lo, hi, ax, ay, az, bx, by, bz, best):  # pragma: no c
 
 
 @njit(cache=True)
-def _tree_min(kind, rows, nodes, ax, ay, az, bx, by, bz, best):  # pragma: no cover
+def _tree_min(
+    kind, rows, nodes, ax, ay, az, bx, by, bz, best, relax_from, relax
+):  # pragma: no cover
     """:func:`segment_min_distance` over one kind's rows through its tree: depth first,
     nearer child first, a node skipped when its lower bound
-    (:func:`planner.spatial_index.node_lower_bound`) reaches the best distance found."""
+    (:func:`planner.spatial_index.node_lower_bound`) reaches the best distance found, or,
+    relaxed, comes within ``relax`` (best - relax_from) of it (then its bound joins the
+    answer, which stays a lower bound: :func:`segment_min_distance`)."""
     n = rows.shape[0]
     if n == 0:
         return best
@@ -420,10 +424,15 @@ def _tree_min(kind, rows, nodes, ax, ay, az, bx, by, bz, best):  # pragma: no co
     stack[0, 0] = 0.0
     stack[0, 1] = -np.inf
     top = 1
+    floor = np.inf
     while top > 0:
         top -= 1
         i = int(stack[top, 0])
-        if stack[top, 1] >= best:
+        lb = stack[top, 1]
+        if lb >= best:
+            continue
+        if lb >= best - relax * max(best - relax_from, 0.0):
+            floor = min(floor, lb)
             continue
         if i >= first_leaf:
             k = i - first_leaf
@@ -449,20 +458,30 @@ def _tree_min(kind, rows, nodes, ax, ay, az, bx, by, bz, best):  # pragma: no co
             stack[top, 0] = left
             stack[top, 1] = lb_l
             top += 1
-    return best
+    return min(best, floor)
 
 
 @njit(cache=True)
 def segment_min_distance(
-    ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, upper
-):  # pragma: no cover
-    """Smallest signed distance from segment a-b to every obstacle, or a value >= ``upper``
-    when every obstacle is at least ``upper`` away: exact below ``upper`` (the trees only skip
-    obstacles that cannot be closer than the best one found, :func:`_tree_min`). The packed
-    arrays are those of :class:`PackedObstacles`, in its order."""
-    best = _tree_min(0, spheres, sphere_nodes, ax, ay, az, bx, by, bz, upper)
-    best = _tree_min(1, capsules, capsule_nodes, ax, ay, az, bx, by, bz, best)
-    return _tree_min(2, boxes, box_nodes, ax, ay, az, bx, by, bz, best)
+    ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes,
+    upper, relax_from, relax,
+):  # pragma: no cover  # fmt: skip
+    """A lower bound L on the smallest signed distance D from segment a-b to every obstacle
+    (the packed arrays of :class:`PackedObstacles`, in its order), or a value >= ``upper``
+    when every obstacle is at least ``upper`` away.
+
+    With ``relax`` = 0, L = D below ``upper`` (the trees only skip obstacles that cannot be
+    closer than the best one found, :func:`_tree_min`). With ``relax`` in (0, 1), the walk
+    stops at nodes whose bound is within ``relax (best - relax_from)`` of the best distance
+    found, and L is the least of the distances found and of those bounds; then, with
+    t = ``relax_from``: L <= D always; L = D when D < t; L >= t when D >= t; and
+    L - t >= (1 - relax) (D - t). So a rule "D >= t" is decided exactly, and a margin above
+    it is known to within that factor (proof: a node is skipped with a bound of at least
+    f(best) = (1 - relax) best + relax t, f grows with best and best only falls, so every
+    skipped bound is at least f of the final best, which is at least D)."""
+    best = _tree_min(0, spheres, sphere_nodes, ax, ay, az, bx, by, bz, upper, relax_from, relax)
+    best = _tree_min(1, capsules, capsule_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax)
+    return _tree_min(2, boxes, box_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax)
 
 
 @njit(cache=True)
@@ -472,7 +491,7 @@ def _segments_distance(
     for i in range(a.shape[0]):
         out[i] = segment_min_distance(
             a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2],
-            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, np.inf,
+            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, np.inf, 0.0, 0.0,
         )  # fmt: skip
 
 

@@ -54,7 +54,8 @@ def proximal_blocked(
         for k in range(theta.shape[0]):
             eu = base_u + L1 * math.cos(theta[k])
             ew = L1 * math.sin(theta[k])
-            # exact below the bound that matters (a cheap broad phase skips the rest)
+            # decided exactly against the bound that matters; a relaxed walk of the trees
+            # (planner.geometry.segment_min_distance) and a cheap broad phase skip the rest
             dist = segment_min_distance(
                 0.0,
                 base_u,
@@ -69,6 +70,8 @@ def proximal_blocked(
                 capsule_nodes,
                 box_nodes,
                 limit - reach,
+                limit - reach,
+                0.5,
             )
             out[i, k] = dist < limit - reach
 

@@ -93,7 +93,8 @@ def evaluate(
     Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
     serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
     False the evaluation stops at the first broken rule (unset entries are -inf) and the
-    clearance is exact only below clearance + 0.25 m (a lower bound above: enough for rules and
+    clearance is exact only where it breaks the rule; elsewhere it is a lower bound that keeps
+    at least half of the margin up to clearance + 0.25 m (enough for the rule and the motion
     certificates).
     """
     evaluate_bounded(
@@ -192,6 +193,11 @@ def evaluate_bounded(
     # certificate spends at most ~0.1 m of clearance per coarse step (rate_clear times the
     # step), so larger values certify nothing more, and the obstacle trees stop early
     upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 0.25
+    # outside full mode the trees are walked relaxed (planner.geometry.segment_min_distance):
+    # the clearance rule is still decided exactly, and a margin above it is known to at
+    # least half its size, which is what the certificate's cones need
+    relax_from = prm[P_CLEAR] + rad
+    relax = 0.0 if full else 0.5
     best = upper
     half = 0.5 * L0
     ends_u = (-half, half, cu, du)
@@ -216,6 +222,8 @@ def evaluate_bounded(
             capsule_nodes,
             box_nodes,
             best,
+            relax_from,
+            relax,
         )
         if dist < best:
             best = dist
