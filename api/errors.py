@@ -39,6 +39,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from planner.exceptions import (
     AssemblyError,
@@ -122,7 +123,21 @@ async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
     return JSONResponse({"detail": items}, status_code=422)
 
 
-async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+def _allowed(request: Request) -> str:
+    """Every method some route takes at the request's path (one path may have a route per
+    method, e.g. GET, PUT and DELETE of /v1/scenes/{name}; routing names only the first)."""
+    methods: set[str] = set()
+    for route in request.app.routes:
+        match, _ = route.matches(request.scope)
+        if match is not Match.NONE:
+            methods |= set(getattr(route, "methods", None) or ())
+    return ", ".join(sorted(methods))
+
+
+async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+    if exc.status_code == 405:
+        headers = {**(getattr(exc, "headers", None) or {}), "Allow": _allowed(request)}
+        return error_response(405, str(exc.detail), "http_error", (), headers=headers)
     if exc.status_code == 400:  # FastAPI's "error parsing the body" (e.g. nesting too deep)
         cause = exc.__cause__
         if isinstance(cause, ValueError) and "integer string conversion" in str(cause):

@@ -22,6 +22,7 @@ from planner.caching import BoundedCache
 from planner.exceptions import InputError
 from planner.wire import (
     SCENE_NAME_PATTERN,
+    ErrorResponse,
     Scene,
     SceneInfo,
     SceneList,
@@ -97,7 +98,10 @@ async def put_scene(
     return await run_in_threadpool(store_it)
 
 
-@router.get("/scenes/{name}", response_model=Scene)
+_NOT_FOUND = {404: {"model": ErrorResponse, "description": "No scene has that name."}}
+
+
+@router.get("/scenes/{name}", response_model=Scene, responses=_NOT_FOUND)
 async def get_scene(name: NamePath, request: Request) -> Response:
     """The stored scene: its metadata (``name``, ``version``, ``hash``, ``updated_at``,
     ``obstacles`` and ``points`` counts are those of the list) and its ``scene`` body as it
@@ -116,7 +120,7 @@ async def list_scenes(request: Request) -> SceneList:
     return SceneList(scenes=[SceneInfo(**r.info()) for r in rows])
 
 
-@router.delete("/scenes/{name}", response_model=SceneInfo)
+@router.delete("/scenes/{name}", response_model=SceneInfo, responses=_NOT_FOUND)
 async def delete_scene(name: NamePath, request: Request) -> SceneInfo:
     """Forget the scene; the answer is what the store kept about it. 404 when there is none."""
     row = await run_in_threadpool(scene_store(request).delete, name)
