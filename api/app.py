@@ -19,7 +19,7 @@ from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.routes import cartesian as cartesian_routes
-from planner_api.routes import design, kinematics, meta, plan
+from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import sequence as sequence_routes
@@ -85,6 +85,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
+            store = getattr(app.state, "scene_store", None)
+            if store is not None:
+                store.close()
 
     app = FastAPI(
         title="hybrid-planner",
@@ -125,7 +128,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         sequence_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
-    app.include_router(kinematics.router, dependencies=[ApiKey], responses=_ERRORS)
+    # the kinematics answer in the event loop, the scenes from the store: no worker to cancel
+    for router in (kinematics.router, scenes.router):
+        app.include_router(router, dependencies=[ApiKey], responses=_ERRORS)
     # long jobs outlive the request that submits them: no client watch
     app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key

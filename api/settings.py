@@ -8,7 +8,7 @@ PLANNER_PORT              8000                            TCP port
 PLANNER_WORKERS           number of CPUs                  worker processes for CPU-bound work
 PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
 PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
-PLANNER_MAX_BODY_BYTES    4 MiB                           largest request body; beyond: 413
+PLANNER_MAX_BODY_BYTES    32 MiB                          largest request body; beyond: 413
 PLANNER_MAX_BATCH         64                              plan requests in one batch
 PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
 PLANNER_MAX_SEQUENCE_TARGETS 64                           targets in one sequence request
@@ -32,7 +32,12 @@ PLANNER_JOB_TIMEOUT_S     600                             time budget of one lon
 PLANNER_JOB_TTL_S         3600                            a finished long job is kept this long
 PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
 PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once
+PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
+                                                          file path, or a postgresql:// URL
 ========================  ==============================  ======================================
+
+Without ``PLANNER_SCENE_STORE`` scenes live in ``$XDG_DATA_HOME/planner/scenes.sqlite3``
+(``~/.local/share/planner/...``), created on the first scene request.
 """
 
 from __future__ import annotations
@@ -122,7 +127,11 @@ class Settings(BaseSettings):
         "slowly has its connection aborted and the answer's bytes dropped.",
     )
     max_body_bytes: int = Field(
-        4 * 1024 * 1024, ge=1024, le=1024**3, description="Largest request body, bytes."
+        32 * 1024 * 1024,
+        ge=1024,
+        le=1024**3,
+        description="Largest request body, bytes (the default lets in a point cloud of "
+        "planner.constants.MAX_POINTS points, about 65 bytes each at full precision).",
     )
     max_response_bytes: int = Field(
         32 * 1024 * 1024,
@@ -237,6 +246,11 @@ class Settings(BaseSettings):
         le=256,
         description="Long jobs running at once (the others wait, 'queued'), so that long jobs "
         "leave workers to the interactive requests (default: half the workers, at least 1).",
+    )
+    scene_store: str | None = Field(
+        None,
+        description="Where named scenes persist: a SQLite file path (default "
+        "$XDG_DATA_HOME/planner/scenes.sqlite3), or a postgresql:// URL shared by replicas.",
     )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
 

@@ -12,6 +12,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, ExitStack, contextmanager
@@ -25,6 +26,11 @@ from planner_api.app import create_app
 from planner_api.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
+# named scenes of the tests' services go to a file of this run (each xdist worker its own),
+# never to the user's default store (planner_api.scene_store.default_store_path)
+os.environ.setdefault(
+    "PLANNER_SCENE_STORE", str(Path(tempfile.mkdtemp(prefix="planner-scenes-")) / "scenes.db")
+)
 #: Seconds allowed for a service to be ready (every worker warm) after it starts: the first
 #: warm-up of a fresh checkout compiles and imports for tens of seconds on a slow machine.
 STARTUP_TIMEOUT_S = 180.0

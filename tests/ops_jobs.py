@@ -38,6 +38,16 @@ def sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRespon
     return PlanResponse(status="timeout", message=str(os.getpid()))
 
 
+def scene_obstacle_count(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
+    """Sleep ``planner.time_budget_s`` seconds, then answer with the number of obstacles the
+    request carries from its named scene and its own (in ``message``): what the job sees of
+    a scene that may change while it runs."""
+    from planner.wire import scene_obstacles
+
+    time.sleep(request.planner.time_budget_s)
+    return PlanResponse(status="no_path", message=str(len(scene_obstacles(request))))
+
+
 def serve(job_name: str | None, *, warm_up: bool = True) -> None:
     """Serve the app of the environment's settings with the plan job ``job_name`` of this
     module (``python -c 'import ops_jobs; ops_jobs.serve("sleep_pid")'``; None: the real

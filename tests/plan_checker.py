@@ -30,7 +30,8 @@ What a solved answer must satisfy (:func:`check_plan` lists every rule that fail
 
 Clearance is exact up to round-off: along a link segment, the signed distance to a convex
 obstacle (sphere, capsule, box) is a convex function of the segment parameter, so a
-golden-section search finds its minimum.
+golden-section search finds its minimum. A point cloud is measured by a second route, a k-d
+tree over its points queried at samples of each link (:func:`_cloud_distance`).
 """
 
 from __future__ import annotations
@@ -227,13 +228,36 @@ def _segment_distance(a: np.ndarray, b: np.ndarray, ob: dict[str, Any]) -> np.nd
     return np.minimum(np.minimum(f1, f2), ends)
 
 
+#: Spacing (m) of the samples of a link at which a point cloud's distance is measured.
+CLOUD_SPACING = 1e-3
+
+
+def _cloud_distance(a: np.ndarray, b: np.ndarray, ob: dict[str, Any]) -> np.ndarray:
+    """Least distance from the segments a-b (N, 3 each) to a point cloud (every point a ball
+    of one radius), by a second route: scipy's k-d tree over the cloud queried at samples of
+    each segment at most :data:`CLOUD_SPACING` apart. Sampling can only miss the closest
+    point of a segment, so the value is at most CLOUD_SPACING / 2 above the true distance,
+    never below it: a clearance it finds too small is too small."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(np.asarray(ob["points"], dtype=float))
+    length = float(np.max(np.linalg.norm(b - a, axis=1), initial=0.0))
+    s = np.linspace(0.0, 1.0, max(2, math.ceil(length / CLOUD_SPACING) + 1))
+    x = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
+    d, _ = tree.query(x.reshape(-1, 3))
+    return d.reshape(len(a), -1).min(axis=1) - float(ob["radius"])
+
+
 def clearance(post: Postures, obstacles: list[dict[str, Any]], link_radius: float) -> np.ndarray:
     """Least distance from the link capsules AC, BD, CP, DP to every obstacle, per posture
     (+inf without obstacles)."""
     out = np.full(len(post.q), np.inf)
     for i, j in (("A", "C"), ("B", "D"), ("C", "P"), ("D", "P")):
         for ob in obstacles:
-            d = _segment_distance(post.points[i], post.points[j], ob) - link_radius
+            if ob.get("type") == "points":
+                d = _cloud_distance(post.points[i], post.points[j], ob) - link_radius
+            else:
+                d = _segment_distance(post.points[i], post.points[j], ob) - link_radius
             out = np.minimum(out, d)
     return out
 

@@ -10,7 +10,7 @@ from scipy import ndimage
 
 from planner.analysis import regions as R
 from planner.design import Design
-from planner.geometry import Box, Capsule, Sphere, segment_obstacle_distance
+from planner.geometry import Box, Capsule, Points, Sphere, segment_obstacle_distance
 from planner.kinematics import WORKING_MODES, conditioning, forward_batch, link_points
 from planner.validity import Margins, ValidityChecker
 
@@ -32,6 +32,10 @@ def point_distance(x: np.ndarray, ob) -> np.ndarray:
     from :func:`rotation_matrix`, not the library's own rotation)."""
     if isinstance(ob, Sphere):
         return np.linalg.norm(x - ob.center, axis=1) - ob.radius
+    if isinstance(ob, Points):
+        from scipy.spatial import cKDTree
+
+        return cKDTree(ob.points).query(x)[0] - ob.radius
     if isinstance(ob, Capsule):
         ab = ob.b - ob.a
         t = np.clip((x - ob.a) @ ab / (ab @ ab), 0, 1)
@@ -70,6 +74,8 @@ def reference_measures(
 
 
 def wire_obstacle(ob) -> dict:
+    if isinstance(ob, Points):
+        return {"type": "points", "points": ob.points.tolist(), "radius": ob.radius}
     if isinstance(ob, Sphere):
         return {"type": "sphere", "center": ob.center.tolist(), "radius": ob.radius}
     if isinstance(ob, Capsule):

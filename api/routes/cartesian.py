@@ -7,13 +7,14 @@ pool (503) or the request's deadline (504).
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 
 from planner.wire import CartesianRequest, CartesianResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import cartesian as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes.scenes import resolve_scene
 
 __all__ = ["cartesian", "router"]
 
@@ -22,13 +23,14 @@ router = APIRouter(prefix="/v1", tags=["plan"])
 
 @router.post("/cartesian", response_model=CartesianResponse)
 async def cartesian(
-    body: CartesianRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+    body: CartesianRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
 ) -> Response:
     """Move P on straight segments from the start's P through ``waypoints`` in the start's
     working and assembly mode, within ``path_tolerance`` of the polyline, under every rule of
     a plan; where a rule would break, stop at the last valid point (``no_path``, ``fraction``
     < 1, ``message`` naming the rule, the measured value and the point)."""
     check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool,

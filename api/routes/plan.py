@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Response
+from fastapi import APIRouter, Depends, Request, Response
 
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
@@ -24,6 +24,7 @@ from planner_api.routes._common import (
     run_jobs,
     with_design_defaults,
 )
+from planner_api.routes.scenes import resolve_scene
 from planner_api.settings import Settings
 
 __all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
@@ -54,10 +55,16 @@ def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int,
 
 @router.post("/plan", response_model=PlanResponse)
 async def plan(
-    body: PlanRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
+    body: PlanRequest,
+    pool: Pool,
+    deadline: Deadline,
+    settings: SettingsDep,
+    job: PlanJob,
+    request: Request,
 ) -> Response:
-    """Plan (and time) a motion from ``start`` to ``goal``."""
+    """Plan (and time) a motion from ``start`` to ``goal`` (in the named ``scene``, if any)."""
     check_limits(body, settings, ("body",))
+    body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool, job, body, deadline, design_defaults=settings.design_defaults, max_samples=samples
@@ -66,7 +73,12 @@ async def plan(
 
 @router.post("/plan/batch", response_model=PlanBatchResponse)
 async def plan_batch(
-    body: PlanBatchRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, job: PlanJob
+    body: PlanBatchRequest,
+    pool: Pool,
+    deadline: Deadline,
+    settings: SettingsDep,
+    job: PlanJob,
+    request: Request,
 ) -> Response:
     """Many plan requests, spread over the workers, answered in order."""
     if len(body.requests) > settings.max_batch:
@@ -74,8 +86,12 @@ async def plan_batch(
             f"at most {settings.max_batch} requests per batch, got {len(body.requests)}",
             ("body", "requests"),
         )
-    for i, request in enumerate(body.requests):
-        check_limits(request, settings, ("body", "requests", i))
+    for i, item in enumerate(body.requests):
+        check_limits(item, settings, ("body", "requests", i))
+    if any(item.scene is not None for item in body.requests):
+        body = body.model_copy(
+            update={"requests": [await resolve_scene(request, item) for item in body.requests]}
+        )
     body = with_design_defaults(body, settings.design_defaults)
     samples = answer_sample_limit(
         settings.max_trajectory_samples, settings.max_response_bytes, len(body.requests)

@@ -9,7 +9,7 @@ a full pool (503) or the request's deadline (504).
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 
 from planner.wire import SequenceRequest, SequenceResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
@@ -17,6 +17,7 @@ from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import sequence as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes.scenes import resolve_scene
 
 __all__ = ["router", "sequence"]
 
@@ -25,12 +26,12 @@ router = APIRouter(prefix="/v1", tags=["plan"])
 
 @router.post("/sequence", response_model=SequenceResponse)
 async def sequence(
-    body: SequenceRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+    body: SequenceRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
 ) -> Response:
     """One trajectory from ``start`` through every target in order (and back with
     ``cycle``): at rest at each ``stop`` target, passing through the others within their
     ``blend``; with ``objective`` "time" the working modes of Cartesian "any" targets are
-    chosen for the shortest cycle."""
+    chosen for the shortest cycle (in the named ``scene``, if any)."""
     if len(body.targets) > settings.max_sequence_targets:
         raise LimitExceededError(
             f"at most {settings.max_sequence_targets} targets per sequence "
@@ -44,6 +45,7 @@ async def sequence(
             ("body", "planner", "time_budget_s"),
         )
     check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool,

@@ -361,6 +361,10 @@ class PlannerClient(_BaseClient):
     submit_job = _sync(_BaseClient._submit_job)
     job = _sync(_BaseClient._job)
     cancel_job = _sync(_BaseClient._cancel_job)
+    put_scene = _sync(_BaseClient._put_scene)
+    scene = _sync(_BaseClient._scene)
+    delete_scene = _sync(_BaseClient._delete_scene)
+    scenes = _sync(_BaseClient._scenes)
 
 
 class AsyncPlannerClient(_BaseClient):
@@ -421,3 +425,7 @@ class AsyncPlannerClient(_BaseClient):
     submit_job = _async(_BaseClient._submit_job)
     job = _async(_BaseClient._job)
     cancel_job = _async(_BaseClient._cancel_job)
+    put_scene = _async(_BaseClient._put_scene)
+    scene = _async(_BaseClient._scene)
+    delete_scene = _async(_BaseClient._delete_scene)
+    scenes = _async(_BaseClient._scenes)

@@ -10,6 +10,7 @@ A new endpoint is one builder here plus one line in each client class.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
@@ -19,6 +20,7 @@ from pydantic import BaseModel, ValidationError
 from planner.client_errors import InvalidRequestError
 from planner.design import Design
 from planner.wire import (
+    SCENE_NAME_PATTERN,
     AnalyzeRequest,
     AnalyzeResponse,
     CartesianRequest,
@@ -46,6 +48,10 @@ from planner.wire import (
     Readiness,
     RegionsRequest,
     RegionsResponse,
+    Scene,
+    SceneInfo,
+    SceneList,
+    SceneRequest,
     SequenceRequest,
     SequenceResponse,
     TimingRequest,
@@ -113,6 +119,24 @@ def _floats(values: Any) -> Any:
         return [float(x) for x in values]
     except (TypeError, ValueError):
         return values
+
+
+def _scene_path(name: str) -> str:
+    """``/v1/scenes/{name}``, the name checked first (a safe identifier, never a path)."""
+    if not isinstance(name, str) or re.fullmatch(SCENE_NAME_PATTERN, name) is None:
+        detail = [{"loc": ["path", "name"], "msg": f"a scene name must match {SCENE_NAME_PATTERN}, got {name!r}", "type": "string_pattern_mismatch"}]  # fmt: skip
+        raise InvalidRequestError(_describe_item(detail[0]), status_code=None, detail=detail)
+    return f"/v1/scenes/{name}"
+
+
+def _obstacle_data(obstacles: Sequence[Any]) -> list[Any]:
+    """Obstacles as the wire's data: a point cloud's numpy ``points`` as lists of floats."""
+    out = []
+    for ob in obstacles:
+        if isinstance(ob, Mapping) and hasattr(ob.get("points"), "tolist"):
+            ob = {**ob, "points": ob["points"].tolist()}
+        out.append(ob)
+    return out
 
 
 def _describe_item(item: Any) -> str:
@@ -272,6 +296,29 @@ class Requests:
             )
             body = _validated(SequenceRequest, {**data, **fields})
         return _Call("POST", "/v1/sequence", body, SequenceResponse)
+
+    def _put_scene(
+        self, name: str, obstacles: Sequence[Any] = (), *, design: DesignLike = None
+    ) -> _Call[SceneInfo]:
+        """Store the scene ``name``: its obstacles (every type of a plan's, point clouds'
+        ``points`` may be numpy arrays) and optionally its design; a scene of that name is
+        replaced whole. The answer: its ``version`` and content ``hash``."""
+        data: dict[str, Any] = {"obstacles": _obstacle_data(obstacles)}
+        if design is not None:
+            data["design"] = _design(design)
+        return _Call("PUT", _scene_path(name), _validated(SceneRequest, data), SceneInfo)
+
+    def _scene(self, name: str) -> _Call[Scene]:
+        """The stored scene ``name`` (metadata and body); NotFoundError when there is none."""
+        return _Call("GET", _scene_path(name), None, Scene)
+
+    def _delete_scene(self, name: str) -> _Call[SceneInfo]:
+        """Forget the scene ``name``; what the server kept about it."""
+        return _Call("DELETE", _scene_path(name), None, SceneInfo)
+
+    def _scenes(self) -> _Call[SceneList]:
+        """Every stored scene's metadata, by name."""
+        return _Call("GET", "/v1/scenes", None, SceneList)
 
     def _plan_batch(
         self, requests: Sequence[PlanRequest | Mapping[str, Any]]

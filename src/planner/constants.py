@@ -14,6 +14,7 @@ __all__ = [
     "AXIS_TOL",
     "CIRCLES_MEET_TOL",
     "KAPPA_SOLVABLE",
+    "MAX_POINTS",
     "MAX_SEQUENCE_TARGETS",
     "REACH_TOL",
     "SIGN_TOL",
@@ -59,3 +60,7 @@ ANSWER_RESERVE_S = 0.25
 #: sequence within a request's budget, and a production cycle rarely has more than a few
 #: dozen targets.
 MAX_SEQUENCE_TARGETS = 64
+#: Most points of the point clouds of one obstacle set (all clouds of a request or a scene
+#: together): a depth camera's frame thinned to a few millimetres. Their JSON fits the
+#: service's default body limit (32 MiB; about 65 bytes a point at full float precision).
+MAX_POINTS = 250_000

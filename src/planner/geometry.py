@@ -1,8 +1,9 @@
 """Obstacles and distances between the link capsules and them (numpy and numba, no I/O).
 
-Obstacles are the three shapes of the wire vocabulary (``docs/conventions.md``): a sphere, an
-oriented box (quaternion ``[w, x, y, z]``, frame of the box to the base frame) and a capsule.
-A floor is a large flat box. Distances are *signed* distances between a link's axis segment
+Obstacles are the shapes of the wire vocabulary (``docs/conventions.md``): a sphere, an
+oriented box (quaternion ``[w, x, y, z]``, frame of the box to the base frame), a capsule, and
+a point cloud (every point a sphere of one radius, as a depth camera gives them). A floor is
+a large flat box. Distances are *signed* distances between a link's axis segment
 and the obstacle's surface (negative when the segment enters the obstacle); the link radius
 is subtracted by the caller (:mod:`planner.validity`).
 
@@ -23,13 +24,17 @@ point), i.e. below 1e-9 m for links under a metre. The tests compare every routi
 point sampling.
 
 Packing: :func:`pack_obstacles` turns a list of obstacles into three float arrays that the
-compiled kernels read (rows ``[cx, cy, cz, r]`` for spheres, ``[ax, ay, az, bx, by, bz, r]``
-for capsules, ``[cx, cy, cz, R (9, row-major), hx, hy, hz]`` for boxes, R the box-to-base
-rotation and h the half sizes).
+compiled kernels read (rows ``[cx, cy, cz, r]`` for spheres and for each point of a cloud,
+``[ax, ay, az, bx, by, bz, r]`` for capsules, ``[cx, cy, cz, R (9, row-major), hx, hy, hz]``
+for boxes, R the box-to-base rotation and h the half sizes), each with the tree of
+:mod:`planner.spatial_index` over its rows (the rows reordered along it), built once per
+obstacle set. :func:`segment_min_distance` walks the trees: the distance it returns is the
+same minimum a loop over every obstacle finds, in time that grows slowly with their number.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,14 +43,19 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from planner.caching import BoundedCache
+from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
+from planner.spatial_index import LEAF, build_tree, local_segment_box_sq, node_lower_bound
 
 __all__ = [
     "LINE_SEARCH_TOL",
+    "MAX_POINTS",
     "Box",
     "Capsule",
     "Obstacle",
     "PackedObstacles",
+    "Points",
     "Sphere",
     "pack_obstacles",
     "segment_obstacle_distance",
@@ -146,15 +156,58 @@ class Box:
         )
 
 
-Obstacle = Sphere | Box | Capsule
+@dataclass(frozen=True, slots=True, eq=False)
+class Points:
+    """A point cloud: ``points`` (N, 3) m, 1 <= N <= :data:`MAX_POINTS`, every point a ball
+    of ``radius`` m (> 0: a sensor's points stand for surfaces of some thickness)."""
+
+    points: np.ndarray
+    radius: float
+
+    def __post_init__(self) -> None:
+        try:
+            pts = np.array(self.points, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError("points.points must be N x 3 numbers", field="points") from exc
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise InputError(
+                f"points.points must have shape (N, 3), got {pts.shape}", field="points"
+            )
+        if len(pts) == 0:
+            raise InputError("points.points must hold at least one point", field="points")
+        if len(pts) > MAX_POINTS:
+            raise InputError(
+                f"points.points holds at most {MAX_POINTS} points, got {len(pts)}",
+                field="points",
+            )
+        finite = np.isfinite(pts).all(axis=1)
+        if not finite.all():
+            i = int(np.argmin(finite))
+            raise InputError(
+                f"points.points[{i}] must be finite, got {pts[i].tolist()}", field="points"
+            )
+        pts.flags.writeable = False
+        object.__setattr__(self, "points", pts)
+        try:
+            radius = _length("points.radius", self.radius, positive=True)
+        except InputError as exc:
+            raise InputError(str(exc), field="radius") from exc
+        object.__setattr__(self, "radius", radius)
+
+
+Obstacle = Sphere | Box | Capsule | Points
 
 
 class PackedObstacles(NamedTuple):
-    """Obstacles as float arrays for the compiled kernels (layout in the module docstring)."""
+    """Obstacles as float arrays for the compiled kernels (layout in the module docstring),
+    each kind's rows in the order of its tree (:mod:`planner.spatial_index`)."""
 
-    spheres: np.ndarray  # (ns, 4)
+    spheres: np.ndarray  # (ns, 4): spheres and the points of every cloud
     capsules: np.ndarray  # (nc, 7)
     boxes: np.ndarray  # (nb, 15)
+    sphere_nodes: np.ndarray  # (2 M - 1, 7) tree of the sphere rows
+    capsule_nodes: np.ndarray
+    box_nodes: np.ndarray
 
     @property
     def count(self) -> int:
@@ -162,24 +215,67 @@ class PackedObstacles(NamedTuple):
 
 
 def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
-    """Pack obstacles into :class:`PackedObstacles`."""
-    spheres, capsules, boxes = [], [], []
+    """Pack obstacles into :class:`PackedObstacles`, their trees built (once: a caller that
+    checks many postures against one obstacle set packs it once and shares the result)."""
+    spheres, clouds, capsules, boxes = [], [], [], []
+    n_points = 0
     for i, ob in enumerate(obstacles):
         if isinstance(ob, Sphere):
             spheres.append([*ob.center, ob.radius])
+        elif isinstance(ob, Points):
+            n_points += len(ob.points)
+            if n_points > MAX_POINTS:
+                raise InputError(
+                    f"obstacles hold at most {MAX_POINTS} points in all, got {n_points} by "
+                    f"obstacles[{i}]",
+                    field=str(i),
+                )
+            clouds.append(np.column_stack([ob.points, np.full(len(ob.points), ob.radius)]))
         elif isinstance(ob, Capsule):
             capsules.append([*ob.a, *ob.b, ob.radius])
         elif isinstance(ob, Box):
             boxes.append([*ob.center, *ob.rotation.ravel(), *(ob.size / 2)])
         else:
             raise InputError(
-                f"obstacles[{i}] must be a Sphere, Box or Capsule, got {type(ob).__name__}"
+                f"obstacles[{i}] must be a Sphere, Box, Capsule or Points, got {type(ob).__name__}"
             )
-    return PackedObstacles(
-        np.array(spheres, dtype=float).reshape(-1, 4),
+    rows = (
+        np.vstack([np.array(spheres, dtype=float).reshape(-1, 4), *clouds]),
         np.array(capsules, dtype=float).reshape(-1, 7),
         np.array(boxes, dtype=float).reshape(-1, 15),
     )
+    if sum(len(r) for r in rows) <= _CACHE_FROM:
+        return _pack_rows(rows)
+    digest = hashlib.blake2b(digest_size=16)
+    for r in rows:
+        digest.update(np.asarray(r.shape, dtype=np.int64).tobytes())
+        digest.update(r.tobytes())
+    key = digest.digest()
+    hit = _PACKED.get(key)
+    if hit is None:
+        hit = _pack_rows(rows)
+        _PACKED.put(key, hit)
+    return hit
+
+
+def _pack_rows(rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> PackedObstacles:
+    """The trees of the three kinds' rows, every array read-only (shared through the cache)."""
+    (s_rows, s_nodes), (c_rows, c_nodes), (b_rows, b_nodes) = (
+        build_tree(kind, r) for kind, r in enumerate(rows)
+    )
+    packed = PackedObstacles(s_rows, c_rows, b_rows, s_nodes, c_nodes, b_nodes)
+    for a in packed:
+        a.flags.writeable = False
+    return packed
+
+
+#: Obstacle sets of more rows than this are packed once per process and content: the next
+#: checker of the same set (the next request of a scene) finds its trees built. Smaller
+#: sets cost less to pack than to hash.
+_CACHE_FROM = 64
+_PACKED: BoundedCache[PackedObstacles] = BoundedCache(
+    16, 1 << 30, lambda p: sum(a.nbytes for a in p)
+)
 
 
 # ------------------------------------------------------------------------- compiled kernels
@@ -247,25 +343,6 @@ def segment_convex_distance(kind, ax, ay, az, bx, by, bz, row):  # pragma: no co
     return min(best, _seg_to_row(kind, 1.0, ax, ay, az, bx, by, bz, row))
 
 
-@njit(cache=True, inline="always")
-def _cmp_swap(a, b):  # pragma: no cover - compiled
-    return (a, b) if a <= b else (b, a)
-
-
-@njit(cache=True, inline="always")
-def _cuts(p, u, h):  # pragma: no cover - compiled
-    """The parameters t in (0, 1) where p + t u = -h and = +h; 1.0 for each one outside."""
-    lo = hi = 1.0
-    if u != 0.0:
-        t = (-h - p) / u
-        if 0.0 < t < 1.0:
-            lo = t
-        t = (h - p) / u
-        if 0.0 < t < 1.0:
-            hi = t
-    return lo, hi
-
-
 @njit(cache=True)
 def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - compiled
     """Signed distance from segment a-b to a packed box row, exactly when the segment stays
@@ -292,94 +369,130 @@ def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - com
         box[5] * ex + box[8] * ey + box[11] * ez,
     )
     h = (box[12], box[13], box[14])
-    # the parameters where some |p_i(t)| = h_i, inside (0, 1); 1.0 where there is none (a
-    # piece of length zero changes nothing)
-    c0, c1 = _cuts(p[0], u[0], h[0])
-    c2, c3 = _cuts(p[1], u[1], h[1])
-    c4, c5 = _cuts(p[2], u[2], h[2])
-    # sorting network on the six cuts (12 compare-exchanges)
-    c0, c5 = _cmp_swap(c0, c5)
-    c1, c3 = _cmp_swap(c1, c3)
-    c2, c4 = _cmp_swap(c2, c4)
-    c1, c2 = _cmp_swap(c1, c2)
-    c3, c4 = _cmp_swap(c3, c4)
-    c0, c3 = _cmp_swap(c0, c3)
-    c2, c5 = _cmp_swap(c2, c5)
-    c0, c1 = _cmp_swap(c0, c1)
-    c2, c3 = _cmp_swap(c2, c3)
-    c4, c5 = _cmp_swap(c4, c5)
-    c1, c2 = _cmp_swap(c1, c2)
-    c3, c4 = _cmp_swap(c3, c4)
-    c = (0.0, c0, c1, c2, c3, c4, c5, 1.0)
-    best = np.inf
-    for k in range(7):
-        t0, t1 = c[k], c[k + 1]
-        if t1 <= t0 and k > 0:
-            continue
-        tm = 0.5 * (t0 + t1)
-        saa = 0.0
-        sab = 0.0
-        for i in range(3):
-            x = p[i] + tm * u[i]
-            if abs(x) > h[i]:
-                sg = 1.0 if x > 0.0 else -1.0
-                al = sg * p[i] - h[i]
-                be = sg * u[i]
-                saa += be * be
-                sab += al * be
-        t = t0
-        if saa > 0.0:
-            t = min(max(-sab / saa, t0), t1)
-        f = 0.0
-        for i in range(3):
-            x = abs(p[i] + t * u[i]) - h[i]
-            if x > 0.0:
-                f += x * x
-        best = min(best, f)
+    best = local_segment_box_sq(p, u, h)
     if best > 1e-24:  # clear of the box by more than 1e-12 m (round-off leaves ~1e-34 on contact)
         return math.sqrt(best)
     return segment_convex_distance(2, ax, ay, az, bx, by, bz, box)
 
 
 @njit(cache=True)
-def segment_min_distance(
-    ax, ay, az, bx, by, bz, spheres, capsules, boxes, upper
-):  # pragma: no cover
-    """Smallest signed distance from segment a-b to every obstacle, or a value >= ``upper``
-    when every obstacle is at least ``upper`` away (pairs whose cheap lower bound, the
-    distance from the segment midpoint minus half its length, already reaches the best value
-    found are skipped, so the minimum below ``upper`` is exact)."""
-    best = upper
+def _rows_min(kind, rows, lo, hi, ax, ay, az, bx, by, bz, best):  # pragma: no cover
+    """:func:`segment_min_distance` over rows ``lo..hi`` of one kind (0 sphere, 1 capsule,
+    2 box). Capsule and box pairs whose cheap lower bound (the distance from the segment
+    midpoint minus half its length) already reaches ``best`` are skipped."""
     mx, my, mz = 0.5 * (ax + bx), 0.5 * (ay + by), 0.5 * (az + bz)
     half = 0.5 * math.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
-    for i in range(spheres.shape[0]):
-        s = spheres[i]
-        d = point_segment_distance(s[0], s[1], s[2], ax, ay, az, bx, by, bz) - s[3]
+    for i in range(lo, hi):
+        r = rows[i]
+        if kind == 0:
+            d = point_segment_distance(r[0], r[1], r[2], ax, ay, az, bx, by, bz) - r[3]
+        elif kind == 1:
+            lb = point_segment_distance(mx, my, mz, r[0], r[1], r[2], r[3], r[4], r[5])
+            if lb - r[6] - half >= best:
+                continue
+            d = segment_convex_distance(1, ax, ay, az, bx, by, bz, r)
+        else:
+            if box_sdf(mx, my, mz, r) - half >= best:
+                continue
+            d = segment_box_distance(ax, ay, az, bx, by, bz, r)
         if d < best:
             best = d
-    for i in range(capsules.shape[0]):
-        c = capsules[i]
-        lb = point_segment_distance(mx, my, mz, c[0], c[1], c[2], c[3], c[4], c[5]) - c[6] - half
-        if lb < best:
-            d = segment_convex_distance(1, ax, ay, az, bx, by, bz, c)
-            if d < best:
-                best = d
-    for i in range(boxes.shape[0]):
-        b = boxes[i]
-        lb = box_sdf(mx, my, mz, b) - half
-        if lb < best:
-            d = segment_box_distance(ax, ay, az, bx, by, bz, b)
-            if d < best:
-                best = d
     return best
 
 
 @njit(cache=True)
-def _segments_distance(a, b, spheres, capsules, boxes, out):  # pragma: no cover - compiled
+def _tree_min(
+    kind, rows, nodes, ax, ay, az, bx, by, bz, best, relax_from, relax
+):  # pragma: no cover
+    """:func:`segment_min_distance` over one kind's rows through its tree: depth first,
+    nearer child first, a node skipped when its lower bound
+    (:func:`planner.spatial_index.node_lower_bound`) reaches the best distance found, or,
+    relaxed, comes within ``relax`` (best - relax_from) of it (then its bound joins the
+    answer, which stays a lower bound: :func:`segment_min_distance`)."""
+    n = rows.shape[0]
+    if n == 0:
+        return best
+    if nodes.shape[0] == 1:  # one leaf: the loop itself
+        return _rows_min(kind, rows, 0, n, ax, ay, az, bx, by, bz, best)
+    slo0, shi0 = min(ax, bx), max(ax, bx)
+    slo1, shi1 = min(ay, by), max(ay, by)
+    slo2, shi2 = min(az, bz), max(az, bz)
+    first_leaf = (nodes.shape[0] + 1) // 2 - 1
+    # (node, bound) pairs, the node as a float (exact below 2^53): one allocation per walk;
+    # a path from the root holds at most two entries per level, 64 cover any tree
+    stack = np.empty((64, 2))
+    stack[0, 0] = 0.0
+    stack[0, 1] = -np.inf
+    top = 1
+    floor = np.inf
+    while top > 0:
+        top -= 1
+        i = int(stack[top, 0])
+        lb = stack[top, 1]
+        if lb >= best:
+            continue
+        if lb >= best - relax * max(best - relax_from, 0.0):
+            floor = min(floor, lb)
+            continue
+        if i >= first_leaf:
+            k = i - first_leaf
+            best = _rows_min(
+                kind, rows, k * LEAF, min((k + 1) * LEAF, n), ax, ay, az, bx, by, bz, best
+            )
+            continue
+        left, right = 2 * i + 1, 2 * i + 2
+        lb_l = node_lower_bound(
+            nodes[left], ax, ay, az, bx, by, bz, slo0, slo1, slo2, shi0, shi1, shi2, best
+        )
+        lb_r = node_lower_bound(
+            nodes[right], ax, ay, az, bx, by, bz, slo0, slo1, slo2, shi0, shi1, shi2, best
+        )
+        if lb_l > lb_r:
+            left, right = right, left
+            lb_l, lb_r = lb_r, lb_l
+        if lb_r < best:  # the farther child first: the nearer one is popped next
+            stack[top, 0] = right
+            stack[top, 1] = lb_r
+            top += 1
+        if lb_l < best:
+            stack[top, 0] = left
+            stack[top, 1] = lb_l
+            top += 1
+    return min(best, floor)
+
+
+@njit(cache=True)
+def segment_min_distance(
+    ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes,
+    upper, relax_from, relax,
+):  # pragma: no cover  # fmt: skip
+    """A lower bound L on the smallest signed distance D from segment a-b to every obstacle
+    (the packed arrays of :class:`PackedObstacles`, in its order), or a value >= ``upper``
+    when every obstacle is at least ``upper`` away.
+
+    With ``relax`` = 0, L = D below ``upper`` (the trees only skip obstacles that cannot be
+    closer than the best one found, :func:`_tree_min`). With ``relax`` in (0, 1), the walk
+    stops at nodes whose bound is within ``relax (best - relax_from)`` of the best distance
+    found, and L is the least of the distances found and of those bounds; then, with
+    t = ``relax_from``: L <= D always; L = D when D < t; L >= t when D >= t; and
+    L - t >= (1 - relax) (D - t). So a rule "D >= t" is decided exactly, and a margin above
+    it is known to within that factor (proof: a node is skipped with a bound of at least
+    f(best) = (1 - relax) best + relax t, f grows with best and best only falls, so every
+    skipped bound is at least f of the final best, which is at least D)."""
+    best = _tree_min(0, spheres, sphere_nodes, ax, ay, az, bx, by, bz, upper, relax_from, relax)
+    best = _tree_min(1, capsules, capsule_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax)
+    return _tree_min(2, boxes, box_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax)
+
+
+@njit(cache=True)
+def _segments_distance(
+    a, b, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, out
+):  # pragma: no cover - compiled
     for i in range(a.shape[0]):
         out[i] = segment_min_distance(
-            a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2], spheres, capsules, boxes, np.inf
-        )
+            a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2],
+            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, np.inf, 0.0, 0.0,
+        )  # fmt: skip
 
 
 def segment_obstacle_distance(
@@ -391,7 +504,7 @@ def segment_obstacle_distance(
     ----------
     a, b : array, shape (N, 3), m
         Segment ends.
-    obstacles : sequence of Sphere, Box, Capsule
+    obstacles : sequence of Sphere, Box, Capsule, Points
 
     Returns
     -------
@@ -403,7 +516,7 @@ def segment_obstacle_distance(
     b = np.ascontiguousarray(np.atleast_2d(np.asarray(b, dtype=float)))
     if a.shape != b.shape or a.shape[-1] != 3:
         raise InputError(f"a and b must both have shape (N, 3), got {a.shape} and {b.shape}")
-    packed = pack_obstacles(obstacles)
+    packed = obstacles if isinstance(obstacles, PackedObstacles) else pack_obstacles(obstacles)
     out = np.empty(a.shape[0])
     _segments_distance(a, b, *packed, out)
     return out

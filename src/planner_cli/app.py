@@ -19,7 +19,17 @@ from typing import Any
 
 import typer
 
-from planner_cli import analysis, dynamics, figures, kinematics, plan, sequence, serve, tools
+from planner_cli import (
+    analysis,
+    dynamics,
+    figures,
+    kinematics,
+    plan,
+    scenes,
+    sequence,
+    serve,
+    tools,
+)
 from planner_cli._support import Command, Group
 from planner_cli.errors import reported
 
@@ -56,3 +66,4 @@ register(sequence.sequence)
 register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)
+app.add_typer(scenes.scene_app, name="scene")

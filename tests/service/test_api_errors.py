@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner_api.errors import install_error_handlers
+from planner_api.settings import Settings
 
 ROUTES = ["/v1/fk", "/v1/ik", "/v1/analyze", "/v1/plan", "/v1/plan/batch"]
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
@@ -196,8 +197,11 @@ def test_malformed_bodies_are_422(api, path, text):
     assert _items(r)[0]["loc"][0] == "body"
 
 
+_BODY_LIMIT = Settings.model_fields["max_body_bytes"].default
+
+
 def test_body_over_the_size_limit_is_413(api):
-    r = _raw(api, "/v1/fk", '{"q": [0, 1, 2], "pad": "' + "x" * (4 * 1024 * 1024) + '"}')
+    r = _raw(api, "/v1/fk", '{"q": [0, 1, 2], "pad": "' + "x" * _BODY_LIMIT + '"}')
     assert r.status_code == 413
     assert _items(r)[0]["type"] == "body_too_large"
 
@@ -205,7 +209,7 @@ def test_body_over_the_size_limit_is_413(api):
 def test_streamed_body_over_the_size_limit_is_413(api):
     def chunks():
         yield b'{"q": [0, 1, 2], "pad": "'
-        for _ in range(5):
+        for _ in range(_BODY_LIMIT // (1024 * 1024) + 1):
             yield b"x" * (1024 * 1024)
         yield b'"}'
 

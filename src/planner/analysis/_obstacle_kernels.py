@@ -23,7 +23,20 @@ __all__ = ["all_states", "cell_passable", "corners_inside", "flood_reaches", "pr
 
 @njit(cache=True)
 def proximal_blocked(
-    base_u, L1, theta1, a1, theta, a, spheres, capsules, boxes, limit, out
+    base_u,
+    L1,
+    theta1,
+    a1,
+    theta,
+    a,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    limit,
+    out,
 ):  # pragma: no cover - compiled
     """``out[i, k]`` = the proximal link from (``base_u``, 0) to (base_u + L1 cos theta_k,
     L1 sin theta_k) in the loop's plane, turned by theta1 about AB, is closer than ``limit``
@@ -41,9 +54,24 @@ def proximal_blocked(
         for k in range(theta.shape[0]):
             eu = base_u + L1 * math.cos(theta[k])
             ew = L1 * math.sin(theta[k])
-            # exact below the bound that matters (a cheap broad phase skips the rest)
+            # decided exactly against the bound that matters; a relaxed walk of the trees
+            # (planner.geometry.segment_min_distance) and a cheap broad phase skip the rest
             dist = segment_min_distance(
-                0.0, base_u, 0.0, ew * c1, eu, -ew * s1, spheres, capsules, boxes, limit - reach
+                0.0,
+                base_u,
+                0.0,
+                ew * c1,
+                eu,
+                -ew * s1,
+                spheres,
+                capsules,
+                boxes,
+                sphere_nodes,
+                capsule_nodes,
+                box_nodes,
+                limit - reach,
+                limit - reach,
+                0.5,
             )
             out[i, k] = dist < limit - reach
 
@@ -80,7 +108,7 @@ def _rectangle_inside(kind, row, c1, s1, u0, u1, w0, w1, spread, limit):  # prag
 
 @njit(cache=True)
 def corners_inside(
-    c1, s1, a1, boxes_uw, spheres, capsules, boxes, limit
+    c1, s1, a1, boxes_uw, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, limit
 ):  # pragma: no cover - compiled
     """Whether, for some obstacle and some of the planar point sets ``boxes_uw`` (M, 4):
     rows (u_lo, u_hi, w_lo, w_hi), every point of the set at every theta1 within ``a1`` of
@@ -105,13 +133,41 @@ def corners_inside(
 
 @njit(cache=True)
 def cell_passable(
-    mask, blocked_a, blocked_b, point_sets, c1, s1, a1, spheres, capsules, boxes, limit, i, j, k
+    mask,
+    blocked_a,
+    blocked_b,
+    point_sets,
+    c1,
+    s1,
+    a1,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    limit,
+    i,
+    j,
+    k,
 ):  # pragma: no cover - compiled
     """Whether cell (i1, k3, k2) = (i, j, k) may hold a posture of the flood (see
     :func:`flood_reaches`); theta1_i given by its cosine and sine."""
     if not mask[j, k] or blocked_a[i, k] or blocked_b[i, j]:
         return False
-    return not corners_inside(c1, s1, a1, point_sets[j, k], spheres, capsules, boxes, limit)
+    return not corners_inside(
+        c1,
+        s1,
+        a1,
+        point_sets[j, k],
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        limit,
+    )
 
 
 @njit(cache=True)
@@ -125,6 +181,9 @@ def flood_reaches(
     spheres,
     capsules,
     boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
     limit,
     start,
     goal,
@@ -170,6 +229,9 @@ def flood_reaches(
         spheres,
         capsules,
         boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
         limit,
         i,
         j,
@@ -209,6 +271,9 @@ def flood_reaches(
                         spheres,
                         capsules,
                         boxes,
+                        sphere_nodes,
+                        capsule_nodes,
+                        box_nodes,
                         limit,
                         i,
                         j,
@@ -240,7 +305,20 @@ def _to_goals(guide, i, j, k):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def all_states(
-    mask, blocked_a, blocked_b, point_sets, theta1, a1, spheres, capsules, boxes, limit, out
+    mask,
+    blocked_a,
+    blocked_b,
+    point_sets,
+    theta1,
+    a1,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    limit,
+    out,
 ):  # pragma: no cover - compiled
     """Every cell's state into ``out`` (n1, n, n) int8: 0 outside the mask, 1 blocked,
     2 passable (:func:`cell_passable`), for tests and figures."""
@@ -261,6 +339,9 @@ def all_states(
                     spheres,
                     capsules,
                     boxes,
+                    sphere_nodes,
+                    capsule_nodes,
+                    box_nodes,
                     limit,
                     i,
                     j,

@@ -43,7 +43,6 @@ from scipy import ndimage
 
 from planner.analysis.heap import heap_grow, heap_pop, heap_push
 from planner.caching import BoundedCache
-from planner.geometry import pack_obstacles
 from planner.planning import ompl_backend
 from planner.planning.problem import PlanOptions
 from planner.validity import ValidityChecker
@@ -204,8 +203,7 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
     """What the marks depend on: the design with its joint limits, the margins, the obstacles
     (their packed arrays as bytes, with their shapes), the modes, the serial rules and the
     shape."""
-    packed = pack_obstacles(checker.obstacles)
-    obstacles = tuple((a.shape, a.tobytes()) for a in packed)
+    obstacles = tuple((a.shape, a.tobytes()) for a in checker.packed[:3])
     shape = tuple(int(n) for n in shape)
     if len(shape) != 3 or min(shape) < 2:
         raise ValueError(f"shape must be 3 cell counts >= 2, got {shape!r}")

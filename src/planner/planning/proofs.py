@@ -33,6 +33,7 @@ from planner.planning.result import PlanResult, proven_no_path
 from planner.validity import Margins
 
 __all__ = [
+    "PROOF_MAX_ROWS",
     "PROOF_MIN_BUDGET_S",
     "PROOF_RESOLUTION",
     "disprove_with_map",
@@ -82,6 +83,17 @@ def disprove_with_map(
     return proven_no_path(_disproof_message(rmap, start, goals), t0)
 
 
+#: Most obstacle rows (a cloud's points counted one by one) the 3-D proof is asked about:
+#: its cell bounds loop over every obstacle (they do not use the spatial index yet), so a
+#: proof against a large cloud would outlast any request. Beyond it nothing is claimed (the
+#: search decides), which is always sound.
+PROOF_MAX_ROWS = 2_000
+
+
+def _rows(obstacles: tuple[Obstacle, ...]) -> int:
+    return sum(len(getattr(o, "points", ())) or 1 for o in obstacles)
+
+
 def disprove_with_obstacles(
     design: Design,
     margins: Margins,
@@ -98,7 +110,7 @@ def disprove_with_obstacles(
     :func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles`; None
     when it cannot. ``searched_s``: how long the search ran before (for the message);
     ``t0``: the request's start."""
-    if len(goals) == 0:
+    if len(goals) == 0 or _rows(obstacles) > PROOF_MAX_ROWS:
         return None
     asm = start.assembly_mode
     proof = obstacle_regions.prove_disconnected_with_obstacles(

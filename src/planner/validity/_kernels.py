@@ -85,21 +85,50 @@ N_MEASURES = 7
 
 
 @njit(cache=True)
-def evaluate(q0, q1, q2, prm, spheres, capsules, boxes, full, out):  # pragma: no cover
+def evaluate(
+    q0, q1, q2, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, full, out
+):  # pragma: no cover
     """Measures of one posture into ``out`` (layout ``M_*``).
 
     Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
     serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
     False the evaluation stops at the first broken rule (unset entries are -inf) and the
-    clearance is exact only below clearance + 1 m (a lower bound above: enough for rules and
+    clearance is exact only where it breaks the rule; elsewhere it is a lower bound that keeps
+    at least half of the margin up to clearance + 0.25 m (enough for the rule and the motion
     certificates).
     """
-    evaluate_bounded(q0, q1, q2, prm, spheres, capsules, boxes, full, np.inf, out)
+    evaluate_bounded(
+        q0,
+        q1,
+        q2,
+        prm,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        full,
+        np.inf,
+        out,
+    )
 
 
 @njit(cache=True)
 def evaluate_bounded(
-    q0, q1, q2, prm, spheres, capsules, boxes, full, clear_upper, out
+    q0,
+    q1,
+    q2,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    full,
+    clear_upper,
+    out,
 ):  # pragma: no cover
     """:func:`evaluate`; in ``full`` mode the clearance is exact only where it is below
     ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima."""
@@ -160,7 +189,15 @@ def evaluate_bounded(
     # links in 3-D: rotate in-plane (u, w) about +y by theta1
     c1, s1 = math.cos(q0), math.sin(q0)
     rad = prm[P_RAD]
-    upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 1.0
+    # outside full mode the clearance is exact up to clearance + 0.25 m only: a motion's
+    # certificate spends at most ~0.1 m of clearance per coarse step (rate_clear times the
+    # step), so larger values certify nothing more, and the obstacle trees stop early
+    upper = clear_upper + rad if full else prm[P_CLEAR] + rad + 0.25
+    # outside full mode the trees are walked relaxed (planner.geometry.segment_min_distance):
+    # the clearance rule is still decided exactly, and a margin above it is known to at
+    # least half its size, which is what the certificate's cones need
+    relax_from = prm[P_CLEAR] + rad
+    relax = 0.0 if full else 0.5
     best = upper
     half = 0.5 * L0
     ends_u = (-half, half, cu, du)
@@ -172,7 +209,21 @@ def evaluate_bounded(
         else:
             bu, bw = pu, pw
         dist = segment_min_distance(
-            aw * c1, au, -aw * s1, bw * c1, bu, -bw * s1, spheres, capsules, boxes, best
+            aw * c1,
+            au,
+            -aw * s1,
+            bw * c1,
+            bu,
+            -bw * s1,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            best,
+            relax_from,
+            relax,
         )
         if dist < best:
             best = dist
@@ -185,9 +236,24 @@ def evaluate_bounded(
 
 
 @njit(cache=True)
-def evaluate_many(q, prm, spheres, capsules, boxes, full, out):  # pragma: no cover
+def evaluate_many(
+    q, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, full, out
+):  # pragma: no cover
     for i in range(q.shape[0]):
-        evaluate(q[i, 0], q[i, 1], q[i, 2], prm, spheres, capsules, boxes, full, out[i])
+        evaluate(
+            q[i, 0],
+            q[i, 1],
+            q[i, 2],
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            full,
+            out[i],
+        )
 
 
 @njit(cache=True)
@@ -236,7 +302,18 @@ def sin_apex_min(prm, lb_cd):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def certify_motion(
-    qa, qb, prm, spheres, capsules, boxes, coarse_step, min_step, skip_ends
+    qa,
+    qb,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    coarse_step,
+    min_step,
+    skip_ends,
 ):  # pragma: no cover
     """Certify the straight motion qa -> qb. Returns (reason, t): reason 0 when every posture
     of the motion is valid, else the rule found broken (or not certifiable) near parameter t.
@@ -248,8 +325,34 @@ def certify_motion(
     ms = np.empty((n + 1, N_MEASURES))
     done = np.zeros(n + 1, dtype=np.bool_)
     if skip_ends:
-        evaluate(qa[0], qa[1], qa[2], prm, spheres, capsules, boxes, True, ms[0])
-        evaluate(qb[0], qb[1], qb[2], prm, spheres, capsules, boxes, True, ms[n])
+        evaluate(
+            qa[0],
+            qa[1],
+            qa[2],
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            True,
+            ms[0],
+        )
+        evaluate(
+            qb[0],
+            qb[1],
+            qb[2],
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            True,
+            ms[n],
+        )
         ms[0, M_REASON] = 0.0
         ms[n, M_REASON] = 0.0
         done[0] = True
@@ -273,6 +376,9 @@ def certify_motion(
                 spheres,
                 capsules,
                 boxes,
+                sphere_nodes,
+                capsule_nodes,
+                box_nodes,
                 False,
                 ms[k],
             )
@@ -324,6 +430,9 @@ def certify_motion(
             spheres,
             capsules,
             boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
             False,
             mid,
         )
@@ -344,12 +453,34 @@ def certify_motion(
 
 @njit(cache=True)
 def certify_path(
-    q, prm, spheres, capsules, boxes, coarse_step, min_step, reasons, ts
+    q,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    coarse_step,
+    min_step,
+    reasons,
+    ts,
 ):  # pragma: no cover
     """Certify every motion of a waypoint path (N, 3); stops at the first broken motion."""
     for i in range(q.shape[0] - 1):
         r, t = certify_motion(
-            q[i], q[i + 1], prm, spheres, capsules, boxes, coarse_step, min_step, False
+            q[i],
+            q[i + 1],
+            prm,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            coarse_step,
+            min_step,
+            False,
         )
         reasons[i] = r
         ts[i] = t
@@ -359,7 +490,9 @@ def certify_path(
 
 
 @njit(cache=True)
-def path_extremes(q, step, prm, spheres, capsules, boxes, out):  # pragma: no cover
+def path_extremes(
+    q, step, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, out
+):  # pragma: no cover
     """(min clearance, max kappa_A, min signed serial) over the waypoints of q (N, 3) and
     samples every ``step`` rad (max-norm) on the motions between them, into out (3,); NaN
     when no sample closes the loop."""
@@ -382,7 +515,21 @@ def path_extremes(q, step, prm, spheres, capsules, boxes, out):  # pragma: no co
                 a1 = q[i - 1, 1] + t * (q[i, 1] - q[i - 1, 1])
                 a2 = q[i - 1, 2] + t * (q[i, 2] - q[i - 1, 2])
             # only obstacles that may lower the running minimum are measured exactly
-            evaluate_bounded(a0, a1, a2, prm, spheres, capsules, boxes, True, lo_clear, m)
+            evaluate_bounded(
+                a0,
+                a1,
+                a2,
+                prm,
+                spheres,
+                capsules,
+                boxes,
+                sphere_nodes,
+                capsule_nodes,
+                box_nodes,
+                True,
+                lo_clear,
+                m,
+            )
             if m[M_KAPPA] > -np.inf:
                 found = True
                 lo_clear = min(lo_clear, m[M_CLEAR_RAW])

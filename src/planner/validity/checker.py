@@ -77,7 +77,7 @@ class ValidityChecker:
     ----------
     design : Design
     margins : Margins
-    obstacles : sequence of Sphere, Box, Capsule (:mod:`planner.geometry`)
+    obstacles : sequence of Sphere, Box, Capsule, Points (:mod:`planner.geometry`)
     assembly_mode : '+' | '-'
     working_mode : one of :data:`planner.kinematics.WORKING_MODES`, e.g. '+-+'
     coarse_step : float, rad
@@ -148,6 +148,12 @@ class ValidityChecker:
             self.serial_rules if serial_rules is None else serial_rules,
             _packed_from=self._packed,
         )
+
+    @property
+    def packed(self) -> PackedObstacles:
+        """The obstacles packed with their trees (:func:`planner.geometry.pack_obstacles`),
+        built once and shared by every checker :meth:`with_mode` derives from this one."""
+        return self._packed
 
     # ------------------------------------------------------------------ states
     def _measures(self, q: np.ndarray, full: bool) -> np.ndarray:
@@ -294,12 +300,10 @@ class ValidityChecker:
         ``q_a`` and ``q_b`` must be writable, C-contiguous float64 arrays of shape (3,), rad
         (numba compiles read-only arrays separately); :meth:`motion_valid` accepts anything.
         """
-        prm, (spheres, capsules, boxes), step = self._prm, self._packed, self.coarse_step
+        prm, packed, step = self._prm, self._packed, self.coarse_step
 
         def valid(q_a: np.ndarray, q_b: np.ndarray) -> bool:
-            r = certify_motion(
-                q_a, q_b, prm, spheres, capsules, boxes, step, MIN_CERTIFIED_STEP, False
-            )
+            r = certify_motion(q_a, q_b, prm, *packed, step, MIN_CERTIFIED_STEP, False)
             return r[0] == 0
 
         return valid

@@ -6,7 +6,8 @@ endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margi
 diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
 :mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
 :mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
-(torques and mass matrices), :mod:`~planner.wire.sequence` (task sequences) and :mod:`~planner.wire.meta`
+(torques and mass matrices), :mod:`~planner.wire.sequence` (task sequences),
+:mod:`~planner.wire.scenes` (named scenes) and :mod:`~planner.wire.meta`
 (health, version, errors). The wire converts and runs nothing: a job calls the library
 :mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.jobs` (long jobs)
 and :mod:`~planner.wire.meta` (health, version, errors). The wire converts and runs nothing: a job calls the library
@@ -57,6 +58,7 @@ from planner.wire.common import (
     MAX_GOAL_TOLERANCE_M,
     MAX_GOAL_TOLERANCE_RAD,
     MAX_OBSTACLES,
+    MAX_POINTS,
     Angle,
     Angles3,
     AssemblyModeLabel,
@@ -81,6 +83,7 @@ from planner.wire.common import (
     Obstacle,
     PayloadModel,
     Point3,
+    PointsObstacle,
     PositiveSize,
     Preference,
     Rates3,
@@ -163,6 +166,18 @@ from planner.wire.plan import (
     plan_response,
     planner_options_to_core,
 )
+from planner.wire.scenes import (
+    SCENE_NAME_PATTERN,
+    Scene,
+    SceneInfo,
+    SceneList,
+    SceneName,
+    SceneRequest,
+    count_points,
+    scene_hash,
+    scene_obstacles,
+    with_scene,
+)
 from planner.wire.sequence import (
     MAX_SEQUENCE_TARGETS,
     LegModel,
@@ -208,12 +223,14 @@ __all__ = [
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
+    "MAX_POINTS",
     "MAX_POLYLINE_REACHES",
     "MAX_REGION_RESOLUTION",
     "MAX_SECTION_RESOLUTION",
     "MAX_SEQUENCE_TARGETS",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
+    "SCENE_NAME_PATTERN",
     "AnalyzeRequest",
     "AnalyzeResponse",
     "Angle",
@@ -280,6 +297,7 @@ __all__ = [
     "PlanStatus",
     "PlannerOptions",
     "Point3",
+    "PointsObstacle",
     "PositiveSize",
     "PostureModel",
     "Preference",
@@ -291,6 +309,11 @@ __all__ = [
     "RegionsResponse",
     "SampledValue",
     "Scaling",
+    "Scene",
+    "SceneInfo",
+    "SceneList",
+    "SceneName",
+    "SceneRequest",
     "SectionGrid",
     "SectionOptions",
     "SegmentModel",
@@ -321,6 +344,7 @@ __all__ = [
     "arrays_from_points",
     "cartesian_inputs",
     "cartesian_response",
+    "count_points",
     "design_to_core",
     "dynamics_answer",
     "inertia_to_core",
@@ -337,6 +361,8 @@ __all__ = [
     "posture_model",
     "regions_model",
     "sampled_value",
+    "scene_hash",
+    "scene_obstacles",
     "sequence_inputs",
     "sequence_response",
     "timing_error",
@@ -344,4 +370,5 @@ __all__ = [
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",
+    "with_scene",
 ]

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, PrivateAttr
 
 from planner.design import Design
 from planner.wire.common import (
@@ -33,9 +33,9 @@ from planner.wire.common import (
     inertia_to_core,
     located,
     margins_to_core,
-    obstacles_to_core,
 )
 from planner.wire.plan import PathModel, PlanStatus, path_model
+from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import (
     _FORMAT_DESCRIPTION,
     AnyTrajectory,
@@ -102,6 +102,13 @@ class CartesianRequest(_Request):
         "[1e-5, 0.1]; default 1 mm.",
     )
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    scene: SceneName | None = Field(
+        None,
+        description="A stored scene's name (PUT /v1/scenes/{name}): its obstacles join "
+        "`obstacles`, its design is the robot when `design` is absent; unknown: 422.",
+    )
+    #: the named scene's library obstacles, set by the service (:func:`with_scene`)
+    _scene_obstacles: tuple[Any, ...] | None = PrivateAttr(None)
     margins: MarginsModel = Field(default_factory=MarginsModel)
     timing: CartesianTimingOptions = Field(default_factory=CartesianTimingOptions)
     limits: Limits = Field(default_factory=Limits)
@@ -199,7 +206,7 @@ def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
                     "the ball of radius L1 + L2 about A)",
                     field="waypoints",
                 )
-    obstacles = obstacles_to_core(request.obstacles)
+    obstacles = scene_obstacles(request)
     margins = margins_to_core(request.margins)
     limits = joint_limits_to_core(request.limits)
     options = {

@@ -23,6 +23,7 @@ from pydantic import (
     model_validator,
 )
 
+from planner.constants import MAX_POINTS
 from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
 from planner.exceptions import DesignError, InputError, PlannerError
 
@@ -36,6 +37,7 @@ __all__ = [
     "MAX_GOAL_TOLERANCE_M",
     "MAX_GOAL_TOLERANCE_RAD",
     "MAX_OBSTACLES",
+    "MAX_POINTS",
     "Angle",
     "Angles3",
     "AssemblyModeLabel",
@@ -60,6 +62,7 @@ __all__ = [
     "Obstacle",
     "PayloadModel",
     "Point3",
+    "PointsObstacle",
     "PositiveSize",
     "Preference",
     "Rates3",
@@ -415,7 +418,21 @@ class CapsuleObstacle(_Request):
     radius: PositiveSize = Field(description="m, > 0.")
 
 
-Obstacle = Annotated[SphereObstacle | BoxObstacle | CapsuleObstacle, Field(discriminator="type")]
+class PointsObstacle(_Request):
+    """A point cloud: every point a ball of ``radius`` (a depth camera's points, a CAD model
+    sampled). At most :data:`MAX_POINTS` points in all the clouds of one request; the list's
+    length is checked before its points are validated."""
+
+    type: Literal["points"] = "points"
+    points: Annotated[list[Point3], Field(min_length=1, max_length=MAX_POINTS)] = Field(
+        description=f"N x 3 points, m, 1 <= N <= {MAX_POINTS}."
+    )
+    radius: PositiveSize = Field(description="m, > 0: the radius of every point's ball.")
+
+
+Obstacle = Annotated[
+    SphereObstacle | BoxObstacle | CapsuleObstacle | PointsObstacle, Field(discriminator="type")
+]
 
 
 # ---------------------------------------------------------------------------- plan options
@@ -515,10 +532,12 @@ def obstacle_from_dict(data: Mapping[str, Any]) -> geometry.Obstacle:
     InputError
         Unknown ``type``, a missing field, or a field breaking its rule (named).
     """
-    from planner.geometry import Box, Capsule, Sphere
+    from planner.geometry import Box, Capsule, Points, Sphere
 
     kind = data.get("type")
     try:
+        if kind == "points":
+            return Points(data["points"], data["radius"])
         if kind == "sphere":
             return Sphere(data["center"], data["radius"])
         if kind == "box":
@@ -530,22 +549,34 @@ def obstacle_from_dict(data: Mapping[str, Any]) -> geometry.Obstacle:
             f"obstacle of type {kind!r} lacks the field {exc.args[0]!r}", field=exc.args[0]
         ) from exc
     raise InputError(
-        f"obstacle type must be 'sphere', 'box' or 'capsule', got {kind!r}", field="type"
+        f"obstacle type must be 'sphere', 'box', 'capsule' or 'points', got {kind!r}",
+        field="type",
     )
 
 
 def obstacles_to_core(
-    models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle],
+    models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle | PointsObstacle],
     loc: tuple[str | int, ...] = ("body", "obstacles"),
 ) -> list[geometry.Obstacle]:
     """The library obstacles of a request's ``obstacles``, built from the models' fields
-    (errors located at ``loc.<i>``)."""
-    from planner.geometry import Box, Capsule, Sphere
+    (errors located at ``loc.<i>``). The points of all clouds together are at most
+    :data:`MAX_POINTS` (a 422 at the cloud that passes it)."""
+    from planner.geometry import Box, Capsule, Points, Sphere
 
     out: list[geometry.Obstacle] = []
+    n_points = 0
     for i, model in enumerate(models):
         with located(*loc, i):
-            if isinstance(model, SphereObstacle):
+            if isinstance(model, PointsObstacle):
+                n_points += len(model.points)
+                if n_points > MAX_POINTS:
+                    raise InputError(
+                        f"the point clouds of one request hold at most {MAX_POINTS} points in "
+                        f"all, got {n_points} by this one",
+                        field="points",
+                    )
+                out.append(Points(model.points, model.radius))
+            elif isinstance(model, SphereObstacle):
                 out.append(Sphere(model.center, model.radius))
             elif isinstance(model, BoxObstacle):
                 out.append(Box(model.center, model.size, model.quaternion))

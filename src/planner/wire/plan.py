@@ -10,6 +10,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import (
     Field,
+    PrivateAttr,
     field_validator,
 )
 from pydantic_core import PydanticCustomError
@@ -37,8 +38,8 @@ from planner.wire.common import (
     inertia_to_core,
     located,
     margins_to_core,
-    obstacles_to_core,
 )
+from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import (
     AnyTrajectory,
     Limits,
@@ -107,6 +108,13 @@ class PlanRequest(_Request):
     start: JointPostureModel
     goal: Goal
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    scene: SceneName | None = Field(
+        None,
+        description="A stored scene's name (PUT /v1/scenes/{name}): its obstacles join "
+        "`obstacles`, its design is the robot when `design` is absent; unknown: 422.",
+    )
+    #: the named scene's library obstacles, set by the service (:func:`with_scene`)
+    _scene_obstacles: tuple[Any, ...] | None = PrivateAttr(None)
     margins: MarginsModel = Field(default_factory=MarginsModel)
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
@@ -226,7 +234,7 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
             if isinstance(g, JointPostureModel)
             else CoreTarget(np.array(g.p), g.working_mode)
         )
-    obstacles = obstacles_to_core(request.obstacles)
+    obstacles = scene_obstacles(request)
     margins = margins_to_core(request.margins)
     options = planner_options_to_core(request.planner)
     timing = timing_to_core(request.timing, request.limits)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, PrivateAttr
 
 from planner.constants import MAX_SEQUENCE_TARGETS
 from planner.design import Design
@@ -31,7 +31,6 @@ from planner.wire.common import (
     inertia_to_core,
     located,
     margins_to_core,
-    obstacles_to_core,
 )
 from planner.wire.plan import (
     PathModel,
@@ -40,6 +39,7 @@ from planner.wire.plan import (
     path_model,
     planner_options_to_core,
 )
+from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import (
     AnyTrajectory,
     Limits,
@@ -100,6 +100,13 @@ class SequenceRequest(_Request):
         "the shortest whole trajectory; 'fixed': each target as given.",
     )
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
+    scene: SceneName | None = Field(
+        None,
+        description="A stored scene's name (PUT /v1/scenes/{name}): its obstacles join "
+        "`obstacles`, its design is the robot when `design` is absent; unknown: 422.",
+    )
+    #: the named scene's library obstacles, set by the service (:func:`with_scene`)
+    _scene_obstacles: tuple[Any, ...] | None = PrivateAttr(None)
     margins: MarginsModel = Field(default_factory=MarginsModel)
     planner: PlannerOptions = Field(
         default_factory=PlannerOptions, description="Search options of every leg."
@@ -218,7 +225,7 @@ def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
             targets.append(SequenceTarget(goal, t.stop, t.blend))
     return SequenceInputs(
         design, start, targets, request.cycle, request.objective,
-        obstacles_to_core(request.obstacles), margins_to_core(request.margins),
+        scene_obstacles(request), margins_to_core(request.margins),
         planner_options_to_core(request.planner), timing_to_core(request.timing, request.limits),
         joint_limits_to_core(request.limits), inertia_to_core(request.design),
         tuple(request.gravity),  # type: ignore[arg-type]
