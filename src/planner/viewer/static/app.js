@@ -209,12 +209,14 @@ async function plan(ev) {
   const endpoint = form.endpoint();
   setStatus('planning…', 'busy');
   $('fraction-wrap').hidden = true;
+  $('torque-ratio-wrap').hidden = true;
   $('plan-button').disabled = true;
   try {
     const response = await postJSON(`/v1/${endpoint}`, request);
     const kind = response.status === 'solved' ? 'solved' : 'failed';
     setStatus(response.status, kind, response.message);
     showFraction(endpoint, response);
+    showTorqueRatio(response);
     showPlan(request, response, endpoint);
   } catch (err) {
     if (err instanceof ApiError && err.status === 422) {
@@ -226,6 +228,15 @@ async function plan(ev) {
   } finally {
     $('plan-button').disabled = false;
   }
+}
+
+/** The largest |tau_j| / limits.torque[j] of the answer, when it was timed under torque limits. */
+function showTorqueRatio(response) {
+  const r = response.diagnostics?.max_torque_ratio;
+  const has = typeof r === 'number';
+  $('torque-ratio-wrap').hidden = !has;
+  $('torque-ratio').textContent = has ? r.toFixed(4) : '—';
+  $('torque-ratio').dataset.value = has ? String(r) : '';
 }
 
 /** A straight path's answer: the share achieved and, when it stopped short, why. */
@@ -322,7 +333,7 @@ function showPlan(request, response, endpoint = 'plan') {
   section.setRest(rest && inPlane(rest, traj.q[0][0]));
   regions.setTrace(shown.regionTrace);
   plots.show({
-    t: traj.t, q: traj.q, qd: traj.qd, qdd: traj.qdd,
+    t: traj.t, q: traj.q, qd: traj.qd, qdd: traj.qdd, tau: traj.tau, torqueLimits: request.limits?.torque,
     kappa: postures.map((x) => x.kappa), serial: postures.map((x) => x.serial),
     margins, transitTimes: transits, onSeek: seek,
   });
@@ -502,6 +513,7 @@ function startOver() {
   exportKind = null;
   $('export-text').hidden = true;
   $('fraction-wrap').hidden = true;
+  $('torque-ratio-wrap').hidden = true;
   $('example').value = '0';
   setStatus('not planned', '');
   exampleChosen(form.EXAMPLES[0]);

@@ -124,7 +124,10 @@ request.plan = function planRequest() {
       stop_at_transits: input('planner.stop_at_transits').checked,
     }),
     timing: drop({ method: input('timing.method').value, sample_rate_hz: read('timing.sample_rate_hz') }),
-    limits: drop({ velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration') }),
+    limits: drop({
+      velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration'),
+      torque: optionalVector('limits.torque'),
+    }),
   };
 };
 

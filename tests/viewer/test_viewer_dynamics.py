@@ -1,0 +1,88 @@
+"""The viewer's torques in a real browser (helpers: ``viewer_browser.py``), one page for the
+module: torque limits typed into the form go out as ``limits.torque``; the answer's ``tau`` is
+what the ``torque-plot`` draws, with the lines +-limit, and the header shows the answer's
+``diagnostics.max_torque_ratio``. Every test checks that the page logged no console error,
+that no request failed and that none left the service's origin."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from viewer_browser import Watch, launch, open_viewer, plan
+
+TORQUE = [40.0, 30.0, 20.0]
+
+
+@pytest.fixture(scope="module")
+def page_(live_server) -> Iterator[object]:
+    with launch() as browser:
+        context = browser.new_context(viewport={"width": 1400, "height": 900})
+        pg = context.new_page()
+        pg.set_default_timeout(30_000)
+        pg.watch = Watch(pg, live_server)
+        yield pg
+        context.close()
+
+
+@pytest.fixture
+def page(page_, live_server):
+    page_.watch.reset()
+    open_viewer(page_, live_server)
+    return page_
+
+
+def torque_plot(page) -> dict | None:
+    return page.evaluate("async () => (await import('/viewer/plots.js')).torqueData()")
+
+
+def test_torque_limits_are_sent_and_the_answers_torques_plotted(page):
+    from playwright.sync_api import expect
+
+    for k, lim in enumerate(TORQUE):
+        page.locator(f"input[name='limits.torque.{k}']").fill(str(lim))
+    with page.expect_request(lambda r: r.url.endswith("/v1/plan")) as sent:
+        answer = plan(page)
+    assert json.loads(sent.value.post_data)["limits"]["torque"] == TORQUE
+    assert answer["status"] == "solved", answer["message"]
+    tau = np.asarray(answer["trajectory"]["tau"])
+    ratio = answer["diagnostics"]["max_torque_ratio"]
+    # the oracle: the answer's own tau against the limits sent (the service's ratio is over its
+    # denser re-check grid, so at least the samples' and close to it)
+    sampled = float(np.max(np.abs(tau) / TORQUE))
+    assert sampled - 1e-12 <= ratio <= 1.0
+    assert ratio == pytest.approx(sampled, rel=0.02)
+    drawn = torque_plot(page)
+    assert drawn is not None
+    assert drawn["t"] == answer["trajectory"]["t"]
+    assert drawn["tau"] == answer["trajectory"]["tau"]
+    lines = sorted((ln["joint"], ln["value"]) for ln in drawn["lines"])
+    assert lines == sorted([(k, s * v) for k, v in enumerate(TORQUE) for s in (1, -1)])
+    plot = page.get_by_test_id("torque-plot")
+    expect(plot).to_have_attribute("data-lines", "6")
+    expect(plot.locator("canvas")).to_have_count(1)
+    assert plot.locator(".u-legend").inner_text().count("limit") == 6
+    shown = page.get_by_test_id("torque-ratio")
+    expect(shown).to_be_visible()
+    assert float(shown.get_attribute("data-value")) == ratio
+    assert shown.inner_text() == f"{ratio:.4f}"
+    page.watch.check()
+
+
+def test_without_torque_limits_no_lines_and_no_ratio(page):
+    from playwright.sync_api import expect
+
+    answer = plan(page)
+    assert answer["status"] == "solved", answer["message"]
+    assert answer["diagnostics"].get("max_torque_ratio") is None
+    drawn = torque_plot(page)
+    tau = answer["trajectory"].get("tau")
+    if tau is None:  # no design.inertia and no limits.torque: nothing to plot
+        assert drawn is None
+        expect(page.get_by_test_id("torque-plot").locator("canvas")).to_have_count(0)
+    else:
+        assert drawn["tau"] == tau and drawn["lines"] == []
+    expect(page.locator("#torque-ratio-wrap")).to_be_hidden()
+    page.watch.check()
