@@ -27,6 +27,7 @@ TEST_IDS = (
     "cartesian-mode",
     "regions-view",
     "torque-plot",
+    "sequence-list",
 )
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())

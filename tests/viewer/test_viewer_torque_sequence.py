@@ -1,17 +1,20 @@
-"""The viewer's torques in a real browser (helpers: ``viewer_browser.py``), one page for the
-module: torque limits typed into the form go out as ``limits.torque``; the answer's ``tau`` is
-what the ``torque-plot`` draws, with the lines +-limit, and the header shows the answer's
-``diagnostics.max_torque_ratio``. Every test checks that the page logged no console error,
+"""The viewer's torques and sequences in a real browser (helpers: ``viewer_browser.py``), one
+page for the module: torque limits typed into the form go out as ``limits.torque``; the
+answer's ``tau`` is what the ``torque-plot`` draws, with the lines +-limit, and the header
+shows the answer's ``diagnostics.max_torque_ratio``. A sequence (``sequence-mode``) goes to
+``POST /v1/sequence``; the ``sequence-list`` lists its legs and highlights the one the
+timeline is in, and the header shows the answer's ``cycle_time``. Every test checks that the page logged no console error,
 that no request failed and that none left the service's origin."""
 
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from viewer_browser import Watch, launch, open_viewer, plan
+from viewer_browser import Watch, launch, open_viewer, plan, shots_dir
 
 TORQUE = [40.0, 30.0, 20.0]
 
@@ -38,7 +41,7 @@ def torque_plot(page) -> dict | None:
     return page.evaluate("async () => (await import('/viewer/plots.js')).torqueData()")
 
 
-def test_torque_limits_are_sent_and_the_answers_torques_plotted(page):
+def test_torque_limits_are_sent_and_the_answers_torques_plotted(page, tmp_path):
     from playwright.sync_api import expect
 
     for k, lim in enumerate(TORQUE):
@@ -68,6 +71,7 @@ def test_torque_limits_are_sent_and_the_answers_torques_plotted(page):
     expect(shown).to_be_visible()
     assert float(shown.get_attribute("data-value")) == ratio
     assert shown.inner_text() == f"{ratio:.4f}"
+    page.screenshot(path=shots_dir(tmp_path) / "torques.png", full_page=True)
     page.watch.check()
 
 
@@ -85,4 +89,46 @@ def test_without_torque_limits_no_lines_and_no_ratio(page):
     else:
         assert drawn["tau"] == tau and drawn["lines"] == []
     expect(page.locator("#torque-ratio-wrap")).to_be_hidden()
+    page.watch.check()
+
+
+def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path):
+    from playwright.sync_api import expect
+
+    page.locator("#example").select_option(
+        label="Sequence: pick and place, back to the start (cycle)"
+    )
+    expect(page.get_by_test_id("sequence-mode")).to_be_checked()
+    with page.expect_request(lambda r: r.url.endswith("/v1/sequence")) as sent:
+        answer = plan(page, "/v1/sequence")
+    body = json.loads(sent.value.post_data)
+    assert body["cycle"] is True
+    assert [t["goal"]["p"] for t in body["targets"]] == [
+        [0.35, -0.1, -0.4], [0.35, 0.2, -0.4], [0.35, 0.2, -0.45],
+    ]  # fmt: skip
+    assert [t["stop"] for t in body["targets"]] == [False, False, True]
+    assert [t.get("blend") for t in body["targets"]] == [0.04, 0.04, None]
+    assert answer["status"] == "solved", answer["message"]
+    legs = answer["legs"]
+    assert [leg["target_index"] for leg in legs] == [0, 1, 2, 3]  # the return: index 3
+    cycle = page.get_by_test_id("cycle-time")
+    expect(cycle).to_be_visible()
+    assert float(cycle.get_attribute("data-value")) == answer["cycle_time"]
+    assert answer["cycle_time"] == answer["trajectory"]["t"][-1]
+    rows = page.get_by_test_id("sequence-list").locator("tbody tr")
+    expect(rows).to_have_count(len(legs))
+    for k, leg in enumerate(legs):
+        cells = rows.nth(k).locator("td").all_inner_texts()
+        assert cells[1].startswith(f"{leg['target_index']}:")
+        assert cells[3] == leg["working_mode"]
+        assert cells[4] == f"{leg['start_time']:.2f}–{leg['end_time']:.2f}"
+    t = answer["trajectory"]["t"]
+    for k in (1, 2):  # a sample strictly inside leg k, set on the timeline
+        leg = legs[k]
+        i = next(j for j, tj in enumerate(t) if leg["start_time"] < tj < leg["end_time"])
+        page.get_by_test_id("timeline").fill(str(i))
+        expect(rows.nth(k)).to_have_class(re.compile(r"\bcurrent\b"))
+        assert page.locator(".sequence-list tr.current").count() == 1
+        assert page.get_by_test_id("sequence-list").get_attribute("data-current") == str(k)
+    page.screenshot(path=shots_dir(tmp_path) / "sequence.png", full_page=True)
     page.watch.check()
