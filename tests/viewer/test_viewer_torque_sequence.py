@@ -132,3 +132,22 @@ def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path
         assert page.get_by_test_id("sequence-list").get_attribute("data-current") == str(k)
     page.screenshot(path=shots_dir(tmp_path) / "sequence.png", full_page=True)
     page.watch.check()
+
+
+def test_sequence_targets_are_read_and_checked_as_typed(page):
+    from playwright.sync_api import expect
+
+    page.get_by_test_id("sequence-mode").check()
+    box = page.locator("textarea[name='targets']")
+    box.fill("q 0.1 2 1 pass\n0.3 0.1 abc")
+    error = page.locator("[data-testid=field-error][data-loc='targets']")
+    expect(error).to_contain_text("line 2: three numbers")
+    box.fill("q 0.1 2 1 pass\n0.3 0.1 -0.5 stop")
+    expect(error).to_have_count(0)
+    body = page.evaluate("async () => (await import('/viewer/form.js')).request()")
+    assert body["targets"] == [
+        {"goal": {"q": [0.1, 2, 1], "assembly_mode": "+"}, "stop": False},
+        {"goal": {"p": [0.3, 0.1, -0.5], "working_mode": "any"}, "stop": True},
+    ]
+    assert body["cycle"] is False and "goal" not in body
+    page.watch.check()

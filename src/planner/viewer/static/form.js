@@ -336,6 +336,7 @@ const REQUIRED = /^(design\.(L0|L1|L2|link_radius|joint_m(in|ax)\.\d)|start\.q\.
 
 function typedMessage(el) {
   if (el.name === 'waypoints') return waypointMessage();
+  if (el.name === 'targets') return targetsMessage();
   const loc = locOf(el);
   if (!loc || el.closest('[hidden]')) return '';
   const ep = endpoint();
@@ -357,9 +358,27 @@ function waypointMessage() {
   return '';
 }
 
+function targetsMessage() {
+  if (goalKind() !== 'seq') return '';
+  const ts = targets();
+  if (!ts.length) return 'at least one target: one "x y z" (m) or "q θ1 θ2 θ3" (rad) per line';
+  for (const [i, t] of ts.entries()) {
+    const xs = t.goal.q || t.goal.p;
+    if (xs.length !== 3 || xs.some((x) => typeof x !== 'number')) {
+      return `line ${i + 1}: three numbers, x y z (m) or q θ1 θ2 θ3 (rad), then "pass" or nothing`;
+    }
+    const field = t.goal.q ? 'q' : 'p';
+    for (const [k, x] of xs.entries()) {
+      const m = checks.check('sequence', `targets.${i}.goal.${field}.${k}`, x, { hint: (p) => (p.endsWith('.goal') ? field : null) });
+      if (m) return `line ${i + 1}: ${m}`;
+    }
+  }
+  return '';
+}
+
 /** Check one field as typed: its message next to it, or none. */
 export function typed(el) {
-  const loc = el.name === 'waypoints' ? 'waypoints' : locOf(el);
+  const loc = el.name === 'waypoints' || el.name === 'targets' ? el.name : locOf(el);
   if (!loc) return;
   const { target } = targetOf(loc.split('.'));
   target?.querySelectorAll(`.field-error[data-source=typed][data-loc="${loc}"]`).forEach((e) => e.remove());
@@ -375,7 +394,7 @@ export function typed(el) {
 /** Check every field again (after an example, a preset or a goal kind changed them). */
 export function recheck() {
   if (!checks.loaded()) return;
-  form.querySelectorAll('input[type=number], textarea[name=waypoints]').forEach(typed);
+  form.querySelectorAll('input[type=number], textarea[name=waypoints], textarea[name=targets]').forEach(typed);
 }
 
 /** The schema the checks read, then every field checked. */
