@@ -109,6 +109,10 @@ def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path
     assert [t["stop"] for t in body["targets"]] == [False, False, True]
     assert [t.get("blend") for t in body["targets"]] == [0.04, 0.04, None]
     assert answer["status"] == "solved", answer["message"]
+    page.locator("#copy-curl").click()  # the export follows the goal kind
+    curl = page.get_by_test_id("export-text").input_value()
+    assert curl.split(" \\\n")[0].endswith("/v1/sequence")
+    assert json.loads(re.search(r"-d '(.*)'$", curl, re.DOTALL).group(1)) == body
     legs = answer["legs"]
     assert [leg["target_index"] for leg in legs] == [0, 1, 2, 3]  # the return: index 3
     cycle = page.get_by_test_id("cycle-time")
