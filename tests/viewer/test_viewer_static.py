@@ -26,6 +26,8 @@ TEST_IDS = (
     "joint-plot",
     "cartesian-mode",
     "regions-view",
+    "torque-plot",
+    "sequence-list",
 )
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())

@@ -1,4 +1,5 @@
-// The viewer's wiring: form -> POST /v1/plan (or /v1/cartesian for a straight tool path) ->
+// The viewer's wiring: form -> POST /v1/plan (or /v1/cartesian for a straight tool path,
+// /v1/sequence for a sequence of targets) ->
 // scene, timeline, plots, the workspace section and the region map.
 import { ApiError, getBlob, getJSON, postJSON, setApiKey } from './api.js';
 import * as form from './form.js';
@@ -209,12 +210,16 @@ async function plan(ev) {
   const endpoint = form.endpoint();
   setStatus('planning…', 'busy');
   $('fraction-wrap').hidden = true;
+  $('torque-ratio-wrap').hidden = true;
+  $('cycle-wrap').hidden = true;
   $('plan-button').disabled = true;
   try {
     const response = await postJSON(`/v1/${endpoint}`, request);
     const kind = response.status === 'solved' ? 'solved' : 'failed';
     setStatus(response.status, kind, response.message);
     showFraction(endpoint, response);
+    showTorqueRatio(response);
+    showCycle(endpoint, response);
     showPlan(request, response, endpoint);
   } catch (err) {
     if (err instanceof ApiError && err.status === 422) {
@@ -226,6 +231,60 @@ async function plan(ev) {
   } finally {
     $('plan-button').disabled = false;
   }
+}
+
+/** The largest |tau_j| / limits.torque[j] of the answer, when it was timed under torque limits. */
+function showTorqueRatio(response) {
+  const r = response.diagnostics?.max_torque_ratio;
+  const has = typeof r === 'number';
+  $('torque-ratio-wrap').hidden = !has;
+  $('torque-ratio').textContent = has ? r.toFixed(4) : '—';
+  $('torque-ratio').dataset.value = has ? String(r) : '';
+}
+
+/** A sequence's answer: its cycle time. */
+function showCycle(endpoint, response) {
+  const c = response.cycle_time;
+  $('cycle-wrap').hidden = endpoint !== 'sequence';
+  $('cycle-time').textContent = typeof c === 'number' ? c.toFixed(3) : '—';
+  $('cycle-time').dataset.value = typeof c === 'number' ? String(c) : '';
+}
+
+/** The sequence's targets and legs (index, target, stop, working mode, time span); a click on
+ * a leg seeks to its start. Empty (hidden) for any other answer. */
+function renderLegs(request, response) {
+  const table = $('sequence-list');
+  const legs = response?.legs || [];
+  table.hidden = !response?.legs;
+  const span = (l) => (typeof l.start_time === 'number' ? `${l.start_time.toFixed(2)}–${l.end_time.toFixed(2)}` : '—');
+  const targetText = (i) => {
+    const g = i < request.targets.length ? request.targets[i].goal : request.start;
+    return i < request.targets.length ? (g.q ? `q ${g.q.join(' ')}` : g.p.join(' ')) : 'the start (cycle)';
+  };
+  table.tBodies[0].replaceChildren(...legs.map((l, k) => {
+    const tr = document.createElement('tr');
+    tr.dataset.leg = String(k);
+    tr.dataset.start = String(l.start_time ?? '');
+    tr.dataset.end = String(l.end_time ?? '');
+    const stopCell = l.target_index < request.targets.length ? (request.targets[l.target_index].stop === false ? 'pass' : 'stop') : 'stop';
+    for (const text of [String(k), `${l.target_index}: ${targetText(l.target_index)}`, stopCell, l.working_mode || '—', span(l)]) {
+      const td = document.createElement('td');
+      td.textContent = text;
+      tr.appendChild(td);
+    }
+    tr.title = `${l.status}${typeof l.pass_distance === 'number' ? `; passed within ${fmt(l.pass_distance, 4)} rad` : ''}`;
+    tr.addEventListener('click', () => { stop(); if (typeof l.start_time === 'number') seek(l.start_time); });
+    return tr;
+  }));
+}
+
+/** Highlight the leg whose time span holds t (the later one at a shared instant but the last). */
+function highlightLeg(t) {
+  const rows = [...$('sequence-list').tBodies[0].rows];
+  const k = rows.findIndex((r) => r.dataset.start !== '' && t >= Number(r.dataset.start) && t < Number(r.dataset.end));
+  const current = k >= 0 ? k : rows.length && t >= Number(rows.at(-1).dataset.end) ? rows.length - 1 : -1;
+  rows.forEach((r, i) => r.classList.toggle('current', i === current));
+  $('sequence-list').dataset.current = String(current);
 }
 
 /** A straight path's answer: the share achieved and, when it stopped short, why. */
@@ -271,6 +330,7 @@ function clearPlan() {
   $('time').textContent = '0.00';
   $('duration').textContent = '0.00';
   renderTransits([], []);
+  renderLegs(null, null);
   plots.clear();
   section.setPath(null);
   section.setRest(null);
@@ -288,7 +348,10 @@ function showPlan(request, response, endpoint = 'plan') {
     start: request.start.q, goal: goalQ || qs.at(-1) || null, goalAssembly: request.goal?.assembly_mode,
     proof: Boolean(response.diagnostics?.proven_infeasible),
   });
-  if (!response.path) {
+  renderLegs(request, endpoint === 'sequence' ? response : null);
+  // a sequence's answer has legs, not one path: one segment, its transits not marked
+  const path = response.path || (response.legs && response.trajectory ? { segments: [{ working_mode: '' }], transits: [] } : null);
+  if (!path) {
     preview();
     regions.setTrace({ ...trace([]), goal: goalQ || null });
     return;
@@ -299,8 +362,8 @@ function showPlan(request, response, endpoint = 'plan') {
   const postures = along(d, traj.q, asm);
   const fkError = fkCheck(postures, traj.p);
   $('scene').dataset.fkError = fkError === null ? '' : String(fkError);
-  const segs = response.path.segments;
-  const trs = response.path.transits;
+  const segs = path.segments;
+  const trs = path.transits;
   const ks = transitSamples(traj.q, trs);
   const segmentOf = traj.t.map((_, i) => ks.filter((k) => k < i).length);
   const modes = segs.map((s) => s.working_mode);
@@ -322,7 +385,7 @@ function showPlan(request, response, endpoint = 'plan') {
   section.setRest(rest && inPlane(rest, traj.q[0][0]));
   regions.setTrace(shown.regionTrace);
   plots.show({
-    t: traj.t, q: traj.q, qd: traj.qd, qdd: traj.qdd,
+    t: traj.t, q: traj.q, qd: traj.qd, qdd: traj.qdd, tau: traj.tau, torqueLimits: request.limits?.torque,
     kappa: postures.map((x) => x.kappa), serial: postures.map((x) => x.serial),
     margins, transitTimes: transits, onSeek: seek,
   });
@@ -374,6 +437,7 @@ function showSample(i) {
   showReadouts(x, modes[segmentOf[i]]);
   plots.setTime(traj.t[i]);
   section.setIndex(i);
+  highlightLeg(traj.t[i]);
 }
 
 function sampleAt(t) {
@@ -502,6 +566,8 @@ function startOver() {
   exportKind = null;
   $('export-text').hidden = true;
   $('fraction-wrap').hidden = true;
+  $('torque-ratio-wrap').hidden = true;
+  $('cycle-wrap').hidden = true;
   $('example').value = '0';
   setStatus('not planned', '');
   exampleChosen(form.EXAMPLES[0]);

@@ -12,7 +12,7 @@ export async function load(getJSON) {
   const spec = await getJSON('/openapi.json');
   components = spec.components?.schemas || {};
   const body = (path) => spec.paths?.[path]?.post?.requestBody?.content?.['application/json']?.schema;
-  roots = { plan: body('/v1/plan'), cartesian: body('/v1/cartesian') };
+  roots = { plan: body('/v1/plan'), cartesian: body('/v1/cartesian'), sequence: body('/v1/sequence') };
 }
 
 export const loaded = () => Boolean(roots.plan);
@@ -71,7 +71,7 @@ export function numberMessage(s, x, required) {
 }
 
 /** The message for the value `x` of the field at `loc` (e.g. "design.L1", "obstacles.0.radius.0")
- * of an endpoint's body ('plan' | 'cartesian'), or '' when it holds (or the rule is unknown). */
+ * of an endpoint's body ('plan' | 'cartesian' | 'sequence'), or '' when it holds (or the rule is unknown). */
 export function check(endpoint, loc, x, { required = false, hint = () => null } = {}) {
   const root = roots[endpoint];
   if (!root) return '';

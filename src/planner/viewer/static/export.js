@@ -19,13 +19,13 @@ function py(value, indent = '') {
 
 const shellQuote = (s) => `'${s.replace(/'/g, `'\\''`)}'`;
 
-/** A curl command for POST /v1/plan or /v1/cartesian (the key, if any, from $PLANNER_API_KEY). */
+/** A curl command for POST /v1/plan, /v1/cartesian or /v1/sequence (the key, if any, from $PLANNER_API_KEY). */
 export function curl(origin, body, withKey, endpoint = 'plan') {
   const key = withKey ? ' \\\n  -H "X-API-Key: $PLANNER_API_KEY"' : '';
   return `curl -sS -X POST ${origin}/v1/${endpoint} \\\n  -H 'Content-Type: application/json'${key} \\\n  -d ${shellQuote(JSON.stringify(body))}`;
 }
 
-/** A Python script calling planner.client.PlannerClient.plan (or .cartesian) with the same
+/** A Python script calling planner.client.PlannerClient.plan (or .cartesian, .sequence) with the same
  * request. */
 export function python(origin, body, withKey, endpoint = 'plan') {
   const key = withKey ? ', api_key=os.environ["PLANNER_API_KEY"]' : '';

@@ -36,6 +36,14 @@ export const EXAMPLES = [
     waypoints: [[0.5, 0.1, 0.0], [0.5, 0.1, -0.1], [0.5, 0.0, -0.1], [1.5, 0.0, -0.1]],
     obstacles: [],
   },
+  {
+    name: 'Sequence: pick and place, back to the start (cycle)',
+    start: { q: [0.90975, 2.76741, 1.04726], assembly_mode: '+' },
+    targets: ['0.35 -0.1 -0.4 pass', '0.35 0.2 -0.4 pass', '0.35 0.2 -0.45'],
+    blend: 0.04,
+    cycle: true,
+    obstacles: [],
+  },
 ];
 
 /** The working mode labels a Cartesian target accepts. */
@@ -76,11 +84,31 @@ function showGoalKind() {
   document.getElementById('goal-q').hidden = kind !== 'q';
   document.getElementById('goal-p').hidden = kind !== 'p';
   document.getElementById('goal-path').hidden = kind !== 'path';
-  document.getElementById('plan-button').textContent = kind === 'path' ? 'Plan straight path' : 'Plan';
+  document.getElementById('goal-seq').hidden = kind !== 'seq';
+  document.getElementById('plan-button').textContent = { path: 'Plan straight path', seq: 'Plan sequence' }[kind] || 'Plan';
 }
 
-/** The endpoint the form's request goes to: 'plan' (/v1/plan) or 'cartesian' (/v1/cartesian). */
-export const endpoint = () => (goalKind() === 'path' ? 'cartesian' : 'plan');
+/** The endpoint the form's request goes to: 'plan' (/v1/plan), 'cartesian' (/v1/cartesian)
+ * or 'sequence' (/v1/sequence). */
+export const endpoint = () => ({ path: 'cartesian', seq: 'sequence' }[goalKind()] || 'plan');
+
+/** The sequence's targets as typed, one a line: "x y z" (a Cartesian target, working mode
+ * any) or "q t1 t2 t3" (a joint posture in the start's assembly mode), "pass" at the end for
+ * a target passed at speed (with the form's blend). */
+export function targets() {
+  const asm = input('start.assembly_mode').value;
+  const blend = read('blend');
+  return input('targets').value.split('\n').map((l) => l.trim()).filter((l) => l).map((line) => {
+    const words = line.split(/[\s,;]+/);
+    const pass = words.at(-1).toLowerCase() === 'pass';
+    if (pass || words.at(-1).toLowerCase() === 'stop') words.pop();
+    const joint = words[0].toLowerCase() === 'q';
+    if (joint) words.shift();
+    const xs = words.map((x) => (Number.isFinite(Number(x)) ? Number(x) : x));
+    const goal = joint ? { q: xs, assembly_mode: asm } : { p: xs, working_mode: 'any' };
+    return drop({ goal, stop: !pass, blend: pass ? blend : undefined });
+  });
+}
 
 /** The straight path's waypoints as typed: one "x y z" per line (numbers, or the text typed). */
 export function waypoints() {
@@ -101,7 +129,8 @@ export function addWaypoint(p) {
 
 /** The request body the form holds, for its endpoint (see endpoint()). */
 export function request() {
-  return endpoint() === 'cartesian' ? cartesianRequest() : request.plan();
+  const ep = endpoint();
+  return ep === 'cartesian' ? cartesianRequest() : ep === 'sequence' ? sequenceRequest() : request.plan();
 }
 
 /** The /v1/plan request body (whatever the goal kind shown, a joint or Cartesian goal). */
@@ -124,9 +153,18 @@ request.plan = function planRequest() {
       stop_at_transits: input('planner.stop_at_transits').checked,
     }),
     timing: drop({ method: input('timing.method').value, sample_rate_hz: read('timing.sample_rate_hz') }),
-    limits: drop({ velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration') }),
+    limits: drop({
+      velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration'),
+      torque: optionalVector('limits.torque'),
+    }),
   };
 };
+
+/** The /v1/sequence request body: the plan's fields but the goal, the targets and cycle. */
+function sequenceRequest() {
+  const { goal, ...r } = request.plan();
+  return { ...r, targets: targets(), cycle: input('cycle').checked };
+}
 
 /** The /v1/cartesian request body: the plan's fields that a straight path takes. */
 function cartesianRequest() {
@@ -161,18 +199,21 @@ export function setExample(ex, d) {
   if (d) setDesign(d);
   ex.start.q.forEach((x, i) => setValue(`start.q.${i}`, x));
   setValue('start.assembly_mode', ex.start.assembly_mode);
-  const kind = ex.waypoints ? 'path' : 'q' in ex.goal ? 'q' : 'p';
+  const kind = ex.targets ? 'seq' : ex.waypoints ? 'path' : 'q' in ex.goal ? 'q' : 'p';
   form.querySelector(`input[name=goal-kind][value=${kind}]`).checked = true;
   const g = ex.goal || {};
   const dd = d || design();
   const x = g.q && [dd.L0, dd.L1, dd.L2].every((v) => typeof v === 'number') ? posture(dd, g.q, g.assembly_mode) : null;
-  const p = g.p || x?.P || ex.waypoints?.at(-1);
+  const p = g.p || x?.P || ex.waypoints?.at(-1) || null;
   [0, 1, 2].forEach((i) => setValue(`goal.q.${i}`, g.q ? g.q[i] : ''));
   setValue('goal.assembly_mode', g.assembly_mode || ex.start.assembly_mode);
   [0, 1, 2].forEach((i) => setValue(`goal.p.${i}`, p ? +p[i].toFixed(6) : ''));
   setValue('goal.working_mode', g.working_mode || 'any');
   setWaypoints(ex.waypoints || (p ? [p] : []));
   setValue('path_tolerance', '');
+  input('targets').value = ex.targets ? ex.targets.join('\n') : p ? p.map((v) => +v.toFixed(6)).join(' ') : '';
+  setValue('blend', ex.blend ?? '');
+  input('cycle').checked = Boolean(ex.cycle);
   showGoalKind();
   obstacles = ex.obstacles.map((o) => structuredClone(o));
   renderObstacles();
@@ -295,6 +336,7 @@ const REQUIRED = /^(design\.(L0|L1|L2|link_radius|joint_m(in|ax)\.\d)|start\.q\.
 
 function typedMessage(el) {
   if (el.name === 'waypoints') return waypointMessage();
+  if (el.name === 'targets') return targetsMessage();
   const loc = locOf(el);
   if (!loc || el.closest('[hidden]')) return '';
   const ep = endpoint();
@@ -316,9 +358,27 @@ function waypointMessage() {
   return '';
 }
 
+function targetsMessage() {
+  if (goalKind() !== 'seq') return '';
+  const ts = targets();
+  if (!ts.length) return 'at least one target: one "x y z" (m) or "q θ1 θ2 θ3" (rad) per line';
+  for (const [i, t] of ts.entries()) {
+    const xs = t.goal.q || t.goal.p;
+    if (xs.length !== 3 || xs.some((x) => typeof x !== 'number')) {
+      return `line ${i + 1}: three numbers, x y z (m) or q θ1 θ2 θ3 (rad), then "pass" or nothing`;
+    }
+    const field = t.goal.q ? 'q' : 'p';
+    for (const [k, x] of xs.entries()) {
+      const m = checks.check('sequence', `targets.${i}.goal.${field}.${k}`, x, { hint: (p) => (p.endsWith('.goal') ? field : null) });
+      if (m) return `line ${i + 1}: ${m}`;
+    }
+  }
+  return '';
+}
+
 /** Check one field as typed: its message next to it, or none. */
 export function typed(el) {
-  const loc = el.name === 'waypoints' ? 'waypoints' : locOf(el);
+  const loc = el.name === 'waypoints' || el.name === 'targets' ? el.name : locOf(el);
   if (!loc) return;
   const { target } = targetOf(loc.split('.'));
   target?.querySelectorAll(`.field-error[data-source=typed][data-loc="${loc}"]`).forEach((e) => e.remove());
@@ -334,7 +394,7 @@ export function typed(el) {
 /** Check every field again (after an example, a preset or a goal kind changed them). */
 export function recheck() {
   if (!checks.loaded()) return;
-  form.querySelectorAll('input[type=number], textarea[name=waypoints]').forEach(typed);
+  form.querySelectorAll('input[type=number], textarea[name=waypoints], textarea[name=targets]').forEach(typed);
 }
 
 /** The schema the checks read, then every field checked. */

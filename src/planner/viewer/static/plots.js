@@ -1,5 +1,6 @@
 // Plots against time (uPlot, loaded as the global uPlot by index.html): kappa(A) and the
-// serial margin against their margins; q, qd, qdd of the three actuated joints. Transits are
+// serial margin against their margins; q, qd, qdd of the three actuated joints; the actuator
+// torques tau against +-limits.torque when the trajectory carries them. Transits are
 // vertical lines with their kind, the current time a red line; a click seeks.
 
 const uPlot = globalThis.uPlot;
@@ -7,6 +8,7 @@ const JOINT_COLORS = ['#1f77b4', '#ff7f0e', '#2ca02c'];
 const TRANSIT = '#6a1b9a';
 
 let charts = [];
+let torque = null;  // the torque chart's {t, tau, limits}: what it plots (read by the tests)
 let now = 0;
 let transits = [];
 
@@ -54,7 +56,7 @@ function chart(el, title, series, data, { yRange, yLabel } = {}, onSeek) {
 const joints = (m, k) => m.map((v) => v[k]);
 
 /** Draw every plot for a trajectory and the page's kinematics along it. */
-export function show({ t, q, qd, qdd, kappa, serial, margins, transitTimes, onSeek }) {
+export function show({ t, q, qd, qdd, tau, torqueLimits, kappa, serial, margins, transitTimes, onSeek }) {
   clear();
   transits = transitTimes;
   now = 0;
@@ -78,13 +80,39 @@ export function show({ t, q, qd, qdd, kappa, serial, margins, transitTimes, onSe
       label: `θ${k + 1}`, stroke: JOINT_COLORS[k], width: 1.5,
     })), [t, ...[0, 1, 2].map((k) => joints(m, k))], { yLabel: unit }, onSeek));
   }
+  if (tau) showTorque(t, tau, torqueLimits, onSeek);
 }
+
+/** tau_j(t) of the three actuators and, for each limited joint, the lines +-limit in its colour. */
+function showTorque(t, tau, limits, onSeek) {
+  const el = document.getElementById('torque-plot');
+  const series = [0, 1, 2].map((k) => ({ label: `τ${k + 1}`, stroke: JOINT_COLORS[k], width: 1.5 }));
+  const data = [t, ...[0, 1, 2].map((k) => joints(tau, k))];
+  const lines = [];
+  for (let k = 0; k < 3; k++) {
+    const lim = limits?.[k];
+    if (typeof lim !== 'number') continue;
+    for (const sign of [1, -1]) {
+      series.push({ label: `${sign > 0 ? '+' : '−'}limit ${k + 1} = ${lim}`, stroke: JOINT_COLORS[k], dash: [6, 4], width: 1 });
+      data.push(t.map(() => sign * lim));
+      lines.push({ joint: k, value: sign * lim });
+    }
+  }
+  torque = { t, tau, lines };
+  el.dataset.lines = String(lines.length);
+  charts.push(chart(el, 'actuator torques τ (N m) against the torque limits', series, data, { yLabel: 'N m' }, onSeek));
+}
+
+/** What the torque chart plots ({t, tau, lines: [{joint, value}]}), or null without one. */
+export const torqueData = () => torque;
 
 /** Remove every plot. */
 export function clear() {
   for (const c of charts) c.destroy();
   charts = [];
-  for (const id of ['kappa-plot', 'joint-plot']) document.getElementById(id).replaceChildren();
+  torque = null;
+  for (const id of ['kappa-plot', 'joint-plot', 'torque-plot']) document.getElementById(id).replaceChildren();
+  delete document.getElementById('torque-plot').dataset.lines;
 }
 
 /** Move the current-time line. */
