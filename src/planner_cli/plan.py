@@ -173,9 +173,10 @@ def plan_summary(response: Any) -> list[str]:
     return lines
 
 
-def _answer(response: Any, out: Path | None, csv: Path | None) -> None:
-    """Print the summary, write ``--out`` and ``--csv``, and exit with the status's code."""
-    for line in plan_summary(response):
+def _answer(response: Any, out: Path | None, csv: Path | None, summary: Any = plan_summary) -> None:
+    """Print the summary (``summary(response)``, lines), write ``--out`` and ``--csv``, and
+    exit with the status's code: the end of every command that answers a trajectory."""
+    for line in summary(response):
         typer.echo(line)
     if out is not None:
         out.write_text(response.model_dump_json(indent=2))

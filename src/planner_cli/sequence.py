@@ -13,8 +13,8 @@ from typing import Annotated, Any
 import typer
 
 from planner_cli._support import Progress
-from planner_cli.errors import EXIT_NO_ANSWER, EXIT_OK, fail
-from planner_cli.plan import CsvOption, OutOption
+from planner_cli.errors import fail
+from planner_cli.plan import CsvOption, OutOption, _answer
 
 __all__ = ["sequence", "sequence_summary"]
 
@@ -46,20 +46,7 @@ def sequence(
         progress.step(f"planning {legs} legs ({body.objective} objective) and timing", 0)
         response = job(body)
         progress.done("planned and timed")
-    for line in sequence_summary(response):
-        typer.echo(line)
-    if out is not None:
-        out.write_text(response.model_dump_json(indent=2))
-        typer.echo(f"full result: {out}")
-    if csv is not None:
-        if response.trajectory is None:
-            typer.echo(f"error: no trajectory to write to {csv}", err=True)
-        else:
-            from planner.client import write_csv
-
-            write_csv(response.trajectory, csv)
-            typer.echo(f"trajectory CSV: {csv}")
-    raise typer.Exit(EXIT_OK if response.status == "solved" else EXIT_NO_ANSWER)
+    _answer(response, out, csv, sequence_summary)
 
 
 def _time(x: float | None) -> str:
