@@ -47,7 +47,7 @@ from planner.design import Design
 from planner.dynamics.inertia import DEFAULT_BASE_MOTOR_MASS, Inertia, _number, check_gravity
 from planner.exceptions import InputError
 
-__all__ = ["SerialArm", "serial_coordinates"]
+__all__ = ["SerialArm", "serial_coordinates", "serial_motion"]
 
 #: Step of the central differences of M and V in :meth:`SerialArm.inverse_dynamics`, rad.
 _STEP = 1e-6
@@ -59,6 +59,46 @@ def serial_coordinates(q: np.ndarray, passive: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     passive = np.atleast_2d(np.asarray(passive, dtype=float))
     return np.stack([q[:, 0], q[:, 1], passive[:, 0] - q[:, 1]], axis=1)
+
+
+def serial_motion(
+    design: Design, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, assembly_mode: str = "+"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The serial arm's (qs, qsd, qsdd), each (N, 3), that moves P as the five-bar's motion
+    (q, qd, qdd) does: leg A's joints, the passive rate and acceleration of theta4 from the
+    loop closure (``docs/dynamics.md``, equations (P)). NaN rows where the five-bar does
+    not assemble or is parallel-singular."""
+    from planner.kinematics import forward_batch
+
+    fb = forward_batch(design, q, assembly_mode)
+    qd = np.atleast_2d(np.asarray(qd, dtype=float))
+    qdd = np.atleast_2d(np.asarray(qdd, dtype=float))
+    t2, t3 = fb.q[:, 1], fb.q[:, 2]
+    t4, t5 = fb.passive[:, 0], fb.passive[:, 1]
+
+    def a(t: np.ndarray) -> np.ndarray:
+        return np.stack([np.cos(t), np.sin(t)], axis=1)
+
+    def nrm(t: np.ndarray) -> np.ndarray:
+        return np.stack([-np.sin(t), np.cos(t)], axis=1)
+
+    L1, L2 = design.L1, design.L2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = L2 * np.sin(t5 - t4)
+        r = L1 * (qd[:, 2:3] * nrm(t3) - qd[:, 1:2] * nrm(t2))
+        t4d = np.sum(r * a(t5), axis=1) / s
+        t5d = np.sum(r * a(t4), axis=1) / s
+        r2 = L1 * (qdd[:, 2:3] * nrm(t3) - qd[:, 2:3] ** 2 * a(t3)
+                   - qdd[:, 1:2] * nrm(t2) + qd[:, 1:2] ** 2 * a(t2))  # fmt: skip
+        r2 += L2 * (t4d[:, None] ** 2 * a(t4) - t5d[:, None] ** 2 * a(t5))
+        t4dd = np.sum(r2 * a(t5), axis=1) / s
+    qs = serial_coordinates(fb.q, fb.passive)
+    qsd = np.stack([qd[:, 0], qd[:, 1], t4d - qd[:, 1]], axis=1)
+    qsdd = np.stack([qdd[:, 0], qdd[:, 1], t4dd - qdd[:, 1]], axis=1)
+    bad = ~fb.ok | ~np.isfinite(s) | (np.abs(s) < 1e-12)
+    for arr in (qs, qsd, qsdd):
+        arr[bad] = np.nan
+    return qs, qsd, qsdd
 
 
 @dataclass(frozen=True, eq=False)
