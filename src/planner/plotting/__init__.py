@@ -43,6 +43,7 @@ from planner.plotting._common import (
     draw_posture,
     plot_loci,
 )
+from planner.plotting.dynamics import figure_inertia_map
 from planner.plotting.paper import (
     FIGURES,
     ISO_LEVELS,
@@ -63,7 +64,6 @@ from planner.plotting.paper import (
     figure_15,
     write_figures,
 )
-from planner.plotting.dynamics import figure_inertia_map
 from planner.plotting.regions import (
     figure_13_regions,
     figure_14_regions,
