@@ -20,6 +20,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia, check_gravity, inverse_dynamics
+from planner.dynamics.inverse import inverse_dynamics_terms
 from planner.exceptions import TimingInfeasibleError
 
 __all__ = [
@@ -72,7 +73,14 @@ class TorqueModel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(dynamic part, gravity part) of tau, each (M, 3): tau = dynamic + gravity."""
         zero = np.zeros_like(np.atleast_2d(q))
-        return self._id(q, qd, qdd, (0.0, 0.0, 0.0)), self._id(q, zero, zero, self.gravity)
+        dyn, grav = self._terms(q, [(qd, qdd, (0.0, 0.0, 0.0)), (zero, zero, self.gravity)])
+        return dyn, grav
+
+    def _terms(self, q: np.ndarray, terms: list) -> list[np.ndarray]:
+        assert self.inertia is not None
+        return inverse_dynamics_terms(
+            self.design, self.inertia, q, terms, assembly_mode=self.assembly_mode
+        )
 
     def path_coefficients(
         self, q: np.ndarray, d1: np.ndarray, d2: np.ndarray
@@ -81,11 +89,8 @@ class TorqueModel:
         q, q', q'' (G, 3)."""
         zero = np.zeros_like(q)
         g0 = (0.0, 0.0, 0.0)
-        return (
-            self._id(q, zero, d1, g0),
-            self._id(q, d1, d2, g0),
-            self._id(q, zero, zero, self.gravity),
-        )
+        a, b, c = self._terms(q, [(zero, d1, g0), (d1, d2, g0), (zero, zero, self.gravity)])
+        return a, b, c
 
 
 def torque_time_scale(
