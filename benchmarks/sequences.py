@@ -22,51 +22,27 @@ planned and timed in <= 200 ms (p50), <= 20 ms per extra target beyond.
 from __future__ import annotations
 
 import argparse
-import itertools
 import statistics
 import time
 
 import numpy as np
 from _machine import print_machine
 
-from planner import Design, SequenceTarget, inverse_batch, solve_sequence
+from planner import Design, SequenceTarget, solve_sequence
 from planner.exceptions import InputError
 from planner.geometry import Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import CartesianTarget, JointPosture
+from planner.planning import CartesianTarget
+from planner.sequence.adept import adept_targets, place_adept_cycle
 from planner.timing import TimingOptions
-
-#: The Adept cycle for a robot of a metre's reach, m.
-ADEPT_UP, ADEPT_ACROSS = 0.025, 0.305
-
-
-def adept_targets(pick: np.ndarray, h: float, d: float, modes, stops, blends):
-    up_a, up_b, place = (pick + np.array(v) for v in ([0, 0, h], [0, d, h], [0, d, 0]))
-    points = [up_a, up_b, place, up_b, up_a]
-    return [
-        SequenceTarget(CartesianTarget(p, m), stop=s, blend=b)
-        for p, m, s, b in zip(points, modes, stops, blends, strict=True)
-    ]
 
 
 def place_cycle(design: Design, timing: TimingOptions):
-    """The first pick point of a fixed grid whose all-stops Adept cycle solves, with its
-    start posture (the pick point in the first working mode that reaches it)."""
-    h, d = ADEPT_UP * design.reach, ADEPT_ACROSS * design.reach
-    for x, z, y in itertools.product((0.35, 0.45, 0.25, 0.55), (-0.45, -0.35, -0.55, -0.25),
-                                     (-0.15, -0.25, -0.05, 0.0)):  # fmt: skip
-        pick = np.array([x, y, z]) * design.reach / 0.8
-        ik = inverse_batch(design, pick)
-        for k in np.flatnonzero(ik.ok[0]):
-            if WORKING_MODES[k][0] != "+":
-                continue
-            start = JointPosture(ik.q[0, k], "+")
-            targets = adept_targets(pick, h, d, ["any"] * 5, [True] * 5, [0.0] * 5)
-            r = solve_sequence(design, start, targets, cycle=True, objective="fixed",
-                               timing=timing)  # fmt: skip
-            if r.solved:
-                return pick, start, h, d, r
-    raise SystemExit("no placement of the Adept cycle solved")
+    """The library's placement of the all-stops cycle (:func:`place_adept_cycle`)."""
+    try:
+        return tuple(place_adept_cycle(design, timing=timing))
+    except LookupError as exc:
+        raise SystemExit(str(exc)) from exc
 
 
 def timed(fn, repeats: int):

@@ -1,5 +1,6 @@
-"""Jobs of ``/v1/design/check``, ``/v1/design/optimize`` and ``/v1/design/regions``: what a
-design's geometry allows, the best link lengths, the region map."""
+"""Jobs of ``/v1/design/check``, ``/v1/design/optimize``, ``/v1/design/regions`` and
+``/v1/design/mjcf``: what a design's geometry allows, the best link lengths, the region map,
+the robot as an MJCF model."""
 
 from __future__ import annotations
 
@@ -13,16 +14,18 @@ from planner.wire import (
     DesignModel,
     DesignOptimizeRequest,
     DesignOptimizeResponse,
+    MjcfRequest,
     RegionsRequest,
     RegionsResponse,
     located,
     margins_to_core,
+    mjcf_answer,
     regions_model,
     sampled_value,
 )
 from planner_api.jobs import UNBOUNDED, JobBudget
 
-__all__ = ["design_check", "optimize_design", "regions"]
+__all__ = ["design_check", "mjcf", "mjcf_of_query", "optimize_design", "regions"]
 
 
 def design_check(request: DesignCheckRequest, budget: JobBudget = UNBOUNDED) -> DesignCheckResponse:
@@ -128,3 +131,14 @@ def regions(request: RegionsRequest, budget: JobBudget = UNBOUNDED) -> RegionsRe
     return regions_model(
         rmap, computation_time_s=time.perf_counter() - t0, with_cells=request.cell_regions
     )
+
+
+def mjcf(request: MjcfRequest) -> str:
+    """``POST /v1/design/mjcf``: the MJCF text (:func:`planner.wire.mjcf_answer`), errors
+    located in the body. Text, not a model: the route answers it as ``application/xml``."""
+    return mjcf_answer(request)
+
+
+def mjcf_of_query(request: MjcfRequest) -> str:
+    """``GET /v1/design/mjcf``: as :func:`mjcf`, errors located in the query."""
+    return mjcf_answer(request, design_loc=("query",), loc=("query",))

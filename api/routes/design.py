@@ -1,15 +1,20 @@
 """GET /v1/designs: the preset designs; POST /v1/design/check: what a design's geometry allows (parallel singularities, operative
 working modes, workspace volume and conditioning); /v1/design/optimize: the best link lengths;
-/v1/design/regions: the region map. Each computed in a worker."""
+/v1/design/regions: the region map; GET|POST /v1/design/mjcf: the robot as an MJCF model for
+MuJoCo. Each computed in a worker."""
 
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Annotated
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Query, Response
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
 
 from planner.design import Design
 from planner.wire import (
+    MJCF_MEDIA_TYPE,
     DesignCheckRequest,
     DesignCheckResponse,
     DesignModel,
@@ -17,14 +22,25 @@ from planner.wire import (
     DesignOptimizeResponse,
     DesignPreset,
     DesignsResponse,
+    MjcfQuery,
+    MjcfRequest,
     RegionsRequest,
     RegionsResponse,
 )
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import design as jobs
-from planner_api.routes._common import json_response, run_job
+from planner_api.routes._common import json_response, run_job, with_design_defaults
 
-__all__ = ["design_check", "design_optimize", "design_regions", "designs", "presets", "router"]
+__all__ = [
+    "design_check",
+    "design_mjcf",
+    "design_mjcf_query",
+    "design_optimize",
+    "design_regions",
+    "designs",
+    "presets",
+    "router",
+]
 
 router = APIRouter(prefix="/v1", tags=["design"])
 
@@ -67,6 +83,42 @@ async def design_regions(
     return await run_job(
         pool, jobs.regions, body, deadline, design_defaults=settings.design_defaults
     )
+
+
+_MJCF_RESPONSES = {200: {"content": {MJCF_MEDIA_TYPE: {}}, "description": "The MJCF model."}}
+
+
+@router.post("/design/mjcf", response_class=Response, responses=_MJCF_RESPONSES)
+async def design_mjcf(
+    body: MjcfRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
+    """The robot as an MJCF model for MuJoCo (``docs/dynamics.md``): two legs from the turning
+    base, the loop closed at P by an equality ``connect``, motors on theta1..theta3, the rotor
+    inertias as armature, a keyframe ``home`` assembled in ``assembly_mode``. The body's
+    ``design`` may carry ``inertia``; a ``home`` that does not assemble is a 422 at
+    ``body.home``."""
+    body = with_design_defaults(body, settings.design_defaults)
+    text = await pool.run(jobs.mjcf, body, deadline=deadline)
+    return Response(content=text, media_type=MJCF_MEDIA_TYPE)
+
+
+@router.get("/design/mjcf", response_class=Response, responses=_MJCF_RESPONSES)
+async def design_mjcf_query(
+    query: Annotated[MjcfQuery, Query()], pool: Pool, deadline: Deadline, settings: SettingsDep
+) -> Response:
+    """The MJCF model of the design given by the query (``L0``, ``L1``, ``L2``,
+    ``link_radius``; absent: the service's default robot's) with the default inertia,
+    gravity and keyframe; ``POST`` the same path for a design with ``inertia``."""
+    given = query.design_fields()
+    try:
+        design = DesignModel.model_validate({**settings.design_defaults.model_dump(), **given})
+    except ValidationError as exc:
+        raise RequestValidationError(
+            [{**e, "loc": ("query", *e["loc"])} for e in exc.errors(include_url=False)]
+        ) from exc
+    body = MjcfRequest(design=design, assembly_mode=query.assembly_mode)
+    text = await pool.run(jobs.mjcf_of_query, body, deadline=deadline)
+    return Response(content=text, media_type=MJCF_MEDIA_TYPE)
 
 
 def presets() -> DesignsResponse:

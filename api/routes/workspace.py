@@ -22,6 +22,7 @@ router = APIRouter(prefix="/v1", tags=["workspace"])
 #: matplotlib; a test checks them against :data:`planner.plotting.NAMED_FIGURES`).
 FIGURE_NAMES: tuple[str, ...] = (
     "cartesian_section",
+    "inertia_map",
     "isoconditioning",
     "joint_section",
     "parallel_c_equals_d",

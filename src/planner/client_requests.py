@@ -41,6 +41,7 @@ from planner.wire import (
     IKResponse,
     JobRequest,
     JobStatus,
+    MjcfRequest,
     PlanBatchRequest,
     PlanBatchResponse,
     PlanRequest,
@@ -440,6 +441,24 @@ class Requests:
         if gravity is not None:
             data["gravity"] = _floats(gravity)
         return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
+
+    def _design_mjcf(
+        self,
+        design: DesignLike = None,
+        *,
+        assembly_mode: str = "+",
+        gravity: Sequence[float] | None = None,
+        home: Sequence[float] | None = None,
+    ) -> _Call[bytes]:
+        """The robot as an MJCF model for MuJoCo (``POST /v1/design/mjcf``), as the XML's
+        bytes (``mujoco.MjModel.from_xml_string(answer.decode())``): ``design`` may carry
+        ``inertia``; ``home`` the keyframe's joints (rad), assembled in ``assembly_mode``."""
+        data: dict[str, Any] = {"design": _design(design), "assembly_mode": assembly_mode}
+        if gravity is not None:
+            data["gravity"] = _floats(gravity)
+        if home is not None:
+            data["home"] = _floats(home)
+        return _Call("POST", "/v1/design/mjcf", _validated(MjcfRequest, data), bytes)
 
     def _optimize_design(
         self, objective: str = "volume", *, design: DesignLike = None, **options: Any

@@ -50,6 +50,7 @@ from planner.planning import (
 from planner.planning.result import Diagnostics
 from planner.timing.limits import JointLimits
 from planner.timing.options import TimingOptions
+from planner.timing.torque import gravity_at_start
 from planner.timing.trajectory import Trajectory
 from planner.validity import Margins
 
@@ -165,7 +166,7 @@ def solve(
     margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
     timing = timing if timing is not None else TimingOptions()
-    held = _gravity_at_start(design, start, limits, inertia, gravity)
+    held = gravity_at_start(design, start.q, start.assembly_mode, limits, inertia, gravity)
     if held is not None and timing.method != "none":
         return Solution(PlanResult(PlanStatus.INVALID_START, held, None, Diagnostics(0.0)))
     result = plan_with_goal_options(
@@ -239,27 +240,3 @@ def time_plan(
         if exc.field is not None and not exc.field_path[:1] == ("timing",):
             exc.field = ("timing", *exc.field_path)
         raise
-
-
-def _gravity_at_start(
-    design: Design,
-    start: JointPosture,
-    limits: JointLimits | None,
-    inertia: Inertia | None,
-    gravity: tuple[float, float, float],
-) -> str | None:
-    """The ``invalid_start`` message when gravity alone, at rest at the start, needs more
-    torque than a joint's limit (no motion can leave it), else None."""
-    if limits is None or limits.torque is None:
-        return None
-    from planner.timing.torque import TorqueModel, gravity_excess
-
-    model = TorqueModel(design, inertia, gravity, start.assembly_mode)
-    excess = gravity_excess(model, np.asarray(start.q, dtype=float), limits.torque_array)
-    if excess is None:
-        return None
-    j, value = excess
-    return (
-        f"invalid start: gravity alone needs |tau{j + 1}| = {value:.6g} N m at rest there, "
-        f"above limits.torque[{j}] = {limits.torque[j]:.6g} N m"
-    )

@@ -13,7 +13,7 @@ import typer
 from planner_cli.common import DesignOption, L0Option, L1Option, L2Option, design_data
 from planner_cli.errors import fail
 
-__all__ = ["dynamics", "mjcf"]
+__all__ = ["dynamics", "inertia_report", "mjcf"]
 
 _TripleOption = Annotated[str, typer.Option(help="Three comma-separated numbers.")]
 
@@ -99,3 +99,61 @@ def mjcf(
         typer.echo(text, nl=False)
     else:
         output.write_text(text)
+
+
+def inertia_report(
+    resolution: Annotated[
+        int, typer.Option(help="Cells per axis of the (theta2, theta3) grid.", min=8, max=256)
+    ] = 256,
+    samples: Annotated[
+        int, typer.Option(help="Times at which the cycle's torques are taken.", min=100)
+    ] = 4001,
+) -> None:
+    """The tables of docs/analysis.md, "Inertia against a serial arm": for the default and
+    the paper-optimum designs with their default inertia, the largest eigenvalue of M per
+    working mode over the workspace (kappa(A) <= 10, serial measures >= 0.05) for the
+    five-bar and its serial counterpart (planner.dynamics.serial), and the peak and RMS
+    torque of each actuator over the all-stops Adept cycle (planner.sequence.adept, TOPPRA
+    under the default limits) for both robots moving P the same way, with gravity (total)
+    and without it (the inertial part). Prints markdown."""
+    import numpy as np
+
+    from planner import Design
+    from planner.dynamics import Inertia
+    from planner.dynamics.analysis import cycle_torques, serial_comparison
+    from planner.sequence.adept import place_adept_cycle
+
+    designs = {"default": Design.default(), "paper-optimum": Design.paper_optimum()}
+    typer.echo("| design | working mode | cells | five-bar: median | p95 | max | serial: "
+               "median | p95 | max | median ratio | planar block: five-bar median | serial "
+               "median | median ratio |")  # fmt: skip
+    typer.echo("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, design in designs.items():
+        cmp = serial_comparison(design, Inertia.default(design), resolution=resolution)
+        for mode, r in cmp.by_mode().items():
+            typer.echo(
+                f"| {name} | {mode} | {int(r['cells'])} | {r['parallel_median']:.3f} | "
+                f"{r['parallel_p95']:.3f} | {r['parallel_max']:.3f} | {r['serial_median']:.3f} | "
+                f"{r['serial_p95']:.3f} | {r['serial_max']:.3f} | {r['ratio_median']:.2f} | "
+                f"{r['parallel_planar_median']:.3f} | {r['serial_planar_median']:.3f} | "
+                f"{r['planar_ratio_median']:.2f} |"
+            )
+    typer.echo("")
+    typer.echo("| design | cycle [s] | torque | robot | peak tau1, tau2, tau3 [N m] | "
+               "RMS tau1, tau2, tau3 [N m] |")  # fmt: skip
+    typer.echo("|---|---|---|---|---|---|")
+    for name, design in designs.items():
+        inertia = Inertia.default(design)
+        cycle = place_adept_cycle(design, inertia=inertia)
+        traj = cycle.result.trajectory
+        t = np.linspace(0.0, traj.duration, samples)
+        q, qd, qdd, _ = traj.at(t)
+        for part, gravity in (("total", (0.0, 0.0, -9.81)), ("inertial", (0.0, 0.0, 0.0))):
+            par, ser = cycle_torques(design, inertia, t, q, qd, qdd, gravity=gravity,
+                                     assembly_mode=cycle.start.assembly_mode)  # fmt: skip
+            for robot, st in (("five-bar", par), ("serial", ser)):
+                typer.echo(
+                    f"| {name} | {traj.duration:.3f} | {part} | {robot} | "
+                    f"{', '.join(f'{x:.3f}' for x in st.peak)} | "
+                    f"{', '.join(f'{x:.3f}' for x in st.rms)} |"
+                )

@@ -230,3 +230,27 @@ def test_cartesian_with_torque_limits_and_an_inertia(api) -> None:
     )
     np.testing.assert_allclose(traj["tau"], ref.tau, atol=1e-9)
     assert out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6
+
+
+def test_cartesian_start_held_by_gravity_is_invalid_start(api) -> None:
+    """/v1/cartesian answers a start where gravity alone needs more than a torque limit as
+    invalid_start naming the joint and the value, as /v1/plan does (the same gravity torque
+    as the library's inverse dynamics at rest there), before any timing."""
+    start = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
+    p0 = api.post("/v1/fk", json={"q": start["q"], "assembly_mode": "+"}).json()
+    p = np.array(p0["postures"][0]["p"])
+    body = {"start": start, "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
+            "limits": {"torque": [5.0, 2.0, 2.0]}}  # fmt: skip
+    out = api.post("/v1/cartesian", json=body).json()
+    held = inverse_dynamics(Design.default(), Inertia.default(Design.default()),
+                            np.array(start["q"]), np.zeros(3), np.zeros(3)).tau[0]  # fmt: skip
+    assert abs(held[0]) > 5.0  # the oracle: gravity alone breaks limits.torque[0]
+    assert out["status"] == "invalid_start", out["message"]
+    assert f"tau1| = {abs(held[0]):.6g} N m" in out["message"]
+    assert "limits.torque[0] = 5 N m" in out["message"]
+    assert out["trajectory"] is None and out["fraction"] == 0.0
+    plan = api.post("/v1/plan", json={"start": start, "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
+                                      "limits": body["limits"]}).json()  # fmt: skip
+    assert plan["status"] == "invalid_start" and plan["message"] == out["message"]
+    untimed = api.post("/v1/cartesian", json={**body, "timing": {"method": "none"}}).json()
+    assert untimed["status"] == "solved", untimed["message"]  # no timing, no torque rule

@@ -156,3 +156,84 @@ def test_mujoco_simulation_under_the_products_torques_follows_the_motion() -> No
         q_ref = motion(t + model.opt.timestep)[0]
         worst = max(worst, float(np.max(np.abs(data.qpos[[0, 1, 3]] - q_ref))))
     assert worst < 1e-6
+
+
+INERTIA_WIRE = {
+    "proximal": {"mass": 0.7, "com": 0.3, "I_perp": 0.004, "I_axial": 0.0075},
+    "distal": {"mass": 1.1, "com": 0.65, "I_perp": 0.02, "I_axial": 0.001},
+    "payload": {"mass": 0.8},
+    "base": {"inertia": 0.03},
+    "rotor": [0.002, 0.001, 0.003],
+}
+
+
+def _closes_on_p(xml: str, design: Design, home: np.ndarray, mode: str):
+    """Load the XML in MuJoCo; at the keyframe both tips sit on the product's P (1e-12 m)."""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_kinematics(model, data)
+    p = forward_batch(design, home, mode).p[0]
+    np.testing.assert_allclose(data.site("tip_C").xpos, p, atol=1e-12)
+    np.testing.assert_allclose(data.site("tip_D").xpos, p, atol=1e-12)
+    return model
+
+
+def test_design_mjcf_endpoints_load_in_mujoco(api) -> None:
+    """POST /v1/design/mjcf (design with inertia, gravity, home) and GET (lengths in the
+    query): application/xml that MuJoCo loads, the loop closed on the product's P at the
+    keyframe, the request's masses, rotors and gravity in the model; the client's
+    design_mjcf is the POST."""
+    body = {"design": {"L0": 0.3, "L1": 0.25, "L2": 0.45, "inertia": INERTIA_WIRE},
+            "gravity": list(GRAVITY), "assembly_mode": "-", "home": [0.4, 2.2, 0.8]}  # fmt: skip
+    r = api.post("/v1/design/mjcf", json=body)
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"].startswith("application/xml")
+    design = Design(L0=0.3, L1=0.25, L2=0.45)
+    model = _closes_on_p(r.text, design, np.array([0.4, 2.2, 0.8]), "-")
+    np.testing.assert_allclose(model.opt.gravity, GRAVITY)
+    np.testing.assert_allclose(model.body("proximal_C").mass, 0.7)
+    np.testing.assert_allclose(model.body("distal_C").mass, 1.1)
+    np.testing.assert_allclose(model.dof_armature[[0, 1, 3]], [0.002, 0.001, 0.003])
+    assert r.text == to_mjcf(design, ODD, gravity=GRAVITY, home=(0.4, 2.2, 0.8),
+                             assembly_mode="-")  # fmt: skip
+    g = api.get("/v1/design/mjcf", params={"L0": 0.3, "L1": 0.25, "L2": 0.45})
+    assert g.status_code == 200 and g.headers["content-type"].startswith("application/xml")
+    model = _closes_on_p(g.text, design, np.array([0.0, 2.0, 1.0]), "+")
+    assert g.text == to_mjcf(design)  # default inertia, gravity and keyframe
+    import httpx
+
+    from planner.client import PlannerClient
+
+    def forward(request: httpx.Request) -> httpx.Response:
+        out = api.request(request.method, request.url.path, content=request.content,
+                          headers={"content-type": "application/json"})  # fmt: skip
+        return httpx.Response(out.status_code, content=out.content, headers=out.headers)
+
+    with PlannerClient("http://x", transport=httpx.MockTransport(forward)) as client:
+        xml = client.design_mjcf(body["design"], assembly_mode="-", gravity=GRAVITY,
+                                 home=[0.4, 2.2, 0.8])  # fmt: skip
+    assert xml.decode() == r.text
+
+
+@pytest.mark.parametrize(
+    ("method", "change", "loc"),
+    [
+        ("get", {"L1": -1}, ["query", "L1"]),
+        ("get", {"L2": "abc"}, ["query", "L2"]),
+        ("get", {"colour": "red"}, ["query", "colour"]),
+        ("post", {"design": {"L1": 0}}, ["body", "design", "L1"]),
+        ("post", {"design": {"inertia": {"proximal": {"mass": 1, "com": 1.5, "I_perp": 0.1,
+                                                      "I_axial": 0.1}}}},
+         ["body", "design", "inertia", "proximal", "com"]),
+        ("post", {"home": [0.0, 3.14159, 0.0], "design": {"L2": 0.3}}, ["body", "home"]),
+        ("post", {"gravity": [0, 0, "x"]}, ["body", "gravity", 2]),
+    ],
+)  # fmt: skip
+def test_design_mjcf_bad_input_is_a_422_at_the_field(api, method, change, loc) -> None:
+    if method == "get":
+        r = api.get("/v1/design/mjcf", params=change)
+    else:
+        r = api.post("/v1/design/mjcf", json=change)
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"][0]["loc"] == loc

@@ -31,6 +31,7 @@ from planner.kinematics import forward_batch
 __all__ = [
     "DynamicsBatch",
     "inverse_dynamics",
+    "inverse_dynamics_terms",
     "mass_matrix",
 ]
 
@@ -155,6 +156,29 @@ def inverse_dynamics(
     tau[~kin.ok] = np.nan
     m = _mass_matrix_of(design, inertia, kin) if with_mass_matrix else None
     return DynamicsBatch(tau, m, kin.ok, np.where(kin.ok, kin.kappa, np.inf))
+
+
+def inverse_dynamics_terms(
+    design: Design,
+    inertia: Inertia,
+    q: np.ndarray,
+    terms: list[tuple[np.ndarray, np.ndarray, object]],
+    *,
+    assembly_mode: object = "+",
+) -> list[np.ndarray]:
+    """The torques of several motions through the same postures q (N, 3): for each
+    ``(qd, qdd, gravity)`` of ``terms``, what :func:`inverse_dynamics` answers as ``tau``, with
+    the postures' kinematics solved once (the timing's torque constraint asks three such
+    terms of every grid, :meth:`planner.timing.torque.TorqueModel.path_coefficients`)."""
+    kin = _kinematics(design, q, assembly_mode)
+    n = kin.q.shape[0]
+    out = []
+    for qd, qdd, gravity in terms:
+        tau = _forces(design, inertia, kin, _rates("qd", qd, n), _rates("qdd", qdd, n),
+                      check_gravity(gravity))  # fmt: skip
+        tau[~kin.ok] = np.nan
+        out.append(tau)
+    return out
 
 
 def _mass_matrix_of(design: Design, inertia: Inertia, kin: _Kin) -> np.ndarray:

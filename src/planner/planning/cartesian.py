@@ -307,6 +307,12 @@ def plan_cartesian(
     checker = ValidityChecker(design, margins, obstacles, asm, mode)
     if not checker.is_valid(q0[None])[0]:
         return early(PlanStatus.INVALID_START, f"invalid start: {checker.explain(q0)}", mode)
+    if timing != "none":
+        from planner.timing.torque import gravity_at_start
+
+        held = gravity_at_start(design, q0, asm, limits, inertia, gravity)  # type: ignore[arg-type]
+        if held is not None:
+            return early(PlanStatus.INVALID_START, held, mode)
     p0 = fb.p[0]
     poly = Polyline(np.vstack([p0[None], pts]))
     slot = WORKING_MODES.index(mode)

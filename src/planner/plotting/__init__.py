@@ -2,7 +2,7 @@
 
 Modules: :mod:`~planner.plotting._common` (designs, colours, caches, drawing helpers),
 :mod:`~planner.plotting.paper` (the paper's figures 4-15), :mod:`~planner.plotting.regions`
-(the region-map figures); this module names the figures for any design
+(the region-map figures), :mod:`~planner.plotting.dynamics` (the reflected-inertia map); this module names the figures for any design
 (:data:`NAMED_FIGURES`, :func:`render_figure`). Every public name is importable from here.
 
 :func:`write_figures` reproduces the seed paper's figures 4-15 as PNG and SVG files, one per
@@ -43,6 +43,7 @@ from planner.plotting._common import (
     draw_posture,
     plot_loci,
 )
+from planner.plotting.dynamics import figure_inertia_map
 from planner.plotting.paper import (
     FIGURES,
     ISO_LEVELS,
@@ -97,6 +98,7 @@ __all__ = [
     "figure_14",
     "figure_14_regions",
     "figure_15",
+    "figure_inertia_map",
     "figure_region_images",
     "figure_region_map",
     "plot_loci",
@@ -156,6 +158,8 @@ NAMED_FIGURES: dict[str, Callable[[Design, int], Figure]] = {
     "region_images": lambda d, n: figure_region_images(d, n),
     "regions_convex_mode": lambda d, n: figure_13_regions(d, n),
     "regions_nonconvex_mode": lambda d, n: figure_14_regions(d, n),
+    # the reflected inertia against the serial counterpart (planner.plotting.dynamics)
+    "inertia_map": lambda d, n: figure_inertia_map(d, n),
 }
 
 #: Formats :func:`render_figure` writes.

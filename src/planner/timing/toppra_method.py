@@ -203,17 +203,35 @@ class PathProfile:
         return self.time[i] + dt, sd, a
 
 
-def section_grid(path: BlendedPath, lo: int, hi: int, refine: float = 1) -> np.ndarray:
+def section_grid(
+    path: BlendedPath, lo: int, hi: int, refine: float = 1, *, arc_junctions: bool = False
+) -> np.ndarray:
     """Grid points of the pieces ``lo..hi``: every piece boundary, lines cut every
     ``LINE_STEP / refine`` (at least ``LINE_MIN_INTERVALS * refine``), arcs every
-    ``ARC_STEP / refine`` of turning."""
+    ``ARC_STEP / refine`` of turning.
+
+    ``arc_junctions`` (with torque limits): where two arcs meet, q'' jumps from one arc's to
+    the other's, and toppra sees one of them at the junction grid point (the larger, see
+    ``_SectionPath``): the torques of the other side were unconstrained there and overshot
+    by up to 37 % on the benchmark paths (the joint limits, bounded per |q''|, do not suffer
+    it the same way). A short interval (``JUNCTION_INTERVAL`` of each arc) on both sides
+    of such a junction puts a grid point on each arc next to it, so both sides are bounded."""
     parts = []
     for k in range(lo, hi + 1):
         a, b = path.s0[k], path.s0[k + 1]
         if path.kind[k] == ARC:
             turn = (b - a) / path.radius[k]
             n = max(2, int(np.ceil(turn * refine / ARC_STEP)))
-            parts.append(np.linspace(a, b, n + 1)[:-1])
+            pts = np.linspace(a, b, n + 1)[:-1]
+            if arc_junctions:
+                eps = JUNCTION_INTERVAL * (b - a)
+                extra = []
+                if k > lo and path.kind[k - 1] == ARC:
+                    extra.append(a + eps)
+                if k < hi and path.kind[k + 1] == ARC:
+                    extra.append(b - eps)
+                pts = np.sort(np.concatenate([pts, extra]))
+            parts.append(pts)
             continue
         n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
         pts = np.linspace(a, b, n + 1)[:-1]
@@ -377,7 +395,7 @@ def solve_toppra(
                 s_all.append(grid[1:])
                 sd_all.append(hit[1][1:])
                 continue
-        grid = section_grid(path, lo, hi, refine=refine)
+        grid = section_grid(path, lo, hi, refine=refine, arc_junctions=torque is not None)
         constraints = list(joint_constraints)
         if v_cart is not None and speed_gain is not None:
             constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))

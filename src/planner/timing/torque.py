@@ -20,9 +20,16 @@ import numpy as np
 
 from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia, check_gravity, inverse_dynamics
+from planner.dynamics.inverse import inverse_dynamics_terms
 from planner.exceptions import TimingInfeasibleError
 
-__all__ = ["MIN_TIME_SCALE", "TorqueModel", "gravity_excess", "torque_time_scale"]
+__all__ = [
+    "MIN_TIME_SCALE",
+    "TorqueModel",
+    "gravity_at_start",
+    "gravity_excess",
+    "torque_time_scale",
+]
 
 #: Smallest uniform slow-down :func:`torque_time_scale` answers: where gravity alone takes a
 #: joint's whole torque somewhere, only an infinitely slow motion would hold it; the dense
@@ -66,7 +73,14 @@ class TorqueModel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(dynamic part, gravity part) of tau, each (M, 3): tau = dynamic + gravity."""
         zero = np.zeros_like(np.atleast_2d(q))
-        return self._id(q, qd, qdd, (0.0, 0.0, 0.0)), self._id(q, zero, zero, self.gravity)
+        dyn, grav = self._terms(q, [(qd, qdd, (0.0, 0.0, 0.0)), (zero, zero, self.gravity)])
+        return dyn, grav
+
+    def _terms(self, q: np.ndarray, terms: list) -> list[np.ndarray]:
+        assert self.inertia is not None
+        return inverse_dynamics_terms(
+            self.design, self.inertia, q, terms, assembly_mode=self.assembly_mode
+        )
 
     def path_coefficients(
         self, q: np.ndarray, d1: np.ndarray, d2: np.ndarray
@@ -75,11 +89,8 @@ class TorqueModel:
         q, q', q'' (G, 3)."""
         zero = np.zeros_like(q)
         g0 = (0.0, 0.0, 0.0)
-        return (
-            self._id(q, zero, d1, g0),
-            self._id(q, d1, d2, g0),
-            self._id(q, zero, zero, self.gravity),
-        )
+        a, b, c = self._terms(q, [(zero, d1, g0), (d1, d2, g0), (zero, zero, self.gravity)])
+        return a, b, c
 
 
 def torque_time_scale(
@@ -122,3 +133,30 @@ def gravity_excess(
         return None
     j = int(np.argmax(over))
     return j, float(abs(g[0, j]))
+
+
+def gravity_at_start(
+    design: Design,
+    q_start: np.ndarray,
+    assembly_mode: str,
+    limits: object | None,
+    inertia: Inertia | None,
+    gravity: object,
+) -> str | None:
+    """The ``invalid_start`` message when gravity alone, at rest at ``q_start`` (3,), needs
+    more torque than a joint's limit (no motion can leave that posture), else None (also
+    without ``limits.torque``). The one rule of :func:`planner.solve`,
+    :func:`planner.planning.plan_cartesian` and the sequences, so that they name the joint and
+    the value alike."""
+    torque = getattr(limits, "torque", None)
+    if torque is None:
+        return None
+    model = TorqueModel(design, inertia, gravity, assembly_mode)  # type: ignore[arg-type]
+    excess = gravity_excess(model, np.asarray(q_start, dtype=float), np.asarray(torque, float))
+    if excess is None:
+        return None
+    j, value = excess
+    return (
+        f"invalid start: gravity alone needs |tau{j + 1}| = {value:.6g} N m at rest there, "
+        f"above limits.torque[{j}] = {float(torque[j]):.6g} N m"
+    )

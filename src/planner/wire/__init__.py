@@ -119,9 +119,13 @@ from planner.wire.design import (
 )
 from planner.wire.dynamics import (
     MAX_DYNAMICS_POSTURES,
+    MJCF_MEDIA_TYPE,
     DynamicsRequest,
     DynamicsResponse,
+    MjcfQuery,
+    MjcfRequest,
     dynamics_answer,
+    mjcf_answer,
 )
 from planner.wire.jobs import (
     JOB_KINDS,
@@ -230,6 +234,7 @@ __all__ = [
     "MAX_SEQUENCE_TARGETS",
     "MAX_TIMING_WAYPOINTS",
     "MIN_REGION_RESOLUTION",
+    "MJCF_MEDIA_TYPE",
     "SCENE_NAME_PATTERN",
     "AnalyzeRequest",
     "AnalyzeResponse",
@@ -285,6 +290,8 @@ __all__ = [
     "LinkLength",
     "MarginsModel",
     "Matrix3",
+    "MjcfQuery",
+    "MjcfRequest",
     "Objective",
     "Obstacle",
     "PathModel",
@@ -351,6 +358,7 @@ __all__ = [
     "joint_limits_to_core",
     "located",
     "margins_to_core",
+    "mjcf_answer",
     "obstacle_from_dict",
     "obstacles_to_core",
     "path_model",

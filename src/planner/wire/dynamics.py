@@ -1,11 +1,12 @@
-"""``POST /v1/dynamics``: actuator torques and the mass matrix of N motions."""
+"""``POST /v1/dynamics``: actuator torques and the mass matrix of N motions;
+``GET|POST /v1/design/mjcf``: the robot as an MJCF model for MuJoCo."""
 
 from __future__ import annotations
 
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import Field, ValidationInfo, field_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
 from planner.wire.common import (
     GRAVITY_FIELD,
@@ -13,6 +14,8 @@ from planner.wire.common import (
     AssemblyModeLabel,
     DesignModel,
     Gravity,
+    Length,
+    LinkLength,
     Matrix3,
     Vec3,
     _DesignField,
@@ -23,7 +26,19 @@ from planner.wire.common import (
     located,
 )
 
-__all__ = ["MAX_DYNAMICS_POSTURES", "DynamicsRequest", "DynamicsResponse", "dynamics_answer"]
+__all__ = [
+    "MAX_DYNAMICS_POSTURES",
+    "MJCF_MEDIA_TYPE",
+    "DynamicsRequest",
+    "DynamicsResponse",
+    "MjcfQuery",
+    "MjcfRequest",
+    "dynamics_answer",
+    "mjcf_answer",
+]
+
+#: Media type of an MJCF answer (MJCF is XML; MuJoCo has no registered type of its own).
+MJCF_MEDIA_TYPE = "application/xml"
 
 #: Most postures in one ``POST /v1/dynamics`` (each answer row is ~12 numbers of M and tau).
 MAX_DYNAMICS_POSTURES = 100_000
@@ -101,3 +116,57 @@ def dynamics_answer(request: DynamicsRequest) -> DynamicsResponse:
     return DynamicsResponse(
         tau=batch.tau.tolist(), mass_matrix=m.tolist(), kappa_A=batch.kappa_A.tolist()
     )
+
+
+class MjcfRequest(_Request):
+    """Body of ``POST /v1/design/mjcf`` (and, without ``design.inertia``, ``home`` and
+    ``gravity``, the query of ``GET /v1/design/mjcf``): the robot to export.
+    ``design.inertia`` absent: the documented defaults (docs/dynamics.md)."""
+
+    design: DesignModel = _DesignField
+    gravity: Gravity = GRAVITY_FIELD
+    assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the keyframe.")
+    home: Angles3 | None = Field(
+        None,
+        description="Actuated joints of the keyframe 'home', rad (default [0, 2, 1]); it must "
+        "assemble in assembly_mode.",
+    )
+
+
+class MjcfQuery(_Request):
+    """Query of ``GET /v1/design/mjcf``: a design by its lengths (absent: the service's default
+    robot's), with the default inertia, gravity and keyframe (``POST /v1/design/mjcf`` takes
+    the whole design with ``inertia``). Query strings are text: numbers are parsed (lax)."""
+
+    model_config = ConfigDict(extra="forbid", strict=False)
+
+    L0: Length | None = Field(None, description="|AB|, m.")
+    L1: LinkLength | None = Field(None, description="|AC| = |BD|, m.")
+    L2: LinkLength | None = Field(None, description="|CP| = |DP|, m.")
+    link_radius: Length | None = Field(None, description="Radius of the links, m.")
+    assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the keyframe.")
+
+    def design_fields(self) -> dict[str, float]:
+        """The design fields given in the query."""
+        return {k: v for k in ("L0", "L1", "L2", "link_radius")
+                if (v := getattr(self, k)) is not None}  # fmt: skip
+
+
+def mjcf_answer(
+    request: MjcfRequest,
+    design_loc: tuple[str | int, ...] = ("body", "design"),
+    loc: tuple[str | int, ...] = ("body",),
+) -> str:
+    """The MJCF text of a request (:func:`planner.dynamics.mjcf.to_mjcf`); a design the core
+    refuses is an error located under ``design_loc``, a ``home`` that does not assemble at
+    ``loc + ("home",)``."""
+    from planner.dynamics.mjcf import to_mjcf
+
+    with located(*design_loc):
+        design = design_to_core(request.design)
+        inertia = inertia_to_core(request.design)
+    with located(*loc):
+        return to_mjcf(
+            design, inertia, gravity=request.gravity, home=request.home,
+            assembly_mode=request.assembly_mode,
+        )  # fmt: skip
