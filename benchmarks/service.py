@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import http.client
 import importlib.util
 import os
 import socket
@@ -47,10 +46,10 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
+from _light import LightClient
 from _machine import print_machine
 
 from planner.client import AsyncPlannerClient
@@ -146,27 +145,6 @@ def _start_bare() -> tuple[subprocess.Popen[bytes], str]:
     raise RuntimeError("the bare app did not start")
 
 
-class _Light:
-    """One keep-alive ``http.client`` connection: the lightest client the standard library
-    has (httpx spends ~2 ms of its own per request, which hid the server's cost)."""
-
-    def __init__(self, url: str) -> None:
-        parts = urlsplit(url)
-        self.conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=60)
-
-    def call(self, method: str, path: str, body: bytes | None = None) -> float:
-        """One request, its answer read whole; seconds, client side."""
-        headers = {"Content-Type": "application/json"} if body is not None else {}
-        t0 = time.perf_counter()
-        self.conn.request(method, path, body=body, headers=headers)
-        r = self.conn.getresponse()
-        data = r.read()
-        seconds = time.perf_counter() - t0
-        if r.status != 200:
-            raise RuntimeError(f"{method} {path}: {r.status} {data[:300]!r}")
-        return seconds
-
-
 def _cpu_s(pid: int) -> float:
     """User + system CPU seconds of process ``pid`` so far (/proc)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -185,7 +163,7 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
         plan_bodies = [r.model_dump_json(exclude_none=True).encode() for r in plans]
         _in_process(plan_jobs.plan, plans[:20])
         plan_local = statistics.median(_in_process(plan_jobs.plan, plans)) * 1e3
-        floor, service = _Light(bare_url), _Light(url)
+        floor, service = LightClient(bare_url), LightClient(url)
         rows: dict[str, list[float]] = {
             "bare FastAPI POST": [], "/v1/health (GET)": [], "/v1/fk": [],
             "/v1/plan (free, none)": [],
@@ -259,7 +237,7 @@ def _throughput_row(url: str, pid: int, plans: list, bodies: list[bytes], worker
     stop = time.perf_counter() + 10.0
 
     def client(k: int) -> None:
-        light = _Light(url)
+        light = LightClient(url)
         i = k
         while time.perf_counter() < stop:
             light.call("POST", "/v1/plan", bodies[i % len(bodies)])
@@ -531,7 +509,7 @@ def main() -> None:
         try:
             timed = _solvable("plan+toppra", 200, rng)
             bodies = [r.model_dump_json().encode() for r in timed]
-            warm = _Light(url)
+            warm = LightClient(url)
             for body in bodies[:50]:
                 warm.call("POST", "/v1/plan", body)
             _throughput_row(url, proc.pid, timed, bodies, args.workers)
