@@ -556,12 +556,9 @@ def plan_cartesian(
     else:
         # the rounds ran out before every piece was certified (a path needing more splits
         # than MAX_REFINEMENTS allows): the certified pieces are the answer, the rest not done
-        stop_rule = stop_rule or (rep.reason if rep is not None and not rep.valid else "")
-        stop_rule = stop_rule or "path_tolerance"
-        q_stop_bad = q[certified + 1] if certified + 1 < len(q) else None
-        p_stop_bad = (
-            poly.at(s[certified + 1 : certified + 2])[0] if q_stop_bad is not None else None
-        )
+        # (the rule of the uncertified motion, not one found farther along the line)
+        uncertified = rep.reason if rep is not None and not rep.valid else ""
+        stop_rule = uncertified or stop_rule or "path_tolerance"
         s, q, w = s[: certified + 1], q[: certified + 1], w[: certified + 1]
         bound = bound[:certified]
         end_s, cut_reason = float(s[-1]), "rounds"
