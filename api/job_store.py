@@ -42,20 +42,30 @@ from planner.wire import (
     JobStatus,
     PlanRequest,
     RegionsRequest,
+    SequenceRequest,
     TimingRequest,
 )
 from planner_api.errors import error_answer
-from planner_api.exceptions import JobNotFoundError, LimitExceededError, TooManyJobsError
+from planner_api.exceptions import (
+    JobNotFoundError,
+    LimitExceededError,
+    PoolSaturatedError,
+    ShuttingDownError,
+    TooManyJobsError,
+)
 from planner_api.jobs import Job
 from planner_api.jobs import cartesian as cartesian_jobs
 from planner_api.jobs import design as design_jobs
 from planner_api.jobs import plan as plan_jobs
+from planner_api.jobs import sequence as sequence_jobs
 from planner_api.jobs import timing as timing_jobs
 from planner_api.workers import CLIENT_GONE
 
 __all__ = ["LONG_JOBS", "JobStore", "LongJobKind"]
 
 _LOC = ("body", "request")
+#: Seconds between two tries of a long job to enter a saturated worker pool.
+SATURATED_RETRY_S = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,15 +87,30 @@ class LongJobKind:
                 [{**e, "loc": (*_LOC, *e["loc"])} for e in exc.errors(include_url=False)]
             ) from exc
 
-    def check_limits(self, request: Any, *, max_obstacles: int, job_timeout_s: float) -> None:
+    def check_limits(
+        self,
+        request: Any,
+        *,
+        max_obstacles: int,
+        job_timeout_s: float,
+        max_sequence_targets: int,
+    ) -> None:
         """The endpoint's size limits (:class:`LimitExceededError`, 422 at the field); a
-        plan's search budget may use the long job's budget instead of the request's."""
+        plan's or a sequence's search budget may use the long job's budget instead of the
+        request's."""
         if self.obstacles and len(request.obstacles) > max_obstacles:
             raise LimitExceededError(
                 f"at most {max_obstacles} obstacles per request, got {len(request.obstacles)}",
                 (*_LOC, "obstacles"),
             )
-        if isinstance(request, PlanRequest) and request.planner.time_budget_s > job_timeout_s:
+        if isinstance(request, SequenceRequest) and len(request.targets) > max_sequence_targets:
+            raise LimitExceededError(
+                f"at most {max_sequence_targets} targets per sequence "
+                f"(PLANNER_MAX_SEQUENCE_TARGETS), got {len(request.targets)}",
+                (*_LOC, "targets"),
+            )
+        searches = isinstance(request, PlanRequest | SequenceRequest)
+        if searches and request.planner.time_budget_s > job_timeout_s:
             raise LimitExceededError(
                 f"planner.time_budget_s must be at most the long job's budget "
                 f"{job_timeout_s:g} s (PLANNER_JOB_TIMEOUT_S), got "
@@ -97,6 +122,9 @@ class LongJobKind:
 #: The kinds of ``POST /v1/jobs`` (:data:`planner.wire.JOB_KINDS`), each an endpoint's job.
 LONG_JOBS: dict[str, LongJobKind] = {
     "plan": LongJobKind(PlanRequest, plan_jobs.plan, trajectory=True, obstacles=True),
+    "sequence": LongJobKind(
+        SequenceRequest, sequence_jobs.sequence, trajectory=True, obstacles=True
+    ),
     "cartesian": LongJobKind(
         CartesianRequest, cartesian_jobs.cartesian, trajectory=True, obstacles=True
     ),
@@ -185,8 +213,18 @@ class JobStore:
     async def _run(self, entry: _Entry, run: Runner) -> None:
         try:
             async with self._slots:
-                entry.status, entry.started_at = "running", time.time()
-                content = await run(time.monotonic() + self.timeout_s)
+                while True:
+                    entry.status, entry.started_at = "running", time.time()
+                    try:
+                        content = await run(time.monotonic() + self.timeout_s)
+                        break
+                    except PoolSaturatedError as exc:
+                        if isinstance(exc, ShuttingDownError):
+                            raise  # no worker will free up: the job fails with the 503
+                        # every worker busy and the pool's queue full (interactive requests):
+                        # the job waits, queued, instead of failing with their 503
+                        entry.status, entry.started_at = "queued", None
+                        await asyncio.sleep(SATURATED_RETRY_S)
             entry.result, entry.status = content, "done"
         except asyncio.CancelledError:
             entry.status = "cancelled"  # our own task, cancelled by cancel(): not re-raised

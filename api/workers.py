@@ -203,6 +203,9 @@ class WorkerPool:
         self._ctx = multiprocessing.get_context("spawn")
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)  # the watchdog's: a kill time changed
+        #: When the watchdog wakes next (monotonic): a job whose kill time is later needs no
+        #: wake-up, which spares the server a thread switch per job.
+        self._watch_at = float("inf")  # not waiting yet: every kill time is news
         self._in_flight = 0
         self._pending: collections.deque[_Job] = collections.deque()
         self._workers: list[_Worker] = []
@@ -277,6 +280,7 @@ class WorkerPool:
                         self._kill_locked(w, job.kill_reason, now - job.kill_at)
                     else:
                         wake_at = min(wake_at, job.kill_at)
+                self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
 
     def _kill_locked(self, worker: _Worker, reason: str, late_s: float) -> None:
@@ -470,7 +474,8 @@ class WorkerPool:
                     # cancelled during the hand-over: nobody waits for it, stop it now
                     job.kill_at, job.kill_reason = time.monotonic(), "cancelled"
                 worker.state, worker.job = "busy", job
-                self._wake.notify()
+                if job.kill_at is not None and job.kill_at < self._watch_at:
+                    self._wake.notify()  # due before the watchdog's next look
                 break
             if not self._pending:
                 return

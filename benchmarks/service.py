@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import http.client
 import importlib.util
 import os
 import socket
@@ -47,10 +46,10 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
+from _light import LightClient
 from _machine import print_machine
 
 from planner.client import AsyncPlannerClient
@@ -146,27 +145,6 @@ def _start_bare() -> tuple[subprocess.Popen[bytes], str]:
     raise RuntimeError("the bare app did not start")
 
 
-class _Light:
-    """One keep-alive ``http.client`` connection: the lightest client the standard library
-    has (httpx spends ~2 ms of its own per request, which hid the server's cost)."""
-
-    def __init__(self, url: str) -> None:
-        parts = urlsplit(url)
-        self.conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=60)
-
-    def call(self, method: str, path: str, body: bytes | None = None) -> float:
-        """One request, its answer read whole; seconds, client side."""
-        headers = {"Content-Type": "application/json"} if body is not None else {}
-        t0 = time.perf_counter()
-        self.conn.request(method, path, body=body, headers=headers)
-        r = self.conn.getresponse()
-        data = r.read()
-        seconds = time.perf_counter() - t0
-        if r.status != 200:
-            raise RuntimeError(f"{method} {path}: {r.status} {data[:300]!r}")
-        return seconds
-
-
 def _cpu_s(pid: int) -> float:
     """User + system CPU seconds of process ``pid`` so far (/proc)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -185,7 +163,7 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
         plan_bodies = [r.model_dump_json(exclude_none=True).encode() for r in plans]
         _in_process(plan_jobs.plan, plans[:20])
         plan_local = statistics.median(_in_process(plan_jobs.plan, plans)) * 1e3
-        floor, service = _Light(bare_url), _Light(url)
+        floor, service = LightClient(bare_url), LightClient(url)
         rows: dict[str, list[float]] = {
             "bare FastAPI POST": [], "/v1/health (GET)": [], "/v1/fk": [],
             "/v1/plan (free, none)": [],
@@ -227,41 +205,70 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
             f"{plan_local:.2f} ms = {1.5 * plan_local:.2f} ms (goal: at most that)"
         )
         timed = _solvable("plan+toppra", 200, rng)
-        _throughput_row(url, timed, [r.model_dump_json().encode() for r in timed], workers)
+        _throughput_row(url, pid, timed, [r.model_dump_json().encode() for r in timed], workers)
     finally:
         bare.terminate()
         bare.wait(timeout=30)
 
 
-def _throughput_row(url: str, plans: list, bodies: list[bytes], workers: int) -> None:
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (its worker processes), from /proc."""
+    found: list[int] = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            found += [int(c) for c in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return found
+
+
+def _throughput_row(url: str, pid: int, plans: list, bodies: list[bytes], workers: int) -> None:
     """Plans from ``2 x workers`` light clients at once, against ``workers`` x the in-process
     rate measured just before (goal: >= 0.9). The plans are timed by TOPPRA (a few ms of work
-    each): for sub-millisecond jobs the HTTP parsing itself, on the same cores, bounds the rate."""
+    each): for sub-millisecond jobs the HTTP parsing itself, on the same cores, bounds the rate.
+
+    With the CPU accounting of the run (/proc): CPU seconds per request of the server's event
+    loop process, of its workers and of the clients (this process), and what they imply: on
+    ``cores`` cores no rate exceeds cores / (their sum), whatever the service does."""
     local = statistics.median(_in_process(plan_jobs.plan, plans[:100]))
     clients = 2 * workers
     counts = [0] * clients
+    workers_pids = _children(pid)
     stop = time.perf_counter() + 10.0
 
     def client(k: int) -> None:
-        light = _Light(url)
+        light = LightClient(url)
         i = k
         while time.perf_counter() < stop:
             light.call("POST", "/v1/plan", bodies[i % len(bodies)])
             counts[k] += 1
             i += clients
 
+    server0, workers0, client0 = _cpu_s(pid), sum(map(_cpu_s, workers_pids)), time.process_time()
     t0 = time.perf_counter()
     threads = [threading.Thread(target=client, args=(k,)) for k in range(clients)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    rate = sum(counts) / (time.perf_counter() - t0)
+    wall = time.perf_counter() - t0
+    n = sum(counts)
+    server_ms = (_cpu_s(pid) - server0) / n * 1e3
+    workers_ms = (sum(map(_cpu_s, workers_pids)) - workers0) / n * 1e3
+    client_ms = (time.process_time() - client0) / n * 1e3
+    rate = n / wall
     ideal = workers / local
+    cores = len(os.sched_getaffinity(0))
+    bound = cores / (server_ms + workers_ms + client_ms) * 1e3
     print(
-        f"throughput, small plans + toppra, {clients} light clients, 10 s: {rate:.0f} req/s against "
-        f"{workers} x in-process {1 / local:.0f}/s = {ideal:.0f}/s: {rate / ideal:.2f} "
-        f"(goal >= 0.9; load average {os.getloadavg()[0]:.1f})"
+        f"throughput, small plans + toppra, {workers} workers, {clients} light clients, 10 s: "
+        f"{rate:.0f} req/s against {workers} x in-process {1 / local:.0f}/s = {ideal:.0f}/s: "
+        f"{rate / ideal:.2f} (goal >= 0.9; load average {os.getloadavg()[0]:.1f})"
+    )
+    print(
+        f"  CPU per request: server event loop {server_ms:.2f} ms, workers {workers_ms:.2f} ms "
+        f"(in-process job {local * 1e3:.2f} ms), clients {client_ms:.2f} ms; on {cores} cores "
+        f"at most {bound:.0f} req/s = {bound / ideal:.2f} x the ideal even on an idle machine"
     )
 
 
@@ -477,6 +484,9 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--requests", type=int, default=400)
     parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
+    parser.add_argument(
+        "--throughput-only", action="store_true", help="only the throughput row and its CPU"
+    )
     parser.add_argument("--endpoints", nargs="*", help="only these rows (default: all)")
     parser.add_argument(
         "--modes", action="store_true", help="only the mode-change and proof table (issue 17)"
@@ -494,6 +504,19 @@ def main() -> None:
             proc.wait(timeout=30)
         return
     rng = np.random.default_rng(0)
+    if args.throughput_only:
+        proc, url = _start_server(args.workers)
+        try:
+            timed = _solvable("plan+toppra", 200, rng)
+            bodies = [r.model_dump_json().encode() for r in timed]
+            warm = LightClient(url)
+            for body in bodies[:50]:
+                warm.call("POST", "/v1/plan", body)
+            _throughput_row(url, proc.pid, timed, bodies, args.workers)
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+        return
     endpoints = [
         ("fk", "fk", kinematics_jobs.fk),
         ("analyze", "analyze", kinematics_jobs.analyze),

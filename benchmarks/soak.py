@@ -4,8 +4,11 @@ Starts ``planner serve`` on a free loopback port, then runs two rounds of ``--se
 at ``--concurrency`` (default 32 for 60 s) of a seeded mix: fk, analyze, small free-space
 plans with TOPPRA, plans around a sphere, /v1/timing, a figure, and a few bad requests (a
 422 is an expected answer). Prints per round the total, the answers by status, p50 / p95 /
-p99 latency, throughput, and the resident memory (RSS) of the server and of its worker
-processes before and after; the rounds' RSS should agree within a few percent (no leak).
+p99 latency, throughput, the load average, and the resident memory (RSS) of the server and
+of its worker processes before and after; the rounds' RSS should agree within a few percent
+(no leak). The clients are light: ``--concurrency`` threads, each with its own keep-alive
+``http.client`` connection (benchmarks/_light.py), so the client's own cost does not hide the
+server's (httpx spends ~2 ms per request). Ends with the rounds as a Markdown table.
 
     .venv/bin/python benchmarks/soak.py [--seconds 60] [--concurrency 32] [--workers 2]
 """
@@ -13,17 +16,19 @@ processes before and after; the rounds' RSS should agree within a few percent (n
 from __future__ import annotations
 
 import argparse
-import asyncio
 import collections
+import http.client
+import json
 import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
-import httpx
 import numpy as np
+from _light import LightClient
 from _machine import print_machine
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,36 +97,59 @@ def _mix(rng: np.random.Generator, n: int) -> list[tuple[str, str, dict | None]]
     return out
 
 
-async def _round(url: str, requests: list, seconds: float, concurrency: int) -> None:
+def _round(url: str, requests: list, seconds: float, concurrency: int) -> dict:
+    """One round: ``concurrency`` threads, each with its own keep-alive light connection
+    (:class:`LightClient`), sending the seeded mix in turn for ``seconds``; the round's
+    figures (printed, and returned for the table)."""
     statuses: collections.Counter[str] = collections.Counter()
     latencies: list[float] = []
+    lock = threading.Lock()
     end = time.monotonic() + seconds
-    index = 0
+    encoded = [(m, p, None if b is None else json.dumps(b).encode()) for m, p, b in requests]
+    load = os.getloadavg()[0]
 
-    async def worker(client: httpx.AsyncClient) -> None:
-        nonlocal index
+    def worker(k: int) -> None:
+        client = LightClient(url)
+        index = k
+        mine: list[float] = []
+        seen: collections.Counter[str] = collections.Counter()
         while time.monotonic() < end:
-            method, path, body = requests[index % len(requests)]
-            index += 1
+            method, path, body = encoded[index % len(encoded)]
+            index += concurrency
             t0 = time.perf_counter()
             try:
-                r = await client.request(method, url + path, json=body)
-                statuses[str(r.status_code)] += 1
-            except httpx.HTTPError as exc:
-                statuses[type(exc).__name__] += 1
-            latencies.append(time.perf_counter() - t0)
+                status, _, _ = client.request(method, path, body)
+                seen[str(status)] += 1
+            except (OSError, http.client.HTTPException) as exc:
+                seen[type(exc).__name__] += 1
+            mine.append(time.perf_counter() - t0)
+        client.close()
+        with lock:
+            latencies.extend(mine)
+            statuses.update(seen)
 
-    limits = httpx.Limits(max_connections=concurrency, max_keepalive_connections=concurrency)
-    async with httpx.AsyncClient(timeout=60, limits=limits) as client:
-        t0 = time.perf_counter()
-        await asyncio.gather(*(worker(client) for _ in range(concurrency)))
-        wall = time.perf_counter() - t0
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(concurrency)]
+    t0 = time.perf_counter()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    wall = time.perf_counter() - t0
     ms = np.array(latencies) * 1e3
-    by_status = ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items()))
-    print(f"  total {len(latencies)} in {wall:.1f} s = {len(latencies) / wall:.0f} req/s; "
-          f"by status: {by_status}")  # fmt: skip
-    print(f"  latency p50 {np.percentile(ms, 50):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms, "
-          f"p99 {np.percentile(ms, 99):.1f} ms")  # fmt: skip
+    row = {
+        "requests": len(latencies),
+        "by_status": ", ".join(f"{k}: {v}" for k, v in sorted(statuses.items())),
+        "p50": float(np.percentile(ms, 50)),
+        "p95": float(np.percentile(ms, 95)),
+        "p99": float(np.percentile(ms, 99)),
+        "rate": len(latencies) / wall,
+        "load": f"{load:.1f} -> {os.getloadavg()[0]:.1f}",
+    }
+    print(f"  total {row['requests']} in {wall:.1f} s = {row['rate']:.0f} req/s; "
+          f"by status: {row['by_status']}")  # fmt: skip
+    print(f"  latency p50 {row['p50']:.1f} ms, p95 {row['p95']:.1f} ms, "
+          f"p99 {row['p99']:.1f} ms; load average {row['load']}")  # fmt: skip
+    return row
 
 
 def main() -> None:
@@ -143,9 +171,9 @@ def main() -> None:
         end = time.monotonic() + 300
         while True:
             try:
-                if httpx.get(f"{url}/v1/ready", timeout=1).status_code == 200:
+                if LightClient(url, timeout_s=1.0).request("GET", "/v1/ready")[0] == 200:
                     break
-            except httpx.HTTPError:
+            except (OSError, http.client.HTTPException):
                 pass
             if time.monotonic() > end or proc.poll() is not None:
                 raise RuntimeError("the service did not become ready")
@@ -154,10 +182,21 @@ def main() -> None:
         print(f"soak: {args.workers} workers, concurrency {args.concurrency}, "
               f"{args.seconds:g} s per round")  # fmt: skip
         print(f"memory at ready:       {_memory(proc.pid)}")
+        rows = []
         for k in (1, 2):
             print(f"round {k}:")
-            asyncio.run(_round(url, requests, args.seconds, args.concurrency))
-            print(f"memory after round {k}: {_memory(proc.pid)}")
+            row = _round(url, requests, args.seconds, args.concurrency)
+            row["memory"] = _memory(proc.pid)
+            rows.append(row)
+            print(f"memory after round {k}: {row['memory']}")
+        print()
+        print("| round | requests | by status | p50 | p95 | p99 | throughput | load (1 min) "
+              "| RSS after |")  # fmt: skip
+        print("|---|---|---|---|---|---|---|---|---|")
+        for k, row in enumerate(rows, 1):
+            print(f"| {k} | {row['requests']:,} | {row['by_status']} | {row['p50']:.0f} ms | "
+                  f"{row['p95']:.0f} ms | {row['p99']:.0f} ms | {row['rate']:.0f} req/s | "
+                  f"{row['load']} | {row['memory']} |")  # fmt: skip
     finally:
         proc.terminate()
         proc.wait(timeout=60)

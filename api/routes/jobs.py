@@ -20,6 +20,7 @@ from planner_api.job_store import LONG_JOBS, JobStore
 from planner_api.jobs import answer_sample_limit
 from planner_api.routes._common import run_job
 from planner_api.routes.plan import PlanJob
+from planner_api.routes.scenes import resolve_scene
 
 __all__ = ["cancel_job", "get_job", "get_job_store", "router", "submit_job"]
 
@@ -41,7 +42,12 @@ Jobs = Annotated[JobStore, Depends(get_job_store)]
 
 @router.post("/jobs", status_code=202, response_model=JobStatus)
 async def submit_job(
-    body: JobRequest, pool: Pool, settings: SettingsDep, store: Jobs, plan_job: PlanJob
+    body: JobRequest,
+    pool: Pool,
+    settings: SettingsDep,
+    store: Jobs,
+    plan_job: PlanJob,
+    http: Request,
 ) -> Response:
     """Run an endpoint's request in the background (``kind`` names the endpoint): 202 with
     the job's ``id`` and ``status``, then poll ``GET /v1/jobs/{id}``. The request is
@@ -55,8 +61,12 @@ async def submit_job(
     kind = LONG_JOBS[body.kind]
     request = kind.validate(body.request)
     kind.check_limits(
-        request, max_obstacles=settings.max_obstacles, job_timeout_s=settings.job_timeout_s
+        request,
+        max_obstacles=settings.max_obstacles,
+        job_timeout_s=settings.job_timeout_s,
+        max_sequence_targets=settings.max_sequence_targets,
     )
+    request = await resolve_scene(http, request)  # a named scene's obstacles, as the endpoint
     job = plan_job if body.kind == "plan" else kind.job
     samples = (
         answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)

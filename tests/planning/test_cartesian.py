@@ -340,3 +340,57 @@ def test_narrow_finds_the_first_change_within_the_tolerance(changes):
     a, b, q_b, reason = _narrow(0.0, 1.0, classify, BISECT_TOL)
     assert a < first <= b and b - a <= BISECT_TOL
     assert reason == "kappa_max" and q_b is not None and q_b[0] == b
+
+
+# ---------------------------------------------------------------- a long robot
+#: Links of 1000 m: every initial piece (INITIAL_STEP, 0.05 m of P) turns a joint enough to
+#: move a link farther than a motion certificate allows, so thousands of pieces must each be
+#: split (the review's 422 "the Cartesian refinement did not converge").
+LONG = Design(1000.0, 1000.0, 1000.0)
+LONG_START = JointPosture(np.array([0.0, 1.0, 2.0]), "+")
+
+
+def _certified_and_on_the_line(res, vertices, tol):
+    """The answer's joint path: every motion certified by the validity checker, and P (our
+    own closed-form kinematics, densely along each joint-space piece) within the chord share
+    of the tolerance of the line."""
+    from planner.validity import ValidityChecker
+
+    w = res.path.waypoints
+    checker = ValidityChecker(LONG, Margins(kappa_max=1e6), (), "+", res.working_mode)
+    assert checker.check_path(w, certify=True).valid
+    dense = np.concatenate([a + np.linspace(0, 1, 5)[:, None] * (b - a) for a, b in pairwise(w)])
+    assert poly_dist(own_fk(LONG, dense, "+")[0], vertices).max() <= CHORD_SHARE * tol
+
+
+@pytest.mark.parametrize("direction", [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+def test_a_short_line_of_a_long_robot_gets_an_answer(direction):
+    p0 = own_fk(LONG, LONG_START.q, "+")[0][0]
+    end = p0 + 20.0 * np.asarray(direction)  # 2 % of a link
+    res = plan_cartesian(
+        LONG, LONG_START, [end], margins=Margins(kappa_max=1e6), timing="none", inspect=False
+    )
+    assert res.status.value == "solved" and res.fraction == 1.0, res.message
+    assert np.linalg.norm(own_fk(LONG, res.path.waypoints[-1], "+")[0][0] - end) < 1e-6
+    _certified_and_on_the_line(res, np.vstack([p0, end]), 1e-3)
+
+
+def test_rounds_running_out_stop_at_the_certified_part(monkeypatch):
+    """Past MAX_REFINEMENTS passes the answer is the certified part of the path, a no_path with a stop
+    point and its rule, never an error (the old code raised, a 422 for valid input)."""
+    import planner.planning.cartesian as cartesian
+
+    monkeypatch.setattr(cartesian, "MAX_REFINEMENTS", 2)
+    p0 = own_fk(LONG, LONG_START.q, "+")[0][0]
+    end = p0 + np.array([0.0, 20.0, 0.0])
+    res = plan_cartesian(
+        LONG, LONG_START, [end], margins=Margins(kappa_max=1e6), timing="none", inspect=False
+    )
+    assert res.status.value == "no_path" and 0.0 <= res.fraction < 1.0
+    assert res.stop is not None and res.stop.rule and res.stop.fraction == res.fraction
+    assert "refinement passes" in res.message, res.message
+    if len(res.path.waypoints) > 1:
+        _certified_and_on_the_line(res, np.vstack([p0, end]), 1e-3)
+    # P stops on the line at the reported fraction
+    p_end = own_fk(LONG, res.path.waypoints[-1], "+")[0][0]
+    assert np.linalg.norm(p_end - (p0 + res.fraction * (end - p0))) < 1e-6

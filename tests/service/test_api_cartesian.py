@@ -333,3 +333,20 @@ def test_the_worker_warm_up_runs_a_straight_path_through_its_timing(monkeypatch)
     assert [job.__name__ for job, _ in seen] == ["plan", "plan", "cartesian", "fk", "ik"]
     answer = jobs.cartesian(seen[2][1])
     assert answer.status == "solved" and answer.trajectory is not None
+
+
+def test_a_short_line_of_a_long_robot_is_an_answer_not_a_422(api):
+    """The review's request: a design with 1000 m links and a line of 20 m (2 % of a link);
+    it used to be a 422 "the Cartesian refinement did not converge". Now a 200 whose path
+    reaches the waypoint, every rule of a plan re-checked on it."""
+    design = {"L0": 1000.0, "L1": 1000.0, "L2": 1000.0}
+    start = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
+    body = {"design": design, "start": start, "margins": {"kappa_max": 1e6}}
+    p0 = _p_of(body, [start["q"]])[0]
+    body["waypoints"] = [(p0 + np.array([0.0, 20.0, 0.0])).tolist()]
+    body["timing"] = {"method": "none"}
+    answer = _post(api, body)
+    assert answer["status"] == "solved" and answer["fraction"] == 1.0, answer["message"]
+    end = _p_of(body, answer["path"]["waypoints"][-1])[0]
+    assert np.linalg.norm(end - body["waypoints"][0]) < 1e-6
+    _checked_as_plan(body, answer)

@@ -13,6 +13,7 @@ worker's pid.
 from __future__ import annotations
 
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import httpx
 import pytest
 
 from planner.client import PlannerClient
-from planner.wire import PlanRequest, PlanResponse, RegionsResponse
+from planner.wire import PlanRequest, PlanResponse, RegionsResponse, SequenceResponse
 from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 
@@ -186,3 +187,82 @@ def test_the_client_submits_polls_and_cancels(svc):
         assert PlanResponse.model_validate(status.result).status == "timeout"
         long = client.submit_job("plan", _sleeper(30.0)["request"])
         assert client.cancel_job(long.id).status == "cancelled"
+
+
+#: A small sequence: two stops near the start and back (a few planned legs, timed).
+SEQUENCE = {
+    "start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+    "targets": [
+        {"goal": {"p": [0.35, -0.1, -0.4]}, "stop": True},
+        {"goal": {"p": [0.35, 0.2, -0.4]}, "stop": True},
+    ],
+    "cycle": True,
+    "planner": {"seed": 3},
+    "timing": {"sample_rate_hz": 50},
+}
+
+
+def _without_durations(answer: dict) -> dict:
+    """A sequence answer without what varies from run to run (computation times)."""
+    model = SequenceResponse.model_validate(answer).model_dump()
+    model.pop("diagnostics", None)
+    for leg in model.get("legs") or []:
+        if isinstance(leg, dict):
+            leg.pop("diagnostics", None)
+    return model
+
+
+def test_a_sequence_job_answers_what_the_endpoint_answers(svc):
+    r = svc.post("/v1/jobs", json={"kind": "sequence", "request": SEQUENCE})
+    assert r.status_code == 202, r.text
+    done = _wait(svc, r.json()["id"], {"done", "failed"})
+    assert done["status"] == "done", done
+    direct = svc.post("/v1/sequence", json=SEQUENCE)
+    assert direct.status_code == 200, direct.text
+    assert done["result"]["status"] == direct.json()["status"]
+    assert _without_durations(done["result"]) == _without_durations(direct.json())
+
+
+def test_a_sequence_job_is_held_to_the_endpoints_limits(svc):
+    many = {**SEQUENCE, "targets": SEQUENCE["targets"] * 40}
+    r = svc.post("/v1/jobs", json={"kind": "sequence", "request": many})
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["loc"] == ["body", "request", "targets"]
+    r = svc.post("/v1/jobs", json={"kind": "sequence", "request": {**SEQUENCE, "targets": []}})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"][:3] == [
+        "body",
+        "request",
+        "targets",
+    ]
+
+
+def test_a_job_submitted_to_a_saturated_pool_waits_queued_then_runs(client_factory):
+    """One worker, no queue: an interactive request holds the pool (a second one would be a
+    503). A long job submitted meanwhile is accepted (202), stays ``queued`` while the pool is
+    full, and runs when the worker frees: it does not fail with the pool's 503."""
+    client = client_factory(workers=1, queue_size=0, jobs_running=1, max_jobs=3, warm=False)
+    client.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
+    with client as c:
+        held = {}
+        body = {**PLAN, "planner": {"time_budget_s": 3.0}}
+        holder = threading.Thread(target=lambda: held.update(r=c.post("/v1/plan", json=body)))
+        t_hold = time.time()
+        holder.start()
+        pool = c.app.state.pool
+        end = time.monotonic() + 60
+        while pool.in_flight < pool.capacity:  # the interactive request holds the worker
+            assert time.monotonic() < end
+            time.sleep(0.02)
+        assert c.post("/v1/plan", json=body).status_code == 503  # the pool is full indeed
+        r = c.post("/v1/jobs", json=_sleeper(0.01))
+        assert r.status_code == 202, r.text
+        job_id = r.json()["id"]
+        time.sleep(0.5)
+        assert c.get(f"/v1/jobs/{job_id}").json()["status"] == "queued"
+        done = _wait(c, job_id, {"done", "failed"})
+        holder.join()
+        assert held["r"].status_code == 200
+        assert done["status"] == "done", done
+        assert done["result"]["status"] == "timeout"  # the sleeping job's own answer
+        # it ran once the worker was free: after the interactive job's 3 s of sleep
+        assert done["started_at"] >= t_hold + 2.9

@@ -111,6 +111,9 @@ BACKOFF_START = 1e-7
 CHORD_SHARE = 0.5
 #: Most refinement rounds (each splits the pieces that fail).
 MAX_ROUNDS = 60
+#: Most passes of the refinement loop of the joint waypoints (splits of chords, splits of
+#: motions, pull-backs): past them the certified part of the path is the answer.
+MAX_REFINEMENTS = 4 * MAX_ROUNDS
 #: Most parts one refinement round cuts a piece into.
 MAX_PARTS = 16
 #: Where a piece whose motion cannot be certified is split (shares of its length).
@@ -200,6 +203,34 @@ def _describe(
             f"margins.clearance = {m.clearance:g} m"
         )
     return float("nan"), checker.explain(q_bad)
+
+
+def _halve_uncertified(
+    walker: Walker, checker: ValidityChecker, s: np.ndarray, q: np.ndarray, first: int, end: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pieces ``first <= i < end`` (from waypoint i to i + 1) whose motion does not
+    certify and which are longer than :data:`MIN_PIECE`, with their midpoints that are valid
+    postures: (piece indices, midpoints' s, q, working modes). A piece whose midpoint breaks
+    a rule is left whole: a later round reaches it as the first uncertified piece, and stops
+    there with that rule."""
+    motion_ok = checker.motion_test()
+    qc = np.ascontiguousarray(q, dtype=float)
+    pieces = np.array(
+        [
+            i
+            for i in range(first, end)
+            if s[i + 1] - s[i] > MIN_PIECE and not motion_ok(qc[i].copy(), qc[i + 1].copy())
+        ],
+        dtype=int,
+    )
+    if len(pieces) == 0:
+        return pieces, np.zeros(0), np.zeros((0, 3)), np.zeros(0)
+    s_mid = 0.5 * (s[pieces] + s[pieces + 1])
+    qm, okm, wm, _ = walker.posture_at(s_mid, q[pieces])
+    valid = okm.copy()
+    if np.any(okm):
+        valid[okm] = checker.is_valid(qm[okm])
+    return pieces[valid], s_mid[valid], qm[valid], wm[valid]
 
 
 def plan_cartesian(
@@ -389,10 +420,11 @@ def plan_cartesian(
         end_s = float(s[-1])
         stop_rule = stop_rule or "workspace"
     certified = 0  # pieces [0, certified) are certified (chord and motion)
+    rep = None
     backoff = 0.0
     bound = np.zeros(max(len(s) - 1, 0))
     cut_reason = ""
-    for _ in range(MAX_ROUNDS * 4):
+    for _ in range(MAX_REFINEMENTS):
         if certified >= len(s) - 1:
             break
         check_deadline(deadline, "while refining the Cartesian path")
@@ -505,9 +537,17 @@ def plan_cartesian(
                 valid_m[okm] = checker.is_valid(qm[okm])
             n_ok = int(np.argmin(valid_m)) if not np.all(valid_m) else len(frac)
             if n_ok > 0:
-                s = np.insert(s, k + 1, s_mid[:n_ok])
-                q = np.insert(q, k + 1, qm[:n_ok], axis=0)
-                w = np.insert(w, k + 1, wm[:n_ok])
+                # every later piece whose motion does not certify either is halved in the
+                # same round: one piece per round would need as many rounds as there are
+                # such pieces (thousands on a long robot, where every initial piece moves
+                # a link farther than its clearance)
+                more, s_more, q_more, w_more = _halve_uncertified(
+                    walker, checker, s, q, k + 1, len(s) - 2 if stops_short else len(s) - 1
+                )
+                at = np.concatenate([np.full(n_ok, k + 1), more + 1])
+                s = np.insert(s, at, np.concatenate([s_mid[:n_ok], s_more]))
+                q = np.insert(q, at, np.concatenate([qm[:n_ok], q_more]), axis=0)
+                w = np.insert(w, at, np.concatenate([wm[:n_ok], w_more]))
                 bound = bound[:certified]
                 continue
         # the motion out of waypoint k cannot be certified: stop at k
@@ -519,8 +559,15 @@ def plan_cartesian(
         bound = bound[:k]
         end_s = float(s[-1])
         cut_reason = "motion"
-    else:  # pragma: no cover - the refinement always ends (pieces halve down to MIN_PIECE)
-        raise InputError("the Cartesian refinement did not converge")
+    else:
+        # the rounds ran out before every piece was certified (a path needing more splits
+        # than MAX_REFINEMENTS allows): the certified pieces are the answer, the rest not done
+        # (the rule of the uncertified motion, not one found farther along the line)
+        uncertified = rep.reason if rep is not None and not rep.valid else ""
+        stop_rule = uncertified or stop_rule or "path_tolerance"
+        s, q, w = s[: certified + 1], q[: certified + 1], w[: certified + 1]
+        bound = bound[:certified]
+        end_s, cut_reason = float(s[-1]), "rounds"
     bound = bound[: len(s) - 1]
 
     fraction = 1.0 if poly.length == 0.0 else min(end_s / poly.length, 1.0)
@@ -534,7 +581,15 @@ def plan_cartesian(
         if cut_reason == "path_tolerance":
             rule = "path_tolerance"
         p_end = poly.at(np.array([end_s]))[0]
-        if rule == "path_tolerance":
+        if cut_reason == "rounds":
+            value, sentence = (
+                float("nan"),
+                (
+                    f"{rule}: the motion on from here was not certified within "
+                    f"{MAX_REFINEMENTS} refinement passes (the path up to here is)"
+                ),
+            )
+        elif rule == "path_tolerance":
             value = float(bound.max()) if len(bound) else float("nan")
             sentence = (
                 f"path_tolerance: no certified joint path keeps P within {tol:g} m of the line "

@@ -17,11 +17,16 @@ from planner.wire.meta import ErrorItem
 
 __all__ = ["JOB_KINDS", "JobError", "JobKind", "JobRequest", "JobState", "JobStatus"]
 
-#: The endpoints a long job can run, by kind: ``plan`` is ``POST /v1/plan``, ``cartesian``
-#: ``/v1/cartesian``, ``timing`` ``/v1/timing``, ``design_check`` ``/v1/design/check``,
-#: ``design_optimize`` ``/v1/design/optimize``, ``regions`` ``/v1/design/regions``.
-JOB_KINDS = ("plan", "cartesian", "timing", "design_check", "design_optimize", "regions")
-JobKind = Literal["plan", "cartesian", "timing", "design_check", "design_optimize", "regions"]
+#: The endpoints a long job can run, by kind: ``plan`` is ``POST /v1/plan``, ``sequence``
+#: ``/v1/sequence``, ``cartesian`` ``/v1/cartesian``, ``timing`` ``/v1/timing``,
+#: ``design_check`` ``/v1/design/check``, ``design_optimize`` ``/v1/design/optimize``,
+#: ``regions`` ``/v1/design/regions``.
+JOB_KINDS = (
+    "plan", "sequence", "cartesian", "timing", "design_check", "design_optimize", "regions",
+)  # fmt: skip
+JobKind = Literal[
+    "plan", "sequence", "cartesian", "timing", "design_check", "design_optimize", "regions"
+]
 #: ``queued`` (waiting for a slot), ``running``, then one of ``done`` (``result`` set),
 #: ``failed`` (``error`` set), ``cancelled``.
 JobState = Literal["queued", "running", "done", "failed", "cancelled"]
