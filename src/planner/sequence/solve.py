@@ -63,6 +63,9 @@ __all__ = ["PASS_OFFSET", "leg_name", "solve_sequence", "solve_with_goals"]
 #: over this distance on either side (rad; at most a quarter of the adjacent segments), and
 #: the two new corners there are blended as any other.
 PASS_OFFSET = 0.05
+#: How much farther than its ball a sampled closest approach may seem (rad): half the
+#: 0.01 rad spacing of the samples :func:`_leg_times` reads, and a little.
+_SAMPLING_SLACK = 0.006
 #: A corner turning by more than pi minus this (rad) cannot be passed at speed: the target
 #: is a stop (the timing could not blend it either).
 _REVERSAL = 1e-3
@@ -258,11 +261,17 @@ def _smooth_pass_through(
 
 
 def _leg_times(
-    trajectory, w: np.ndarray, at: list[int], stops: list[bool], reach: list[float]
+    trajectory,
+    w: np.ndarray,
+    at: list[int],
+    stops: list[bool],
+    reach: list[float],
+    close: list[float],
 ) -> list[tuple[float, float, float]]:
     """Step 6: for each target in order, (time, distance, speed) where the trajectory
-    reaches it: a stop at its rest instant, a pass-through at its closest approach within
-    ``reach`` (rad) after the previous target. Sampled at the dense re-check's spacing and
+    reaches it: a stop at its rest instant, a pass-through at its first closest approach
+    within ``close`` (its ball and the sampling's slack, rad), else within ``reach``, after
+    the previous target. Sampled at the dense re-check's spacing and
     refined between the neighbouring samples."""
     curve = trajectory.curve
     t = np.union1d(curve.check_times(0.01), trajectory.t)
@@ -274,14 +283,20 @@ def _leg_times(
         target = w[k]
         after = t >= t_prev
         dist = np.where(after, np.linalg.norm(q - target, axis=1), np.inf)
-        near = np.flatnonzero(dist <= reach[i])
-        if near.size:
-            run_end = near[0]
-            while run_end + 1 < len(t) and dist[run_end + 1] <= reach[i]:
-                run_end += 1
-            j = near[0] + int(np.argmin(dist[near[0] : run_end + 1]))
-        else:
-            j = int(np.argmin(dist))
+        # the first closest approach (a local minimum of the distance) within the target's
+        # ball (plus the sampling's slack), else within ``reach``: a pass-through whose blend
+        # is near half its leg stays within reach through the next target and back (a
+        # pick-and-place cycle passes each top corner twice), and a short first leg starts
+        # within it, so neither the first sample within reach nor the overall minimum will do
+        prev = np.concatenate([[np.inf], dist[:-1]])
+        nxt = np.concatenate([dist[1:], [np.inf]])
+        minima = np.flatnonzero(after & (dist <= prev) & (dist <= nxt))
+        j = int(np.argmin(dist))
+        for limit in (close[i], reach[i]):
+            good = minima[dist[minima] <= limit]
+            if good.size:
+                j = int(good[0])
+                break
         lo, hi = t[max(j - 1, 0)], t[min(j + 1, len(t) - 1)]
         fine = np.linspace(max(lo, t_prev), hi, 201)
         qf = curve.evaluate(fine)[0]
@@ -445,6 +460,7 @@ def solve_with_goals(
         if not stops[i] and not exact[i]:
             deviation[k] = targets[i].blend
     stop_at = [k for i, k in enumerate(at) if stops[i]]
+    via_at = [k for i, k in enumerate(at) if not stops[i] and not exact[i]]
 
     def legs_with(times: list[tuple[float, float, float]] | None) -> tuple[Leg, ...]:
         out = []
@@ -469,7 +485,8 @@ def solve_with_goals(
         trajectory = time_plan(
             design, joined, obstacles=obstacles, margins=margins, timing=timing, limits=limits,
             stop_at_transits=options.stop_at_transits, deadline=deadline,
-            max_deviation=deviation, stop_at=stop_at, inertia=inertia, gravity=gravity,
+            max_deviation=deviation, stop_at=stop_at, via_at=via_at, inertia=inertia,
+            gravity=gravity,
         )  # fmt: skip
     except TimingError as exc:
         late = isinstance(exc, TimingDeadlineError)
@@ -482,7 +499,10 @@ def solve_with_goals(
         (0.0 if stops[i] else (targets[i].blend if i < n else 0.0)) + timing.max_deviation + 0.01
         for i in range(len(at))
     ]
-    times = _leg_times(trajectory, w, at, stops, reach)
+    close = [
+        (0.0 if stops[i] or i >= n else targets[i].blend) + _SAMPLING_SLACK for i in range(len(at))
+    ]
+    times = _leg_times(trajectory, w, at, stops, reach, close)
     by_timing = tuple(i for i, (_, _, v) in enumerate(times) if passes[i] and v <= 1e-9)
     diagnostics = replace(
         diagnostics,
