@@ -48,6 +48,7 @@ from planner.timing.toppra_method import PathProfile, check_deadline
 from planner.timing.trajectory import Curve, TimeScaledCurve
 
 __all__ = [
+    "MAX_VIAS",
     "VIA_ITERATIONS",
     "SplicedCurve",
     "ViaSection",
@@ -60,6 +61,13 @@ __all__ = [
 #: Nelder-Mead iterations per via state (6 unknowns). On the benchmark cycle 120 come within
 #: 0.1 % of a global search (differential evolution) and cost about 800 moves per two vias.
 VIA_ITERATIONS = 120
+#: Most vias in a section timed as a chain: a pick-and-place cycle has two per section (its
+#: top corners); a longer run of pass-through targets keeps the blended path's timing. Why:
+#: each via costs some 20-40 ms of moves on the benchmark machine, and on a 12-target ring
+#: (blend 0.01 rad) the chain, 10 % faster, strayed from the 0.01 rad allowance between its
+#: vias (each via's moves are checked only against its neighbours' earlier states), so the
+#: re-check dropped it after 0.4 s of work.
+MAX_VIAS = 4
 #: Sweeps over the vias of a section (each via's moves depend on its neighbours' states).
 SWEEPS = 1
 #: States are pulled this far inside the limits and the ball (relative), as in the Ruckig chain.
@@ -83,15 +91,15 @@ class ViaSection:
 
 
 def via_sections(path: BlendedPath, via: np.ndarray) -> list[ViaSection]:
-    """The sections of ``path`` (between consecutive rests) with at least one interior
-    vertex, every one of them a via (``via``: bool per merged waypoint)."""
+    """The sections of ``path`` (between consecutive rests) with 1 to :data:`MAX_VIAS`
+    interior vertices, every one of them a via (``via``: bool per merged waypoint)."""
     out = []
     vs = path.vertex_s
     for lo, hi in zip(path.stops[:-1], path.stops[1:], strict=True):
         first = int(np.flatnonzero(np.isclose(vs, lo, rtol=0.0, atol=1e-12))[-1])
         last = int(np.flatnonzero(np.isclose(vs, hi, rtol=0.0, atol=1e-12))[0])
         inner = list(range(first + 1, last))
-        if inner and all(bool(via[k]) for k in inner):
+        if 0 < len(inner) <= MAX_VIAS and all(bool(via[k]) for k in inner):
             out.append(ViaSection((first, *inner, last), float(lo), float(hi)))
     return out
 
@@ -219,14 +227,27 @@ def build_via_chain(
         after = state(i + 1, offset[i + 1], vel[i + 1])
         r_i = float(radius[ks[i]])
 
-        def cost(z: np.ndarray, i=i, before=before, after=after, r_i=r_i) -> float:
-            o, v = z[:3], z[3:]
-            # outside the ball or the velocity limits: projected, with a penalty that
-            # points back inside (so the simplex does not wander off)
-            penalty = max(0.0, float(np.linalg.norm(o)) - r_i)
-            penalty += float(np.sum(np.maximum(np.abs(v) - v_max, 0.0)))
-            here = state(i, o, np.clip(v, -v_max, v_max))
-            return mover.duration(*before, *here) + mover.duration(*here, *after) + 10.0 * penalty
+        corner, r_in, v_lim = vertex[i].tolist(), r_i * _INSIDE, v_max.tolist()
+
+        def cost(z: np.ndarray, before=before, after=after, corner=corner, r_i=r_i,
+                 r_in=r_in, v_lim=v_lim) -> float:  # fmt: skip
+            # plain floats: this runs some 500 times per via. Outside the ball or the
+            # velocity limits: projected, with a penalty that points back inside (so the
+            # simplex does not wander off)
+            o0, o1, o2, *v = z.tolist()
+            n = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+            penalty = max(0.0, n - r_i)
+            f = 1.0 if n <= r_in else r_in / n
+            here = [corner[0] + f * o0, corner[1] + f * o1, corner[2] + f * o2]
+            for j in range(3):
+                if abs(v[j]) > v_lim[j]:
+                    penalty += abs(v[j]) - v_lim[j]
+                    v[j] = math.copysign(v_lim[j], v[j])
+            return (
+                mover.duration(*before, here, v)
+                + mover.duration(here, v, *after)
+                + (10.0 * penalty)
+            )
 
         # two starts, each searched, the better end kept: the arc's own state, and a state
         # half-way into the ball along the corner's bisector, moving along the corner at
