@@ -312,6 +312,26 @@ def _leg_times(
     return out
 
 
+def _transit_times(curve, path: PlanPath, begin: float, end: float) -> tuple[float, ...]:
+    """When the trajectory crosses each working-mode transit of a leg's path (``path.
+    transits``, in order): its closest approach to the transit posture between the leg's
+    ``begin`` and ``end``, after the previous transit (at rest there with
+    ``stop_at_transits``; else within the corner allowance of it). Sampled every 1 ms,
+    then refined between the neighbours of the closest sample."""
+    out: list[float] = []
+    lo = begin
+    for tr in path.transits:
+        q_tr = np.asarray(tr.q, dtype=float)
+        a, b, best = lo, end, lo
+        for n in (max(3, int((end - lo) / 1e-3) + 1), 201):
+            t = np.linspace(a, b, n)
+            j = int(np.argmin(np.linalg.norm(curve.evaluate(t)[0] - q_tr, axis=1)))
+            best, a, b = float(t[j]), float(t[max(j - 1, 0)]), float(t[min(j + 1, n - 1)])
+        out.append(best)
+        lo = best
+    return tuple(out)
+
+
 def solve_sequence(
     design: Design,
     start: JointPosture,
@@ -462,7 +482,7 @@ def solve_with_goals(
     stop_at = [k for i, k in enumerate(at) if stops[i]]
     via_at = [k for i, k in enumerate(at) if not stops[i] and not exact[i]]
 
-    def legs_with(times: list[tuple[float, float, float]] | None) -> tuple[Leg, ...]:
+    def legs_with(times: list[tuple[float, float, float]] | None, curve=None) -> tuple[Leg, ...]:
         out = []
         for i, (p, k) in enumerate(zip(plans, at, strict=True)):
             if times is None:
@@ -470,7 +490,8 @@ def solve_with_goals(
                 continue
             begin = 0.0 if i == 0 else times[i - 1][0]
             t_k, dist, speed = times[i]
-            out.append(Leg(i, p, _arrival_mode(p.path), begin, t_k, k, dist, speed))
+            crossings = _transit_times(curve, p.path, begin, t_k)
+            out.append(Leg(i, p, _arrival_mode(p.path), begin, t_k, k, dist, speed, crossings))
         return tuple(out)
 
     if timing.method == "none":
@@ -512,7 +533,12 @@ def solve_with_goals(
     )
     message = _solved_message(n, cycle, modes, extra, trajectory.duration, by_timing, turning)
     return SequenceResult(
-        PlanStatus.SOLVED, message, legs_with(times), joined, trajectory, diagnostics=diagnostics
+        PlanStatus.SOLVED,
+        message,
+        legs_with(times, trajectory.curve),
+        joined,
+        trajectory,
+        diagnostics=diagnostics,
     )
 
 
