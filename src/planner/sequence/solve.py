@@ -16,7 +16,9 @@ cycle time. The steps, each a function here:
    two short straight pieces around the target (:func:`_smooth_pass_through`);
 5. the joined path timed once by :func:`planner.solver.time_plan`, the timing step of
    :func:`planner.solve` (the same limits, the path's own rules re-checked densely, the
-   stops at rest and the pass-through targets blended within their ``blend``): one
+   stops at rest and the pass-through targets passed within their ``blend``: as free via
+   states, ``via_at``, where a stretch between stops holds only pass-throughs, else on
+   arcs, :mod:`planner.timing.vias`): one
    trajectory, one time axis, strictly increasing, no stamp repeated between legs;
 6. each leg's time span read from the trajectory (:func:`_leg_times`).
 """
