@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from timing_factories import fine_times
 
-from planner import Design
+from planner import Design, forward_batch
 from planner.timing import LIMIT_RTOL, JointLimits, time_path
 from planner.timing.vias import SplicedCurve
 
@@ -99,3 +99,26 @@ def test_a_chain_that_fails_the_re_check_gives_way_to_the_blended_path():
     assert kept.repairs >= 1
     assert kept.duration == pytest.approx(arcs.duration, rel=1e-9)
     assert np.all(check(kept.at(fine_times(kept.duration, 4001))[0]))
+
+
+def test_a_chain_keeps_the_cartesian_speed_bound():
+    """A chain slowed uniformly for the bound (ruckig: still faster than its arcs; toppra's
+    own profile under the bound beats a uniformly slowed chain, and is kept)."""
+    method = "ruckig"
+    free = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS, via_at=[1, 2])
+    bound = 0.5 * float(np.max(free.p_speed))
+    traj = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS, via_at=[1, 2],
+                     max_cartesian_speed=bound)  # fmt: skip
+    q, qd, _, _ = traj.at(fine_times(traj.duration, 20001))
+    # P's speed recomputed here by central differences of the forward kinematics
+    h = 1e-6
+    v_p = np.zeros((q.shape[0], 3))
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        dp = (forward_batch(DESIGN, q + e, "+").p - forward_batch(DESIGN, q - e, "+").p) / (2 * h)
+        v_p += dp * qd[:, j : j + 1]
+    speed = v_p
+    assert isinstance(traj.curve, SplicedCurve)
+    assert np.max(np.linalg.norm(speed, axis=1)) <= bound * (1 + 1e-5)
+    assert traj.duration > free.duration
