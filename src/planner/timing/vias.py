@@ -16,7 +16,9 @@ unbounded: the limits toppra times under) for ``toppra``, jerk-limited ones for 
 Each move is Ruckig's time-optimal synchronised move between its two states, so the chain's
 duration is the sum of their durations, a function of the via states alone; it is minimised
 by Nelder-Mead per via (its offset in the ball and its velocity, the two moves next to it),
-one sweep in path order from the arc's own states (toppra's profile at the arc's middle).
+one sweep in path order, from two starts per via (the arc's own state, toppra's profile at
+the arc's middle, and a point half-way into the ball along the corner's bisector), keeping
+the fastest result whose two moves stay within the allowance (sampled).
 Exact for a given set of via states, the chain is a feasible trajectory of the time-optimal
 problem "pass within each ball", so its duration bounds that problem's optimum from above;
 the per-joint bound of ``benchmarks/sequences.py`` bounds it from below.
