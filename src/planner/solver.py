@@ -201,6 +201,7 @@ def time_plan(
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
     max_deviation: float | np.ndarray | None = None,
     stop_at: Sequence[int] = (),
+    via_at: Sequence[int] = (),
 ) -> Trajectory:
     """The timing step of :func:`solve` for a planned path: :func:`planner.timing.time_path`
     under the path's own rules per piece (:func:`planner.planning.path_state_checker`),
@@ -208,7 +209,9 @@ def time_plan(
     A sequence (:func:`planner.sequence.solve_sequence`) times its joined legs here too, with
     its own corner allowance per waypoint (``max_deviation``, shape (N,), rad; default
     ``timing.max_deviation`` everywhere) and its stop targets (``stop_at``: waypoint indices
-    where the trajectory comes to rest, besides the transits). Raises :class:`~planner.exceptions.TimingError` as ``time_path`` does; an
+    where the trajectory comes to rest, besides the transits) and its pass-through targets
+    (``via_at``: waypoints passed as free via states within their ``max_deviation``,
+    :mod:`planner.timing.vias`). Raises :class:`~planner.exceptions.TimingError` as ``time_path`` does; an
     :class:`~planner.exceptions.InputError` names its field under ``timing.``."""
     from planner.timing import time_path
 
@@ -235,6 +238,7 @@ def time_plan(
             max_samples=timing.max_samples,
             inertia=inertia,
             gravity=gravity,
+            via_at=[int(i) for i in via_at],
         )
     except InputError as exc:
         if exc.field is not None and not exc.field_path[:1] == ("timing",):

@@ -190,3 +190,31 @@ def test_client_and_cli(api, tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert "cycle time:" in result.output and "target 3: solved" in result.output
     assert json.loads(out.read_text())["cycle_time"] == pytest.approx(answer.cycle_time)
+
+
+def test_a_mode_change_lists_its_transits_per_leg_as_a_plan_does(api):
+    """Each leg's ``path.transits`` is /v1/plan's shape, and ``transit_times`` (one per
+    transit, within the leg's span) say when the trajectory crosses them."""
+    start = {"q": [0.90975316, -0.10880946, 1.24575975], "assembly_mode": "+"}
+    request = {
+        "start": start,
+        "targets": [
+            {"goal": {"p": [0.35, -0.15, -0.43], "working_mode": "+-+"}},
+            {"goal": {"p": [0.35, -0.15, -0.45], "working_mode": "+++"}},
+        ],
+        "objective": "fixed",
+    }
+    answer = api.post("/v1/sequence", json=request).json()
+    assert answer["status"] == "solved", answer["message"]
+    plan = api.post("/v1/plan", json={"start": start, "goal": request["targets"][0]["goal"]}).json()
+    assert set(plan["path"]["transits"][0]) == set(answer["legs"][0]["path"]["transits"][0])
+    t = np.asarray(answer["trajectory"]["t"])
+    q = np.asarray(answer["trajectory"]["q"])
+    for leg in answer["legs"]:
+        transits = leg["path"]["transits"]
+        assert transits and len(leg["transit_times"]) == len(transits)
+        for tr, tc in zip(transits, leg["transit_times"], strict=True):
+            assert leg["start_time"] <= tc <= leg["end_time"]
+            # the sampled trajectory is near the transit posture around that time
+            k = int(np.argmin(np.abs(t - tc)))
+            assert np.linalg.norm(q[k] - np.asarray(tr["q"])) <= 0.05 + 2.0 * 0.01

@@ -68,6 +68,8 @@ class Leg:
     pass_distance : rad, joint-space distance of the trajectory from the target's posture
         at ``end_time`` (0 at a stop; at most the blend); NaN when not timed.
     pass_speed : rad/s, joint speed there (0 at a stop); NaN when not timed.
+    transit_times : s, on the sequence's trajectory: when it crosses each working-mode
+        transit of the leg's path (``plan.path.transits``, in order); empty when not timed.
     """
 
     target_index: int
@@ -78,6 +80,7 @@ class Leg:
     waypoint_index: int = -1
     pass_distance: float = math.nan
     pass_speed: float = math.nan
+    transit_times: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

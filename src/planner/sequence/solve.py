@@ -16,7 +16,9 @@ cycle time. The steps, each a function here:
    two short straight pieces around the target (:func:`_smooth_pass_through`);
 5. the joined path timed once by :func:`planner.solver.time_plan`, the timing step of
    :func:`planner.solve` (the same limits, the path's own rules re-checked densely, the
-   stops at rest and the pass-through targets blended within their ``blend``): one
+   stops at rest and the pass-through targets passed within their ``blend``: as free via
+   states, ``via_at``, where a stretch between stops holds only pass-throughs, else on
+   arcs, :mod:`planner.timing.vias`): one
    trajectory, one time axis, strictly increasing, no stamp repeated between legs;
 6. each leg's time span read from the trajectory (:func:`_leg_times`).
 """
@@ -63,6 +65,9 @@ __all__ = ["PASS_OFFSET", "leg_name", "solve_sequence", "solve_with_goals"]
 #: over this distance on either side (rad; at most a quarter of the adjacent segments), and
 #: the two new corners there are blended as any other.
 PASS_OFFSET = 0.05
+#: How much farther than its ball a sampled closest approach may seem (rad): half the
+#: 0.01 rad spacing of the samples :func:`_leg_times` reads, and a little.
+_SAMPLING_SLACK = 0.006
 #: A corner turning by more than pi minus this (rad) cannot be passed at speed: the target
 #: is a stop (the timing could not blend it either).
 _REVERSAL = 1e-3
@@ -258,11 +263,17 @@ def _smooth_pass_through(
 
 
 def _leg_times(
-    trajectory, w: np.ndarray, at: list[int], stops: list[bool], reach: list[float]
+    trajectory,
+    w: np.ndarray,
+    at: list[int],
+    stops: list[bool],
+    reach: list[float],
+    close: list[float],
 ) -> list[tuple[float, float, float]]:
     """Step 6: for each target in order, (time, distance, speed) where the trajectory
-    reaches it: a stop at its rest instant, a pass-through at its closest approach within
-    ``reach`` (rad) after the previous target. Sampled at the dense re-check's spacing and
+    reaches it: a stop at its rest instant, a pass-through at its first closest approach
+    within ``close`` (its ball and the sampling's slack, rad), else within ``reach``, after
+    the previous target. Sampled at the dense re-check's spacing and
     refined between the neighbouring samples."""
     curve = trajectory.curve
     t = np.union1d(curve.check_times(0.01), trajectory.t)
@@ -274,14 +285,20 @@ def _leg_times(
         target = w[k]
         after = t >= t_prev
         dist = np.where(after, np.linalg.norm(q - target, axis=1), np.inf)
-        near = np.flatnonzero(dist <= reach[i])
-        if near.size:
-            run_end = near[0]
-            while run_end + 1 < len(t) and dist[run_end + 1] <= reach[i]:
-                run_end += 1
-            j = near[0] + int(np.argmin(dist[near[0] : run_end + 1]))
-        else:
-            j = int(np.argmin(dist))
+        # the first closest approach (a local minimum of the distance) within the target's
+        # ball (plus the sampling's slack), else within ``reach``: a pass-through whose blend
+        # is near half its leg stays within reach through the next target and back (a
+        # pick-and-place cycle passes each top corner twice), and a short first leg starts
+        # within it, so neither the first sample within reach nor the overall minimum will do
+        prev = np.concatenate([[np.inf], dist[:-1]])
+        nxt = np.concatenate([dist[1:], [np.inf]])
+        minima = np.flatnonzero(after & (dist <= prev) & (dist <= nxt))
+        j = int(np.argmin(dist))
+        for limit in (close[i], reach[i]):
+            good = minima[dist[minima] <= limit]
+            if good.size:
+                j = int(good[0])
+                break
         lo, hi = t[max(j - 1, 0)], t[min(j + 1, len(t) - 1)]
         fine = np.linspace(max(lo, t_prev), hi, 201)
         qf = curve.evaluate(fine)[0]
@@ -295,6 +312,26 @@ def _leg_times(
         out.append((t_k, float(np.linalg.norm(qk[0] - target)), float(np.linalg.norm(qdk[0]))))
         t_prev = t_k
     return out
+
+
+def _transit_times(curve, path: PlanPath, begin: float, end: float) -> tuple[float, ...]:
+    """When the trajectory crosses each working-mode transit of a leg's path (``path.
+    transits``, in order): its closest approach to the transit posture between the leg's
+    ``begin`` and ``end``, after the previous transit (at rest there with
+    ``stop_at_transits``; else within the corner allowance of it). Sampled every 1 ms,
+    then refined between the neighbours of the closest sample."""
+    out: list[float] = []
+    lo = begin
+    for tr in path.transits:
+        q_tr = np.asarray(tr.q, dtype=float)
+        a, b, best = lo, end, lo
+        for n in (max(3, int((end - lo) / 1e-3) + 1), 201):
+            t = np.linspace(a, b, n)
+            j = int(np.argmin(np.linalg.norm(curve.evaluate(t)[0] - q_tr, axis=1)))
+            best, a, b = float(t[j]), float(t[max(j - 1, 0)]), float(t[min(j + 1, n - 1)])
+        out.append(best)
+        lo = best
+    return tuple(out)
 
 
 def solve_sequence(
@@ -445,8 +482,9 @@ def solve_with_goals(
         if not stops[i] and not exact[i]:
             deviation[k] = targets[i].blend
     stop_at = [k for i, k in enumerate(at) if stops[i]]
+    via_at = [k for i, k in enumerate(at) if not stops[i] and not exact[i]]
 
-    def legs_with(times: list[tuple[float, float, float]] | None) -> tuple[Leg, ...]:
+    def legs_with(times: list[tuple[float, float, float]] | None, curve=None) -> tuple[Leg, ...]:
         out = []
         for i, (p, k) in enumerate(zip(plans, at, strict=True)):
             if times is None:
@@ -454,7 +492,8 @@ def solve_with_goals(
                 continue
             begin = 0.0 if i == 0 else times[i - 1][0]
             t_k, dist, speed = times[i]
-            out.append(Leg(i, p, _arrival_mode(p.path), begin, t_k, k, dist, speed))
+            crossings = _transit_times(curve, p.path, begin, t_k)
+            out.append(Leg(i, p, _arrival_mode(p.path), begin, t_k, k, dist, speed, crossings))
         return tuple(out)
 
     if timing.method == "none":
@@ -469,7 +508,8 @@ def solve_with_goals(
         trajectory = time_plan(
             design, joined, obstacles=obstacles, margins=margins, timing=timing, limits=limits,
             stop_at_transits=options.stop_at_transits, deadline=deadline,
-            max_deviation=deviation, stop_at=stop_at, inertia=inertia, gravity=gravity,
+            max_deviation=deviation, stop_at=stop_at, via_at=via_at, inertia=inertia,
+            gravity=gravity,
         )  # fmt: skip
     except TimingError as exc:
         late = isinstance(exc, TimingDeadlineError)
@@ -482,7 +522,10 @@ def solve_with_goals(
         (0.0 if stops[i] else (targets[i].blend if i < n else 0.0)) + timing.max_deviation + 0.01
         for i in range(len(at))
     ]
-    times = _leg_times(trajectory, w, at, stops, reach)
+    close = [
+        (0.0 if stops[i] or i >= n else targets[i].blend) + _SAMPLING_SLACK for i in range(len(at))
+    ]
+    times = _leg_times(trajectory, w, at, stops, reach, close)
     by_timing = tuple(i for i, (_, _, v) in enumerate(times) if passes[i] and v <= 1e-9)
     diagnostics = replace(
         diagnostics,
@@ -492,7 +535,12 @@ def solve_with_goals(
     )
     message = _solved_message(n, cycle, modes, extra, trajectory.duration, by_timing, turning)
     return SequenceResult(
-        PlanStatus.SOLVED, message, legs_with(times), joined, trajectory, diagnostics=diagnostics
+        PlanStatus.SOLVED,
+        message,
+        legs_with(times, trajectory.curve),
+        joined,
+        trajectory,
+        diagnostics=diagnostics,
     )
 
 

@@ -81,6 +81,7 @@ from planner.timing.trajectory import (
     p_velocity,
     sample_times,
 )
+from planner.timing.vias import SplicedCurve, drop_failed_vias, splice_vias
 
 __all__ = [
     "DEFAULT_CHECK_RESOLUTION",
@@ -262,8 +263,10 @@ def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | N
     """Waypoint indices (of ``path.waypoints``) of the blends holding the bad postures, or
     None when a bad posture lies on a part that follows the planned segments exactly."""
     t_bad = report.t[report.bad_state]
-    while isinstance(curve, TimeScaledCurve):
-        t_bad, curve = t_bad * curve.c, curve.base
+    while isinstance(curve, (TimeScaledCurve, SplicedCurve)):  # (via chains: dropped first)
+        scaled = isinstance(curve, TimeScaledCurve)
+        t_bad = t_bad * curve.c if scaled else curve.base_time(t_bad)[0]  # type: ignore[union-attr]
+        curve = curve.base
     if isinstance(curve, ToppraCurve):
         s, _, _ = curve.profile.at_time(t_bad)
         corners = path.arc_corner_at(s)
@@ -310,6 +313,7 @@ def time_path(
     max_samples: int | None = None,
     inertia: Inertia | None = None,
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
+    via_at: Iterable[int] = (),
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -361,6 +365,9 @@ def time_path(
         (toppra's second-order constraint; ruckig: checked and slowed) and the dense
         re-check includes them.
     gravity : shape (3,), m/s^2, base frame (with torques)
+    via_at : waypoints passed as free via states within their ``max_deviation``: a section
+        whose interior waypoints all are may be a chain of moves through them
+        (:mod:`planner.timing.vias`; kept when faster and when it passes the re-check).
 
     Returns
     -------
@@ -382,7 +389,7 @@ def time_path(
     job = _validate_inputs(
         design, waypoints, limits, method, assembly_mode, sample_rate_hz,
         max_cartesian_speed, max_deviation, stop_at, check_resolution, check_states,
-        deadline, max_samples, inertia, gravity,
+        deadline, max_samples, inertia, gravity, via_at,
     )  # fmt: skip
     state = _build_blended_path(job)
     while True:
@@ -415,6 +422,7 @@ class _Job:
     deadline: float | None
     max_samples: int
     torque: TorqueModel | None = None
+    via: np.ndarray | None = None
 
     def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
         """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
@@ -443,6 +451,8 @@ class _State:
     sections, moves : the toppra section profiles and Ruckig moves solved so far, so that a
         repair round solves again only what its repair changed (the work of all rounds stays
         linear in the number of waypoints; ``benchmarks/timing.py --scaling``).
+    via, via_chains, via_off : the via waypoints (merged), the via chains built (by section)
+        and the sections whose chain a repair dropped (:mod:`planner.timing.vias`).
     """
 
     path: BlendedPath
@@ -458,6 +468,9 @@ class _State:
     rescaled: Curve | None = None
     sections: SectionCache = field(default_factory=dict)
     moves: MoveCache = field(default_factory=MoveCache)
+    via: np.ndarray | None = None
+    via_chains: dict = field(default_factory=dict)
+    via_off: set = field(default_factory=set)
 
 
 def _validate_inputs(
@@ -476,6 +489,7 @@ def _validate_inputs(
     max_samples: int | None,
     inertia: Inertia | None = None,
     gravity: object = DEFAULT_GRAVITY,
+    via_at: Iterable[int] = (),
 ) -> _Job:
     """Step 1: every argument checked, with a typed error naming the field and the rule."""
     if not isinstance(limits, JointLimits):
@@ -500,6 +514,7 @@ def _validate_inputs(
                 f"max_cartesian_speed must lie in [{MIN_RATE:g}, {MAX_RATE:g}] m/s, got {v_cart}"
             )
     stop = _stop_mask(stop_at, n)
+    via = _stop_mask(via_at, n) if via_at else None
     dev_in = _deviation(max_deviation, n)
     cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
     torque = None
@@ -515,7 +530,7 @@ def _validate_inputs(
             )
     return _Job(
         design, w, limits, str(method), str(assembly_mode), rate, v_cart, dev_in, stop,
-        check_states, resolution, deadline, cap, torque,
+        check_states, resolution, deadline, cap, torque, via,
     )  # fmt: skip
 
 
@@ -525,12 +540,14 @@ def _build_blended_path(job: _Job) -> _State:
     min_radius = min_blend_radius(job.limits)
     path = BlendedPath.from_waypoints(job.waypoints, job.max_deviation, job.stop, min_radius)
     dev = np.minimum.reduceat(job.max_deviation, np.unique(path.index_map, return_index=True)[1])
+    via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
     return _State(
         path=path,
         dev=dev,
         dev0=dev.copy(),  # the allowance per (merged) waypoint, rad
         floor=dev / _SHRINK**_SHRINK_STEPS,
         min_radius=min_radius,
+        via=via,
     )
 
 
@@ -570,15 +587,29 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
     elif state.slow_down < 1.0:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":
-        return ToppraCurve(path, state.profile)
+        return _with_vias(job, state, ToppraCurve(path, state.profile), lim)
     curve: Curve = build_ruckig_curve(
         path, state.profile, lim, deadline=job.deadline, cache=state.moves
     )
+    return _with_vias(job, state, _fitted_chain(curve, job), lim)
+
+
+def _fitted_chain(curve: Curve, job: _Job) -> Curve:
+    """A chain of moves slowed uniformly for the Cartesian speed bound and torque limits."""
     if job.v_cart is not None:
-        curve = _fit_cartesian_speed(
-            curve, job.design, job.assembly_mode, job.resolution, job.v_cart
-        )
+        curve = _fit_cartesian_speed(curve, job.design, job.assembly_mode, job.resolution,
+                                     job.v_cart)  # fmt: skip
     return _fit_torque(curve, job)
+
+
+def _with_vias(job: _Job, state: _State, curve: Curve, lim: JointLimits) -> Curve:
+    """``curve`` with its via sections spliced in where faster (:func:`splice_vias`)."""
+    if state.via is None or state.profile is None:
+        return curve
+    return splice_vias(curve, state.path, state.profile, state.via, state.dev0, lim,
+                       jerk=job.method == "ruckig", fit=lambda c: _fitted_chain(c, job),
+                       chains=state.via_chains, dropped=state.via_off, key=state.scale,
+                       deadline=job.deadline)  # fmt: skip
 
 
 def _output_times(job: _Job, curve: Curve) -> np.ndarray:
@@ -632,6 +663,11 @@ def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None
     state.repairs += 1
     repairs = state.repairs
     state.slow_down = 1.0
+    dropped = drop_failed_vias(curve, report)
+    state.via_off.update(dropped)
+    if dropped:
+        logger.info("timing repair %d: via chains dropped at %s", repairs, dropped)
+        return
     if np.any(report.bad_state):
         path = state.path
         blamed = _blame(curve, path, report)
@@ -643,7 +679,7 @@ def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None
         stop_now = np.zeros(path.waypoints.shape[0], bool)
         stop_now[[k for k in blamed if dev[k] == 0.0]] = True
         state.path = BlendedPath.from_waypoints(
-            path.waypoints, dev, stop_now | _kept_stops(path), state.min_radius
+            path.waypoints, dev, stop_now | path.kept_stops(), state.min_radius
         )
         state.profile = None
         logger.info("timing repair %d: blends shrunk at waypoints %s", repairs, sorted(blamed))
@@ -711,8 +747,3 @@ def _result(
         tau=tau,
         max_torque_ratio=report.limit_ratio.get("torque"),
     )
-
-
-def _kept_stops(path: BlendedPath) -> np.ndarray:
-    """Vertices of ``path`` where it comes to rest (so a rebuilt path keeps them)."""
-    return np.isin(path.vertex_s, path.stops)

@@ -303,6 +303,10 @@ class BlendedPath:
         d2 = np.where(arc, -radial / r_safe, 0.0)
         return q, d1, d2
 
+    def kept_stops(self) -> np.ndarray:
+        """Vertices where the path comes to rest, bool (N,) (so a rebuilt path keeps them)."""
+        return np.isin(self.vertex_s, self.stops)
+
     def section_pieces(self, s_start: float, s_end: float) -> tuple[int, int]:
         """First and last piece of the section ``[s_start, s_end]``."""
         lo = int(np.searchsorted(self.s0, s_start, side="right") - 1)

@@ -131,6 +131,11 @@ class LegModel(_Response):
         None, description="Joint-space distance from the target's posture at end_time, rad."
     )
     pass_speed: float | None = Field(None, description="Joint speed at end_time, rad/s.")
+    transit_times: list[float] = Field(
+        default_factory=list,
+        description="When the trajectory crosses each working-mode transit of the leg "
+        "(path.transits, in order; /v1/plan's shape), s; empty when not timed.",
+    )
 
 
 class SequenceDiagnosticsModel(DiagnosticsModel):
@@ -263,6 +268,7 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
             end_time=_finite(leg.end_time),
             pass_distance=_finite(leg.pass_distance),
             pass_speed=_finite(leg.pass_speed),
+            transit_times=[float(t) for t in leg.transit_times],
         )
         for leg in result.legs
     ]
