@@ -395,7 +395,8 @@ function showPlan(request, response, endpoint = 'plan') {
     regionTrace: trace(traj.q),
   };
   scene.setDesign(d);
-  designKey = JSON.stringify(d);
+  const { inertia, ...geometry } = d;  // the analysis does not depend on the inertia
+  designKey = JSON.stringify(geometry);
   scene.setObstacles(request.obstacles);
   const goalP = request.goal?.p || request.waypoints?.at(-1) || postures.at(-1).P;
   scene.setPath(postures.map((x) => x.P), segmentOf, modes, transits, goalP, rest);

@@ -139,8 +139,9 @@ request.plan = function planRequest() {
   const goal = goalKind() === 'q'
     ? { q: vector('goal.q'), assembly_mode: input('goal.assembly_mode').value }
     : { p: vector('goal.p'), working_mode: input('goal.working_mode').value };
+  const payload = read('design.inertia.payload.mass');
   return {
-    design: design(),
+    design: payload === undefined ? design() : { ...design(), inertia: { payload: { mass: payload } } },
     start: { q: vector('start.q'), assembly_mode: input('start.assembly_mode').value },
     goal,
     obstacles: obstacles.map(copyObstacle),
@@ -159,6 +160,7 @@ request.plan = function planRequest() {
       velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration'),
       torque: optionalVector('limits.torque'),
     }),
+    ...(input('gravity').checked ? {} : { gravity: [0, 0, 0] }),
   };
 };
 
@@ -175,6 +177,7 @@ function cartesianRequest() {
     design: r.design, start: r.start, waypoints: waypoints(),
     path_tolerance: read('path_tolerance'),
     obstacles: r.obstacles, scene: r.scene, margins: r.margins, timing: r.timing, limits: r.limits,
+    gravity: r.gravity,
   });
 }
 

@@ -11,6 +11,7 @@ const $ = (id) => document.getElementById(id);
 const picker = () => document.querySelector('select[name=scene]');
 const path = (name) => `/v1/scenes/${encodeURIComponent(name)}`;
 let onScene = () => {};
+const many = (n, word) => `${n.toLocaleString('en')} ${word}${n === 1 ? '' : 's'}`;
 let asked = 0;
 
 /** The service's list of scenes into the picker (the chosen one kept if it is still there). */
@@ -19,7 +20,7 @@ export async function refresh() {
   const select = picker();
   const keep = select.value;
   select.replaceChildren(new Option('(none)', ''), ...scenes.map((s) => {
-    const o = new Option(`${s.name} (${s.obstacles} obstacles${s.points ? `, ${s.points.toLocaleString('en')} points` : ''})`, s.name);
+    const o = new Option(`${s.name} (${many(s.obstacles, 'obstacle')}${s.points ? `, ${many(s.points, 'point')}` : ''})`, s.name);
     o.title = `version ${s.version}, stored ${new Date(1000 * s.updated_at).toISOString()}`;
     return o;
   }));
@@ -42,8 +43,8 @@ export async function chosen() {
     if (seq !== asked) return;
     onScene(s.scene.obstacles || []);
     picker().dataset.state = 'loaded';
-    $('scene-info').textContent = `${s.name}, version ${s.version}: ${s.obstacles} obstacles`
-      + `${s.points ? ` (${s.points.toLocaleString('en')} cloud points)` : ''}, drawn fainter; plans name it as "scene"`
+    $('scene-info').textContent = `${s.name}, version ${s.version}: ${many(s.obstacles, 'obstacle')}`
+      + `${s.points ? ` (${many(s.points, 'cloud point')})` : ''}, drawn fainter; plans name it as "scene"`
       + `${s.scene.design ? '; it has a design of its own, used only by requests that send none (this page sends the form\'s)' : ''}.`;
   } catch (err) {
     if (seq !== asked) return;
