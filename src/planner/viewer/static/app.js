@@ -523,8 +523,14 @@ const exportOf = (kind) => exporter[kind](location.origin, form.request(), withK
 $('copy-curl').addEventListener('click', () => { exportKind = 'curl'; exportText(exportOf('curl')); });
 $('copy-python').addEventListener('click', () => { exportKind = 'python'; exportText(exportOf('python')); });
 /** Keep the export box on the form's current request (not copied again: it is shown). */
+let exportTimer = null;
 function followExport() {
-  if (exportKind && !$('export-text').hidden) $('export-text').value = exportOf(exportKind);
+  if (!exportKind || $('export-text').hidden) return;
+  // a request with a large cloud is megabytes of text: written once typing pauses
+  const points = form.currentObstacles().reduce((n, o) => n + (o.type === 'points' ? o.points.length : 0), 0);
+  clearTimeout(exportTimer);
+  if (points < 20_000) $('export-text').value = exportOf(exportKind);
+  else exportTimer = setTimeout(() => { $('export-text').value = exportOf(exportKind); }, 300);
 }
 $('download-json').addEventListener('click', () => {
   if (lastPlan) exporter.download('plan.json', JSON.stringify({ request: lastPlan.request, response: lastPlan.response }, null, 1), 'application/json');
