@@ -140,6 +140,21 @@ def test_a_json_cloud_keeps_its_radius_and_a_bad_row_is_named_by_its_line(page):
     expect(page.get_by_test_id("cloud-item")).to_have_attribute("data-count", "2")
     body = page.evaluate("async () => (await import('/viewer/form.js')).request()")
     assert body["obstacles"][-1] == obstacle
+    # a list of obstacles: a capsule is edited in place (its ends a, b and radius)
+    capsule = {"type": "capsule", "a": [0.4, -0.3, 0.3], "b": [0.4, 0.3, 0.3], "radius": 0.03}
+    page.get_by_test_id("cloud-file").set_input_files(
+        {
+            "name": "more.json",
+            "mimeType": "application/json",
+            "buffer": json.dumps([capsule]).encode(),
+        }
+    )
+    item = page.locator("#obstacles .obstacle").nth(2)
+    expect(item).to_contain_text("3. capsule")
+    item.locator("input[data-key=b][data-k='2']").fill("0.25")
+    body = page.evaluate("async () => (await import('/viewer/form.js')).request()")
+    assert body["obstacles"][2] == {**capsule, "b": [0.4, 0.3, 0.25]}
+    item.locator("button[data-remove]").click()
     bad = b"0.1 0.2 0.3\n0.1 0.2\n"
     page.get_by_test_id("cloud-file").set_input_files(
         {"name": "bad.xyz", "mimeType": "text/plain", "buffer": bad}
