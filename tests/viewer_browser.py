@@ -69,7 +69,7 @@ class Watch:
         self.reset()
         page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
         page.on("pageerror", lambda e: self.errors.append(f"page error: {e}"))
-        page.on("requestfailed", lambda r: self.failed.append(f"{r.url}: {r.failure}"))
+        page.on("requestfailed", self._failed)
         page.on("request", self._request)
 
     def reset(self) -> None:
@@ -77,8 +77,22 @@ class Watch:
         self.failed: list[str] = []
         self.foreign: list[str] = []
         self.posted: list[str] = []
+        self.started: set[object] = set()
+        self.left: set[object] = set()
+
+    def leaving(self) -> None:
+        """The page is about to be navigated away (``page.goto``): the requests it started so
+        far (e.g. the analysis of an earlier design, still in flight though its answer is no
+        longer wanted) are cut by the browser, which is no failure of the page."""
+        self.left |= self.started
+
+    def _failed(self, request) -> None:
+        if request in self.left and request.failure == "net::ERR_ABORTED":
+            return
+        self.failed.append(f"{request.url}: {request.failure}")
 
     def _request(self, request) -> None:
+        self.started.add(request)
         url = request.url
         if request.method == "POST":
             self.posted.append(url.removeprefix(self.origin))

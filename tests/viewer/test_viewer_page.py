@@ -161,6 +161,7 @@ def test_panels_show_that_they_load_then_a_figure_drawn_for_their_size(page, liv
     e = expect()
     # on load: both analysis panels say they are loading until their answers arrive
     held = Held(page, "/v1/workspace", "/v1/design/regions")
+    page.watch.leaving()
     page.goto(live_server + "/")
     e(page.get_by_test_id("section-loading")).to_be_visible()
     e(page.locator("#regions-box .loading")).to_be_visible()
@@ -331,6 +332,7 @@ def test_a_straight_tool_path_shows_its_fraction_and_the_rest(page, live_server,
 
 def test_waypoints_are_picked_on_the_workspace_section(page, live_server):
     e = expect()
+    page.watch.leaving()
     with page.expect_response(lambda r: r.url.endswith("/v1/workspace")) as ws:
         page.goto(live_server + "/")
     grid = ws.value.json()["cartesian_section"]

@@ -28,6 +28,12 @@ TEST_IDS = (
     "regions-view",
     "torque-plot",
     "sequence-list",
+    "cloud-file",
+    "cloud-radius",
+    "scene-picker",
+    "scene-name",
+    "scene-save",
+    "scene-delete",
 )
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())

@@ -155,3 +155,46 @@ def test_sequence_targets_are_read_and_checked_as_typed(page):
     ]
     assert body["cycle"] is False and "goal" not in body
     page.watch.check()
+
+
+def test_payload_and_gravity_fields_go_out_and_set_the_torques_drawn(page, live_server):
+    """design.inertia.payload.mass and gravity off, as typed; the torques drawn are those of
+    the service's inverse dynamics (POST /v1/dynamics, a second route) for that request's
+    design and gravity along the answer's own motion."""
+    import httpx
+    from playwright.sync_api import expect
+
+    for k, lim in enumerate(TORQUE):
+        page.locator(f"input[name='limits.torque.{k}']").fill(str(lim))
+    page.locator("input[name='design.inertia.payload.mass']").fill("2")
+    page.get_by_test_id("gravity").uncheck()
+    with page.expect_request(lambda r: r.url.endswith("/v1/plan")) as sent:
+        answer = plan(page)
+    body = json.loads(sent.value.post_data)
+    assert body["design"]["inertia"] == {"payload": {"mass": 2}}
+    assert body["gravity"] == [0, 0, 0]
+    assert answer["status"] == "solved", answer["message"]
+    tr = answer["trajectory"]
+    oracle = httpx.post(
+        f"{live_server}/v1/dynamics",
+        json={
+            "design": body["design"], "gravity": [0, 0, 0], "assembly_mode": "+",
+            "q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"],
+        },
+        timeout=60,
+    ).json()  # fmt: skip
+    drawn = torque_plot(page)
+    assert np.allclose(drawn["tau"], oracle["tau"], rtol=1e-9, atol=1e-9)
+    # the same motion with gravity and the default payload needs other torques
+    other = httpx.post(
+        f"{live_server}/v1/dynamics",
+        json={"design": {k: v for k, v in body["design"].items() if k != "inertia"},
+              "q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"]},
+        timeout=60,
+    ).json()  # fmt: skip
+    assert not np.allclose(other["tau"], oracle["tau"], atol=1e-3)
+    # a negative mass is said as typed, in the service's words
+    page.locator("input[name='design.inertia.payload.mass']").fill("-1")
+    error = page.locator("[data-testid=field-error][data-loc='design.inertia.payload.mass']")
+    expect(error).to_contain_text("Input should be greater than or equal to 0")
+    page.watch.check()

@@ -2,7 +2,8 @@
 
 export class ApiError extends Error {
   constructor(status, detail) {
-    const first = Array.isArray(detail) && detail.length ? detail[0].msg : `HTTP ${status}`;
+    // FastAPI's answers: a 422's list of {loc, msg}, or one sentence (a 404's, a 413's)
+    const first = Array.isArray(detail) && detail.length ? detail[0].msg : typeof detail === 'string' && detail ? detail : `HTTP ${status}`;
     super(first);
     this.status = status;
     this.detail = Array.isArray(detail) ? detail : [];
@@ -37,4 +38,13 @@ export async function postJSON(path, body) {
 
 export async function getBlob(path) {
   return (await answer(await fetch(path, { headers: headers(false) }))).blob();
+}
+
+export async function putJSON(path, body) {
+  const r = await fetch(path, { method: 'PUT', headers: headers(true), body: JSON.stringify(body) });
+  return (await answer(r)).json();
+}
+
+export async function deleteJSON(path) {
+  return (await answer(await fetch(path, { method: 'DELETE', headers: headers(false) }))).json();
 }

@@ -9,6 +9,7 @@ import * as plots from './plots.js';
 import * as section from './section.js';
 import * as exporter from './export.js';
 import * as regions from './regions.js';
+import * as scenes from './scenes.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -52,7 +53,7 @@ function preview() {
   const d = currentDesign();
   if (!d) return;
   const req = form.request.plan();
-  scene.setObstacles(req.obstacles);
+  scene.setObstacles(form.currentObstacles());
   if (shown) return;
   const x = req.start.q.every((v) => typeof v === 'number') && posture(d, req.start.q, req.start.assembly_mode);
   if (x) {
@@ -180,6 +181,7 @@ async function loadPresets() {
   designChanged();  // analysed again only if the service's default differs from the page's
   preview();
   form.loadChecks(getJSON).catch(() => { /* no schema: the service still says it on Plan */ });
+  scenes.refresh().catch((err) => { $('scene-info').textContent = `scenes unavailable: ${err.message}`; });
 }
 
 /** An example: the service's default design, then its start, goal and obstacles. */
@@ -310,6 +312,26 @@ function restOf(request, response, startP) {
   return [stop.p, ...request.waypoints.slice(k)];
 }
 
+/** A sequence's answer as one path: its legs' segments and transits joined in order (each
+ * transit with its leg's time span and the answer's own `transit_times` entry, which places
+ * its sample when present), a run of one working
+ * mode across a leg's end being one segment. */
+function sequencePath(response) {
+  const legs = response.legs.filter((l) => l.path);
+  const first = legs[0]?.path.segments[0];
+  const segments = [{ working_mode: first?.working_mode || legs[0]?.working_mode || '' }];
+  const transits = [];
+  legs.forEach((leg) => {
+    const segs = leg.path.segments;
+    leg.path.transits.forEach((tr, j) => {
+      const time = leg.transit_times?.[j];
+      transits.push({ ...tr, leg: response.legs.indexOf(leg), span: [leg.start_time, leg.end_time], time });
+      segments.push({ working_mode: segs[j + 1]?.working_mode || '' });
+    });
+  });
+  return { segments, transits };
+}
+
 /** The trajectory, or the untimed path (timing "none") at one waypoint per second. */
 function samples(response) {
   const tr = response.trajectory;
@@ -349,8 +371,7 @@ function showPlan(request, response, endpoint = 'plan') {
     proof: Boolean(response.diagnostics?.proven_infeasible),
   });
   renderLegs(request, endpoint === 'sequence' ? response : null);
-  // a sequence's answer has legs, not one path: one segment, its transits not marked
-  const path = response.path || (response.legs && response.trajectory ? { segments: [{ working_mode: '' }], transits: [] } : null);
+  const path = response.path || (response.legs && response.trajectory ? sequencePath(response) : null);
   if (!path) {
     preview();
     regions.setTrace({ ...trace([]), goal: goalQ || null });
@@ -364,7 +385,7 @@ function showPlan(request, response, endpoint = 'plan') {
   $('scene').dataset.fkError = fkError === null ? '' : String(fkError);
   const segs = path.segments;
   const trs = path.transits;
-  const ks = transitSamples(traj.q, trs);
+  const ks = transitSamples(traj.q, trs, traj.t);
   const segmentOf = traj.t.map((_, i) => ks.filter((k) => k < i).length);
   const modes = segs.map((s) => s.working_mode);
   const transits = trs.map((tr, i) => ({ ...tr, sample: ks[i], t: traj.t[ks[i]], p: postures[ks[i]]?.P, from: modes[i], to: modes[i + 1] }));
@@ -376,7 +397,8 @@ function showPlan(request, response, endpoint = 'plan') {
     regionTrace: trace(traj.q),
   };
   scene.setDesign(d);
-  designKey = JSON.stringify(d);
+  const { inertia, ...geometry } = d;  // the analysis does not depend on the inertia
+  designKey = JSON.stringify(geometry);
   scene.setObstacles(request.obstacles);
   const goalP = request.goal?.p || request.waypoints?.at(-1) || postures.at(-1).P;
   scene.setPath(postures.map((x) => x.P), segmentOf, modes, transits, goalP, rest);
@@ -406,12 +428,14 @@ function renderTransits(transits, t) {
     m.dataset.testid = 'transit-mark';
     m.style.left = `${(100 * tr.t) / (duration || 1)}%`;
     m.textContent = tr.kind;
-    m.title = `${tr.kind}: sign ${tr.flipped} flips, ${tr.from} → ${tr.to}`;
+    m.title = `${tr.kind}: sign ${tr.flipped} flips, ${tr.from} → ${tr.to}${tr.leg === undefined ? '' : ` (leg ${tr.leg})`}`;
+    m.dataset.t = String(tr.t);
+    if (tr.leg !== undefined) m.dataset.leg = String(tr.leg);
     return m;
   }));
   $('transits').replaceChildren(...transits.map((tr) => {
     const li = document.createElement('li');
-    li.textContent = `t = ${tr.t.toFixed(2)} s: transit ${tr.kind} (sign ${tr.flipped} flips), working mode ${tr.from} → ${tr.to}`;
+    li.textContent = `t = ${tr.t.toFixed(2)} s: ${tr.leg === undefined ? '' : `leg ${tr.leg}, `}transit ${tr.kind} (sign ${tr.flipped} flips), working mode ${tr.from} → ${tr.to}`;
     li.addEventListener('click', () => seek(tr.t));
     return li;
   }));
@@ -501,8 +525,14 @@ const exportOf = (kind) => exporter[kind](location.origin, form.request(), withK
 $('copy-curl').addEventListener('click', () => { exportKind = 'curl'; exportText(exportOf('curl')); });
 $('copy-python').addEventListener('click', () => { exportKind = 'python'; exportText(exportOf('python')); });
 /** Keep the export box on the form's current request (not copied again: it is shown). */
+let exportTimer = null;
 function followExport() {
-  if (exportKind && !$('export-text').hidden) $('export-text').value = exportOf(exportKind);
+  if (!exportKind || $('export-text').hidden) return;
+  // a request with a large cloud is megabytes of text: written once typing pauses
+  const points = form.currentObstacles().reduce((n, o) => n + (o.type === 'points' ? o.points.length : 0), 0);
+  clearTimeout(exportTimer);
+  if (points < 20_000) $('export-text').value = exportOf(exportKind);
+  else exportTimer = setTimeout(() => { $('export-text').value = exportOf(exportKind); }, 300);
 }
 $('download-json').addEventListener('click', () => {
   if (lastPlan) exporter.download('plan.json', JSON.stringify({ request: lastPlan.request, response: lastPlan.response }, null, 1), 'application/json');
@@ -546,6 +576,7 @@ form.init({
   },
   exampleChosen,
 });
+scenes.init({ drawn: (list) => scene.setSceneObstacles(list) });
 pickMode();
 legendInit();
 designChanged();
@@ -569,6 +600,7 @@ function startOver() {
   $('torque-ratio-wrap').hidden = true;
   $('cycle-wrap').hidden = true;
   $('example').value = '0';
+  scenes.chosen();
   setStatus('not planned', '');
   exampleChosen(form.EXAMPLES[0]);
   pickMode();

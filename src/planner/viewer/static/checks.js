@@ -13,6 +13,18 @@ export async function load(getJSON) {
   components = spec.components?.schemas || {};
   const body = (path) => spec.paths?.[path]?.post?.requestBody?.content?.['application/json']?.schema;
   roots = { plan: body('/v1/plan'), cartesian: body('/v1/cartesian'), sequence: body('/v1/sequence') };
+  const put = spec.paths?.['/v1/scenes/{name}']?.put?.parameters?.find((q) => q.name === 'name');
+  namePattern = put?.schema?.pattern || null;
+}
+
+let namePattern = null;
+
+/** The message for a scene name as typed, by the rule of PUT /v1/scenes/{name}'s path (the
+ * service's pattern, in pydantic's words), or '' when it holds or the rule is unknown. */
+export function sceneName(name) {
+  if (!name) return 'a name is needed';
+  if (!namePattern) return '';
+  return new RegExp(namePattern, 'u').test(name) ? '' : `String should match pattern '${namePattern}'`;
 }
 
 export const loaded = () => Boolean(roots.plan);

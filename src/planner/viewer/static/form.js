@@ -5,6 +5,7 @@
 // as each field is typed, from the service's own schema.
 import * as checks from './checks.js';
 import { posture } from './kin.js';
+import * as cloud from './cloud.js';
 
 const form = document.getElementById('request-form');
 const obstacleList = document.getElementById('obstacles');
@@ -138,11 +139,13 @@ request.plan = function planRequest() {
   const goal = goalKind() === 'q'
     ? { q: vector('goal.q'), assembly_mode: input('goal.assembly_mode').value }
     : { p: vector('goal.p'), working_mode: input('goal.working_mode').value };
+  const payload = read('design.inertia.payload.mass');
   return {
-    design: design(),
+    design: payload === undefined ? design() : { ...design(), inertia: { payload: { mass: payload } } },
     start: { q: vector('start.q'), assembly_mode: input('start.assembly_mode').value },
     goal,
-    obstacles: obstacles.map((o) => structuredClone(o)),
+    obstacles: obstacles.map(copyObstacle),
+    ...(sceneName() ? { scene: sceneName() } : {}),
     margins: drop({
       kappa_max: read('margins.kappa_max'), serial_min: read('margins.serial_min'),
       clearance: read('margins.clearance'),
@@ -157,6 +160,7 @@ request.plan = function planRequest() {
       velocity: optionalVector('limits.velocity'), acceleration: optionalVector('limits.acceleration'),
       torque: optionalVector('limits.torque'),
     }),
+    ...(input('gravity').checked ? {} : { gravity: [0, 0, 0] }),
   };
 };
 
@@ -172,7 +176,8 @@ function cartesianRequest() {
   return drop({
     design: r.design, start: r.start, waypoints: waypoints(),
     path_tolerance: read('path_tolerance'),
-    obstacles: r.obstacles, margins: r.margins, timing: r.timing, limits: r.limits,
+    obstacles: r.obstacles, scene: r.scene, margins: r.margins, timing: r.timing, limits: r.limits,
+    gravity: r.gravity,
   });
 }
 
@@ -221,20 +226,48 @@ export function setExample(ex, d) {
 }
 
 // ------------------------------------------------------------------ obstacles
+/** A request's copy of an obstacle; a cloud's points array is shared, not copied (the page
+ * never edits points, and copying 100,000 of them at every keystroke would stall it). */
+const copyObstacle = (o) => (o.type === 'points' ? { ...o } : structuredClone(o));
+
+/** The form's obstacles, as they are (read only: for drawing). */
+export const currentObstacles = () => obstacles;
+
+/** The named scene chosen ('' for none). */
+export const sceneName = () => input('scene')?.value || '';
+
+/** Replace the obstacles (e.g. after they were saved as a scene). */
+export function setObstacles(list) {
+  obstacles = list.map(copyObstacle);
+  renderObstacles();
+}
+
+/** The file each cloud came from, by its points array (not a field: the request carries none). */
+const sources = new WeakMap();
+
+function cloudItem(o, i) {
+  return `<div class="obstacle cloud" data-loc="obstacles.${i}" data-testid="cloud-item" data-count="${o.points.length}">
+      <div class="head"><span>${i + 1}. point cloud${sources.has(o.points) ? ` from ${escapeHTML(sources.get(o.points))}` : ''}</span><button type="button" data-remove="${i}" title="delete">×</button></div>
+      <div class="note" data-loc="obstacles.${i}.points">${cloud.summary(o)}</div>
+      <label class="field" data-loc="obstacles.${i}.radius">radius of every point m<input type="number" step="any" data-o="${i}" data-key="radius" value="${o.radius}"></label>
+    </div>`;
+}
+
+const escapeHTML = (t) => String(t).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+
 function vecInputs(i, key, values) {
   return `<div class="field" data-loc="obstacles.${i}.${key}">${key} m
     <div class="vec">${values.map((v, k) => `<input type="number" step="any" data-o="${i}" data-key="${key}" data-k="${k}" data-loc="obstacles.${i}.${key}.${k}" value="${v}">`).join('')}</div></div>`;
 }
 
 function renderObstacles() {
-  obstacleList.innerHTML = obstacles.map((o, i) => `
+  const radius = (i, o) => `<label class="field" data-loc="obstacles.${i}.radius">radius m<input type="number" step="any" data-o="${i}" data-key="radius" value="${o.radius}"></label>`;
+  obstacleList.innerHTML = obstacles.map((o, i) => (o.type === 'points' && Array.isArray(o.points) ? cloudItem(o, i) : `
     <div class="obstacle" data-loc="obstacles.${i}">
-      <div class="head"><span>${i + 1}. ${o.type}</span><button type="button" data-remove="${i}" title="delete">×</button></div>
-      ${vecInputs(i, 'center', o.center)}
-      ${o.type === 'sphere'
-        ? `<label class="field" data-loc="obstacles.${i}.radius">radius m<input type="number" step="any" data-o="${i}" data-key="radius" value="${o.radius}"></label>`
-        : vecInputs(i, 'size', o.size)}
-    </div>`).join('') || '<div class="note">none</div>';
+      <div class="head"><span>${i + 1}. ${escapeHTML(o.type)}</span><button type="button" data-remove="${i}" title="delete">×</button></div>
+      ${o.type === 'capsule' ? `${vecInputs(i, 'a', o.a || [])}${vecInputs(i, 'b', o.b || [])}${radius(i, o)}`
+        : `${vecInputs(i, 'center', o.center || [])}${o.type === 'sphere' ? radius(i, o) : vecInputs(i, 'size', o.size || [])}`}
+    </div>`)).join('') || '<div class="note">none</div>';
   recheck();
   onChange();
 }
@@ -258,6 +291,27 @@ document.getElementById('add-sphere').addEventListener('click', () => {
   obstacles.push({ type: 'sphere', center: [0.4, 0.0, 0.3], radius: 0.05 });
   renderObstacles();
 });
+/** A file of obstacles (a point cloud's x y z rows, or JSON) added to the list; what cannot
+ * be read is said next to the file field, with its line. */
+document.getElementById('cloud-file').addEventListener('change', async (ev) => {
+  const file = ev.target.files[0];
+  clearAt('cloud-file');
+  if (!file) return;
+  const r = number(document.getElementById('cloud-radius'));
+  try {
+    const list = cloud.parse(await file.text(), file.name, r);
+    for (const o of list) if (o.type === 'points' && Array.isArray(o.points)) sources.set(o.points, file.name);
+    obstacles.push(...list);
+    const form = document.getElementById('request-form');
+    form.dataset.cloudLoads = String(Number(form.dataset.cloudLoads || 0) + 1);
+    renderObstacles();
+  } catch (err) {
+    if (!(err instanceof cloud.CloudError)) throw err;
+    sayAt('cloud-file', `${file.name}: ${err.message}`);
+  } finally {
+    ev.target.value = '';  // the same file may be chosen again
+  }
+});
 document.getElementById('add-box').addEventListener('click', () => {
   obstacles.push({ type: 'box', center: [0.4, 0.0, -0.3], size: [0.1, 0.1, 0.1], quaternion: [1, 0, 0, 0] });
   renderObstacles();
@@ -268,7 +322,7 @@ document.getElementById('add-box').addEventListener('click', () => {
 export function locPath(loc) {
   const path = loc[0] === 'body' ? loc.slice(1) : loc.slice();
   if (path[0] === 'goal' && path.length >= 3 && (path[1] === 'q' || path[1] === 'p')) path.splice(1, 1);
-  if (path[0] === 'obstacles' && ['sphere', 'box', 'capsule'].includes(path[2])) path.splice(2, 1);
+  if (path[0] === 'obstacles' && ['sphere', 'box', 'capsule', 'points'].includes(path[2])) path.splice(2, 1);
   return path.map(String);
 }
 
@@ -314,6 +368,17 @@ function showError(path, msg, source) {
   target.closest('details')?.setAttribute('open', '');
 }
 
+/** Say `msg` next to the field of `loc` (e.g. "scene-name"), as the service's. */
+export function sayAt(loc, msg) {
+  clearAt(loc);
+  showError(loc.split('.'), msg, 'service');
+}
+
+/** Take the messages next to the field of `loc` away. */
+export function clearAt(loc) {
+  form.querySelectorAll(`.field-error[data-loc="${loc}"]`).forEach((e) => e.remove());
+}
+
 /** Show each error of a 422 detail list next to the most precise field its loc names. */
 export function showErrors(detail) {
   clearErrors();
@@ -328,7 +393,8 @@ export function showErrors(detail) {
 // ------------------------------------------------------------------ checked as typed
 /** The loc of a number field of the form ("design.L1", "obstacles.0.center.2"), or null. */
 function locOf(el) {
-  if (el.dataset.loc) return el.dataset.key === 'radius' ? `obstacles.${el.dataset.o}.radius` : el.dataset.loc;
+  if (el.dataset.key === 'radius') return `obstacles.${el.dataset.o}.radius`;
+  if (el.dataset.loc) return el.dataset.loc;
   return el.name && el.type === 'number' ? el.name : null;
 }
 

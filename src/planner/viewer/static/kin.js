@@ -56,11 +56,21 @@ export function fkCheck(postures, ps) {
   return worst;
 }
 
-/** Sample index nearest (in joint space) to each transit posture. */
-export function transitSamples(qs, transits) {
+/** Sample index of each transit: nearest in time to its `time` when the answer gives one (a
+ * sequence's `legs[].transit_times`), else nearest in joint space to its posture; a transit
+ * with a `span` [t0, t1] (a sequence's leg) is looked for among the samples within it. */
+export function transitSamples(qs, transits, ts = null) {
   return transits.map((tr) => {
     let best = 0, bestD = Infinity;
+    if (ts && Number.isFinite(tr.time)) {
+      ts.forEach((t, i) => {
+        if (Math.abs(t - tr.time) < bestD) { bestD = Math.abs(t - tr.time); best = i; }
+      });
+      return best;
+    }
+    const [t0, t1] = tr.span && ts ? tr.span : [-Infinity, Infinity];
     qs.forEach((q, i) => {
+      if (ts && (ts[i] < t0 - 1e-9 || ts[i] > t1 + 1e-9)) return;
       const d = Math.hypot(q[0] - tr.q[0], q[1] - tr.q[1], q[2] - tr.q[2]);
       if (d < bestD) { bestD = d; best = i; }
     });

@@ -37,6 +37,21 @@ function label(text, color = '#1d2430', px = 13) {
   return sprite;
 }
 
+let dotTexture = null;
+/** A round sprite (a disc on a transparent square) for the points of a cloud. */
+function dot() {
+  if (dotTexture) return dotTexture;
+  const canvas = document.createElement('canvas');
+  canvas.width = canvas.height = 32;
+  const ctx = canvas.getContext('2d');
+  ctx.fillStyle = '#ffffff';
+  ctx.beginPath();
+  ctx.arc(16, 16, 15, 0, 2 * Math.PI);
+  ctx.fill();
+  dotTexture = new THREE.CanvasTexture(canvas);
+  return dotTexture;
+}
+
 /** A cylinder of radius r from a to b (re-placed with place()). */
 class Rod {
   constructor(group, color, r) {
@@ -112,6 +127,8 @@ export class Scene {
     requestAnimationFrame(() => {
       this.pending = false;
       this.renderer.render(this.scene, this.camera);
+      this.canvas.dataset.renderedPoints = String(this.renderer.info.render.points);
+      this.canvas.dataset.frames = String(Number(this.canvas.dataset.frames || 0) + 1);
     });
   }
 
@@ -167,14 +184,47 @@ export class Scene {
     this.render();
   }
 
-  /** Draw the obstacles of the request. */
+  /** Draw obstacles: the request's own (`list`) and, apart, a named scene's (`setSceneObstacles`). */
   setObstacles(list) {
     this.obstacles?.removeFromParent();
-    this.obstacles = new THREE.Group();
-    const mat = new THREE.MeshStandardMaterial({ color: COLORS.obstacle, transparent: true, opacity: 0.45, roughness: 0.7 });
+    this.obstacles = this.obstacleGroup(list, 0.45, 'own');
+    this.scene.add(this.obstacles);
+    this.countPoints();
+  }
+
+  /** The obstacles of the named scene chosen (drawn fainter than the request's own). */
+  setSceneObstacles(list) {
+    this.sceneObstacles?.removeFromParent();
+    this.sceneObstacles = this.obstacleGroup(list || [], 0.3, 'scene');
+    this.scene.add(this.sceneObstacles);
+    this.countPoints();
+  }
+
+  /** A group of meshes (spheres, boxes, capsules) and, for each point cloud, one THREE.Points
+   * (one BufferGeometry, its points sized by the cloud's radius: no mesh per point). A cloud's
+   * Points is kept and reused while the same points array (the form's, never copied) and
+   * radius come again, so a form change does not rebuild a 100,000-point buffer. */
+  obstacleGroup(list, opacity, role) {
+    const group = new THREE.Group();
+    const mat = new THREE.MeshStandardMaterial({ color: COLORS.obstacle, transparent: true, opacity, roughness: 0.7 });
+    const clouds = new Map();
+    const ok = (a) => Array.isArray(a) && a.length === 3 && a.every((x) => typeof x === 'number');
     for (const o of list) {
-      if (!o.center || o.center.some((x) => typeof x !== 'number')) continue;
+      if (o.type === 'points') {
+        const pts = this.cloud(o, opacity, this.cloudCache?.[role]);
+        if (pts) { group.add(pts); clouds.set(o.points, pts); }
+        continue;
+      }
       let mesh = null;
+      if (o.type === 'capsule' && ok(o.a) && ok(o.b) && typeof o.radius === 'number' && o.radius > 0) {
+        const a = v3(o.a), d = v3(o.b).sub(a), len = d.length();
+        mesh = new THREE.Mesh(new THREE.CapsuleGeometry(o.radius, len, 8, 16), mat);
+        if (len > 1e-12) mesh.quaternion.setFromUnitVectors(UP, d.clone().normalize());
+        mesh.position.copy(a).addScaledVector(d, 0.5);
+        group.add(mesh);
+        continue;
+      }
+      if (!ok(o.center)) continue;
       if (o.type === 'sphere' && typeof o.radius === 'number' && o.radius > 0) {
         mesh = new THREE.Mesh(new THREE.SphereGeometry(o.radius, 32, 20), mat);
       } else if (o.type === 'box' && o.size?.every((x) => typeof x === 'number' && x > 0)) {
@@ -184,9 +234,50 @@ export class Scene {
       }
       if (!mesh) continue;
       mesh.position.copy(v3(o.center));
-      this.obstacles.add(mesh);
+      group.add(mesh);
     }
-    this.scene.add(this.obstacles);
+    for (const [points, old] of this.cloudCache?.[role] || []) {  // clouds no longer drawn: freed
+      if (clouds.get(points) !== old) { old.geometry.dispose(); old.material.dispose(); }
+    }
+    this.cloudCache = { ...this.cloudCache, [role]: clouds };
+    return group;
+  }
+
+  /** One THREE.Points for a cloud {points: N x 3, radius}: a Float32Array of positions, a
+   * round sprite of diameter 2 radius (world units, so it shrinks with distance as a ball
+   * does). Points that are not three numbers are left out. */
+  cloud(o, opacity, cache) {
+    if (!Array.isArray(o.points) || !(typeof o.radius === 'number' && o.radius > 0)) return null;
+    const hit = cache?.get(o.points);
+    if (hit && hit.userData.radius === o.radius && hit.userData.opacity === opacity) return hit;
+    const xyz = new Float32Array(3 * o.points.length);
+    let n = 0;
+    for (const p of o.points) {
+      if (!Array.isArray(p) || p.length !== 3 || !Number.isFinite(p[0]) || !Number.isFinite(p[1]) || !Number.isFinite(p[2])) continue;
+      xyz[3 * n] = p[0]; xyz[3 * n + 1] = p[1]; xyz[3 * n + 2] = p[2];
+      n++;
+    }
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.BufferAttribute(n === o.points.length ? xyz : xyz.slice(0, 3 * n), 3));
+    geometry.computeBoundingSphere();
+    const material = new THREE.PointsMaterial({
+      color: COLORS.obstacle, size: 2 * o.radius, sizeAttenuation: true, map: dot(), alphaTest: 0.5,
+      transparent: opacity < 0.4, opacity: opacity < 0.4 ? 0.7 : 1,
+    });
+    const pts = new THREE.Points(geometry, material);
+    pts.userData = { radius: o.radius, opacity, count: n };
+    this.canvas.dataset.cloudBuilds = String(Number(this.canvas.dataset.cloudBuilds || 0) + 1);
+    return pts;
+  }
+
+  /** How many cloud points the scene holds (`data-points` of the canvas); the count drawn in
+   * the last frame is `data-rendered-points` (three.js's renderer.info). */
+  countPoints() {
+    let n = 0;
+    for (const g of [this.obstacles, this.sceneObstacles]) {
+      g?.traverse((o) => { if (o.isPoints) n += o.geometry.getAttribute('position').count; });
+    }
+    this.canvas.dataset.points = String(n);
     this.render();
   }
 
