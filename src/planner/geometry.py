@@ -46,7 +46,15 @@ from numba import njit
 from planner.caching import BoundedCache
 from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
-from planner.spatial_index import LEAF, build_tree, local_segment_box_sq, node_lower_bound
+from planner.spatial_index import (
+    BOUND_SLACK,
+    GRID_HEADER,
+    LEAF,
+    build_grid,
+    build_tree,
+    local_segment_box_sq,
+    node_lower_bound,
+)
 
 __all__ = [
     "LINE_SEARCH_TOL",
@@ -208,6 +216,7 @@ class PackedObstacles(NamedTuple):
     sphere_nodes: np.ndarray  # (2 M - 1, 7) tree of the sphere rows
     capsule_nodes: np.ndarray
     box_nodes: np.ndarray
+    sphere_grid: np.ndarray  # (K,) the sphere rows' grid, empty when they have none
 
     @property
     def count(self) -> int:
@@ -284,7 +293,7 @@ def _pack_rows(rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> PackedObstacl
     (s_rows, s_nodes), (c_rows, c_nodes), (b_rows, b_nodes) = (
         build_tree(kind, r) for kind, r in enumerate(rows)
     )
-    packed = PackedObstacles(s_rows, c_rows, b_rows, s_nodes, c_nodes, b_nodes)
+    packed = PackedObstacles(s_rows, c_rows, b_rows, s_nodes, c_nodes, b_nodes, build_grid(s_rows))
     for a in packed:
         a.flags.writeable = False
     return packed
@@ -499,9 +508,107 @@ def _tree_min(
 
 
 @njit(cache=True)
+def _grid_scan(grid, spheres, ax, ay, az, bx, by, bz, rho, best):  # pragma: no cover
+    """The least of ``best`` and the signed distances from segment a-b to the sphere rows of
+    every cell of the grid (:func:`planner.spatial_index.build_grid`) whose centre is within
+    ``rho`` plus half a cell diagonal of the segment: every row whose centre is within
+    ``rho`` of it is among them. The cells are visited slab by slab along the segment's
+    longest axis, each slab's range in the two others from the part of the segment that can
+    be within ``rho`` of it."""
+    h = grid[3]
+    dims = (int(grid[4]), int(grid[5]), int(grid[6]))
+    org = (grid[0], grid[1], grid[2])
+    start = GRID_HEADER
+    rows_at = start + dims[0] * dims[1] * dims[2] + 1
+    a = (ax, ay, az)
+    u = (bx - ax, by - ay, bz - az)
+    m = 0
+    if abs(u[1]) > abs(u[m]):
+        m = 1
+    if abs(u[2]) > abs(u[m]):
+        m = 2
+    j, k = (m + 1) % 3, (m + 2) % 3
+    strides = (dims[1] * dims[2], dims[2], 1)
+    reach = rho + 0.8660254037844387 * h + BOUND_SLACK  # half the diagonal: sqrt(3) / 2
+    lo_m, hi_m = min(a[m], a[m] + u[m]), max(a[m], a[m] + u[m])
+    i_lo = max(0, math.floor((lo_m - rho - org[m]) / h))
+    i_hi = min(dims[m] - 1, math.floor((hi_m + rho - org[m]) / h))
+    for i in range(i_lo, i_hi + 1):
+        s_lo = org[m] + i * h - rho
+        s_hi = org[m] + (i + 1) * h + rho
+        if abs(u[m]) > 1e-300:
+            t0, t1 = (s_lo - a[m]) / u[m], (s_hi - a[m]) / u[m]
+            if t0 > t1:
+                t0, t1 = t1, t0
+            t0, t1 = max(t0, 0.0), min(t1, 1.0)
+            if t0 > t1:
+                continue
+        else:
+            t0, t1 = 0.0, 1.0
+        pj0, pj1 = a[j] + t0 * u[j], a[j] + t1 * u[j]
+        pk0, pk1 = a[k] + t0 * u[k], a[k] + t1 * u[k]
+        j_lo = max(0, math.floor((min(pj0, pj1) - rho - org[j]) / h))
+        j_hi = min(dims[j] - 1, math.floor((max(pj0, pj1) + rho - org[j]) / h))
+        k_lo = max(0, math.floor((min(pk0, pk1) - rho - org[k]) / h))
+        k_hi = min(dims[k] - 1, math.floor((max(pk0, pk1) + rho - org[k]) / h))
+        cm = org[m] + (i + 0.5) * h
+        for jj in range(j_lo, j_hi + 1):
+            cj = org[j] + (jj + 0.5) * h
+            for kk in range(k_lo, k_hi + 1):
+                ck = org[k] + (kk + 0.5) * h
+                if m == 0:
+                    px, py, pz = cm, cj, ck
+                elif m == 1:
+                    px, py, pz = ck, cm, cj
+                else:
+                    px, py, pz = cj, ck, cm
+                if point_segment_distance(px, py, pz, ax, ay, az, bx, by, bz) > reach:
+                    continue
+                flat = i * strides[m] + jj * strides[j] + kk * strides[k]
+                for r in range(int(grid[start + flat]), int(grid[start + flat + 1])):
+                    row = spheres[int(grid[rows_at + r])]
+                    d = point_segment_distance(row[0], row[1], row[2], ax, ay, az, bx, by, bz)
+                    d -= row[3]
+                    if d < best:
+                        best = d
+    return best
+
+
+@njit(cache=True)
+def _spheres_min(
+    spheres, nodes, grid, ax, ay, az, bx, by, bz, best, relax_from, relax, stop
+):  # pragma: no cover
+    """:func:`_tree_min` of the sphere rows, through their grid first when they have one: the
+    cells within a radius r (plus the largest ball radius) of the segment hold every ball
+    closer than r, so after their scan the least distance is known when it is at most r,
+    and every other ball is at least r away. r starts at the threshold (relaxed) or a
+    quarter of a cell and doubles up to two cells; the answer is returned as soon as it
+    meets :func:`segment_min_distance`'s contract (exact below r; relaxed, r itself once
+    r - t >= (1 - relax) (best - t)), else the tree finishes the walk."""
+    if grid.shape[0] == 0:
+        return _tree_min(0, spheres, nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop)
+    h, rmax = grid[3], grid[7]
+    r = max(relax_from, 0.25 * h) if relax > 0.0 else 0.25 * h
+    while True:
+        best = _grid_scan(grid, spheres, ax, ay, az, bx, by, bz, r + rmax, best)
+        if best <= r:
+            return best
+        if (
+            relax > 0.0
+            and r >= relax_from
+            and r - relax_from >= (1.0 - relax) * (best - relax_from)
+        ):
+            return r
+        if r >= 2.0 * h:
+            break
+        r *= 2.0
+    return _tree_min(0, spheres, nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop)
+
+
+@njit(cache=True)
 def segment_min_distance(
     ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes,
-    upper, relax_from, relax,
+    sphere_grid, upper, relax_from, relax,
 ):  # pragma: no cover  # fmt: skip
     """A lower bound L on the smallest signed distance D from segment a-b to every obstacle
     (the packed arrays of :class:`PackedObstacles`, in its order), or a value >= ``upper``
@@ -523,8 +630,8 @@ def segment_min_distance(
     upper bound of D). In clutter most postures a planner samples break the rule, and the
     first close obstacle ends their check."""
     stop = relax_from if relax > 0.0 else -np.inf
-    best = _tree_min(
-        0, spheres, sphere_nodes, ax, ay, az, bx, by, bz, upper, relax_from, relax, stop
+    best = _spheres_min(
+        spheres, sphere_nodes, sphere_grid, ax, ay, az, bx, by, bz, upper, relax_from, relax, stop
     )
     if best < stop:
         return best
@@ -538,12 +645,13 @@ def segment_min_distance(
 
 @njit(cache=True)
 def _segments_distance(
-    a, b, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, out
+    a, b, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, out
 ):  # pragma: no cover - compiled
     for i in range(a.shape[0]):
         out[i] = segment_min_distance(
             a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2],
-            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, np.inf, 0.0, 0.0,
+            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid,
+            np.inf, 0.0, 0.0,
         )  # fmt: skip
 
 

@@ -36,6 +36,7 @@ def proximal_blocked(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     out,
 ):  # pragma: no cover - compiled
@@ -70,6 +71,7 @@ def proximal_blocked(
                 sphere_nodes,
                 capsule_nodes,
                 box_nodes,
+                sphere_grid,
                 limit - reach,
                 limit - reach,
                 0.5,
@@ -165,7 +167,18 @@ def _inside_one(kind, rows, nodes, c1, s1, u0, u1, w0, w1, spread, limit):  # pr
 
 @njit(cache=True)
 def corners_inside(
-    c1, s1, a1, boxes_uw, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, limit
+    c1,
+    s1,
+    a1,
+    boxes_uw,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    limit,
 ):  # pragma: no cover - compiled
     """Whether, for some of the planar point sets ``boxes_uw`` (M, 4): rows (u_lo, u_hi,
     w_lo, w_hi), every point of the set at every theta1 within ``a1`` of the angle (c1, s1)
@@ -196,7 +209,7 @@ def corners_inside(
             return True
         if _union_inside(
             c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes,
-            capsule_nodes, box_nodes, limit,
+            capsule_nodes, box_nodes, sphere_grid, limit,
         ):  # fmt: skip
             return True
     return False
@@ -210,7 +223,7 @@ UNION_DEPTH = 3
 @njit(cache=True)
 def _union_inside(
     c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
-    box_nodes, limit,
+    box_nodes, sphere_grid, limit,
 ):  # pragma: no cover  # fmt: skip
     """The union bound of :func:`corners_inside`: every point of the rectangle, moved by up
     to its spread, is closer than ``limit`` to some obstacle. A piece holds when its centre's
@@ -236,7 +249,7 @@ def _union_inside(
         x, y, z = wc * c1, uc, -wc * s1
         dist = segment_min_distance(
             x, y, z, x, y, z, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
-            box_nodes, limit - spread, 0.0, 0.0,
+            box_nodes, sphere_grid, limit - spread, 0.0, 0.0,
         )  # fmt: skip
         if dist + half + spread < limit:
             continue
@@ -268,6 +281,7 @@ def cell_passable(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     i,
     j,
@@ -288,6 +302,7 @@ def cell_passable(
         sphere_nodes,
         capsule_nodes,
         box_nodes,
+        sphere_grid,
         limit,
     )
 
@@ -306,6 +321,7 @@ def flood_reaches(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     start,
     goal,
@@ -354,6 +370,7 @@ def flood_reaches(
         sphere_nodes,
         capsule_nodes,
         box_nodes,
+        sphere_grid,
         limit,
         i,
         j,
@@ -396,6 +413,7 @@ def flood_reaches(
                         sphere_nodes,
                         capsule_nodes,
                         box_nodes,
+                        sphere_grid,
                         limit,
                         i,
                         j,
@@ -439,6 +457,7 @@ def all_states(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     out,
 ):  # pragma: no cover - compiled
@@ -464,6 +483,7 @@ def all_states(
                     sphere_nodes,
                     capsule_nodes,
                     box_nodes,
+                    sphere_grid,
                     limit,
                     i,
                     j,
