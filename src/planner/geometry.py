@@ -274,17 +274,17 @@ def _pack(obstacles: Sequence[Obstacle]) -> PackedObstacles:
         np.array(capsules, dtype=float).reshape(-1, 7),
         np.array(boxes, dtype=float).reshape(-1, 15),
     )
-    if sum(len(r) for r in rows) <= _CACHE_FROM:
-        return _pack_rows(rows)
+    small = sum(len(r) for r in rows) <= _CACHE_FROM
     digest = hashlib.blake2b(digest_size=16)
     for r in rows:
         digest.update(np.asarray(r.shape, dtype=np.int64).tobytes())
         digest.update(r.tobytes())
     key = digest.digest()
-    hit = _PACKED.get(key)
+    cache = _PACKED_SMALL if small else _PACKED
+    hit = cache.get(key)
     if hit is None:
         hit = _pack_rows(rows)
-        _PACKED.put(key, hit)
+        cache.put(key, hit)
     return hit
 
 
@@ -299,12 +299,18 @@ def _pack_rows(rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> PackedObstacl
     return packed
 
 
-#: Obstacle sets of more rows than this are packed once per process and content: the next
-#: checker of the same set (the next request of a scene) finds its trees built. Smaller
-#: sets cost less to pack than to hash.
+#: Obstacle sets are packed once per process and content: the next checker of the same set
+#: (the next request of a scene) finds its trees built; sets of more rows than this in
+#: ``_PACKED``, smaller ones in ``_PACKED_SMALL``.
 _CACHE_FROM = 64
 _PACKED: BoundedCache[PackedObstacles] = BoundedCache(
     16, 1 << 30, lambda p: sum(a.nbytes for a in p)
+)
+#: Sets of at most ``_CACHE_FROM`` rows have a cache of their own (hashing a few rows costs
+#: a microsecond, packing them with their trees some tens: every plan packs its scene), so
+#: that many small scenes never push a large scene's trees out of ``_PACKED``.
+_PACKED_SMALL: BoundedCache[PackedObstacles] = BoundedCache(
+    256, 1 << 24, lambda p: sum(a.nbytes for a in p)
 )
 #: Obstacle lists of at least this many objects (or holding a cloud) are remembered by
 #: identity (:func:`pack_obstacles`), at most 8 lists and 512 MiB of their arrays.
@@ -415,7 +421,7 @@ def segment_box_distance(ax, ay, az, bx, by, bz, box):  # pragma: no cover - com
     return segment_convex_distance(2, ax, ay, az, bx, by, bz, box)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rows_min(kind, rows, lo, hi, ax, ay, az, bx, by, bz, best, stop):  # pragma: no cover
     """:func:`segment_min_distance` over rows ``lo..hi`` of one kind (0 sphere, 1 capsule,
     2 box). Capsule and box pairs whose cheap lower bound (the distance from the segment
@@ -605,7 +611,7 @@ def _spheres_min(
     return _tree_min(0, spheres, nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def segment_min_distance(
     ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes,
     sphere_grid, upper, relax_from, relax,
@@ -630,17 +636,36 @@ def segment_min_distance(
     upper bound of D). In clutter most postures a planner samples break the rule, and the
     first close obstacle ends their check."""
     stop = relax_from if relax > 0.0 else -np.inf
-    best = _spheres_min(
-        spheres, sphere_nodes, sphere_grid, ax, ay, az, bx, by, bz, upper, relax_from, relax, stop
-    )
-    if best < stop:
-        return best
-    best = _tree_min(
-        1, capsules, capsule_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop
-    )
-    if best < stop:
-        return best
-    return _tree_min(2, boxes, box_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop)
+    best = upper
+    # a kind without rows is not called at all, one of a single leaf is looped here (this
+    # function and the loop are inlined into their callers): a call passes its arrays,
+    # whose reference counts cost more than a small kind's work (free space: 5-8x)
+    if spheres.shape[0] > 0 and sphere_nodes.shape[0] == 1 and sphere_grid.shape[0] == 0:
+        best = _rows_min(0, spheres, 0, spheres.shape[0], ax, ay, az, bx, by, bz, best, stop)
+        if best < stop:
+            return best
+    elif spheres.shape[0] > 0:
+        best = _spheres_min(
+            spheres, sphere_nodes, sphere_grid, ax, ay, az, bx, by, bz, best, relax_from, relax,
+            stop,
+        )  # fmt: skip
+        if best < stop:
+            return best
+    if capsules.shape[0] > 0 and capsule_nodes.shape[0] == 1:
+        best = _rows_min(1, capsules, 0, capsules.shape[0], ax, ay, az, bx, by, bz, best, stop)
+        if best < stop:
+            return best
+    elif capsules.shape[0] > 0:
+        best = _tree_min(
+            1, capsules, capsule_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop
+        )
+        if best < stop:
+            return best
+    if boxes.shape[0] > 0 and box_nodes.shape[0] == 1:
+        best = _rows_min(2, boxes, 0, boxes.shape[0], ax, ay, az, bx, by, bz, best, stop)
+    elif boxes.shape[0] > 0:
+        best = _tree_min(2, boxes, box_nodes, ax, ay, az, bx, by, bz, best, relax_from, relax, stop)
+    return best
 
 
 @njit(cache=True)

@@ -235,6 +235,11 @@ def build_tree(kind: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n == 0:
         return rows, np.empty((0, 7))
     lo, hi, rho = row_boxes(kind, rows)
+    if n <= TREE_FROM:
+        # one leaf, looped in any order: no Morton codes (they cost ~30 numpy calls, the
+        # better part of packing five spheres, which every plan in a small scene does)
+        root = np.concatenate([lo.min(axis=0), hi.max(axis=0), [rho.max()]])
+        return np.ascontiguousarray(rows), root[None, :]
     order = np.argsort(_morton(0.5 * (lo + hi)), kind="stable")
     rows = np.ascontiguousarray(rows[order])
     n_leaves = 1 if n <= TREE_FROM else 1 << math.ceil(math.log2(math.ceil(n / LEAF)))

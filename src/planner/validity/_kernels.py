@@ -128,7 +128,7 @@ def evaluate(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # into evaluate and path_extremes: no call per posture
 def evaluate_bounded(
     q0,
     q1,
@@ -218,8 +218,10 @@ def evaluate_bounded(
     ends_u = (-half, half, cu, du)
     ends_w = (0.0, 0.0, cw, dw)
     # the distal links first: they reach farthest, so in clutter they are the likelier to
-    # break the rule, and a broken rule ends a relaxed check (the others are not measured)
-    for k in range(4):
+    # break the rule, and a broken rule ends a relaxed check (the others are not measured);
+    # no obstacle: nothing to measure (best stays at its cap)
+    n_obstacles = spheres.shape[0] + capsules.shape[0] + boxes.shape[0]
+    for k in range(4 if n_obstacles > 0 else 0):
         link = (2, 3, 0, 1)[k]
         au, aw = ends_u[link], ends_w[link]
         if link < 2:
