@@ -41,8 +41,12 @@ from numba import njit
 
 __all__ = [
     "BOUND_SLACK",
+    "GRID_CELLS",
+    "GRID_FROM",
+    "GRID_TO",
     "LEAF",
     "TREE_FROM",
+    "build_grid",
     "build_tree",
     "local_segment_box_sq",
     "node_lower_bound",
@@ -231,6 +235,11 @@ def build_tree(kind: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n == 0:
         return rows, np.empty((0, 7))
     lo, hi, rho = row_boxes(kind, rows)
+    if n <= TREE_FROM:
+        # one leaf, looped in any order: no Morton codes (they cost ~30 numpy calls, the
+        # better part of packing five spheres, which every plan in a small scene does)
+        root = np.concatenate([lo.min(axis=0), hi.max(axis=0), [rho.max()]])
+        return np.ascontiguousarray(rows), root[None, :]
     order = np.argsort(_morton(0.5 * (lo + hi)), kind="stable")
     rows = np.ascontiguousarray(rows[order])
     n_leaves = 1 if n <= TREE_FROM else 1 << math.ceil(math.log2(math.ceil(n / LEAF)))
@@ -243,3 +252,56 @@ def build_tree(kind: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         nodes,
     )
     return rows, nodes
+
+
+# ------------------------------------------------------------------------------ the grid
+#: Sphere rows (balls and cloud points) of at least ``GRID_FROM`` and at most ``GRID_TO``
+#: get a uniform grid besides their tree (:func:`build_grid`), walked first by
+#: :func:`planner.geometry.segment_min_distance`. Why: between the two the balls are
+#: usually strewn through the space the links sweep (1,000 small spheres in a shell round
+#: the robot); then every link has several within reach and the tree's boxes, each holding
+#: balls far apart, cannot prune (its walk cost 1.2-1.5x the plain loop there), while the
+#: cells round a link hold the few balls that matter. Above ``GRID_TO`` rows a cloud lies on
+#: surfaces, mostly far from a link, which the tree prunes in bulk (33-290x the loop).
+GRID_FROM = 256
+GRID_TO = 8192
+#: Most cells of a grid (the cell edge grows to keep within it).
+GRID_CELLS = 1 << 18
+#: Least cell edge, m.
+_GRID_MIN_EDGE = 0.02
+#: Layout of a grid (one float array, :func:`build_grid`): a header of ``GRID_HEADER``
+#: values, origin (3), edge, cells per axis (3), the largest ball radius; then the
+#: ``n_cells + 1`` offsets of each cell's rows; then the row numbers, cell by cell.
+GRID_HEADER = 8
+
+
+def build_grid(rows: np.ndarray) -> np.ndarray:
+    """A uniform grid over sphere rows ``[c, r]`` (N, 4), each row in the cell of its
+    centre, as one float array (layout at :data:`GRID_HEADER`; integers below 2^53 are
+    exact in it); an empty array when the count is outside ``GRID_FROM .. GRID_TO``.
+
+    The edge is the mean spacing of the balls over their bounding box (one a cell on
+    average), at least 2 cm, and grown until the grid has at most :data:`GRID_CELLS`
+    cells."""
+    n = len(rows)
+    if not GRID_FROM <= n <= GRID_TO:
+        return np.empty(0)
+    c = rows[:, :3]
+    lo = c.min(axis=0)
+    span = np.maximum(c.max(axis=0) - lo, 1e-9)
+    volume = float(np.prod(np.maximum(span, _GRID_MIN_EDGE)))
+    edge = max(_GRID_MIN_EDGE, (volume / n) ** (1 / 3))
+    while True:
+        dims = np.floor(span / edge).astype(np.int64) + 1
+        if int(np.prod(dims)) <= GRID_CELLS:
+            break
+        edge *= 1.25
+    cell = np.minimum(np.floor((c - lo) / edge).astype(np.int64), dims - 1)
+    flat = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+    order = np.argsort(flat, kind="stable")
+    counts = np.bincount(flat, minlength=int(np.prod(dims)))
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    header = [*lo, edge, *dims, float(rows[:, 3].max())]
+    return np.concatenate(
+        [np.asarray(header, dtype=float), offsets.astype(float), order.astype(float)]
+    )

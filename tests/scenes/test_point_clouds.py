@@ -182,31 +182,3 @@ def test_a_cloud_of_the_largest_size_fits_the_default_body_limit(api):
     r = api.post("/v1/plan", content=text, headers={"content-type": "application/json"})
     assert r.status_code == 200, r.text[:300]
     assert r.json()["status"] == "solved"
-
-
-def test_the_obstacle_proof_is_not_asked_about_a_large_cloud(monkeypatch):
-    """Its cell bounds loop over every obstacle: beyond PROOF_MAX_ROWS rows it claims
-    nothing (sound) instead of outlasting the request; below, it is asked."""
-    from planner.planning import proofs
-    from planner.planning.problem import JointPosture as Posture
-
-    asked = []
-    monkeypatch.setattr(
-        proofs.obstacle_regions,
-        "prove_disconnected_with_obstacles",
-        lambda *a, **k: asked.append(1) or type("P", (), {"proven": False})(),
-    )
-    design, start = Design.default(), Posture(START, "+")
-    big = Points(np.full((proofs.PROOF_MAX_ROWS + 1, 3), 5.0), 0.01)
-    small = Points(np.full((10, 3), 5.0), 0.01)
-    kwargs = {"searched_s": 0.1, "t0": 0.0}
-    assert (
-        proofs.disprove_with_obstacles(design, Margins(), (big,), start, GOAL[None], **kwargs)
-        is None
-    )
-    assert asked == []
-    assert (
-        proofs.disprove_with_obstacles(design, Margins(), (small,), start, GOAL[None], **kwargs)
-        is None
-    )
-    assert asked == [1]

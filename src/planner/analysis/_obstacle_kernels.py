@@ -17,6 +17,7 @@ from numba import njit
 
 from planner.analysis.heap import heap_pop, heap_push
 from planner.geometry import box_sdf, point_segment_distance, segment_min_distance
+from planner.spatial_index import BOUND_SLACK, LEAF
 
 __all__ = ["all_states", "cell_passable", "corners_inside", "flood_reaches", "proximal_blocked"]
 
@@ -35,6 +36,7 @@ def proximal_blocked(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     out,
 ):  # pragma: no cover - compiled
@@ -69,6 +71,7 @@ def proximal_blocked(
                 sphere_nodes,
                 capsule_nodes,
                 box_nodes,
+                sphere_grid,
                 limit - reach,
                 limit - reach,
                 0.5,
@@ -106,29 +109,161 @@ def _rectangle_inside(kind, row, c1, s1, u0, u1, w0, w1, spread, limit):  # prag
     return worst + spread < limit
 
 
+@njit(cache=True, inline="always")
+def _node_point_bound(node, x, y, z):  # pragma: no cover - compiled
+    """A lower bound on the signed distance from point (x, y, z) to every obstacle below a
+    tree node (:mod:`planner.spatial_index`): outside the node's box, the distance to the
+    box (the obstacle lies inside it); anywhere, minus the node's depth. ``inf`` for an
+    empty node."""
+    if node[0] > node[3]:
+        return np.inf
+    gx = max(node[0] - x, x - node[3], 0.0)
+    gy = max(node[1] - y, y - node[4], 0.0)
+    gz = max(node[2] - z, z - node[5], 0.0)
+    return max(math.sqrt(gx * gx + gy * gy + gz * gz) - BOUND_SLACK, -node[6])
+
+
+@njit(cache=True)
+def _inside_one(kind, rows, nodes, c1, s1, u0, u1, w0, w1, spread, limit):  # pragma: no cover
+    """Whether one obstacle of one kind holds the rectangle within ``limit``
+    (:func:`_rectangle_inside`), through the kind's tree: a node is skipped when the bound
+    of :func:`_node_point_bound` at some corner, plus ``spread``, reaches ``limit`` (then
+    that corner is at least that far from every obstacle below it)."""
+    n = rows.shape[0]
+    if n == 0:
+        return False
+    if nodes.shape[0] == 1:
+        for i in range(n):
+            if _rectangle_inside(kind, rows[i], c1, s1, u0, u1, w0, w1, spread, limit):
+                return True
+        return False
+    xs = (w0 * c1, w0 * c1, w1 * c1, w1 * c1)
+    ys = (u0, u1, u0, u1)
+    zs = (-w0 * s1, -w0 * s1, -w1 * s1, -w1 * s1)
+    first_leaf = (nodes.shape[0] + 1) // 2 - 1
+    stack = np.empty(64, dtype=np.int64)
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        i = stack[top]
+        node = nodes[i]
+        worst = -np.inf
+        for c in range(4):
+            worst = max(worst, _node_point_bound(node, xs[c], ys[c], zs[c]))
+        if worst + spread >= limit:
+            continue
+        if i >= first_leaf:
+            k = i - first_leaf
+            for r in range(k * LEAF, min((k + 1) * LEAF, n)):
+                if _rectangle_inside(kind, rows[r], c1, s1, u0, u1, w0, w1, spread, limit):
+                    return True
+            continue
+        stack[top] = 2 * i + 1
+        stack[top + 1] = 2 * i + 2
+        top += 2
+    return False
+
+
 @njit(cache=True)
 def corners_inside(
-    c1, s1, a1, boxes_uw, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, limit
+    c1,
+    s1,
+    a1,
+    boxes_uw,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    limit,
 ):  # pragma: no cover - compiled
-    """Whether, for some obstacle and some of the planar point sets ``boxes_uw`` (M, 4):
-    rows (u_lo, u_hi, w_lo, w_hi), every point of the set at every theta1 within ``a1`` of
-    the angle (c1, s1) is closer than ``limit`` to that obstacle. Turning by at most a1 about
-    AB moves a point at distance |w| from the axis by at most |w| a1."""
+    """Whether, for some of the planar point sets ``boxes_uw`` (M, 4): rows (u_lo, u_hi,
+    w_lo, w_hi), every point of the set at every theta1 within ``a1`` of the angle (c1, s1)
+    is closer than ``limit`` to the obstacles. Turning by at most a1 about AB moves a point
+    at distance |w| from the axis by at most |w| a1 (the ``spread``). Two bounds, each
+    sound alone:
+
+    * the union (for many small obstacles, a cloud's points): the distance to the nearest
+      obstacle is 1-Lipschitz in the point (a minimum of signed distances of convex sets,
+      each 1-Lipschitz), so every point of the set, moved by the spread, is within the
+      centre's distance plus half the rectangle's diagonal plus the spread; a rectangle
+      too large for that is cut into pieces that each must hold (:func:`_union_inside`);
+    * one obstacle (for large ones, a plate holding the whole set): its signed distance is
+      convex, so its largest value on the rectangle is at a corner
+      (:func:`_rectangle_inside`), found through the trees (:func:`_inside_one`).
+
+    Both walk the obstacle trees, so the cost grows slowly with the number of obstacles."""
     for m in range(boxes_uw.shape[0]):
         u0, u1, w0, w1 = boxes_uw[m, 0], boxes_uw[m, 1], boxes_uw[m, 2], boxes_uw[m, 3]
         if not (u0 <= u1 and w0 <= w1):  # NaN: no posture of the cell there
             continue
         spread = max(abs(w0), abs(w1)) * a1
-        for i in range(spheres.shape[0]):
-            if _rectangle_inside(0, spheres[i], c1, s1, u0, u1, w0, w1, spread, limit):
-                return True
-        for i in range(capsules.shape[0]):
-            if _rectangle_inside(1, capsules[i], c1, s1, u0, u1, w0, w1, spread, limit):
-                return True
-        for i in range(boxes.shape[0]):
-            if _rectangle_inside(2, boxes[i], c1, s1, u0, u1, w0, w1, spread, limit):
-                return True
+        if _inside_one(0, spheres, sphere_nodes, c1, s1, u0, u1, w0, w1, spread, limit):
+            return True
+        if _inside_one(1, capsules, capsule_nodes, c1, s1, u0, u1, w0, w1, spread, limit):
+            return True
+        if _inside_one(2, boxes, box_nodes, c1, s1, u0, u1, w0, w1, spread, limit):
+            return True
+        if _union_inside(
+            c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes,
+            capsule_nodes, box_nodes, sphere_grid, limit,
+        ):  # fmt: skip
+            return True
     return False
+
+
+#: Halvings per side of a rectangle in the union bound (:func:`_union_inside`): at most
+#: 4 ** UNION_DEPTH pieces.
+UNION_DEPTH = 3
+
+
+@njit(cache=True)
+def _union_inside(
+    c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
+    box_nodes, sphere_grid, limit,
+):  # pragma: no cover  # fmt: skip
+    """The union bound of :func:`corners_inside`: every point of the rectangle, moved by up
+    to its spread, is closer than ``limit`` to some obstacle. A piece holds when its centre's
+    distance D plus half its diagonal plus its spread is below ``limit`` (D is 1-Lipschitz);
+    a piece that does not is cut in four, down to :data:`UNION_DEPTH` halvings, unless
+    D + spread >= limit already (then no piece round the centre can hold: the bound
+    cannot succeed there, and the rectangle is not claimed)."""
+    stack = np.empty((4 * UNION_DEPTH + 4, 5))
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3], stack[0, 4] = u0, u1, w0, w1, 0.0
+    top = 1
+    while top > 0:
+        top -= 1
+        a, b, c, d, depth = (
+            stack[top, 0],
+            stack[top, 1],
+            stack[top, 2],
+            stack[top, 3],
+            stack[top, 4],
+        )
+        spread = max(abs(c), abs(d)) * a1
+        uc, wc = 0.5 * (a + b), 0.5 * (c + d)
+        half = 0.5 * math.sqrt((b - a) ** 2 + (d - c) ** 2)
+        x, y, z = wc * c1, uc, -wc * s1
+        dist = segment_min_distance(
+            x, y, z, x, y, z, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
+            box_nodes, sphere_grid, limit - spread, 0.0, 0.0,
+        )  # fmt: skip
+        if dist + half + spread < limit:
+            continue
+        if dist + spread >= limit or depth >= UNION_DEPTH:
+            return False
+        for i in range(2):
+            for j in range(2):
+                stack[top, 0] = a + 0.5 * i * (b - a)
+                stack[top, 1] = a + 0.5 * (i + 1) * (b - a)
+                stack[top, 2] = c + 0.5 * j * (d - c)
+                stack[top, 3] = c + 0.5 * (j + 1) * (d - c)
+                stack[top, 4] = depth + 1.0
+                top += 1
+    return True
 
 
 @njit(cache=True)
@@ -146,6 +281,7 @@ def cell_passable(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     i,
     j,
@@ -166,6 +302,7 @@ def cell_passable(
         sphere_nodes,
         capsule_nodes,
         box_nodes,
+        sphere_grid,
         limit,
     )
 
@@ -184,6 +321,7 @@ def flood_reaches(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     start,
     goal,
@@ -232,6 +370,7 @@ def flood_reaches(
         sphere_nodes,
         capsule_nodes,
         box_nodes,
+        sphere_grid,
         limit,
         i,
         j,
@@ -274,6 +413,7 @@ def flood_reaches(
                         sphere_nodes,
                         capsule_nodes,
                         box_nodes,
+                        sphere_grid,
                         limit,
                         i,
                         j,
@@ -317,6 +457,7 @@ def all_states(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     limit,
     out,
 ):  # pragma: no cover - compiled
@@ -342,6 +483,7 @@ def all_states(
                     sphere_nodes,
                     capsule_nodes,
                     box_nodes,
+                    sphere_grid,
                     limit,
                     i,
                     j,

@@ -35,7 +35,15 @@ of these bounds, none of which needs a path inside the cell:
   obstacle is convex, so its signed distance is convex and its largest value over a
   rectangle is at a corner; turning the plane by at most a1 moves a point at distance |w|
   from the axis by at most |w| a1. A cell is blocked when, for one obstacle, the largest
-  corner distance plus that spread is below the limit.
+  corner distance plus that spread is below the limit, or when the distance from the
+  rectangle's centre to the nearest obstacle plus half its diagonal plus the spread is
+  (the distance to a union of convex sets is 1-Lipschitz: this is the bound that a wall of
+  a cloud's small balls, none of which holds a whole rectangle, is proven by).
+
+Every bound reads the obstacles through their trees (:mod:`planner.spatial_index`), so the
+proof is asked whatever the number of obstacles (measured on a loaded 2-core machine, queries
+it cannot prove: 40-50 ms against the 10,000-point cloud of ``benchmarks/scenes.py``, 70-90 ms
+against its 100,000-point cloud).
 
 Computed distances carry a slack: the limit is lowered by 1 um (the signed depth inside a box
 or capsule comes from a line search accurate to far less) and half-widths are inflated by a

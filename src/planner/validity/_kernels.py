@@ -86,16 +86,29 @@ N_MEASURES = 7
 
 @njit(cache=True)
 def evaluate(
-    q0, q1, q2, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, full, out
+    q0,
+    q1,
+    q2,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    full,
+    out,
 ):  # pragma: no cover
     """Measures of one posture into ``out`` (layout ``M_*``).
 
     Margins are signed (>= 0 where that rule holds): d-margin in m of |CD| to its kappa band,
     serial margin (min signed measure - serial_min), clearance margin (m). With ``full``
-    False the evaluation stops at the first broken rule (unset entries are -inf) and the
-    clearance is exact only where it breaks the rule; elsewhere it is a lower bound that keeps
-    at least half of the margin up to clearance + 0.25 m (enough for the rule and the motion
-    certificates).
+    False the evaluation stops at the first broken rule (unset entries are -inf), the
+    clearance rule included: where it breaks, the clearance is that of the first obstacle
+    found too close (negative margin, not the least one); elsewhere it is a lower bound
+    that keeps at least half of the margin up to clearance + 0.25 m (enough for the rule
+    and the motion certificates, which stop at any broken rule).
     """
     evaluate_bounded(
         q0,
@@ -108,13 +121,14 @@ def evaluate(
         sphere_nodes,
         capsule_nodes,
         box_nodes,
+        sphere_grid,
         full,
         np.inf,
         out,
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # into evaluate and path_extremes: no call per posture
 def evaluate_bounded(
     q0,
     q1,
@@ -126,6 +140,7 @@ def evaluate_bounded(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     full,
     clear_upper,
     out,
@@ -202,7 +217,12 @@ def evaluate_bounded(
     half = 0.5 * L0
     ends_u = (-half, half, cu, du)
     ends_w = (0.0, 0.0, cw, dw)
-    for link in range(4):
+    # the distal links first: they reach farthest, so in clutter they are the likelier to
+    # break the rule, and a broken rule ends a relaxed check (the others are not measured);
+    # no obstacle: nothing to measure (best stays at its cap)
+    n_obstacles = spheres.shape[0] + capsules.shape[0] + boxes.shape[0]
+    for k in range(4 if n_obstacles > 0 else 0):
+        link = (2, 3, 0, 1)[k]
         au, aw = ends_u[link], ends_w[link]
         if link < 2:
             bu, bw = (cu, cw) if link == 0 else (du, dw)
@@ -221,12 +241,15 @@ def evaluate_bounded(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             best,
             relax_from,
             relax,
         )
         if dist < best:
             best = dist
+            if relax > 0.0 and best < relax_from:
+                break  # the clearance rule is broken: decided (segment_min_distance)
     clear = best - rad
     out[M_CLEAR_RAW] = clear
     out[M_CLEAR] = clear - prm[P_CLEAR]
@@ -237,7 +260,7 @@ def evaluate_bounded(
 
 @njit(cache=True)
 def evaluate_many(
-    q, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, full, out
+    q, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, full, out
 ):  # pragma: no cover
     for i in range(q.shape[0]):
         evaluate(
@@ -251,6 +274,7 @@ def evaluate_many(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             full,
             out[i],
         )
@@ -311,6 +335,7 @@ def certify_motion(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     coarse_step,
     min_step,
     skip_ends,
@@ -336,6 +361,7 @@ def certify_motion(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             True,
             ms[0],
         )
@@ -350,6 +376,7 @@ def certify_motion(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             True,
             ms[n],
         )
@@ -379,6 +406,7 @@ def certify_motion(
                 sphere_nodes,
                 capsule_nodes,
                 box_nodes,
+                sphere_grid,
                 False,
                 ms[k],
             )
@@ -433,6 +461,7 @@ def certify_motion(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             False,
             mid,
         )
@@ -461,6 +490,7 @@ def certify_path(
     sphere_nodes,
     capsule_nodes,
     box_nodes,
+    sphere_grid,
     coarse_step,
     min_step,
     reasons,
@@ -478,6 +508,7 @@ def certify_path(
             sphere_nodes,
             capsule_nodes,
             box_nodes,
+            sphere_grid,
             coarse_step,
             min_step,
             False,
@@ -491,7 +522,7 @@ def certify_path(
 
 @njit(cache=True)
 def path_extremes(
-    q, step, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, out
+    q, step, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, out
 ):  # pragma: no cover
     """(min clearance, max kappa_A, min signed serial) over the waypoints of q (N, 3) and
     samples every ``step`` rad (max-norm) on the motions between them, into out (3,); NaN
@@ -526,6 +557,7 @@ def path_extremes(
                 sphere_nodes,
                 capsule_nodes,
                 box_nodes,
+                sphere_grid,
                 True,
                 lo_clear,
                 m,
