@@ -79,7 +79,7 @@ def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
 
 def mode_label(signs: np.ndarray) -> str:
     """'+-+'-style label of a sign vector; a 0 sign (exactly on a singularity) is written '0'."""
-    return "".join(_SIGN_CHAR[int(s)] for s in np.asarray(signs).ravel())
+    return "".join(_SIGN_CHAR[int(s)] for s in np.asarray(signs).ravel().tolist())
 
 
 def mode_signs(label: str) -> np.ndarray:
@@ -288,11 +288,17 @@ def link_points(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarra
     dw = design.L1 * np.sin(t3)
     pu = cu + design.L2 * np.cos(passive[..., 0])
     pw = cw + design.L2 * np.sin(passive[..., 0])
-    zeros = np.zeros_like(t1)
-    u = np.stack([zeros - half, zeros + half, cu, du, pu], axis=-1)
-    w = np.stack([zeros, zeros, cw, dw, pw], axis=-1)
-    c, s = np.cos(t1)[..., None], np.sin(t1)[..., None]
-    return np.stack([w * c, u, -w * s], axis=-1)
+    c, s = np.cos(t1), np.sin(t1)
+    # Filled in place rather than stacked: one allocation, which is most of the cost for the
+    # single postures of /v1/fk and /v1/ik.
+    out = np.empty(t1.shape + (5, 3))
+    out[..., 0, :] = (0.0, -half, 0.0)
+    out[..., 1, :] = (0.0, half, 0.0)
+    for k, (uk, wk) in enumerate(((cu, cw), (du, dw), (pu, pw)), start=2):
+        out[..., k, 0] = wk * c
+        out[..., k, 1] = uk
+        out[..., k, 2] = -wk * s
+    return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -400,15 +406,13 @@ def _postures(batch: PostureBatch) -> list[Posture]:
     wm = batch.working_mode_signs.reshape(-1, 3)[flat]
     am = batch.assembly_mode_signs.reshape(-1)[flat]
     pts = link_points(batch.design, q, passive)
+    # Boolean indexing made fresh arrays: frozen once, each posture holds read-only row views.
+    for a in (q, passive, p, pts):
+        a.flags.writeable = False
     out = []
     for i in range(len(q)):
-        arrays = [q[i].copy(), passive[i].copy(), p[i].copy(), pts[i].copy()]
-        for a in arrays:
-            a.flags.writeable = False
-        points = MappingProxyType(dict(zip("ABCDP", arrays[3], strict=True)))
-        out.append(
-            Posture(arrays[0], arrays[1], arrays[2], points, mode_label(wm[i]), mode_label(am[i]))
-        )
+        points = MappingProxyType(dict(zip("ABCDP", pts[i], strict=True)))
+        out.append(Posture(q[i], passive[i], p[i], points, mode_label(wm[i]), mode_label(am[i])))
     return out
 
 
@@ -486,7 +490,7 @@ class Manipulator:
     def within_limits(self, q: np.ndarray) -> bool:
         """Whether the literal joint values lie inside the design's joint limits."""
         q = np.asarray(q, dtype=float)
-        return bool(np.all(q >= self._design.joint_min) and np.all(q <= self._design.joint_max))
+        return bool((q >= self._design.joint_min).all() and (q <= self._design.joint_max).all())
 
     # -- velocity
     def jacobians(self, posture: Posture) -> tuple[np.ndarray, np.ndarray]:
