@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -31,6 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _machine import print_machine  # noqa: E402
+from _server import start_service, wait_ready  # noqa: E402
 
 CARTESIAN = {
     "design": {"L0": 0.0, "L1": 1000.0, "L2": 1000.0},
@@ -39,12 +38,6 @@ CARTESIAN = {
     "margins": {"kappa_max": 1e6},
 }
 OPTIMIZE = {"objective": "well_conditioned_volume", "n_samples": 8192, "maxiter": 30}
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _metric(url: str, name: str) -> float:
@@ -59,19 +52,6 @@ def _wait_free(url: str, t0: float, limit_s: float) -> float:
             return float("inf")
         time.sleep(0.05)
     return time.monotonic() - t0
-
-
-def _wait_ready(url: str, limit_s: float = 600.0) -> None:
-    end = time.monotonic() + limit_s
-    while True:
-        try:
-            if httpx.get(f"{url}/v1/ready", timeout=5).status_code == 200:
-                return
-        except httpx.HTTPError:
-            pass
-        if time.monotonic() > end:
-            raise RuntimeError("the service never became ready")
-        time.sleep(0.2)
 
 
 def _disconnect(port: int, path: str, body: dict, after_s: float) -> None:
@@ -91,22 +71,14 @@ def main() -> None:
     parser.add_argument("--grace", type=float, default=0.5, help="overrun grace, s")
     args = parser.parse_args()
     print_machine()
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
-    env = {
-        **os.environ,
-        "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
-        "PLANNER_WORKERS": "1",
-        "PLANNER_REQUEST_TIMEOUT_S": str(args.timeout),
-        "PLANNER_OVERRUN_GRACE_S": str(args.grace),
-    }
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "planner_cli", "serve", "--port", str(port),
-         "--log-level", "warning"],
-        cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    proc, url = start_service(
+        {"PLANNER_WORKERS": "1", "PLANNER_REQUEST_TIMEOUT_S": str(args.timeout),
+         "PLANNER_OVERRUN_GRACE_S": str(args.grace)},
+        ready_s=600, quiet=True,
     )  # fmt: skip
+    port = int(url.rsplit(":", 1)[1])
     try:
-        _wait_ready(url)
+        wait_ready(url, 600)
         with open("/proc/loadavg") as f:
             print(f"load average at start: {f.read().split()[0]}")
         print(f"request budget {args.timeout:g} s, overrun grace {args.grace:g} s, 1 worker\n")
@@ -117,7 +89,7 @@ def main() -> None:
             ("/v1/cartesian, client gone at 1 s", "/v1/cartesian", CARTESIAN, True),
         ]
         for label, path, body, disconnect in cases:
-            _wait_ready(url)
+            wait_ready(url, 600)
             kills = _metric(url, "planner_pool_worker_kills_total")
             t0 = time.monotonic()
             if disconnect:

@@ -38,7 +38,6 @@ import argparse
 import asyncio
 import importlib.util
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -51,6 +50,7 @@ import httpx
 import numpy as np
 from _light import LightClient
 from _machine import print_machine
+from _server import ROOT, free_port, start_service
 
 from planner.client import AsyncPlannerClient
 from planner.wire import (
@@ -65,48 +65,10 @@ from planner_api.jobs import kinematics as kinematics_jobs
 from planner_api.jobs import plan as plan_jobs
 from planner_api.jobs import timing as timing_jobs
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
 
 def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
-    port = _free_port()
-    env = {
-        **os.environ,
-        "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
-        "PLANNER_WORKERS": str(workers),
-        "PLANNER_QUEUE_SIZE": "256",
-    }
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "planner_cli",
-            "serve",
-            "--port",
-            str(port),
-            "--log-level",
-            "warning",
-        ],
-        cwd=ROOT,
-        env=env,
-    )
-    url = f"http://127.0.0.1:{port}"
-    end = time.monotonic() + 120
-    while time.monotonic() < end:
-        try:
-            if httpx.get(f"{url}/v1/ready", timeout=1).status_code == 200:
-                return proc, url
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.1)
-    proc.kill()
-    raise RuntimeError("the service did not become ready")
+    """The service with ``workers`` worker processes and room for the benchmark's queue."""
+    return start_service({"PLANNER_WORKERS": str(workers), "PLANNER_QUEUE_SIZE": "256"})
 
 
 #: The floor: a bare FastAPI app on uvicorn answering a tiny JSON POST (no validation of
@@ -131,7 +93,7 @@ uvicorn.run(app, host="127.0.0.1", port=int(__import__("sys").argv[1]), log_leve
 
 
 def _start_bare() -> tuple[subprocess.Popen[bytes], str]:
-    port = _free_port()
+    port = free_port()
     proc = subprocess.Popen([sys.executable, "-c", _BARE_APP, str(port)], cwd=ROOT)
     url = f"http://127.0.0.1:{port}"
     end = time.monotonic() + 60

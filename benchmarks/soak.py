@@ -20,9 +20,6 @@ import collections
 import http.client
 import json
 import os
-import socket
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -30,14 +27,7 @@ from pathlib import Path
 import numpy as np
 from _light import LightClient
 from _machine import print_machine
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _server import start_service
 
 
 def _rss_mb(pid: int) -> float:
@@ -159,25 +149,10 @@ def main() -> None:
     parser.add_argument("--concurrency", type=int, default=32)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     args = parser.parse_args()
-    port = _free_port()
-    env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
-           "PLANNER_WORKERS": str(args.workers), "PLANNER_QUEUE_SIZE": str(args.concurrency * 2)}  # fmt: skip
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "planner_cli", "serve", "--port", str(port), "--log-level", "warning"],
-        cwd=ROOT, env=env,
-    )  # fmt: skip
-    url = f"http://127.0.0.1:{port}"
+    settings = {"PLANNER_WORKERS": str(args.workers),
+                "PLANNER_QUEUE_SIZE": str(args.concurrency * 2)}  # fmt: skip
+    proc, url = start_service(settings)
     try:
-        end = time.monotonic() + 300
-        while True:
-            try:
-                if LightClient(url, timeout_s=1.0).request("GET", "/v1/ready")[0] == 200:
-                    break
-            except (OSError, http.client.HTTPException):
-                pass
-            if time.monotonic() > end or proc.poll() is not None:
-                raise RuntimeError("the service did not become ready")
-            time.sleep(0.2)
         requests = _mix(np.random.default_rng(7), 2000)
         print(f"soak: {args.workers} workers, concurrency {args.concurrency}, "
               f"{args.seconds:g} s per round")  # fmt: skip

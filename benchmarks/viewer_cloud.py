@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,6 +26,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 from _machine import print_machine
+from _server import start_service
 
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM = Path(os.environ.get("PLANNER_CHROMIUM", "/usr/bin/chromium"))
@@ -38,34 +37,10 @@ EDIT = """(sel) => { const t0 = performance.now(); const el = document.querySele
 SEED = "input[name='planner.seed']"
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _start_server(store: Path) -> tuple[subprocess.Popen[bytes], str]:
-    port = _free_port()
-    env = {
-        **os.environ,
-        "PYTHONPATH": f"{ROOT / 'src'}{os.pathsep}{ROOT}",
-        "PLANNER_WORKERS": "1",
-        "PLANNER_SCENE_STORE": str(store),
-        "PLANNER_DRAIN_S": "0",
-    }
-    cmd = [sys.executable, "-m", "planner_cli", "serve", "--port", str(port), "--log-level", "warning"]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
-    url = f"http://127.0.0.1:{port}"
-    end = time.monotonic() + 300
-    while time.monotonic() < end:
-        try:
-            if httpx.get(f"{url}/v1/ready", timeout=1).status_code == 200:
-                return proc, url
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.2)
-    proc.kill()
-    raise RuntimeError("the service did not become ready")
+    """The service with one worker and its scene store at ``store``."""
+    settings = {"PLANNER_WORKERS": "1", "PLANNER_SCENE_STORE": str(store), "PLANNER_DRAIN_S": "0"}
+    return start_service(settings)
 
 
 def _cloud_file(n: int, folder: Path) -> Path:

@@ -18,14 +18,13 @@ import httpx
 import numpy as np
 import pytest
 from viewer_browser import (
-    Watch,
     blue,
-    launch,
     open_viewer,
     orange,
     plan,
     rgb_of,
     shots_dir,
+    watched_page,
 )
 
 from planner.timing.export import read_csv, write_csv
@@ -42,13 +41,8 @@ CUT_START, CUT_GOAL = [0.3, 0.13890625, -2.4395703125], [0.3, 0.20921875, -1.792
 
 @pytest.fixture(scope="module")
 def page_(live_server) -> Iterator[object]:
-    with launch() as browser:
-        context = browser.new_context(viewport=WIDE, accept_downloads=True)
-        pg = context.new_page()
-        pg.set_default_timeout(30_000)
-        pg.watch = Watch(pg, live_server)
+    with watched_page(live_server, viewport=WIDE, accept_downloads=True) as pg:
         yield pg
-        context.close()
 
 
 @pytest.fixture

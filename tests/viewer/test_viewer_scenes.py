@@ -27,7 +27,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from viewer_browser import Watch, launch, open_viewer, pixels, plan, shots_dir
+from viewer_browser import open_viewer, pixels, plan, shots_dir, watched_page
 
 WIDE = {"width": 1400, "height": 900}
 NARROW = {"width": 800, "height": 900}
@@ -38,13 +38,8 @@ MODE_CHANGE_P = [-0.25, 0.07, -0.38]
 
 @pytest.fixture(scope="module")
 def page_(live_server) -> Iterator[object]:
-    with launch() as browser:
-        context = browser.new_context(viewport=WIDE)
-        pg = context.new_page()
-        pg.set_default_timeout(30_000)
-        pg.watch = Watch(pg, live_server)
+    with watched_page(live_server, viewport=WIDE) as pg:
         yield pg
-        context.close()
 
 
 @pytest.fixture

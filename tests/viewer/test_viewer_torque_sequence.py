@@ -14,20 +14,15 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from viewer_browser import Watch, launch, open_viewer, plan, shots_dir
+from viewer_browser import open_viewer, plan, shots_dir, watched_page
 
 TORQUE = [40.0, 30.0, 20.0]
 
 
 @pytest.fixture(scope="module")
 def page_(live_server) -> Iterator[object]:
-    with launch() as browser:
-        context = browser.new_context(viewport={"width": 1400, "height": 900})
-        pg = context.new_page()
-        pg.set_default_timeout(30_000)
-        pg.watch = Watch(pg, live_server)
+    with watched_page(live_server, viewport={"width": 1400, "height": 900}) as pg:
         yield pg
-        context.close()
 
 
 @pytest.fixture
