@@ -223,27 +223,25 @@ def section_grid(
             turn = (b - a) / path.radius[k]
             n = max(2, int(np.ceil(turn * refine / ARC_STEP)))
             pts = np.linspace(a, b, n + 1)[:-1]
-            if arc_junctions:
-                eps = JUNCTION_INTERVAL * (b - a)
-                extra = []
-                if k > lo and path.kind[k - 1] == ARC:
-                    extra.append(a + eps)
-                if k < hi and path.kind[k + 1] == ARC:
-                    extra.append(b - eps)
-                pts = np.sort(np.concatenate([pts, extra]))
-            parts.append(pts)
+            parts.append(_beside_arcs(path, k, lo, hi, pts) if arc_junctions else pts)
             continue
         n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
-        pts = np.linspace(a, b, n + 1)[:-1]
-        eps = JUNCTION_INTERVAL * (b - a)
-        extra = []
-        if k > lo and path.kind[k - 1] == ARC:
-            extra.append(a + eps)
-        if k < hi and path.kind[k + 1] == ARC:
-            extra.append(b - eps)
-        parts.append(np.sort(np.concatenate([pts, extra])))
+        parts.append(_beside_arcs(path, k, lo, hi, np.linspace(a, b, n + 1)[:-1]))
     parts.append([path.s0[hi + 1]])
     return np.concatenate(parts)
+
+
+def _beside_arcs(path, k: int, lo: int, hi: int, pts: np.ndarray) -> np.ndarray:
+    """``pts`` of piece ``k`` (of pieces ``lo..hi``) with a grid point ``JUNCTION_INTERVAL`` of
+    the piece inside each end that meets an arc, so the arc's side of the junction is bounded."""
+    a, b = path.s0[k], path.s0[k + 1]
+    eps = JUNCTION_INTERVAL * (b - a)
+    extra = []
+    if k > lo and path.kind[k - 1] == ARC:
+        extra.append(a + eps)
+    if k < hi and path.kind[k + 1] == ARC:
+        extra.append(b - eps)
+    return np.sort(np.concatenate([pts, extra])) if extra else pts
 
 
 def check_deadline(deadline: float | None, what: str) -> None:
