@@ -67,20 +67,20 @@ async def require_api_key(
 
 async def watch_client(request: Request) -> AsyncIterator[None]:
     """While the route runs, watch its connection: when the client disconnects, the event in
-    :data:`planner_api.workers.CLIENT_GONE` is set, and the job the route awaits is cancelled
+    :data:`planner_api.workers.CLIENT_GONE` is resolved, and the job the route awaits is cancelled
     (its worker stopped and replaced) instead of computing an answer nobody reads.
 
     The body has been read when this runs (FastAPI reads it before the dependencies), so the
     next ASGI message is the client's disconnect; a route that reads no body has its empty
     one skipped here.
     """
-    gone = asyncio.Event()
+    gone: asyncio.Future[None] = asyncio.get_running_loop().create_future()
 
     async def watch() -> None:
         while True:
             message = await request.receive()
             if message["type"] == "http.disconnect":
-                gone.set()
+                gone.set_result(None)
                 return
 
     watcher = asyncio.create_task(watch())

@@ -155,30 +155,40 @@ class RequestGate:
                 )  # fmt: skip
                 return
         chunks: list[bytes] = []
-        size = 0
-        body_deadline = arrival + self.body_timeout_s
-        while True:
-            try:
-                message = await asyncio.wait_for(receive(), body_deadline - time.monotonic())
-            except TimeoutError:
-                await _answer(
-                    send, 408, f"the request body did not arrive within {self.body_timeout_s:g} s",
-                    "body_timeout", ["body"], [(b"connection", b"close")],
-                )  # fmt: skip
-                return
-            if message["type"] == "http.disconnect":
-                return  # the observer records 499: nobody is left to answer
-            body = message.get("body", b"")
-            size += len(body)
-            if size > self.max_body_bytes:
-                await self._too_large(send)
-                return
-            chunks.append(body)
-            if not message.get("more_body", False):
-                break
+        outcome = ""  # why the body is not there: "timeout", "too_large" or "disconnect"
+        try:
+            # one timer for the whole body (not a task per chunk, as asyncio.wait_for makes)
+            async with asyncio.timeout(arrival + self.body_timeout_s - time.monotonic()):
+                size = 0
+                while True:
+                    message = await receive()
+                    if message["type"] == "http.disconnect":
+                        outcome = "disconnect"
+                        break
+                    body = message.get("body", b"")
+                    size += len(body)
+                    if size > self.max_body_bytes:
+                        outcome = "too_large"
+                        break
+                    chunks.append(body)
+                    if not message.get("more_body", False):
+                        break
+        except TimeoutError:
+            outcome = "timeout"
+        if outcome == "timeout":
+            await _answer(
+                send, 408, f"the request body did not arrive within {self.body_timeout_s:g} s",
+                "body_timeout", ["body"], [(b"connection", b"close")],
+            )  # fmt: skip
+            return
+        if outcome == "too_large":
+            await self._too_large(send)
+            return
+        if outcome == "disconnect":
+            return  # the observer records 499: nobody is left to answer
         buffered: Message | None = {
             "type": "http.request",
-            "body": b"".join(chunks),
+            "body": chunks[0] if len(chunks) == 1 else b"".join(chunks),
             "more_body": False,
         }
 

@@ -1,13 +1,17 @@
 """The worker side of :mod:`planner_api.workers`: the loop of one worker process.
 
 A worker warms up, says so, then runs one job at a time until told to stop (or until its pipe
-closes: the parent is gone). After each job it reports its resident memory (RSS, measured once
-the job's answer is sent and released), which the pool compares with
-``PLANNER_WORKER_MAX_RSS_MB`` to recycle a worker that keeps memory it no longer uses.
+closes: the parent is gone). After each job it measures its resident memory (RSS, once the
+job's answer is sent and released) and, when that exceeds the pool's bound
+(``PLANNER_WORKER_MAX_RSS_MB``), says so, and the pool recycles it: a worker that keeps memory
+it no longer uses is replaced. Under the bound it says nothing: one message per job.
 
-Messages, worker to parent (each a pickled tuple): ``("ready", warm_up_s)``,
+Two one-way pipes. Parent to worker, :class:`multiprocessing.connection.Connection` messages
+(pickled tuples): ``("job", fn, arg)`` and ``("stop",)``. Worker to parent, frames of
+:func:`send_frame` (an 8-byte big-endian length, then a pickled tuple), which the parent's
+event loop reads without blocking (:mod:`planner_api.workers`): ``("ready", warm_up_s)``,
 ``("warm_failed", traceback)``, ``("ok", value)`` or ``("error", exception)`` (one per job),
-then ``("rss", bytes)``. Parent to worker: ``("job", fn, arg)`` and ``("stop",)``.
+and ``("rss", bytes)`` after a job that left the worker over the bound.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import ctypes
 import os
 import pickle
 import signal
+import struct
 import sys
 import threading
 import time
@@ -24,12 +29,25 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
-__all__ = ["PARENT_WATCH_S", "resident_bytes", "worker_main"]
+__all__ = ["FRAME_HEADER", "PARENT_WATCH_S", "resident_bytes", "send_frame", "worker_main"]
 
 #: Seconds between two checks of a worker that its parent is still alive (the portable
 #: fallback of ``PR_SET_PDEATHSIG``).
 PARENT_WATCH_S = 0.5
 _PR_SET_PDEATHSIG = 1
+#: The header of a frame, worker to parent: the length of the pickled message that follows.
+FRAME_HEADER = struct.Struct("!Q")
+
+
+def send_frame(fd: int, data: bytes) -> None:
+    """Write ``data`` (a pickled message) as one frame to the pipe ``fd``, blocking until all
+    of it is written (the parent reads as the bytes come)."""
+    header = FRAME_HEADER.pack(len(data))
+    # a small answer in one write (one wake-up of the parent); a large one without a copy
+    for part in (header + data,) if len(data) < 65536 else (header, data):
+        view = memoryview(part)
+        while view:
+            view = view[os.write(fd, view) :]
 
 
 def resident_bytes() -> int | None:
@@ -64,13 +82,18 @@ def _die_with_parent(parent_pid: int) -> None:
 
 
 def worker_main(
-    conn: Connection,
+    jobs: Connection,
+    answers: Connection,
     parent_pid: int,
     log_setup: tuple[str, str] | None,
     warm_up: Callable[[], object] | None,
+    max_rss_bytes: int | None = None,
 ) -> None:
     """A worker process: warm up, say so, then run one job at a time until told to stop
-    (or until the pipe closes: the parent is gone)."""
+    (or until the pipe closes: the parent is gone). ``jobs`` brings the jobs, ``answers``
+    (its file descriptor, written with :func:`send_frame`) takes the answers back; after a
+    job that leaves the worker above ``max_rss_bytes`` (None: no bound) it says so."""
+    out = answers.fileno()
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -82,13 +105,13 @@ def worker_main(
         t0 = time.perf_counter()
         if warm_up is not None:
             warm_up()
-        conn.send_bytes(pickle.dumps(("ready", time.perf_counter() - t0)))
+        send_frame(out, pickle.dumps(("ready", time.perf_counter() - t0)))
     except BaseException:
-        conn.send_bytes(pickle.dumps(("warm_failed", traceback.format_exc())))
+        send_frame(out, pickle.dumps(("warm_failed", traceback.format_exc())))
         return
     while True:
         try:
-            message = pickle.loads(conn.recv_bytes())
+            message = pickle.loads(jobs.recv_bytes())
         except (EOFError, OSError):
             return
         if message[0] == "stop":
@@ -111,6 +134,12 @@ def worker_main(
                 ("error", RuntimeError(f"the job's {outcome[0]} could not be sent: {exc!r}"))
             )
         del outcome
-        conn.send_bytes(data)
+        try:
+            send_frame(out, data)
+        except OSError:  # the parent is gone
+            return
         del data  # the answer's memory is released before it is measured
-        conn.send_bytes(pickle.dumps(("rss", resident_bytes())))
+        if max_rss_bytes is not None:
+            rss = resident_bytes()
+            if rss is not None and rss > max_rss_bytes:
+                send_frame(out, pickle.dumps(("rss", rss)))

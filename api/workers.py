@@ -6,10 +6,19 @@ function (picklable) run in a ``spawn``-started worker, so requests are served o
 
 Why not :class:`concurrent.futures.ProcessPoolExecutor`: when one of its workers dies it
 breaks *as a whole* and fails every job in flight, also those on healthy workers. This pool
-is a small supervisor instead: one duplex pipe per worker, one job per worker at a time, so
+is a small supervisor instead: two one-way pipes per worker, one job per worker at a time, so
 a worker that dies (a crash in native code, the OOM killer, SIGKILL) fails only the job it
 was running (:class:`WorkerCrashedError`, HTTP 502 naming the exit); the others keep running
 and a replacement is spawned and warmed in the background.
+
+The answers are read by the event loop itself (``loop.add_reader`` on each worker's answer
+pipe, non-blocking, frames of :func:`planner_api.worker_process.send_frame`), not by a thread
+per worker: an answer reaches its request in the loop's next turn, with no thread to wake, no
+hand-over of the GIL and no second wake-up of the loop. So the pool lives in one event loop
+(:meth:`WorkerPool.start` is called in it) and its results are delivered by that loop: code
+in the loop awaits them (:meth:`WorkerPool.run`, :meth:`WorkerPool.map`, or
+``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another thread may block on a
+submitted future.
 
 Warm means ready: a worker announces itself only after its ``warm_up`` function (the
 service's :func:`planner_api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
@@ -58,13 +67,10 @@ import multiprocessing
 import os
 import pickle
 import queue
-import signal
 import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
-from dataclasses import dataclass, field
-from multiprocessing.connection import Connection
 from typing import Any, Literal, TypeVar
 
 from planner_api.exceptions import (
@@ -75,6 +81,7 @@ from planner_api.exceptions import (
     ShuttingDownError,
     WorkerCrashedError,
 )
+from planner_api.worker_handle import Job, Worker, describe_exit
 from planner_api.worker_process import worker_main
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool"]
@@ -92,57 +99,16 @@ WARMING_REPORT_S = 10.0
 #: Longest sleep of the watchdog thread between two looks at the busy workers, s (it wakes
 #: earlier for the next job's kill time and whenever a job starts or is cancelled).
 WATCHDOG_IDLE_S = 5.0
+#: Most bytes taken from a worker's answer pipe per turn of the event loop (a pipe holds
+#: 64 KiB: a large answer arrives over several turns, and other requests are served between).
+READ_CHUNK = 1 << 20
 
-#: Set (by :func:`planner_api.deps.watch_client`) while a request is served: an event that
-#: is set when its client disconnects. A job awaited under it is cancelled then (its worker
-#: stopped), so that no worker keeps computing an answer nobody will read.
-CLIENT_GONE: contextvars.ContextVar[asyncio.Event | None] = contextvars.ContextVar(
+#: Set (by :func:`planner_api.deps.watch_client`) while a request is served: a future that
+#: is resolved when its client disconnects. A job awaited under it is cancelled then (its
+#: worker stopped), so that no worker keeps computing an answer nobody will read.
+CLIENT_GONE: contextvars.ContextVar[asyncio.Future[None] | None] = contextvars.ContextVar(
     "planner_client_gone", default=None
 )
-
-
-# ---------------------------------------------------------------------- the parent side
-@dataclass(eq=False)
-class _Job:
-    payload: bytes
-    future: Future[Any]
-    #: When the watchdog stops the worker still running this job (a :func:`time.monotonic`
-    #: value: the deadline plus the overrun grace, or now for a cancelled job); None: never.
-    kill_at: float | None = None
-    #: Why it would be stopped: "deadline" or "cancelled".
-    kill_reason: str = "deadline"
-
-
-@dataclass(eq=False)
-class _Worker:
-    process: multiprocessing.process.BaseProcess
-    conn: Connection
-    #: "retired": told to stop (recycled), its exit is not a death to replace.
-    state: Literal["warming", "idle", "busy", "retired", "dead"] = "warming"
-    job: _Job | None = None
-    started: float = field(default_factory=time.monotonic)
-    reader: threading.Thread | None = field(default=None, repr=False)
-    #: Why the pool killed it ("" while it was not killed): its exit is then expected.
-    killed: str = ""
-    #: Over the memory bound: serves on until its replacement is warm, then retires.
-    retiring: bool = False
-    #: Its replacement is warm: it retires after the job it is running.
-    retire_after_job: bool = False
-    #: The retiring worker this one replaces (stopped once this one is warm).
-    replaces: _Worker | None = field(default=None, repr=False)
-    #: Resident memory after its last job, bytes (None: not known yet).
-    rss: int | None = None
-
-
-def _describe_exit(exitcode: int | None) -> str:
-    if exitcode is None:
-        return "exit status unknown"
-    if exitcode < 0:
-        try:
-            return f"killed by {signal.Signals(-exitcode).name}"
-        except ValueError:
-            return f"killed by signal {-exitcode}"
-    return f"exit code {exitcode}"
 
 
 class WorkerPool:
@@ -207,9 +173,9 @@ class WorkerPool:
         #: wake-up, which spares the server a thread switch per job.
         self._watch_at = float("inf")  # not waiting yet: every kill time is news
         self._in_flight = 0
-        self._pending: collections.deque[_Job] = collections.deque()
-        self._workers: list[_Worker] = []
-        self._spawn_requests: queue.Queue[tuple[float, _Worker | None] | None] = queue.Queue()
+        self._pending: collections.deque[Job] = collections.deque()
+        self._workers: list[Worker] = []
+        self._spawn_requests: queue.Queue[tuple[float, Worker | None] | None] = queue.Queue()
         self._supervisor: threading.Thread | None = None
         self._watchdog: threading.Thread | None = None
         self._started = False
@@ -217,19 +183,21 @@ class WorkerPool:
         self._closed = False  # the watchdog's stop (it keeps watching during a drain)
         self._was_ready = False
         self._failed = False
-        self._stop: asyncio.Event | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread: int | None = None
+        #: Resolved when the waits still in flight must end (the drain's grace ran out).
+        self._stop: asyncio.Future[None] | None = None
 
     # ------------------------------------------------------------------ life cycle
     async def start(self) -> None:
-        """Spawn the processes; they warm up in the background (see :attr:`state`)."""
-        self.start_workers()
-        self._stop = asyncio.Event()
-
-    def start_workers(self) -> None:
-        """Spawn the processes (from any thread; :meth:`start` in an event loop)."""
+        """Spawn the processes; they warm up in the background (see :attr:`state`). The
+        pool then belongs to this event loop, which reads the workers' answers."""
         if self._started:
             return
         self._started = True
+        self._loop = asyncio.get_running_loop()
+        self._loop_thread = threading.get_ident()
+        self._stop = self._loop.create_future()
         self._supervisor = threading.Thread(
             target=self._supervise, name="worker-supervisor", daemon=True
         )
@@ -266,7 +234,7 @@ class WorkerPool:
         """The watchdog thread: kill every worker whose job is past its kill time (its
         deadline plus the overrun grace, or now once the job is cancelled), so that no job
         outlives its deadline by more than the grace whatever it computes (a native loop, a
-        search without deadline checks). The reader thread then sees the exit and the
+        search without deadline checks). The event loop then sees the exit and the
         supervisor starts a replacement (warmed before it takes jobs)."""
         with self._wake:
             while not self._closed:
@@ -283,7 +251,7 @@ class WorkerPool:
                 self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
 
-    def _kill_locked(self, worker: _Worker, reason: str, late_s: float) -> None:
+    def _kill_locked(self, worker: Worker, reason: str, late_s: float) -> None:
         """SIGKILL ``worker`` (the caller holds the lock); its exit is expected."""
         worker.killed = reason
         self.kills += 1
@@ -307,47 +275,82 @@ class WorkerPool:
                 since = time.monotonic() - min(warming)
                 logger.info("%d of %d workers warm after %.1f s", warm, self.workers, since)
 
-    def _spawn(self, replaces: _Worker | None = None) -> None:
-        parent_conn, child_conn = self._ctx.Pipe(duplex=True)
+    def _spawn(self, replaces: Worker | None = None) -> None:
+        jobs_out, jobs_in = self._ctx.Pipe(duplex=False)  # (reader, writer)
+        answers_out, answers_in = self._ctx.Pipe(duplex=False)
         process = self._ctx.Process(
             target=worker_main,
-            args=(child_conn, os.getpid(), self._log_setup, self._warm_up),
+            args=(
+                jobs_out, answers_in, os.getpid(), self._log_setup, self._warm_up,
+                self.max_rss_bytes,
+            ),
             name="planner-worker",
             daemon=True,
-        )
-        process.start()
-        child_conn.close()
-        worker = _Worker(process=process, conn=parent_conn, replaces=replaces)
-        worker.reader = threading.Thread(
-            target=self._read, args=(worker,), name=f"worker-reader-{process.pid}", daemon=True
-        )
+        )  # fmt: skip
+        try:
+            process.start()
+        finally:
+            jobs_out.close()
+            answers_in.close()
+        worker = Worker(process=process, jobs=jobs_in, answers=answers_out, replaces=replaces)
         with self._lock:
             self._workers.append(worker)
-        worker.reader.start()
-
-    def _read(self, worker: _Worker) -> None:
-        """Receive a worker's messages until its pipe closes (the worker exited)."""
+        os.set_blocking(answers_out.fileno(), False)
+        assert self._loop is not None
         try:
-            while True:
-                message = worker.conn.recv_bytes()
-                try:
-                    kind, value = pickle.loads(message)
-                except Exception as exc:  # e.g. an exception class the parent cannot import
-                    kind, value = "error", RuntimeError(f"a job's answer was unreadable: {exc!r}")
-                if kind == "ready":
-                    self._on_ready(worker, value)
-                elif kind == "rss":
-                    self._on_rss(worker, value)
-                elif kind == "warm_failed":
-                    logger.error("a worker failed to warm up:\n%s", value)
-                    self._failed = True
-                else:
-                    self._on_done(worker, kind, value)
-        except (EOFError, OSError):
-            pass
-        self._on_exit(worker)
+            self._loop.call_soon_threadsafe(self._attach, worker)
+        except RuntimeError:  # the loop is closed: the pool is gone with it
+            process.kill()
+            threading.Thread(target=self._on_exit, args=(worker,), daemon=True).start()
 
-    def _on_ready(self, worker: _Worker, seconds: float) -> None:
+    def _in_loop(self) -> bool:
+        return threading.get_ident() == self._loop_thread
+
+    def _attach(self, worker: Worker) -> None:
+        """In the event loop: read ``worker``'s answers as they come."""
+        assert self._loop is not None
+        if worker.answers.closed:  # pragma: no cover - shut down before it was attached
+            return
+        self._loop.add_reader(worker.answers.fileno(), self._readable, worker)
+
+    def _readable(self, worker: Worker) -> None:
+        """In the event loop, when ``worker``'s answer pipe has bytes (or is closed): take
+        them, handle each whole frame; at the end of the pipe (the worker exited), detach
+        and handle the exit in a thread (it waits for the process to be reaped)."""
+        fd = worker.answers.fileno()
+        try:
+            chunk = os.read(fd, READ_CHUNK)
+        except BlockingIOError:  # pragma: no cover - a spurious wake-up
+            return
+        except OSError:
+            chunk = b""
+        if not chunk:
+            assert self._loop is not None
+            self._loop.remove_reader(fd)
+            threading.Thread(
+                target=self._on_exit, args=(worker,), name="worker-exit", daemon=True
+            ).start()
+            return
+        for message in worker.take(chunk):
+            self._handle(worker, message)
+
+    def _handle(self, worker: Worker, message: bytes) -> None:
+        """One message of a worker (:mod:`planner_api.worker_process`)."""
+        try:
+            kind, value = pickle.loads(message)
+        except Exception as exc:  # e.g. an exception class the parent cannot import
+            kind, value = "error", RuntimeError(f"a job's answer was unreadable: {exc!r}")
+        if kind == "ready":
+            self._on_ready(worker, value)
+        elif kind == "rss":
+            self._on_rss(worker, value)
+        elif kind == "warm_failed":
+            logger.error("a worker failed to warm up:\n%s", value)
+            self._failed = True
+        else:
+            self._on_done(worker, kind, value)
+
+    def _on_ready(self, worker: Worker, seconds: float) -> None:
         with self._lock:
             worker.state = "idle"
             old, worker.replaces = worker.replaces, None
@@ -368,7 +371,7 @@ class WorkerPool:
             self.workers,
         )
 
-    def _on_done(self, worker: _Worker, kind: str, value: Any) -> None:
+    def _on_done(self, worker: Worker, kind: str, value: Any) -> None:
         with self._lock:
             job, worker.job = worker.job, None
             self._in_flight -= 1
@@ -383,13 +386,13 @@ class WorkerPool:
             else:
                 job.future.set_exception(value)
 
-    def _on_rss(self, worker: _Worker, rss: int | None) -> None:
-        """A worker's memory after its job: over the bound, it is recycled (a replacement
-        is started now; the old worker serves on until the replacement is warm)."""
+    def _on_rss(self, worker: Worker, rss: int) -> None:
+        """A worker's memory after its job, over the bound (the worker says nothing under
+        it): it is recycled (a replacement is started now; the old worker serves on until
+        the replacement is warm)."""
         with self._lock:
             worker.rss = rss
-            over = self.max_rss_bytes is not None and rss is not None and rss > self.max_rss_bytes
-            if not over or worker.retiring or worker.state not in ("idle", "busy"):
+            if worker.retiring or worker.state not in ("idle", "busy"):
                 return
             if self._stopping:
                 return
@@ -402,17 +405,17 @@ class WorkerPool:
         )  # fmt: skip
         self._spawn_requests.put((0.0, worker))
 
-    def _retire_locked(self, worker: _Worker) -> None:
+    def _retire_locked(self, worker: Worker) -> None:
         """Tell a recycled worker to stop (the caller holds the lock; it holds no job)."""
         worker.state = "retired"
         try:
-            worker.conn.send_bytes(pickle.dumps(("stop",)))
-        except OSError:  # it died meanwhile: its reader handles the exit
+            worker.jobs.send_bytes(pickle.dumps(("stop",)))
+        except OSError:  # it died meanwhile: the end of its answer pipe is its exit
             pass
 
-    def _on_exit(self, worker: _Worker) -> None:
+    def _on_exit(self, worker: Worker) -> None:
         worker.process.join(5.0)
-        exit_text = _describe_exit(worker.process.exitcode)
+        exit_text = describe_exit(worker.process.exitcode)
         with self._lock:
             job, worker.job = worker.job, None
             was = worker.state
@@ -428,7 +431,8 @@ class WorkerPool:
                 self.restarts += 1
             self._dispatch_locked()
             self._wake.notify()
-        worker.conn.close()
+        worker.jobs.close()
+        worker.answers.close()
         if job is not None and not job.future.done():
             job.future.set_exception(self._exit_error(worker, exit_text))
         if was == "retired":
@@ -444,7 +448,7 @@ class WorkerPool:
             self._spawn_requests.put((RESPAWN_BACKOFF_S if was == "warming" else 0.0, None))
 
     @staticmethod
-    def _exit_error(worker: _Worker, exit_text: str) -> Exception:
+    def _exit_error(worker: Worker, exit_text: str) -> Exception:
         """What the job of a worker that exited fails with."""
         if worker.killed == "deadline":
             return DeadlineExceededError("the job ran past its deadline and its worker was stopped")
@@ -465,8 +469,8 @@ class WorkerPool:
                     self._in_flight -= 1
                     continue
                 try:
-                    worker.conn.send_bytes(job.payload)
-                except OSError:  # the worker just died (its reader will see it): next one
+                    worker.jobs.send_bytes(job.payload)
+                except OSError:  # the worker just died (its exit is seen): next one
                     self._pending.appendleft(job)
                     worker.state = "dead"
                     break
@@ -485,16 +489,21 @@ class WorkerPool:
         ``grace_s`` seconds cancel the waits of the jobs still in flight
         (:class:`ShuttingDownError`)."""
         self._stopping = True
-        stop = self._stop
-        if stop is not None:
-            asyncio.get_running_loop().call_later(max(grace_s, 0.0), stop.set)
+        asyncio.get_running_loop().call_later(max(grace_s, 0.0), self._end_waits)
+
+    def _end_waits(self) -> None:
+        """In the event loop: end the waits still in flight (:class:`ShuttingDownError`)."""
+        if self._stop is not None and not self._stop.done():
+            self._stop.set_result(None)
 
     def shutdown(self, timeout_s: float | None = None) -> None:
         """Stop the workers; jobs not started are cancelled. Running jobs may finish for
         ``timeout_s`` seconds (None: wait for them), then their workers are terminated."""
         self._stopping = True
-        if self._stop is not None:
-            self._stop.set()
+        if self._in_loop():
+            self._end_waits()
+        elif self._loop is not None and not self._loop.is_closed():
+            self._loop.call_soon_threadsafe(self._end_waits)
         with self._lock:
             while self._pending:
                 job = self._pending.popleft()
@@ -508,7 +517,7 @@ class WorkerPool:
                 w.process.terminate()  # nothing to lose: no job has reached it
             else:
                 try:
-                    w.conn.send_bytes(pickle.dumps(("stop",)))
+                    w.jobs.send_bytes(pickle.dumps(("stop",)))
                 except OSError:
                     pass
         end = None if timeout_s is None else time.monotonic() + timeout_s
@@ -528,14 +537,25 @@ class WorkerPool:
                 if w.process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
                     w.process.kill()
                     w.process.join()
-        for w in workers:
-            if w.reader is not None:
-                w.reader.join(5.0)
+        for w in workers:  # their exits: the event loop stops reading, a thread finishes each
+            if self._in_loop():
+                self._detach(w)
+            elif self._loop is not None and not self._loop.is_closed():
+                self._loop.call_soon_threadsafe(self._detach, w)
         self._spawn_requests.put(None)
         if self._supervisor is not None:
             self._supervisor.join(5.0)
         if self._watchdog is not None:
             self._watchdog.join(5.0)
+
+    def _detach(self, worker: Worker) -> None:
+        """In the event loop, at shutdown: stop reading ``worker`` (exited) and handle its
+        exit, unless its end of pipe was seen already."""
+        if worker.answers.closed or worker.state == "dead":
+            return
+        assert self._loop is not None
+        if self._loop.remove_reader(worker.answers.fileno()):
+            self._on_exit(worker)
 
     @property
     def state(self) -> PoolState:
@@ -597,7 +617,7 @@ class WorkerPool:
         future: Future[T] = Future()
         kill_at = None if deadline is None else deadline + self.overrun_grace_s
         with self._lock:
-            self._pending.append(_Job(payload, future, kill_at))
+            self._pending.append(Job(payload, future, kill_at))
             self._dispatch_locked()
         return future
 
@@ -624,32 +644,63 @@ class WorkerPool:
                     self._wake.notify()
 
     async def _await(self, futures: Sequence[Future[T]], deadline: float) -> list[T]:
-        remaining = deadline - time.monotonic()
-        results = asyncio.gather(*(asyncio.wrap_future(f) for f in futures))
-        waits: set[asyncio.Future[Any]] = {results}
-        stop = asyncio.ensure_future(self._stop.wait()) if self._stop is not None else None
-        gone_event = CLIENT_GONE.get()
-        gone = asyncio.ensure_future(gone_event.wait()) if gone_event is not None else None
-        waits |= {w for w in (stop, gone) if w is not None}
+        """The results of ``futures`` (in order), awaited in the pool's event loop until the
+        first of: all done (or one failed), the ``deadline``, the client gone
+        (:data:`CLIENT_GONE`), the drain's grace over. One loop future and callbacks, no
+        task per wait: the cheapest requests pay for every object made here."""
+        loop = asyncio.get_running_loop()
+        waiter: asyncio.Future[None] = loop.create_future()
+
+        def wake(_: object = None) -> None:
+            if not waiter.done():
+                waiter.set_result(None)
+
+        def job_done(_: Future[T]) -> None:
+            # (a concurrent future's callbacks cannot be removed: this one outlives the wait
+            # harmlessly, waking a future nobody awaits any more)
+            if self._in_loop():
+                wake()
+            else:  # failed by the watchdog's kill, seen by an exit thread
+                try:
+                    loop.call_soon_threadsafe(wake)
+                except RuntimeError:  # pragma: no cover - the loop is closed
+                    pass
+
+        gone = CLIENT_GONE.get()
+        watched = [w for w in (gone, self._stop) if w is not None]
+        timer = loop.call_at(loop.time() + (deadline - time.monotonic()), wake)
+        for w in watched:
+            w.add_done_callback(wake)
+        for f in futures:
+            f.add_done_callback(job_done)
         try:
-            if remaining <= 0:
-                raise TimeoutError
-            await asyncio.wait(waits, timeout=remaining, return_when=asyncio.FIRST_COMPLETED)
-            if results.done():
-                return results.result()
-            if gone is not None and gone.done():
-                for f in futures:
-                    self.cancel(f)
-                raise ClientDisconnectedError("the client disconnected; its job was cancelled")
-            if stop is not None and stop.done():
-                for f in futures:
-                    f.cancel()
-                raise ShuttingDownError(
-                    "the service is shutting down and this job's grace ran out; retry "
-                    "(another replica)",
-                    self.retry_after_s,
-                )
-            raise TimeoutError
+            while True:
+                if any(f.cancelled() for f in futures):  # dropped by a shutdown
+                    raise ShuttingDownError(
+                        "the service is shutting down; retry (another replica)",
+                        self.retry_after_s,
+                    )
+                failed = next((f for f in futures if f.done() and f.exception()), None)
+                if failed is not None:  # the others run on; their answers are dropped
+                    raise failed.exception()  # type: ignore[misc]
+                if all(f.done() for f in futures):
+                    return [f.result() for f in futures]
+                if time.monotonic() >= deadline:
+                    raise TimeoutError
+                if gone is not None and gone.done():
+                    for f in futures:
+                        self.cancel(f)
+                    raise ClientDisconnectedError("the client disconnected; its job was cancelled")
+                if self._stop is not None and self._stop.done():
+                    for f in futures:
+                        f.cancel()
+                    raise ShuttingDownError(
+                        "the service is shutting down and this job's grace ran out; retry "
+                        "(another replica)",
+                        self.retry_after_s,
+                    )
+                await waiter
+                waiter = loop.create_future()
         except asyncio.CancelledError:
             for f in futures:  # nobody waits for these any more: free their workers now
                 self.cancel(f)
@@ -663,13 +714,9 @@ class WorkerPool:
                 "the request's time budget ran out before the work finished"
             ) from exc
         finally:
-            for w in (stop, gone):
-                if w is not None:
-                    w.cancel()
-            if not results.done():
-                results.cancel()
-                # the gather's outcome is dropped: retrieve it so asyncio does not warn
-                results.add_done_callback(lambda r: r.cancelled() or r.exception())
+            timer.cancel()
+            for w in watched:
+                w.remove_done_callback(wake)
 
     async def run(self, fn: Callable[[Any], T], arg: Any, *, deadline: float) -> T:
         """``fn(arg)`` in a worker, by ``deadline`` (a :func:`time.monotonic` value).

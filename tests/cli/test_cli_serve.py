@@ -5,6 +5,7 @@ silent; none once every worker is warm."""
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import logging
 import re
@@ -19,16 +20,20 @@ PROGRESS = re.compile(r"(\d+) of (\d+) workers warm after (\d+\.\d) s")
 def test_the_pool_says_how_far_warm_up_is_until_every_worker_is_warm(monkeypatch, caplog):
     monkeypatch.setattr(workers, "WARMING_REPORT_S", 0.2)
     caplog.set_level(logging.INFO, logger="planner_api.workers")
-    pool = WorkerPool(1, 0, warm_up=functools.partial(time.sleep, 1.5))  # a picklable warm-up
-    pool.start_workers()
-    try:
-        deadline = time.monotonic() + 120
-        while pool.warm_workers < 1:
-            assert time.monotonic() < deadline, "the worker never warmed up"
-            time.sleep(0.05)
-        time.sleep(0.6)  # three more report periods with the worker warm: no progress line
-    finally:
-        pool.shutdown()
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 0, warm_up=functools.partial(time.sleep, 1.5))  # picklable
+        await pool.start()
+        try:
+            deadline = time.monotonic() + 120
+            while pool.warm_workers < 1:
+                assert time.monotonic() < deadline, "the worker never warmed up"
+                await asyncio.sleep(0.05)
+            await asyncio.sleep(0.6)  # three more report periods with the worker warm: none
+        finally:
+            pool.shutdown()
+
+    asyncio.run(scenario())
     messages = [r.getMessage() for r in caplog.records if r.name == "planner_api.workers"]
     ready = next(i for i, m in enumerate(messages) if re.fullmatch(r"worker \d+ warm in .*", m))
     progress = [PROGRESS.fullmatch(m) for m in messages]

@@ -1,0 +1,84 @@
+"""The parent's record of one worker process of :class:`planner_api.workers.WorkerPool`:
+the process, its two pipes, its state and the job it runs; and the answers' frames
+(:func:`planner_api.worker_process.send_frame`) cut out of the bytes its pipe delivers."""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import time
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any, Literal
+
+from planner_api.worker_process import FRAME_HEADER
+
+__all__ = ["Job", "Worker", "describe_exit"]
+
+
+@dataclass(eq=False)
+class Job:
+    """A job sent, or to be sent, to a worker: its pickled message and its future."""
+
+    payload: bytes
+    future: Future[Any]
+    #: When the watchdog stops the worker still running this job (a :func:`time.monotonic`
+    #: value: the deadline plus the overrun grace, or now for a cancelled job); None: never.
+    kill_at: float | None = None
+    #: Why it would be stopped: "deadline" or "cancelled".
+    kill_reason: str = "deadline"
+
+
+@dataclass(eq=False)
+class Worker:
+    """One worker process as the pool sees it."""
+
+    process: multiprocessing.process.BaseProcess
+    #: The pipe the parent sends jobs on (blocking writes: the worker is waiting for them).
+    jobs: Connection
+    #: The pipe the worker answers on, read by the event loop (non-blocking).
+    answers: Connection
+    #: "retired": told to stop (recycled), its exit is not a death to replace.
+    state: Literal["warming", "idle", "busy", "retired", "dead"] = "warming"
+    job: Job | None = None
+    started: float = field(default_factory=time.monotonic)
+    #: Bytes read from ``answers`` and not yet a whole frame.
+    inbox: bytearray = field(default_factory=bytearray, repr=False)
+    #: Why the pool killed it ("" while it was not killed): its exit is then expected.
+    killed: str = ""
+    #: Over the memory bound: serves on until its replacement is warm, then retires.
+    retiring: bool = False
+    #: Its replacement is warm: it retires after the job it is running.
+    retire_after_job: bool = False
+    #: The retiring worker this one replaces (stopped once this one is warm).
+    replaces: Worker | None = field(default=None, repr=False)
+    #: Resident memory after its last job when over the bound, bytes (None: never over).
+    rss: int | None = None
+
+    def take(self, chunk: bytes) -> list[bytes]:
+        """The whole messages that ``chunk``, read from ``answers``, completes (in order);
+        a partial frame waits in :attr:`inbox` for the next chunk."""
+        inbox = self.inbox
+        inbox += chunk
+        head = FRAME_HEADER.size
+        messages: list[bytes] = []
+        while len(inbox) >= head:
+            (size,) = FRAME_HEADER.unpack_from(inbox)
+            if len(inbox) < head + size:
+                break
+            messages.append(bytes(inbox[head : head + size]))
+            del inbox[: head + size]
+        return messages
+
+
+def describe_exit(exitcode: int | None) -> str:
+    """A process's exit in words, e.g. "exit code 3" or "killed by SIGKILL"."""
+    if exitcode is None:
+        return "exit status unknown"
+    if exitcode < 0:
+        try:
+            return f"killed by {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exit code {exitcode}"

@@ -1,0 +1,63 @@
+"""The answer pipe's framing: what a worker writes with
+:func:`planner_api.worker_process.send_frame` comes out of
+:meth:`planner_api.worker_handle.Worker.take` message by message, whatever the chunks the
+event loop happens to read (a large answer arrives over many reads of at most a pipe's
+64 KiB; several small ones can arrive in one)."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import threading
+from multiprocessing.connection import Connection
+
+import numpy as np
+
+from planner_api.worker_handle import Worker
+from planner_api.worker_process import send_frame
+
+
+def _worker() -> Worker:
+    return Worker(process=None, jobs=None, answers=None)  # type: ignore[arg-type]
+
+
+def test_frames_are_cut_out_of_any_chunking():
+    rng = np.random.default_rng(3)
+    small = [("ok", b"x" * int(n)) for n in rng.integers(0, 300, 40)]
+    large = [*small, ("ok", bytes(range(256)) * 1200), ("rss", 123), ("error", KeyError("e"))]
+    for messages, most in ((small, 9), (large, 70_000)):  # bytes per read: 1.., 1..
+        stream = b"".join(
+            len(d).to_bytes(8, "big") + d for d in (pickle.dumps(m) for m in messages)
+        )  # the frame format, written out independently of send_frame
+        for _ in range(10):
+            worker, got, i = _worker(), [], 0
+            while i < len(stream):
+                n = int(rng.integers(1, most))
+                got += worker.take(stream[i : i + n])
+                i += n
+            assert [pickle.loads(m)[:2] for m in got[: len(small)]] == small
+            assert [pickle.loads(m)[0] for m in got] == [m[0] for m in messages]
+            assert not worker.inbox
+    assert pickle.loads(got[-3]) == large[-3]
+
+
+def test_send_frame_writes_what_take_reads_through_a_real_pipe():
+    """A 5 MB answer and small ones through an OS pipe, read as the event loop reads it
+    (non-blocking, what is there): the same messages, in order."""
+    read_fd, write_fd = os.pipe()
+    answers = [("ok", os.urandom(5 * 2**20)), ("ok", b"small"), ("rss", 7)]
+
+    def write() -> None:
+        for m in answers:
+            send_frame(write_fd, pickle.dumps(m))
+        os.close(write_fd)
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    worker, got = _worker(), []
+    reader = Connection(read_fd, writable=False)
+    while chunk := os.read(reader.fileno(), 1 << 20):
+        got += worker.take(chunk)
+    writer.join()
+    reader.close()
+    assert [pickle.loads(m) for m in got] == answers
