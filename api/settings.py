@@ -218,6 +218,14 @@ class Settings(BaseSettings):
         description="A worker whose resident memory after a job exceeds this many MB is "
         "recycled: a replacement warms up first, then the old worker stops (0: never).",
     )
+    worker_nice: int = Field(
+        5,
+        ge=0,
+        le=19,
+        description="Added to the worker processes' niceness (0: as the server): on a busy "
+        "machine the event loop, which only parses and answers, runs ahead of the workers' "
+        "computations, so probes and cheap requests are not kept waiting behind them.",
+    )
     job_timeout_s: float = Field(
         600.0,
         gt=0.0,

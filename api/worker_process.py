@@ -88,11 +88,15 @@ def worker_main(
     log_setup: tuple[str, str] | None,
     warm_up: Callable[[], object] | None,
     max_rss_bytes: int | None = None,
+    nice: int = 0,
 ) -> None:
     """A worker process: warm up, say so, then run one job at a time until told to stop
     (or until the pipe closes: the parent is gone). ``jobs`` brings the jobs, ``answers``
     (its file descriptor, written with :func:`send_frame`) takes the answers back; after a
-    job that leaves the worker above ``max_rss_bytes`` (None: no bound) it says so."""
+    job that leaves the worker above ``max_rss_bytes`` (None: no bound) it says so. ``nice``
+    lowers its scheduling priority first (so that every thread it starts inherits it)."""
+    if nice > 0:
+        os.nice(nice)
     out = answers.fileno()
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's

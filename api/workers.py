@@ -130,6 +130,10 @@ class WorkerPool:
     overrun_grace_s : float
         A job still running this long after its deadline has its worker killed (SIGKILL)
         and replaced (``PLANNER_OVERRUN_GRACE_S``).
+    nice : int
+        Added to each worker's niceness (``PLANNER_WORKER_NICE``; 0: the server's): on a
+        busy machine the event loop then runs when it has work, instead of waiting behind a
+        worker for the scheduler's turn, and serves the cheap requests and probes promptly.
     max_rss_mb : float or None
         A worker whose resident memory after a job exceeds this is recycled: a replacement
         is started, and once it is warm the old worker stops (``PLANNER_WORKER_MAX_RSS_MB``;
@@ -146,6 +150,7 @@ class WorkerPool:
         warm_up: Callable[[], object] | None = None,
         overrun_grace_s: float = 0.5,
         max_rss_mb: float | None = None,
+        nice: int = 0,
     ) -> None:
         if workers < 1 or queue_size < 0:
             raise ValueError("workers must be >= 1 and queue_size >= 0")
@@ -156,6 +161,7 @@ class WorkerPool:
         self.retry_after_s = retry_after_s
         self.overrun_grace_s = overrun_grace_s
         self.max_rss_bytes = None if max_rss_mb is None else int(max_rss_mb * 1024 * 1024)
+        self.nice = nice
         #: Jobs refused because the pool was full (a counter for the metrics).
         self.rejected = 0
         #: Workers that died and were replaced (a counter for the metrics).
@@ -282,7 +288,7 @@ class WorkerPool:
             target=worker_main,
             args=(
                 jobs_out, answers_in, os.getpid(), self._log_setup, self._warm_up,
-                self.max_rss_bytes,
+                self.max_rss_bytes, self.nice,
             ),
             name="planner-worker",
             daemon=True,

@@ -172,6 +172,30 @@ def test_a_worker_over_its_memory_bound_is_recycled_warm_first():
     asyncio.run(scenario())
 
 
+def _niceness(_: object) -> int:
+    """The niceness of the thread that runs the jobs (Linux: niceness is per thread)."""
+    return os.nice(0)
+
+
+def test_workers_run_at_the_configured_niceness_above_the_server():
+    """``nice=5``: the worker process, and the thread in it that runs the jobs, are 5 nicer
+    than the server (capped at 19); the server keeps its own priority."""
+
+    async def scenario() -> None:
+        server = os.nice(0)
+        pool = await _started_pool(nice=5)
+        try:
+            (first,) = pool.pids
+            assert os.getpriority(os.PRIO_PROCESS, first) == min(server + 5, 19)
+            job_thread = await pool.run(_niceness, 0, deadline=time.monotonic() + 60)
+            assert job_thread == min(server + 5, 19)
+            assert os.nice(0) == server  # the server itself is untouched
+        finally:
+            pool.shutdown(timeout_s=5)
+
+    asyncio.run(scenario())
+
+
 def test_a_client_that_disconnects_has_its_job_cancelled(tmp_path, unused_port):
     """A real server: a plan request whose job would sleep 20 s, its connection closed once
     the job runs: the worker is killed within a second (not at the 30 s deadline), a warm

@@ -5,6 +5,7 @@ validity margins (``docs/conventions.md``, *Shared objects*).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -257,13 +258,13 @@ class DesignModel(_Request):
         return self._design
 
     def _build(self) -> Design:
-        return Design(
-            L0=self.L0,
-            L1=self.L1,
-            L2=self.L2,
-            link_radius=self.link_radius,
-            joint_min=tuple(self.joint_min),
-            joint_max=tuple(self.joint_max),
+        return _design_of(
+            self.L0,
+            self.L1,
+            self.L2,
+            self.link_radius,
+            tuple(self.joint_min),
+            tuple(self.joint_max),
         )
 
     @classmethod
@@ -277,6 +278,24 @@ class DesignModel(_Request):
             joint_min=list(design.joint_min),
             joint_max=list(design.joint_max),
         )
+
+
+@functools.lru_cache(maxsize=256)
+def _design_of(
+    L0: float,
+    L1: float,
+    L2: float,
+    link_radius: float,
+    joint_min: tuple[float, ...],
+    joint_max: tuple[float, ...],
+) -> Design:
+    """The :class:`planner.Design` of these numbers, built (and its rules checked) once per
+    distinct design: a service validates the same few designs in every request, and the
+    design is immutable, so requests may share it. A design that breaks a rule raises each
+    time (errors are not remembered)."""
+    return Design(
+        L0=L0, L1=L1, L2=L2, link_radius=link_radius, joint_min=joint_min, joint_max=joint_max
+    )  # type: ignore[arg-type]
 
 
 _DesignField = Field(default_factory=DesignModel, description="The robot; default robot if absent.")
