@@ -13,12 +13,10 @@ and a replacement is spawned and warmed in the background.
 
 The answers are read by the event loop itself (``loop.add_reader`` on each worker's answer
 pipe, non-blocking, frames of :func:`planner_api.worker_process.send_frame`), not by a thread
-per worker: an answer reaches its request in the loop's next turn, with no thread to wake, no
-hand-over of the GIL and no second wake-up of the loop. So the pool lives in one event loop
-(:meth:`WorkerPool.start` is called in it) and its results are delivered by that loop: code
-in the loop awaits them (:meth:`WorkerPool.run`, :meth:`WorkerPool.map`, or
-``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another thread may block on a
-submitted future.
+per worker: no thread to wake, no hand-over of the GIL, no second wake-up of the loop. So the
+pool lives in one event loop (:meth:`WorkerPool.start` runs in it), which delivers its
+results: code in the loop awaits them (:meth:`WorkerPool.run`, :meth:`WorkerPool.map`, or
+``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another thread may block on one.
 
 Warm means ready: a worker announces itself only after its ``warm_up`` function (the
 service's :func:`planner_api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
@@ -131,9 +129,8 @@ class WorkerPool:
         A job still running this long after its deadline has its worker killed (SIGKILL)
         and replaced (``PLANNER_OVERRUN_GRACE_S``).
     nice : int
-        Added to each worker's niceness (``PLANNER_WORKER_NICE``; 0: the server's): on a
-        busy machine the event loop then runs when it has work, instead of waiting behind a
-        worker for the scheduler's turn, and serves the cheap requests and probes promptly.
+        Added to each worker's niceness (``PLANNER_WORKER_NICE``): the event loop then runs
+        when it has work instead of waiting behind a worker for the scheduler's turn.
     max_rss_mb : float or None
         A worker whose resident memory after a job exceeds this is recycled: a replacement
         is started, and once it is warm the old worker stops (``PLANNER_WORKER_MAX_RSS_MB``;
@@ -175,8 +172,7 @@ class WorkerPool:
         self._ctx = multiprocessing.get_context("spawn")
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)  # the watchdog's: a kill time changed
-        #: When the watchdog wakes next (monotonic): a job whose kill time is later needs no
-        #: wake-up, which spares the server a thread switch per job.
+        #: When the watchdog wakes next (monotonic): a later kill time needs no wake-up.
         self._watch_at = float("inf")  # not waiting yet: every kill time is news
         self._in_flight = 0
         self._pending: collections.deque[Job] = collections.deque()

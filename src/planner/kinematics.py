@@ -291,7 +291,7 @@ def link_points(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarra
     c, s = np.cos(t1), np.sin(t1)
     # Filled in place rather than stacked: one allocation, which is most of the cost for the
     # single postures of /v1/fk and /v1/ik.
-    out = np.empty(t1.shape + (5, 3))
+    out = np.empty((*t1.shape, 5, 3))
     out[..., 0, :] = (0.0, -half, 0.0)
     out[..., 1, :] = (0.0, half, 0.0)
     for k, (uk, wk) in enumerate(((cu, cw), (du, dw), (pu, pw)), start=2):
