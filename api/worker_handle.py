@@ -45,6 +45,8 @@ class Worker:
     started: float = field(default_factory=time.monotonic)
     #: Bytes read from ``answers`` and not yet a whole frame.
     inbox: bytearray = field(default_factory=bytearray, repr=False)
+    #: The event loop reads ``answers`` (attached, its end not yet seen).
+    reading: bool = False
     #: Why the pool killed it ("" while it was not killed): its exit is then expected.
     killed: str = ""
     #: Over the memory bound: serves on until its replacement is warm, then retires.
@@ -67,7 +69,8 @@ class Worker:
             (size,) = FRAME_HEADER.unpack_from(inbox)
             if len(inbox) < head + size:
                 break
-            messages.append(bytes(inbox[head : head + size]))
+            with memoryview(inbox) as view:  # one copy of the message, not two
+                messages.append(bytes(view[head : head + size]))
             del inbox[: head + size]
         return messages
 

@@ -146,4 +146,7 @@ def worker_main(
         if max_rss_bytes is not None:
             rss = resident_bytes()
             if rss is not None and rss > max_rss_bytes:
-                send_frame(out, pickle.dumps(("rss", rss)))
+                try:
+                    send_frame(out, pickle.dumps(("rss", rss)))
+                except OSError:  # the parent is gone
+                    return

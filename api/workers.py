@@ -1,58 +1,34 @@
-"""The pool of worker processes that runs the CPU-bound work (kinematics, analysis, planning).
+"""The pool of worker processes that runs the CPU-bound work (plans, timing, analysis).
 
-Why processes: OMPL's ``solve()`` and most numpy work hold the GIL, so threads would serialise
-the requests. The event loop only parses, dispatches and answers; each job is a module-level
-function (picklable) run in a ``spawn``-started worker, so requests are served on all cores.
+What it promises an operator (warm means ready, a crash stays with its request, no job
+outlives its deadline, memory given back, no orphans, the drain) is told in
+docs/operations.md, "Worker processes"; here is why it is built so.
 
-Why not :class:`concurrent.futures.ProcessPoolExecutor`: when one of its workers dies it
-breaks *as a whole* and fails every job in flight, also those on healthy workers. This pool
-is a small supervisor instead: two one-way pipes per worker, one job per worker at a time, so
-a worker that dies (a crash in native code, the OOM killer, SIGKILL) fails only the job it
-was running (:class:`WorkerCrashedError`, HTTP 502 naming the exit); the others keep running
-and a replacement is spawned and warmed in the background.
+Processes, because OMPL's ``solve()`` and most numpy work hold the GIL. Not
+:class:`concurrent.futures.ProcessPoolExecutor`, because when one of its workers dies it breaks
+*as a whole* and fails every job in flight: this pool is a small supervisor instead, one job
+per ``spawn``-started worker at a time, so a worker that dies fails only its own job
+(:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced, warmed (its
+``warm_up``, the service's :func:`planner_api.warmup.warm_up_worker`) before it takes jobs.
+All workers are spawned by one supervisor thread that lives as long as the pool (a worker's
+``PR_SET_PDEATHSIG`` fires when the thread that spawned it ends).
 
-The answers are read by the event loop itself (``loop.add_reader`` on each worker's answer
-pipe, non-blocking, frames of :func:`planner_api.worker_process.send_frame`), not by a thread
-per worker: no thread to wake, no hand-over of the GIL, no second wake-up of the loop. So the
-pool lives in one event loop (:meth:`WorkerPool.start` runs in it), which delivers its
-results: code in the loop awaits them (:meth:`WorkerPool.run`, :meth:`WorkerPool.map`, or
-``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another thread may block on one.
+Two one-way pipes per worker. Jobs go down one, pickled; answers come back on the other in
+frames (:func:`planner_api.worker_process.send_frame`) that the event loop reads itself
+(``loop.add_reader``, non-blocking): no reader thread to wake, no hand-over of the GIL, no
+second wake-up of the loop per job. So the pool lives in one event loop (:meth:`WorkerPool.start`
+runs in it), which delivers its results: code in the loop awaits them (:meth:`WorkerPool.run`,
+:meth:`WorkerPool.map`, ``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another
+thread may block on a submitted future.
 
-Warm means ready: a worker announces itself only after its ``warm_up`` function (the
-service's :func:`planner_api.warmup.warm_up_worker`) has imported and run everything its jobs use, so
-the first job on it costs what any later one costs. :attr:`WorkerPool.state` is ``"ready"`` (``/v1/ready`` 200)
-only while every configured worker is warm; ``"starting"`` before the first time,
-``"recovering"`` while a replacement warms up, ``"broken"`` when warm-up itself fails.
-
-Workers die with their parent: each one asks the kernel for SIGKILL when the thread that
-spawned it ends (``prctl(PR_SET_PDEATHSIG)``, Linux; all workers are spawned by one
-supervisor thread that lives as long as the pool) and also watches its parent's pid, so no
-worker outlives a killed server by more than a second.
-
-Back-pressure: at most ``workers + queue_size`` jobs are in flight (running or waiting); a job
-beyond that is refused at once with :class:`PoolSaturatedError` (HTTP 503 + Retry-After), so a
-burst never builds an unbounded queue.
-
-No job outlives its deadline: a caller whose deadline passes gets
-:class:`DeadlineExceededError` (HTTP 504) at once; a job that has not started yet is dropped,
-one that is running stops itself (the jobs check their deadline in every long loop) or, if it
-is still running ``overrun_grace_s`` after its deadline, the watchdog thread kills its worker
-(SIGKILL) and a replacement is started, warmed before it takes jobs. A cancelled wait (the
-caller's task cancelled, or its client disconnected: :data:`CLIENT_GONE`) kills the worker of
-its running job at once (:meth:`WorkerPool.cancel`): a worker never computes an answer nobody
-will read.
-
-Memory given back: after each job a worker reports its resident memory; above ``max_rss_mb``
-it is recycled: a replacement is started and warmed while the old worker still serves, then
-the old one stops (after its current job). Python and numpy keep the memory of large answers
-in their allocators; a new process is the one sure way to return it to the machine.
-
-Graceful shutdown (:mod:`planner_api.server`): on SIGTERM, :meth:`WorkerPool.drain` turns the pool to
-'stopping' (``/v1/ready`` answers 503, new jobs get :class:`ShuttingDownError`, 503) and gives
-the jobs in flight until the grace deadline to finish; those still waiting for their result
-then are cancelled with :class:`ShuttingDownError` (a clean 503 the client may retry on
-another replica). :meth:`WorkerPool.shutdown` (the lifespan's end) then stops the workers,
-terminating any still busy after ``timeout_s``.
+Bounds: at most ``workers + queue_size`` jobs in flight (beyond: :class:`PoolSaturatedError`,
+503 + Retry-After, never an unbounded queue). A caller past its deadline gets
+:class:`DeadlineExceededError` at once; its job, if still running ``overrun_grace_s`` later,
+has its worker killed by the watchdog thread and replaced. A cancelled wait (the caller's task,
+or its client gone: :data:`CLIENT_GONE`) kills its worker at once. A worker over
+``max_rss_mb`` after a job is recycled, its replacement warm first. :meth:`WorkerPool.drain`
+(SIGTERM, :mod:`planner_api.server`) refuses new jobs and ends the waits still open after the
+grace (:class:`ShuttingDownError`); :meth:`WorkerPool.shutdown` stops the workers.
 """
 
 from __future__ import annotations
@@ -60,6 +36,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextvars
+import functools
 import logging
 import multiprocessing
 import os
@@ -69,10 +46,10 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
+from multiprocessing.connection import wait as wait_for_any
 from typing import Any, Literal, TypeVar
 
 from planner_api.exceptions import (
-    ClientDisconnectedError,
     DeadlineExceededError,
     JobCancelledError,
     PoolSaturatedError,
@@ -81,6 +58,7 @@ from planner_api.exceptions import (
 )
 from planner_api.worker_handle import Job, Worker, describe_exit
 from planner_api.worker_process import worker_main
+from planner_api.worker_wait import wait_for_jobs
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool"]
 
@@ -97,9 +75,10 @@ WARMING_REPORT_S = 10.0
 #: Longest sleep of the watchdog thread between two looks at the busy workers, s (it wakes
 #: earlier for the next job's kill time and whenever a job starts or is cancelled).
 WATCHDOG_IDLE_S = 5.0
-#: Most bytes taken from a worker's answer pipe per turn of the event loop (a pipe holds
-#: 64 KiB: a large answer arrives over several turns, and other requests are served between).
-READ_CHUNK = 1 << 20
+#: Most bytes taken from a worker's answer pipe per turn of the event loop: what a pipe holds
+#: (a large answer arrives over several turns, other requests are served between; a larger
+#: buffer would be an mmap and munmap per read).
+READ_CHUNK = 1 << 16
 
 #: Set (by :func:`planner_api.deps.watch_client`) while a request is served: a future that
 #: is resolved when its client disconnects. A job awaited under it is cancelled then (its
@@ -291,6 +270,10 @@ class WorkerPool:
         )  # fmt: skip
         try:
             process.start()
+        except BaseException:
+            jobs_in.close()
+            answers_out.close()
+            raise
         finally:
             jobs_out.close()
             answers_in.close()
@@ -301,7 +284,8 @@ class WorkerPool:
         assert self._loop is not None
         try:
             self._loop.call_soon_threadsafe(self._attach, worker)
-        except RuntimeError:  # the loop is closed: the pool is gone with it
+        except RuntimeError:  # the loop is closed: the pool is gone with it, replace no one
+            self._stopping = True
             process.kill()
             threading.Thread(target=self._on_exit, args=(worker,), daemon=True).start()
 
@@ -311,30 +295,48 @@ class WorkerPool:
     def _attach(self, worker: Worker) -> None:
         """In the event loop: read ``worker``'s answers as they come."""
         assert self._loop is not None
-        if worker.answers.closed:  # pragma: no cover - shut down before it was attached
+        if worker.answers.closed or self._closed:  # shut down before it was attached
             return
+        worker.reading = True
         self._loop.add_reader(worker.answers.fileno(), self._readable, worker)
 
     def _readable(self, worker: Worker) -> None:
         """In the event loop, when ``worker``'s answer pipe has bytes (or is closed): take
         them, handle each whole frame; at the end of the pipe (the worker exited), detach
         and handle the exit in a thread (it waits for the process to be reaped)."""
-        fd = worker.answers.fileno()
-        try:
-            chunk = os.read(fd, READ_CHUNK)
-        except BlockingIOError:  # pragma: no cover - a spurious wake-up
-            return
-        except OSError:
-            chunk = b""
-        if not chunk:
-            assert self._loop is not None
-            self._loop.remove_reader(fd)
+        if self._take_answers(worker) is False:
+            self._detach(worker)
             threading.Thread(
                 target=self._on_exit, args=(worker,), name="worker-exit", daemon=True
             ).start()
-            return
+
+    def _take_answers(self, worker: Worker) -> bool | None:
+        """Read what ``worker``'s answer pipe holds (one chunk) and handle each whole frame:
+        True when bytes came, None when there were none yet, False at the end of the pipe."""
+        try:
+            chunk = os.read(worker.answers.fileno(), READ_CHUNK)
+        except BlockingIOError:  # a spurious wake-up, or (at shutdown) nothing more yet
+            return None
+        except OSError:
+            chunk = b""
+        if not chunk:
+            return False
         for message in worker.take(chunk):
             self._handle(worker, message)
+        return True
+
+    def _detach(self, worker: Worker) -> bool:
+        """Stop the event loop reading ``worker``'s answers (in the loop's thread); whether
+        it was reading (its end of pipe not yet seen)."""
+        if not worker.reading:
+            return False
+        worker.reading = False
+        try:
+            assert self._loop is not None
+            self._loop.remove_reader(worker.answers.fileno())
+        except (OSError, RuntimeError, ValueError):  # the loop is closed: nothing to remove
+            pass
+        return True
 
     def _handle(self, worker: Worker, message: bytes) -> None:
         """One message of a worker (:mod:`planner_api.worker_process`)."""
@@ -379,7 +381,7 @@ class WorkerPool:
             self._in_flight -= 1
             if worker.retire_after_job:
                 self._retire_locked(worker)
-            elif worker.state == "busy":
+            elif worker.state == "busy" and not worker.killed:  # a killed one takes no job
                 worker.state = "idle"
             self._dispatch_locked()
         if job is not None and not job.future.done():
@@ -500,17 +502,25 @@ class WorkerPool:
 
     def shutdown(self, timeout_s: float | None = None) -> None:
         """Stop the workers; jobs not started are cancelled. Running jobs may finish for
-        ``timeout_s`` seconds (None: wait for them), then their workers are terminated."""
+        ``timeout_s`` seconds (None: wait for them), then their workers are terminated.
+
+        Called in the pool's event loop (the lifespan's end) or once that loop stopped: it
+        blocks the loop, and reads the workers' answers itself meanwhile, so that a job that
+        finishes during the wait is answered and a worker writing a large answer is not
+        stuck on its pipe."""
+        loop = self._loop
+        if loop is not None and not self._in_loop() and loop.is_running():
+            raise RuntimeError("WorkerPool.shutdown() must run in the pool's event loop")
         self._stopping = True
         if self._in_loop():
             self._end_waits()
         elif self._loop is not None and not self._loop.is_closed():
             self._loop.call_soon_threadsafe(self._end_waits)
         with self._lock:
-            while self._pending:
-                job = self._pending.popleft()
-                if job.future.cancel():
-                    self._in_flight -= 1
+            waiting = list(self._pending)
+        for job in waiting:
+            job.future.cancel()  # its slot is freed by _unqueue
+        with self._lock:
             workers = list(self._workers)
             self._closed = True
             self._wake.notify()
@@ -523,8 +533,7 @@ class WorkerPool:
                 except OSError:
                     pass
         end = None if timeout_s is None else time.monotonic() + timeout_s
-        for w in workers:
-            w.process.join(None if end is None else max(end - time.monotonic(), 0.0))
+        self._serve_until_exit(workers, end)
         alive = [w for w in workers if w.process.is_alive()]
         busy = [w for w in alive if w.state == "busy"]
         if busy:
@@ -539,25 +548,33 @@ class WorkerPool:
                 if w.process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
                     w.process.kill()
                     w.process.join()
-        for w in workers:  # their exits: the event loop stops reading, a thread finishes each
-            if self._in_loop():
-                self._detach(w)
-            elif self._loop is not None and not self._loop.is_closed():
-                self._loop.call_soon_threadsafe(self._detach, w)
+        for w in workers:  # the exits not seen yet: what they wrote first, then the exit
+            if self._detach(w):
+                while self._take_answers(w):
+                    pass
+                self._on_exit(w)
         self._spawn_requests.put(None)
         if self._supervisor is not None:
             self._supervisor.join(5.0)
         if self._watchdog is not None:
             self._watchdog.join(5.0)
 
-    def _detach(self, worker: Worker) -> None:
-        """In the event loop, at shutdown: stop reading ``worker`` (exited) and handle its
-        exit, unless its end of pipe was seen already."""
-        if worker.answers.closed or worker.state == "dead":
-            return
-        assert self._loop is not None
-        if self._loop.remove_reader(worker.answers.fileno()):
-            self._on_exit(worker)
+    def _serve_until_exit(self, workers: list[Worker], end: float | None) -> None:
+        """At shutdown, with the event loop blocked: wait until ``workers`` have exited or
+        ``end`` (monotonic; None: no end), handling their answers and exits as they come."""
+        live = [w for w in workers if w.process.is_alive()]
+        while live:
+            timeout = None if end is None else end - time.monotonic()
+            if timeout is not None and timeout <= 0:
+                return
+            reading = {w.answers.fileno(): w for w in workers if w.reading}
+            sentinels = [w.process.sentinel for w in live]
+            for ready in wait_for_any([*sentinels, *reading], timeout):
+                worker = reading.get(ready)  # type: ignore[call-overload]
+                if worker is not None and self._take_answers(worker) is False:
+                    self._detach(worker)
+                    self._on_exit(worker)
+            live = [w for w in live if w.process.is_alive()]
 
     @property
     def state(self) -> PoolState:
@@ -618,10 +635,22 @@ class WorkerPool:
             raise
         future: Future[T] = Future()
         kill_at = None if deadline is None else deadline + self.overrun_grace_s
+        job = Job(payload, future, kill_at)
         with self._lock:
-            self._pending.append(Job(payload, future, kill_at))
+            self._pending.append(job)
             self._dispatch_locked()
+        future.add_done_callback(functools.partial(self._unqueue, job))
         return future
+
+    def _unqueue(self, job: Job, future: Future[Any]) -> None:
+        """A job's future is done: if it was cancelled while it waited, its slot is free at
+        once (not when a worker would have taken it: with none warm, the queue would fill
+        with jobs nobody waits for)."""
+        if future.cancelled():
+            with self._lock:
+                if job in self._pending:
+                    self._pending.remove(job)
+                    self._in_flight -= 1
 
     def submit(
         self, fn: Callable[[Any], T], arg: Any, *, deadline: float | None = None
@@ -646,79 +675,14 @@ class WorkerPool:
                     self._wake.notify()
 
     async def _await(self, futures: Sequence[Future[T]], deadline: float) -> list[T]:
-        """The results of ``futures`` (in order), awaited in the pool's event loop until the
-        first of: all done (or one failed), the ``deadline``, the client gone
-        (:data:`CLIENT_GONE`), the drain's grace over. One loop future and callbacks, no
-        task per wait: the cheapest requests pay for every object made here."""
-        loop = asyncio.get_running_loop()
-        waiter: asyncio.Future[None] = loop.create_future()
-
-        def wake(_: object = None) -> None:
-            if not waiter.done():
-                waiter.set_result(None)
-
-        def job_done(_: Future[T]) -> None:
-            # (a concurrent future's callbacks cannot be removed: this one outlives the wait
-            # harmlessly, waking a future nobody awaits any more)
-            if self._in_loop():
-                wake()
-            else:  # failed by the watchdog's kill, seen by an exit thread
-                try:
-                    loop.call_soon_threadsafe(wake)
-                except RuntimeError:  # pragma: no cover - the loop is closed
-                    pass
-
-        gone = CLIENT_GONE.get()
-        watched = [w for w in (gone, self._stop) if w is not None]
-        timer = loop.call_at(loop.time() + (deadline - time.monotonic()), wake)
-        for w in watched:
-            w.add_done_callback(wake)
-        for f in futures:
-            f.add_done_callback(job_done)
-        try:
-            while True:
-                if any(f.cancelled() for f in futures):  # dropped by a shutdown
-                    raise ShuttingDownError(
-                        "the service is shutting down; retry (another replica)",
-                        self.retry_after_s,
-                    )
-                failed = next((f for f in futures if f.done() and f.exception()), None)
-                if failed is not None:  # the others run on; their answers are dropped
-                    raise failed.exception()  # type: ignore[misc]
-                if all(f.done() for f in futures):
-                    return [f.result() for f in futures]
-                if time.monotonic() >= deadline:
-                    raise TimeoutError
-                if gone is not None and gone.done():
-                    for f in futures:
-                        self.cancel(f)
-                    raise ClientDisconnectedError("the client disconnected; its job was cancelled")
-                if self._stop is not None and self._stop.done():
-                    for f in futures:
-                        f.cancel()
-                    raise ShuttingDownError(
-                        "the service is shutting down and this job's grace ran out; retry "
-                        "(another replica)",
-                        self.retry_after_s,
-                    )
-                await waiter
-                waiter = loop.create_future()
-        except asyncio.CancelledError:
-            for f in futures:  # nobody waits for these any more: free their workers now
-                self.cancel(f)
-            raise
-        except TimeoutError as exc:
-            # a job still running stops itself at its deadline; else its worker is
-            # killed at the deadline plus the overrun grace (the watchdog)
-            for f in futures:
-                f.cancel()
-            raise DeadlineExceededError(
-                "the request's time budget ran out before the work finished"
-            ) from exc
-        finally:
-            timer.cancel()
-            for w in watched:
-                w.remove_done_callback(wake)
+        return await wait_for_jobs(
+            futures,
+            deadline,
+            gone=CLIENT_GONE.get(),
+            stop=self._stop,
+            cancel=self.cancel,
+            retry_after_s=self.retry_after_s,
+        )
 
     async def run(self, fn: Callable[[Any], T], arg: Any, *, deadline: float) -> T:
         """``fn(arg)`` in a worker, by ``deadline`` (a :func:`time.monotonic` value).

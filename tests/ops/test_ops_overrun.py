@@ -23,7 +23,7 @@ from planner_api.exceptions import DeadlineExceededError, JobCancelledError
 from planner_api.workers import WorkerPool
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
-#: Slack on top of a bound, s: a kill, a pipe's end and a reader thread on a loaded machine.
+#: Slack on top of a bound, s: a kill, a pipe's end and the event loop on a loaded machine.
 SLACK_S = 5.0
 #: What a job would take if nothing stopped it, s (far beyond every bound below).
 LONG_S = 120.0
