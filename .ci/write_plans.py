@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+#: How long the service may take to warm its worker, s (as tests/conftest.py).
+READY_TIMEOUT_S = 300.0
 
 DESIGN = {"L0": 0.5, "L1": 0.2, "L2": 0.6, "link_radius": 0.02,
           "joint_min": [-3.141592653589793] * 3, "joint_max": [3.141592653589793] * 3}  # fmt: skip
@@ -55,6 +58,14 @@ def main(out: Path) -> int:
 
     out.mkdir(parents=True, exist_ok=True)
     with TestClient(create_app(Settings(workers=1))) as client:
+        # as a load balancer would: no request before the worker is warm (a first warm-up
+        # on a slow machine can take longer than one request's budget)
+        end = time.monotonic() + READY_TIMEOUT_S
+        while client.get("/v1/ready").status_code != 200:
+            if time.monotonic() > end:
+                sys.stderr.write(f"write_plans: not ready after {READY_TIMEOUT_S:g} s\n")
+                return 1
+            time.sleep(0.2)
         for name, scene in SCENES.items():
             body = {**COMMON, **scene}
             answer = client.post("/v1/plan", json=body).json()
