@@ -222,9 +222,10 @@ class Settings(BaseSettings):
         5,
         ge=0,
         le=19,
-        description="Added to the worker processes' niceness (0: as the server): on a busy "
-        "machine the event loop, which only parses and answers, runs ahead of the workers' "
-        "computations, so probes and cheap requests are not kept waiting behind them.",
+        description="Added to the worker processes' niceness once they are warm (0: as the "
+        "server): on a busy machine the event loop, which only parses and answers, runs ahead "
+        "of the workers' computations, so probes and cheap requests are not kept waiting "
+        "behind them.",
     )
     job_timeout_s: float = Field(
         600.0,

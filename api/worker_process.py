@@ -94,9 +94,8 @@ def worker_main(
     (or until the pipe closes: the parent is gone). ``jobs`` brings the jobs, ``answers``
     (its file descriptor, written with :func:`send_frame`) takes the answers back; after a
     job that leaves the worker above ``max_rss_bytes`` (None: no bound) it says so. ``nice``
-    lowers its scheduling priority first (so that every thread it starts inherits it)."""
-    if nice > 0:
-        os.nice(nice)
+    lowers the priority of the thread that runs the jobs once the worker is warm: it warms at
+    the server's priority, so that a start on a busy machine is not slowed further."""
     out = answers.fileno()
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's
@@ -109,6 +108,8 @@ def worker_main(
         t0 = time.perf_counter()
         if warm_up is not None:
             warm_up()
+        if nice > 0:
+            os.nice(nice)
         send_frame(out, pickle.dumps(("ready", time.perf_counter() - t0)))
     except BaseException:
         send_frame(out, pickle.dumps(("warm_failed", traceback.format_exc())))

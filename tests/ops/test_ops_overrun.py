@@ -178,8 +178,8 @@ def _niceness(_: object) -> int:
 
 
 def test_workers_run_at_the_configured_niceness_above_the_server():
-    """``nice=5``: the worker process, and the thread in it that runs the jobs, are 5 nicer
-    than the server (capped at 19); the server keeps its own priority."""
+    """``nice=5``: once warm, the worker process (its main thread, which runs the jobs) is 5
+    nicer than the server (capped at 19); the server keeps its own priority."""
 
     async def scenario() -> None:
         server = os.nice(0)
