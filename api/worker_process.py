@@ -50,12 +50,20 @@ def send_frame(fd: int, data: bytes) -> None:
             view = view[os.write(fd, view) :]
 
 
+#: (pid, descriptor) of this process's ``/proc/self/statm``, opened on first use: a worker
+#: reads it after every job, and a ``pread`` of an open file costs ~2 us against ~18 us for an
+#: open, read and close (measured on an AMD EPYC VM). The pid tells a forked child's copy.
+_STATM: tuple[int, int] | None = None
+
+
 def resident_bytes() -> int | None:
     """This process's resident memory now, bytes (``/proc/self/statm``; None where there is
     no such file). Not ``ru_maxrss``: that is the peak, which never comes down."""
+    global _STATM
     try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+        if _STATM is None or _STATM[0] != os.getpid():
+            _STATM = (os.getpid(), os.open("/proc/self/statm", os.O_RDONLY | os.O_CLOEXEC))
+        return int(os.pread(_STATM[1], 256, 0).split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
         return None
 

@@ -279,7 +279,15 @@ class WorkerPool:
             answers_in.close()
         worker = Worker(process=process, jobs=jobs_in, answers=answers_out, replaces=replaces)
         with self._lock:
-            self._workers.append(worker)
+            closed = self._closed
+            if not closed:
+                self._workers.append(worker)
+        if closed:  # shut down while it started: no one would stop it or close its pipes
+            process.kill()
+            process.join()
+            jobs_in.close()
+            answers_out.close()
+            return
         os.set_blocking(answers_out.fileno(), False)
         assert self._loop is not None
         try:

@@ -14,7 +14,7 @@ from multiprocessing.connection import Connection
 import numpy as np
 
 from planner_api.worker_handle import Worker
-from planner_api.worker_process import send_frame
+from planner_api.worker_process import resident_bytes, send_frame
 
 
 def _worker() -> Worker:
@@ -61,3 +61,23 @@ def test_send_frame_writes_what_take_reads_through_a_real_pipe():
     writer.join()
     reader.close()
     assert [pickle.loads(m) for m in got] == answers
+
+
+def test_resident_bytes_reads_fresh_memory_each_time():
+    """The worker's memory after a job (kept open ``/proc/self/statm``, read again at offset
+    0 each time): it follows memory taken and given back, and agrees with ``VmRSS`` of
+    ``/proc/self/status``, the kernel's other account of the same number."""
+
+    def vm_rss() -> int:
+        with open("/proc/self/status") as f:
+            line = next(x for x in f if x.startswith("VmRSS:"))
+        return int(line.split()[1]) * 1024
+
+    before = resident_bytes()
+    assert before is not None and abs(before - vm_rss()) < 4 * 2**20
+    block = np.ones(64 * 2**20 // 8)  # 64 MiB, touched
+    grown = resident_bytes()
+    assert grown is not None and grown - before > 60 * 2**20
+    assert abs(grown - vm_rss()) < 4 * 2**20
+    del block  # numpy gives a block this large back to the system at once
+    assert resident_bytes() < grown - 60 * 2**20  # type: ignore[operator]

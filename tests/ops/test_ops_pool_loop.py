@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import multiprocessing
 import time
 
 import pytest
@@ -99,3 +100,36 @@ def test_a_pool_whose_loop_is_gone_replaces_no_worker():
     assert pool.restarts == 0
     assert pool.state == "stopping"
     pool.shutdown(timeout_s=1)
+
+
+def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes():
+    """The supervisor may be inside ``_spawn`` when a shutdown takes its list of workers (the
+    race cannot be timed from outside, so the spawn is called after the shutdown, as the
+    supervisor's would land): the late worker is not added to a pool nobody will stop again;
+    it is killed and reaped and its pipes are closed, not left to the garbage collector."""
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 0, warm_up=None)
+        await pool.start()
+        await _ready(pool)
+        pool.shutdown(timeout_s=5)
+        before = set(multiprocessing.active_children())
+        opened: list = []
+        real_pipe = pool._ctx.Pipe
+
+        def pipe(duplex: bool = True):  # type: ignore[no-untyped-def]
+            ends = real_pipe(duplex=duplex)
+            opened.extend(ends)
+            return ends
+
+        pool._ctx.Pipe = pipe  # type: ignore[method-assign]
+        try:
+            pool._spawn()
+        finally:
+            pool._ctx.Pipe = real_pipe  # type: ignore[method-assign]
+        assert pool.pids == []
+        late = set(multiprocessing.active_children()) - before
+        assert not [p for p in late if p.is_alive()], "the late worker still runs"
+        assert len(opened) == 4 and all(end.closed for end in opened)
+
+    _run("asyncio", scenario)
