@@ -66,7 +66,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             warm_up=warm_up_worker if warm_up else None,
             overrun_grace_s=settings.overrun_grace_s,
             max_rss_mb=settings.worker_max_rss_mb or None,
-            nice=settings.worker_nice or 0,
+            nice=settings.worker_nice,
         )
         await pool.start()
         app.state.pool = pool

@@ -28,8 +28,6 @@ PLANNER_OVERRUN_GRACE_S   0.5                             a job running this lon
                                                           deadline has its worker killed, s
 PLANNER_WORKER_MAX_RSS_MB 2048                            a worker holding more memory after a
                                                           job is recycled (0: never), MB
-PLANNER_WORKER_NICE       5 if the workers take every     added to the warm workers' niceness
-                          CPU, else 0                     (0-19)
 PLANNER_JOB_TIMEOUT_S     600                             time budget of one long job, s
 PLANNER_JOB_TTL_S         3600                            a finished long job is kept this long
 PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
@@ -220,15 +218,14 @@ class Settings(BaseSettings):
         description="A worker whose resident memory after a job exceeds this many MB is "
         "recycled: a replacement warms up first, then the old worker stops (0: never).",
     )
-    worker_nice: int | None = Field(
-        None,
+    worker_nice: int = Field(
+        5,
         ge=0,
         le=19,
         description="Added to the worker processes' niceness once they are warm (0: as the "
-        "server). Default: 5 when the workers take every usable CPU, 0 when fewer: with a "
-        "core to share, the event loop, which only parses and answers, then runs ahead of "
-        "the workers' computations, so probes and cheap requests are not kept waiting behind "
-        "them; with a core to itself it needs no head start, and a nicer worker only loses.",
+        "server): on a busy machine the event loop, which only parses and answers, runs ahead "
+        "of the workers' computations, so probes and cheap requests are not kept waiting "
+        "behind them.",
     )
     job_timeout_s: float = Field(
         600.0,
@@ -278,10 +275,6 @@ class Settings(BaseSettings):
             self.queue_size = 4 * self.workers
         if self.jobs_running is None:
             self.jobs_running = max(1, self.workers // 2)
-        if self.worker_nice is None:
-            # measured on 2 cores (docs/operations.md): nice 5 gave +8-10 % small-plan
-            # throughput with 2 workers, and -3 % with 1 worker against nice 0
-            self.worker_nice = 5 if self.workers >= _cpu_count() else 0
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
         self._design_defaults = _parse_design(self.default_design)

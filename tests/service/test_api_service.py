@@ -67,20 +67,6 @@ def test_settings_from_environment(monkeypatch):
     assert (s.workers, s.max_batch, s.queue_size, s.api_key) == (3, 7, 12, None)
     monkeypatch.setenv("PLANNER_API_KEY", "k")
     assert Settings().api_key.get_secret_value() == "k"
-    # the workers' niceness: 5 when they take every usable CPU (the event loop shares a core
-    # with them), 0 when one is left to the loop; a given value is kept
-    cpus = len(os.sched_getaffinity(0))
-    monkeypatch.setenv("PLANNER_WORKERS", str(cpus))
-    assert Settings().worker_nice == 5
-    if cpus > 1:
-        monkeypatch.setenv("PLANNER_WORKERS", str(cpus - 1))
-        assert Settings().worker_nice == 0
-    monkeypatch.setenv("PLANNER_WORKER_NICE", "2")
-    assert Settings().worker_nice == 2
-    monkeypatch.setenv("PLANNER_WORKER_NICE", "20")
-    with pytest.raises(ValidationError, match="worker_nice"):
-        Settings()
-    monkeypatch.delenv("PLANNER_WORKER_NICE")
     monkeypatch.setenv("PLANNER_WORKERS", "0")
     with pytest.raises(ValidationError, match="workers"):
         Settings()
