@@ -60,12 +60,19 @@ def resident_bytes() -> int | None:
     """This process's resident memory now, bytes (``/proc/self/statm``; None where there is
     no such file). Not ``ru_maxrss``: that is the peak, which never comes down."""
     global _STATM
-    try:
-        if _STATM is None or _STATM[0] != os.getpid():
-            _STATM = (os.getpid(), os.open("/proc/self/statm", os.O_RDONLY | os.O_CLOEXEC))
-        return int(os.pread(_STATM[1], 256, 0).split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
-        return None
+    for _ in range(2):  # a descriptor gone bad (closed by someone) is opened again, once
+        try:
+            if _STATM is None or _STATM[0] != os.getpid():
+                if _STATM is not None:  # a forked child's copy reads its parent's file
+                    os.close(_STATM[1])
+                    _STATM = None
+                _STATM = (os.getpid(), os.open("/proc/self/statm", os.O_RDONLY | os.O_CLOEXEC))
+            return int(os.pread(_STATM[1], 256, 0).split()[1]) * os.sysconf("SC_PAGE_SIZE")
+        except OSError:
+            _STATM = None
+        except (ValueError, IndexError):  # pragma: no cover - not Linux's format
+            return None
+    return None  # pragma: no cover - no /proc here
 
 
 def _die_with_parent(parent_pid: int) -> None:

@@ -195,6 +195,9 @@ class WorkerPool:
             try:
                 request = self._spawn_requests.get(timeout=WARMING_REPORT_S)
             except queue.Empty:
+                if self._loop is not None and self._loop.is_closed():
+                    self._loop_gone()  # closed after a spawn handed it a worker to attach
+                    return
                 self._report_warming()
                 continue
             if request is None or self._stopping:
@@ -293,9 +296,17 @@ class WorkerPool:
         try:
             self._loop.call_soon_threadsafe(self._attach, worker)
         except RuntimeError:  # the loop is closed: the pool is gone with it, replace no one
-            self._stopping = True
-            process.kill()
-            threading.Thread(target=self._on_exit, args=(worker,), daemon=True).start()
+            self._loop_gone()
+
+    def _loop_gone(self) -> None:
+        """The event loop closed without a shutdown: nothing reads the workers any more. The
+        pool stops; its workers are killed and reaped (their pipes closed), none replaced."""
+        self._stopping = True
+        with self._lock:
+            workers = list(self._workers)
+        for w in workers:
+            w.process.kill()
+            threading.Thread(target=self._on_exit, args=(w,), daemon=True).start()
 
     def _in_loop(self) -> bool:
         return threading.get_ident() == self._loop_thread
@@ -560,6 +571,8 @@ class WorkerPool:
             if self._detach(w):
                 while self._take_answers(w):
                     pass
+                self._on_exit(w)
+            elif not w.answers.closed:  # never attached (its _attach was still queued)
                 self._on_exit(w)
         self._spawn_requests.put(None)
         if self._supervisor is not None:

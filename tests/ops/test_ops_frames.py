@@ -81,3 +81,28 @@ def test_resident_bytes_reads_fresh_memory_each_time():
     assert abs(grown - vm_rss()) < 4 * 2**20
     del block  # numpy gives a block this large back to the system at once
     assert resident_bytes() < grown - 60 * 2**20  # type: ignore[operator]
+
+
+def test_resident_bytes_survives_a_fork_and_a_closed_descriptor():
+    """A forked child reads its own memory, not its parent's (the descriptor it inherited
+    names the parent's file), and a descriptor closed under the reader is opened again."""
+    from planner_api import worker_process
+
+    assert resident_bytes() is not None
+    read_r, read_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: its reading must name its own /proc entry
+        try:
+            resident_bytes()
+            fd = worker_process._STATM[1]  # type: ignore[index]
+            ok = os.readlink(f"/proc/self/fd/{fd}") == f"/proc/{os.getpid()}/statm"
+            os.write(read_w, b"1" if ok else b"0")
+        finally:
+            os._exit(0)
+    os.close(read_w)
+    answer = os.read(read_r, 1)
+    os.waitpid(pid, 0)
+    os.close(read_r)
+    assert answer == b"1"
+    os.close(worker_process._STATM[1])  # type: ignore[index]
+    assert resident_bytes() is not None

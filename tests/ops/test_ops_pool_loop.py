@@ -2,19 +2,21 @@
 (what ``planner serve`` uses: uvicorn picks it when installed). The answers are read by the
 loop itself, so what a blocked or closed loop means is checked here: a deadline is kept even
 when the loop's timer fires early (uvloop rounds timers to milliseconds), a shutdown (which
-blocks the loop) still delivers the jobs that finish during its grace, small and large, and
-a pool whose loop is gone replaces no worker."""
+blocks the loop) still delivers the jobs that finish during its grace, small and large, a
+pool whose loop is gone replaces no worker (and stops the one it had started), and a worker
+started while a shutdown runs is stopped with its pipes."""
 
 from __future__ import annotations
 
 import asyncio
 import functools
-import multiprocessing
+import os
 import time
 
 import pytest
 import uvloop
 
+from planner_api import workers as workers_module
 from planner_api.exceptions import DeadlineExceededError
 from planner_api.workers import WorkerPool
 
@@ -96,13 +98,52 @@ def test_a_pool_whose_loop_is_gone_replaces_no_worker():
         return pool  # the loop closes at once, before the supervisor can attach a worker
 
     pool = asyncio.run(scenario())
-    time.sleep(3.0)
+    _until(lambda: pool.state == "stopping", "the pool never noticed its loop was gone")
+    time.sleep(3.0)  # a respawn loop would have spawned again by now
     assert pool.restarts == 0
-    assert pool.state == "stopping"
     pool.shutdown(timeout_s=1)
 
 
-def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes():
+def test_a_pool_whose_loop_closes_after_a_spawn_stops_its_worker(monkeypatch):
+    """The loop closes (without a shutdown) after the supervisor handed it a worker to
+    attach: no callback of that loop will ever run, so the supervisor, at its next look,
+    stops the pool and kills and reaps the worker, whose answers no one would read."""
+    monkeypatch.setattr(workers_module, "WARMING_REPORT_S", 0.2)
+
+    async def scenario() -> tuple[WorkerPool, list[int]]:
+        pool = WorkerPool(1, 0, warm_up=None)
+        await pool.start()
+        end = time.monotonic() + STARTUP_TIMEOUT_S
+        while not pool.pids:
+            assert time.monotonic() < end, "no worker was spawned"
+            await asyncio.sleep(0.01)
+        return pool, pool.pids
+
+    pool, pids = asyncio.run(scenario())
+    _until(lambda: pool.state == "stopping", "the pool never noticed its loop was gone")
+    _until(lambda: not pool.pids, "the worker was not taken off the pool")
+    _until(lambda: not any(map(_exists, pids)), "the worker was not killed and reaped")
+    assert pool.restarts == 0
+    pool.shutdown(timeout_s=1)
+
+
+def _exists(pid: int) -> bool:
+    """A process (a zombie too: not reaped yet) with this pid exists."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _until(condition, message: str) -> None:  # type: ignore[no-untyped-def]
+    end = time.monotonic() + STARTUP_TIMEOUT_S
+    while not condition():
+        assert time.monotonic() < end, message
+        time.sleep(0.05)
+
+
+def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes(monkeypatch):
     """The supervisor may be inside ``_spawn`` when a shutdown takes its list of workers (the
     race cannot be timed from outside, so the spawn is called after the shutdown, as the
     supervisor's would land): the late worker is not added to a pool nobody will stop again;
@@ -113,23 +154,27 @@ def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes():
         await pool.start()
         await _ready(pool)
         pool.shutdown(timeout_s=5)
-        before = set(multiprocessing.active_children())
         opened: list = []
-        real_pipe = pool._ctx.Pipe
+        started: list = []
+        real_pipe, real_process = pool._ctx.Pipe, pool._ctx.Process
 
         def pipe(duplex: bool = True):  # type: ignore[no-untyped-def]
             ends = real_pipe(duplex=duplex)
             opened.extend(ends)
             return ends
 
-        pool._ctx.Pipe = pipe  # type: ignore[method-assign]
-        try:
-            pool._spawn()
-        finally:
-            pool._ctx.Pipe = real_pipe  # type: ignore[method-assign]
+        def process(*args, **kwargs):  # type: ignore[no-untyped-def]
+            started.append(real_process(*args, **kwargs))
+            return started[-1]
+
+        monkeypatch.setattr(pool._ctx, "Pipe", pipe, raising=False)
+        monkeypatch.setattr(pool._ctx, "Process", process, raising=False)
+        pool._spawn()
+        monkeypatch.undo()
+        for name in ("Pipe", "Process"):  # undo leaves the class's attribute on the instance
+            vars(pool._ctx).pop(name, None)
         assert pool.pids == []
-        late = set(multiprocessing.active_children()) - before
-        assert not [p for p in late if p.is_alive()], "the late worker still runs"
+        assert len(started) == 1 and started[0].exitcode == -9, "the late worker was not killed"
         assert len(opened) == 4 and all(end.closed for end in opened)
 
     _run("asyncio", scenario)
