@@ -178,3 +178,23 @@ def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes(monkeypatc
         assert len(opened) == 4 and all(end.closed for end in opened)
 
     _run("asyncio", scenario)
+
+
+def test_a_shutdown_reaps_a_worker_whose_attach_never_ran():
+    """A worker spawned just before a shutdown has its ``_attach`` queued in the loop, which
+    the shutdown blocks: it is stopped all the same, taken off the pool and its pipes closed
+    (the spawn is called from the loop itself, so that its attach cannot run first)."""
+
+    async def scenario() -> None:
+        pool = WorkerPool(2, 0, warm_up=None)
+        await pool.start()
+        await _ready(pool)
+        pool._spawn()  # as the supervisor would: its attach now waits for the loop
+        late = pool._workers[-1]
+        assert not late.reading
+        pool.shutdown(timeout_s=5)
+        assert pool.pids == []
+        assert late.jobs.closed and late.answers.closed
+        assert not _exists(late.process.pid)  # type: ignore[arg-type]
+
+    _run("asyncio", scenario)
