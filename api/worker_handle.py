@@ -57,6 +57,9 @@ class Worker:
     replaces: Worker | None = field(default=None, repr=False)
     #: Resident memory after its last job when over the bound, bytes (None: never over).
     rss: int | None = None
+    #: Its exit is being handled (:meth:`planner_api.workers.WorkerPool._on_exit` runs once:
+    #: a second run would wait for the same process and close the same pipes twice).
+    exit_claimed: bool = False
 
     def take(self, chunk: bytes) -> list[bytes]:
         """The whole messages that ``chunk``, read from ``answers``, completes (in order);

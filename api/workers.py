@@ -304,6 +304,11 @@ class WorkerPool:
         self._stopping = True
         with self._lock:
             workers = list(self._workers)
+            waiting = list(self._pending)
+            self._closed = True  # the watchdog stops; a spawn under way kills its worker
+            self._wake.notify()
+        for job in waiting:
+            job.future.cancel()  # no worker will take it: a thread waiting on it is told
         for w in workers:
             w.process.kill()
             threading.Thread(target=self._on_exit, args=(w,), daemon=True).start()
@@ -437,6 +442,10 @@ class WorkerPool:
             pass
 
     def _on_exit(self, worker: Worker) -> None:
+        with self._lock:
+            if worker.exit_claimed:  # handled already (a shutdown and an exit thread both)
+                return
+            worker.exit_claimed = True
         worker.process.join(5.0)
         exit_text = describe_exit(worker.process.exitcode)
         with self._lock:

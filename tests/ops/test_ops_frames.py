@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import select
 import threading
 from multiprocessing.connection import Connection
 
@@ -89,18 +90,24 @@ def test_resident_bytes_survives_a_fork_and_a_closed_descriptor():
     from planner_api import worker_process
 
     assert resident_bytes() is not None
+    inherited = worker_process._STATM[1]  # type: ignore[index]
     read_r, read_w = os.pipe()
     pid = os.fork()
-    if pid == 0:  # the child: its reading must name its own /proc entry
+    if pid == 0:  # the child: syscalls only, then out
         try:
             resident_bytes()
             fd = worker_process._STATM[1]  # type: ignore[index]
-            ok = os.readlink(f"/proc/self/fd/{fd}") == f"/proc/{os.getpid()}/statm"
-            os.write(read_w, b"1" if ok else b"0")
+            own = os.readlink(f"/proc/self/fd/{fd}") == f"/proc/{os.getpid()}/statm"
+            try:  # the parent's descriptor is closed (or its number reused by the new one)
+                closed = fd == inherited or not os.fstat(inherited)
+            except OSError:
+                closed = True
+            os.write(read_w, b"1" if own and closed else b"0")
         finally:
             os._exit(0)
     os.close(read_w)
-    answer = os.read(read_r, 1)
+    ready, _, _ = select.select([read_r], [], [], 60.0)
+    answer = os.read(read_r, 1) if ready else b"timeout"
     os.waitpid(pid, 0)
     os.close(read_r)
     assert answer == b"1"

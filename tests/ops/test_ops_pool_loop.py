@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import functools
-import os
 import time
 
 import pytest
@@ -18,6 +17,7 @@ import uvloop
 
 from planner_api import workers as workers_module
 from planner_api.exceptions import DeadlineExceededError
+from planner_api.worker_handle import Worker
 from planner_api.workers import WorkerPool
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
@@ -110,30 +110,21 @@ def test_a_pool_whose_loop_closes_after_a_spawn_stops_its_worker(monkeypatch):
     stops the pool and kills and reaps the worker, whose answers no one would read."""
     monkeypatch.setattr(workers_module, "WARMING_REPORT_S", 0.2)
 
-    async def scenario() -> tuple[WorkerPool, list[int]]:
+    async def scenario() -> tuple[WorkerPool, Worker]:
         pool = WorkerPool(1, 0, warm_up=None)
         await pool.start()
         end = time.monotonic() + STARTUP_TIMEOUT_S
-        while not pool.pids:
-            assert time.monotonic() < end, "no worker was spawned"
+        while not (pool._workers and pool._workers[0].reading):  # attached: the loop's part
+            assert time.monotonic() < end, "no worker was attached"
             await asyncio.sleep(0.01)
-        return pool, pool.pids
+        return pool, pool._workers[0]
 
-    pool, pids = asyncio.run(scenario())
+    pool, worker = asyncio.run(scenario())
     _until(lambda: pool.state == "stopping", "the pool never noticed its loop was gone")
-    _until(lambda: not pool.pids, "the worker was not taken off the pool")
-    _until(lambda: not any(map(_exists, pids)), "the worker was not killed and reaped")
-    assert pool.restarts == 0
+    _until(lambda: worker.answers.closed, "the worker's exit was not handled")
+    assert worker.process.exitcode == -9 and worker.jobs.closed
+    assert pool.pids == [] and pool.restarts == 0
     pool.shutdown(timeout_s=1)
-
-
-def _exists(pid: int) -> bool:
-    """A process (a zombie too: not reaped yet) with this pid exists."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 def _until(condition, message: str) -> None:  # type: ignore[no-untyped-def]
@@ -195,6 +186,6 @@ def test_a_shutdown_reaps_a_worker_whose_attach_never_ran():
         pool.shutdown(timeout_s=5)
         assert pool.pids == []
         assert late.jobs.closed and late.answers.closed
-        assert not _exists(late.process.pid)  # type: ignore[arg-type]
+        assert late.process.exitcode is not None  # stopped and reaped
 
     _run("asyncio", scenario)
