@@ -189,3 +189,25 @@ def test_a_shutdown_reaps_a_worker_whose_attach_never_ran():
         assert late.process.exitcode is not None  # stopped and reaped
 
     _run("asyncio", scenario)
+
+
+def test_a_workers_exit_is_handled_once():
+    """Two paths can reach a worker's exit (the exit thread the loop starts, and a shutdown
+    that finds the worker unread): the second does nothing, so the process is not waited for
+    twice and its pipes are not closed twice from two threads (which could close a reused
+    descriptor number or raise EBADF out of the shutdown)."""
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 0, warm_up=None)
+        await pool.start()
+        await _ready(pool)
+        worker = pool._workers[0]
+        pool.shutdown(timeout_s=5)
+        assert worker.answers.closed
+        waits: list[object] = []
+        join = worker.process.join
+        worker.process.join = lambda *a: waits.append(a) or join(*a)  # type: ignore[method-assign]
+        pool._on_exit(worker)
+        assert waits == []
+
+    _run("asyncio", scenario)
