@@ -65,7 +65,6 @@ def resident_bytes() -> int | None:
             if _STATM is None or _STATM[0] != os.getpid():
                 if _STATM is not None:  # a forked child's copy reads its parent's file
                     os.close(_STATM[1])
-                    _STATM = None
                 _STATM = (os.getpid(), os.open("/proc/self/statm", os.O_RDONLY | os.O_CLOEXEC))
             return int(os.pread(_STATM[1], 256, 0).split()[1]) * os.sysconf("SC_PAGE_SIZE")
         except OSError:

@@ -580,9 +580,7 @@ class WorkerPool:
             if self._detach(w):
                 while self._take_answers(w):
                     pass
-                self._on_exit(w)
-            elif not w.answers.closed:  # never attached (its _attach was still queued)
-                self._on_exit(w)
+            self._on_exit(w)  # once per worker: one never attached too, a handled one not again
         self._spawn_requests.put(None)
         if self._supervisor is not None:
             self._supervisor.join(5.0)
