@@ -81,6 +81,21 @@ def test_gravity_at_the_start_breaking_a_limit() -> None:
     assert ok.solved and ok.trajectory.max_torque_ratio <= 1 + 1e-6
 
 
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_gravity_above_a_limit_where_the_joint_does_not_move(method: str) -> None:
+    """A path that moves theta2 and theta3 only, at theta1 = 0 (the plane horizontal), whose
+    middle needs 7.34 N m of gravity on theta1 against a 7 N m limit (5.07 at its ends): no
+    timing holds it, since theta1's torque does not depend on that motion. A
+    TimingInfeasibleError naming the joint, not toppra's ZeroDivisionError (its seidel LP
+    divided by that constraint row's zero norm: a 500 of /v1/sequence)."""
+    path = np.array([[0.0, 2.6, 0.5], [0.0, 1.7, 1.4], [0.0, 2.6, 0.5]])
+    limits = JointLimits(**FAST, torque=(7.0, 2.0, 2.0))
+    with pytest.raises(TimingInfeasibleError, match=r"tau1\| = 7\.\d+ N m"):
+        time_path(DESIGN, path, limits, method=method)
+    loose = time_path(DESIGN, path, JointLimits(**FAST, torque=(7.5, 2.0, 2.0)), method=method)
+    assert loose.max_torque_ratio is not None and loose.max_torque_ratio <= 1 + 1e-6
+
+
 @pytest.mark.parametrize("bad", [(0.0, 1.0, 1.0), (1.0, -2.0, 1.0), (1.0, float("nan"), 1.0)])
 def test_bad_torque_limits_are_named(bad: tuple[float, float, float]) -> None:
     with pytest.raises(LimitsError, match=r"limits\.torque\[") as info:

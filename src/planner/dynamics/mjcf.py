@@ -40,7 +40,9 @@ MIN_BODY_INERTIA = 1e-10
 
 
 def _f(x: float) -> str:
-    return f"{float(x):.12g}"
+    """A number as MJCF text: the shortest form that reads back as the same double (MuJoCo's
+    checks are exact: 12 digits once broke ``A + B >= C`` at ``I_axial = 2 I_perp``)."""
+    return repr(float(x))
 
 
 def _vec(*xs: float) -> str:
@@ -64,7 +66,10 @@ def mjcf_qpos(design: Design, q: np.ndarray, assembly_mode: str = "+") -> np.nda
 def _inertial(link: LinkInertia, length: float) -> str:
     m = max(link.mass, MIN_BODY_INERTIA)
     ip = max(link.I_perp, MIN_BODY_INERTIA)
-    ia = max(link.I_axial, MIN_BODY_INERTIA)
+    # the model accepts I_axial up to 2 I_perp (1 + 1e-12); MuJoCo's check of the triangle
+    # inequality (two moments sum to at least the third) is exact, so the axial moment is
+    # written at most 2 I_perp (a change of at most 1e-12 of it)
+    ia = min(max(link.I_axial, MIN_BODY_INERTIA), 2.0 * ip)
     # along the body's local +y: the axial moment is the y one
     return (
         f'<inertial pos="{_vec(0, link.com * length, 0)}" mass="{_f(m)}" '

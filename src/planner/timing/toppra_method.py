@@ -140,10 +140,32 @@ class _TorqueConstraint(toppra.constraint.LinearConstraint):
             raise TimingInfeasibleError(
                 "the path passes a parallel singularity: its torques are undefined"
             )
+        self._check_held(path(s, 0), a, b, c)
         f = np.vstack([np.eye(3), -np.eye(3)])
         g = np.concatenate([self._limit, self._limit]) * self._scale2
         return canlinear_colloc_to_interpolate(
             a, b, c * self._scale2, f, g, None, None, s, identical=True
+        )
+
+
+    def _check_held(self, q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
+        """Raise :class:`TimingInfeasibleError` where a joint's torque does not depend on
+        the motion at all (``a_j = b_j = 0``: e.g. theta1 on a piece that moves only theta2
+        and theta3, whose dynamics do not couple into it) and gravity alone needs more than
+        its limit: no speed along the path holds that posture. toppra's seidel LP cannot
+        say so (it divides by the zero row's norm: a ZeroDivisionError, once a 500)."""
+        scale = np.maximum(np.abs(a).max(axis=0), 1e-300)  # (3,): per-joint size of a
+        still = (np.abs(a) <= 1e-12 * scale) & (np.abs(b) <= 1e-12 * np.maximum(
+            np.abs(b).max(axis=0), scale))  # fmt: skip
+        over = still & (np.abs(c) > self._limit)
+        if not over.any():
+            return
+        i, j = (int(k) for k in np.argwhere(over)[0])
+        raise TimingInfeasibleError(
+            f"gravity alone needs |tau{j + 1}| = {abs(c[i, j]):.6g} N m at q = "
+            f"{np.round(q[i], 6).tolist()} on the path, above the torque limit "
+            f"{self._limit[j]:.6g} N m, and no motion along the path changes that torque "
+            "there: no timing can hold it"
         )
 
 
@@ -402,7 +424,13 @@ def solve_toppra(
         instance = toppra.algorithm.TOPPRA(
             constraints, section, gridpoints=grid, solver_wrapper="seidel"
         )
-        _, sd, _ = instance.compute_parameterization(0.0, 0.0)
+        try:
+            _, sd, _ = instance.compute_parameterization(0.0, 0.0)
+        except ZeroDivisionError as exc:  # the seidel LP met a zero constraint row
+            raise TimingInfeasibleError(
+                f"toppra found no profile for the path section s in [{s_start:.4g}, "
+                f"{s_end:.4g}] rad: its LP solver met a degenerate constraint ({exc})"
+            ) from exc
         code = instance.problem_data.return_code
         if sd is None or np.any(~np.isfinite(sd)):
             raise TimingInfeasibleError(
