@@ -147,7 +147,6 @@ class _TorqueConstraint(toppra.constraint.LinearConstraint):
             a, b, c * self._scale2, f, g, None, None, s, identical=True
         )
 
-
     def _check_held(self, q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
         """Raise :class:`TimingInfeasibleError` where a joint's torque does not depend on
         the motion at all (``a_j = b_j = 0``: e.g. theta1 on a piece that moves only theta2
