@@ -17,7 +17,7 @@ import pytest
 from planner import Design, SequenceTarget, solve_sequence
 from planner.exceptions import InputError
 from planner.geometry import Sphere
-from planner.kinematics import forward_batch, mode_label
+from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.planning import CartesianTarget, JointPosture, PlanStatus
 from planner.sequence import MAX_SEQUENCE_TARGETS
 from planner.sequence.modes import leg_lower_bound
@@ -178,14 +178,14 @@ def test_leg_lower_bound_is_the_time_optimal_single_joint_move():
         assert leg_lower_bound(w[0], w[-1], LIMITS, stop_a=True, stop_b=True) <= timed + 1e-9
 
 
-def _brute_force(targets, cycle):
-    """Every assignment of the start side's four modes, planned and timed as given."""
-    side = ["+++", "++-", "+-+", "+--"]
+def _brute_force(targets, cycle, design=DESIGN, start=START, **kwargs):
+    """Every assignment of the eight working modes (both sides of the axis), each planned and
+    timed as a "fixed" sequence: the cycle time of each (inf where it fails)."""
     out = {}
-    for modes in itertools.product(side, repeat=len(targets)):
+    for modes in itertools.product(WORKING_MODES, repeat=len(targets)):
         fixed = [SequenceTarget(CartesianTarget(t.goal.p, m), t.stop, t.blend)
                  for t, m in zip(targets, modes, strict=True)]  # fmt: skip
-        r = solve_sequence(DESIGN, START, fixed, cycle=cycle, objective="fixed")
+        r = solve_sequence(design, start, fixed, cycle=cycle, objective="fixed", **kwargs)
         out[modes] = r.cycle_time if r.solved else math.inf
     return out
 
@@ -205,7 +205,7 @@ def test_modes_chosen_for_time_are_the_brute_force_optimum(stop):
     assert r.diagnostics.modes[:2] == finite[0][1]
     assert r.diagnostics.extra["gap_s"] == 0.0
     # never slower than the best single mode for every target
-    single = min(brute[(m, m)] for m in ("+++", "++-", "+-+", "+--"))
+    single = min(brute[(m, m)] for m in WORKING_MODES)
     assert r.cycle_time <= single + 1e-9
     # the runner-up named in the message is a real assignment's cycle time
     runner_modes, runner_time = r.diagnostics.runner_up
@@ -213,6 +213,30 @@ def test_modes_chosen_for_time_are_the_brute_force_optimum(stop):
     assert "runner-up" in r.message and "working modes chosen for time" in r.message
     # fewer assignments evaluated than brute force
     assert r.diagnostics.estimates < len(brute)
+
+
+def test_the_mode_choice_for_time_crosses_the_axis_where_that_is_quicker():
+    """Issue 36: the quickest cycle leaves the start's side of the axis AB (the second target
+    in -+- from a start in ++-, through a transit with P on the axis). The search considers
+    both sides: its answer is brute force's best over all 64 assignments, and its proven gap
+    is 0."""
+    design = Design(0.2631, 0.3318, 0.4083, link_radius=0.01)
+    start = JointPosture([-1.5538, 0.7407, -2.9145], "-")
+    kwargs = {
+        "margins": Margins(kappa_max=10, serial_min=0.05, clearance=0.01),
+        "limits": JointLimits(velocity=(2, 2, 2), acceleration=(10, 10, 10)),
+    }
+    targets = [SequenceTarget(CartesianTarget(np.array(p))) for p in
+               ([0.0055, -0.2827, 0.3529], [0.0055, -0.5047, 0.3529])]  # fmt: skip
+    brute = _brute_force(targets, True, design, start, **kwargs)
+    best_time, best_modes = min((v, k) for k, v in brute.items())
+    assert best_modes[0][0] != best_modes[1][0]  # the best assignment crosses the axis
+    r = solve_sequence(design, start, targets, cycle=True, objective="time", **kwargs)
+    assert r.solved, r.message
+    assert r.cycle_time == pytest.approx(best_time, rel=1e-9)
+    assert r.diagnostics.modes[:2] == best_modes
+    assert r.diagnostics.extra["gap_s"] == 0.0
+    assert r.diagnostics.estimates < sum(math.isfinite(v) for v in brute.values())
 
 
 def test_a_target_where_the_path_turns_back_is_a_stop():

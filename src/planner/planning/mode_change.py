@@ -103,6 +103,7 @@ class _ModeChangeSearch:
     ) -> None:
         self.design, self.asm, self.margins = design, asm, margins
         self.rmap = rmap  # the region map guiding the search (None: sampled transits only)
+        self._map = rmap  # the design's map, kept for :meth:`guided` after :meth:`unguided`
         self.obstacles = tuple(obstacles)
         self.options, self.deadline = options, deadline
         self.rng = np.random.default_rng(options.seed)
@@ -122,6 +123,17 @@ class _ModeChangeSearch:
         for key in self.map_pools:
             del self._pools[key]
         self.map_pools.clear()
+        self._crossings.clear()
+
+    def guided(self) -> None:
+        """From now on transit postures come from the region map again (after
+        :meth:`unguided`): a region walk needs the map's transits between its regions. The
+        sampled pools are dropped (kept: the failed segments, so none is searched twice at
+        one budget)."""
+        if self.rmap is self._map:
+            return
+        self.rmap = self._map
+        self._pools.clear()
         self._crossings.clear()
 
     def checker(self, mode: str) -> ValidityChecker:
@@ -434,13 +446,21 @@ def plan_mode_change(
         if rmap is not None
         else []
     )
+
+    def modes_of(walk: tuple[int, ...]) -> tuple[str, ...]:
+        assert rmap is not None
+        return tuple(rmap.regions[r].working_mode for r in walk)
+
     search.share = ROUND_SHARES[0]
     for walk in walks_by_region:
         if time.perf_counter() > deadline:
             break
-        solved = attempt(tuple(rmap.regions[r].working_mode for r in walk), walk)
+        solved = attempt(modes_of(walk), walk)
         if solved is not None:
             return solved
+    # walks that come back to a mode (a detour to another region of the start's mode, say):
+    # no mode sequence expresses them, so they are tried again at every longer share
+    returning = [w for w in walks_by_region if len(set(modes_of(w))) < len(w)]
     seqs = mode_sequences(start_mode, list(targets))
     if rmap is not None:  # walks the region map's transit graph cannot realise go (all
         # kept when none is left: longer walks than these may exist, the search says so)
@@ -452,7 +472,7 @@ def plan_mode_change(
         if np.isfinite(est):
             ranked.append((len(seq), est, seq))
     ranked.sort(key=lambda x: (x[0], x[1]))
-    if not ranked:
+    if not ranked and not returning:
         reasons = sorted(set(search.pool_reasons.values()))
         return PlanResult(
             PlanStatus.UNREACHABLE,
@@ -470,6 +490,14 @@ def plan_mode_change(
         rounds = [(ROUND_SHARES[0], True), *rounds]
     for share, guided in rounds:
         search.share = share
+        if share > ROUND_SHARES[0] and returning:
+            search.guided()
+            for walk in returning:
+                if time.perf_counter() > deadline:
+                    break
+                solved = attempt(modes_of(walk), walk)
+                if solved is not None:
+                    return solved
         if not guided and search.rmap is not None:
             search.unguided()
         for _, _, seq in ranked:
@@ -479,13 +507,24 @@ def plan_mode_change(
             if solved is not None:
                 return solved
     n_seqs = len({seq for _, _, seq in ranked} | tried)
+    walks = ""
+    if walks_by_region:
+        shown = "; ".join(_walk_text(rmap, w) for w in walks_by_region[:3])
+        more = f" and {len(walks_by_region) - 3} more" if len(walks_by_region) > 3 else ""
+        walks = f"; region walks of the design's map tried: {shown}{more}"
     return PlanResult(
         PlanStatus.NO_PATH,
         f"no path found within {options.time_budget_s:g} s through transits "
-        f"({len(tried)} of {n_seqs} mode sequences tried)",
+        f"({len(tried)} of {n_seqs} mode sequences tried{walks})",
         None,
         Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
     )
+
+
+def _walk_text(rmap: region_maps.RegionMap | None, walk: tuple[int, ...]) -> str:
+    """A region walk for a message: 'region 26 (-+-) -> region 30 (++-) -> ...'."""
+    assert rmap is not None
+    return " -> ".join(f"region {r} ({rmap.regions[r].working_mode})" for r in walk)
 
 
 def estimated_transit_length(

@@ -198,9 +198,61 @@ class _Request:
         self._asked.append(goals)
         return disprove_with_map(self.region_map(), self.start, goals, self.t0)
 
+    def elsewhere(self, mode: str, goals: np.ndarray) -> str | None:
+        """Why no path inside working mode ``mode`` joins the start to any of the goal
+        candidates ``goals`` (K, 3) of that mode, when the region map shows it: the map
+        places the start and every goal, and no region of ``mode`` holds both (each region is
+        a connected over-approximation of the mode's valid postures, so a path that stays in
+        the mode stays in one region). None when the map cannot say (no map, a posture it
+        cannot place) or a region holds both: the single-mode search is worth running.
+
+        The dispatcher then plans through transits at once (the detour through other modes
+        that joins the two regions, :func:`planner.planning.region_walks.region_walks`)
+        rather than spend the budget on a search that cannot succeed."""
+        rmap = self.region_map()
+        if rmap is None or len(goals) == 0:
+            return None
+        asm = self.start.assembly_mode
+
+        def ids(q: np.ndarray) -> set[int]:
+            return {r.id for r in region_maps.regions_at(rmap, q, asm) if r.working_mode == mode}
+
+        here = ids(self.start.q)
+        there = [ids(g) for g in goals]
+        if not here or not all(there) or any(here & t for t in there):
+            return None
+        return (
+            f"the start lies in region {_ids(here)} of working mode {mode} and the goal in "
+            f"region {_ids(set().union(*there))}, which no path inside the mode joins "
+            f"(design region map, {rmap.n} cells)"
+        )
+
     def start_mode(self) -> str | None:
         """The start's working mode (None where it is undefined)."""
         return posture_mode(self.design, self.start)
+
+    def disproof_or_detour(self, goals: np.ndarray) -> PlanResult | None:
+        """The single-mode planner's ``before_search`` for a goal in the start's mode (joint
+        posture, or Cartesian target in that mode), ``goals`` (K, 3) all its candidates: the
+        region map's proof (:meth:`disproof`); else, when the goals lie in other regions of
+        the mode than the start (:meth:`elsewhere`), the plan through transits
+        (:meth:`detour`); else None (the search runs)."""
+        proof = self.disproof(goals)
+        mode = self.start_mode()
+        if proof is not None or mode is None:
+            return proof
+        why = self.elsewhere(mode, goals)
+        return None if why is None else self.detour(mode, {mode: goals}, why)
+
+    def detour(self, mode: str, targets: dict[str, np.ndarray], why: str) -> PlanResult:
+        """The plan through transits from the start's ``mode`` to the goal candidates
+        ``targets`` (mode -> (K, 3), all the candidates the request allows, ``mode``'s own
+        among them), when :meth:`elsewhere` said ``why`` no path inside ``mode`` joins the
+        start to its own; the answer's message says it too."""
+        res = self.mode_change(mode, targets)
+        if res.diagnostics.proven_infeasible:
+            return res
+        return replace(res, message=f"{res.message}; {why}")
 
     def mode_change(
         self, start_mode: str, targets: dict[str, np.ndarray], *, prove: bool = True
@@ -264,8 +316,11 @@ class _Request:
 def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
     """A joint goal: the single-mode plan, or through transits when the goal lies in another
     working mode of the start's assembly mode (the single-mode planner answers every other
-    case, checks and messages included, at no extra cost)."""
-    first = request.single_mode(goal)
+    case, checks and messages included, at no extra cost). A goal in the start's mode but
+    in another region of it (:meth:`_Request.elsewhere`) is planned through transits at
+    once: the detour through other modes, back to the start's."""
+
+    first = request.single_mode(goal, before_search=request.disproof_or_detour)
     if first.status is not PlanStatus.UNREACHABLE:
         return first
     start_mode = request.start_mode()
@@ -282,8 +337,10 @@ def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
 
 def _plan_to_point_in_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
     """A Cartesian target in a given working mode: the single-mode plan, or through
-    transits when that mode is not the start's."""
-    first = request.single_mode(goal)
+    transits when that mode is not the start's, or when it is but the goal's candidates lie
+    in other regions of it than the start (as for a joint goal)."""
+
+    first = request.single_mode(goal, before_search=request.disproof_or_detour)
     if first.status is not PlanStatus.UNREACHABLE:
         return first
     start_mode = request.start_mode()
@@ -300,17 +357,30 @@ def _plan_to_point_in_mode(request: _Request, goal: CartesianTarget) -> PlanResu
 def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
     """A Cartesian target in working mode 'any': the start's mode first with half the
     budget, then through transits to the other modes when that fails, or when their
-    estimate is shorter than :data:`BETTER_RATIO` times the single-mode path."""
+    estimate is shorter than :data:`BETTER_RATIO` times the single-mode path. When the start's
+    own candidates lie in other regions of its mode (:meth:`_Request.elsewhere`), no
+    single-mode search runs: the plan goes through transits to every mode's candidates, the
+    start's mode included (a detour back to it)."""
     start_mode = request.start_mode()
+    detoured = False
 
     def every_mode_disproof(cands: np.ndarray) -> PlanResult | None:
         # the proof must cover the goal's candidates in every working mode, not only the
         # start's ``cands``
+        nonlocal detoured
         targets, _ = request.goal_candidates(goal.p, [m for m in WORKING_MODES if m != start_mode])
-        return request.disproof(np.vstack([cands, *targets.values()]))
+        proof = request.disproof(np.vstack([cands, *targets.values()]))
+        assert start_mode is not None  # the single-mode planner checked the start
+        why = request.elsewhere(start_mode, cands) if proof is None else None
+        if why is None:
+            return proof
+        detoured = True
+        return request.detour(start_mode, {start_mode: cands, **targets}, why)
 
     first = request.single_mode(goal, share=0.5, before_search=every_mode_disproof)
     if first.status is PlanStatus.INVALID_START or first.diagnostics.proven_infeasible:
+        return first
+    if detoured:
         return first
     if start_mode is None:  # pragma: no cover - the single-mode planner said invalid_start
         return first
@@ -336,6 +406,11 @@ def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> Plan
     if other.solved or first.status is PlanStatus.UNREACHABLE:
         return other
     return other if other.status is PlanStatus.NO_PATH else first
+
+
+def _ids(ids: set[int]) -> str:
+    """Region ids for a message: '25' or '25 or 27'."""
+    return " or ".join(str(i) for i in sorted(ids))
 
 
 def _in_mode(mode: str, why: str) -> str:

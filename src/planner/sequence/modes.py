@@ -6,9 +6,10 @@ depends on the modes at both of its ends, and on whether the trajectory stops th
 search is exact with respect to what it evaluates:
 
 1. **candidates**: per target, the modes whose inverse-kinematics posture is valid (the
-   plan's rules: joint limits, margins, obstacles), on the start's side of the axis AB
-   (another ``s_axis`` needs P on the axis itself); a joint goal, or a target with a given
-   mode, has one candidate;
+   plan's rules: joint limits, margins, obstacles), on both sides of the axis AB (a leg
+   into another ``s_axis`` crosses it through a transit with P on the axis, which the
+   plan finds; the quickest cycle often does, issue 36); a joint goal, or a target with a
+   given mode, has one candidate;
 2. **lower bounds**: every leg between two candidate postures gets a bound no motion can
    beat (:func:`leg_lower_bound`): per joint, the least time to cover its displacement
    under its velocity and acceleration limits, from rest and to rest where the trajectory
@@ -24,11 +25,18 @@ search is exact with respect to what it evaluates:
    until the next assignment's bound is no smaller than the best real cycle time found: no
    assignment left can beat it, so the best found is the optimum over every assignment (of
    the cycle times the planner and the timing give). At most :data:`MAX_REFINED` are
-   evaluated; if that cap stops the search first, ``diagnostics.extra["gap_s"]`` is how
-   far the answer may be from the optimum (best real time less the smallest bound left).
+   evaluated.
 
-At least two assignments are evaluated when two exist, so that the runner-up's cycle time is
-a real one (the message names it).
+``diagnostics.extra["gap_s"]`` is what the search proves, never more: the best real cycle
+time less the least bound it did not beat, over the assignments left when it stopped (the
+cap or the deadline) and those whose plan failed without a proof (a longer search might
+solve them; a goal proven unreachable or a leg proven to have no path is out for good). 0
+means the choice is proven the best; absent without timing (``method`` "none": only bounds
+were compared).
+
+At least two solved assignments are evaluated when two exist (within the cap), so that the
+runner-up's cycle time is a real one (the message names it; none when no other assignment
+was solved).
 """
 
 from __future__ import annotations
@@ -114,8 +122,7 @@ def _candidates(
     if goal.working_mode != "any":
         modes = [goal.working_mode]
     else:
-        side = (posture_mode(design, start) or "+")[0]
-        modes = [m for m in WORKING_MODES if m[0] == side]
+        modes = list(WORKING_MODES)
     out = []
     for mode in modes:
         checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, mode)
@@ -171,6 +178,15 @@ def assignment_bounds(
             heapq.heappush(heap, (g2 + h[i][b], g2, (*prefix, b)))
 
 
+def _proven_out(result: SequenceResult) -> bool:
+    """Whether a failed assignment can never be solved: a leg's goal unreachable or
+    invalid, or a leg proven to have no path. A budget that ran out proves nothing, nor does
+    a timing that failed (another path of the same modes might be timed)."""
+    if result.status in (PlanStatus.UNREACHABLE, PlanStatus.INVALID_GOAL, PlanStatus.INVALID_START):
+        return True
+    return any(leg.plan.diagnostics.proven_infeasible for leg in result.legs)
+
+
 def choose_modes(
     design: Design,
     start: JointPosture,
@@ -205,17 +221,22 @@ def choose_modes(
     refused: InputError | None = None
     attempts = 0
     evaluated: list[tuple[float, tuple[str, ...], SequenceResult]] = []
-    gap, first_bound = 0.0, math.nan
+    first_bound = math.nan
+    # the least bound of the assignments not evaluated (inf: none left), and the bounds of
+    # those whose plan failed without a proof (a longer search might still solve them)
+    rest, unproven = math.inf, []
     for bound, assignment in assignment_bounds(np.asarray(start.q), layers, stops, blends, limits):
         if math.isnan(first_bound):
             first_bound = bound
         best = min((e[0] for e in evaluated), default=math.inf)
-        if len(evaluated) >= 2 and bound >= best:
-            break  # no assignment left can beat the best: it is the optimum
+        solved = sum(math.isfinite(e[0]) for e in evaluated)
+        if solved >= 2 and bound >= best:
+            rest = bound  # no assignment left can beat the best
+            break
         attempts += 1
         over = len(evaluated) >= MAX_REFINED or attempts > 4 * MAX_REFINED
         if over or (deadline is not None and time.monotonic() > deadline):
-            gap = max(best - bound, 0.0)
+            rest = bound
             break
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
         try:
@@ -231,6 +252,8 @@ def choose_modes(
         cost = result.cycle_time if result.solved else math.inf
         if timing.method == "none" and result.status is PlanStatus.SOLVED:
             cost = bound  # no timing asked: the bound is all there is to compare
+        if not result.solved and not _proven_out(result):
+            unproven.append(bound)
         evaluated.append((cost, tuple(c.mode for c in chosen), result))
     if not evaluated:
         assert refused is not None
@@ -249,13 +272,16 @@ def choose_modes(
     runner = next(((shown_modes(e[1]), e[0]) for e in evaluated[1:] if math.isfinite(e[0])), None)
     extra = {"runner_up": runner, "estimates": len(evaluated)}
     shown = shown_modes(modes)
+    # what the search proves: no assignment's cycle (as planned and timed) is shorter than
+    # the least of the bounds it did not beat; without timing it compared bounds only
+    proven = {} if timing.method == "none" else {"gap_s": max(cost - min([rest, *unproven]), 0.0)}
     diagnostics = replace(
         result.diagnostics,
         planning_time_s=time.perf_counter() - t0 - result.diagnostics.timing_time_s,
         modes=shown,
         runner_up=runner,
         estimates=len(evaluated),
-        extra={**result.diagnostics.extra, "gap_s": gap, "bound_s": first_bound},
+        extra={**result.diagnostics.extra, **proven, "bound_s": first_bound},
     )
     duration = result.cycle_time if result.trajectory is not None else None
     turning = result.diagnostics.extra.get("turning", ())

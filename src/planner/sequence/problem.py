@@ -92,8 +92,10 @@ class SequenceDiagnostics:
     assignments the mode search planned and timed), ``stopped_targets`` (pass-through
     targets where the trajectory comes to rest: the path turns back there, or the timing's
     repairs had to stop), ``extra``: ``turning`` (those where the path turns back), and from
-    the mode search ``gap_s`` (how far the answer may be from the optimum, s; 0 when proven)
-    and ``bound_s`` (the best assignment's lower bound, s)."""
+    the mode search ``gap_s`` (what it proves: no assignment of modes, planned and timed, is
+    more than this much shorter, s; 0 when the choice is proven the best; absent without
+    timing, where only bounds were compared) and ``bound_s`` (the least lower bound of any
+    assignment, s: no motion through the targets is faster)."""
 
     planning_time_s: float = 0.0
     timing_time_s: float = 0.0

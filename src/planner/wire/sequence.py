@@ -153,7 +153,10 @@ class SequenceDiagnosticsModel(DiagnosticsModel):
         0, ge=0, description="Mode assignments planned and timed by the search."
     )
     optimality_gap_s: float | None = Field(
-        None, description="How far the answer may be from the optimal assignment, s (0: proven)."
+        None,
+        description="What the mode search proves: no other assignment of working modes, "
+        "planned and timed, is more than this much shorter, s (0: the choice is proven the "
+        "best; null when it proves none, e.g. without timing).",
     )
     stopped_targets: list[int] = Field(
         default_factory=list,
