@@ -141,6 +141,6 @@ def test_torque_grid_bounds_both_sides_of_arc_junctions(monkeypatch) -> None:
         assert np.any((grid > b) & (grid < b + 0.01 * (path.s0[k + 2] - b)))
     assert peak_ratio() <= 1.01
     plain = tm.section_grid
-    monkeypatch.setattr(tm, "section_grid", lambda p, lo, hi, refine=1, arc_junctions=False:
-                        plain(p, lo, hi, refine))  # fmt: skip
+    monkeypatch.setattr(tm, "section_grid", lambda p, lo, hi, refine=1, arc_junctions=False,
+                        arc_refine=1: plain(p, lo, hi, refine, arc_refine=arc_refine))  # fmt: skip
     assert peak_ratio() > 1.03

@@ -45,7 +45,9 @@ def first_half_bound(w: np.ndarray, blends: np.ndarray, lim: JointLimits) -> flo
     return rest_to_rest(w[0, 2] - low, v, a) + rest_to_rest(w[3, 2] - low, v, a)
 
 
-@pytest.mark.parametrize(("method", "gain"), [("toppra", 0.10), ("ruckig", 0.03)])
+# toppra's gain over its own arcs: 10 % on the grid of before issue 36, 8.3 % since the arcs
+# themselves are timed on a finer grid (0.8878 -> 0.8692 s, 2.1 % shorter; the vias 0.796 s)
+@pytest.mark.parametrize(("method", "gain"), [("toppra", 0.07), ("ruckig", 0.03)])
 def test_vias_pass_within_each_ball_within_the_limits(method, gain):
     arcs = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS)
     traj = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS, via_at=[1, 2])

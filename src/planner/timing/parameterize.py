@@ -2,7 +2,7 @@
 
 Steps, each a function that :func:`time_path` calls in turn:
 
-1. validate the inputs (typed errors naming the field): :func:`_validate_inputs`;
+1. validate the inputs (typed errors naming the field): :func:`planner.timing.job.validate_inputs`;
 2. blend the polyline's corners (:class:`~planner.timing.path.BlendedPath`) within
    ``max_deviation``, keeping the ``stop_at`` vertices as rest points:
    :func:`_build_blended_path`;
@@ -25,7 +25,10 @@ Steps, each a function that :func:`time_path` calls in turn:
    a failure on the planned segments themselves cannot be repaired by timing: it raises
    :class:`~planner.exceptions.TrajectoryCheckError` at once, as does a failure left after the
    last repair. A trajectory is never returned without passing the check;
-6. sample the checked curve, ends exact: :func:`_result`.
+6. sample the checked curve, ends exact: :func:`_result`;
+7. with torque limits, also the velocity-only timing slowed down uniformly until the torques
+   hold (:func:`_slowed_velocity_only`), and the quicker of the two is the answer: a
+   torque-limited timing is never slower than that floor.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -43,11 +46,10 @@ from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia
 from planner.exceptions import (
     InputError,
-    LimitsError,
+    TimingError,
     TimingInfeasibleError,
     TrajectoryCheckError,
 )
-from planner.kinematics import ASSEMBLY_MODES
 from planner.timing.checks import (
     LIMIT_RTOL,
     CheckReport,
@@ -55,8 +57,9 @@ from planner.timing.checks import (
     dense_check,
     torque_check_times,
 )
-from planner.timing.limits import MAX_RATE, MIN_RATE, JointLimits
-from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ, METHODS
+from planner.timing.job import MAX_OUTPUT_SAMPLES, TimingJob, validate_inputs
+from planner.timing.limits import JointLimits
+from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ
 from planner.timing.path import BlendedPath
 from planner.timing.ruckig_method import (
     SEED_REFINE,
@@ -71,7 +74,7 @@ from planner.timing.toppra_method import (
     min_blend_radius,
     solve_toppra,
 )
-from planner.timing.torque import TorqueModel, gravity_excess, torque_time_scale
+from planner.timing.torque import TorqueModel, torque_time_scale
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -94,8 +97,6 @@ logger = logging.getLogger(__name__)
 
 #: Largest joint-space step between two postures of the dense re-check, rad.
 DEFAULT_CHECK_RESOLUTION = 0.01
-#: Most output samples of one trajectory.
-MAX_OUTPUT_SAMPLES = 1_000_000
 #: Repair rounds before giving up (3 blend shrinks per corner, and limit rescaling).
 MAX_REPAIRS = 6
 #: A corner's blend shrinks by this factor per repair; below ``max_deviation / 16`` it stops.
@@ -107,71 +108,21 @@ _SHRINK_STEPS = 2
 #: fitted profile is kept.
 _TORQUE_REFINES = 2
 _TORQUE_REFINE_BELOW = 1.02
+#: toppra's own method solves on a grid this much finer than ``LINE_STEP`` / ``ARC_STEP`` of
+#: :mod:`planner.timing.toppra_method` (lines), and its blends ``TOPPRA_ARC_REFINE`` finer
+#: still: the profile's constraints hold at grid points and its switches are quantised by
+#: the grid, so a coarse grid is slow, and most of the loss is on the blends, where the
+#: bounds dip and turn. With neither, the velocity-only profile was 0.6-5 % above the
+#: optimum of a 128x finer grid (issue 36, 30 random three-corner paths; median 1.2 %); with
+#: both (4 and 4: blends 16x) at most 0.24 % (median 0.06 %) for 2.3x the solve time
+#: (``tests/timing/test_timing_optimality.py`` holds it within 0.5 %). ruckig's through-states
+#: keep their own coarse grid (:data:`~planner.timing.ruckig_method.SEED_REFINE`).
+TOPPRA_REFINE = 4
+TOPPRA_ARC_REFINE = 4
 #: The time scaling of a toppra profile aims this far (relative) inside the limits, so the
 #: output samples, which fall between the fitted positions, pass too (the excess found there
 #: was at most 2e-4 on the benchmark paths).
 _FIT_MARGIN = 1e-3
-
-
-def _waypoints(design: Design, waypoints: object) -> np.ndarray:
-    try:
-        w = np.asarray(waypoints, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"waypoints must be numbers, got {waypoints!r}", field="waypoints"
-        ) from exc
-    if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 1:
-        raise InputError(
-            f"waypoints must have shape (N, 3) with N >= 1, got {w.shape}", field="waypoints"
-        )
-    if not np.all(np.isfinite(w)):
-        raise InputError("waypoints must be finite (no NaN or infinity)", field="waypoints")
-    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
-    out = np.any((w < lo) | (w > hi), axis=1)
-    if np.any(out):
-        i = int(np.argmax(out))
-        raise InputError(
-            f"waypoints[{i}] = {w[i].tolist()} is outside the joint limits "
-            f"[{list(design.joint_min)}, {list(design.joint_max)}]",
-            field="waypoints",
-        )
-    return w
-
-
-def _positive(name: str, value: object) -> float:
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a number, got {value!r}", field=name) from exc
-    if not (math.isfinite(x) and x > 0):
-        raise InputError(f"{name} must be a positive finite number, got {value!r}", field=name)
-    return x
-
-
-def _stop_mask(stop_at: Iterable[int], n: int) -> np.ndarray:
-    mask = np.zeros(n, bool)
-    for i in stop_at:
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
-            raise InputError(
-                f"stop_at must hold waypoint indices in [0, {n}), got {i!r}", field="stop_at"
-            )
-        mask[int(i)] = True
-    return mask
-
-
-def _deviation(value: object, n: int) -> np.ndarray:
-    try:
-        dev = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"max_deviation must be a number or {n} numbers (one per waypoint), got {value!r}",
-            field="max_deviation",
-        ) from exc
-    if not np.all(np.isfinite(dev) & (dev >= 0)):
-        raise InputError(
-            f"max_deviation must be finite and >= 0, got {value!r}", field="max_deviation"
-        )
-    return dev
 
 
 def _fit_time_scale(
@@ -235,7 +186,7 @@ def _fit_cartesian_speed(
     return TimeScaledCurve(curve, target / peak)
 
 
-def _fit_torque(curve: Curve, job: _Job) -> Curve:
+def _fit_torque(curve: Curve, job: TimingJob) -> Curve:
     """A ruckig chain slowed uniformly in time just enough that the torque limits hold at
     the check times (the through-states come from a torque-limited toppra profile, but the
     jerk-limited moves between them may overshoot): the dynamic part of the torques scales
@@ -249,7 +200,7 @@ def _fit_torque(curve: Curve, job: _Job) -> Curve:
     return curve if c >= 1.0 else TimeScaledCurve(curve, c)
 
 
-def _torque_slow_down(curve: Curve, job: _Job, report: CheckReport) -> float:
+def _torque_slow_down(curve: Curve, job: TimingJob, report: CheckReport) -> float:
     """The uniform slow-down that brings the torques of the failed check back within the
     limits (1 without torque limits)."""
     if job.torque is None or job.limits.torque is None:
@@ -386,55 +337,86 @@ def time_path(
         ``deadline`` passed.
     """
     t_start = time.perf_counter()
-    job = _validate_inputs(
+    job = validate_inputs(
         design, waypoints, limits, method, assembly_mode, sample_rate_hz,
         max_cartesian_speed, max_deviation, stop_at, check_resolution, check_states,
         deadline, max_samples, inertia, gravity, via_at,
     )  # fmt: skip
+    if job.limits.torque is None:
+        return _timed(job, t_start)[0]
+    # with torque limits: the torque-limited timing, or the velocity-only one slowed down
+    # uniformly until the torques hold, whichever is quicker (step 7)
+    limited: Trajectory | None = None
+    error: TimingError | None = None
+    try:
+        limited = _timed(job, t_start)[0]
+    except (TimingInfeasibleError, TrajectoryCheckError) as exc:
+        error = exc
+    slowed = _slowed_velocity_only(job, t_start)
+    if limited is None and slowed is None:
+        assert error is not None
+        raise error
+    best = min((x for x in (limited, slowed) if x is not None), key=lambda x: x.duration)
+    return replace(best, computation_time_s=time.perf_counter() - t_start)
+
+
+def _timed(job: TimingJob, t_start: float) -> tuple[Trajectory, _State]:
+    """Steps 2 to 6: the trajectory of ``job`` that passes the dense re-check, and the state
+    the repairs left (its path, blends shrunk where they had to)."""
     state = _build_blended_path(job)
     while True:
-        check_deadline(deadline, "while timing the path")
+        check_deadline(job.deadline, "while timing the path")
         curve = _time_by_method(job, state)
         t_out = _output_times(job, curve)
-        check_deadline(deadline, "before the dense re-check")
+        check_deadline(job.deadline, "before the dense re-check")
         report = _dense_check(job, state, curve, t_out)
         if report.ok:
             break
         _repair(job, state, curve, report)
-    return _result(job, state, curve, report, t_out, t_start)
+    return _result(job, state, curve, report, t_out, t_start), state
 
 
-@dataclass(frozen=True, eq=False)
-class _Job:
-    """The validated inputs of one :func:`time_path` call (see its parameters)."""
+#: Uniform slow-downs tried by :func:`_slowed_velocity_only` (each from the re-check's
+#: measured torques: the first one aims inside the limits, so one is the usual count).
+_SLOWED_TRIES = 3
 
-    design: Design
-    waypoints: np.ndarray
-    limits: JointLimits
-    method: str
-    assembly_mode: str
-    rate: float
-    v_cart: float | None
-    max_deviation: np.ndarray
-    stop: np.ndarray
-    check_states: StateChecker | None
-    resolution: float
-    deadline: float | None
-    max_samples: int
-    torque: TorqueModel | None = None
-    via: np.ndarray | None = None
 
-    def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
-        """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
-        if self.v_cart is None:
+def _slowed_velocity_only(job: TimingJob, t_start: float) -> Trajectory | None:
+    """Step 7, with torque limits: the job timed without them (velocity, acceleration,
+    jerk, Cartesian speed; same path, blends and checks), then slowed uniformly in time by
+    the largest factor c that brings every torque within its limit (the dynamic part scales
+    by c^2, :func:`~planner.timing.torque.torque_time_scale`; every other limit still holds)
+    and re-checked densely with the torques. The torque-limited timing is meant to beat it,
+    but where the second-order constraint's grid or a ruckig chain's fit costs more, this one
+    is the floor: no answer is slower than a uniform slow-down of the velocity-only
+    trajectory (issue 36). None when it cannot be built (gravity above a limit, a failed
+    check)."""
+    free = replace(job, limits=replace(job.limits, torque=None))
+    try:
+        base, state = _timed(free, t_start)
+    except (TimingInfeasibleError, TrajectoryCheckError):
+        return None
+    curve: Curve = base.curve
+    t = np.union1d(curve.check_times(job.resolution), torque_check_times(curve.duration))
+    for _ in range(_SLOWED_TRIES):
+        check_deadline(job.deadline, "while slowing the velocity-only timing")
+        q, qd, qdd, _ = curve.evaluate(t)
+        assert job.torque is not None
+        dyn, grav = job.torque.split(q, qd, qdd)
+        try:
+            c = torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
+        except TimingInfeasibleError:
             return None
-
-        def gain(s: np.ndarray) -> np.ndarray:
-            q, d1, _ = path.evaluate_all(s)
-            _, v, ok = p_velocity(self.design, q, d1, self.assembly_mode)
-            return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
-
-        return gain
+        if c < 1.0:
+            curve = TimeScaledCurve(curve, c)
+        t_out = _output_times(job, curve)
+        report = _dense_check(job, state, curve, t_out)
+        if report.ok:
+            return _result(job, state, curve, report, t_out, t_start)
+        if set(_exceeded(report)) != {"torque"}:
+            return None
+        t = report.t  # slowed again from the torques where the check found them too high
+    return None
 
 
 @dataclass(eq=False)
@@ -473,68 +455,7 @@ class _State:
     via_off: set = field(default_factory=set)
 
 
-def _validate_inputs(
-    design: Design,
-    waypoints: object,
-    limits: object,
-    method: object,
-    assembly_mode: object,
-    sample_rate_hz: object,
-    max_cartesian_speed: object,
-    max_deviation: object,
-    stop_at: Iterable[int],
-    check_resolution: object,
-    check_states: StateChecker | None,
-    deadline: float | None,
-    max_samples: int | None,
-    inertia: Inertia | None = None,
-    gravity: object = DEFAULT_GRAVITY,
-    via_at: Iterable[int] = (),
-) -> _Job:
-    """Step 1: every argument checked, with a typed error naming the field and the rule."""
-    if not isinstance(limits, JointLimits):
-        raise LimitsError(f"limits must be a JointLimits, got {type(limits).__name__}")
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}", field="method")
-    if method == "ruckig" and limits.jerk is None:
-        raise LimitsError(
-            "limits.jerk is required for method='ruckig' (3 positive numbers)", field="limits.jerk"
-        )
-    if assembly_mode not in ASSEMBLY_MODES:
-        raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
-    w = _waypoints(design, waypoints)
-    n = w.shape[0]
-    rate = _positive("sample_rate_hz", sample_rate_hz)
-    resolution = _positive("check_resolution", check_resolution)
-    v_cart = None
-    if max_cartesian_speed is not None:
-        v_cart = _positive("max_cartesian_speed", max_cartesian_speed)
-        if not MIN_RATE <= v_cart <= MAX_RATE:
-            raise InputError(
-                f"max_cartesian_speed must lie in [{MIN_RATE:g}, {MAX_RATE:g}] m/s, got {v_cart}"
-            )
-    stop = _stop_mask(stop_at, n)
-    via = _stop_mask(via_at, n) if via_at else None
-    dev_in = _deviation(max_deviation, n)
-    cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
-    torque = None
-    if inertia is not None or limits.torque is not None:
-        torque = TorqueModel(design, inertia, gravity, str(assembly_mode))  # type: ignore[arg-type]
-    if torque is not None and limits.torque is not None:
-        excess = gravity_excess(torque, w[0], limits.torque_array)
-        if excess is not None:
-            j, value = excess
-            raise TimingInfeasibleError(
-                f"gravity alone needs |tau{j + 1}| = {value:.6g} N m at the start, above "
-                f"limits.torque[{j}] = {limits.torque[j]:.6g} N m"
-            )
-    return _Job(
-        design, w, limits, str(method), str(assembly_mode), rate, v_cart, dev_in, stop,
-        check_states, resolution, deadline, cap, torque, via,
-    )  # fmt: skip
-
-
-def _build_blended_path(job: _Job) -> _State:
+def _build_blended_path(job: TimingJob) -> _State:
     """Step 2: the polyline's corners blended within ``max_deviation``, the ``stop_at``
     vertices kept as rest points; the allowances per merged waypoint."""
     min_radius = min_blend_radius(job.limits)
@@ -551,7 +472,7 @@ def _build_blended_path(job: _Job) -> _State:
     )
 
 
-def _time_by_method(job: _Job, state: _State) -> Curve:
+def _time_by_method(job: TimingJob, state: _State) -> Curve:
     """Step 3: the timed curve of the current path. toppra: its time-optimal profile, slowed
     uniformly just enough that the limits hold between its grid points too (or by a pending
     repair's factor). ruckig: a chain of jerk-limited moves through states taken from a
@@ -566,12 +487,15 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
     lim = job.limits if state.scale == 1.0 else job.limits.scaled(state.scale)
     gain = job.speed_gain(path)
     if state.profile is None:
-        refine = state.refine * (SEED_REFINE if job.method == "ruckig" else 1)
+        own = job.method == "toppra"
+        refine = state.refine * (TOPPRA_REFINE if own else SEED_REFINE)
+        arc_refine = TOPPRA_ARC_REFINE if own else 1.0
         best: PathProfile | None = None
         for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
             profile = solve_toppra(
                 path, lim, speed_gain=gain, max_cartesian_speed=job.v_cart, refine=refine,
-                deadline=job.deadline, torque_model=job.torque, cache=state.sections,
+                arc_refine=arc_refine, deadline=job.deadline, torque_model=job.torque,
+                cache=state.sections,
             )  # fmt: skip
             if job.method != "toppra":
                 break
@@ -594,7 +518,7 @@ def _time_by_method(job: _Job, state: _State) -> Curve:
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
 
-def _fitted_chain(curve: Curve, job: _Job) -> Curve:
+def _fitted_chain(curve: Curve, job: TimingJob) -> Curve:
     """A chain of moves slowed uniformly for the Cartesian speed bound and torque limits."""
     if job.v_cart is not None:
         curve = _fit_cartesian_speed(curve, job.design, job.assembly_mode, job.resolution,
@@ -602,7 +526,7 @@ def _fitted_chain(curve: Curve, job: _Job) -> Curve:
     return _fit_torque(curve, job)
 
 
-def _with_vias(job: _Job, state: _State, curve: Curve, lim: JointLimits) -> Curve:
+def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) -> Curve:
     """``curve`` with its via sections spliced in where faster (:func:`splice_vias`)."""
     if state.via is None or state.profile is None:
         return curve
@@ -612,7 +536,7 @@ def _with_vias(job: _Job, state: _State, curve: Curve, lim: JointLimits) -> Curv
                        deadline=job.deadline)  # fmt: skip
 
 
-def _output_times(job: _Job, curve: Curve) -> np.ndarray:
+def _output_times(job: TimingJob, curve: Curve) -> np.ndarray:
     """The output rate's sample times plus every instant the motion rests (stop_at,
     transits); :class:`~planner.exceptions.InputError` when there would be more than the
     sample cap, before any sample is computed."""
@@ -627,7 +551,7 @@ def _output_times(job: _Job, curve: Curve) -> np.ndarray:
     return np.union1d(sample_times(curve.duration, job.rate), curve.rest_times())
 
 
-def _dense_check(job: _Job, state: _State, curve: Curve, t_out: np.ndarray) -> CheckReport:
+def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray) -> CheckReport:
     """Step 4: the timed curve re-checked densely (:func:`~planner.timing.checks.dense_check`)
     against the requested limits (not the scaled ones), joint limits, assembly, validity and
     the requested deviation allowance."""
@@ -647,7 +571,7 @@ def _dense_check(job: _Job, state: _State, curve: Curve, t_out: np.ndarray) -> C
     )
 
 
-def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None:
+def _repair(job: TimingJob, state: _State, curve: Curve, report: CheckReport) -> None:
     """Step 5: one repair of a failed check (module docstring), or
     :class:`~planner.exceptions.TrajectoryCheckError` when none can help: the repairs are
     used up, or a bad posture lies on the planned segments themselves."""
@@ -711,7 +635,7 @@ def _repair(job: _Job, state: _State, curve: Curve, report: CheckReport) -> None
 
 
 def _result(
-    job: _Job,
+    job: TimingJob,
     state: _State,
     curve: Curve,
     report: CheckReport,

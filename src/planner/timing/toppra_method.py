@@ -225,11 +225,18 @@ class PathProfile:
 
 
 def section_grid(
-    path: BlendedPath, lo: int, hi: int, refine: float = 1, *, arc_junctions: bool = False
+    path: BlendedPath,
+    lo: int,
+    hi: int,
+    refine: float = 1,
+    *,
+    arc_junctions: bool = False,
+    arc_refine: float = 1,
 ) -> np.ndarray:
     """Grid points of the pieces ``lo..hi``: every piece boundary, lines cut every
     ``LINE_STEP / refine`` (at least ``LINE_MIN_INTERVALS * refine``), arcs every
-    ``ARC_STEP / refine`` of turning.
+    ``ARC_STEP / (refine arc_refine)`` of turning (the profile's loss to the grid comes
+    mostly from the blends, where the velocity and acceleration bounds dip and turn).
 
     ``arc_junctions`` (with torque limits): where two arcs meet, q'' jumps from one arc's to
     the other's, and toppra sees one of them at the junction grid point (the larger, see
@@ -242,7 +249,7 @@ def section_grid(
         a, b = path.s0[k], path.s0[k + 1]
         if path.kind[k] == ARC:
             turn = (b - a) / path.radius[k]
-            n = max(2, int(np.ceil(turn * refine / ARC_STEP)))
+            n = max(2, int(np.ceil(turn * refine * arc_refine / ARC_STEP)))
             pts = np.linspace(a, b, n + 1)[:-1]
             parts.append(_beside_arcs(path, k, lo, hi, pts) if arc_junctions else pts)
             continue
@@ -344,6 +351,7 @@ def solve_toppra(
     speed_gain: Callable[[np.ndarray], np.ndarray] | None = None,
     max_cartesian_speed: float | None = None,
     refine: float = 1,
+    arc_refine: float = 1,
     deadline: float | None = None,
     torque_model: TorqueModel | None = None,
     cache: SectionCache | None = None,
@@ -360,6 +368,8 @@ def solve_toppra(
     max_cartesian_speed : float, m/s, optional
     refine : int
         Grid refinement factor (repairs use 2, 4, ...; below 1 a coarser grid).
+    arc_refine : float
+        A further refinement of the blends' grid (:func:`section_grid`).
     deadline : float, optional
         ``time.monotonic()`` value checked before each section.
     torque_model : TorqueModel, optional
@@ -406,7 +416,7 @@ def solve_toppra(
             continue
         key = None
         if cache is not None:
-            settings = (refine, *v.tolist(), *a.tolist(), v_cart)
+            settings = (refine, arc_refine, *v.tolist(), *a.tolist(), v_cart)
             key = (section_key(path, float(s_start), float(s_end)), settings)
             hit = cache.get(key)
             if hit is not None:
@@ -414,7 +424,8 @@ def solve_toppra(
                 s_all.append(grid[1:])
                 sd_all.append(hit[1][1:])
                 continue
-        grid = section_grid(path, lo, hi, refine=refine, arc_junctions=torque is not None)
+        grid = section_grid(path, lo, hi, refine=refine, arc_junctions=torque is not None,
+                            arc_refine=arc_refine)  # fmt: skip
         constraints = list(joint_constraints)
         if v_cart is not None and speed_gain is not None:
             constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))

@@ -96,8 +96,12 @@ class TorqueModel:
 def torque_time_scale(
     dynamic: np.ndarray, gravity: np.ndarray, limit: np.ndarray, target: float = 1.0
 ) -> float:
-    """The largest c in (0, 1] with ``|c^2 dynamic + gravity| <= target limit`` at every
-    sample (rows of (M, 3) arrays; NaN rows are ignored).
+    """The largest c in (0, 1] with ``|c^2 target dynamic + gravity| <= limit`` at every
+    sample (rows of (M, 3) arrays; NaN rows are ignored): the exact uniform slow-down with
+    ``c^2`` a further ``target`` of it, so that a margin is kept on the *dynamic* part of the
+    torque, the part the slow-down scales. (A margin taken off the limit instead would eat
+    most of a joint's room where gravity alone takes nearly all of it: 1e-3 of the limit cost
+    up to 1 % in time where gravity held 95 % of it, issue 36.)
 
     Raises
     ------
@@ -114,11 +118,9 @@ def torque_time_scale(
             f"gravity alone needs |tau{j + 1}| = {abs(g[i, j]):.6g} N m on the path, above "
             f"the torque limit {limit[j]:.6g} N m: no timing can hold it"
         )
-    # aim at target * limit, or at the limit itself where gravity alone is above the target
-    allowed = np.maximum(target * limit, np.abs(g))
     with np.errstate(divide="ignore", invalid="ignore"):
-        room = np.where(d > 0, (allowed - g) / d, np.where(d < 0, (allowed + g) / -d, np.inf))
-    c2 = float(np.min(room, initial=np.inf))
+        room = np.where(d > 0, (limit - g) / d, np.where(d < 0, (limit + g) / -d, np.inf))
+    c2 = float(np.min(room, initial=np.inf)) * target
     return float(np.sqrt(min(max(c2, MIN_TIME_SCALE**2), 1.0)))
 
 
