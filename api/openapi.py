@@ -29,7 +29,13 @@ from fastapi.staticfiles import StaticFiles
 
 from planner.viewer import script_hashes
 
-__all__ = ["STATIC_DOCS", "document_errors", "install_docs", "install_openapi"]
+__all__ = [
+    "STATIC_DOCS",
+    "document_errors",
+    "install_docs",
+    "install_openapi",
+    "limit_obstacles",
+]
 
 #: The vendored Swagger UI and ReDoc files.
 STATIC_DOCS = Path(__file__).parent / "static" / "docs"
@@ -84,8 +90,21 @@ def document_errors(schema: dict[str, Any], *, api_key: bool) -> dict[str, Any]:
     return schema
 
 
-def install_openapi(app: FastAPI, *, api_key: bool) -> None:
-    """Make ``app.openapi()`` return the document with :func:`document_errors` applied."""
+def limit_obstacles(schema: dict[str, Any], max_obstacles: int) -> dict[str, Any]:
+    """Every request schema's ``obstacles`` list (in place) says the service's own limit,
+    ``PLANNER_MAX_OBSTACLES``, as its ``maxItems`` where that is below the wire's cap: the
+    document then tells a client what this service refuses (issue 36: it said 10000 while
+    the service refused 257)."""
+    for model in schema.get("components", {}).get("schemas", {}).values():
+        prop = model.get("properties", {}).get("obstacles")
+        if isinstance(prop, dict) and "items" in prop:  # a list (pydantic writes no "type")
+            prop["maxItems"] = min(prop.get("maxItems", max_obstacles), max_obstacles)
+    return schema
+
+
+def install_openapi(app: FastAPI, *, api_key: bool, max_obstacles: int | None = None) -> None:
+    """Make ``app.openapi()`` return the document with :func:`document_errors` applied (and
+    :func:`limit_obstacles` with the service's ``max_obstacles``)."""
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
@@ -95,7 +114,10 @@ def install_openapi(app: FastAPI, *, api_key: bool) -> None:
                 description=app.description,
                 routes=app.routes,
             )
-            app.openapi_schema = document_errors(schema, api_key=api_key)
+            schema = document_errors(schema, api_key=api_key)
+            if max_obstacles is not None:
+                schema = limit_obstacles(schema, max_obstacles)
+            app.openapi_schema = schema
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

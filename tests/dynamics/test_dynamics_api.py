@@ -254,3 +254,60 @@ def test_cartesian_start_held_by_gravity_is_invalid_start(api) -> None:
     assert plan["status"] == "invalid_start" and plan["message"] == out["message"]
     untimed = api.post("/v1/cartesian", json={**body, "timing": {"method": "none"}}).json()
     assert untimed["status"] == "solved", untimed["message"]  # no timing, no torque rule
+
+
+#: The sequence of issue 36 that answered 500 (gravity on theta1 above its limit where only
+#: theta2 and theta3 move): now solved, its torque ratio reported.
+ISSUE_36_SEQUENCE = {
+    "design": {"L0": 0.3398, "L1": 0.346, "L2": 0.5009, "link_radius": 0.0112,
+               "inertia": {"proximal": {"mass": 0.9459, "com": 0.5113, "I_perp": 0.0098,
+                                        "I_axial": 0.0089},
+                           "distal": {"mass": 0.1268, "com": 0.6074, "I_perp": 0.0075,
+                                      "I_axial": 0.0062},
+                           "payload": {"mass": 1.6038}, "base": {"inertia": 0.0087},
+                           "rotor": [0.0026, 0.0016, 0.0027]}},
+    "start": {"q": [-0.3249, 2.0669, -2.3286], "assembly_mode": "+"}, "cycle": True,
+    "margins": {"kappa_max": 10, "serial_min": 0.05, "clearance": 0.01},
+    "limits": {"velocity": [2.0933, 2.3585, 2.4519], "acceleration": [6.5664, 17.4075, 13.3698],
+               "torque": [8.6829, 9.4724, 12.4909]},
+    "timing": {"method": "toppra", "sample_rate_hz": 100}, "planner": {"seed": 2},
+    "targets": [{"goal": {"p": [0.187, 0.1548, 0.0969]}, "stop": False, "blend": 0.03},
+                {"goal": {"p": [0.187, -0.0993, 0.0969]}, "stop": False, "blend": 0.03},
+                {"goal": {"p": [0.187, -0.0993, 0.063]}}],
+}  # fmt: skip
+
+
+def test_random_sequences_with_inertia_and_torque_limits_never_answer_5xx(api) -> None:
+    """Issue 36: the sequence that answered 500, then seeded variations of it (inertias,
+    payloads, torque limits from tight to loose, both methods, stops and passes): every
+    answer is a 200 (solved or a named failure) or a 422, never a 5xx; a solved one reports
+    its max_torque_ratio, within the limit."""
+    rng = np.random.default_rng(3603)
+    bodies = [ISSUE_36_SEQUENCE]
+    for i in range(5):
+        body = json.loads(json.dumps(ISSUE_36_SEQUENCE))
+        inertia = body["design"]["inertia"]
+        for link in ("proximal", "distal"):
+            inertia[link]["mass"] = float(rng.uniform(0.1, 1.5))
+            i_perp = float(rng.uniform(0.002, 0.012))
+            inertia[link]["I_perp"] = i_perp
+            inertia[link]["I_axial"] = float(rng.uniform(0.1, 2.0) * i_perp)
+        inertia["payload"]["mass"] = float(rng.uniform(0.0, 2.5))
+        body["limits"]["torque"] = [float(x) for x in rng.uniform(2.0, 15.0, 3)]
+        body["timing"]["method"] = ("toppra", "ruckig")[i % 2]
+        if body["timing"]["method"] == "ruckig":
+            body["limits"]["jerk"] = [300.0, 300.0, 300.0]
+        for target in body["targets"][:2]:
+            target["stop"] = bool(rng.uniform() < 0.3)
+            target["blend"] = 0.0 if target["stop"] else float(rng.uniform(0.0, 0.04))
+        bodies.append(body)
+    solved = 0
+    for body in bodies:
+        r = api.post("/v1/sequence", json=body)
+        assert r.status_code in (200, 422), r.text
+        out = r.json()
+        if r.status_code == 200 and out["status"] == "solved":
+            solved += 1
+            ratio = out["diagnostics"]["max_torque_ratio"]
+            assert ratio is not None and ratio <= 1.0 + 1e-6
+    assert solved >= 1

@@ -98,3 +98,33 @@ def test_a_mode_change_reports_its_transits_per_leg_with_their_times():
             flipped = {"axis": 0, "A": 1, "B": 2}[tr.flipped]
             assert signs[0, flipped] != signs[1, flipped]  # the named sign flips there
     assert seen >= 2  # there and back
+
+
+@pytest.mark.parametrize("method", ["toppra", "ruckig"])
+def test_passing_a_corner_exactly_is_never_slower_than_stopping_there(method):
+    """Issue 36: passing a sharp corner exactly (blend 0) makes the path run straight through
+    it at speed, which can cost more than braking to it; the sequence then rests there (the
+    quicker of the two), lists it in stopped_targets and says why, so blend 0 is never
+    slower than a stop. On gentle corners passing stays quicker and is kept."""
+    start = JointPosture([0.0, 2.0, 1.0])
+    timing = TimingOptions(method=method)
+    for sharp in (True, False):
+        # out and nearly back (about 170 degrees), or on almost straight (about 18 degrees)
+        corner = [0.6, 2.0, 1.0] if sharp else [0.3, 2.0, 1.0]
+        after = [0.0, 2.1, 1.0] if sharp else [0.6, 2.1, 1.0]
+
+        def targets(stop: bool, corner=corner, after=after) -> list[SequenceTarget]:
+            return [SequenceTarget(JointPosture(corner), stop=stop, blend=0.0),
+                    SequenceTarget(JointPosture(after))]  # fmt: skip
+
+        passing = solve_sequence(DESIGN, start, targets(False), cycle=True, timing=timing)
+        stopping = solve_sequence(DESIGN, start, targets(True), cycle=True, timing=timing)
+        assert passing.solved and stopping.solved
+        assert passing.cycle_time <= stopping.cycle_time + 1e-9
+        if sharp:
+            assert passing.diagnostics.stopped_targets == (0,)
+            assert "quicker than passing exactly" in passing.message
+            assert passing.cycle_time == pytest.approx(stopping.cycle_time, rel=1e-12)
+        else:
+            assert passing.diagnostics.stopped_targets == ()
+            assert passing.cycle_time < stopping.cycle_time

@@ -32,3 +32,19 @@ def test_a_batch_at_the_limit_is_parsed(api):
     assert r.status_code == 422 and len(r.json()["detail"]) > 1  # the items' own errors
     body = {"requests": [{**ONE, "timing": {"method": "none"}}] * 2}
     assert api.post("/v1/plan/batch", json=body).status_code == 200
+
+
+def test_the_schema_states_the_services_obstacle_limit(api):
+    """Issue 36: every request's ``obstacles`` says ``PLANNER_MAX_OBSTACLES`` (not the wire's
+    cap of 10,000), and one obstacle more than it is refused."""
+    limit = api.app.state.settings.max_obstacles
+    schemas = api.get("/openapi.json").json()["components"]["schemas"]
+    lists = {name: s["properties"]["obstacles"] for name, s in schemas.items()
+             if "items" in s.get("properties", {}).get("obstacles", {})}  # fmt: skip
+    found = {name: prop.get("maxItems") for name, prop in lists.items()}
+    assert {"PlanRequest", "SequenceRequest"} <= set(found)
+    assert all(v == limit for v in found.values()), found
+    sphere = {"type": "sphere", "center": [5.0, 5.0, 5.0], "radius": 0.01}
+    r = api.post("/v1/plan", json={**ONE, "obstacles": [sphere] * (limit + 1)})
+    assert r.status_code == 422
+    assert f"at most {limit} obstacles" in r.text

@@ -117,6 +117,16 @@ def test_stop_at_brings_the_trajectory_to_rest_on_the_waypoint(method):
     # ... and passes other vertices without stopping.
     j = np.argmin(np.linalg.norm(q - w[3], axis=1))
     assert np.linalg.norm(qd[j]) > 0.1
+    # the stop instant is an output sample carrying the rest state, qd = qdd = 0 (issue 36:
+    # toppra's acceleration jumps there, from braking to starting, on either side of it)
+    k = int(np.argmin(np.linalg.norm(traj.q - w[2], axis=1)))
+    assert np.linalg.norm(traj.q[k] - w[2]) < 1e-9
+    assert np.all(traj.qd[k] == 0.0) and np.all(traj.qdd[k] == 0.0)
+    eps = 1e-6
+    _, _, before, _ = traj.at(np.array([traj.t[k] - eps]))
+    _, _, after, _ = traj.at(np.array([traj.t[k] + eps]))
+    if method == "toppra":
+        assert np.linalg.norm(before) > 0.1 and np.linalg.norm(after) > 0.1
 
 
 def test_p_velocity_agrees_with_the_jacobians():

@@ -647,7 +647,13 @@ def _result(
     q, qd, qdd, jerk = curve.evaluate(t_out)
     path = state.path
     q[0], q[-1] = path.waypoints[0], path.waypoints[-1]
-    qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0
+    # at every rest instant (the ends, each stop_at, each transit) the samples carry the rest
+    # state, qd = qdd = 0: toppra's acceleration jumps there (from braking to starting, as at
+    # the ends from 0), so the instant itself has no one value; ruckig's is 0 already
+    rest = np.isin(t_out, curve.rest_times())
+    rest[0] = rest[-1] = True
+    qd[rest] = 0.0
+    qdd[rest] = 0.0
     if jerk is not None and not np.all(np.isfinite(jerk)):
         jerk = None
     p, v_p, _ = p_velocity(job.design, q, qd, job.assembly_mode)

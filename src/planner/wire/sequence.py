@@ -287,6 +287,7 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
     elif traj is not None:
         extra["timing_time_s"] = d.timing_time_s
         extra["timing_repairs"] = traj.repairs
+        extra["max_torque_ratio"] = getattr(traj, "max_torque_ratio", None)
     runner = d.runner_up
     diagnostics = SequenceDiagnosticsModel(
         planning_time_s=d.planning_time_s,
