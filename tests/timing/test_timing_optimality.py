@@ -35,7 +35,7 @@ def _random_limits(rng: np.random.Generator, **extra) -> JointLimits:
 def test_velocity_only_toppra_is_within_half_a_percent_of_a_finer_grid(monkeypatch):
     rng = np.random.default_rng(36)
     design = Design.default()
-    for _ in range(8):
+    for _ in range(5):
         w, limits = _random_path(rng), _random_limits(rng)
         coarse = time_path(design, w, limits, method="toppra", max_deviation=0.05).duration
         monkeypatch.setattr(parameterize, "TOPPRA_REFINE", 4 * parameterize.TOPPRA_REFINE)
