@@ -139,6 +139,5 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
-    install_openapi(app, api_key=settings.api_key is not None,
-                    max_obstacles=settings.max_obstacles)  # fmt: skip
+    install_openapi(app, api_key=settings.api_key is not None, max_obstacles=settings.max_obstacles)
     return app

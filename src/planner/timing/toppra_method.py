@@ -424,8 +424,9 @@ def solve_toppra(
                 s_all.append(grid[1:])
                 sd_all.append(hit[1][1:])
                 continue
-        grid = section_grid(path, lo, hi, refine=refine, arc_junctions=torque is not None,
-                            arc_refine=arc_refine)  # fmt: skip
+        grid = section_grid(
+            path, lo, hi, refine=refine, arc_junctions=torque is not None, arc_refine=arc_refine
+        )
         constraints = list(joint_constraints)
         if v_cart is not None and speed_gain is not None:
             constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))
