@@ -187,9 +187,10 @@ def _fit_cartesian_speed(
 
 
 def _fit_torque(curve: Curve, job: TimingJob) -> Curve:
-    """A ruckig chain slowed uniformly in time just enough that the torque limits hold at
-    the check times (the through-states come from a torque-limited toppra profile, but the
-    jerk-limited moves between them may overshoot): the dynamic part of the torques scales
+    """A curve slowed uniformly in time just enough that the torque limits hold at the check
+    times: a ruckig chain (the through-states come from a torque-limited toppra profile, but
+    the jerk-limited moves between them may overshoot), or the velocity-only curve of
+    :func:`_slowed_velocity_only`: the dynamic part of the torques scales
     by c^2 (:func:`~planner.timing.torque.torque_time_scale`), every joint limit still holds."""
     if job.torque is None or job.limits.torque is None:
         return curve
@@ -396,26 +397,20 @@ def _slowed_velocity_only(job: TimingJob, t_start: float) -> Trajectory | None:
         base, state = _timed(free, t_start)
     except (TimingInfeasibleError, TrajectoryCheckError):
         return None
-    curve: Curve = base.curve
-    t = np.union1d(curve.check_times(job.resolution), torque_check_times(curve.duration))
-    for _ in range(_SLOWED_TRIES):
-        check_deadline(job.deadline, "while slowing the velocity-only timing")
-        q, qd, qdd, _ = curve.evaluate(t)
-        assert job.torque is not None
-        dyn, grav = job.torque.split(q, qd, qdd)
-        try:
-            c = torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
-        except TimingInfeasibleError:
-            return None
-        if c < 1.0:
-            curve = TimeScaledCurve(curve, c)
-        t_out = _output_times(job, curve)
-        report = _dense_check(job, state, curve, t_out)
-        if report.ok:
-            return _result(job, state, curve, report, t_out, t_start)
-        if set(_exceeded(report)) != {"torque"}:
-            return None
-        t = report.t  # slowed again from the torques where the check found them too high
+    try:  # the closed-form slow-down at the check times (the fit of a ruckig chain)
+        curve = _fit_torque(base.curve, job)
+        for _ in range(_SLOWED_TRIES):
+            check_deadline(job.deadline, "while slowing the velocity-only timing")
+            t_out = _output_times(job, curve)
+            report = _dense_check(job, state, curve, t_out)
+            if report.ok:
+                return _result(job, state, curve, report, t_out, t_start)
+            if set(_exceeded(report)) != {"torque"}:
+                return None
+            # slowed again from the torques where the check found them too high
+            curve = TimeScaledCurve(curve, _torque_slow_down(curve, job, report))
+    except TimingInfeasibleError:
+        return None
     return None
 
 
