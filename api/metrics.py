@@ -150,7 +150,7 @@ class _PoolCollector:
             "planner_pool_queue_depth": ("Jobs waiting for a worker.", max(in_flight - workers, 0)),
             "planner_pool_saturation": ("Jobs in flight / capacity (1: the next job gets 503).",
                                         in_flight / capacity),
-            "planner_pool_ready": ("1 while every configured worker is warm.",
+            "planner_pool_ready": ("1 while /v1/ready says ready (a worker is warm).",
                                    1 if pool.state == "ready" else 0),
             "planner_pool_warm_workers": ("Worker processes alive and warm.",
                                           pool.warm_workers),

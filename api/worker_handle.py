@@ -13,6 +13,7 @@ from multiprocessing.connection import Connection
 from typing import Any, Literal
 
 from planner_api.worker_process import FRAME_HEADER
+from planner_api.worker_template import ForkedProcess
 
 __all__ = ["Job", "Worker", "describe_exit"]
 
@@ -34,7 +35,8 @@ class Job:
 class Worker:
     """One worker process as the pool sees it."""
 
-    process: multiprocessing.process.BaseProcess
+    #: A spawned process, or one forked from the warm template.
+    process: multiprocessing.process.BaseProcess | ForkedProcess
     #: The pipe the parent sends jobs on (blocking writes: the worker is waiting for them).
     jobs: Connection
     #: The pipe the worker answers on, read by the event loop (non-blocking).
@@ -60,6 +62,14 @@ class Worker:
     #: Its exit is being handled (:meth:`planner_api.workers.WorkerPool._on_exit` runs once:
     #: a second run would wait for the same process and close the same pipes twice).
     exit_claimed: bool = False
+
+    def close(self) -> None:
+        """Close its pipes and, for a worker forked from the template, its pidfd (the
+        process has exited and its exit was handled)."""
+        self.jobs.close()
+        self.answers.close()
+        if isinstance(self.process, ForkedProcess):
+            self.process.release()
 
     def take(self, chunk: bytes) -> list[bytes]:
         """The whole messages that ``chunk``, read from ``answers``, completes (in order);

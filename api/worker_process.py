@@ -19,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import os
 import pickle
+import select
 import signal
 import struct
 import sys
@@ -29,7 +30,17 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
-__all__ = ["FRAME_HEADER", "PARENT_WATCH_S", "resident_bytes", "send_frame", "worker_main"]
+__all__ = [
+    "FRAME_HEADER",
+    "PARENT_WATCH_S",
+    "die_with_parent",
+    "forked_main",
+    "ignore_stop_signals",
+    "resident_bytes",
+    "send_frame",
+    "serve_jobs",
+    "worker_main",
+]
 
 #: Seconds between two checks of a worker that its parent is still alive (the portable
 #: fallback of ``PR_SET_PDEATHSIG``).
@@ -74,9 +85,10 @@ def resident_bytes() -> int | None:
     return None  # pragma: no cover - no /proc here
 
 
-def _die_with_parent(parent_pid: int) -> None:
+def die_with_parent(parent_pid: int, *, watch: bool = True) -> None:
     """Exit when the parent does: SIGKILL from the kernel when the spawning thread ends
-    (Linux), and a watcher thread that polls the parent's pid (everywhere)."""
+    (Linux), and (``watch``) a watcher thread that polls the parent's pid (everywhere; the
+    warm template polls in its own loop instead: it forks, and forks from one thread)."""
     if sys.platform.startswith("linux"):
         try:
             libc = ctypes.CDLL(None, use_errno=True)
@@ -85,14 +97,16 @@ def _die_with_parent(parent_pid: int) -> None:
             pass
     if os.getppid() != parent_pid:  # the parent died before the prctl took effect
         os._exit(1)
+    if not watch:
+        return
 
-    def watch() -> None:
+    def poll_parent() -> None:
         while True:
             time.sleep(PARENT_WATCH_S)
             if os.getppid() != parent_pid:
                 os._exit(1)
 
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+    threading.Thread(target=poll_parent, name="parent-watch", daemon=True).start()
 
 
 def worker_main(
@@ -104,16 +118,16 @@ def worker_main(
     max_rss_bytes: int | None = None,
     nice: int = 0,
 ) -> None:
-    """A worker process: warm up, say so, then run one job at a time until told to stop
-    (or until the pipe closes: the parent is gone). ``jobs`` brings the jobs, ``answers``
-    (its file descriptor, written with :func:`send_frame`) takes the answers back; after a
-    job that leaves the worker above ``max_rss_bytes`` (None: no bound) it says so. ``nice``
-    lowers the priority of the thread that runs the jobs once the worker is warm: it warms at
-    the server's priority, so that a start on a busy machine is not slowed further."""
+    """A worker process started on its own (``spawn``): warm up, say so, then run one job at
+    a time until told to stop (or until the pipe closes: the parent is gone). ``jobs`` brings
+    the jobs, ``answers`` (its file descriptor, written with :func:`send_frame`) takes the
+    answers back; after a job that leaves the worker above ``max_rss_bytes`` (None: no bound)
+    it says so. ``nice`` lowers the priority of the thread that runs the jobs once the worker
+    is warm: it warms at the server's priority, so that a start on a busy machine is not
+    slowed further."""
     out = answers.fileno()
-    _die_with_parent(parent_pid)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C and SIGTERM are the parent's
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    die_with_parent(parent_pid)
+    ignore_stop_signals()
     if log_setup is not None:
         from planner_api.logging import configure_logging
 
@@ -128,6 +142,50 @@ def worker_main(
     except BaseException:
         send_frame(out, pickle.dumps(("warm_failed", traceback.format_exc())))
         return
+    serve_jobs(jobs, out, max_rss_bytes)
+
+
+def ignore_stop_signals() -> None:
+    """Ctrl-C and SIGTERM are the parent's: a worker (and the warm template) ignores SIGINT
+    and dies of SIGTERM (the pool's last resort at shutdown)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def forked_main(jobs_fd: int, answers_fd: int, max_rss_bytes: int | None, nice: int) -> None:
+    """A worker forked from the warm template (:mod:`planner_api.worker_template`): it is warm
+    already (the template's memory is its own), so it says so at once and serves. It dies
+    with the server, not with the template: a thread waits for the hang-up of the jobs pipe,
+    whose only writer is the server (a template that dies leaves its workers serving)."""
+    t0 = time.perf_counter()
+    jobs = Connection(jobs_fd, readable=True, writable=False)
+    _exit_on_hang_up(jobs_fd)
+    if nice > 0:
+        os.nice(nice)
+    send_frame(answers_fd, pickle.dumps(("ready", time.perf_counter() - t0)))
+    serve_jobs(jobs, answers_fd, max_rss_bytes)
+    os._exit(0)
+
+
+def _exit_on_hang_up(fd: int) -> None:
+    """Exit the moment the write end of the pipe ``fd`` is closed everywhere (the server died:
+    ``poll`` reports ``POLLHUP`` whatever events are asked, so an empty mask waits for it
+    alone), even in the middle of a job."""
+
+    def watch() -> None:
+        poller = select.poll()
+        poller.register(fd, 0)
+        while True:
+            for _, event in poller.poll():
+                if event & (select.POLLHUP | select.POLLERR | select.POLLNVAL):
+                    os._exit(1)
+
+    threading.Thread(target=watch, name="server-watch", daemon=True).start()
+
+
+def serve_jobs(jobs: Connection, out: int, max_rss_bytes: int | None) -> None:
+    """Run one job at a time from ``jobs`` and answer each on the pipe ``out``, until told to
+    stop (which exits the process) or until ``jobs`` closes (which returns)."""
     while True:
         try:
             message = pickle.loads(jobs.recv_bytes())

@@ -7,11 +7,14 @@ docs/operations.md, "Worker processes"; here is why it is built so.
 Processes, because OMPL's ``solve()`` and most numpy work hold the GIL. Not
 :class:`concurrent.futures.ProcessPoolExecutor`, because when one of its workers dies it breaks
 *as a whole* and fails every job in flight: this pool is a small supervisor instead, one job
-per ``spawn``-started worker at a time, so a worker that dies fails only its own job
-(:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced, warmed (its
-``warm_up``, the service's :func:`planner_api.warmup.warm_up_worker`) before it takes jobs.
-All workers are spawned by one supervisor thread that lives as long as the pool (a worker's
-``PR_SET_PDEATHSIG`` fires when the thread that spawned it ends).
+per worker at a time, so a worker that dies fails only its own job
+(:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced. Every worker is a
+fork of one warm template (:mod:`planner_api.worker_template`, which runs ``warm_up``, the
+service's :func:`planner_api.warmup.warm_up_worker`, once), so a replacement is warm in
+milliseconds; where fork cannot be had each worker is ``spawn``-started and warms up itself
+before it takes jobs. The template (or each spawned worker) is started by one supervisor
+thread that lives as long as the pool (``PR_SET_PDEATHSIG`` fires when the thread that
+spawned the process ends).
 
 Two one-way pipes per worker. Jobs go down one, pickled; answers come back on the other in
 frames (:func:`planner_api.worker_process.send_frame`) that the event loop reads itself
@@ -46,6 +49,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
+from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_for_any
 from typing import Any, Literal, TypeVar
 
@@ -58,6 +62,7 @@ from planner_api.exceptions import (
 )
 from planner_api.worker_handle import Job, Worker, describe_exit
 from planner_api.worker_process import worker_main
+from planner_api.worker_template import TemplateError, WarmTemplate, templates_work
 from planner_api.worker_wait import wait_for_jobs
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool"]
@@ -114,6 +119,10 @@ class WorkerPool:
         A worker whose resident memory after a job exceeds this is recycled: a replacement
         is started, and once it is warm the old worker stops (``PLANNER_WORKER_MAX_RSS_MB``;
         None: never).
+    template : bool
+        Fork every worker from a warm template process (:mod:`planner_api.worker_template`),
+        which runs ``warm_up`` once: a replacement is warm in milliseconds. False, or a
+        platform without ``fork`` and pidfds: each worker is spawned and warms up itself.
     """
 
     def __init__(
@@ -127,6 +136,7 @@ class WorkerPool:
         overrun_grace_s: float = 0.5,
         max_rss_mb: float | None = None,
         nice: int = 0,
+        template: bool = True,
     ) -> None:
         if workers < 1 or queue_size < 0:
             raise ValueError("workers must be >= 1 and queue_size >= 0")
@@ -149,6 +159,10 @@ class WorkerPool:
         self._log_setup = log_setup
         self._warm_up = warm_up
         self._ctx = multiprocessing.get_context("spawn")
+        #: The warm template the workers are forked from (None: each worker is spawned).
+        self._template: WarmTemplate | None = None
+        if template and templates_work():
+            self._template = WarmTemplate(self._ctx, log_setup, warm_up, self.max_rss_bytes, nice)
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)  # the watchdog's: a kill time changed
         #: When the watchdog wakes next (monotonic): a later kill time needs no wake-up.
@@ -210,6 +224,8 @@ class WorkerPool:
             try:
                 self._spawn(replaces)
             except Exception:
+                if self._stopping:
+                    return
                 logger.exception("could not start a worker process; retrying")
                 self._failed = True
                 self._spawn_requests.put((RESPAWN_BACKOFF_S, replaces))
@@ -250,16 +266,28 @@ class WorkerPool:
         )  # fmt: skip
 
     def _report_warming(self) -> None:
-        """Log how many workers are warm while some still warm up (every WARMING_REPORT_S;
-        under the lock, so that no such line follows the one saying a worker is warm)."""
+        """Log how many workers are warm while some (or their template) still warm up (every
+        WARMING_REPORT_S; under the lock, so that no such line follows the one saying a worker
+        is warm)."""
+        template = self._template
         with self._lock:
             warming = [w.started for w in self._workers if w.state == "warming"]
+            if template is not None and template.state == "warming":
+                warming.append(template.started)
             warm = sum(w.state in ("idle", "busy") for w in self._workers)
             if warming and not self._stopping:
                 since = time.monotonic() - min(warming)
                 logger.info("%d of %d workers warm after %.1f s", warm, self.workers, since)
 
     def _spawn(self, replaces: Worker | None = None) -> None:
+        """Start one worker (forked from the warm template, or spawned) and hand it to the
+        event loop."""
+        if self._template is not None:
+            process, jobs_fd, answers_fd = self._fork()
+            jobs_in = Connection(jobs_fd, readable=False, writable=True)
+            answers_out = Connection(answers_fd, readable=True, writable=False)
+            self._add(Worker(process, jobs=jobs_in, answers=answers_out, replaces=replaces))
+            return
         jobs_out, jobs_in = self._ctx.Pipe(duplex=False)  # (reader, writer)
         answers_out, answers_in = self._ctx.Pipe(duplex=False)
         process = self._ctx.Process(
@@ -280,18 +308,45 @@ class WorkerPool:
         finally:
             jobs_out.close()
             answers_in.close()
-        worker = Worker(process=process, jobs=jobs_in, answers=answers_out, replaces=replaces)
+        self._add(Worker(process=process, jobs=jobs_in, answers=answers_out, replaces=replaces))
+
+    def _fork(self) -> tuple[Any, int, int]:
+        """A worker forked from the warm template (in the supervisor thread): the template is
+        started first if it is not running (and waited for while it warms up, with progress
+        lines); :class:`TemplateError` when it cannot warm up or fork."""
+        template = self._template
+        assert template is not None
+        if self._stopping:  # no new template once a shutdown began
+            raise TemplateError("the pool is stopping")
+        if template.state in ("failed", "gone"):
+            if template.state == "gone":
+                logger.error("the worker template exited; starting a new one (it warms up)")
+            template.stop()
+            template = self._template = WarmTemplate(self._ctx, *template.args)
+        if template.state == "new":
+            template.start()
+        try:
+            while not template.wait_warm(WARMING_REPORT_S):
+                if self._stopping:
+                    raise TemplateError("the pool is stopping")
+                self._report_warming()
+        except TemplateError:
+            self._failed = True
+            raise
+        return template.fork()
+
+    def _add(self, worker: Worker) -> None:
+        """Register a started worker and let the event loop read its answers."""
         with self._lock:
             closed = self._closed
             if not closed:
                 self._workers.append(worker)
         if closed:  # shut down while it started: no one would stop it or close its pipes
-            process.kill()
-            process.join()
-            jobs_in.close()
-            answers_out.close()
+            worker.process.kill()
+            worker.process.join()
+            worker.close()
             return
-        os.set_blocking(answers_out.fileno(), False)
+        os.set_blocking(worker.answers.fileno(), False)
         assert self._loop is not None
         try:
             self._loop.call_soon_threadsafe(self._attach, worker)
@@ -311,7 +366,12 @@ class WorkerPool:
             job.future.cancel()  # no worker will take it: a thread waiting on it is told
         for w in workers:
             w.process.kill()
-            threading.Thread(target=self._on_exit, args=(w,), daemon=True).start()
+        # here, in the supervisor thread (its only caller), before it ends: the template
+        # dies with it (PDEATHSIG), and it reports its workers' exits, so it goes last
+        for w in workers:
+            self._on_exit(w)
+        if self._template is not None:
+            self._template.stop()
 
     def _in_loop(self) -> bool:
         return threading.get_ident() == self._loop_thread
@@ -463,8 +523,7 @@ class WorkerPool:
                 self.restarts += 1
             self._dispatch_locked()
             self._wake.notify()
-        worker.jobs.close()
-        worker.answers.close()
+        worker.close()
         if job is not None and not job.future.done():
             job.future.set_exception(self._exit_error(worker, exit_text))
         if was == "retired":
@@ -581,6 +640,8 @@ class WorkerPool:
                 while self._take_answers(w):
                     pass
             self._on_exit(w)  # once per worker: one never attached too, a handled one not again
+        if self._template is not None:  # before the supervisor ends (its PDEATHSIG)
+            self._template.stop()
         self._spawn_requests.put(None)
         if self._supervisor is not None:
             self._supervisor.join(5.0)
@@ -606,12 +667,15 @@ class WorkerPool:
 
     @property
     def state(self) -> PoolState:
-        """'ready' while every configured worker is warm; 'starting' before the first
-        time, 'recovering' while a replacement warms up, 'broken' when a worker cannot be
-        started or warmed up, 'stopping' once a shutdown began."""
+        """'ready' once every configured worker was warm, and then while at least one is
+        (a killed worker's replacement, forked warm, takes milliseconds: a load balancer
+        should not drop a replica that can serve); 'starting' before the first time,
+        'recovering' while no worker is warm after that, 'broken' when no worker is warm and
+        none can be started or warmed up, 'stopping' once a shutdown began."""
         if self._stopping:
             return "stopping"
-        if self.warm_workers >= self.workers:
+        warm = self.warm_workers
+        if warm >= self.workers or (warm > 0 and self._was_ready):
             return "ready"
         if self._failed:
             return "broken"

@@ -22,13 +22,13 @@ async def health() -> Health:
 @router.get(
     "/ready",
     response_model=Readiness,
-    responses={503: {"model": Readiness, "description": "Not every worker is warm (yet)."}},
+    responses={503: {"model": Readiness, "description": "No worker is warm (yet), or stopping."}},
 )
 async def ready(
     request: Request, pool: Pool, settings: SettingsDep, response: Response
 ) -> Readiness:
-    """Readiness: every configured worker process is alive and warm (503 otherwise: while
-    starting, while a dead worker's replacement warms up, while stopping). Like
+    """Readiness: every configured worker process was warm once and one is now (503
+    otherwise: while starting, while no worker is warm, while stopping). Like
     ``/v1/health`` it never needs the API key: load-balancer health checks often cannot send
     one, and it tells nothing but the worker counts. From a SIGTERM on it answers 503
     ``stopping`` while the service still serves (the drain, :mod:`planner_api.server`)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import time
+from multiprocessing.connection import Connection
 
 import pytest
 import uvloop
@@ -18,6 +19,7 @@ import uvloop
 from planner_api import workers as workers_module
 from planner_api.exceptions import DeadlineExceededError
 from planner_api.worker_handle import Worker
+from planner_api.worker_template import TemplateError
 from planner_api.workers import WorkerPool
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
@@ -141,7 +143,7 @@ def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes(monkeypatc
     it is killed and reaped and its pipes are closed, not left to the garbage collector."""
 
     async def scenario() -> None:
-        pool = WorkerPool(1, 0, warm_up=None)
+        pool = WorkerPool(1, 0, warm_up=None, template=False)
         await pool.start()
         await _ready(pool)
         pool.shutdown(timeout_s=5)
@@ -167,6 +169,33 @@ def test_a_worker_started_during_a_shutdown_is_stopped_with_its_pipes(monkeypatc
         assert pool.pids == []
         assert len(started) == 1 and started[0].exitcode == -9, "the late worker was not killed"
         assert len(opened) == 4 and all(end.closed for end in opened)
+
+    _run("asyncio", scenario)
+
+
+def test_a_worker_forked_during_a_shutdown_is_stopped_with_its_pipes():
+    """The same race with the warm template: the supervisor has a worker forked (``fork``
+    returned) when the shutdown takes its list; the late worker is killed and its pipes and
+    pidfd closed; and no new template or worker is started once the shutdown began."""
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 0, warm_up=None)
+        await pool.start()
+        await _ready(pool)
+        template = pool._template
+        assert template is not None
+        process, jobs_fd, answers_fd = template.fork()  # as the supervisor's _spawn would
+        assert process.is_alive()
+        pool.shutdown(timeout_s=5)
+        jobs = Connection(jobs_fd, readable=False, writable=True)
+        answers = Connection(answers_fd, readable=True, writable=False)
+        pool._add(Worker(process, jobs=jobs, answers=answers))
+        assert pool.pids == []
+        assert not process.is_alive(), "the late worker was not stopped"
+        assert jobs.closed and answers.closed and process._pidfd is None
+        with pytest.raises(TemplateError):
+            pool._spawn()  # after the shutdown: no template is started again
+        assert template.state == "gone" and pool._template is template
 
     _run("asyncio", scenario)
 

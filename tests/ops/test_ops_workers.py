@@ -52,16 +52,18 @@ def _alive(pid: int) -> bool:
 
 
 def _workers(server: int) -> list[int]:
-    """The server's worker processes (spawned Python children, not the resource tracker)."""
-    pids = []
+    """The server's worker processes: the children of its warm template (the one spawned
+    Python child; multiprocessing's resource tracker is not spawned so)."""
+    spawned = []
     for pid in _children(server):
         try:
             cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
         except FileNotFoundError:
             continue
         if b"spawn_main" in cmd:
-            pids.append(pid)
-    return pids
+            spawned.append(pid)
+    assert len(spawned) <= 1, f"more than one template: {spawned}"
+    return [pid for template in spawned for pid in _children(template)]
 
 
 @pytest.fixture(scope="module")
@@ -158,15 +160,18 @@ def test_a_worker_killed_mid_job_fails_only_its_request(tmp_path):
 
 
 def test_a_killed_server_leaves_no_process_behind(tmp_path):
-    """SIGKILL on the server: its two workers (not warmed up: the rule is the parent's
-    death, whatever the worker was doing) and multiprocessing's resource tracker exit."""
+    """SIGKILL on the server: its warm template, its two workers (forked from the template,
+    they die with the server through the hang-up of their jobs pipe, whatever they were doing)
+    and multiprocessing's resource tracker exit."""
     from conftest import free_port
     from test_ops_shutdown import _start
 
     process, _ = _start(tmp_path, free_port(), PLANNER_WORKERS="2")
     try:
-        ours = _children(process.pid)  # the workers and multiprocessing's resource tracker
-        assert len(_workers(process.pid)) == 2 and len(ours) >= 2
+        workers = _workers(process.pid)
+        # the template, multiprocessing's resource tracker and the workers the template forked
+        ours = _children(process.pid) + workers
+        assert len(workers) == 2 and len(ours) >= 4
         process.send_signal(signal.SIGKILL)
         process.wait()
         end = time.monotonic() + 10

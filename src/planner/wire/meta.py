@@ -31,10 +31,10 @@ class Readiness(_Response):
     """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
 
     status: Literal["ready", "starting", "recovering", "broken", "stopping"] = Field(
-        description="'ready' while every configured worker is warm (imports done, kernels "
-        "compiled); 'starting' before the first time; 'recovering' while a replacement of a "
-        "dead worker warms up; 'broken' when a worker cannot be started or warmed up; "
-        "'stopping' during a shutdown."
+        description="'ready' once every configured worker was warm (imports done, kernels "
+        "compiled), then while at least one is; 'starting' before the first time; "
+        "'recovering' while no worker is warm after that; 'broken' when none is and none can "
+        "be started or warmed up; 'stopping' during a shutdown."
     )
     workers: int = Field(ge=0, description="Worker processes configured.")
     warm: int = Field(0, ge=0, description="Worker processes alive and warm now.")
