@@ -295,10 +295,13 @@ def _route_label(scope: Scope) -> str:
 #: Headers every answer carries unless its route set its own (the viewer's page and the API
 #: documentation pages set a Content-Security-Policy for what they load): no MIME sniffing,
 #: no referrer, and a policy that loads nothing and may be framed by no one (a JSON answer,
-#: a script or a style sheet needs no more).
+#: a script or a style sheet needs no more). ``X-Frame-Options: DENY`` says "framed by no one"
+#: to the browsers and proxies that do not read the policy's ``frame-ancestors``, also on the
+#: pages with their own policy (which keep ``frame-ancestors 'none'``).
 SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
     (b"x-content-type-options", b"nosniff"),
     (b"referrer-policy", b"no-referrer"),
+    (b"x-frame-options", b"DENY"),
     (b"content-security-policy", b"default-src 'none'; frame-ancestors 'none'"),
 )
 
