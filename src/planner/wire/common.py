@@ -580,22 +580,25 @@ def obstacle_from_dict(data: Mapping[str, Any]) -> geometry.Obstacle:
 def obstacles_to_core(
     models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle | PointsObstacle],
     loc: tuple[str | int, ...] = ("body", "obstacles"),
+    points_before: int = 0,
 ) -> list[geometry.Obstacle]:
     """The library obstacles of a request's ``obstacles``, built from the models' fields
-    (errors located at ``loc.<i>``). The points of all clouds together are at most
-    :data:`MAX_POINTS` (a 422 at the cloud that passes it)."""
+    (errors located at ``loc.<i>``). The points of all clouds together, with the
+    ``points_before`` of a named scene's clouds, are at most :data:`MAX_POINTS` (a 422 at the
+    cloud that passes it, ``loc.<i>.points``)."""
     from planner.geometry import Box, Capsule, Points, Sphere
 
     out: list[geometry.Obstacle] = []
-    n_points = 0
+    n_points = points_before
     for i, model in enumerate(models):
         with located(*loc, i):
             if isinstance(model, PointsObstacle):
                 n_points += len(model.points)
                 if n_points > MAX_POINTS:
+                    scene = f" (its scene's {points_before} included)" if points_before else ""
                     raise InputError(
-                        f"the point clouds of one request hold at most {MAX_POINTS} points in "
-                        f"all, got {n_points} by this one",
+                        f"the point clouds of one request{scene} hold at most {MAX_POINTS} "
+                        f"points in all, got {n_points} by this one",
                         field="points",
                     )
                 out.append(Points(model.points, model.radius))
