@@ -18,6 +18,7 @@ from planner.wire import (
     PlanBatchResponse,
     PlanRequest,
     PlanResponse,
+    SphereObstacle,
 )
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
@@ -149,6 +150,22 @@ def test_obstacles_are_discriminated_on_type_and_box_quaternion_normalised():
     assert req.obstacles[1].quaternion == [1.0, 0.0, 0.0, 0.0]
     q = BoxObstacle(center=[0, 0, 0], size=[1, 1, 1], quaternion=[1, 1, 1, 1]).quaternion
     assert math.isclose(sum(v * v for v in q), 1.0)
+
+
+def test_the_obstacle_schemas_require_their_type():
+    """The union picks its member by ``type`` and refuses a body without it: every member's
+    schema says so (``required``, no default); tests/service/test_api_openapi.py reads the
+    service's document."""
+    defs = PlanRequest.model_json_schema()["$defs"]
+    for name, tag in [("SphereObstacle", "sphere"), ("BoxObstacle", "box"),
+                      ("CapsuleObstacle", "capsule"), ("PointsObstacle", "points")]:  # fmt: skip
+        schema = defs[name]
+        assert schema["required"][0] == "type", (name, schema["required"])
+        assert schema["properties"]["type"] == {"const": tag, "title": "Type", "type": "string"}
+    with pytest.raises(ValidationError) as info:
+        PlanRequest(start=START, goal=START, obstacles=[{"center": [0, 0, 1], "radius": 0.1}])
+    assert info.value.errors()[0]["type"] == "union_tag_not_found"
+    assert SphereObstacle(center=[0, 0, 1], radius=0.1).type == "sphere"  # Python keeps it
 
 
 def test_round_trip_through_json_is_lossless():

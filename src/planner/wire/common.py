@@ -400,13 +400,29 @@ Goal = Annotated[
 
 
 # ---------------------------------------------------------------------------- obstacles
-class SphereObstacle(_Request):
+def _tag_required(schema: dict[str, Any]) -> None:
+    """An obstacle's JSON schema lists ``type`` as required, without a default: the union
+    :data:`Obstacle` picks its member by ``type``, so a body without it is refused (the
+    default only serves Python code that builds one member by its class)."""
+    required = schema.setdefault("required", [])
+    if "type" not in required:
+        required.insert(0, "type")
+    schema.get("properties", {}).get("type", {}).pop("default", None)
+
+
+class _Obstacle(_Request):
+    """Base of the obstacle members of :data:`Obstacle` (their schemas: :func:`_tag_required`)."""
+
+    model_config = ConfigDict(json_schema_extra=_tag_required)
+
+
+class SphereObstacle(_Obstacle):
     type: Literal["sphere"] = "sphere"
     center: Point3 = Field(description="m.")
     radius: PositiveSize = Field(description="m, > 0.")
 
 
-class BoxObstacle(_Request):
+class BoxObstacle(_Obstacle):
     """An oriented box: ``size`` is the full edge lengths along its own axes, turned by the
     unit quaternion ``[w, x, y, z]`` (normalised here; a zero quaternion is an error)."""
 
@@ -428,7 +444,7 @@ class BoxObstacle(_Request):
         return [v / norm for v in value]
 
 
-class CapsuleObstacle(_Request):
+class CapsuleObstacle(_Obstacle):
     """The set of points within ``radius`` of the segment ``a``-``b``."""
 
     type: Literal["capsule"] = "capsule"
@@ -437,7 +453,7 @@ class CapsuleObstacle(_Request):
     radius: PositiveSize = Field(description="m, > 0.")
 
 
-class PointsObstacle(_Request):
+class PointsObstacle(_Obstacle):
     """A point cloud: every point a ball of ``radius`` (a depth camera's points, a CAD model
     sampled). At most :data:`MAX_POINTS` points in all the clouds of one request; the list's
     length is checked before its points are validated."""
