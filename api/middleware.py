@@ -54,6 +54,8 @@ __all__ = [
     "RequestGate",
     "RequestObserver",
     "api_key_accepted",
+    "host_name",
+    "relative_location",
 ]
 
 access_logger = logging.getLogger("api.access")
