@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Discriminator,
     Field,
@@ -23,6 +24,7 @@ from pydantic import (
     model_serializer,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from planner.constants import MAX_POINTS
 from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
@@ -53,6 +55,7 @@ __all__ = [
     "Goal",
     "Gravity",
     "InertiaModel",
+    "Integer",
     "JointGoal",
     "JointPostureModel",
     "Length",
@@ -98,7 +101,23 @@ WorkingModeLabel = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---
 WorkingModeOrAny = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---", "any"]
 AssemblyModeLabel = Literal["+", "-"]
 
+
 # ---------------------------------------------------------------------------- number types
+def _whole_number(value: Any) -> Any:
+    """A JSON number written with a fraction of zero (``8.0``, which JSON does not tell from
+    ``8``) as the integer it is; a fractional one (``8.5``) refused by name; anything else
+    left to the strict integer check (``true`` and ``"8"`` stay refused)."""
+    if isinstance(value, float):
+        if value.is_integer():
+            return int(value)
+        raise PydanticCustomError(
+            "int_from_float", "Input should be a whole number, got {value}", {"value": value}
+        )
+    return value
+
+
+#: An integer field of a request: strict (no bool, no string) but a whole float is taken.
+Integer = Annotated[int, BeforeValidator(_whole_number)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Length = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)]
 LinkLength = Annotated[float, Field(allow_inf_nan=False, ge=MIN_LENGTH, le=MAX_LENGTH)]
@@ -121,8 +140,9 @@ Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 
 class _Request(BaseModel):
     """Base of request models: unknown fields are errors, and types are strict (``true`` is
-    not a number, ``"1.5"`` is not a number; an integer is a number): a client's mistake is
-    named, not coerced."""
+    not a number, ``"1.5"`` is not a number; an integer is a number, and a whole number is an
+    integer: ``8.0`` where a field is an :data:`Integer`): a client's mistake is named, not
+    coerced."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
 
