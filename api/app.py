@@ -111,6 +111,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         timeout_s=settings.request_timeout_s,
         body_timeout_s=settings.body_timeout_s,
         api_key=settings.api_key.get_secret_value() if settings.api_key else None,
+        allowed_hosts=settings.host_names,
     )
     app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
     app.add_middleware(

@@ -4,6 +4,10 @@ time, the request's deadline) and the observer (request id, metrics, the access 
 Pure ASGI (no ``BaseHTTPMiddleware``). :class:`RequestGate` checks, in this order, before the
 application parses anything:
 
+0. **host**: a ``Host`` header (its port stripped) that names no allowed host
+   (``PLANNER_ALLOWED_HOSTS``) is 400 ``host_not_allowed``, whatever the path but the probes
+   ``/v1/health`` and ``/v1/ready`` (a load balancer or a kubelet probes a replica by its IP
+   address, which no deployment lists); a set lookup;
 1. **size**: a ``Content-Length`` over ``max_body_bytes`` is 413 at once; a streamed body is
    cut off (413) as soon as it passes the limit;
 2. **auth**: without the API key (when one is configured), every ``/v1`` route but the
@@ -14,6 +18,12 @@ application parses anything:
    request's budget), else 408 and the connection is closed, so a client that stalls cannot
    hold a connection;
 5. then FastAPI parses the JSON and validates the schema (422).
+
+Without the host check, a keyless service on a user's machine answers any web page that makes
+its own name resolve to 127.0.0.1 (DNS rebinding): the browser sends that page's name as the
+Host. :class:`RequestObserver` also makes every redirect relative (Starlette's trailing-slash
+redirect and the static files' directory redirect build an absolute ``location`` from the
+Host header): a redirect never sends a client to a host the request named.
 
 It also stamps ``scope["state"]["deadline"]`` (a :func:`time.monotonic` value) when the
 request arrives, which the worker pool honours.
@@ -40,9 +50,12 @@ from planner_api.metrics import CURRENT, UNMATCHED, Metrics
 __all__ = [
     "API_KEY_REQUIRED",
     "CLIENT_CLOSED_REQUEST",
+    "HOST_NOT_ALLOWED",
     "RequestGate",
     "RequestObserver",
     "api_key_accepted",
+    "host_name",
+    "relative_location",
 ]
 
 access_logger = logging.getLogger("api.access")
@@ -56,6 +69,20 @@ _BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
 #: The 401's message, the gate's and the routes' alike.
 API_KEY_REQUIRED = "a valid API key is required (X-API-Key or Authorization: Bearer)"
+
+
+#: The 400's message when the Host names no allowed host (followed by the name).
+HOST_NOT_ALLOWED = "the Host header names no host this service answers (PLANNER_ALLOWED_HOSTS)"
+
+
+def host_name(value: str) -> str:
+    """A ``Host`` header's host name as :func:`planner_api.settings.parse_allowed_hosts`
+    writes the allowed ones: lower case, its port stripped (an IPv6 address kept in its
+    brackets), without a final dot."""
+    value = value.strip().lower()
+    if value.startswith("["):
+        return value[: value.find("]") + 1] if "]" in value else value
+    return value.partition(":")[0].rstrip(".")
 
 
 def api_key_accepted(headers: Mapping[str, str], expected: str) -> bool:
@@ -115,12 +142,15 @@ class RequestGate:
         timeout_s: float,
         body_timeout_s: float,
         api_key: str | None = None,
+        allowed_hosts: frozenset[str] | None = None,
     ) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
         self.timeout_s = timeout_s
         self.body_timeout_s = min(body_timeout_s, timeout_s)
         self.api_key = api_key
+        #: None: any host (``PLANNER_ALLOWED_HOSTS=*``, or the default of a keyed service)
+        self.allowed_hosts = allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -129,6 +159,16 @@ class RequestGate:
         arrival = time.monotonic()
         scope.setdefault("state", {})["deadline"] = arrival + self.timeout_s
         headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope.get("headers", ())}
+        path = scope.get("path", "")
+        if self.allowed_hosts is not None and path not in _OPEN_PATHS:
+            host = host_name(headers.get("host", ""))
+            if host not in self.allowed_hosts:
+                shown = repr(host[:100]) if host else "none was given"
+                await _answer(
+                    send, 400, f"{HOST_NOT_ALLOWED}: {shown}", "host_not_allowed",
+                    ["header", "host"],
+                )  # fmt: skip
+                return
         try:
             too_large = int(headers.get("content-length", "0")) > self.max_body_bytes
         except ValueError:
@@ -136,7 +176,6 @@ class RequestGate:
         if too_large:
             await self._too_large(send)
             return
-        path = scope.get("path", "")
         guarded = path.startswith("/v1/") and path not in _OPEN_PATHS
         if guarded and self.api_key is not None:
             if not api_key_accepted(headers, self.api_key):
@@ -258,15 +297,32 @@ def _route_label(scope: Scope) -> str:
 #: Headers every answer carries unless its route set its own (the viewer's page and the API
 #: documentation pages set a Content-Security-Policy for what they load): no MIME sniffing,
 #: no referrer, and a policy that loads nothing and may be framed by no one (a JSON answer,
-#: a script or a style sheet needs no more).
+#: a script or a style sheet needs no more). ``X-Frame-Options: DENY`` says "framed by no one"
+#: to the browsers and proxies that do not read the policy's ``frame-ancestors``, also on the
+#: pages with their own policy (which keep ``frame-ancestors 'none'``).
 SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
     (b"x-content-type-options", b"nosniff"),
     (b"referrer-policy", b"no-referrer"),
+    (b"x-frame-options", b"DENY"),
     (b"content-security-policy", b"default-src 'none'; frame-ancestors 'none'"),
 )
 
 
 _CONNECTION_CLOSE = (b"connection", b"close")
+
+
+def relative_location(location: bytes, host: bytes | None) -> bytes:
+    """A redirect's ``location`` without the scheme and host the application built from the
+    request's ``Host`` header (``http://<host>/v1/plan`` -> ``/v1/plan``; without a Host
+    header, from the server's address: any absolute one), another location unchanged. A path
+    starting ``//`` (a host to a browser) keeps one slash."""
+    scheme, sep, rest = location.partition(b"://")
+    if not sep or scheme.lower() not in (b"http", b"https"):
+        return location
+    netloc, _, tail = rest.partition(b"/")
+    if host is not None and netloc.lower() != host.strip().lower():
+        return location
+    return b"/" + tail.lstrip(b"/")
 
 
 class RequestObserver:
@@ -284,6 +340,13 @@ class RequestObserver:
         self.metrics = metrics
         self.stopping = stopping
         self._header = REQUEST_ID_HEADER.lower().encode()
+
+    @staticmethod
+    def _relative(scope: Scope, headers: list[tuple[bytes, bytes]]) -> list[tuple[bytes, bytes]]:
+        host = next((v for k, v in scope.get("headers", ()) if k == b"host"), None)
+        return [
+            (k, relative_location(v, host) if k.lower() == b"location" else v) for k, v in headers
+        ]
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -305,6 +368,8 @@ class RequestObserver:
                 headers.append((self._header, request_id.encode()))
                 present = {k.lower() for k, _ in headers}
                 headers += [(k, v) for k, v in SECURITY_HEADERS if k not in present]
+                if 300 <= status < 400:
+                    headers = self._relative(scope, headers)
                 if self.stopping():
                     headers.append(_CONNECTION_CLOSE)
                 message = {**message, "headers": headers}

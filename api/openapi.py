@@ -4,8 +4,8 @@ FastAPI documents the success answer and request validation (422) of each route;
 of the request gate (:mod:`planner_api.middleware`: 401 without the key, 408, 413, 415) and of the
 worker pool (502, 503, 504) happen around the routes, so :func:`install_openapi` adds them:
 
-- every ``/v1`` operation but the probes ``/v1/health`` and ``/v1/ready``: 401 when a key is
-  configured (and then the
+- every ``/v1`` operation but the probes ``/v1/health`` and ``/v1/ready``: 400 (a Host not
+  allowed) and 401 when a key is configured (and then the
   ``securitySchemes`` ``ApiKey``, header ``X-API-Key``, and ``Bearer``);
 - every operation with a body: 408, 413, 415, 422;
 - every operation that runs in a worker: 502, 503, 504; the others that can be refused
@@ -41,6 +41,7 @@ __all__ = [
 STATIC_DOCS = Path(__file__).parent / "static" / "docs"
 _ERROR = {"$ref": "#/components/schemas/ErrorResponse"}
 _DESCRIPTIONS = {
+    "400": "The Host header names no host the service answers (PLANNER_ALLOWED_HOSTS).",
     "401": "Missing or wrong API key (X-API-Key or Authorization: Bearer).",
     "408": "The request body did not arrive within the body timeout.",
     "413": "The request body is larger than the service's limit.",
@@ -71,17 +72,18 @@ def document_errors(schema: dict[str, Any], *, api_key: bool) -> dict[str, Any]:
         if not path.startswith("/v1/"):
             continue
         for method, operation in item.items():
-            if path == "/v1/health":
+            if path in ("/v1/health", "/v1/ready"):  # probes: any host, no key, own 503
                 continue
-            if api_key and path != "/v1/ready":
+            _add(operation, "400")
+            if api_key:
                 _add(operation, "401")
                 operation["security"] = [{"ApiKey": []}, {"Bearer": []}]
             if method in ("post", "put", "patch"):
                 _add(operation, "408", "413", "415", "422")
             if path not in _NO_JOB:
                 _add(operation, "502", "503", "504")
-            elif path != "/v1/ready":
-                _add(operation, "503")
+            else:
+                _add(operation, "503")  # refused while the service stops
     if api_key:
         schema.setdefault("components", {})["securitySchemes"] = {
             "ApiKey": {"type": "apiKey", "in": "header", "name": "X-API-Key"},

@@ -17,8 +17,11 @@ the headers are complete. So the bound lives in the protocol:
 - **Send timeout.** When the transport's write buffer passes its high-water mark (the client
   reads more slowly than the service writes), a timer is armed; the transport resuming
   writing (the buffer drained below its low-water mark) cancels it. When it fires, the client
-  has not taken the answer in time: the connection is aborted, which drops the buffered bytes
-  at once (``transport.abort()``; ``close()`` would keep them until they are sent).
+  has not taken the answer in time: the connection is aborted with a TCP reset, which drops
+  the buffered bytes at once, the transport's and the kernel's (``SO_LINGER`` 0, then
+  ``transport.abort()``; ``close()`` would keep them until they are sent, and ``abort()``
+  alone still lets the kernel send its buffer and a clean FIN), so the client sees a reset,
+  never what looks like the end of an answer.
 
 :func:`guarded_protocol` makes the class uvicorn is given: the timers of :class:`_Guard` mixed
 into uvicorn's httptools protocol (the default of ``uvicorn[standard]``) or its h11 one.
@@ -30,6 +33,8 @@ import asyncio
 import importlib.util
 import json
 import logging
+import socket
+import struct
 from typing import Any
 
 from uvicorn.protocols.http.h11_impl import H11Protocol
@@ -112,7 +117,7 @@ class _Guard:
             self.send_timeout_s,
             _peer(self.client),
         )
-        transport.abort()
+        _reset(transport)
 
     # the protocol's hooks
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
@@ -137,6 +142,21 @@ class _Guard:
     def resume_writing(self) -> None:
         self._disarm_send_timer()
         super().resume_writing()  # type: ignore[misc]
+
+
+def _reset(transport: asyncio.Transport) -> None:
+    """Abort ``transport`` with a TCP reset: ``abort()`` drops the bytes the transport still
+    buffers, but the kernel would send the ones already in its socket buffer (megabytes)
+    and then a clean FIN, which a client reading a chunked answer, or one that ignores
+    Content-Length, takes for a complete answer. ``SO_LINGER`` with a zero timeout makes
+    the close discard them and send RST: the client learns that the answer was cut."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        except OSError:  # pragma: no cover - the socket closed meanwhile
+            pass
+    transport.abort()
 
 
 def _peer(client: Any) -> str:

@@ -15,6 +15,8 @@ PLANNER_MAX_SEQUENCE_TARGETS 64                           targets in one sequenc
 PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
 PLANNER_MAX_SECTION_RESOLUTION 256                        cells per axis of a section or figure
 PLANNER_API_KEY           (none)                          when set, required on /v1 but health
+PLANNER_ALLOWED_HOSTS     loopback names (keyless), any   Host names answered (comma-separated,
+                          (with a key)                    ``*``: any); others: 400
 PLANNER_LOG_LEVEL         info                            debug, info, warning, error, critical
 PLANNER_LOG_FORMAT        json                            json (one object a line) or text
 PLANNER_HEADER_TIMEOUT_S  10                              time to send the request line and headers, s
@@ -42,6 +44,7 @@ Without ``PLANNER_SCENE_STORE`` scenes live in ``$XDG_DATA_HOME/planner/scenes.s
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import os
 from functools import lru_cache
@@ -67,7 +70,11 @@ from planner.wire import (
     DesignModel,
 )
 
-__all__ = ["Settings"]
+__all__ = ["LOOPBACK_HOSTS", "Settings", "parse_allowed_hosts"]
+
+#: The default ``allowed_hosts`` of a service without an API key: the names a client on the
+#: same machine uses (a browser's ``localhost``, the image's health check's ``127.0.0.1``).
+LOOPBACK_HOSTS = frozenset({"localhost", "127.0.0.1", "[::1]"})
 
 
 def _cpu_count() -> int:
@@ -261,7 +268,24 @@ class Settings(BaseSettings):
         description="Where named scenes persist: a SQLite file path (default "
         "$XDG_DATA_HOME/planner/scenes.sqlite3), or a postgresql:// URL shared by replicas.",
     )
+    allowed_hosts: str | None = Field(
+        None,
+        description="The host names the service answers, comma-separated (no port, no "
+        "scheme; '*': any): a request whose Host header (its port stripped) names another is "
+        "answered 400, except the probes /v1/health and /v1/ready. Default: the loopback names "
+        "(localhost, 127.0.0.1, ::1) without an API key, any with one. Against DNS "
+        "rebinding: a web page that makes its own name resolve to 127.0.0.1 cannot drive a "
+        "keyless service on the user's machine.",
+    )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
+    _hosts: frozenset[str] | None = PrivateAttr(default=None)
+
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _host_names(cls, value: str | None) -> str | None:
+        if value is not None:
+            parse_allowed_hosts(value)
+        return value
 
     @field_validator("default_design")
     @classmethod
@@ -278,12 +302,54 @@ class Settings(BaseSettings):
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
         self._design_defaults = _parse_design(self.default_design)
+        if self.allowed_hosts is not None:
+            self._hosts = parse_allowed_hosts(self.allowed_hosts)
+        else:
+            self._hosts = None if self.keyed else LOOPBACK_HOSTS
         return self
 
     @property
     def design_defaults(self) -> DesignModel:
         """The parsed ``default_design``: what a request's absent design fields take."""
         return self._design_defaults
+
+    @property
+    def keyed(self) -> bool:
+        """Whether the service requires a key on its ``/v1`` routes: the one place that
+        says so for the settings' defaults (``allowed_hosts``)."""
+        return self.api_key is not None
+
+    @property
+    def host_names(self) -> frozenset[str] | None:
+        """The Host names answered (lower case, an IPv6 address in brackets), or None for
+        any: ``allowed_hosts`` parsed, or its default (:attr:`keyed`)."""
+        return self._hosts
+
+
+def parse_allowed_hosts(value: str) -> frozenset[str] | None:
+    """The host names of a ``PLANNER_ALLOWED_HOSTS`` value (None: ``*``, any), as a request's
+    Host header names them once its port is stripped: lower case, an IPv6 address in brackets
+    (``::1`` and ``[::1]`` alike). ValueError naming the variable and the entry that breaks
+    the rule (an empty one, a port, a scheme or a path)."""
+    names: set[str] = set()
+    for raw in value.split(","):
+        name = raw.strip().lower().rstrip(".")
+        if name == "*":
+            return None
+        rule = "PLANNER_ALLOWED_HOSTS: comma-separated host names without port or scheme"
+        if not name:
+            raise ValueError(f"{rule} ('*': any), got an empty name in {value!r}")
+        bare = name[1:-1] if name.startswith("[") and name.endswith("]") else name
+        if ":" in bare:  # only an IPv6 address holds a colon
+            try:
+                names.add(f"[{ipaddress.IPv6Address(bare)}]")
+            except ValueError:
+                raise ValueError(f"{rule}, got {raw.strip()!r}") from None
+            continue
+        if any(c in name for c in "/[]@ ") or "*" in name:
+            raise ValueError(f"{rule}, got {raw.strip()!r}")
+        names.add(name)
+    return frozenset(names)
 
 
 def _parse_design(value: str) -> DesignModel:

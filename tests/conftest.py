@@ -34,6 +34,9 @@ os.environ.setdefault(
 #: Seconds allowed for a service to be ready (every worker warm) after it starts: the first
 #: warm-up of a fresh checkout compiles and imports for tens of seconds on a slow machine.
 STARTUP_TIMEOUT_S = 180.0
+#: The base URL of the in-process clients: a loopback name, which a keyless service answers
+#: by default (TestClient's own ``testserver`` is no allowed host: PLANNER_ALLOWED_HOSTS).
+LOCAL_URL = "http://localhost"
 
 
 def free_port() -> int:
@@ -79,7 +82,7 @@ def make_client(*, wait_ready: bool = True, warm: bool = True, **settings: objec
     if any, are cheap and not timed against a tight budget."""
     settings.setdefault("workers", 1)
     app = create_app(Settings(**settings), warm_up=warm)
-    client = ReadyClient(app, raise_server_exceptions=False)
+    client = ReadyClient(app, base_url=LOCAL_URL, raise_server_exceptions=False)
     client.wait_ready = wait_ready
     return client
 

@@ -256,3 +256,32 @@ def test_design_mjcf_bad_input_is_a_422_at_the_field(api, method, change, loc) -
         r = api.post("/v1/design/mjcf", json=change)
     assert r.status_code == 422, r.text
     assert r.json()["detail"][0]["loc"] == loc
+
+
+@pytest.mark.parametrize("L2", [0.26, 0.2])
+def test_a_query_design_the_default_home_does_not_assemble_gets_a_nearby_keyframe(api, L2):
+    """``GET /v1/design/mjcf`` takes no ``home``: a design whose links do not assemble at
+    the default keyframe gets the posture nearest to it that does (a 422 at ``query.home``
+    named a parameter the route does not have); MuJoCo loads the model at that keyframe
+    with the loop closed."""
+    r = api.get("/v1/design/mjcf", params={"L2": L2})
+    assert r.status_code == 200, r.text
+    model = mujoco.MjModel.from_xml_string(r.text)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    design = Design(0.5, 0.2, L2)  # the default robot's L0, L1
+    q = data.qpos[[0, 1, 3]]
+    assert np.allclose(mjcf_qpos(design, q[None])[0], data.qpos, atol=1e-9)
+    tips = [data.site_xpos[i] for i in range(model.nsite)]
+    assert np.allclose(tips[0], tips[1], atol=1e-9)  # the loop closed at P
+
+
+def test_a_design_that_never_assembles_names_the_design_not_home(api):
+    far = {"L0": 2.0, "L1": 0.2, "L2": 0.2}  # |CD| >= L0 - 2 L1 > 2 L2 in every posture
+    r = api.get("/v1/design/mjcf", params=far)
+    assert r.status_code == 422, r.text
+    (item,) = r.json()["detail"]
+    assert item["loc"] == ["query"] and "assembles in no posture" in item["msg"], item
+    r = api.post("/v1/design/mjcf", json={"design": far})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body"], r.text

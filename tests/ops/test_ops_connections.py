@@ -153,7 +153,10 @@ def test_a_request_whose_headers_arrived_is_not_cut(served):
 def test_a_client_that_does_not_read_is_aborted_and_its_answer_dropped(served):
     """An 8 MB answer to a client with a small receive buffer that never reads: the server
     aborts the connection after the send timeout, and the connection, with its buffered
-    bytes, is gone: the client then reads what its kernel held, far less than the answer."""
+    bytes, is gone: the client then reads what its kernel held, far less than the answer,
+    and the end is a TCP reset (not a clean close that a client reading a chunked answer, or
+    ignoring Content-Length, takes for a complete one): the kernel's buffer on the server's
+    side is dropped too."""
     with served.connect(rcvbuf=4096) as s:
         s.sendall(b"GET /big HTTP/1.1\r\nHost: x\r\n\r\n")
         time.sleep(0.2)
@@ -162,8 +165,9 @@ def test_a_client_that_does_not_read_is_aborted_and_its_answer_dropped(served):
         while served.connections() and time.monotonic() < end:
             time.sleep(0.05)
         assert served.connections() == 0, "the connection outlived the send timeout"
-        data, _, _ = _read_until_closed(s, 5)
+        data, _, reset = _read_until_closed(s, 5)
     assert data.startswith(b"HTTP/1.1 200 ") and len(data) < BIG // 2
+    assert reset, f"a clean end of stream after {len(data)} bytes: the cut looks complete"
 
 
 def test_a_client_that_reads_gets_the_whole_answer(served):

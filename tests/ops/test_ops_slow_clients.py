@@ -108,7 +108,7 @@ def test_clients_that_never_read_are_cut_and_their_answers_dropped(server_factor
     before = _open_sockets(process.pid)
     body = json.dumps(BIG_TIMING).encode()
     request = (
-        b"POST /v1/timing HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+        b"POST /v1/timing HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
         b"Content-Length: %d\r\n\r\n" % len(body) + body
     )
     clients = []

@@ -289,3 +289,40 @@ def test_torque_limits_bound_the_sequence_and_lengthen_it():
     tau = inverse_dynamics(DESIGN, inertia, t.q, t.qd, t.qdd, gravity=G0).tau
     assert np.all(np.abs(tau) <= limit * (1 + 1e-3) + 1e-9)
     assert slow.cycle_time > free.cycle_time * 1.02
+
+
+@pytest.mark.parametrize("late_by", [1.0, 0.0])
+def test_a_mode_search_whose_deadline_passed_ends_as_a_timeout(late_by):
+    """The mode search (a Cartesian target in working mode "any") whose deadline passes
+    before its first assignment is planned answers as a sequence whose budget ran out,
+    status ``timeout`` (as the fixed objective's does), not an AssertionError; and the same
+    through the service's job (its answer, never a 500)."""
+    import time
+
+    from planner.wire import SequenceRequest
+    from planner_api.jobs import JobBudget
+    from planner_api.jobs.sequence import sequence as sequence_job
+
+    targets = pick_place(stop_corners=True)
+    deadline = time.monotonic() - late_by
+    for objective in ("time", "fixed"):
+        result = solve_sequence(DESIGN, START, targets, objective=objective, deadline=deadline)
+        assert result.status is PlanStatus.TIMEOUT and not result.solved, objective
+        assert "deadline" in result.message, result.message
+    body = {
+        "start": {"q": list(START.q), "assembly_mode": "+"},
+        "targets": [{"goal": {"p": list(t.goal.p), "working_mode": "any"}} for t in targets],
+    }
+    answer = sequence_job(SequenceRequest.model_validate(body), JobBudget(deadline=deadline))
+    assert answer.status == "timeout" and "deadline" in answer.message
+
+
+def test_a_target_no_candidate_reaches_in_its_own_mode_is_answered_by_the_plans():
+    """A target fixed to a working mode that cannot reach it, beside an "any" one, leaves the
+    mode search no assignment: the targets as given answer (which one, and why)."""
+    targets = [
+        SequenceTarget(CartesianTarget(at(0, 0, 0.05))),
+        SequenceTarget(CartesianTarget(at(0, 0.3, 0.0), "---")),
+    ]
+    result = solve_sequence(DESIGN, START, targets)
+    assert result.status is PlanStatus.UNREACHABLE and "target 1" in result.message

@@ -131,6 +131,7 @@ def test_bad_fk_bodies_are_422_naming_the_field(api, body, loc):
         ({"planner": {"time_budget_s": 0}}, ("body", "planner", "time_budget_s")),
         ({"planner": {"name": "rm -rf /"}}, ("body", "planner", "name")),
         ({"planner": {"seed": -1}}, ("body", "planner", "seed")),
+        ({"planner": {"seed": 8.5}}, ("body", "planner", "seed")),  # a whole 8.0 is taken
         ({"timing": {"method": "spline"}}, ("body", "timing", "method")),
         ({"timing": {"sample_rate_hz": 1e9}}, ("body", "timing", "sample_rate_hz")),
         ({"limits": {"velocity": [1, 0, 1]}}, ("body", "limits", "velocity", 1)),
@@ -143,6 +144,14 @@ def test_bad_plan_bodies_are_422_naming_the_field(api, patch, loc):
     r = _raw(api, "/v1/plan", json.dumps(body).replace('"NaN"', "NaN"))
     assert r.status_code == 422, r.text
     assert loc in _locs(r)
+
+
+def test_a_whole_float_is_taken_where_a_field_is_an_integer(api):
+    """JSON does not tell ``8.0`` from ``8``: an integer field takes it (and a fraction is a
+    422 naming the field, above)."""
+    body = {"start": START, "goal": START, "planner": {"seed": 8.0}, "timing": {"method": "none"}}
+    r = api.post("/v1/plan", json=body)
+    assert r.status_code == 200, r.text
 
 
 def test_too_many_obstacles_is_422_naming_obstacles(api):

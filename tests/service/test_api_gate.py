@@ -144,7 +144,7 @@ def _raw(url: str, request: bytes) -> socket.socket:
 
 def test_a_stalled_body_is_408_and_a_vanished_client_is_499_not_500(server_factory):
     _, url, _ = server_factory(workers="1", body_timeout_s="1", warm=False)
-    head = b"POST /v1/fk HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+    head = b"POST /v1/fk HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
     # 15 of 30 declared bytes, then silence: 408 after the body timeout, connection closed
     sock = _raw(url, head + b"Content-Length: 30\r\n\r\n" + b'{"q": [0, 1, 2')
     t0 = time.monotonic()

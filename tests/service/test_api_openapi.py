@@ -55,6 +55,19 @@ def test_figure_names_are_an_enum(api):
     assert enum == {f"{n}.{f}" for n in FIGURE_NAMES for f in ("png", "svg")}
 
 
+def test_the_obstacles_type_is_required_as_the_service_refuses_a_body_without_it(api):
+    schemas = api.get("/openapi.json").json()["components"]["schemas"]
+    for name in ("SphereObstacle", "BoxObstacle", "CapsuleObstacle", "PointsObstacle"):
+        assert "type" in schemas[name]["required"], (name, schemas[name]["required"])
+        assert "default" not in schemas[name]["properties"]["type"], name
+    sphere = {"center": [1.5, 0, 0], "radius": 0.1}
+    posture = {"q": [0, 1, 2], "assembly_mode": "+"}
+    r = api.post("/v1/plan", json={"start": posture, "goal": posture, "obstacles": [sphere]})
+    assert r.status_code == 422
+    (item,) = r.json()["detail"]
+    assert item["loc"] == ["body", "obstacles", 0] and item["type"] == "union_tag_not_found"
+
+
 class _Assets(HTMLParser):
     def __init__(self) -> None:
         super().__init__()

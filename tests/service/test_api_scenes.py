@@ -141,6 +141,28 @@ def test_unknown_and_unsafe_scene_names_in_a_plan_are_422(scenes_api):
     assert r.status_code == 422 and r.json()["detail"][0]["loc"][-1] == "scene"
 
 
+def test_points_over_the_limit_with_a_named_scene_name_the_requests_own_cloud(scenes_api):
+    """A scene's clouds and the request's own count together (at most MAX_POINTS); the cloud
+    that passes the limit is named where the client sent it, ``obstacles.<i>.points``, as
+    without a scene (not the index of the merged list, ``["body", "2"]``)."""
+    from planner.constants import MAX_POINTS
+
+    held = MAX_POINTS - 1_000
+    scene_cloud = {"type": "points", "points": [[1.5, 1.5, 1.5]] * held, "radius": 0.001}
+    assert scenes_api.put("/v1/scenes/dense", json={"obstacles": [scene_cloud]}).status_code == 200
+    sphere = {"type": "sphere", "center": [1.5, -1.5, 1.5], "radius": 0.01}
+    own = {"type": "points", "points": [[1.5, 1.5, -1.5]] * 2_000, "radius": 0.001}
+    body = {"start": START, "goal": GOAL, "timing": {"method": "none"}}
+    r = scenes_api.post("/v1/plan", json={**body, "scene": "dense", "obstacles": [sphere, own]})
+    assert r.status_code == 422, r.text
+    (item,) = r.json()["detail"]
+    assert item["loc"] == ["body", "obstacles", 1, "points"], item
+    assert str(MAX_POINTS) in item["msg"] and f"its scene's {held}" in item["msg"]
+    # the same request's own clouds within the limit: planned
+    r = scenes_api.post("/v1/plan", json={**body, "scene": "dense", "obstacles": [sphere]})
+    assert r.status_code == 200, r.text
+
+
 def test_concurrent_puts_leave_one_whole_scene(scenes_api):
     """16 PUTs of one name from 8 threads, each with its own content: the stored scene is
     one of them whole (its body's hash is its own), and every PUT made a version."""

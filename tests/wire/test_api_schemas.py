@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import typing
 
@@ -18,6 +19,7 @@ from planner.wire import (
     PlanBatchResponse,
     PlanRequest,
     PlanResponse,
+    SphereObstacle,
 )
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
@@ -151,6 +153,22 @@ def test_obstacles_are_discriminated_on_type_and_box_quaternion_normalised():
     assert math.isclose(sum(v * v for v in q), 1.0)
 
 
+def test_the_obstacle_schemas_require_their_type():
+    """The union picks its member by ``type`` and refuses a body without it: every member's
+    schema says so (``required``, no default); tests/service/test_api_openapi.py reads the
+    service's document."""
+    defs = PlanRequest.model_json_schema()["$defs"]
+    for name, tag in [("SphereObstacle", "sphere"), ("BoxObstacle", "box"),
+                      ("CapsuleObstacle", "capsule"), ("PointsObstacle", "points")]:  # fmt: skip
+        schema = defs[name]
+        assert schema["required"][0] == "type", (name, schema["required"])
+        assert schema["properties"]["type"] == {"const": tag, "title": "Type", "type": "string"}
+    with pytest.raises(ValidationError) as info:
+        PlanRequest(start=START, goal=START, obstacles=[{"center": [0, 0, 1], "radius": 0.1}])
+    assert info.value.errors()[0]["type"] == "union_tag_not_found"
+    assert SphereObstacle(center=[0, 0, 1], radius=0.1).type == "sphere"  # Python keeps it
+
+
 def test_round_trip_through_json_is_lossless():
     req = PlanRequest(
         start=START,
@@ -246,3 +264,64 @@ def test_third_part_dynamics_vocabulary():
     assert "torque" in schemas.Limits.model_fields
     assert "tau" in TrajectoryModel.model_fields
     assert "max_torque_ratio" in DiagnosticsModel.model_fields
+
+
+def _request_models() -> list[type]:
+    """Every request model of the wire (strict: ``_Request`` and its subclasses)."""
+    import planner.wire as wire
+    from planner.wire.common import _Request
+
+    found, todo = set(), [_Request]
+    while todo:
+        for sub in todo.pop().__subclasses__():
+            found.add(sub)
+            todo.append(sub)
+    assert len(found) > 20 and {m.__module__.split(".")[1] for m in found} == {"wire"}, wire
+    return sorted(found, key=lambda m: m.__name__)
+
+
+def _ints_take_whole_floats(tp: object, metadata: list) -> bool:
+    """Whether every ``int`` in the annotation ``tp`` carries the wire's whole-float rule."""
+    from typing import Annotated, get_args, get_origin
+
+    from pydantic.functional_validators import BeforeValidator
+
+    from planner.wire.common import _whole_number
+
+    if tp is int:
+        return any(isinstance(m, BeforeValidator) and m.func is _whole_number for m in metadata)
+    if get_origin(tp) is Annotated:
+        inner, *extra = get_args(tp)
+        return _ints_take_whole_floats(inner, [*metadata, *extra])
+    return all(_ints_take_whole_floats(arg, []) for arg in get_args(tp))
+
+
+def test_every_integer_field_of_a_strict_request_takes_a_whole_float():
+    """JSON does not tell ``8.0`` from ``8``: a strict request's integer field takes it (the
+    wire's ``Integer``), so no field is left refusing it."""
+    for model in _request_models():
+        if model.model_config.get("strict") is False:
+            continue  # a query model: lax already
+        for name, field in model.model_fields.items():
+            ok = _ints_take_whole_floats(field.annotation, list(field.metadata))
+            assert ok, f"{model.__name__}.{name} refuses 8.0: annotate it planner.wire.Integer"
+
+
+@pytest.mark.parametrize(
+    ("body", "loc"),
+    [
+        ({"planner": {"seed": 8.0}}, None),
+        ({"planner": {"seed": 8.5}}, ("planner", "seed")),
+        ({"planner": {"seed": True}}, ("planner", "seed")),
+        ({"planner": {"seed": "8"}}, ("planner", "seed")),
+    ],
+)
+def test_a_whole_float_is_an_integer_and_a_fraction_is_named(body, loc):
+    if loc is None:
+        assert PlanRequest(start=START, goal=START, **body).planner.seed == 8
+        assert type(PlanRequest(start=START, goal=START, **body).planner.seed) is int
+        return
+    with pytest.raises(ValidationError) as info:
+        PlanRequest.model_validate_json(json.dumps({"start": START, "goal": START, **body}))
+    (error,) = info.value.errors()
+    assert error["loc"] == loc, error

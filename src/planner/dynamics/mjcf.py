@@ -77,6 +77,34 @@ def _inertial(link: LinkInertia, length: float) -> str:
     )
 
 
+#: Cells per axis of the (theta2, theta3) grid searched for a keyframe when
+#: :data:`DEFAULT_HOME` does not assemble.
+_HOME_GRID = 64
+
+
+def _default_home(design: Design, assembly_mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """The keyframe of a model given no ``home``: :data:`DEFAULT_HOME` when it assembles,
+    else the posture of a (theta2, theta3) grid nearest to it that does (theta1 = 0), so that
+    every design with an assembled posture has a model (a design of short distal links does
+    not assemble at the default). InputError (no field: the design's) when none does."""
+    q = np.asarray(DEFAULT_HOME, dtype=float)
+    qpos = mjcf_qpos(design, q.reshape(1, 3), assembly_mode)[0]
+    if np.all(np.isfinite(qpos)):
+        return q, qpos
+    t = np.linspace(-np.pi, np.pi, _HOME_GRID, endpoint=False)
+    t2, t3 = (a.ravel() for a in np.meshgrid(t, t, indexing="ij"))
+    grid = np.column_stack([np.zeros_like(t2), t2, t3])
+    rows = mjcf_qpos(design, grid, assembly_mode)
+    ok = np.flatnonzero(np.all(np.isfinite(rows), axis=1))
+    if not len(ok):
+        raise InputError(
+            f"the design assembles in no posture of assembly mode {assembly_mode!r}: no "
+            "keyframe 'home' can be written (check L0, L1, L2)"
+        )
+    best = ok[np.argmin(np.linalg.norm(grid[ok] - q, axis=1))]
+    return grid[best], rows[best]
+
+
 def to_mjcf(
     design: Design,
     inertia: Inertia | None = None,
@@ -92,7 +120,8 @@ def to_mjcf(
     Parameters
     ----------
     gravity : m/s^2, base frame (MuJoCo's ``option gravity``)
-    home : actuated joints of the keyframe ``home``, rad (default :data:`DEFAULT_HOME`)
+    home : actuated joints of the keyframe ``home``, rad (default :data:`DEFAULT_HOME`, or
+        when it does not assemble the nearest posture of a grid that does)
     assembly_mode : the keyframe's assembly mode, '+' or '-'
     torque_limits : 3 N m, optional: the motors' ``ctrlrange``
     timestep : s; RK4 at 1e-4 s follows the product's trajectories to ~1e-8 rad over short
@@ -105,8 +134,11 @@ def to_mjcf(
     """
     inertia = inertia if inertia is not None else Inertia.default(design)
     g = check_gravity(gravity)
-    home_q = np.asarray(DEFAULT_HOME if home is None else home, dtype=float)
-    qpos = mjcf_qpos(design, home_q.reshape(1, 3), assembly_mode)[0]
+    if home is None:
+        home_q, qpos = _default_home(design, assembly_mode)
+    else:
+        home_q = np.asarray(home, dtype=float)
+        qpos = mjcf_qpos(design, home_q.reshape(1, 3), assembly_mode)[0]
     if not np.all(np.isfinite(qpos)):
         raise InputError(
             f"home = {home_q.tolist()} does not assemble in assembly mode {assembly_mode!r}",

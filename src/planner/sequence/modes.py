@@ -56,7 +56,7 @@ from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, goal_candidates
 from planner.planning.planner import posture_mode
-from planner.sequence.problem import SequenceResult, SequenceTarget
+from planner.sequence.problem import SequenceDiagnostics, SequenceResult, SequenceTarget
 from planner.sequence.solve import _solved_message, solve_with_goals
 from planner.timing.limits import JointLimits
 from planner.timing.options import TimingOptions
@@ -211,6 +211,14 @@ def choose_modes(
     ``gap_s`` (0 when the optimum is proven) and ``bound_s`` (the best assignment's bound)."""
     layers = [_candidates(design, start, g, margins, obstacles) for g in goals]
     n = len(targets)
+    if not all(layers):
+        # a target with no candidate in its own working mode (unreachable there, or invalid):
+        # no assignment exists; the targets as given say which and why
+        return solve_with_goals(
+            design, start, targets, goals, stops, cycle, t0,
+            obstacles=obstacles, margins=margins, options=options, timing=timing,
+            limits=limits, deadline=deadline, inertia=inertia, gravity=gravity,
+        )  # fmt: skip
     blends = [
         (0.0 if stops[i] or i >= n else targets[i].blend + timing.max_deviation)
         for i in range(len(goals))
@@ -225,6 +233,7 @@ def choose_modes(
     # the least bound of the assignments not evaluated (inf: none left), and the bounds of
     # those whose plan failed without a proof (a longer search might still solve them)
     rest, unproven = math.inf, []
+    late = False
     for bound, assignment in assignment_bounds(np.asarray(start.q), layers, stops, blends, limits):
         if math.isnan(first_bound):
             first_bound = bound
@@ -235,7 +244,8 @@ def choose_modes(
             break
         attempts += 1
         over = len(evaluated) >= MAX_REFINED or attempts > 4 * MAX_REFINED
-        if over or (deadline is not None and time.monotonic() > deadline):
+        late = deadline is not None and time.monotonic() > deadline
+        if over or late:
             rest = bound
             break
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
@@ -256,8 +266,15 @@ def choose_modes(
             unproven.append(bound)
         evaluated.append((cost, tuple(c.mode for c in chosen), result))
     if not evaluated:
-        assert refused is not None
-        raise refused
+        if late or refused is None:  # the budget ran out before any assignment was planned
+            return SequenceResult(
+                PlanStatus.TIMEOUT,
+                "the deadline passed before any working-mode assignment of the targets was "
+                f"planned ({attempts - 1} tried)",
+                (),
+                diagnostics=SequenceDiagnostics(planning_time_s=time.perf_counter() - t0),
+            )
+        raise refused  # every assignment tried was refused (a blend too large for its legs)
     evaluated.sort(key=lambda e: e[0])
     cost, modes, result = evaluated[0]
     if not math.isfinite(cost):  # every assignment failed: the first one's answer says why

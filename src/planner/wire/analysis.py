@@ -18,6 +18,7 @@ from planner.wire.common import (
     _DEFAULT,
     Angle,
     DesignModel,
+    Integer,
     Length,
     LinkLength,
     WorkingModeLabel,
@@ -45,7 +46,7 @@ MAX_SECTION_RESOLUTION = 2048
 class SectionOptions(_Request):
     """Which sections of ``POST /v1/workspace`` to compute, and how fine."""
 
-    resolution: int = Field(
+    resolution: Integer = Field(
         64,
         ge=2,
         le=MAX_SECTION_RESOLUTION,
@@ -81,7 +82,7 @@ class WorkspaceRequest(_Request):
         description="Working modes counted in the sampled volume (absent: all eight).",
     )
     joint_limits: bool = Field(True, description="Apply the design's joint limits.")
-    seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
     sections: SectionOptions = Field(default_factory=SectionOptions)
 
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Discriminator,
     Field,
@@ -23,6 +24,7 @@ from pydantic import (
     model_serializer,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from planner.constants import MAX_POINTS
 from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
@@ -53,6 +55,7 @@ __all__ = [
     "Goal",
     "Gravity",
     "InertiaModel",
+    "Integer",
     "JointGoal",
     "JointPostureModel",
     "Length",
@@ -98,7 +101,23 @@ WorkingModeLabel = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---
 WorkingModeOrAny = Literal["+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---", "any"]
 AssemblyModeLabel = Literal["+", "-"]
 
+
 # ---------------------------------------------------------------------------- number types
+def _whole_number(value: Any) -> Any:
+    """A JSON number written with a fraction of zero (``8.0``, which JSON does not tell from
+    ``8``) as the integer it is; a fractional one (``8.5``) refused by name; anything else
+    left to the strict integer check (``true`` and ``"8"`` stay refused)."""
+    if isinstance(value, float):
+        if value.is_integer():
+            return int(value)
+        raise PydanticCustomError(
+            "int_from_float", "Input should be a whole number, got {value}", {"value": value}
+        )
+    return value
+
+
+#: An integer field of a request: strict (no bool, no string) but a whole float is taken.
+Integer = Annotated[int, BeforeValidator(_whole_number)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Length = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_LENGTH)]
 LinkLength = Annotated[float, Field(allow_inf_nan=False, ge=MIN_LENGTH, le=MAX_LENGTH)]
@@ -121,8 +140,9 @@ Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 
 class _Request(BaseModel):
     """Base of request models: unknown fields are errors, and types are strict (``true`` is
-    not a number, ``"1.5"`` is not a number; an integer is a number): a client's mistake is
-    named, not coerced."""
+    not a number, ``"1.5"`` is not a number; an integer is a number, and a whole number is an
+    integer: ``8.0`` where a field is an :data:`Integer`): a client's mistake is named, not
+    coerced."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
 
@@ -400,13 +420,29 @@ Goal = Annotated[
 
 
 # ---------------------------------------------------------------------------- obstacles
-class SphereObstacle(_Request):
+def _tag_required(schema: dict[str, Any]) -> None:
+    """An obstacle's JSON schema lists ``type`` as required, without a default: the union
+    :data:`Obstacle` picks its member by ``type``, so a body without it is refused (the
+    default only serves Python code that builds one member by its class)."""
+    required = schema.setdefault("required", [])
+    if "type" not in required:
+        required.insert(0, "type")
+    schema.get("properties", {}).get("type", {}).pop("default", None)
+
+
+class _Obstacle(_Request):
+    """Base of the obstacle members of :data:`Obstacle` (their schemas: :func:`_tag_required`)."""
+
+    model_config = ConfigDict(json_schema_extra=_tag_required)
+
+
+class SphereObstacle(_Obstacle):
     type: Literal["sphere"] = "sphere"
     center: Point3 = Field(description="m.")
     radius: PositiveSize = Field(description="m, > 0.")
 
 
-class BoxObstacle(_Request):
+class BoxObstacle(_Obstacle):
     """An oriented box: ``size`` is the full edge lengths along its own axes, turned by the
     unit quaternion ``[w, x, y, z]`` (normalised here; a zero quaternion is an error)."""
 
@@ -428,7 +464,7 @@ class BoxObstacle(_Request):
         return [v / norm for v in value]
 
 
-class CapsuleObstacle(_Request):
+class CapsuleObstacle(_Obstacle):
     """The set of points within ``radius`` of the segment ``a``-``b``."""
 
     type: Literal["capsule"] = "capsule"
@@ -437,7 +473,7 @@ class CapsuleObstacle(_Request):
     radius: PositiveSize = Field(description="m, > 0.")
 
 
-class PointsObstacle(_Request):
+class PointsObstacle(_Obstacle):
     """A point cloud: every point a ball of ``radius`` (a depth camera's points, a CAD model
     sampled). At most :data:`MAX_POINTS` points in all the clouds of one request; the list's
     length is checked before its points are validated."""
@@ -580,22 +616,25 @@ def obstacle_from_dict(data: Mapping[str, Any]) -> geometry.Obstacle:
 def obstacles_to_core(
     models: Sequence[SphereObstacle | BoxObstacle | CapsuleObstacle | PointsObstacle],
     loc: tuple[str | int, ...] = ("body", "obstacles"),
+    points_before: int = 0,
 ) -> list[geometry.Obstacle]:
     """The library obstacles of a request's ``obstacles``, built from the models' fields
-    (errors located at ``loc.<i>``). The points of all clouds together are at most
-    :data:`MAX_POINTS` (a 422 at the cloud that passes it)."""
+    (errors located at ``loc.<i>``). The points of all clouds together, with the
+    ``points_before`` of a named scene's clouds, are at most :data:`MAX_POINTS` (a 422 at the
+    cloud that passes it, ``loc.<i>.points``)."""
     from planner.geometry import Box, Capsule, Points, Sphere
 
     out: list[geometry.Obstacle] = []
-    n_points = 0
+    n_points = points_before
     for i, model in enumerate(models):
         with located(*loc, i):
             if isinstance(model, PointsObstacle):
                 n_points += len(model.points)
                 if n_points > MAX_POINTS:
+                    scene = f" (its scene's {points_before} included)" if points_before else ""
                     raise InputError(
-                        f"the point clouds of one request hold at most {MAX_POINTS} points in "
-                        f"all, got {n_points} by this one",
+                        f"the point clouds of one request{scene} hold at most {MAX_POINTS} "
+                        f"points in all, got {n_points} by this one",
                         field="points",
                     )
                 out.append(Points(model.points, model.radius))

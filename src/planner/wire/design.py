@@ -15,6 +15,7 @@ from planner.design import MAX_LENGTH
 from planner.wire.common import (
     AssemblyModeLabel,
     DesignModel,
+    Integer,
     Length,
     MarginsModel,
     WorkingModeLabel,
@@ -77,7 +78,7 @@ class DesignCheckRequest(_Request):
         allow_inf_nan=False,
         description="Relative standard error asked of the sampled volume.",
     )
-    seed: int = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, description="Seed of the quasi-random sampling.")
 
 
 class SampledValue(_Response):
@@ -132,11 +133,11 @@ class DesignOptimizeRequest(_Request):
         description="Template of the candidates: their link_radius and joint limits.",
     )
     kappa_max: float = Field(10.0, ge=1.0, le=1e12, allow_inf_nan=False)
-    n_samples: int = Field(
+    n_samples: Integer = Field(
         2048, ge=64, le=8192, description="Quasi-random points per sampled evaluation."
     )
-    maxiter: int = Field(10, ge=1, le=30, description="Generations of differential evolution.")
-    seed: int = Field(0, ge=0, le=2**32 - 1)
+    maxiter: Integer = Field(10, ge=1, le=30, description="Generations of differential evolution.")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1)
 
     @field_validator("L0_bounds", "L1_bounds", "L2_bounds")
     @classmethod
@@ -183,7 +184,7 @@ class RegionsRequest(_Request):
 
     design: DesignModel = _DesignField
     margins: MarginsModel = Field(default_factory=MarginsModel)
-    resolution: int = Field(
+    resolution: Integer = Field(
         256,
         ge=MIN_REGION_RESOLUTION,
         le=MAX_REGION_RESOLUTION,

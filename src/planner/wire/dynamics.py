@@ -128,7 +128,8 @@ class MjcfRequest(_Request):
     assembly_mode: AssemblyModeLabel = Field("+", description="Assembly mode of the keyframe.")
     home: Angles3 | None = Field(
         None,
-        description="Actuated joints of the keyframe 'home', rad (default [0, 2, 1]); it must "
+        description="Actuated joints of the keyframe 'home', rad (default [0, 2, 1], or when "
+        "it does not assemble the design's posture nearest to it that does); a given one must "
         "assemble in assembly_mode.",
     )
 

@@ -26,6 +26,7 @@ from planner.wire.common import (
     DiagnosticsModel,
     Goal,
     Gravity,
+    Integer,
     JointPostureModel,
     MarginsModel,
     Obstacle,
@@ -82,7 +83,7 @@ class PlannerOptions(_Request):
     time_budget_s: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=600.0)] = Field(
         1.0, description="Search budget, s (at most the service's request budget)."
     )
-    seed: Annotated[int, Field(ge=1, le=2**31 - 1)] | None = Field(
+    seed: Annotated[Integer, Field(ge=1, le=2**31 - 1)] | None = Field(
         None,
         description="Seed of the planner's random numbers, >= 1 (reproducible results); "
         "absent: the planner's default seed.",

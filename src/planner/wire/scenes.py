@@ -112,7 +112,8 @@ def with_scene(request: Any, obstacles: Sequence[Any], design: DesignModel | Non
 
 def scene_obstacles(request: Any, loc: tuple[str | int, ...] = ("body",)) -> list[Any]:
     """The library obstacles of a request: its named scene's (when it names one) followed by
-    its own ``obstacles``.
+    its own ``obstacles``, the points of both together at most :data:`MAX_POINTS` (a 422 at
+    the request's own cloud that passes it).
 
     Raises
     ------
@@ -120,9 +121,8 @@ def scene_obstacles(request: Any, loc: tuple[str | int, ...] = ("body",)) -> lis
         The request names a scene that nobody resolved (a request built in-process, outside
         the service: a scene lives in the service's store), located at ``scene``.
     """
-    own = obstacles_to_core(request.obstacles, (*loc, "obstacles"))
     if request.scene is None:
-        return own
+        return obstacles_to_core(request.obstacles, (*loc, "obstacles"))
     scene = request._scene_obstacles
     if scene is None:
         with located(*loc):
@@ -132,4 +132,8 @@ def scene_obstacles(request: Any, loc: tuple[str | int, ...] = ("body",)) -> lis
                 "give its obstacles instead",
                 field="scene",
             )
+    # the scene's clouds count towards the request's points: a cloud of its own that passes
+    # the limit is named where the client sent it (not at the index of the merged list)
+    held = sum(len(o.points) for o in scene if hasattr(o, "points"))
+    own = obstacles_to_core(request.obstacles, (*loc, "obstacles"), points_before=held)
     return [*scene, *own]

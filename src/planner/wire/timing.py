@@ -27,6 +27,7 @@ from planner.wire.common import (
     DesignModel,
     DiagnosticsModel,
     Gravity,
+    Integer,
     MarginsModel,
     Obstacle,
     Rates3,
@@ -203,7 +204,7 @@ class TimingRequest(_Request):
     max_deviation: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
         None, description="Largest distance from a waypoint to its corner blend, rad."
     )
-    stop_at: list[Annotated[int, Field(ge=0)]] = Field(
+    stop_at: list[Annotated[Integer, Field(ge=0)]] = Field(
         default_factory=list,
         max_length=MAX_TIMING_WAYPOINTS,
         description="Waypoint indices where the trajectory comes to rest.",
