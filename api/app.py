@@ -65,6 +65,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             log_setup=(settings.log_level, settings.log_format),
             warm_up=warm_up_worker if warm_up else None,
             overrun_grace_s=settings.overrun_grace_s,
+            overrun_max_s=settings.overrun_max_s,
             max_rss_mb=settings.worker_max_rss_mb or None,
             nice=settings.worker_nice,
         )
@@ -78,6 +79,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             ttl_s=settings.job_ttl_s,
             running=settings.jobs_running or 1,
             timeout_s=settings.job_timeout_s,
+            max_result_bytes=int(settings.job_result_max_mb * 2**20),
+            max_total_bytes=int(settings.jobs_max_mb * 2**20),
         )
         try:
             yield

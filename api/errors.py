@@ -187,7 +187,7 @@ async def _library(_: Request, exc: PlannerError) -> JSONResponse:
 
 async def _service(_: Request, exc: Exception) -> JSONResponse:
     if isinstance(exc, LimitExceededError):
-        return error_response(422, exc.message, "limit_exceeded", exc.loc)
+        return error_response(422, exc.message, exc.error_type, exc.loc)
     status, type_ = next(v for k, v in _SERVICE_ERRORS.items() if isinstance(exc, k))
     headers = None
     if isinstance(exc, PoolSaturatedError):

@@ -28,6 +28,7 @@ __all__ = [
     "LimitExceededError",
     "PoolNotRunningError",
     "PoolSaturatedError",
+    "ResultTooLargeError",
     "ServiceError",
     "ShuttingDownError",
     "TooManyJobsError",
@@ -91,6 +92,9 @@ class TooManyJobsError(PoolSaturatedError):
 class LimitExceededError(ServiceError):
     """A request is larger than a limit of the settings (``loc`` names the field)."""
 
+    #: The ``type`` of its 422 answer.
+    error_type = "limit_exceeded"
+
     def __init__(self, message: str, loc: tuple[str | int, ...]) -> None:
         super().__init__(message, loc)
         self.message = message
@@ -98,6 +102,13 @@ class LimitExceededError(ServiceError):
 
     def __str__(self) -> str:
         return self.message
+
+
+class ResultTooLargeError(LimitExceededError):
+    """A long job's result is larger than ``PLANNER_JOB_RESULT_MAX_MB`` (422
+    ``result_too_large``)."""
+
+    error_type = "result_too_large"
 
 
 class AuthenticationError(ServiceError):

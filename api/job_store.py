@@ -11,7 +11,10 @@ survive a restart of that process (a crash, a deploy, SIGTERM), and it is not sh
 replicas: a poll must reach the replica that accepted the job (sticky routing, or one
 replica). A finished job is kept ``PLANNER_JOB_TTL_S`` seconds; at most ``PLANNER_MAX_JOBS``
 jobs are kept (a new one evicts the oldest finished job; when every kept job is unfinished,
-a new one is refused, 503). Past that, its id answers 404 naming these bounds. A cancelled
+a new one is refused, 503), and their results take at most ``PLANNER_JOBS_MAX_MB`` in all (a
+new result evicts the oldest finished jobs until it fits; a result over
+``PLANNER_JOB_RESULT_MAX_MB`` fails its job, 422 ``result_too_large``). Past that, its id
+answers 404 naming these bounds. A cancelled
 job (``DELETE``) has its worker killed at once (:meth:`planner_api.workers.WorkerPool.cancel`)
 and replaced, warm, in the background.
 
@@ -50,6 +53,7 @@ from planner_api.exceptions import (
     JobNotFoundError,
     LimitExceededError,
     PoolSaturatedError,
+    ResultTooLargeError,
     ShuttingDownError,
     TooManyJobsError,
 )
@@ -169,25 +173,70 @@ class JobStore:
         Jobs running at once; the others are ``queued``.
     timeout_s : float
         Time budget of one job from when it starts, s.
+    max_result_bytes : int
+        The largest result of one job (``PLANNER_JOB_RESULT_MAX_MB``); a larger one fails it.
+    max_total_bytes : int
+        The results kept at once, in all (``PLANNER_JOBS_MAX_MB``): the oldest finished jobs
+        are evicted to make room for a new result.
     """
 
-    def __init__(self, *, max_jobs: int, ttl_s: float, running: int, timeout_s: float) -> None:
+    def __init__(
+        self,
+        *,
+        max_jobs: int,
+        ttl_s: float,
+        running: int,
+        timeout_s: float,
+        max_result_bytes: int = 32 * 2**20,
+        max_total_bytes: int = 512 * 2**20,
+    ) -> None:
+        if not 0 < max_result_bytes <= max_total_bytes:
+            raise ValueError("max_result_bytes must be > 0 and at most max_total_bytes")
         self.max_jobs = max_jobs
         self.ttl_s = ttl_s
         self.timeout_s = timeout_s
+        self.max_result_bytes = max_result_bytes
+        self.max_total_bytes = max_total_bytes
+        #: Bytes of the results kept now.
+        self.held_bytes = 0
         self._slots = asyncio.Semaphore(running)
         self._jobs: dict[str, _Entry] = {}  # in submission order
+
+    def _drop(self, key: str) -> None:
+        """Forget a job, and the bytes of its result."""
+        entry = self._jobs.pop(key)
+        if entry.result is not None:
+            self.held_bytes -= len(entry.result)
 
     def _forget_expired(self) -> None:
         now = time.monotonic()
         for key in [k for k, e in self._jobs.items() if e.expires is not None and e.expires <= now]:
-            del self._jobs[key]
+            self._drop(key)
+
+    def _keep(self, entry: _Entry, content: bytes) -> None:
+        """Keep ``content`` as ``entry``'s result, evicting the oldest finished jobs until the
+        results fit ``max_total_bytes``; a result over ``max_result_bytes`` fails the job."""
+        if len(content) > self.max_result_bytes:
+            raise ResultTooLargeError(
+                f"the job's result is {len(content) / 2**20:.1f} MB, more than "
+                f"PLANNER_JOB_RESULT_MAX_MB = {self.max_result_bytes / 2**20:g} MB; ask for "
+                "less (a lower timing.sample_rate_hz, a coarser grid) or run it as a request",
+                _LOC,
+            )
+        self._forget_expired()
+        for key in [k for k, e in self._jobs.items() if e.result is not None]:
+            if self.held_bytes + len(content) <= self.max_total_bytes:
+                break
+            self._drop(key)
+        entry.result = content
+        self.held_bytes += len(content)
 
     def _not_found(self, job_id: str) -> JobNotFoundError:
         return JobNotFoundError(
             f"no job {job_id!r} here: it never existed on this service process, or it "
             f"finished more than {self.ttl_s:g} s ago (PLANNER_JOB_TTL_S), or it was evicted "
-            f"(at most {self.max_jobs} jobs are kept, PLANNER_MAX_JOBS), or the process "
+            f"(at most {self.max_jobs} jobs are kept, PLANNER_MAX_JOBS, and their results "
+            f"take at most {self.max_total_bytes / 2**20:g} MB, PLANNER_JOBS_MAX_MB), or the process "
             "restarted (jobs live in its memory only)"
         )
 
@@ -202,7 +251,7 @@ class JobStore:
                     f"{self.max_jobs}, PLANNER_MAX_JOBS); retry when one has finished",
                     retry_after_s=max(1, round(min(self.timeout_s, 60.0))),
                 )
-            del self._jobs[oldest]
+            self._drop(oldest)
         entry = _Entry(id=uuid.uuid4().hex, kind=kind)
         self._jobs[entry.id] = entry
         context = contextvars.copy_context()
@@ -225,7 +274,8 @@ class JobStore:
                         # the job waits, queued, instead of failing with their 503
                         entry.status, entry.started_at = "queued", None
                         await asyncio.sleep(SATURATED_RETRY_S)
-            entry.result, entry.status = content, "done"
+            self._keep(entry, content)
+            entry.status = "done"
         except asyncio.CancelledError:
             entry.status = "cancelled"  # our own task, cancelled by cancel(): not re-raised
         except Exception as exc:

@@ -26,13 +26,16 @@ PLANNER_SHUTDOWN_TIMEOUT_S 30                             grace for in-flight wo
 PLANNER_METRICS           true                            serve Prometheus metrics at /metrics
 PLANNER_DEFAULT_DESIGN    default                         design of a request without one: a
                                                           preset name or a JSON design object
-PLANNER_OVERRUN_GRACE_S   0.5                             a job running this long past its
-                                                          deadline has its worker killed, s
+PLANNER_OVERRUN_GRACE_S   0.5                             a job computing this long (CPU) past
+                                                          its deadline has its worker killed, s
+PLANNER_OVERRUN_MAX_S     max(5, 2 x the grace)           ... or running this long (wall), s
 PLANNER_WORKER_MAX_RSS_MB 2048                            a worker holding more memory after a
                                                           job is recycled (0: never), MB
 PLANNER_JOB_TIMEOUT_S     600                             time budget of one long job, s
 PLANNER_JOB_TTL_S         3600                            a finished long job is kept this long
 PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
+PLANNER_JOB_RESULT_MAX_MB 32                              largest result of one long job, MB
+PLANNER_JOBS_MAX_MB       512                             long jobs' results kept in all, MB
 PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once
 PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
                                                           file path, or a postgresql:// URL
@@ -214,9 +217,20 @@ class Settings(BaseSettings):
         ge=0.0,
         le=60.0,
         allow_inf_nan=False,
-        description="A job still running this long after its deadline has its worker killed "
-        "(SIGKILL) and replaced by a warm one, s. The jobs check their deadline in every long "
-        "loop; this bounds the rest (a native loop, a job that ignores it).",
+        description="A job that has computed this long (CPU time) past its deadline and still "
+        "runs has its worker killed (SIGKILL) and replaced by a warm fork, s. CPU time, not "
+        "wall time: on a busy machine a job that waits for a CPU gets its grace to stop by "
+        "itself. The jobs check their deadline in every long loop; this bounds the rest (a "
+        "native loop, a job that ignores it).",
+    )
+    overrun_max_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=600.0,
+        allow_inf_nan=False,
+        description="A job still running this long (wall time) after its deadline is killed "
+        "whatever CPU it spent, s; at least PLANNER_OVERRUN_GRACE_S (default: the larger of "
+        "5 s and twice the grace).",
     )
     worker_max_rss_mb: int = Field(
         2048,
@@ -263,6 +277,23 @@ class Settings(BaseSettings):
         description="Long jobs running at once (the others wait, 'queued'), so that long jobs "
         "leave workers to the interactive requests (default: half the workers, at least 1).",
     )
+    job_result_max_mb: float = Field(
+        32.0,
+        gt=0.0,
+        le=4096.0,
+        allow_inf_nan=False,
+        description="Largest result of one long job, MB (2^20 bytes): a trajectory job's "
+        "samples are bounded by it before they are computed (a 422 naming "
+        "timing.sample_rate_hz), any other result over it fails the job.",
+    )
+    jobs_max_mb: float = Field(
+        512.0,
+        gt=0.0,
+        le=65536.0,
+        allow_inf_nan=False,
+        description="Results of long jobs kept at once, MB in all: a new result evicts the "
+        "oldest finished jobs until it fits.",
+    )
     scene_store: str | None = Field(
         None,
         description="Where named scenes persist: a SQLite file path (default "
@@ -299,6 +330,16 @@ class Settings(BaseSettings):
             self.queue_size = 4 * self.workers
         if self.jobs_running is None:
             self.jobs_running = max(1, self.workers // 2)
+        if self.overrun_max_s is not None and self.overrun_max_s < self.overrun_grace_s:
+            raise ValueError(
+                f"PLANNER_OVERRUN_MAX_S ({self.overrun_max_s:g}) must be at least "
+                f"PLANNER_OVERRUN_GRACE_S ({self.overrun_grace_s:g})"
+            )
+        if self.job_result_max_mb > self.jobs_max_mb:
+            raise ValueError(
+                f"PLANNER_JOB_RESULT_MAX_MB ({self.job_result_max_mb:g}) must be at most "
+                f"PLANNER_JOBS_MAX_MB ({self.jobs_max_mb:g}): a result must fit in the jobs' memory"
+            )
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
         self._design_defaults = _parse_design(self.default_design)

@@ -5,6 +5,7 @@ the process, its two pipes, its state and the job it runs; and the answers' fram
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import time
 from concurrent.futures import Future
@@ -15,7 +16,7 @@ from typing import Any, Literal
 from planner_api.worker_process import FRAME_HEADER
 from planner_api.worker_template import ForkedProcess
 
-__all__ = ["Job", "Worker", "describe_exit"]
+__all__ = ["Job", "Worker", "cpu_seconds", "describe_exit"]
 
 
 @dataclass(eq=False)
@@ -24,11 +25,18 @@ class Job:
 
     payload: bytes
     future: Future[Any]
-    #: When the watchdog stops the worker still running this job (a :func:`time.monotonic`
-    #: value: the deadline plus the overrun grace, or now for a cancelled job); None: never.
+    #: When the watchdog looks at the worker running this job next (a :func:`time.monotonic`
+    #: value: its deadline, then as its overrun grace is spent, or now for a cancelled job);
+    #: None: never.
     kill_at: float | None = None
     #: Why it would be stopped: "deadline" or "cancelled".
     kill_reason: str = "deadline"
+    #: Its deadline (a :func:`time.monotonic` value; None: none).
+    deadline: float | None = None
+    #: The worker's CPU time at the deadline, s (None: not read yet): the overrun grace is
+    #: CPU time spent past the deadline, so a job starved of CPU by a busy machine gets its
+    #: grace to stop by itself.
+    cpu_at_deadline: float | None = None
 
 
 @dataclass(eq=False)
@@ -86,6 +94,20 @@ class Worker:
                 messages.append(bytes(view[head : head + size]))
             del inbox[: head + size]
         return messages
+
+
+_CLOCK_TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """CPU time (user + system) the process ``pid`` has used, s (``/proc/PID/stat``); None
+    where it cannot be read (gone, or no /proc)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / _CLOCK_TICKS
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 def describe_exit(exitcode: int | None) -> str:

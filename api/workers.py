@@ -60,12 +60,12 @@ from planner_api.exceptions import (
     ShuttingDownError,
     WorkerCrashedError,
 )
-from planner_api.worker_handle import Job, Worker, describe_exit
+from planner_api.worker_handle import Job, Worker, cpu_seconds, describe_exit
 from planner_api.worker_process import worker_main
 from planner_api.worker_template import TemplateError, WarmTemplate, templates_work
 from planner_api.worker_wait import wait_for_jobs
 
-__all__ = ["CLIENT_GONE", "PoolState", "WorkerPool"]
+__all__ = ["CLIENT_GONE", "PoolState", "WorkerPool", "default_overrun_max"]
 
 logger = logging.getLogger(__name__)
 
@@ -93,6 +93,11 @@ CLIENT_GONE: contextvars.ContextVar[asyncio.Future[None] | None] = contextvars.C
 )
 
 
+def default_overrun_max(grace_s: float) -> float:
+    """``PLANNER_OVERRUN_MAX_S`` when it is not set: the larger of 5 s and twice the grace."""
+    return max(5.0, 2.0 * grace_s)
+
+
 class WorkerPool:
     """A bounded pool of ``workers`` processes, one job per process at a time.
 
@@ -110,8 +115,13 @@ class WorkerPool:
         Run in each new worker before it takes jobs (module-level, picklable; the service
         passes :func:`planner_api.warmup.warm_up_worker`). None: no warm-up.
     overrun_grace_s : float
-        A job still running this long after its deadline has its worker killed (SIGKILL)
-        and replaced (``PLANNER_OVERRUN_GRACE_S``).
+        A job that has spent this much CPU time past its deadline and still runs has its
+        worker killed (SIGKILL) and replaced (``PLANNER_OVERRUN_GRACE_S``): CPU time, so that a
+        job starved of CPU on a busy machine is not killed for the machine's load.
+    overrun_max_s : float or None
+        A job still running this long (wall time) after its deadline is killed whatever CPU
+        it spent (``PLANNER_OVERRUN_MAX_S``; at least ``overrun_grace_s``; None: the larger of
+        5 s and twice the grace).
     nice : int
         Added to each worker's niceness (``PLANNER_WORKER_NICE``): the event loop then runs
         when it has work instead of waiting behind a worker for the scheduler's turn.
@@ -134,6 +144,7 @@ class WorkerPool:
         log_setup: tuple[str, str] | None = None,
         warm_up: Callable[[], object] | None = None,
         overrun_grace_s: float = 0.5,
+        overrun_max_s: float | None = None,
         max_rss_mb: float | None = None,
         nice: int = 0,
         template: bool = True,
@@ -142,10 +153,15 @@ class WorkerPool:
             raise ValueError("workers must be >= 1 and queue_size >= 0")
         if not overrun_grace_s >= 0.0 or (max_rss_mb is not None and not max_rss_mb > 0):
             raise ValueError("overrun_grace_s must be >= 0 and max_rss_mb > 0 (or None)")
+        if overrun_max_s is None:
+            overrun_max_s = default_overrun_max(overrun_grace_s)
+        if not overrun_max_s >= overrun_grace_s:
+            raise ValueError("overrun_max_s must be at least overrun_grace_s")
         self.workers = workers
         self.capacity = workers + queue_size
         self.retry_after_s = retry_after_s
         self.overrun_grace_s = overrun_grace_s
+        self.overrun_max_s = overrun_max_s
         self.max_rss_bytes = None if max_rss_mb is None else int(max_rss_mb * 1024 * 1024)
         self.nice = nice
         #: Jobs refused because the pool was full (a counter for the metrics).
@@ -245,11 +261,33 @@ class WorkerPool:
                     if w.state != "busy" or job is None or job.kill_at is None or w.killed:
                         continue
                     if job.kill_at <= now:
-                        self._kill_locked(w, job.kill_reason, now - job.kill_at)
-                    else:
+                        self._look_locked(w, job, now)
+                    if job.kill_at is not None and not w.killed:
                         wake_at = min(wake_at, job.kill_at)
                 self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
+
+    def _look_locked(self, worker: Worker, job: Job, now: float) -> None:
+        """The watchdog's look at a job whose look time came (the caller holds the lock): a
+        cancelled job's worker is killed; one past its deadline has its CPU time read at the
+        first look, and is killed once it has spent ``overrun_grace_s`` of CPU since, or at
+        the deadline plus ``overrun_max_s`` whatever it spent (the next look is when the
+        rest of its grace could be spent at the soonest)."""
+        if job.kill_reason != "deadline" or job.deadline is None:
+            self._kill_locked(worker, job.kill_reason, now - job.kill_at)  # type: ignore[operator]
+            return
+        hard = job.deadline + self.overrun_max_s
+        pid = worker.process.pid
+        cpu = None if pid is None else cpu_seconds(pid)
+        if job.cpu_at_deadline is None and cpu is not None and now < hard:
+            job.cpu_at_deadline = cpu
+            job.kill_at = min(now + self.overrun_grace_s, hard)
+            return
+        used = None if cpu is None or job.cpu_at_deadline is None else cpu - job.cpu_at_deadline
+        if used is None or used >= self.overrun_grace_s or now >= hard:
+            self._kill_locked(worker, "deadline", now - job.deadline)
+            return
+        job.kill_at = min(now + self.overrun_grace_s - used, hard)
 
     def _kill_locked(self, worker: Worker, reason: str, late_s: float) -> None:
         """SIGKILL ``worker`` (the caller holds the lock); its exit is expected."""
@@ -259,11 +297,16 @@ class WorkerPool:
             worker.process.kill()
         except (OSError, ValueError):  # pragma: no cover - it exited meanwhile
             pass
-        what = "ran past its deadline" if reason == "deadline" else "was cancelled"
-        logger.warning(
-            "worker %s stopped: its job %s (%.2f s after its kill time); starting a replacement",
-            worker.process.pid, what, late_s,
-        )  # fmt: skip
+        if reason == "deadline":
+            logger.warning(
+                "worker %s stopped: its job ran past its deadline (%.2f s after it); starting "
+                "a replacement", worker.process.pid, late_s,
+            )  # fmt: skip
+        else:
+            logger.warning(
+                "worker %s stopped: its job was cancelled (%.2f s after the cancel); starting "
+                "a replacement", worker.process.pid, late_s,
+            )  # fmt: skip
 
     def _report_warming(self) -> None:
         """Log how many workers are warm while some (or their template) still warm up (every
@@ -726,8 +769,7 @@ class WorkerPool:
                 self._in_flight -= 1
             raise
         future: Future[T] = Future()
-        kill_at = None if deadline is None else deadline + self.overrun_grace_s
-        job = Job(payload, future, kill_at)
+        job = Job(payload, future, kill_at=deadline, deadline=deadline)
         with self._lock:
             self._pending.append(job)
             self._dispatch_locked()

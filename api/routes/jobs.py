@@ -68,8 +68,10 @@ async def submit_job(
     )
     request = await resolve_scene(http, request)  # a named scene's obstacles, as the endpoint
     job = plan_job if body.kind == "plan" else kind.job
+    # a long job's answer is kept in memory: its samples fit its own bound too
+    result_bytes = min(settings.max_response_bytes, store.max_result_bytes)
     samples = (
-        answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+        answer_sample_limit(settings.max_trajectory_samples, result_bytes)
         if kind.trajectory
         else None
     )

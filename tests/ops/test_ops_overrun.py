@@ -1,5 +1,6 @@
-"""No job outlives its request: the worker pool's watchdog kills the worker of a job past its
-deadline plus the overrun grace, a cancelled job (its caller's task cancelled, or its client
+"""No job outlives its request: the worker pool's watchdog kills the worker of a job that has
+computed for the overrun grace (CPU time) past its deadline, or that is still running the
+overrun maximum (wall time) after it, a cancelled job (its caller's task cancelled, or its client
 disconnected) has its worker killed at once, a worker holding too much memory after a job is
 recycled (its replacement warm first), and a replacement serves the next job.
 
@@ -65,16 +66,23 @@ async def _started_pool(**options: object) -> WorkerPool:
     return pool
 
 
+def _spin(seconds: float) -> None:
+    """Compute (no sleep) for ``seconds``: a job that spends CPU past its deadline."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        pass
+
+
 def test_a_job_past_its_deadline_has_its_worker_killed_and_replaced():
     grace = 0.3
 
     async def scenario() -> None:
-        pool = await _started_pool(overrun_grace_s=grace)
+        pool = await _started_pool(overrun_grace_s=grace, overrun_max_s=2.0)
         try:
             (old,) = pool.pids
             start = time.monotonic()
             with pytest.raises(DeadlineExceededError):
-                await pool.run(time.sleep, LONG_S, deadline=start + 1.0)
+                await pool.run(_spin, LONG_S, deadline=start + 1.0)
             # the caller is answered at the deadline; the worker is killed at deadline + grace
             gone = await _until(lambda: not _alive(old), 1.0 + grace + SLACK_S, "still alive")
             assert gone - start >= 1.0 + grace - 0.05  # not before its grace
@@ -90,6 +98,30 @@ def test_a_job_past_its_deadline_has_its_worker_killed_and_replaced():
             future = pool.submit(time.sleep, LONG_S, deadline=time.monotonic() + 0.2)
             with pytest.raises(DeadlineExceededError):
                 await asyncio.wait_for(asyncio.wrap_future(future), 0.2 + grace + SLACK_S)
+        finally:
+            pool.shutdown(timeout_s=5)
+
+    asyncio.run(scenario())
+
+
+def test_the_grace_is_cpu_time_and_the_maximum_wall_time():
+    """A job that waits past its deadline (sleeps: it spends no CPU, as a job starved by a
+    busy machine) is not killed when the wall-clock grace has passed, only at the deadline
+    plus the overrun maximum."""
+    grace, most = 0.2, 2.0
+
+    async def scenario() -> None:
+        pool = await _started_pool(overrun_grace_s=grace, overrun_max_s=most)
+        try:
+            (old,) = pool.pids
+            start = time.monotonic()
+            with pytest.raises(DeadlineExceededError):
+                await pool.run(time.sleep, LONG_S, deadline=start + 0.5)
+            await asyncio.sleep(max(0.0, start + 0.5 + grace + 0.8 - time.monotonic()))
+            assert _alive(old), "killed for wall time within its CPU grace"
+            gone = await _until(lambda: not _alive(old), 0.5 + most + SLACK_S, "still alive")
+            assert gone - start >= 0.5 + most - 0.05  # not before the maximum
+            assert pool.kills == 1
         finally:
             pool.shutdown(timeout_s=5)
 
