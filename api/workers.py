@@ -50,7 +50,6 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 from multiprocessing.connection import Connection
-from multiprocessing.connection import wait as wait_for_any
 from typing import Any, Literal, TypeVar
 
 from planner_api.exceptions import (
@@ -60,10 +59,12 @@ from planner_api.exceptions import (
     ShuttingDownError,
     WorkerCrashedError,
 )
-from planner_api.worker_handle import Job, Worker, cpu_seconds, describe_exit
+from planner_api.worker_handle import Job, Worker, describe_exit
 from planner_api.worker_process import worker_main
+from planner_api.worker_shutdown import ShutdownMixin
 from planner_api.worker_template import TemplateError, WarmTemplate, templates_work
 from planner_api.worker_wait import wait_for_jobs
+from planner_api.worker_watchdog import WatchdogMixin, default_overrun_max
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool", "default_overrun_max"]
 
@@ -77,9 +78,6 @@ RESPAWN_BACKOFF_S = 2.0
 #: Seconds between two progress lines while workers warm up (a first start, compiling the
 #: numba kernels, takes tens of seconds after "Uvicorn running": not in silence).
 WARMING_REPORT_S = 10.0
-#: Longest sleep of the watchdog thread between two looks at the busy workers, s (it wakes
-#: earlier for the next job's kill time and whenever a job starts or is cancelled).
-WATCHDOG_IDLE_S = 5.0
 #: Most bytes taken from a worker's answer pipe per turn of the event loop: what a pipe holds
 #: (a large answer arrives over several turns, other requests are served between; a larger
 #: buffer would be an mmap and munmap per read).
@@ -93,12 +91,7 @@ CLIENT_GONE: contextvars.ContextVar[asyncio.Future[None] | None] = contextvars.C
 )
 
 
-def default_overrun_max(grace_s: float) -> float:
-    """``PLANNER_OVERRUN_MAX_S`` when it is not set: the larger of 5 s and twice the grace."""
-    return max(5.0, 2.0 * grace_s)
-
-
-class WorkerPool:
+class WorkerPool(WatchdogMixin, ShutdownMixin):
     """A bounded pool of ``workers`` processes, one job per process at a time.
 
     Parameters
@@ -245,68 +238,6 @@ class WorkerPool:
                 logger.exception("could not start a worker process; retrying")
                 self._failed = True
                 self._spawn_requests.put((RESPAWN_BACKOFF_S, replaces))
-
-    def _watch(self) -> None:
-        """The watchdog thread: kill every worker whose job is past its kill time (its
-        deadline plus the overrun grace, or now once the job is cancelled), so that no job
-        outlives its deadline by more than the grace whatever it computes (a native loop, a
-        search without deadline checks). The event loop then sees the exit and the
-        supervisor starts a replacement (warmed before it takes jobs)."""
-        with self._wake:
-            while not self._closed:
-                now = time.monotonic()
-                wake_at = now + WATCHDOG_IDLE_S
-                for w in self._workers:
-                    job = w.job
-                    if w.state != "busy" or job is None or job.kill_at is None or w.killed:
-                        continue
-                    if job.kill_at <= now:
-                        self._look_locked(w, job, now)
-                    if job.kill_at is not None and not w.killed:
-                        wake_at = min(wake_at, job.kill_at)
-                self._watch_at = wake_at
-                self._wake.wait(max(wake_at - time.monotonic(), 0.001))
-
-    def _look_locked(self, worker: Worker, job: Job, now: float) -> None:
-        """The watchdog's look at a job whose look time came (the caller holds the lock): a
-        cancelled job's worker is killed; one past its deadline has its CPU time read at the
-        first look, and is killed once it has spent ``overrun_grace_s`` of CPU since, or at
-        the deadline plus ``overrun_max_s`` whatever it spent (the next look is when the
-        rest of its grace could be spent at the soonest)."""
-        if job.kill_reason != "deadline" or job.deadline is None:
-            self._kill_locked(worker, job.kill_reason, now - job.kill_at)  # type: ignore[operator]
-            return
-        hard = job.deadline + self.overrun_max_s
-        pid = worker.process.pid
-        cpu = None if pid is None else cpu_seconds(pid)
-        if job.cpu_at_deadline is None and cpu is not None and now < hard:
-            job.cpu_at_deadline = cpu
-            job.kill_at = min(now + self.overrun_grace_s, hard)
-            return
-        used = None if cpu is None or job.cpu_at_deadline is None else cpu - job.cpu_at_deadline
-        if used is None or used >= self.overrun_grace_s or now >= hard:
-            self._kill_locked(worker, "deadline", now - job.deadline)
-            return
-        job.kill_at = min(now + self.overrun_grace_s - used, hard)
-
-    def _kill_locked(self, worker: Worker, reason: str, late_s: float) -> None:
-        """SIGKILL ``worker`` (the caller holds the lock); its exit is expected."""
-        worker.killed = reason
-        self.kills += 1
-        try:
-            worker.process.kill()
-        except (OSError, ValueError):  # pragma: no cover - it exited meanwhile
-            pass
-        if reason == "deadline":
-            logger.warning(
-                "worker %s stopped: its job ran past its deadline (%.2f s after it); starting "
-                "a replacement", worker.process.pid, late_s,
-            )  # fmt: skip
-        else:
-            logger.warning(
-                "worker %s stopped: its job was cancelled (%.2f s after the cancel); starting "
-                "a replacement", worker.process.pid, late_s,
-            )  # fmt: skip
 
     def _report_warming(self) -> None:
         """Log how many workers are warm while some (or their template) still warm up (every
@@ -617,96 +548,6 @@ class WorkerPool:
                 break
             if not self._pending:
                 return
-
-    def drain(self, grace_s: float) -> None:
-        """Begin a graceful stop (call in the event loop): refuse new jobs, and after
-        ``grace_s`` seconds cancel the waits of the jobs still in flight
-        (:class:`ShuttingDownError`)."""
-        self._stopping = True
-        asyncio.get_running_loop().call_later(max(grace_s, 0.0), self._end_waits)
-
-    def _end_waits(self) -> None:
-        """In the event loop: end the waits still in flight (:class:`ShuttingDownError`)."""
-        if self._stop is not None and not self._stop.done():
-            self._stop.set_result(None)
-
-    def shutdown(self, timeout_s: float | None = None) -> None:
-        """Stop the workers; jobs not started are cancelled. Running jobs may finish for
-        ``timeout_s`` seconds (None: wait for them), then their workers are terminated.
-
-        Called in the pool's event loop (the lifespan's end) or once that loop stopped: it
-        blocks the loop, and reads the workers' answers itself meanwhile, so that a job that
-        finishes during the wait is answered and a worker writing a large answer is not
-        stuck on its pipe."""
-        loop = self._loop
-        if loop is not None and not self._in_loop() and loop.is_running():
-            raise RuntimeError("WorkerPool.shutdown() must run in the pool's event loop")
-        self._stopping = True
-        if self._in_loop():
-            self._end_waits()
-        elif self._loop is not None and not self._loop.is_closed():
-            self._loop.call_soon_threadsafe(self._end_waits)
-        with self._lock:
-            waiting = list(self._pending)
-        for job in waiting:
-            job.future.cancel()  # its slot is freed by _unqueue
-        with self._lock:
-            workers = list(self._workers)
-            self._closed = True
-            self._wake.notify()
-        for w in workers:
-            if w.state == "warming":
-                w.process.terminate()  # nothing to lose: no job has reached it
-            else:
-                try:
-                    w.jobs.send_bytes(pickle.dumps(("stop",)))
-                except OSError:
-                    pass
-        end = None if timeout_s is None else time.monotonic() + timeout_s
-        self._serve_until_exit(workers, end)
-        alive = [w for w in workers if w.process.is_alive()]
-        busy = [w for w in alive if w.state == "busy"]
-        if busy:
-            logger.warning("terminating %d worker(s) still busy at shutdown", len(busy))
-        elif alive:  # idle or warming, slow to exit: nothing is lost
-            logger.info("stopping %d idle worker(s) that had not exited yet", len(alive))
-        if alive:
-            for w in alive:
-                w.process.terminate()
-            for w in alive:
-                w.process.join(5.0)
-                if w.process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
-                    w.process.kill()
-                    w.process.join()
-        for w in workers:  # the exits not seen yet: what they wrote first, then the exit
-            if self._detach(w):
-                while self._take_answers(w):
-                    pass
-            self._on_exit(w)  # once per worker: one never attached too, a handled one not again
-        if self._template is not None:  # before the supervisor ends (its PDEATHSIG)
-            self._template.stop()
-        self._spawn_requests.put(None)
-        if self._supervisor is not None:
-            self._supervisor.join(5.0)
-        if self._watchdog is not None:
-            self._watchdog.join(5.0)
-
-    def _serve_until_exit(self, workers: list[Worker], end: float | None) -> None:
-        """At shutdown, with the event loop blocked: wait until ``workers`` have exited or
-        ``end`` (monotonic; None: no end), handling their answers and exits as they come."""
-        live = [w for w in workers if w.process.is_alive()]
-        while live:
-            timeout = None if end is None else end - time.monotonic()
-            if timeout is not None and timeout <= 0:
-                return
-            reading = {w.answers.fileno(): w for w in workers if w.reading}
-            sentinels = [w.process.sentinel for w in live]
-            for ready in wait_for_any([*sentinels, *reading], timeout):
-                worker = reading.get(ready)  # type: ignore[call-overload]
-                if worker is not None and self._take_answers(worker) is False:
-                    self._detach(worker)
-                    self._on_exit(worker)
-            live = [w for w in live if w.process.is_alive()]
 
     @property
     def state(self) -> PoolState:
