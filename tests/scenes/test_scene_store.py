@@ -20,6 +20,8 @@ import pytest
 
 from planner_api.scene_store import PostgresSceneStore, SqliteSceneStore, open_store
 
+T = "default"  # the tenant of these tests (tenants apart: test_scene_store_tenants.py)
+
 
 def _free_port() -> int:
     with socket.socket() as s:
@@ -77,28 +79,28 @@ def store(request, tmp_path):
         url = request.getfixturevalue("postgres_url")
         s = open_store(url)
         assert isinstance(s, PostgresSceneStore)
-        with s._connect() as con:  # a clean table for each test
+        with s._transaction() as con:  # a clean table for each test
             con.execute("DELETE FROM scenes")
     yield s
     s.close()
 
 
 def test_put_get_list_delete(store):
-    assert store.get("a") is None and store.list() == [] and store.delete("a") is None
-    first = store.put("a", '{"obstacles": []}', "h1", 0, 0)
+    assert store.get(T, "a") is None and store.list(T) == [] and store.delete(T, "a") is None
+    first = store.put(T, "a", '{"obstacles": []}', "h1", 0, 0)
     assert (first.name, first.version, first.hash, first.body) == ("a", 1, "h1", None)
-    second = store.put("a", '{"obstacles": [1]}', "h2", 1, 5)
+    second = store.put(T, "a", '{"obstacles": [1]}', "h2", 1, 5)
     assert second.version == 2 and second.updated_at >= first.updated_at
-    store.put("b", "{}", "h3", 0, 0)
-    got = store.get("a")
+    store.put(T, "b", "{}", "h3", 0, 0)
+    got = store.get(T, "a")
     assert (got.version, got.hash, got.body, got.obstacles, got.points) == (
         2, "h2", '{"obstacles": [1]}', 1, 5
     )  # fmt: skip
-    assert store.get("a", body=False).body is None
-    assert [r.name for r in store.list()] == ["a", "b"]
-    assert store.delete("a").version == 2
-    assert store.get("a") is None and [r.name for r in store.list()] == ["b"]
-    assert store.put("a", "{}", "h4", 0, 0).version == 1  # a new scene after a delete
+    assert store.get(T, "a", body=False).body is None
+    assert [r.name for r in store.list(T)] == ["a", "b"]
+    assert store.delete(T, "a").version == 2
+    assert store.get(T, "a") is None and [r.name for r in store.list(T)] == ["b"]
+    assert store.put(T, "a", "{}", "h4", 0, 0).version == 1  # a new scene after a delete
 
 
 def test_concurrent_writers_last_wins_whole(store):
@@ -107,12 +109,12 @@ def test_concurrent_writers_last_wins_whole(store):
     big = "x" * 200_000  # a body large enough that a torn write would show
 
     def write(k: int) -> list[int]:
-        return [store.put("race", f"{k}-{i}-{big}", f"{k}-{i}", k, i).version for i in range(5)]
+        return [store.put(T, "race", f"{k}-{i}-{big}", f"{k}-{i}", k, i).version for i in range(5)]
 
     with ThreadPoolExecutor(12) as ex:
         versions = sorted(v for vs in ex.map(write, range(12)) for v in vs)
     assert versions == list(range(1, 61))
-    got = store.get("race")
+    got = store.get(T, "race")
     assert got.version == 60
     k, i, rest = got.body.split("-", 2)
     assert got.hash == f"{k}-{i}" and (got.obstacles, got.points) == (int(k), int(i))
@@ -122,12 +124,12 @@ def test_concurrent_writers_last_wins_whole(store):
 def test_a_second_store_on_the_same_database_sees_the_scenes(store, tmp_path):
     """Another process's store (a restarted service, another replica) reads what this one
     wrote."""
-    store.put("shared", '{"obstacles": []}', "hh", 0, 0)
+    store.put(T, "shared", '{"obstacles": []}', "hh", 0, 0)
     other = open_store(str(store.path) if isinstance(store, SqliteSceneStore) else store.url)
     try:
-        assert other.get("shared").hash == "hh"
-        other.put("shared", "{}", "hh2", 0, 0)
-        assert store.get("shared").version == 2
+        assert other.get(T, "shared").hash == "hh"
+        other.put(T, "shared", "{}", "hh2", 0, 0)
+        assert store.get(T, "shared").version == 2
     finally:
         other.close()
 

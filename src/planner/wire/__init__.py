@@ -131,9 +131,11 @@ from planner.wire.jobs import (
     JOB_KINDS,
     JobError,
     JobKind,
+    JobList,
     JobRequest,
     JobState,
     JobStatus,
+    JobSummary,
 )
 from planner.wire.kinematics import (
     AnalyzeRequest,
@@ -277,9 +279,11 @@ __all__ = [
     "InertiaModel",
     "JobError",
     "JobKind",
+    "JobList",
     "JobRequest",
     "JobState",
     "JobStatus",
+    "JobSummary",
     "JointGoal",
     "JointPostureModel",
     "LegModel",
