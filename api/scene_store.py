@@ -24,8 +24,8 @@ also runs these blocking calls in a thread pool of their own).
 **SQLite**: WAL mode, so a read is a plain ``SELECT`` that never waits for a writer; only a
 write takes the write lock (``BEGIN IMMEDIATE``), and the quota check and the upsert happen
 under it. ``auto_vacuum=INCREMENTAL``: a delete gives its pages back to the file system
-(``PRAGMA incremental_vacuum`` after it, then a passive checkpoint; ``journal_size_limit``
-keeps the WAL file from staying at its largest). A file made before that mode is converted
+(``PRAGMA incremental_vacuum`` after it, then a truncating checkpoint that empties the WAL;
+``journal_size_limit`` keeps the WAL file from staying at its largest after the writes). A file made before that mode is converted
 once, when it is opened (a ``VACUUM``: it rewrites the file, seconds for hundreds of MB).
 
 **Migration**: a table of the first version (no tenant, ``name`` its key) is rebuilt in
@@ -96,6 +96,8 @@ _DEFAULT_WAIT_S = 3.0
 _WAIT = threading.local()
 #: Largest WAL file kept after a checkpoint, bytes (SQLite's journal_size_limit).
 _WAL_LIMIT_BYTES = 16 * 1024 * 1024
+#: The wait of the space reclaim after a delete (best effort), s.
+_RECLAIM_WAIT_S = 0.05
 
 
 @contextmanager
@@ -187,7 +189,7 @@ class SceneStore(Protocol):
     def close(self) -> None: ...
 
 
-def check_quota(
+def _check_quota(
     name: str,
     usage: tuple[Any, Any],
     size: int,
@@ -253,7 +255,7 @@ class _SqlStore:
         with self._write(tenant) as con:
             if max_scenes is not None or max_bytes is not None:
                 usage = con.execute(_USAGE.format(p=self._P), (tenant, name)).fetchone()
-                check_quota(name, usage, size, max_scenes, max_bytes)
+                _check_quota(name, usage, size, max_scenes, max_bytes)
             cur = con.execute(_UPSERT.format(p=self._P), values)
             return self._row(cur.fetchone())
 
@@ -371,13 +373,15 @@ class SqliteSceneStore(_SqlStore):
         return found
 
     def _reclaim(self) -> None:
-        """Give the deleted scene's pages back: free pages are cut off the file, and a
-        passive checkpoint (it never waits) moves the change into the file now. Best effort:
-        a busy store reclaims at a later delete."""
-        con = self._open()
+        """Give the deleted scene's pages back: the free pages are cut off the file (an
+        incremental vacuum), and a checkpoint moves that into the file and empties the WAL.
+        Best effort, with a short wait of its own: a busy store reclaims at a later delete.
+        (Through ``executescript``: a plain ``execute`` steps the pragma once, which frees
+        one page.)"""
+        con = sqlite3.connect(self.path, timeout=_RECLAIM_WAIT_S, isolation_level=None)
         try:
-            con.execute("PRAGMA incremental_vacuum").fetchall()  # every step: fetchall
-            con.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchall()
+            con.executescript("PRAGMA incremental_vacuum;")
+            con.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
         except sqlite3.OperationalError as exc:
             logger.info("scene store space not reclaimed now: %s", exc)
         finally:

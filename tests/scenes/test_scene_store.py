@@ -2,19 +2,13 @@
 this module starts itself (Debian's ``postgresql`` package: initdb and pg_ctl in a temporary
 folder, on a free port; skipped with the reason when the package or the psycopg driver is
 missing, never faked). Put, get, list, delete; versions; last writer wins with no torn scene
-under concurrent writers."""
+under concurrent writers. (The server: ``postgres_factory`` of tests/conftest.py.)"""
 
 from __future__ import annotations
 
-import glob
-import os
 import shutil
-import socket
-import subprocess
-import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import pytest
 
@@ -23,51 +17,11 @@ from planner_api.scene_store import PostgresSceneStore, SqliteSceneStore, open_s
 T = "default"  # the tenant of these tests (tenants apart: test_scene_store_tenants.py)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _pg_bin() -> Path | None:
-    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
-    return Path(found[-1]).parent if found else None
-
-
 @pytest.fixture(scope="module")
-def postgres_url():
+def postgres_url(postgres_factory):
     """A PostgreSQL server of this module's own (a few seconds to start), its URL."""
-    bindir = _pg_bin()
-    if bindir is None:
-        pytest.skip("PostgreSQL is not installed (Debian package postgresql: initdb, pg_ctl)")
-    try:
-        import psycopg  # noqa: F401
-    except ImportError:
-        pytest.skip("the psycopg driver is not installed (pip install psycopg)")
-    # a folder of its own under the system's temporary folder: pytest's is private to the
-    # user running the tests, which the server's user (below) may not be
-    root = Path(tempfile.mkdtemp(prefix="planner-pg-"))
-    data, port = root / "data", _free_port()
-    # initdb refuses to run as root: run the server as the package's postgres user then
-    as_user: list[str] = []
-    if os.geteuid() == 0:
-        if shutil.which("runuser") is None:
-            pytest.skip("running as root without runuser: cannot start PostgreSQL as postgres")
-        as_user = ["runuser", "-u", "postgres", "--"]
-        shutil.chown(root, "postgres")
-    run = {"check": True, "capture_output": True, "timeout": 120}
-    subprocess.run([*as_user, str(bindir / "initdb"), "-D", str(data), "-U", "planner",
-                    "--auth=trust", "-E", "UTF8"], **run)  # fmt: skip
-    options = f"-p {port} -k {root} -c listen_addresses=127.0.0.1 -c fsync=off"
-    subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-o", options,
-                    "-l", str(root / "log"), "-w", "start"], **run)  # fmt: skip
-    url = f"postgresql://planner@127.0.0.1:{port}/postgres"
-    try:
-        yield url
-    finally:
-        subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-m", "immediate",
-                        "stop"], capture_output=True, timeout=60)  # fmt: skip
-        shutil.rmtree(root, ignore_errors=True)
+    with postgres_factory() as server:
+        yield server.url
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
