@@ -86,6 +86,11 @@ class StoreAccess:
         self._errors = unavailable_errors()
 
     @property
+    def in_flight(self) -> int:
+        """Calls running or waiting for a store thread now (at most ``capacity``)."""
+        return self._in_flight
+
+    @property
     def kind(self) -> str:
         """What the store is, for messages: ``postgresql`` or ``sqlite``."""
         url = self.setting or ""
