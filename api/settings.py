@@ -39,7 +39,8 @@ PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes per
                                                           file path, or a postgresql:// URL
 PLANNER_STORE_TIMEOUT_S   3                               longest wait of a scene-store call (a
                                                           lock, a connection); beyond: 503, s
-PLANNER_STORE_THREADS     4                               store calls at once; one more: 503
+PLANNER_STORE_THREADS     4                               store calls at once (reads, writes
+                                                          each); 4 more a thread wait; then 503
 PLANNER_SCENES_MAX        1000                            scenes per tenant; beyond: 422
 PLANNER_SCENE_BYTES_MAX   1 GiB                           stored scene bytes per tenant; 413
 ========================  ==============================  ======================================
@@ -293,9 +294,10 @@ class Settings(BaseSettings):
         4,
         ge=1,
         le=64,
-        description="Threads of the scene store's own pool: store calls in flight at once; "
-        "one more is answered 503 store_unavailable at once (never queued), so a stuck store "
-        "cannot take the threads other routes need.",
+        description="Threads of each of the scene store's own two pools (reads, writes): "
+        "store calls running at once; 4 more per thread may wait, one more is answered 503 "
+        "store_unavailable at once (never queued), so a stuck store cannot take the threads "
+        "other routes need, nor writes stuck on a lock the threads of the reads.",
     )
     scenes_max: int = Field(
         1000,

@@ -3,9 +3,13 @@
 Why a pool of its own: the store's calls block (a file lock, a network round trip), and the
 shared thread pool of the routes (anyio's, 40 threads) is what every ``def`` route and every
 ``run_in_threadpool`` needs. A held SQLite write lock once filled it with waiting PUTs, so an
-unrelated ``GET /v1/jobs/{id}`` waited 29 s. Here the store has ``PLANNER_STORE_THREADS``
-threads and at most :data:`QUEUE_PER_THREAD` calls per thread may wait for one; a call beyond
-that is answered 503 ``store_unavailable`` at once, never queued.
+unrelated ``GET /v1/jobs/{id}`` waited 29 s. Here the store has two lanes, one for reads and
+one for writes, each of ``PLANNER_STORE_THREADS`` threads, and at most
+:data:`QUEUE_PER_THREAD` calls per thread may wait for one; a call beyond that is answered 503
+``store_unavailable`` at once, never queued. Why two lanes: only writes wait for SQLite's
+write lock (reads are plain WAL reads), so PUTs piling up behind a held lock must not take
+the threads the reads need (measured: with one lane, 45 PUTs behind a held lock made 45
+concurrent GETs of a scene 503 as well).
 
 Why every call has a budget: each call may take ``PLANNER_STORE_TIMEOUT_S`` from when it is
 asked, its time waiting for a thread included; the store's own waits (SQLite's busy timeout,
@@ -27,8 +31,8 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any, TypeVar
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
 
 from planner_api.exceptions import StoreUnavailableError
 from planner_api.scene_store import SceneStore, open_store, unavailable_errors, waiting_at_most
@@ -49,6 +53,29 @@ class _Expired(Exception):
     """A call's budget ran out before a store thread took it: it was not run."""
 
 
+class _Lane:
+    """Threads and an admission count of one kind of call (reads or writes)."""
+
+    def __init__(self, name: str, threads: int) -> None:
+        self.name = name
+        self.threads = threads
+        self.capacity = threads * (1 + QUEUE_PER_THREAD)
+        self.executor = ThreadPoolExecutor(threads, thread_name_prefix=f"scene-store-{name}")
+        self.lock = threading.Lock()
+        self.in_flight = 0
+
+    def admit(self) -> bool:
+        with self.lock:
+            if self.in_flight >= self.capacity:
+                return False
+            self.in_flight += 1
+            return True
+
+    def done(self, _: object = None) -> None:
+        with self.lock:
+            self.in_flight -= 1
+
+
 class StoreAccess:
     """The service's way to its scene store (module docstring).
 
@@ -59,7 +86,7 @@ class StoreAccess:
     timeout_s : float
         Budget of one call from when it is asked, s (``PLANNER_STORE_TIMEOUT_S``).
     threads : int
-        Store threads (``PLANNER_STORE_THREADS``).
+        Store threads of each lane (``PLANNER_STORE_THREADS``).
     retry_after_s : int
         ``Retry-After`` of its 503s.
     """
@@ -75,20 +102,13 @@ class StoreAccess:
     ) -> None:
         self.setting = setting
         self.timeout_s = timeout_s
-        self.threads = threads
-        self.capacity = threads * (1 + QUEUE_PER_THREAD)
         self.retry_after_s = retry_after_s
+        self.reads = _Lane("reads", threads)
+        self.writes = _Lane("writes", threads)
         self._opener = opener
-        self._executor = ThreadPoolExecutor(threads, thread_name_prefix="scene-store")
         self._lock = threading.Lock()
-        self._in_flight = 0
         self._store: SceneStore | None = None
         self._errors = unavailable_errors()
-
-    @property
-    def in_flight(self) -> int:
-        """Calls running or waiting for a store thread now (at most ``capacity``)."""
-        return self._in_flight
 
     @property
     def kind(self) -> str:
@@ -119,31 +139,24 @@ class StoreAccess:
         with waiting_at_most(left):
             return call(self._opened())
 
-    def _done(self, _: Future[Any]) -> None:
-        with self._lock:
-            self._in_flight -= 1
-
-    async def call(self, call: Callable[[SceneStore], T]) -> T:
-        """``call(store)`` in a store thread, within the budget; :class:`StoreUnavailableError`
-        (503) when every thread is busy and the queue full, when the budget runs out, or
-        when the store cannot be reached. Its other errors (a quota) are raised as they are."""
-        with self._lock:
-            if self._in_flight >= self.capacity:
-                full = True
-            else:
-                full, self._in_flight = False, self._in_flight + 1
-        if full:
+    async def call(self, call: Callable[[SceneStore], T], *, write: bool = False) -> T:
+        """``call(store)`` in a store thread of its lane (``write``: a PUT or DELETE), within
+        the budget; :class:`StoreUnavailableError` (503) when the lane's threads are busy and
+        its queue full, when the budget runs out, or when the store cannot be reached. Its
+        other errors (a quota) are raised as they are."""
+        lane = self.writes if write else self.reads
+        if not lane.admit():
             raise self._unavailable(
-                f"its {self.threads} threads (PLANNER_STORE_THREADS) are busy and "
-                f"{self.capacity - self.threads} calls already wait for them"
+                f"its {lane.threads} {lane.name} threads (PLANNER_STORE_THREADS) are busy and "
+                f"{lane.capacity - lane.threads} calls already wait for them"
             )
         deadline = time.monotonic() + self.timeout_s
         try:
-            future = self._executor.submit(self._run, deadline, call)
+            future = lane.executor.submit(self._run, deadline, call)
         except RuntimeError as exc:  # shut down: the application is stopping
-            self._done(None)  # type: ignore[arg-type]
+            lane.done()
             raise self._unavailable("the service is stopping") from exc
-        future.add_done_callback(self._done)
+        future.add_done_callback(lane.done)
         try:
             return await asyncio.wait_for(asyncio.wrap_future(future), self.timeout_s + GRACE_S)
         except (_Expired, TimeoutError) as exc:
@@ -165,7 +178,8 @@ class StoreAccess:
 
     def close(self) -> None:
         """Stop the threads (a call still running ends on its own) and close the store."""
-        self._executor.shutdown(wait=False, cancel_futures=True)
+        for lane in (self.reads, self.writes):
+            lane.executor.shutdown(wait=False, cancel_futures=True)
         with self._lock:
             store, self._store = self._store, None
         if store is not None:

@@ -119,7 +119,8 @@ async def put_scene(
     )
     limits = {"max_scenes": settings.scenes_max, "max_bytes": settings.scene_bytes_max}
     row = await store_access(request).call(
-        lambda store: store.put(tenant, name, text, digest, count, points, **limits)
+        lambda store: store.put(tenant, name, text, digest, count, points, **limits),
+        write=True,
     )
     return SceneInfo(**row.info())
 
@@ -147,7 +148,7 @@ async def list_scenes(request: Request, tenant: Tenant) -> SceneList:
 async def delete_scene(name: NamePath, request: Request, tenant: Tenant) -> SceneInfo:
     """Forget the tenant's scene; the answer is what the store kept about it. 404 when the
     tenant has none."""
-    row = await store_access(request).call(lambda store: store.delete(tenant, name))
+    row = await store_access(request).call(lambda store: store.delete(tenant, name), write=True)
     if row is None:
         raise _not_found(name)
     return SceneInfo(**row.info())

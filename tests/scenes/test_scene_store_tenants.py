@@ -230,7 +230,7 @@ class _Blocking:
         self.release = threading.Event()
         self.ran: list[str] = []
 
-    def get(self, what: str) -> str:
+    def get(self, what: str) -> str:  # the calls of the reads' lane
         self.ran.append(what)
         self.release.wait(30)
         return what
@@ -252,6 +252,7 @@ def test_a_full_store_pool_refuses_at_once_and_expired_calls_do_not_run():
         with pytest.raises(StoreUnavailableError) as full:
             await access.call(lambda s: s.get("one too many"))
         assert "PLANNER_STORE_THREADS" in str(full.value) and full.value.retry_after_s == 2
+        await access.call(lambda s: "a write", write=True)  # the other lane is free
         results = await asyncio.gather(*calls, return_exceptions=True)
         blocking.release.set()
         return results

@@ -71,11 +71,11 @@ def test_a_held_write_lock_leaves_reads_and_fails_writes_with_503(locked_store):
 
 
 def test_other_routes_answer_while_puts_wait_on_the_lock(locked_store):
-    """12 PUTs wait on the held lock (2 store threads + 8 waiting, the rest refused at
-    once): meanwhile a job poll and the health probe answer; then every PUT is a 503, some
-    of them refused at once because the store's pool was full."""
+    """12 PUTs wait on the held lock (2 write threads + 8 waiting, the rest refused at
+    once): meanwhile a job poll, the health and readiness probes and a scene's GET answer;
+    then every PUT is a 503, some of them refused at once because the write lane was full."""
     c, hold = locked_store
-    access = c.app.state.scene_access
+    access = c.app.state.scene_access.writes
     hold()
     with ThreadPoolExecutor(12) as ex:
         puts = [ex.submit(c.put, f"/v1/scenes/w{i}", json={"obstacles": []}) for i in range(12)]
@@ -83,10 +83,13 @@ def test_other_routes_answer_while_puts_wait_on_the_lock(locked_store):
             time.sleep(0.01)  # until the store's pool is full of waiting PUTs
         job = c.get("/v1/jobs/0123456789abcdef")
         health = c.get("/v1/health")
+        scene = c.get("/v1/scenes/kept")  # reads have a lane of their own
+        ready = c.get("/v1/ready")
         waiting = sum(not f.done() for f in puts)
         answers = [f.result() for f in puts]
     assert job.status_code == 404 and job.json()["detail"][0]["type"] == "job_not_found"
-    assert health.status_code == 200
+    assert health.status_code == 200 and scene.status_code == 200
+    assert ready.status_code == 200 and ready.json()["store"] == "ok"
     assert waiting > 0  # the two answers came while PUTs still waited on the lock
     messages = [_unavailable(r) for r in answers]
     assert any("PLANNER_STORE_THREADS" in m for m in messages)  # the pool refused at once
