@@ -27,6 +27,7 @@ from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
+from planner_api.store_access import StoreAccess
 from planner_api.warmup import warm_up_inline, warm_up_worker
 from planner_api.workers import WorkerPool
 
@@ -89,9 +90,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
-            store = getattr(app.state, "scene_store", None)
-            if store is not None:
-                store.close()
+            app.state.scene_access.close()
 
     app = FastAPI(
         title="hybrid-planner",
@@ -107,13 +106,20 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.state.stopping = False
     #: The start-up warm-up of the jobs run in the event loop (None: nothing to wait for).
     app.state.warming = None
+    #: The scene store, through its own bounded thread pool (opened at its first call).
+    app.state.scene_access = StoreAccess(
+        settings.scene_store,
+        timeout_s=settings.store_timeout_s,
+        threads=settings.store_threads,
+        retry_after_s=settings.retry_after_s,
+    )
     install_error_handlers(app)
     app.add_middleware(
         RequestGate,
         max_body_bytes=settings.max_body_bytes,
         timeout_s=settings.request_timeout_s,
         body_timeout_s=settings.body_timeout_s,
-        api_key=settings.api_key.get_secret_value() if settings.api_key else None,
+        api_keys=settings.tenant_keys,
         allowed_hosts=settings.host_names,
     )
     app.state.metrics = Metrics(lambda: getattr(app.state, "pool", None), planner.__version__)
@@ -143,5 +149,6 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
-    install_openapi(app, api_key=settings.api_key is not None, max_obstacles=settings.max_obstacles)
+    keyed = settings.tenant_keys is not None
+    install_openapi(app, api_key=keyed, max_obstacles=settings.max_obstacles)
     return app

@@ -1,5 +1,6 @@
 """Dependencies of the routes, as ``Annotated`` aliases: settings, worker pool, the request's
-deadline, the API-key check, and the watch on the client's connection.
+deadline, the API-key check and the tenant it names, and the watch on the client's
+connection.
 
 All are ``async def``: none of them blocks, and FastAPI runs a plain ``def`` dependency in its
 thread pool, a thread hop per dependency per request (~0.5 ms of the cheapest requests)."""
@@ -14,8 +15,9 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from planner_api.exceptions import AuthenticationError, PoolNotRunningError
-from planner_api.middleware import API_KEY_REQUIRED, api_key_accepted
+from planner_api.middleware import API_KEY_REQUIRED
 from planner_api.settings import Settings
+from planner_api.tenants import DEFAULT_TENANT, tenant_of
 from planner_api.workers import CLIENT_GONE, WorkerPool
 
 __all__ = [
@@ -23,10 +25,12 @@ __all__ = [
     "Deadline",
     "Pool",
     "SettingsDep",
+    "Tenant",
     "WatchClient",
     "get_app_settings",
     "get_deadline",
     "get_pool",
+    "request_tenant",
     "require_api_key",
     "watch_client",
 ]
@@ -56,13 +60,31 @@ async def get_deadline(request: Request) -> float:
 
 async def require_api_key(
     request: Request, settings: Annotated[Settings, Depends(get_app_settings)]
-) -> None:
-    """Nothing when no key is configured; else the key must come in ``X-API-Key`` or
-    ``Authorization: Bearer <key>`` (compared in constant time)."""
-    if settings.api_key is None:
-        return
-    if not api_key_accepted(request.headers, settings.api_key.get_secret_value()):
-        raise AuthenticationError(API_KEY_REQUIRED)
+) -> str:
+    """The request's tenant (:mod:`planner_api.tenants`): ``default`` when no key is
+    configured; else the tenant whose key comes in ``X-API-Key`` or ``Authorization: Bearer
+    <key>`` (compared in constant time), and :class:`AuthenticationError` (401) when none
+    does. The gate (:mod:`planner_api.middleware`) checked it before the body was read; this
+    is the routes' own check, and what tells them the tenant."""
+    keys = settings.tenant_keys
+    if keys is None:
+        tenant: str | None = DEFAULT_TENANT
+    else:
+        tenant = tenant_of(request.headers, keys)
+        if tenant is None:
+            raise AuthenticationError(API_KEY_REQUIRED)
+    request.state.tenant = tenant
+    return tenant
+
+
+async def request_tenant(request: Request) -> str:
+    """The request's tenant, for code that has the request but no dependency of its own
+    (:func:`planner_api.routes.scenes.resolve_scene`): the one :func:`require_api_key` found,
+    else found now."""
+    found = getattr(request.state, "tenant", None)
+    if found is not None:
+        return found
+    return await require_api_key(request, request.app.state.settings)
 
 
 async def watch_client(request: Request) -> AsyncIterator[None]:
@@ -99,4 +121,6 @@ SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 Pool = Annotated[WorkerPool, Depends(get_pool)]
 Deadline = Annotated[float, Depends(get_deadline)]
 ApiKey = Depends(require_api_key)
+#: The request's tenant (the key's check itself: FastAPI runs it once per request).
+Tenant = Annotated[str, Depends(require_api_key)]
 WatchClient = Depends(watch_client)

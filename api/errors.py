@@ -24,6 +24,10 @@ JobCancelledError,                 499     never read: the client is gone (nginx
 ClientDisconnectedError                    closed request"; recorded in the metrics and log)
 JobNotFoundError                   404     a long job's id unknown or expired
 TooManyJobsError                   503     ``Retry-After``; the long-job list is full
+StoreUnavailableError              503     ``Retry-After``; ``store_unavailable``: the scene
+                                           store's lock wait or connection ran out of time
+QuotaExceededError                 422     ``quota_exceeded``: PLANNER_SCENES_MAX (422) or
+                                   or 413  PLANNER_SCENE_BYTES_MAX (413) of the tenant
 ShuttingDownError                  503     ``Retry-After``; the process is stopping
 PoolSaturatedError                 503     ``Retry-After``
 PoolNotRunningError                503     the app's lifespan was not started
@@ -63,7 +67,9 @@ from planner_api.exceptions import (
     LimitExceededError,
     PoolNotRunningError,
     PoolSaturatedError,
+    QuotaExceededError,
     ShuttingDownError,
+    StoreUnavailableError,
     TooManyJobsError,
     WorkerCrashedError,
 )
@@ -94,6 +100,7 @@ _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),
     PoolNotRunningError: (503, "not_running"),
+    StoreUnavailableError: (503, "store_unavailable"),
     DeadlineExceededError: (504, "deadline_exceeded"),
 }
 
@@ -188,9 +195,11 @@ async def _library(_: Request, exc: PlannerError) -> JSONResponse:
 async def _service(_: Request, exc: Exception) -> JSONResponse:
     if isinstance(exc, LimitExceededError):
         return error_response(422, exc.message, exc.error_type, exc.loc)
+    if isinstance(exc, QuotaExceededError):
+        return error_response(exc.status, exc.message, "quota_exceeded", exc.loc)
     status, type_ = next(v for k, v in _SERVICE_ERRORS.items() if isinstance(exc, k))
     headers = None
-    if isinstance(exc, PoolSaturatedError):
+    if isinstance(exc, PoolSaturatedError | StoreUnavailableError):
         headers = {"Retry-After": str(exc.retry_after_s)}
     elif isinstance(exc, AuthenticationError):
         headers = {"WWW-Authenticate": "Bearer"}
@@ -209,7 +218,9 @@ async def error_answer(exc: Exception) -> JSONResponse:
         return await _validation(None, exc)  # type: ignore[arg-type]
     if isinstance(exc, PlannerError):
         return await _library(None, exc)  # type: ignore[arg-type]
-    if isinstance(exc, LimitExceededError) or any(isinstance(exc, k) for k in _SERVICE_ERRORS):
+    if isinstance(exc, LimitExceededError | QuotaExceededError) or any(
+        isinstance(exc, k) for k in _SERVICE_ERRORS
+    ):
         return await _service(None, exc)  # type: ignore[arg-type]
     logger.error("unhandled error in a long job", exc_info=exc)
     return error_response(500, "internal error (logged on the server)", "internal_error")
@@ -221,6 +232,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(StarletteHTTPException, _http)  # type: ignore[arg-type]
     app.add_exception_handler(PlannerError, _library)  # type: ignore[arg-type]
     app.add_exception_handler(LimitExceededError, _service)
+    app.add_exception_handler(QuotaExceededError, _service)
     for cls in _SERVICE_ERRORS:
         app.add_exception_handler(cls, _service)
     app.add_exception_handler(Exception, _unexpected)

@@ -14,6 +14,9 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
     ├── JobNotFoundError          404: no long job of that id (never, or expired)
     ├── TooManyJobsError          503 + Retry-After: the long-job list is full
     ├── LimitExceededError        422: a request exceeds a size limit of the service settings
+    ├── QuotaExceededError        422 or 413: a tenant's scene count or stored bytes would pass
+    │                             PLANNER_SCENES_MAX or PLANNER_SCENE_BYTES_MAX
+    ├── StoreUnavailableError     503 + Retry-After: the scene store cannot answer in time
     └── AuthenticationError       401: missing or wrong API key
 """
 
@@ -28,9 +31,11 @@ __all__ = [
     "LimitExceededError",
     "PoolNotRunningError",
     "PoolSaturatedError",
+    "QuotaExceededError",
     "ResultTooLargeError",
     "ServiceError",
     "ShuttingDownError",
+    "StoreUnavailableError",
     "TooManyJobsError",
     "WorkerCrashedError",
 ]
@@ -113,3 +118,32 @@ class ResultTooLargeError(LimitExceededError):
 
 class AuthenticationError(ServiceError):
     """The API key is missing or wrong."""
+
+
+class QuotaExceededError(ServiceError):
+    """A scene PUT would take its tenant past a quota: ``status`` is 422 for the count
+    (``PLANNER_SCENES_MAX``), 413 for the stored bytes (``PLANNER_SCENE_BYTES_MAX``); the
+    message names the setting, the limit and what the PUT would make of it."""
+
+    def __init__(self, message: str, status: int, loc: tuple[str | int, ...]) -> None:
+        super().__init__(message, status, loc)
+        self.message = message
+        self.status = status
+        self.loc = loc
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class StoreUnavailableError(ServiceError):
+    """The scene store cannot answer within ``PLANNER_STORE_TIMEOUT_S``: its write lock is
+    held, its database unreachable, or every store thread is busy. Retry after
+    ``retry_after_s`` seconds (nothing was changed)."""
+
+    def __init__(self, message: str, retry_after_s: int) -> None:
+        super().__init__(message, retry_after_s)
+        self.message = message
+        self.retry_after_s = retry_after_s
+
+    def __str__(self) -> str:
+        return self.message

@@ -14,7 +14,10 @@ jobs are kept (a new one evicts the oldest finished job; when every kept job is 
 a new one is refused, 503), and their results take at most ``PLANNER_JOBS_MAX_MB`` in all (a
 new result evicts the oldest finished jobs until it fits; a result over
 ``PLANNER_JOB_RESULT_MAX_MB`` fails its job, 422 ``result_too_large``). Past that, its id
-answers 404 naming these bounds. A cancelled
+answers 404 naming these bounds. A job belongs
+to the tenant that submitted it (:mod:`planner_api.tenants`): for every other tenant its id
+answers the same 404 as an id never given (no existence leak), and a listing shows each
+tenant its own jobs only. The bounds are the process's, shared by the tenants. A cancelled
 job (``DELETE``) has its worker killed at once (:meth:`planner_api.workers.WorkerPool.cancel`)
 and replaced, warm, in the background.
 
@@ -43,6 +46,7 @@ from planner.wire import (
     JobError,
     JobState,
     JobStatus,
+    JobSummary,
     PlanRequest,
     RegionsRequest,
     SequenceRequest,
@@ -63,6 +67,7 @@ from planner_api.jobs import design as design_jobs
 from planner_api.jobs import plan as plan_jobs
 from planner_api.jobs import sequence as sequence_jobs
 from planner_api.jobs import timing as timing_jobs
+from planner_api.tenants import DEFAULT_TENANT
 from planner_api.workers import CLIENT_GONE
 
 __all__ = ["LONG_JOBS", "JobStore", "LongJobKind"]
@@ -146,6 +151,7 @@ Runner = Callable[[float], Awaitable[bytes]]
 class _Entry:
     id: str
     kind: str
+    tenant: str = DEFAULT_TENANT
     status: JobState = "queued"
     submitted_at: float = field(default_factory=time.time)
     started_at: float | None = None
@@ -240,8 +246,9 @@ class JobStore:
             "restarted (jobs live in its memory only)"
         )
 
-    def submit(self, kind: str, run: Runner) -> _Entry:
-        """Register a job of ``kind`` and start it (queued until a slot is free)."""
+    def submit(self, kind: str, run: Runner, tenant: str = DEFAULT_TENANT) -> _Entry:
+        """Register a job of ``kind`` for ``tenant`` and start it (queued until a slot is
+        free)."""
         self._forget_expired()
         if len(self._jobs) >= self.max_jobs:
             oldest = next((k for k, e in self._jobs.items() if e.finished), None)
@@ -252,7 +259,7 @@ class JobStore:
                     retry_after_s=max(1, round(min(self.timeout_s, 60.0))),
                 )
             self._drop(oldest)
-        entry = _Entry(id=uuid.uuid4().hex, kind=kind)
+        entry = _Entry(id=uuid.uuid4().hex, kind=kind, tenant=tenant)
         self._jobs[entry.id] = entry
         context = contextvars.copy_context()
         context.run(CLIENT_GONE.set, None)  # the submitting request's client may leave
@@ -291,18 +298,25 @@ class JobStore:
             entry.finished_at = time.time()
             entry.expires = time.monotonic() + self.ttl_s
 
-    def get(self, job_id: str) -> _Entry:
-        """The job ``job_id``; :class:`JobNotFoundError` (404) when it is not kept."""
+    def get(self, job_id: str, tenant: str = DEFAULT_TENANT) -> _Entry:
+        """The job ``job_id`` of ``tenant``; :class:`JobNotFoundError` (404) when it is not
+        kept, or is another tenant's (the same answer: module docstring)."""
         self._forget_expired()
         entry = self._jobs.get(job_id)
-        if entry is None:
+        if entry is None or entry.tenant != tenant:
             raise self._not_found(job_id)
         return entry
 
-    def cancel(self, job_id: str) -> _Entry:
-        """Cancel a queued or running job (its worker is killed at once and replaced); a
-        finished job is left as it is. The job's status is ``cancelled`` from now on."""
-        entry = self.get(job_id)
+    def list(self, tenant: str = DEFAULT_TENANT) -> list[_Entry]:
+        """The jobs of ``tenant`` still kept, in submission order."""
+        self._forget_expired()
+        return [e for e in self._jobs.values() if e.tenant == tenant]
+
+    def cancel(self, job_id: str, tenant: str = DEFAULT_TENANT) -> _Entry:
+        """Cancel a queued or running job of ``tenant`` (its worker is killed at once and
+        replaced); a finished job is left as it is. The job's status is ``cancelled`` from
+        now on. Another tenant's job: 404, untouched."""
+        entry = self.get(job_id, tenant)
         if not entry.finished and entry.task is not None:
             entry.task.cancel()
             entry.status = "cancelled"
@@ -315,12 +329,22 @@ class JobStore:
             if entry.task is not None and not entry.task.done():
                 entry.task.cancel()
 
+    def summary(self, entry: _Entry) -> JobSummary:
+        """The job as a line of ``GET /v1/jobs``."""
+        return JobSummary(
+            id=entry.id,
+            kind=entry.kind,  # type: ignore[arg-type]
+            status=entry.status,
+            submitted_at=entry.submitted_at,
+            started_at=entry.started_at,
+            finished_at=entry.finished_at,
+            expires_at=_wall_clock(entry.expires),
+        )
+
     def status_json(self, entry: _Entry) -> bytes:
         """The job as :class:`planner.wire.JobStatus` JSON, its result spliced in as the
         endpoint's bytes (not parsed and written again)."""
-        expires_at = None
-        if entry.expires is not None:
-            expires_at = time.time() + max(entry.expires - time.monotonic(), 0.0)
+        expires_at = _wall_clock(entry.expires)
         status = JobStatus(
             id=entry.id,
             kind=entry.kind,  # type: ignore[arg-type]
@@ -333,3 +357,10 @@ class JobStore:
         ).model_dump_json(exclude={"result"})
         result = entry.result if entry.status == "done" and entry.result is not None else b"null"
         return status[:-1].encode() + b',"result":' + result + b"}"
+
+
+def _wall_clock(expires: float | None) -> float | None:
+    """A monotonic expiry as Unix time (None stays None)."""
+    if expires is None:
+        return None
+    return time.time() + max(expires - time.monotonic(), 0.0)

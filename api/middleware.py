@@ -10,8 +10,9 @@ application parses anything:
    address, which no deployment lists); a set lookup;
 1. **size**: a ``Content-Length`` over ``max_body_bytes`` is 413 at once; a streamed body is
    cut off (413) as soon as it passes the limit;
-2. **auth**: without the API key (when one is configured), every ``/v1`` route but the
-   probes ``/v1/health`` and ``/v1/ready`` is 401, whatever the body holds;
+2. **auth**: without an accepted key (when keys are configured: ``PLANNER_API_KEY``, or a
+   tenant's of ``PLANNER_API_KEYS``, :mod:`planner_api.tenants`), every ``/v1`` route but
+   the probes ``/v1/health`` and ``/v1/ready`` is 401, whatever the body holds;
 3. **content type**: a POST to a ``/v1`` route whose ``Content-Type`` is not JSON is 415
    (a method the route does not take is left to routing: 405);
 4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
@@ -37,7 +38,6 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import secrets
 import time
 from collections.abc import Callable, Mapping
 
@@ -46,6 +46,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from planner_api.logging import REQUEST_ID, REQUEST_ID_HEADER, request_id_from
 from planner_api.metrics import CURRENT, UNMATCHED, Metrics
+from planner_api.tenants import tenant_of
 
 __all__ = [
     "API_KEY_REQUIRED",
@@ -53,7 +54,6 @@ __all__ = [
     "HOST_NOT_ALLOWED",
     "RequestGate",
     "RequestObserver",
-    "api_key_accepted",
     "host_name",
     "relative_location",
 ]
@@ -83,17 +83,6 @@ def host_name(value: str) -> str:
     if value.startswith("["):
         return value[: value.find("]") + 1] if "]" in value else value
     return value.partition(":")[0].rstrip(".")
-
-
-def api_key_accepted(headers: Mapping[str, str], expected: str) -> bool:
-    """Whether a request presents the key ``expected`` in ``X-API-Key``, else in
-    ``Authorization: Bearer <key>``, compared in constant time: the one key check, made by
-    the gate before a body is read and again by the routes' dependency."""
-    given = headers.get("x-api-key")
-    if given is None:
-        scheme, _, token = headers.get("authorization", "").partition(" ")
-        given = token.strip() if scheme.lower() == "bearer" else None
-    return given is not None and secrets.compare_digest(given.encode(), expected.encode())
 
 
 #: How many (method, path) answers of :func:`_route_takes` are remembered per application.
@@ -142,13 +131,17 @@ class RequestGate:
         timeout_s: float,
         body_timeout_s: float,
         api_key: str | None = None,
+        api_keys: Mapping[str, str] | None = None,
         allowed_hosts: frozenset[str] | None = None,
     ) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
         self.timeout_s = timeout_s
         self.body_timeout_s = min(body_timeout_s, timeout_s)
-        self.api_key = api_key
+        # every accepted key -> its tenant (planner_api.tenants); None: no key asked
+        if api_keys is None and api_key is not None:
+            api_keys = {api_key: "default"}
+        self.api_keys = dict(api_keys) if api_keys is not None else None
         #: None: any host (``PLANNER_ALLOWED_HOSTS=*``, or the default of a keyed service)
         self.allowed_hosts = allowed_hosts
 
@@ -177,8 +170,8 @@ class RequestGate:
             await self._too_large(send)
             return
         guarded = path.startswith("/v1/") and path not in _OPEN_PATHS
-        if guarded and self.api_key is not None:
-            if not api_key_accepted(headers, self.api_key):
+        if guarded and self.api_keys is not None:
+            if tenant_of(headers, self.api_keys) is None:
                 await _answer(
                     send, 401, API_KEY_REQUIRED,
                     "unauthorized", [], [(b"www-authenticate", b"Bearer")],

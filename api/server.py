@@ -27,6 +27,7 @@ every proxy); a listener closed at once refuses the requests sent in that window
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import logging
 import socket
 import time
@@ -39,7 +40,7 @@ from planner_api.logging import configure_logging, uvicorn_log_config
 from planner_api.protocol import guarded_protocol
 from planner_api.settings import Settings
 
-__all__ = ["GracefulServer", "job_grace_s", "run"]
+__all__ = ["GracefulServer", "job_grace_s", "keyless_notice", "run"]
 
 logger = logging.getLogger(__name__)
 
@@ -95,10 +96,44 @@ class GracefulServer(uvicorn.Server):
             await asyncio.sleep(min(_DRAIN_POLL_S, max(end - time.monotonic(), 0.0)))
 
 
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def keyless_notice(settings: Settings) -> tuple[int, str] | None:
+    """The start log's line about keys: None when keys are configured; else (level,
+    message): INFO when bound to loopback (the default ``127.0.0.1``: only this machine can
+    reach a service that asks no key), WARNING when bound elsewhere (``--host 0.0.0.0``:
+    anyone who reaches the port plans, stores and deletes scenes). Never a refusal: the
+    Docker image binds 0.0.0.0 by design, behind the container's own network."""
+    if settings.tenant_keys is not None:
+        return None
+    if _loopback(settings.host):
+        return logging.INFO, (
+            f"no API key (PLANNER_API_KEY, PLANNER_API_KEYS): the service is keyless, bound to "
+            f"loopback {settings.host} only; binding another interface exposes it to anyone "
+            "who can reach it"
+        )
+    return logging.WARNING, (
+        f"no API key (PLANNER_API_KEY, PLANNER_API_KEYS) and bound to {settings.host}, not "
+        "loopback: anyone who can reach this port can use the service, store and delete "
+        "scenes; set a key, or bind 127.0.0.1"
+    )
+
+
 def run(settings: Settings, app: FastAPI | None = None) -> None:
     """Serve ``app`` (default: :func:`planner_api.app.create_app` of ``settings``) on
-    ``settings.host:port`` until SIGTERM/SIGINT. Blocks."""
+    ``settings.host:port`` until SIGTERM/SIGINT. Blocks. The start log says when the
+    service asks no key (:func:`keyless_notice`)."""
     configure_logging(settings.log_level, settings.log_format)
+    notice = keyless_notice(settings)
+    if notice is not None:
+        logger.log(*notice)
     app = app if app is not None else create_app(settings)
     config = uvicorn.Config(
         app,

@@ -15,6 +15,9 @@ PLANNER_MAX_SEQUENCE_TARGETS 64                           targets in one sequenc
 PLANNER_RETRY_AFTER_S     1                               Retry-After of a 503, s
 PLANNER_MAX_SECTION_RESOLUTION 256                        cells per axis of a section or figure
 PLANNER_API_KEY           (none)                          when set, required on /v1 but health
+                                                          (one tenant, ``default``)
+PLANNER_API_KEYS          (none)                          tenants and their keys: a file of
+                                                          'tenant key' lines, or tenant:key,...
 PLANNER_ALLOWED_HOSTS     loopback names (keyless), any   Host names answered (comma-separated,
                           (with a key)                    ``*``: any); others: 400
 PLANNER_LOG_LEVEL         info                            debug, info, warning, error, critical
@@ -39,6 +42,12 @@ PLANNER_JOBS_MAX_MB       512                             long jobs' results kep
 PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once
 PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
                                                           file path, or a postgresql:// URL
+PLANNER_STORE_TIMEOUT_S   3                               longest wait of a scene-store call (a
+                                                          lock, a connection); beyond: 503, s
+PLANNER_STORE_THREADS     4                               store calls at once (reads, writes
+                                                          each); 4 more a thread wait; then 503
+PLANNER_SCENES_MAX        1000                            scenes per tenant; beyond: 422
+PLANNER_SCENE_BYTES_MAX   1 GiB                           stored scene bytes per tenant; 413
 ========================  ==============================  ======================================
 
 Without ``PLANNER_SCENE_STORE`` scenes live in ``$XDG_DATA_HOME/planner/scenes.sqlite3``
@@ -72,6 +81,7 @@ from planner.wire import (
     MAX_SEQUENCE_TARGETS,
     DesignModel,
 )
+from planner_api.tenants import DEFAULT_TENANT, parse_api_keys
 
 __all__ = ["LOOPBACK_HOSTS", "Settings", "parse_allowed_hosts"]
 
@@ -90,7 +100,10 @@ def _cpu_count() -> int:
 class Settings(BaseSettings):
     """Settings of one service process (environment variables ``PLANNER_<NAME>``)."""
 
-    model_config = SettingsConfigDict(env_prefix="PLANNER_", extra="ignore")
+    # hide_input_in_errors: an error must not print PLANNER_API_KEY(S) back into a log
+    model_config = SettingsConfigDict(
+        env_prefix="PLANNER_", extra="ignore", hide_input_in_errors=True
+    )
 
     host: str = Field("127.0.0.1", description="Interface to bind.")
     port: int = Field(8000, ge=1, le=65535, description="TCP port.")
@@ -178,7 +191,14 @@ class Settings(BaseSettings):
     api_key: SecretStr | None = Field(
         None,
         description="When set, every /v1 route except /v1/health requires it "
-        "(header X-API-Key or Authorization: Bearer).",
+        "(header X-API-Key or Authorization: Bearer); its tenant is 'default'.",
+    )
+    api_keys: SecretStr | None = Field(
+        None,
+        description="Tenants and their keys (planner_api.tenants): a file path (starting "
+        "with /, ./, ../ or ~) of 'tenant key' lines (# comments), or an inline list "
+        "'tenant:key,tenant:key'. Each key is a tenant; its scenes and long jobs are its own. "
+        "Not together with PLANNER_API_KEY.",
     )
 
     log_level: Literal["debug", "info", "warning", "error", "critical"] = Field(
@@ -308,7 +328,40 @@ class Settings(BaseSettings):
         "rebinding: a web page that makes its own name resolve to 127.0.0.1 cannot drive a "
         "keyless service on the user's machine.",
     )
+    store_timeout_s: float = Field(
+        3.0,
+        gt=0.0,
+        le=300.0,
+        allow_inf_nan=False,
+        description="Longest wait of one scene-store call, s: SQLite's wait for a write lock, "
+        "PostgreSQL's connection and lock waits; beyond it the request is answered 503 "
+        "store_unavailable with Retry-After.",
+    )
+    store_threads: int = Field(
+        4,
+        ge=1,
+        le=64,
+        description="Threads of each of the scene store's own two pools (reads, writes): "
+        "store calls running at once; 4 more per thread may wait, one more is answered 503 "
+        "store_unavailable at once (never queued), so a stuck store cannot take the threads "
+        "other routes need, nor writes stuck on a lock the threads of the reads.",
+    )
+    scenes_max: int = Field(
+        1000,
+        ge=1,
+        le=10_000_000,
+        description="Scenes one tenant may store; a PUT of a new name beyond it is a 422 "
+        "naming PLANNER_SCENES_MAX.",
+    )
+    scene_bytes_max: int = Field(
+        1024**3,
+        ge=1024,
+        le=1024**4,
+        description="Bytes of scene bodies (their stored JSON) one tenant may store, summed "
+        "over its scenes; a PUT beyond it is a 413 naming PLANNER_SCENE_BYTES_MAX.",
+    )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
+    _tenant_keys: dict[str, str] | None = PrivateAttr(default=None)
     _hosts: frozenset[str] | None = PrivateAttr(default=None)
 
     @field_validator("allowed_hosts")
@@ -322,6 +375,13 @@ class Settings(BaseSettings):
     @classmethod
     def _known_design(cls, value: str) -> str:
         _parse_design(value)
+        return value
+
+    @field_validator("api_keys")
+    @classmethod
+    def _readable_keys(cls, value: SecretStr | None) -> SecretStr | None:
+        if value is not None and value.get_secret_value().strip():
+            parse_api_keys(value.get_secret_value())  # the error at api_keys, file and line
         return value
 
     @model_validator(mode="after")
@@ -342,12 +402,29 @@ class Settings(BaseSettings):
             )
         if self.api_key is not None and not self.api_key.get_secret_value():
             self.api_key = None  # PLANNER_API_KEY="" means no key
+        if self.api_keys is not None and not self.api_keys.get_secret_value().strip():
+            self.api_keys = None
         self._design_defaults = _parse_design(self.default_design)
+        if self.api_keys is not None:
+            if self.api_key is not None:
+                raise ValueError(
+                    "PLANNER_API_KEY and PLANNER_API_KEYS are both set: set one (to keep the "
+                    f"single key, list it in PLANNER_API_KEYS as the tenant {DEFAULT_TENANT!r})"
+                )
+            self._tenant_keys = parse_api_keys(self.api_keys.get_secret_value())
+        elif self.api_key is not None:
+            self._tenant_keys = {self.api_key.get_secret_value(): DEFAULT_TENANT}
         if self.allowed_hosts is not None:
             self._hosts = parse_allowed_hosts(self.allowed_hosts)
         else:
             self._hosts = None if self.keyed else LOOPBACK_HOSTS
         return self
+
+    @property
+    def tenant_keys(self) -> dict[str, str] | None:
+        """Every accepted key and its tenant (key -> tenant); None when no key is asked
+        (every request is then the tenant ``default``)."""
+        return self._tenant_keys
 
     @property
     def design_defaults(self) -> DesignModel:
@@ -356,9 +433,10 @@ class Settings(BaseSettings):
 
     @property
     def keyed(self) -> bool:
-        """Whether the service requires a key on its ``/v1`` routes: the one place that
-        says so for the settings' defaults (``allowed_hosts``)."""
-        return self.api_key is not None
+        """Whether the service requires a key on its ``/v1`` routes (``PLANNER_API_KEY`` or
+        ``PLANNER_API_KEYS``): the one place that says so for the settings' defaults
+        (``allowed_hosts``)."""
+        return self._tenant_keys is not None
 
     @property
     def host_names(self) -> frozenset[str] | None:

@@ -4,11 +4,15 @@
 waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client tests and the
 examples use it. ``serve_factory`` starts one with other settings (e.g. an API key) as a
 context manager; ``server_factory`` starts processes that a test may signal or kill.
+``postgres_factory`` starts a PostgreSQL server of a test's own (Debian's ``postgresql``
+package), which the test may stop and start again.
 """
 
 from __future__ import annotations
 
+import glob
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -258,3 +262,69 @@ def server_factory(
             return process, url, log
 
         yield start
+
+
+class PostgresServer:
+    """A PostgreSQL server in a temporary folder on a free loopback port (initdb and pg_ctl
+    of Debian's ``postgresql`` package), trusting the user ``planner``; ``stop()`` and
+    ``start()`` it at will (the same data, the same port)."""
+
+    def __init__(self, bindir: Path) -> None:
+        self.bindir = bindir
+        # a folder of its own under the system's temporary folder: pytest's is private to
+        # the user running the tests, which the server's user (below) may not be
+        self.root = Path(tempfile.mkdtemp(prefix="planner-pg-"))
+        self.data, self.port = self.root / "data", free_port()
+        self.url = f"postgresql://planner@127.0.0.1:{self.port}/postgres"
+        # initdb refuses to run as root: run the server as the package's postgres user then
+        self.as_user: list[str] = []
+        if os.geteuid() == 0:
+            self.as_user = ["runuser", "-u", "postgres", "--"]
+            shutil.chown(self.root, "postgres")
+        self._pg("initdb", "-D", str(self.data), "-U", "planner", "--auth=trust", "-E", "UTF8")
+
+    def _pg(self, tool: str, *args: str, check: bool = True) -> None:
+        subprocess.run(
+            [*self.as_user, str(self.bindir / tool), *args],
+            check=check,
+            capture_output=True,
+            timeout=120,
+        )
+
+    def start(self) -> None:
+        options = f"-p {self.port} -k {self.root} -c listen_addresses=127.0.0.1 -c fsync=off"
+        self._pg("pg_ctl", "-D", str(self.data), "-o", options, "-l", str(self.root / "log"),
+                 "-w", "start")  # fmt: skip
+
+    def stop(self) -> None:
+        self._pg("pg_ctl", "-D", str(self.data), "-m", "immediate", "-w", "stop", check=False)
+
+    def remove(self) -> None:
+        self.stop()
+        shutil.rmtree(self.root, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def postgres_factory() -> Callable[[], AbstractContextManager[PostgresServer]]:
+    """Start a :class:`PostgresServer` (a few seconds), as a context manager; skipped with
+    the reason when the package, the psycopg driver or (as root) runuser is missing."""
+    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
+    if not found:
+        pytest.skip("PostgreSQL is not installed (Debian package postgresql: initdb, pg_ctl)")
+    try:
+        import psycopg  # noqa: F401
+    except ImportError:
+        pytest.skip("the psycopg driver is not installed (pip install psycopg)")
+    if os.geteuid() == 0 and shutil.which("runuser") is None:
+        pytest.skip("running as root without runuser: cannot start PostgreSQL as postgres")
+
+    @contextmanager
+    def start() -> Iterator[PostgresServer]:
+        server = PostgresServer(Path(found[-1]).parent)
+        try:
+            server.start()
+            yield server
+        finally:
+            server.remove()
+
+    return start

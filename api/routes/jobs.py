@@ -1,4 +1,5 @@
-"""POST /v1/jobs, GET /v1/jobs/{id}, DELETE /v1/jobs/{id}: long jobs, run in the background.
+"""POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, DELETE /v1/jobs/{id}: long jobs, run in
+the background, each the request's tenant's (another tenant's id is a 404).
 
 The kinds and the job list are :mod:`planner_api.job_store` (what the list keeps and survives
 is said there and in ``docs/service.md``). A job runs its endpoint's job function through
@@ -13,8 +14,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request, Response
 
-from planner.wire import ErrorResponse, JobRequest, JobStatus
-from planner_api.deps import Pool, SettingsDep
+from planner.wire import ErrorResponse, JobList, JobRequest, JobStatus
+from planner_api.deps import Pool, SettingsDep, Tenant
 from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
 from planner_api.job_store import LONG_JOBS, JobStore
 from planner_api.jobs import answer_sample_limit
@@ -22,7 +23,7 @@ from planner_api.routes._common import run_job
 from planner_api.routes.plan import PlanJob
 from planner_api.routes.scenes import resolve_scene
 
-__all__ = ["cancel_job", "get_job", "get_job_store", "router", "submit_job"]
+__all__ = ["cancel_job", "get_job", "get_job_store", "list_jobs", "router", "submit_job"]
 
 router = APIRouter(prefix="/v1", tags=["jobs"])
 
@@ -48,6 +49,7 @@ async def submit_job(
     store: Jobs,
     plan_job: PlanJob,
     http: Request,
+    tenant: Tenant,
 ) -> Response:
     """Run an endpoint's request in the background (``kind`` names the endpoint): 202 with
     the job's ``id`` and ``status``, then poll ``GET /v1/jobs/{id}``. The request is
@@ -83,7 +85,7 @@ async def submit_job(
         )
         return bytes(answer.body)
 
-    entry = store.submit(body.kind, run)
+    entry = store.submit(body.kind, run, tenant)
     return Response(
         store.status_json(entry),
         status_code=202,
@@ -92,15 +94,25 @@ async def submit_job(
     )
 
 
+@router.get("/jobs", response_model=JobList)
+async def list_jobs(store: Jobs, tenant: Tenant) -> JobList:
+    """The request's tenant's jobs still kept, oldest first: id, kind, status and times (a
+    job's result: ``GET /v1/jobs/{id}``)."""
+    return JobList(jobs=[store.summary(e) for e in store.list(tenant)])
+
+
 @router.get("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
-def get_job(job_id: str, store: Jobs) -> Response:
+async def get_job(job_id: str, store: Jobs, tenant: Tenant) -> Response:
     """A job's status; with status ``done`` its ``result`` (the endpoint's response body),
-    with ``failed`` its ``error``. 404 once it is no longer kept."""
-    return Response(store.status_json(store.get(job_id)), media_type="application/json")
+    with ``failed`` its ``error``. 404 once it is no longer kept, or when it is another
+    tenant's."""
+    entry = store.get(job_id, tenant)
+    return Response(store.status_json(entry), media_type="application/json")
 
 
 @router.delete("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
-def cancel_job(job_id: str, store: Jobs) -> Response:
+async def cancel_job(job_id: str, store: Jobs, tenant: Tenant) -> Response:
     """Cancel a queued or running job: its worker is stopped at once (and replaced), its
-    status is ``cancelled``. A finished job is answered as it is."""
-    return Response(store.status_json(store.cancel(job_id)), media_type="application/json")
+    status is ``cancelled``. A finished job is answered as it is; another tenant's is a 404."""
+    entry = store.cancel(job_id, tenant)
+    return Response(store.status_json(entry), media_type="application/json")

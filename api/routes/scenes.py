@@ -1,8 +1,13 @@
 """Named scenes: ``PUT/GET/DELETE /v1/scenes/{name}``, ``GET /v1/scenes``, and the
 resolution of a plan's or Cartesian request's ``scene`` (:func:`resolve_scene`).
 
-The store (:mod:`planner_api.scene_store`) is opened on first use from the setting
-``scene_store`` and its calls run in a thread. The service process keeps the library
+Every scene belongs to a tenant (:mod:`planner_api.tenants`): the routes see, list, replace
+and delete the scenes of the request's tenant only, and another tenant's scene of the same
+name does not exist for them (404, or a new scene of their own for a PUT). The store's calls
+go through :class:`planner_api.store_access.StoreAccess` (a thread pool of their own, a
+bounded wait, a 503 ``store_unavailable`` when the store cannot answer); a PUT checks the
+tenant's quotas (``PLANNER_SCENES_MAX``, ``PLANNER_SCENE_BYTES_MAX``) in the store's write
+transaction. The service process keeps the library
 obstacles of the scenes it resolved, keyed by their content hash (:data:`_RESOLVED`): the
 next plan of an unchanged scene reads one row's metadata, not its body, and hands the
 obstacles built once to the worker, whose tree cache (:func:`planner.geometry.
@@ -11,7 +16,6 @@ pack_obstacles`, by content) finds the index built too.
 
 from __future__ import annotations
 
-import threading
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Request, Response
@@ -33,9 +37,11 @@ from planner.wire import (
     scene_hash,
     with_scene,
 )
-from planner_api.deps import SettingsDep
+from planner_api.deps import SettingsDep, Tenant, request_tenant
+from planner_api.exceptions import PoolNotRunningError
 from planner_api.routes._common import check_obstacle_count, json_response
-from planner_api.scene_store import SceneStore, open_store
+from planner_api.scene_store import SceneRow
+from planner_api.store_access import StoreAccess
 
 __all__ = [
     "delete_scene",
@@ -44,13 +50,12 @@ __all__ = [
     "put_scene",
     "resolve_scene",
     "router",
-    "scene_store",
+    "store_access",
 ]
 
 router = APIRouter(prefix="/v1", tags=["scenes"])
 
 NamePath = Annotated[str, Path(pattern=SCENE_NAME_PATTERN, description="The scene's name.")]
-_STORE_LOCK = threading.Lock()
 
 
 def _nbytes(value: tuple[Any, ...]) -> int:
@@ -62,86 +67,96 @@ def _nbytes(value: tuple[Any, ...]) -> int:
 _RESOLVED: BoundedCache[tuple[Any, ...]] = BoundedCache(32, 1 << 30, _nbytes)
 
 
-def scene_store(request: Request) -> SceneStore:
-    """The application's scene store, opened on first use."""
-    store = getattr(request.app.state, "scene_store", None)
-    if store is None:
-        with _STORE_LOCK:
-            store = getattr(request.app.state, "scene_store", None)
-            if store is None:
-                store = open_store(request.app.state.settings.scene_store)
-                request.app.state.scene_store = store
-    return store
+def store_access(request: Request) -> StoreAccess:
+    """The application's way to its scene store (made with the application)."""
+    access = getattr(request.app.state, "scene_access", None)
+    if access is None:
+        raise PoolNotRunningError("the scene store is not set up (application not built)")
+    return access
 
 
 def _not_found(name: str) -> HTTPException:
     return HTTPException(404, f"no scene named {name!r} (PUT /v1/scenes/{name} stores one)")
 
 
-@router.put("/scenes/{name}", response_model=SceneInfo)
+_STORE_ERRORS = {
+    503: {"model": ErrorResponse, "description": "The scene store cannot answer in time "
+          "(store_unavailable, with Retry-After): nothing was changed."},
+}  # fmt: skip
+_NOT_FOUND = {
+    **_STORE_ERRORS,
+    404: {"model": ErrorResponse, "description": "No scene of this tenant has that name."},
+}
+_QUOTAS = {
+    **_STORE_ERRORS,
+    413: {"model": ErrorResponse, "description": "The tenant's stored bytes would pass "
+          "PLANNER_SCENE_BYTES_MAX (quota_exceeded)."},
+    422: {"model": ErrorResponse, "description": "A field breaks a rule, or the tenant's "
+          "scene count would pass PLANNER_SCENES_MAX (quota_exceeded)."},
+}  # fmt: skip
+
+
+@router.put("/scenes/{name}", response_model=SceneInfo, responses=_QUOTAS)
 async def put_scene(
-    name: NamePath, body: SceneRequest, request: Request, settings: SettingsDep
+    name: NamePath, body: SceneRequest, request: Request, settings: SettingsDep, tenant: Tenant
 ) -> SceneInfo:
-    """Store the scene ``name`` (a new version; a scene of that name is replaced whole: the
-    last writer wins). Its obstacles are checked as a plan's are (a 422 naming the field);
-    the answer is what the store keeps about it."""
+    """Store the scene ``name`` of the request's tenant (a new version; a scene of that name
+    is replaced whole: the last writer wins). Its obstacles are checked as a plan's are (a
+    422 naming the field); a scene that would take the tenant past ``PLANNER_SCENES_MAX``
+    scenes is a 422, past ``PLANNER_SCENE_BYTES_MAX`` stored bytes a 413. The answer is what
+    the store keeps about it."""
     check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
 
-    def store_it() -> SceneInfo:
+    def serialise() -> str:
         obstacles_to_core(body.obstacles)  # every rule of the library's obstacles, located
-        text = body.model_dump_json(exclude_none=True)
-        row = scene_store(request).put(
-            name, text, scene_hash(text.encode()), len(body.obstacles), count_points(body.obstacles)
-        )
-        return SceneInfo(**row.info())
+        return body.model_dump_json(exclude_none=True)
 
-    return await run_in_threadpool(store_it)
-
-
-_NOT_FOUND = {404: {"model": ErrorResponse, "description": "No scene has that name."}}
+    text = await run_in_threadpool(serialise)
+    digest, count, points = (
+        scene_hash(text.encode()),
+        len(body.obstacles),
+        count_points(body.obstacles),
+    )
+    limits = {"max_scenes": settings.scenes_max, "max_bytes": settings.scene_bytes_max}
+    row = await store_access(request).call(
+        lambda store: store.put(tenant, name, text, digest, count, points, **limits),
+        write=True,
+    )
+    return SceneInfo(**row.info())
 
 
 @router.get("/scenes/{name}", response_model=Scene, responses=_NOT_FOUND)
-async def get_scene(name: NamePath, request: Request) -> Response:
+async def get_scene(name: NamePath, request: Request, tenant: Tenant) -> Response:
     """The stored scene: its metadata (``name``, ``version``, ``hash``, ``updated_at``,
     ``obstacles`` and ``points`` counts are those of the list) and its ``scene`` body as it
-    was stored (``{"obstacles": [...], "design": ...}``). 404 when there is none."""
-    row = await run_in_threadpool(scene_store(request).get, name)
+    was stored (``{"obstacles": [...], "design": ...}``). 404 when the tenant has none."""
+    row = await store_access(request).call(lambda store: store.get(tenant, name))
     if row is None:
         raise _not_found(name)
     info = SceneInfo(**row.info()).model_dump_json()
     return json_response(f'{info[:-1]},"scene":{row.body}}}'.encode())
 
 
-@router.get("/scenes", response_model=SceneList)
-async def list_scenes(request: Request) -> SceneList:
-    """Every stored scene's metadata, by name (no bodies)."""
-    rows = await run_in_threadpool(scene_store(request).list)
+@router.get("/scenes", response_model=SceneList, responses=_STORE_ERRORS)
+async def list_scenes(request: Request, tenant: Tenant) -> SceneList:
+    """Every scene of the request's tenant: its metadata, by name (no bodies)."""
+    rows = await store_access(request).call(lambda store: store.list(tenant))
     return SceneList(scenes=[SceneInfo(**r.info()) for r in rows])
 
 
 @router.delete("/scenes/{name}", response_model=SceneInfo, responses=_NOT_FOUND)
-async def delete_scene(name: NamePath, request: Request) -> SceneInfo:
-    """Forget the scene; the answer is what the store kept about it. 404 when there is none."""
-    row = await run_in_threadpool(scene_store(request).delete, name)
+async def delete_scene(name: NamePath, request: Request, tenant: Tenant) -> SceneInfo:
+    """Forget the tenant's scene; the answer is what the store kept about it. 404 when the
+    tenant has none."""
+    row = await store_access(request).call(lambda store: store.delete(tenant, name), write=True)
     if row is None:
         raise _not_found(name)
     return SceneInfo(**row.info())
 
 
-def _resolve(store: SceneStore, name: str) -> tuple[Any, ...]:
-    """(library obstacles, design) of the scene's current version, built once per content."""
-    head = store.get(name, body=False)
-    hit = None if head is None else _RESOLVED.get(head.hash)
-    if hit is not None:
-        return hit
-    row = store.get(name)  # the body; a PUT in between gives the newer scene, whole
-    if row is None:
-        with located("body"):
-            raise InputError(
-                f"scene: no scene named {name!r} (PUT /v1/scenes/{name} stores one)",
-                field="scene",
-            )
+def _build(row: SceneRow) -> tuple[Any, ...]:
+    """(library obstacles, design) of a stored scene's body (CPU work: the routes' thread
+    pool, not the store's)."""
     scene = SceneRequest.model_validate_json(row.body or "{}")
     with located("body", "scene"):
         value = (tuple(obstacles_to_core(scene.obstacles, ("body", "scene"))), scene.design)
@@ -149,12 +164,31 @@ def _resolve(store: SceneStore, name: str) -> tuple[Any, ...]:
     return value
 
 
+async def _resolve(access: StoreAccess, tenant: str, name: str) -> tuple[Any, ...]:
+    """(library obstacles, design) of the scene's current version, built once per content."""
+    head = await access.call(lambda store: store.get(tenant, name, body=False))
+    hit = None if head is None else _RESOLVED.get(head.hash)
+    if hit is not None:
+        return hit
+    # the body; a PUT in between gives the newer scene, whole
+    row = await access.call(lambda store: store.get(tenant, name))
+    if row is None:
+        with located("body"):
+            raise InputError(
+                f"scene: no scene named {name!r} (PUT /v1/scenes/{name} stores one)",
+                field="scene",
+            )
+    return await run_in_threadpool(_build, row)
+
+
 async def resolve_scene(request: Request, body: Any) -> Any:
     """``body`` (a plan or Cartesian request) carrying its named scene's obstacles and
-    design (:func:`planner.wire.with_scene`); unchanged when it names none. A 422 at
-    ``scene`` when no scene has that name."""
+    design (:func:`planner.wire.with_scene`); unchanged when it names none. The scene is the
+    request's tenant's. A 422 at ``scene`` when the tenant has no scene of that name, a 503
+    ``store_unavailable`` when the store cannot answer in time."""
     name = getattr(body, "scene", None)
     if name is None:
         return body
-    obstacles, design = await run_in_threadpool(_resolve, scene_store(request), name)
+    tenant = await request_tenant(request)
+    obstacles, design = await _resolve(store_access(request), tenant, name)
     return with_scene(body, obstacles, design)

@@ -100,7 +100,12 @@ def _post_all(url: str, bodies: list[dict]) -> list[httpx.Response | Exception]:
 
 def test_first_plan_on_every_worker_after_ready_is_warm(server):
     process, url, _ = server
-    assert httpx.get(f"{url}/v1/ready").json() == {"status": "ready", "workers": 2, "warm": 2}
+    assert httpx.get(f"{url}/v1/ready").json() == {
+        "status": "ready",
+        "workers": 2,
+        "warm": 2,
+        "store": "ok",
+    }
     assert len(_workers(process.pid)) == 2
     first = _post_all(url, [PLAN, PLAN])  # one per worker: both idle, both never used
     for r in first:

@@ -124,7 +124,12 @@ def test_ready_turns_200_once_workers_answer(client_factory):
             assert r.json()["status"] == "starting" and r.headers["retry-after"] == "1"
             assert r.json()["warm"] == 0
         _wait_ready(c)
-        assert c.get("/v1/ready").json() == {"status": "ready", "workers": 1, "warm": 1}
+        assert c.get("/v1/ready").json() == {
+            "status": "ready",
+            "workers": 1,
+            "warm": 1,
+            "store": "ok",
+        }
 
 
 def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory):

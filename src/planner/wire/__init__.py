@@ -132,9 +132,11 @@ from planner.wire.jobs import (
     JOB_KINDS,
     JobError,
     JobKind,
+    JobList,
     JobRequest,
     JobState,
     JobStatus,
+    JobSummary,
 )
 from planner.wire.kinematics import (
     AnalyzeRequest,
@@ -279,9 +281,11 @@ __all__ = [
     "Integer",
     "JobError",
     "JobKind",
+    "JobList",
     "JobRequest",
     "JobState",
     "JobStatus",
+    "JobSummary",
     "JointGoal",
     "JointPostureModel",
     "LegModel",

@@ -1,4 +1,5 @@
-"""``POST /v1/jobs``, ``GET /v1/jobs/{id}``, ``DELETE /v1/jobs/{id}``: long jobs.
+"""``POST /v1/jobs``, ``GET /v1/jobs``, ``GET /v1/jobs/{id}``, ``DELETE /v1/jobs/{id}``: long
+jobs.
 
 A long job is one endpoint's request run in the background: submitted (202 with its ``id``),
 polled, and cancelled by id; its ``result`` is the endpoint's response body, the same JSON
@@ -15,7 +16,16 @@ from pydantic import Field
 from planner.wire.common import _Request, _Response
 from planner.wire.meta import ErrorItem
 
-__all__ = ["JOB_KINDS", "JobError", "JobKind", "JobRequest", "JobState", "JobStatus"]
+__all__ = [
+    "JOB_KINDS",
+    "JobError",
+    "JobKind",
+    "JobList",
+    "JobRequest",
+    "JobState",
+    "JobStatus",
+    "JobSummary",
+]
 
 #: The endpoints a long job can run, by kind: ``plan`` is ``POST /v1/plan``, ``sequence``
 #: ``/v1/sequence``, ``cartesian`` ``/v1/cartesian``, ``timing`` ``/v1/timing``,
@@ -66,3 +76,23 @@ class JobStatus(_Response):
         None, description="With status 'done': the endpoint's response body."
     )
     error: JobError | None = Field(None, description="With status 'failed'.")
+
+
+class JobSummary(_Response):
+    """One job of ``GET /v1/jobs``: its id, kind, state and times (no result)."""
+
+    id: str
+    kind: JobKind
+    status: JobState
+    submitted_at: float = Field(description="When the job was submitted, Unix time, s.")
+    started_at: float | None = Field(None, description="When it started running, Unix s.")
+    finished_at: float | None = Field(None, description="When it ended, Unix time, s.")
+    expires_at: float | None = Field(
+        None, description="When a finished job is forgotten, Unix time, s."
+    )
+
+
+class JobList(_Response):
+    """Answer of ``GET /v1/jobs``: the jobs of the request's tenant still kept, oldest first."""
+
+    jobs: list[JobSummary]

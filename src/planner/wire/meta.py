@@ -30,14 +30,26 @@ class VersionInfo(_Response):
 class Readiness(_Response):
     """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
 
-    status: Literal["ready", "starting", "recovering", "broken", "stopping"] = Field(
+    status: Literal[
+        "ready", "starting", "recovering", "broken", "stopping", "store_unavailable"
+    ] = Field(
         description="'ready' once every configured worker was warm (imports done, kernels "
-        "compiled), then while at least one is; 'starting' before the first time; "
-        "'recovering' while no worker is warm after that; 'broken' when none is and none can "
-        "be started or warmed up; 'stopping' during a shutdown."
+        "compiled), then while at least one is, and the scene store answers; 'starting' "
+        "before the first time; 'recovering' while no worker is warm after that; 'broken' "
+        "when none is and none can be started or warmed up; 'stopping' during a shutdown; "
+        "'store_unavailable' when the workers are ready but the scene store does not answer "
+        "(see store_error)."
     )
     workers: int = Field(ge=0, description="Worker processes configured.")
     warm: int = Field(0, ge=0, description="Worker processes alive and warm now.")
+    store: Literal["ok", "unavailable"] = Field(
+        "ok",
+        description="The scene store (PLANNER_SCENE_STORE): 'ok' when it answered a read "
+        "within PLANNER_STORE_TIMEOUT_S, else 'unavailable' (and the answer is a 503).",
+    )
+    store_error: str | None = Field(
+        None, description="With store 'unavailable': why (which store, what failed)."
+    )
 
 
 class ErrorItem(_Response):
