@@ -9,6 +9,7 @@ PLANNER_WORKERS           number of CPUs                  worker processes for C
 PLANNER_QUEUE_SIZE        4 per worker                    jobs allowed to wait; beyond: 503
 PLANNER_REQUEST_TIMEOUT_S 30                              time budget of one request, s
 PLANNER_MAX_BODY_BYTES    32 MiB                          largest request body; beyond: 413
+PLANNER_INLINE_PARSE_BYTES 64 KiB                         a larger body is parsed in a worker
 PLANNER_MAX_BATCH         64                              plan requests in one batch
 PLANNER_MAX_OBSTACLES     256                             obstacles in one plan request
 PLANNER_MAX_SEQUENCE_TARGETS 64                           targets in one sequence request
@@ -296,6 +297,15 @@ class Settings(BaseSettings):
         le=256,
         description="Long jobs running at once (the others wait, 'queued'), so that long jobs "
         "leave workers to the interactive requests (default: half the workers, at least 1).",
+    )
+    inline_parse_bytes: int = Field(
+        65536,
+        ge=0,
+        le=1 << 30,
+        description="Largest request body parsed on the event loop, bytes: a larger body of "
+        "/v1/plan, /v1/sequence, /v1/cartesian or /v1/timing is handed to a worker as bytes and "
+        "parsed there (the same rules and 422s), so that large bodies never hold up the "
+        "event loop; 0: every such body in a worker.",
     )
     job_result_max_mb: float = Field(
         32.0,

@@ -33,6 +33,7 @@ Where ``os.pidfd_open`` or ``os.fork`` is missing, the pool spawns every worker 
 
 from __future__ import annotations
 
+import fcntl
 import gc
 import itertools
 import logging
@@ -55,7 +56,14 @@ from planner_api.worker_process import (
     ignore_stop_signals,
 )
 
-__all__ = ["ForkedProcess", "TemplateError", "WarmTemplate", "template_main", "templates_work"]
+__all__ = [
+    "ForkedProcess",
+    "TemplateError",
+    "WarmTemplate",
+    "template_main",
+    "templates_work",
+    "widen_pipe",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -65,6 +73,21 @@ MAX_MESSAGE = 1 << 16
 FORK_TIMEOUT_S = 10.0
 #: How long ``join`` waits for the template's report once the worker is known to be gone, s.
 REPORT_WAIT_S = 2.0
+
+
+#: The capacity asked for each worker pipe, bytes (Linux's default is 64 KiB; an unprivileged
+#: process may ask up to ``/proc/sys/fs/pipe-max-size``, 1 MiB by default).
+PIPE_BYTES = 1 << 20
+
+
+def widen_pipe(fd: int) -> None:
+    """Ask for a pipe of :data:`PIPE_BYTES` (where the system allows it): a job's body of
+    megabytes is written in a few large steps instead of a hundred 64 KiB ones, each of which
+    waits for the reader in the event loop's thread."""
+    try:
+        fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+    except (OSError, AttributeError):  # not Linux, or above the system's bound: as it is
+        pass
 
 
 def templates_work() -> bool:
@@ -343,6 +366,8 @@ class WarmTemplate:
         token = next(self._tokens)
         jobs_r, jobs_w = os.pipe()
         answers_r, answers_w = os.pipe()
+        for fd in (jobs_w, answers_w):
+            widen_pipe(fd)
         try:
             try:
                 socket.send_fds(self._sock, [pickle.dumps(("fork", token))], [jobs_r, answers_w])

@@ -62,7 +62,12 @@ from planner_api.exceptions import (
 from planner_api.worker_handle import Job, Worker, describe_exit
 from planner_api.worker_process import worker_main
 from planner_api.worker_shutdown import ShutdownMixin
-from planner_api.worker_template import TemplateError, WarmTemplate, templates_work
+from planner_api.worker_template import (
+    TemplateError,
+    WarmTemplate,
+    templates_work,
+    widen_pipe,
+)
 from planner_api.worker_wait import wait_for_jobs
 from planner_api.worker_watchdog import WatchdogMixin, default_overrun_max
 
@@ -264,6 +269,8 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
             return
         jobs_out, jobs_in = self._ctx.Pipe(duplex=False)  # (reader, writer)
         answers_out, answers_in = self._ctx.Pipe(duplex=False)
+        for end in (jobs_in, answers_in):
+            widen_pipe(end.fileno())
         process = self._ctx.Process(
             target=worker_main,
             args=(

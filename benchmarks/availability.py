@@ -5,7 +5,8 @@ A client of small plans (one keep-alive connection, back to back) runs in window
 disturbed window an unfriendly client either submits a long job and cancels it at once, once a
 second (``pairs``: each cancel of a running job is a worker kill), or sends a request of
 seconds of work and drops the connection before the answer (``drops``, 20 over the disturbed
-time: the client gone, a kill). The table gives the small client's rate and p50 / p99 latency in each kind of window, the ratio to
+time: the client gone, a kill), or 16 clients send 6 MB plans back to back (``bodies``: then the
+measured client is a probe of ``/v1/health``, every 10 ms). The table gives the small client's rate and p50 / p99 latency in each kind of window, the ratio to
 the undisturbed rate, the kills the pool counted and the fewest warm workers seen (sampled
 from ``/metrics`` between requests). Before the warm template, one pair a second left 0 warm
 workers in 26 of 30 samples and the small client's p90 at 4.8 s.
@@ -17,6 +18,7 @@ workers in 26 of 30 samples and the small client's p90 at 4.8 s.
 from __future__ import annotations
 
 import argparse
+import http.client
 import itertools
 import json
 import socket
@@ -43,7 +45,10 @@ def _long_work(i: int) -> dict:
 
 
 def _metric(client: LightClient, name: str) -> float:
-    _, body, _ = client.request("GET", "/metrics")
+    try:
+        _, body, _ = client.request("GET", "/metrics")
+    except (OSError, http.client.HTTPException):  # an idle keep-alive closed: once more
+        _, body, _ = client.request("GET", "/metrics")
     for line in body.decode().splitlines():
         if line.startswith(name + " "):
             return float(line.split()[1])
@@ -81,14 +86,54 @@ def _drops(url: str, stop: threading.Event, period_s: float) -> None:
         stop.wait(period_s)
 
 
-def _window(url: str, seconds: float, probe: LightClient) -> tuple[list[float], float]:
-    """Small plans back to back for ``seconds``: (latencies, fewest warm workers seen)."""
+#: A plan whose body is ~6 MB: a cloud of 200,000 points far from the robot.
+BIG_PLAN = {
+    **SMALL,
+    "obstacles": [
+        {"type": "points", "radius": 0.01,
+         "points": [[3.0 + 1e-6 * i, 3.0 + 1e-3 * (i % 1000), 3.0] for i in range(200_000)]}
+    ],
+}  # fmt: skip
+
+
+def _bodies(url: str, stop: threading.Event, clients: int = 16) -> None:
+    """``clients`` clients, each sending the 6 MB plan back to back."""
+    body = json.dumps(BIG_PLAN).encode()
+
+    def one() -> None:
+        c = LightClient(url)
+        while not stop.is_set():
+            try:
+                c.request("POST", "/v1/plan", body)
+            except OSError:
+                pass
+        c.close()
+
+    threads = [threading.Thread(target=one, daemon=True) for _ in range(clients)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+
+
+def _window(
+    url: str, seconds: float, probe: LightClient, health: bool = False
+) -> tuple[list[float], float]:
+    """Small plans (or, with ``health``, ``GET /v1/health``) back to back for ``seconds``:
+    (latencies, fewest warm workers seen)."""
     c = LightClient(url)
     lat: list[float] = []
     fewest = float("inf")
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        status, _, s = c.request("POST", "/v1/plan", SMALL)
+        try:
+            if health:
+                status, _, s = c.request("GET", "/v1/health")
+                time.sleep(0.01)  # a probe's pace, not a flood
+            else:
+                status, _, s = c.request("POST", "/v1/plan", SMALL)
+        except (OSError, http.client.HTTPException):
+            status, s = 0, float("nan")  # counted as no answer (the rate falls)
         if status == 200:
             lat.append(s)
         fewest = min(fewest, _metric(probe, "planner_pool_warm_workers"))
@@ -101,10 +146,18 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--window", type=float, default=10.0, help="seconds per window")
     ap.add_argument("--seconds", type=float, default=60.0, help="disturbed seconds per kind")
-    ap.add_argument("--kinds", default="pairs,drops", help="disturbances, comma-separated")
+    ap.add_argument(
+        "--inline-parse-bytes", type=int, default=None,
+        help="PLANNER_INLINE_PARSE_BYTES (default: the service's); 1073741824 parses every "
+        "body on the event loop, as before large bodies went to the workers",
+    )  # fmt: skip
+    ap.add_argument("--kinds", default="pairs,drops,bodies", help="disturbances, comma-separated")
     args = ap.parse_args()
     print(f"# availability under kills ({machine_line()})")
-    proc, url = start_service({"PLANNER_WORKERS": str(args.workers)}, quiet=True)
+    settings = {"PLANNER_WORKERS": str(args.workers), "PLANNER_MAX_BODY_BYTES": str(64 << 20)}
+    if args.inline_parse_bytes is not None:
+        settings["PLANNER_INLINE_PARSE_BYTES"] = str(args.inline_parse_bytes)
+    proc, url = start_service(settings, quiet=True)
     probe = LightClient(url)
     try:
         rows = []
@@ -116,13 +169,18 @@ def main() -> None:
             kills0 = _metric(probe, "planner_pool_worker_kills_total")
             for i in range(rounds):
                 print(f"{kind}: round {i + 1} of {rounds}", flush=True)
-                calm += _window(url, args.window, probe)[0]
+                health = kind == "bodies"  # what a load balancer's probe sees
+                calm += _window(url, args.window, probe, health)[0]
                 stop = threading.Event()
                 period = args.seconds / 20.0  # 20 drops over the disturbed time
-                target = (_pairs, (url, stop)) if kind == "pairs" else (_drops, (url, stop, period))
+                target = {
+                    "pairs": (_pairs, (url, stop)),
+                    "drops": (_drops, (url, stop, period)),
+                    "bodies": (_bodies, (url, stop)),
+                }[kind]
                 t = threading.Thread(target=target[0], args=target[1], daemon=True)
                 t.start()
-                lat, low = _window(url, args.window, probe)
+                lat, low = _window(url, args.window, probe, health)
                 stop.set()
                 t.join(15)
                 rough += lat

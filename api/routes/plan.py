@@ -24,12 +24,17 @@ from planner_api.routes._common import (
     run_jobs,
     with_design_defaults,
 )
+from planner_api.routes._worker_body import (
+    BodySpec,
+    RouteLimits,
+    WorkerBodyRoute,
+    parsed_in_worker,
+)
 from planner_api.routes.scenes import resolve_scene
-from planner_api.settings import Settings
 
 __all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
 
-router = APIRouter(prefix="/v1", tags=["plan"])
+router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
 
 PlanFunction = Callable[[PlanRequest, JobBudget], PlanResponse]
 
@@ -42,7 +47,7 @@ async def get_plan_function() -> PlanFunction:
 PlanJob = Annotated[PlanFunction, Depends(get_plan_function)]
 
 
-def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int, ...]) -> None:
+def check_limits(request: PlanRequest, settings: RouteLimits, loc: tuple[str | int, ...]) -> None:
     """Raise :class:`LimitExceededError` when a request exceeds a size limit of the settings."""
     if request.planner.time_budget_s > settings.request_timeout_s:
         raise LimitExceededError(
@@ -53,7 +58,20 @@ def check_limits(request: PlanRequest, settings: Settings, loc: tuple[str | int,
     check_obstacle_count(request.obstacles, settings.max_obstacles, (*loc, "obstacles"))
 
 
+def prepare_plan(body: PlanRequest, limits: RouteLimits) -> PlanRequest:
+    """The plan route's own checks (wherever the body is parsed)."""
+    check_limits(body, limits, ("body",))
+    return body
+
+
+def _plan_job(request: Request) -> PlanFunction:
+    """The plan job, as the ``get_plan_function`` dependency gives it (tests override it)."""
+    override = request.app.dependency_overrides.get(get_plan_function)
+    return override() if override is not None else jobs.plan
+
+
 @router.post("/plan", response_model=PlanResponse)
+@parsed_in_worker(BodySpec(PlanRequest, prepare_plan, _plan_job, resolve_scene))
 async def plan(
     body: PlanRequest,
     pool: Pool,
@@ -63,7 +81,7 @@ async def plan(
     request: Request,
 ) -> Response:
     """Plan (and time) a motion from ``start`` to ``goal`` (in the named ``scene``, if any)."""
-    check_limits(body, settings, ("body",))
+    body = prepare_plan(body, settings)
     body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(

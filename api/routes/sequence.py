@@ -17,14 +17,42 @@ from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import sequence as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes._worker_body import (
+    BodySpec,
+    RouteLimits,
+    WorkerBodyRoute,
+    parsed_in_worker,
+)
 from planner_api.routes.scenes import resolve_scene
 
-__all__ = ["router", "sequence"]
+__all__ = ["prepare_sequence", "router", "sequence"]
 
-router = APIRouter(prefix="/v1", tags=["plan"])
+router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
+
+
+def prepare_sequence(body: SequenceRequest, limits: RouteLimits) -> SequenceRequest:
+    """The sequence route's own checks (wherever the body is parsed): the targets, the search
+    budget and the obstacles within the service's limits."""
+    if len(body.targets) > limits.max_sequence_targets:
+        raise LimitExceededError(
+            f"at most {limits.max_sequence_targets} targets per sequence "
+            f"(PLANNER_MAX_SEQUENCE_TARGETS), got {len(body.targets)}",
+            ("body", "targets"),
+        )
+    if body.planner.time_budget_s > limits.request_timeout_s:
+        raise LimitExceededError(
+            f"planner.time_budget_s must be at most the service's request budget "
+            f"{limits.request_timeout_s:g} s, got {body.planner.time_budget_s:g}",
+            ("body", "planner", "time_budget_s"),
+        )
+    check_obstacle_count(body.obstacles, limits.max_obstacles, ("body", "obstacles"))
+    return body
 
 
 @router.post("/sequence", response_model=SequenceResponse)
+@parsed_in_worker(
+    BodySpec(SequenceRequest, prepare_sequence, lambda _: jobs.sequence, resolve_scene)
+)
 async def sequence(
     body: SequenceRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
 ) -> Response:
@@ -32,19 +60,7 @@ async def sequence(
     ``cycle``): at rest at each ``stop`` target, passing through the others within their
     ``blend``; with ``objective`` "time" the working modes of Cartesian "any" targets are
     chosen for the shortest cycle (in the named ``scene``, if any)."""
-    if len(body.targets) > settings.max_sequence_targets:
-        raise LimitExceededError(
-            f"at most {settings.max_sequence_targets} targets per sequence "
-            f"(PLANNER_MAX_SEQUENCE_TARGETS), got {len(body.targets)}",
-            ("body", "targets"),
-        )
-    if body.planner.time_budget_s > settings.request_timeout_s:
-        raise LimitExceededError(
-            f"planner.time_budget_s must be at most the service's request budget "
-            f"{settings.request_timeout_s:g} s, got {body.planner.time_budget_s:g}",
-            ("body", "planner", "time_budget_s"),
-        )
-    check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
+    body = prepare_sequence(body, settings)
     body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(

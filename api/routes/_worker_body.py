@@ -1,0 +1,223 @@
+"""Large request bodies are parsed in a worker, never on the event loop.
+
+Why: parsing is CPU work that holds the GIL. A 6 MB plan (a 200,000-point cloud) takes the
+event loop ~0.1-0.2 s of ``json.loads`` and validation; sixteen clients sending such bodies
+kept ``/v1/health`` waiting 1.9-4.7 s, and starved the pool's watchdog thread (which needs the
+GIL to kill an overrunning job). A thread would not help: ``json.loads`` and pydantic's
+validation hold the GIL throughout. So a route marked :func:`parsed_in_worker` reads its body
+as bytes (cheap: the chunks are joined), and when it is larger than
+``PLANNER_INLINE_PARSE_BYTES`` it hands the bytes to a worker (a copy down a pipe), which
+parses them exactly as FastAPI does (``json.loads``, then the model's validation in Python
+mode: the same rules, the same 422 locations under ``body``), applies the route's own checks
+(:attr:`BodySpec.prepare`, the service's size limits), completes the design and runs the job
+in the same call. A smaller body takes FastAPI's path as before (parsing it costs less than
+the hand-over).
+
+One case comes back to the event loop: a body that names a scene (the store is the server's,
+not the workers'): the worker returns the parsed request, the route resolves the scene and
+runs the job as any route does (the model then crosses the pipe twice).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Awaitable, Callable
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from fastapi import Request, Response
+from fastapi.exceptions import RequestValidationError
+from fastapi.routing import APIRoute
+from pydantic import BaseModel, ValidationError
+
+from planner.wire import DesignModel
+from planner_api.deps import get_deadline, get_pool, watch_client
+from planner_api.jobs import Job, JobBudget, answer_sample_limit
+from planner_api.logging import REQUEST_ID
+from planner_api.metrics import record_job, run_measured
+from planner_api.routes._common import json_response, run_job, with_design_defaults
+
+__all__ = [
+    "BodyInvalidError",
+    "BodySpec",
+    "Limits",
+    "RouteLimits",
+    "WorkerBody",
+    "WorkerBodyRoute",
+    "parse_body",
+    "parsed_in_worker",
+    "run_worker_body",
+]
+
+
+class RouteLimits(Protocol):
+    """The service's size limits a route's checks read (:class:`planner_api.settings.Settings`
+    has them; :class:`Limits` carries them to a worker)."""
+
+    max_obstacles: int
+    max_sequence_targets: int
+    request_timeout_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """The settings a route's checks need, picklable (the settings object is not sent)."""
+
+    max_obstacles: int
+    max_sequence_targets: int
+    request_timeout_s: float
+
+    @classmethod
+    def of(cls, settings: RouteLimits) -> Limits:
+        return cls(
+            settings.max_obstacles, settings.max_sequence_targets, settings.request_timeout_s
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class BodySpec:
+    """How a route's body is parsed and checked wherever that happens.
+
+    Attributes
+    ----------
+    model : the request model (the route's ``body`` parameter).
+    prepare : ``prepare(body, limits) -> body``, module-level: the route's own checks
+        (:class:`planner_api.exceptions.LimitExceededError` at the field), run by the route on
+        FastAPI's path and by the worker on this one.
+    job : the route's job for a request (a dependency a test may override is resolved here).
+    resolve_scene : for a request that may name a scene, the route's resolution of it
+        (:func:`planner_api.routes.scenes.resolve_scene`); None: the model has no scene.
+    """
+
+    model: type[BaseModel]
+    prepare: Callable[[Any, RouteLimits], Any]
+    job: Callable[[Request], Job]
+    resolve_scene: Callable[[Request, Any], Awaitable[Any]] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class WorkerBody:
+    """What a route hands a worker instead of a parsed body (:func:`run_worker_body`)."""
+
+    spec_model: type[BaseModel]
+    prepare: Callable[[Any, RouteLimits], Any]
+    job: Job
+    raw: bytes
+    limits: Limits
+    design_defaults: DesignModel
+    budget: JobBudget
+    request_id: str | None
+
+
+class BodyInvalidError(Exception):
+    """The body breaks the JSON syntax or the model's rules: ``items`` are the 422's
+    ``detail`` entries (``loc``, ``msg``, ``type``; plain data, so that they cross the pipe)."""
+
+    def __init__(self, items: list[dict[str, Any]]) -> None:
+        super().__init__(items)
+        self.items = items
+
+
+def parse_body(model: type[BaseModel], raw: bytes) -> Any:
+    """``raw`` parsed as FastAPI parses a JSON body and validated into ``model`` (Python
+    mode, as FastAPI validates a body parameter); :class:`BodyInvalidError` with FastAPI's
+    locations (``["body", position]`` for bad JSON, ``["body", field, ...]`` for a rule) and the
+    service's answers for a body too deep or a number too long to read."""
+    try:
+        data = json.loads(raw)
+    except json.JSONDecodeError as exc:
+        raise BodyInvalidError(
+            [{"loc": ["body", exc.pos], "msg": "JSON decode error", "type": "json_invalid"}]
+        ) from None
+    except RecursionError:
+        raise BodyInvalidError(
+            [{"loc": ["body"], "msg": "the body is nested too deeply to read",
+              "type": "json_too_deep"}]
+        ) from None  # fmt: skip
+    except ValueError as exc:  # an integer longer than Python converts (sys.int_info)
+        raise BodyInvalidError(
+            [{"loc": ["body"], "type": "number_too_long",
+              "msg": f"a number in the body is too long to read ({str(exc).split(';')[0]})"}]
+        ) from None  # fmt: skip
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise BodyInvalidError(
+            [
+                {"loc": ["body", *e["loc"]], "msg": e["msg"], "type": e["type"]}
+                for e in exc.errors(include_url=False, include_context=False, include_input=False)
+            ]
+        ) from None
+
+
+def run_worker_body(work: WorkerBody) -> tuple[str, Any]:
+    """In a worker: parse and check the body, then run the route's job on it:
+    ``("done", (answer bytes, metrics sample))``, or ``("scene", request)`` when the request
+    names a scene (the route resolves it in the server)."""
+    body = work.prepare(parse_body(work.spec_model, work.raw), work.limits)
+    if getattr(body, "scene", None) is not None:
+        return "scene", body
+    body = with_design_defaults(body, work.design_defaults)
+    return "done", run_measured(work.job, body, budget=work.budget, request_id=work.request_id)
+
+
+def parsed_in_worker(spec: BodySpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Mark a route's endpoint: a body larger than ``PLANNER_INLINE_PARSE_BYTES`` is parsed
+    in a worker (:class:`WorkerBodyRoute` reads the mark). Apply it below ``@router.post``."""
+
+    def mark(endpoint: Callable[..., Any]) -> Callable[..., Any]:
+        endpoint.__worker_body__ = spec  # type: ignore[attr-defined]
+        return endpoint
+
+    return mark
+
+
+class WorkerBodyRoute(APIRoute):
+    """An :class:`fastapi.routing.APIRoute` whose endpoint, if marked with
+    :func:`parsed_in_worker`, has a large body parsed in a worker. The route's OpenAPI
+    document is FastAPI's own (the endpoint still declares its body model)."""
+
+    def get_route_handler(self) -> Callable[[Request], Any]:
+        standard = super().get_route_handler()
+        spec: BodySpec | None = getattr(self.endpoint, "__worker_body__", None)
+        if spec is None:
+            return standard
+
+        async def handler(request: Request) -> Response:
+            raw = await request.body()  # kept by the request: FastAPI's path reads it again
+            if len(raw) <= request.app.state.settings.inline_parse_bytes:
+                return await standard(request)
+            return await _in_worker(request, spec, raw)
+
+        return handler
+
+
+async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
+    """The route's work for a large body: parsed, checked and run in one worker call. The
+    gate checked the API key before the body was read; the client is watched as the routes'
+    dependency watches it (a client gone cancels the job)."""
+    settings = request.app.state.settings
+    pool = await get_pool(request)
+    deadline = await get_deadline(request)
+    job = spec.job(request)
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+    work = WorkerBody(
+        spec.model, spec.prepare, job, raw, Limits.of(settings), settings.design_defaults,
+        JobBudget(deadline, samples), REQUEST_ID.get(),
+    )  # fmt: skip
+    async with asynccontextmanager(watch_client)(request):
+        try:
+            kind, value = await pool.run(run_worker_body, work, deadline=deadline)
+        except BodyInvalidError as exc:
+            raise RequestValidationError(exc.items) from None
+        if kind == "scene":
+            assert spec.resolve_scene is not None  # a model without a scene has none to name
+            body = await spec.resolve_scene(request, value)
+            return await run_job(
+                pool, job, body, deadline,
+                design_defaults=settings.design_defaults, max_samples=samples,
+            )  # fmt: skip
+    content, sample = value
+    record_job(sample)
+    return json_response(content)

@@ -1,0 +1,129 @@
+"""Large bodies are parsed in a worker (``api/routes/_worker_body.py``), and a worker parses
+exactly as the event loop does. The oracle is FastAPI's own path: one service parses every body
+on the event loop (``inline_parse_bytes`` above any body), the other hands every body to a
+worker (``inline_parse_bytes=0``); the same request must get the same status and the same
+answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes, bad
+JSON, a broken rule, a body nested too deep, a number too long, the service's limits, a design
+that breaks a rule and a named scene. Then, with ``json.loads`` of the serving process
+counting what it parses, a large plan is answered with nothing parsed there."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import starlette.requests
+
+START = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
+#: A cloud far from the robot (it collides with nothing), 5,000 points: a body of ~90 kB,
+#: larger than the default PLANNER_INLINE_PARSE_BYTES.
+CLOUD = {
+    "type": "points",
+    "radius": 0.01,
+    "points": [[3.0 + 0.001 * i, 3.0, 3.0] for i in range(5000)],
+}
+PLAN = {
+    "start": START,
+    "goal": {"q": [0.3, 2.2, 1.1], "assembly_mode": "+"},
+    "obstacles": [CLOUD],
+    "planner": {"seed": 1},
+    "timing": {"method": "ruckig"},
+}
+SETTINGS = {"max_obstacles": 3, "max_sequence_targets": 2, "warm": False}
+_DIAGNOSTIC_TIMES = ("planning_time_s", "timing_time_s", "computation_time_s")
+
+
+@pytest.fixture(scope="module")
+def pair(client_factory):
+    """(the event loop parses, a worker parses), same settings otherwise."""
+    with client_factory(inline_parse_bytes=1 << 30, **SETTINGS) as inline:
+        with client_factory(inline_parse_bytes=0, **SETTINGS) as in_worker:
+            yield inline, in_worker
+
+
+def _same(pair, path: str, body: bytes | dict, method: str = "POST") -> dict:
+    """Send ``body`` to both; assert the same status and answer; the answer."""
+    content = body if isinstance(body, bytes) else json.dumps(body).encode()
+    answers = [
+        c.request(method, path, content=content, headers={"Content-Type": "application/json"})
+        for c in pair
+    ]
+    codes = [a.status_code for a in answers]
+    assert codes[0] == codes[1], [a.text[:500] for a in answers]
+    bodies = [a.json() for a in answers]
+    if codes[0] == 422:
+        where = [[(d["loc"], d["type"]) for d in b["detail"]] for b in bodies]
+        assert where[0] == where[1], where
+    else:
+        for b in bodies:
+            for key in _DIAGNOSTIC_TIMES:
+                b.get("diagnostics", {}).pop(key, None)
+                b.pop(key, None)
+        assert bodies[0] == bodies[1]
+    return {**bodies[0], "http": codes[0]}
+
+
+def test_valid_requests_of_the_four_routes_answer_the_same(pair):
+    plan = _same(pair, "/v1/plan", PLAN)
+    assert plan["http"] == 200 and plan["path"]["waypoints"]
+    waypoints = plan["path"]["waypoints"]
+    timing = _same(pair, "/v1/timing", {"waypoints": waypoints, "obstacles": [CLOUD]})
+    assert timing["http"] == 200
+    cartesian = {"start": START, "waypoints": [[0.5, 0.05, 0.25]], "obstacles": [CLOUD]}
+    assert _same(pair, "/v1/cartesian", cartesian)["http"] == 200
+    sequence = {"start": START, "targets": [{"goal": {"q": [0.3, 2.2, 1.1], "assembly_mode": "+"}}]}
+    assert _same(pair, "/v1/sequence", {**sequence, "obstacles": [CLOUD]})["http"] == 200
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        b'{"start": {"q": [0, 2, 1]}, "goal": ',  # cut short
+        b"[" * 100_000 + b"]" * 100_000,  # nested too deep
+        b'{"start": {"q": [' + b"9" * 5000 + b', 2, 1]}, "goal": {"q": [0, 2, 1]}}',
+        json.dumps({**PLAN, "obstacles": [{**CLOUD, "points": [[0.0, 0.0, "x"]]}]}).encode(),
+        json.dumps({**PLAN, "planner": {"seed": -1, "planner": "nope"}}).encode(),
+        json.dumps({**PLAN, "obstacles": [CLOUD] * 4}).encode(),  # over max_obstacles
+        json.dumps({**PLAN, "planner": {"time_budget_s": 1e4}}).encode(),  # over the budget
+        json.dumps({**PLAN, "design": {"joint_min": [5, 5, 5]}}).encode(),
+    ],
+    ids=["cut", "deep", "long-number", "rule", "planner", "obstacles", "budget", "design"],
+)
+def test_bad_plans_are_the_same_422(pair, body):
+    assert _same(pair, "/v1/plan", body)["http"] == 422
+
+
+def test_a_sequence_over_its_limit_is_the_same_422(pair):
+    targets = [{"goal": {"q": [0.3, 2.2, 1.1], "assembly_mode": "+"}}] * 3
+    answer = _same(pair, "/v1/sequence", {"start": START, "targets": targets})
+    assert answer["http"] == 422 and answer["detail"][0]["loc"] == ["body", "targets"]
+
+
+def test_a_named_scene_is_resolved_by_the_server(pair):
+    for c in pair:
+        r = c.put("/v1/scenes/far-cloud", json={"obstacles": [CLOUD]})
+        assert r.status_code == 200, r.text
+    answer = _same(pair, "/v1/plan", {**PLAN, "obstacles": [], "scene": "far-cloud"})
+    assert answer["http"] == 200, answer
+    missing = _same(pair, "/v1/plan", {**PLAN, "scene": "no-such-scene"})
+    assert missing["http"] == 422
+
+
+def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
+    """The serving process's ``json.loads`` (the one FastAPI reads a body with) counts the
+    bodies it parses: none for the service that hands them to a worker, one for the other."""
+    inline, in_worker = pair
+    parsed: list[int] = []
+
+    class CountingJson:
+        @staticmethod
+        def loads(data: bytes, **options: object) -> object:
+            parsed.append(len(data))
+            return json.loads(data, **options)
+
+    monkeypatch.setattr(starlette.requests, "json", CountingJson)
+    r = in_worker.post("/v1/plan", json=PLAN)
+    assert r.status_code == 200 and r.json()["status"] == "solved", r.text
+    assert parsed == []
+    r = inline.post("/v1/plan", json=PLAN)  # the counter sees what the event loop parses
+    assert r.status_code == 200 and len(parsed) == 1 and parsed[0] > 65536
