@@ -55,7 +55,7 @@ def _run_jobs() -> None:
     from planner.wire import CartesianRequest, FKRequest, IKRequest, PlanRequest
     from planner_api.jobs import JobBudget, cartesian, kinematics, plan
     from planner_api.metrics import run_measured
-    from planner_api.routes import _worker_body  # noqa: F401  (a large body's job, imported)
+    from planner_api.routes import worker_body  # noqa: F401  (a large body's job, imported)
 
     budget = JobBudget(deadline=time.monotonic() + 120.0)
     for method in ("toppra", "ruckig"):

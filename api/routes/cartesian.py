@@ -14,15 +14,15 @@ from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import cartesian as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
-from planner_api.routes._worker_body import (
+from planner_api.routes.scenes import resolve_scene
+from planner_api.routes.worker_body import (
     BodySpec,
     RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
-from planner_api.routes.scenes import resolve_scene
 
-__all__ = ["cartesian", "router"]
+__all__ = ["cartesian", "prepare_cartesian", "router"]
 
 router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
 

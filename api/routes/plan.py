@@ -24,15 +24,15 @@ from planner_api.routes._common import (
     run_jobs,
     with_design_defaults,
 )
-from planner_api.routes._worker_body import (
+from planner_api.routes.scenes import resolve_scene
+from planner_api.routes.worker_body import (
     BodySpec,
     RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
-from planner_api.routes.scenes import resolve_scene
 
-__all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "router"]
+__all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "prepare_plan", "router"]
 
 router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
 

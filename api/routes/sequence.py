@@ -17,13 +17,13 @@ from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import sequence as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
-from planner_api.routes._worker_body import (
+from planner_api.routes.scenes import resolve_scene
+from planner_api.routes.worker_body import (
     BodySpec,
     RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
-from planner_api.routes.scenes import resolve_scene
 
 __all__ = ["prepare_sequence", "router", "sequence"]
 

@@ -9,14 +9,14 @@ from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import timing as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
-from planner_api.routes._worker_body import (
+from planner_api.routes.worker_body import (
     BodySpec,
     RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
 
-__all__ = ["router", "timing"]
+__all__ = ["prepare_timing", "router", "timing"]
 
 router = APIRouter(prefix="/v1", tags=["timing"], route_class=WorkerBodyRoute)
 

@@ -1,4 +1,4 @@
-"""Large bodies are parsed in a worker (``api/routes/_worker_body.py``), and a worker parses
+"""Large bodies are parsed in a worker (``api/routes/worker_body.py``), and a worker parses
 exactly as the event loop does. The oracle is FastAPI's own path: one service parses every body
 on the event loop (``inline_parse_bytes`` above any body), the other hands every body to a
 worker (``inline_parse_bytes=0``); the same request must get the same status and the same
