@@ -16,10 +16,12 @@ pack_obstacles`, by content) finds the index built too.
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Request, Response
 from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException
 
 from planner.caching import BoundedCache
@@ -37,9 +39,16 @@ from planner.wire import (
     scene_hash,
     with_scene,
 )
-from planner_api.deps import SettingsDep, Tenant, request_tenant
+from planner_api.deps import SettingsDep, Tenant, get_deadline, get_pool, request_tenant
 from planner_api.exceptions import PoolNotRunningError
 from planner_api.routes._common import check_obstacle_count, json_response
+from planner_api.routes.worker_body import (
+    BodyInvalidError,
+    BodySpec,
+    WorkerBodyRoute,
+    parse_body,
+    parsed_in_worker,
+)
 from planner_api.scene_store import SceneRow
 from planner_api.store_access import StoreAccess
 
@@ -50,10 +59,12 @@ __all__ = [
     "put_scene",
     "resolve_scene",
     "router",
+    "serialise_raw_scene",
+    "serialise_scene",
     "store_access",
 ]
 
-router = APIRouter(prefix="/v1", tags=["scenes"])
+router = APIRouter(prefix="/v1", tags=["scenes"], route_class=WorkerBodyRoute)
 
 NamePath = Annotated[str, Path(pattern=SCENE_NAME_PATTERN, description="The scene's name.")]
 
@@ -96,7 +107,64 @@ _QUOTAS = {
 }  # fmt: skip
 
 
+def serialise_scene(body: SceneRequest, max_obstacles: int) -> tuple[str, str, int, int]:
+    """A scene as the store keeps it: (its canonical JSON, that text's hash, its obstacle
+    and point counts), once every rule of a plan's obstacles holds (a 422 naming the field)."""
+    check_obstacle_count(body.obstacles, max_obstacles, ("body", "obstacles"))
+    obstacles_to_core(body.obstacles)  # every rule of the library's obstacles, located
+    text = body.model_dump_json(exclude_none=True)
+    return text, scene_hash(text.encode()), len(body.obstacles), count_points(body.obstacles)
+
+
+def serialise_raw_scene(work: tuple[bytes, int]) -> tuple[str, str, int, int]:
+    """In a worker: a large PUT body (bytes) parsed as FastAPI parses it, then
+    :func:`serialise_scene`."""
+    raw, max_obstacles = work
+    return serialise_scene(parse_body(SceneRequest, raw), max_obstacles)
+
+
+async def _store(
+    request: Request, tenant: str, name: str, stored: tuple[str, str, int, int]
+) -> SceneInfo:
+    """Keep a serialised scene (:func:`serialise_scene`) as the tenant's ``name``, within its
+    quotas; what the store keeps about it."""
+    settings = request.app.state.settings
+    limits = {"max_scenes": settings.scenes_max, "max_bytes": settings.scene_bytes_max}
+    row = await store_access(request).call(
+        lambda store: store.put(tenant, name, *stored, **limits), write=True
+    )
+    return SceneInfo(**row.info())
+
+
+async def _put_large_scene(request: Request, raw: bytes) -> Response:
+    """A PUT whose body is larger than ``PLANNER_INLINE_PARSE_BYTES``: parsed, checked and
+    serialised in a worker (:mod:`planner_api.routes.worker_body`), stored from here. The
+    name is checked as the route's path parameter is."""
+    name = request.path_params["name"]
+    if re.fullmatch(SCENE_NAME_PATTERN, name) is None:
+        raise RequestValidationError(
+            [{"loc": ("path", "name"), "type": "string_pattern_mismatch",
+              "msg": f"String should match pattern '{SCENE_NAME_PATTERN}'"}]
+        )  # fmt: skip
+    tenant = await request_tenant(request)
+    settings = request.app.state.settings
+    pool, deadline = await get_pool(request), await get_deadline(request)
+    try:
+        stored = await pool.run(
+            serialise_raw_scene, (raw, settings.max_obstacles), deadline=deadline
+        )
+    except BodyInvalidError as exc:
+        raise RequestValidationError(exc.items) from None
+    info = await _store(request, tenant, name, stored)
+    return json_response(info.model_dump_json().encode())
+
+
+def _no_job(_: Request) -> None:
+    return None
+
+
 @router.put("/scenes/{name}", response_model=SceneInfo, responses=_QUOTAS)
+@parsed_in_worker(BodySpec(SceneRequest, lambda b, _: b, _no_job, handle=_put_large_scene))
 async def put_scene(
     name: NamePath, body: SceneRequest, request: Request, settings: SettingsDep, tenant: Tenant
 ) -> SceneInfo:
@@ -104,25 +172,10 @@ async def put_scene(
     is replaced whole: the last writer wins). Its obstacles are checked as a plan's are (a
     422 naming the field); a scene that would take the tenant past ``PLANNER_SCENES_MAX``
     scenes is a 422, past ``PLANNER_SCENE_BYTES_MAX`` stored bytes a 413. The answer is what
-    the store keeps about it."""
-    check_obstacle_count(body.obstacles, settings.max_obstacles, ("body", "obstacles"))
-
-    def serialise() -> str:
-        obstacles_to_core(body.obstacles)  # every rule of the library's obstacles, located
-        return body.model_dump_json(exclude_none=True)
-
-    text = await run_in_threadpool(serialise)
-    digest, count, points = (
-        scene_hash(text.encode()),
-        len(body.obstacles),
-        count_points(body.obstacles),
-    )
-    limits = {"max_scenes": settings.scenes_max, "max_bytes": settings.scene_bytes_max}
-    row = await store_access(request).call(
-        lambda store: store.put(tenant, name, text, digest, count, points, **limits),
-        write=True,
-    )
-    return SceneInfo(**row.info())
+    the store keeps about it. A body larger than ``PLANNER_INLINE_PARSE_BYTES`` is parsed and
+    serialised in a worker instead of a thread of this process."""
+    stored = await run_in_threadpool(serialise_scene, body, settings.max_obstacles)
+    return await _store(request, tenant, name, stored)
 
 
 @router.get("/scenes/{name}", response_model=Scene, responses=_NOT_FOUND)

@@ -88,12 +88,16 @@ class BodySpec:
     job : the route's job for a request (a dependency a test may override is resolved here).
     resolve_scene : for a request that may name a scene, the route's resolution of it
         (:func:`planner_api.routes.scenes.resolve_scene`); None: the model has no scene.
+    handle : a route whose large body is not a job's request (a scene to store) handles the
+        bytes itself, ``await handle(request, raw)``, with :func:`parse_body` in a worker;
+        ``prepare`` and ``job`` then play no part.
     """
 
     model: type[BaseModel]
     prepare: Callable[[Any, RouteLimits], Any]
-    job: Callable[[Request], Job]
+    job: Callable[[Request], Job | None]
     resolve_scene: Callable[[Request, Any], Awaitable[Any]] | None = None
+    handle: Callable[[Request, bytes], Awaitable[Response]] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -188,6 +192,8 @@ class WorkerBodyRoute(APIRoute):
             raw = await request.body()  # kept by the request: FastAPI's path reads it again
             if len(raw) <= request.app.state.settings.inline_parse_bytes:
                 return await standard(request)
+            if spec.handle is not None:
+                return await spec.handle(request, raw)
             return await _in_worker(request, spec, raw)
 
         return handler
@@ -201,6 +207,7 @@ async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
     pool = await get_pool(request)
     deadline = await get_deadline(request)
     job = spec.job(request)
+    assert job is not None  # a route with a job of its own has a handle instead
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     work = WorkerBody(
         spec.model, spec.prepare, job, raw, Limits.of(settings), settings.design_defaults,

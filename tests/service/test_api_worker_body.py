@@ -2,7 +2,8 @@
 exactly as the event loop does. The oracle is FastAPI's own path: one service parses every body
 on the event loop (``inline_parse_bytes`` above any body), the other hands every body to a
 worker (``inline_parse_bytes=0``); the same request must get the same status and the same
-answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes, bad
+answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes and a
+scene's PUT, bad
 JSON, a broken rule, a body nested too deep, a number too long, the service's limits, a design
 that breaks a rule and a named scene. Then, with ``json.loads`` of the serving process
 counting what it parses, a large plan is answered with nothing parsed there."""
@@ -34,10 +35,12 @@ _DIAGNOSTIC_TIMES = ("planning_time_s", "timing_time_s", "computation_time_s")
 
 
 @pytest.fixture(scope="module")
-def pair(client_factory):
-    """(the event loop parses, a worker parses), same settings otherwise."""
-    with client_factory(inline_parse_bytes=1 << 30, **SETTINGS) as inline:
-        with client_factory(inline_parse_bytes=0, **SETTINGS) as in_worker:
+def pair(client_factory, tmp_path_factory):
+    """(the event loop parses, a worker parses), same settings otherwise, each its own scene
+    store (so that a scene stored through both is version 1 in each)."""
+    stores = [str(tmp_path_factory.mktemp("worker-body") / f"{k}.sqlite3") for k in "ab"]
+    with client_factory(inline_parse_bytes=1 << 30, scene_store=stores[0], **SETTINGS) as inline:
+        with client_factory(inline_parse_bytes=0, scene_store=stores[1], **SETTINGS) as in_worker:
             yield inline, in_worker
 
 
@@ -56,7 +59,7 @@ def _same(pair, path: str, body: bytes | dict, method: str = "POST") -> dict:
         assert where[0] == where[1], where
     else:
         for b in bodies:
-            for key in _DIAGNOSTIC_TIMES:
+            for key in (*_DIAGNOSTIC_TIMES, "updated_at"):
                 b.get("diagnostics", {}).pop(key, None)
                 b.pop(key, None)
         assert bodies[0] == bodies[1]
@@ -109,6 +112,25 @@ def test_a_named_scene_is_resolved_by_the_server(pair):
     assert missing["http"] == 422
 
 
+@pytest.mark.parametrize(
+    ("name", "body"),
+    [
+        ("big-cloud", {"obstacles": [CLOUD]}),
+        ("bad-cloud", {"obstacles": [{**CLOUD, "radius": -1.0}]}),
+        ("too-many", {"obstacles": [CLOUD] * 4}),
+        ("no spaces allowed", {"obstacles": [CLOUD]}),
+    ],
+    ids=["stored", "rule", "obstacles", "name"],
+)
+def test_a_scene_put_is_the_same_in_a_worker(pair, name, body):
+    answer = _same(pair, f"/v1/scenes/{name}", body, method="PUT")
+    if answer["http"] == 200:
+        stored = [c.get(f"/v1/scenes/{name}").json() for c in pair]
+        assert stored[0]["scene"] == stored[1]["scene"] and stored[0]["hash"] == stored[1]["hash"]
+    else:
+        assert answer["http"] == 422
+
+
 def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
     """The serving process's ``json.loads`` (the one FastAPI reads a body with) counts the
     bodies it parses: none for the service that hands them to a worker, one for the other."""
@@ -125,5 +147,7 @@ def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
     r = in_worker.post("/v1/plan", json=PLAN)
     assert r.status_code == 200 and r.json()["status"] == "solved", r.text
     assert parsed == []
+    r = in_worker.put("/v1/scenes/parsed-elsewhere", json={"obstacles": [CLOUD]})
+    assert r.status_code == 200 and parsed == [], r.text
     r = inline.post("/v1/plan", json=PLAN)  # the counter sees what the event loop parses
     assert r.status_code == 200 and len(parsed) == 1 and parsed[0] > 65536
