@@ -44,8 +44,12 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.fixture(scope="module")
-def svc(client_factory):
-    client = client_factory(workers=2, jobs_running=1, max_jobs=3, job_ttl_s=TTL_S, warm=False)
+def svc(client_factory, tmp_path_factory):
+    """The module's service, its jobs in a store of its own (the bounds count its jobs only;
+    one tenant may fill them all)."""
+    store = str(tmp_path_factory.mktemp("jobs") / "store.db")
+    client = client_factory(workers=2, jobs_running=1, max_jobs=3, jobs_per_tenant=3,
+                            job_ttl_s=TTL_S, scene_store=store, warm=False)  # fmt: skip
     client.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
     with client as c:
         yield c
