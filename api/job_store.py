@@ -93,6 +93,8 @@ SATURATED_RETRY_S = 0.05
 CANCEL_POLL_S = 0.25
 #: Tries of writing a job's end before it is left to the heartbeat.
 _END_TRIES = 4
+#: Seconds the stop waits for the cancelled jobs' tasks (each kills its worker at once).
+_CLOSE_WAIT_S = 5.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -364,7 +366,8 @@ class JobStore:
 
     async def close(self) -> None:
         """This replica is stopping: its unfinished jobs are failed as lost
-        (``lost_on_restart``) in the table, then their tasks cancelled."""
+        (``lost_on_restart``) in the table, then their tasks cancelled (their workers
+        killed) before the pool stops, which would otherwise wait for them."""
         if self._watcher is not None:
             self._watcher.cancel()
         if self._tasks:
@@ -372,8 +375,11 @@ class JobStore:
                 await self.access.jobs(lambda t: t.lose_owned(self.replica), write=True)
             except Exception as exc:  # the rows go lost by their heartbeat instead
                 logger.warning("long jobs: not marked lost at stop: %s", exc)
-        for task in list(self._tasks.values()):
+        tasks = list(self._tasks.values())
+        for task in tasks:
             task.cancel()
+        if tasks:  # let the cancels reach the pool (their workers killed) before it stops
+            await asyncio.wait(tasks, timeout=_CLOSE_WAIT_S)
 
     def summary(self, row: JobRow) -> JobSummary:
         """The job as a line of ``GET /v1/jobs``."""
