@@ -13,6 +13,7 @@ gone. Real worker pools (warm=False), the plan job replaced by a sleep.
 
 from __future__ import annotations
 
+import json
 import os
 import sqlite3
 import time
@@ -186,3 +187,54 @@ def test_the_per_tenant_bound_is_checked_at_start(monkeypatch, value):
     monkeypatch.setenv("PLANNER_JOBS_PER_TENANT", value)
     with pytest.raises(ValidationError, match=r"jobs_per_tenant|PLANNER_JOBS_PER_TENANT"):
         Settings()
+
+
+def test_the_cli_submits_polls_lists_and_cancels(client_factory, tmp_path, monkeypatch):
+    """``planner job submit|status|list|cancel`` against an in-process service (the CLI's
+    client given a transport to it), and the error naming the URL when nothing answers."""
+    import httpx
+    from typer.testing import CliRunner
+
+    from planner.client import PlannerClient
+    from planner_cli import service
+    from planner_cli.app import app
+
+    runner = CliRunner()
+    request = tmp_path / "plan.json"
+    request.write_text(json.dumps(_sleeper(0.01)["request"]))
+    long_request = tmp_path / "long.json"
+    long_request.write_text(json.dumps(_sleeper(30.0)["request"]))
+    with _app(client_factory, str(tmp_path / "store.db")) as c:
+
+        def forward(r: httpx.Request) -> httpx.Response:
+            answer = c.request(r.method, r.url.path, content=r.content,
+                               headers={"content-type": "application/json"})  # fmt: skip
+            return httpx.Response(answer.status_code, content=answer.content)
+
+        monkeypatch.setattr(service, "make_client", lambda url, key: PlannerClient(
+            "http://localhost", transport=httpx.MockTransport(forward)))  # fmt: skip
+        r = runner.invoke(app, ["job", "submit", "plan", str(request)])
+        assert r.exit_code == 0, r.output
+        job_id = r.stdout.strip()
+        _until(lambda: _status(c, job_id)["status"] == "done", "never done")
+        out = tmp_path / "result.json"
+        r = runner.invoke(app, ["job", "status", job_id, "--out", str(out)])
+        assert r.exit_code == 0 and f"{job_id}\tplan\tdone" in r.stdout, r.output
+        assert json.loads(out.read_text()) == _status(c, job_id)["result"]
+        long = runner.invoke(app, ["job", "submit", "plan", str(long_request)]).stdout.strip()
+        r = runner.invoke(app, ["job", "list"])
+        assert r.exit_code == 0 and [line.split("\t")[0] for line in r.stdout.splitlines()] == [
+            job_id, long,
+        ]  # fmt: skip
+        r = runner.invoke(app, ["job", "cancel", long])
+        assert r.exit_code == 0 and f"{long}\tplan\tcancelled" in r.stdout, r.output
+        r = runner.invoke(app, ["job", "status", "0" * 32])
+        assert r.exit_code == 1 and "no job" in r.output
+        r = runner.invoke(app, ["job", "submit", "dance", str(request)])
+        assert r.exit_code == 2 and "kind" in r.output
+    monkeypatch.undo()
+    monkeypatch.setenv("PLANNER_URL", "http://127.0.0.1:9")
+    r = runner.invoke(app, ["job", "list"])
+    assert r.exit_code == 2
+    assert "no planning service answers at http://127.0.0.1:9" in r.output
+    assert "--url or PLANNER_URL" in r.output

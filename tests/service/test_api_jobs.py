@@ -2,7 +2,7 @@
 (``result`` = the endpoint's own answer), ``DELETE /v1/jobs/{id}`` (the worker freed within a
 second), bounded keeping (time and count, then 404 naming the bounds), validation located
 under ``body.request``, a failing job's error as the endpoint's error answer, and the typed
-client's ``submit_job`` / ``job`` / ``cancel_job``.
+client's ``submit_job`` / ``job`` / ``jobs`` / ``cancel_job``.
 
 The oracle of a result is the endpoint itself, called directly on the same service. One
 in-process service for the module (real worker processes, no warm-up: the jobs are cheap or
@@ -190,6 +190,9 @@ def test_the_client_submits_polls_and_cancels(svc):
             time.sleep(0.02)
         assert PlanResponse.model_validate(status.result).status == "timeout"
         long = client.submit_job("plan", _sleeper(30.0)["request"])
+        listed = client.jobs().jobs  # the listing, oldest first
+        assert [j.id for j in listed[-2:]] == [submitted.id, long.id]
+        assert listed[-2].status == "done" and listed[-1].status in ("queued", "running")
         assert client.cancel_job(long.id).status == "cancelled"
 
 
