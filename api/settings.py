@@ -41,8 +41,8 @@ PLANNER_JOB_RESULT_MAX_MB 32                              largest result of one 
 PLANNER_JOBS_MAX_MB       512                             long jobs' results kept in all, MB
 PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once (a replica)
 PLANNER_JOBS_PER_TENANT   half PLANNER_MAX_JOBS (>= 1)    unfinished long jobs of one tenant; 429
-PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
-                                                          file path, or a postgresql:// URL
+PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes and long jobs persist:
+                                                          a SQLite file, or a postgresql:// URL
 PLANNER_STORE_TIMEOUT_S   3                               longest wait of a scene-store call (a
                                                           lock, a connection); beyond: 503, s
 PLANNER_STORE_THREADS     4                               store calls at once (reads, writes
@@ -328,7 +328,7 @@ class Settings(BaseSettings):
     )
     scene_store: str | None = Field(
         None,
-        description="Where named scenes persist: a SQLite file path (default "
+        description="Where named scenes and long jobs persist: a SQLite file path (default "
         "$XDG_DATA_HOME/planner/scenes.sqlite3), or a postgresql:// URL shared by replicas.",
     )
     allowed_hosts: str | None = Field(
