@@ -76,7 +76,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
             app.state.warming.add_done_callback(_log_failure)
         app.state.jobs = jobs = JobStore(
+            app.state.scene_access,
             max_jobs=settings.max_jobs,
+            per_tenant=settings.jobs_per_tenant,
             ttl_s=settings.job_ttl_s,
             running=settings.jobs_running or 1,
             timeout_s=settings.job_timeout_s,
@@ -86,7 +88,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         try:
             yield
         finally:
-            jobs.close()  # the job list lives in this process only: nothing survives it
+            # this replica's unfinished jobs are marked lost in the store, their tasks stopped
+            await jobs.close()
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
             drained = pool.state == "stopping"
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
@@ -106,12 +109,14 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.state.stopping = False
     #: The start-up warm-up of the jobs run in the event loop (None: nothing to wait for).
     app.state.warming = None
-    #: The scene store, through its own bounded thread pool (opened at its first call).
+    #: The store of scenes and long jobs, through its own bounded thread pool (opened at its
+    #: first call).
     app.state.scene_access = StoreAccess(
         settings.scene_store,
         timeout_s=settings.store_timeout_s,
         threads=settings.store_threads,
         retry_after_s=settings.retry_after_s,
+        job_ttl_s=settings.job_ttl_s,
     )
     install_error_handlers(app)
     app.add_middleware(

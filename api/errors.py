@@ -24,6 +24,8 @@ JobCancelledError,                 499     never read: the client is gone (nginx
 ClientDisconnectedError                    closed request"; recorded in the metrics and log)
 JobNotFoundError                   404     a long job's id unknown or expired
 TooManyJobsError                   503     ``Retry-After``; the long-job list is full
+TenantJobsError                    429     ``Retry-After``; ``too_many_jobs``: the tenant's
+                                           PLANNER_JOBS_PER_TENANT unfinished jobs
 StoreUnavailableError              503     ``Retry-After``; ``store_unavailable``: the scene
                                            store's lock wait or connection ran out of time
 QuotaExceededError                 422     ``quota_exceeded``: PLANNER_SCENES_MAX (422) or
@@ -70,6 +72,7 @@ from planner_api.exceptions import (
     QuotaExceededError,
     ShuttingDownError,
     StoreUnavailableError,
+    TenantJobsError,
     TooManyJobsError,
     WorkerCrashedError,
 )
@@ -96,6 +99,7 @@ _SERVICE_ERRORS: dict[type[Exception], tuple[int, str]] = {
     ClientDisconnectedError: (499, "client_disconnected"),  # before JobCancelledError
     JobCancelledError: (499, "job_cancelled"),
     JobNotFoundError: (404, "job_not_found"),
+    TenantJobsError: (429, "too_many_jobs"),  # before its base class TooManyJobsError
     TooManyJobsError: (503, "too_many_jobs"),  # before PoolSaturatedError
     ShuttingDownError: (503, "shutting_down"),  # before its base class PoolSaturatedError
     PoolSaturatedError: (503, "saturated"),

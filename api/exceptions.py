@@ -13,6 +13,8 @@ every :class:`planner.exceptions.PlannerError`, to an HTTP answer.
     │   └── ClientDisconnectedError  499: the client went away; its job was cancelled
     ├── JobNotFoundError          404: no long job of that id (never, or expired)
     ├── TooManyJobsError          503 + Retry-After: the long-job list is full
+    │   └── TenantJobsError       429 + Retry-After: the tenant has PLANNER_JOBS_PER_TENANT
+    │                             unfinished jobs
     ├── LimitExceededError        422: a request exceeds a size limit of the service settings
     ├── QuotaExceededError        422 or 413: a tenant's scene count or stored bytes would pass
     │                             PLANNER_SCENES_MAX or PLANNER_SCENE_BYTES_MAX
@@ -36,6 +38,7 @@ __all__ = [
     "ServiceError",
     "ShuttingDownError",
     "StoreUnavailableError",
+    "TenantJobsError",
     "TooManyJobsError",
     "WorkerCrashedError",
 ]
@@ -92,6 +95,12 @@ class JobNotFoundError(ServiceError):
 
 class TooManyJobsError(PoolSaturatedError):
     """The long-job list is full of jobs not finished yet: retry later."""
+
+
+class TenantJobsError(TooManyJobsError):
+    """The tenant has ``PLANNER_JOBS_PER_TENANT`` jobs not finished yet (429, not 503: the
+    bound is the tenant's own and holds over every replica, so another replica would refuse
+    the same; a load balancer retrying 503s elsewhere must not retry it)."""
 
 
 class LimitExceededError(ServiceError):

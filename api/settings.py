@@ -40,9 +40,10 @@ PLANNER_JOB_TTL_S         3600                            a finished long job is
 PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
 PLANNER_JOB_RESULT_MAX_MB 32                              largest result of one long job, MB
 PLANNER_JOBS_MAX_MB       512                             long jobs' results kept in all, MB
-PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once
-PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes persist: a SQLite
-                                                          file path, or a postgresql:// URL
+PLANNER_JOBS_RUNNING      half the workers (at least 1)   long jobs running at once (a replica)
+PLANNER_JOBS_PER_TENANT   half PLANNER_MAX_JOBS (>= 1)    unfinished long jobs of one tenant; 429
+PLANNER_SCENE_STORE       (a SQLite file, see below)      where named scenes and long jobs persist:
+                                                          a SQLite file, or a postgresql:// URL
 PLANNER_STORE_TIMEOUT_S   3                               longest wait of a scene-store call (a
                                                           lock, a connection); beyond: 503, s
 PLANNER_STORE_THREADS     4                               store calls at once (reads, writes
@@ -288,15 +289,26 @@ class Settings(BaseSettings):
         256,
         ge=1,
         le=100_000,
-        description="Long jobs kept at once (finished or not): a new one evicts the oldest "
-        "finished job; when none is finished, POST /v1/jobs answers 503.",
+        description="Long jobs kept at once in the store (finished or not, every replica's): "
+        "a new one evicts the oldest finished job; when none is finished, POST /v1/jobs "
+        "answers 503.",
+    )
+    jobs_per_tenant: int | None = Field(
+        None,
+        ge=1,
+        le=100_000,
+        description="Unfinished (queued or running) long jobs one tenant may have at once, "
+        "over every replica: one more is answered 429 too_many_jobs, so that one tenant "
+        "cannot fill the job list for all (default: half PLANNER_MAX_JOBS, at least 1; at "
+        "most PLANNER_MAX_JOBS).",
     )
     jobs_running: int | None = Field(
         None,
         ge=1,
         le=256,
-        description="Long jobs running at once (the others wait, 'queued'), so that long jobs "
-        "leave workers to the interactive requests (default: half the workers, at least 1).",
+        description="Long jobs running at once in each replica (the others wait, 'queued'), "
+        "so that long jobs leave workers to the interactive requests (default: half the "
+        "workers, at least 1).",
     )
     inline_parse_bytes: int = Field(
         65536,
@@ -322,12 +334,12 @@ class Settings(BaseSettings):
         gt=0.0,
         le=65536.0,
         allow_inf_nan=False,
-        description="Results of long jobs kept at once, MB in all: a new result evicts the "
-        "oldest finished jobs until it fits.",
+        description="Results of long jobs kept at once in the store, MB in all: a new result "
+        "evicts the oldest finished jobs until it fits.",
     )
     scene_store: str | None = Field(
         None,
-        description="Where named scenes persist: a SQLite file path (default "
+        description="Where named scenes and long jobs persist: a SQLite file path (default "
         "$XDG_DATA_HOME/planner/scenes.sqlite3), or a postgresql:// URL shared by replicas.",
     )
     allowed_hosts: str | None = Field(
@@ -401,6 +413,13 @@ class Settings(BaseSettings):
             self.queue_size = 4 * self.workers
         if self.jobs_running is None:
             self.jobs_running = max(1, self.workers // 2)
+        if self.jobs_per_tenant is None:
+            self.jobs_per_tenant = max(1, self.max_jobs // 2)
+        elif self.jobs_per_tenant > self.max_jobs:
+            raise ValueError(
+                f"PLANNER_JOBS_PER_TENANT ({self.jobs_per_tenant}) must be at most "
+                f"PLANNER_MAX_JOBS ({self.max_jobs}): a tenant's jobs are kept among them"
+            )
         if self.overrun_max_s is not None and self.overrun_max_s < self.overrun_grace_s:
             raise ValueError(
                 f"PLANNER_OVERRUN_MAX_S ({self.overrun_max_s:g}) must be at least "

@@ -1,4 +1,5 @@
-"""The scene store's calls, run in a thread pool of their own, each within a bounded time.
+"""The store's calls (named scenes, and the ``jobs`` table of the long jobs:
+:mod:`planner_api.job_table`), run in a thread pool of their own, each within a bounded time.
 
 Why a pool of its own: the store's calls block (a file lock, a network round trip), and the
 shared thread pool of the routes (anyio's, 40 threads) is what every ``def`` route and every
@@ -21,7 +22,8 @@ honour its timeout), answering 503 all the same.
 
 The store is opened on the first call (a SQLite file created, a table migrated, a
 PostgreSQL connection made), in a store thread and within the budget too; a store that
-cannot be opened is tried again at the next call.
+cannot be opened is tried again at the next call. The ``jobs`` table is created in the same
+database at the first job call (:meth:`StoreAccess.jobs`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from planner_api.exceptions import StoreUnavailableError
+from planner_api.job_table import JobTable
 from planner_api.scene_store import SceneStore, open_store, unavailable_errors, waiting_at_most
 
 __all__ = ["GRACE_S", "QUEUE_PER_THREAD", "StoreAccess"]
@@ -89,6 +92,8 @@ class StoreAccess:
         Store threads of each lane (``PLANNER_STORE_THREADS``).
     retry_after_s : int
         ``Retry-After`` of its 503s.
+    job_ttl_s : float
+        How long the ``jobs`` table keeps a finished job, s (``PLANNER_JOB_TTL_S``).
     """
 
     def __init__(
@@ -98,6 +103,7 @@ class StoreAccess:
         timeout_s: float,
         threads: int,
         retry_after_s: int,
+        job_ttl_s: float = 3600.0,
         opener: Callable[[str | None], SceneStore] = open_store,
     ) -> None:
         self.setting = setting
@@ -108,6 +114,8 @@ class StoreAccess:
         self._opener = opener
         self._lock = threading.Lock()
         self._store: SceneStore | None = None
+        self.job_ttl_s = job_ttl_s
+        self._jobs: JobTable | None = None
         self._errors = unavailable_errors()
 
     @property
@@ -118,7 +126,7 @@ class StoreAccess:
 
     def _unavailable(self, why: str) -> StoreUnavailableError:
         return StoreUnavailableError(
-            f"the scene store ({self.kind}) cannot answer now: {why}; nothing was changed, "
+            f"the store of scenes and jobs ({self.kind}) cannot answer now: {why}; nothing was changed, "
             f"retry after {self.retry_after_s} s",
             self.retry_after_s,
         )
@@ -166,6 +174,20 @@ class StoreAccess:
         except self._errors as exc:
             logger.warning("scene store unavailable: %s: %s", type(exc).__name__, exc)
             raise self._unavailable(_why(exc, self.timeout_s)) from exc
+
+    def _job_table(self, store: SceneStore) -> JobTable:
+        table = self._jobs
+        if table is None or table.store is not store:
+            with self._lock:
+                table = self._jobs
+                if table is None or table.store is not store:
+                    table = self._jobs = JobTable(store, ttl_s=self.job_ttl_s)
+        return table
+
+    async def jobs(self, call: Callable[[JobTable], T], *, write: bool = False) -> T:
+        """``call(table)`` on the ``jobs`` table (:mod:`planner_api.job_table`), as
+        :meth:`call` runs a scene call: the same lanes, budget and 503s."""
+        return await self.call(lambda store: call(self._job_table(store)), write=write)
 
     async def ping(self) -> str | None:
         """None when the store answers a read within the budget, else why not (for

@@ -1,8 +1,10 @@
 """POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, DELETE /v1/jobs/{id}: long jobs, run in
 the background, each the request's tenant's (another tenant's id is a 404).
 
-The kinds and the job list are :mod:`planner_api.job_store` (what the list keeps and survives
-is said there and in ``docs/service.md``). A job runs its endpoint's job function through
+The kinds and the jobs are :mod:`planner_api.job_store` (rows of the store's ``jobs`` table,
+shared by the replicas: what they keep and survive is said there and in
+``docs/service.md``); every route waits on the store through its own threads, and answers
+503 ``store_unavailable`` when the store cannot answer. A job runs its endpoint's job function through
 :func:`planner_api.routes._common.run_job`, as the endpoint does, with the long job's budget
 as its deadline. These routes have no client watch: a long job is meant to outlive the
 request that submitted it.
@@ -70,7 +72,7 @@ async def submit_job(
     )
     request = await resolve_scene(http, request)  # a named scene's obstacles, as the endpoint
     job = plan_job if body.kind == "plan" else kind.job
-    # a long job's answer is kept in memory: its samples fit its own bound too
+    # a long job's answer is kept in the store: its samples fit its own bound too
     result_bytes = min(settings.max_response_bytes, store.max_result_bytes)
     samples = (
         answer_sample_limit(settings.max_trajectory_samples, result_bytes)
@@ -85,7 +87,7 @@ async def submit_job(
         )
         return bytes(answer.body)
 
-    entry = store.submit(body.kind, run, tenant)
+    entry = await store.submit(body.kind, run, tenant)
     return Response(
         store.status_json(entry),
         status_code=202,
@@ -98,7 +100,7 @@ async def submit_job(
 async def list_jobs(store: Jobs, tenant: Tenant) -> JobList:
     """The request's tenant's jobs still kept, oldest first: id, kind, status and times (a
     job's result: ``GET /v1/jobs/{id}``)."""
-    return JobList(jobs=[store.summary(e) for e in store.list(tenant)])
+    return JobList(jobs=[store.summary(e) for e in await store.list(tenant)])
 
 
 @router.get("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
@@ -106,13 +108,15 @@ async def get_job(job_id: str, store: Jobs, tenant: Tenant) -> Response:
     """A job's status; with status ``done`` its ``result`` (the endpoint's response body),
     with ``failed`` its ``error``. 404 once it is no longer kept, or when it is another
     tenant's."""
-    entry = store.get(job_id, tenant)
+    entry = await store.get(job_id, tenant)
     return Response(store.status_json(entry), media_type="application/json")
 
 
 @router.delete("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)
 async def cancel_job(job_id: str, store: Jobs, tenant: Tenant) -> Response:
-    """Cancel a queued or running job: its worker is stopped at once (and replaced), its
-    status is ``cancelled``. A finished job is answered as it is; another tenant's is a 404."""
-    entry = store.cancel(job_id, tenant)
+    """Cancel a queued or running job: its status is ``cancelled`` at once, and its worker is
+    stopped (and replaced) by the replica that runs it, at once when it is this one, within
+    a fraction of a second otherwise. A finished job is answered as it is; another tenant's
+    is a 404."""
+    entry = await store.cancel(job_id, tenant)
     return Response(store.status_json(entry), media_type="application/json")

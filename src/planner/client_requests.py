@@ -39,6 +39,7 @@ from planner.wire import (
     Health,
     IKRequest,
     IKResponse,
+    JobList,
     JobRequest,
     JobStatus,
     MjcfRequest,
@@ -489,6 +490,11 @@ class Requests:
         body (parse it with the endpoint's response model, e.g.
         ``DesignOptimizeResponse.model_validate(status.result)``)."""
         return _Call("GET", f"/v1/jobs/{job_id}", None, JobStatus)
+
+    def _jobs(self) -> _Call[JobList]:
+        """The long jobs of this client's tenant still kept, oldest first (id, kind, status,
+        times; no results: :meth:`job`)."""
+        return _Call("GET", "/v1/jobs", None, JobList)
 
     def _cancel_job(self, job_id: str) -> _Call[JobStatus]:
         """Cancel a queued or running long job (its worker is freed at once)."""

@@ -4,20 +4,22 @@ so these commands talk to a service (``--url``, default ``$PLANNER_URL`` or
 http://127.0.0.1:8000; ``--api-key`` or ``$PLANNER_API_KEY``).
 
 Exit status: 0 done, 1 no such scene, 2 a bad input (the message naming the field), or a
-service that cannot be reached.
+service that cannot be reached (the message naming the URL and how to set it:
+:mod:`planner_cli.service`).
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
 from planner_cli._support import Group
-from planner_cli.errors import EXIT_BAD_INPUT, EXIT_NO_ANSWER, fail, reported
+from planner_cli.errors import fail, reported
+from planner_cli.service import KeyOption, UrlOption
+from planner_cli.service import call as _call
 
 __all__ = ["delete", "get", "list_scenes", "put", "scene_app"]
 
@@ -28,36 +30,7 @@ scene_app = typer.Typer(
     add_completion=False,
 )
 
-UrlOption = Annotated[
-    str | None,
-    typer.Option("--url", help="The service's base URL (default $PLANNER_URL or :8000)."),
-]
-KeyOption = Annotated[
-    str | None, typer.Option("--api-key", help="The service's API key ($PLANNER_API_KEY).")
-]
 NameArgument = Annotated[str, typer.Argument(help="The scene's name (letters, digits, _-.).")]
-
-
-def _client(url: str | None, api_key: str | None) -> Any:
-    from planner.client import PlannerClient
-
-    base = url or os.environ.get("PLANNER_URL") or "http://127.0.0.1:8000"
-    key = api_key or os.environ.get("PLANNER_API_KEY") or None
-    return PlannerClient(base, api_key=key)
-
-
-def _call(url: str | None, api_key: str | None, method: str, *args: Any, **kwargs: Any) -> Any:
-    """``client.<method>(...)``, its errors as the CLI's: 404 exits 1, a refused input or an
-    unreachable service exits 2 with the server's message."""
-    from planner.client_errors import NotFoundError, PlannerClientError
-
-    try:
-        with _client(url, api_key) as client:
-            return getattr(client, method)(*args, **kwargs)
-    except NotFoundError as exc:
-        fail([str(exc)], EXIT_NO_ANSWER)
-    except PlannerClientError as exc:
-        fail([str(exc)], EXIT_BAD_INPUT)
 
 
 @reported

@@ -2,7 +2,7 @@
 (``result`` = the endpoint's own answer), ``DELETE /v1/jobs/{id}`` (the worker freed within a
 second), bounded keeping (time and count, then 404 naming the bounds), validation located
 under ``body.request``, a failing job's error as the endpoint's error answer, and the typed
-client's ``submit_job`` / ``job`` / ``cancel_job``.
+client's ``submit_job`` / ``job`` / ``jobs`` / ``cancel_job``.
 
 The oracle of a result is the endpoint itself, called directly on the same service. One
 in-process service for the module (real worker processes, no warm-up: the jobs are cheap or
@@ -44,8 +44,12 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.fixture(scope="module")
-def svc(client_factory):
-    client = client_factory(workers=2, jobs_running=1, max_jobs=3, job_ttl_s=TTL_S, warm=False)
+def svc(client_factory, tmp_path_factory):
+    """The module's service, its jobs in a store of its own (the bounds count its jobs only;
+    one tenant may fill them all)."""
+    store = str(tmp_path_factory.mktemp("jobs") / "store.db")
+    client = client_factory(workers=2, jobs_running=1, max_jobs=3, jobs_per_tenant=3,
+                            job_ttl_s=TTL_S, scene_store=store, warm=False)  # fmt: skip
     client.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
     with client as c:
         yield c
@@ -186,6 +190,9 @@ def test_the_client_submits_polls_and_cancels(svc):
             time.sleep(0.02)
         assert PlanResponse.model_validate(status.result).status == "timeout"
         long = client.submit_job("plan", _sleeper(30.0)["request"])
+        listed = client.jobs().jobs  # the listing, oldest first
+        assert [j.id for j in listed[-2:]] == [submitted.id, long.id]
+        assert listed[-2].status == "done" and listed[-1].status in ("queued", "running")
         assert client.cancel_job(long.id).status == "cancelled"
 
 

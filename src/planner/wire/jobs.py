@@ -3,8 +3,9 @@ jobs.
 
 A long job is one endpoint's request run in the background: submitted (202 with its ``id``),
 polled, and cancelled by id; its ``result`` is the endpoint's response body, the same JSON
-the endpoint would have answered. ``docs/service.md`` says what the job list survives (not a
-restart: it lives in one service process).
+the endpoint would have answered. ``docs/service.md`` says what the jobs survive (they live in
+the service's store, shared by its replicas: a finished job survives a restart; one that was
+running is then ``failed`` with the error type ``lost_on_restart``).
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ class JobRequest(_Request):
 
 
 class JobError(_Response):
-    """Why a job failed: the HTTP status and error body the endpoint would have answered."""
+    """Why a job failed: the HTTP status and error body the endpoint would have answered
+    (or 503 ``lost_on_restart``: the replica running it stopped before it finished)."""
 
     status_code: int = Field(description="e.g. 422 (bad input found by the job), 504.")
     detail: list[ErrorItem]
