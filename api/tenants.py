@@ -70,9 +70,12 @@ def _check_entry(
 
 def read_key_file(path: Path) -> dict[str, str]:
     """The keys of a tenant file (key -> tenant): one ``tenant key`` line per tenant, the two
-    separated by whitespace; blank lines and lines starting with ``#`` are skipped. A line
+    separated by whitespace; lines starting with ``#`` are comments. An empty line, a line
     with one field or more than two, a duplicate tenant or key, a bad tenant name, a file
-    that cannot be read or that lists no tenant: ValueError naming the file and the line."""
+    that cannot be read or that lists no tenant: ValueError naming the file and the line.
+    Why an empty line is refused: a key file is written by tools and people alike, and a
+    line broken in two (a key wrapped by an editor) leaves an empty or one-field line; the
+    service refuses to guess which tenants were meant."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -81,9 +84,14 @@ def read_key_file(path: Path) -> dict[str, str]:
     seen: dict[str, str] = {}
     for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
-        if not stripped or stripped.startswith("#"):
-            continue
         where = f"{path}:{number}"
+        if not stripped:
+            raise ValueError(
+                f"PLANNER_API_KEYS file {where}: an empty line (every line is 'tenant key' or "
+                "a '#' comment)"
+            )
+        if stripped.startswith("#"):
+            continue
         fields = stripped.split()
         if len(fields) != 2:
             raise ValueError(

@@ -31,7 +31,7 @@ def _refusal(**settings: object) -> str:
 
 def test_a_good_file_and_an_inline_list_define_the_tenants(tmp_path):
     keys = tmp_path / "keys"
-    keys.write_text("# tenant key\n\nalice  k-alice\n   # indented comment\nbob\tk-bob\n")
+    keys.write_text("# tenant key\nalice  k-alice\n   # indented comment\nbob\tk-bob\n")
     assert Settings(api_keys=str(keys)).tenant_keys == {"k-alice": "alice", "k-bob": "bob"}
     assert Settings(api_keys="alice:k1, bob:k:2").tenant_keys == {"k1": "alice", "k:2": "bob"}
     assert Settings(api_key="solo").tenant_keys == {"solo": "default"}
@@ -44,6 +44,8 @@ def test_a_good_file_and_an_inline_list_define_the_tenants(tmp_path):
         ("alice k1\nbob k1\n", 2, "already the key at"),
         ("alice k1\n# x\nalice k2\n", 3, "appears twice"),
         ("alice k1\nbob\n", 2, "got 1 field"),
+        ("alice k1\n\nbob k2\n", 2, "an empty line"),
+        ("alice k1\n   \n", 2, "an empty line"),
         ("alice k1 extra\n", 1, "got 3 field"),
         ("-alice k1\n", 1, "tenant name"),
         ("alice k\x7f1\n", 1, "printable ASCII"),
@@ -61,7 +63,7 @@ def test_an_unreadable_or_empty_file_is_refused_naming_it(tmp_path):
     missing = tmp_path / "nowhere"
     assert f"{missing}" in _refusal(api_keys=str(missing))
     empty = tmp_path / "empty"
-    empty.write_text("# nothing but comments\n\n")
+    empty.write_text("# nothing but comments\n")
     message = _refusal(api_keys=str(empty))
     assert str(empty) in message and "lists no tenant" in message
     folder = tmp_path / "dir"
