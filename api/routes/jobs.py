@@ -12,22 +12,49 @@ request that submitted it.
 
 from __future__ import annotations
 
-from typing import Annotated
+import json
+from collections.abc import Callable
+from functools import partial
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Request, Response
+from fastapi.exceptions import RequestValidationError
 
 from planner.wire import ErrorResponse, JobList, JobRequest, JobStatus
-from planner_api.deps import Pool, SettingsDep, Tenant
+from planner_api.deps import Pool, SettingsDep, Tenant, get_deadline, get_pool, request_tenant
 from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
-from planner_api.job_store import LONG_JOBS, JobStore
-from planner_api.jobs import answer_sample_limit
+from planner_api.job_store import LONG_JOBS, JobStore, Runner
+from planner_api.jobs import Job, JobBudget, answer_sample_limit
+from planner_api.logging import REQUEST_ID
+from planner_api.metrics import record_job
 from planner_api.routes._common import run_job
-from planner_api.routes.plan import PlanJob
+from planner_api.routes.plan import plan_job_of
 from planner_api.routes.scenes import resolve_scene
+from planner_api.routes.worker_body import (
+    BodyInvalidError,
+    BodySpec,
+    Limits,
+    WorkerBody,
+    WorkerBodyRoute,
+    parse_body,
+    parsed_in_worker,
+    run_worker_body,
+    unchanged,
+)
+from planner_api.settings import Settings
+from planner_api.workers import WorkerPool
 
-__all__ = ["cancel_job", "get_job", "get_job_store", "list_jobs", "router", "submit_job"]
+__all__ = [
+    "cancel_job",
+    "check_job_request",
+    "get_job",
+    "get_job_store",
+    "list_jobs",
+    "router",
+    "submit_job",
+]
 
-router = APIRouter(prefix="/v1", tags=["jobs"])
+router = APIRouter(prefix="/v1", tags=["jobs"], route_class=WorkerBodyRoute)
 
 _NOT_FOUND = {404: {"model": ErrorResponse, "description": "No such job (or it expired)."}}
 
@@ -43,35 +70,41 @@ def get_job_store(request: Request) -> JobStore:
 Jobs = Annotated[JobStore, Depends(get_job_store)]
 
 
-@router.post("/jobs", status_code=202, response_model=JobStatus)
-async def submit_job(
-    body: JobRequest,
-    pool: Pool,
-    settings: SettingsDep,
-    store: Jobs,
-    plan_job: PlanJob,
-    http: Request,
-    tenant: Tenant,
-) -> Response:
-    """Run an endpoint's request in the background (``kind`` names the endpoint): 202 with
-    the job's ``id`` and ``status``, then poll ``GET /v1/jobs/{id}``. The request is
-    validated now (a 422 under ``body.request``); errors found while it runs make the job
-    ``failed`` with the error answer the endpoint would have given."""
-    if pool.state == "stopping":
-        raise ShuttingDownError(
-            "the service is shutting down; submit the job to another replica",
-            settings.retry_after_s,
-        )
+def check_job_request(work: tuple[bytes, dict[str, Any]]) -> tuple[str, bytes | None, Any]:
+    """In a worker: a large ``POST /v1/jobs`` body parsed and checked as the route checks it
+    (:func:`planner_api.routes.worker_body.parse_body`, the kind's validation and limits):
+    (its kind, its request as JSON again, or None and the parsed request when it names a
+    scene, which the server resolves)."""
+    raw, limits = work
+    body = parse_body(JobRequest, raw)
     kind = LONG_JOBS[body.kind]
-    request = kind.validate(body.request)
-    kind.check_limits(
-        request,
-        max_obstacles=settings.max_obstacles,
-        job_timeout_s=settings.job_timeout_s,
-        max_sequence_targets=settings.max_sequence_targets,
-    )
-    request = await resolve_scene(http, request)  # a named scene's obstacles, as the endpoint
-    job = plan_job if body.kind == "plan" else kind.job
+    try:
+        request = kind.validate(body.request)
+    except RequestValidationError as exc:
+        raise BodyInvalidError(
+            [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in exc.errors()]
+        ) from None
+    kind.check_limits(request, **limits)
+    if getattr(request, "scene", None) is not None:
+        return body.kind, None, request
+    return body.kind, json.dumps(body.request).encode(), None
+
+
+def _limits(settings: Settings) -> dict[str, Any]:
+    return {
+        "max_obstacles": settings.max_obstacles,
+        "job_timeout_s": settings.job_timeout_s,
+        "max_sequence_targets": settings.max_sequence_targets,
+    }
+
+
+async def _submit(http: Request, kind_name: str, make_run: Callable[..., Runner]) -> Response:
+    """Register a job of ``kind_name`` for the request's tenant: 202 with its status.
+    ``make_run(job, samples)`` gives the job's runner."""
+    settings: Settings = http.app.state.settings
+    store = get_job_store(http)
+    kind = LONG_JOBS[kind_name]
+    job = plan_job_of(http) if kind_name == "plan" else kind.job
     # a long job's answer is kept in the store: its samples fit its own bound too
     result_bytes = min(settings.max_response_bytes, store.max_result_bytes)
     samples = (
@@ -79,21 +112,87 @@ async def submit_job(
         if kind.trajectory
         else None
     )
-    defaults = settings.design_defaults
-
-    async def run(deadline: float) -> bytes:
-        answer = await run_job(
-            pool, job, request, deadline, design_defaults=defaults, max_samples=samples
-        )
-        return bytes(answer.body)
-
-    entry = await store.submit(body.kind, run, tenant)
+    entry = await store.submit(kind_name, make_run(job, samples), await request_tenant(http))
     return Response(
         store.status_json(entry),
         status_code=202,
         media_type="application/json",
         headers={"Location": f"/v1/jobs/{entry.id}"},
     )
+
+
+def _refuse_when_stopping(http: Request) -> None:
+    pool = getattr(http.app.state, "pool", None)
+    if pool is not None and pool.state == "stopping":
+        raise ShuttingDownError(
+            "the service is shutting down; submit the job to another replica",
+            http.app.state.settings.retry_after_s,
+        )
+
+
+async def _submit_large(http: Request, raw: bytes) -> Response:
+    """A ``POST /v1/jobs`` body larger than ``PLANNER_INLINE_PARSE_BYTES``: checked in a worker
+    now (a 422 as the route gives it), and, when it runs, parsed again in its worker from the
+    request's JSON (never on the event loop). One that names a scene comes back parsed, and
+    runs as a small one does."""
+    _refuse_when_stopping(http)
+    settings: Settings = http.app.state.settings
+    pool = await get_pool(http)
+    try:
+        kind_name, inner, parsed = await pool.run(
+            check_job_request, (raw, _limits(settings)), deadline=await get_deadline(http)
+        )
+    except BodyInvalidError as exc:
+        raise RequestValidationError(exc.items) from None
+    if parsed is not None:
+        request = await resolve_scene(http, parsed)
+        return await _submit(http, kind_name, partial(_parsed_runner, pool, request, settings))
+    model = LONG_JOBS[kind_name].model
+
+    def make_run(job: Job, samples: int | None) -> Runner:
+        async def run(deadline: float) -> bytes:
+            work = WorkerBody(
+                model, unchanged, job, inner, Limits.of(settings), settings.design_defaults,
+                JobBudget(deadline, samples), REQUEST_ID.get(),
+            )  # fmt: skip
+            _, (content, sample) = await pool.run(run_worker_body, work, deadline=deadline)
+            record_job(sample)
+            return content
+
+        return run
+
+    return await _submit(http, kind_name, make_run)
+
+
+def _parsed_runner(
+    pool: WorkerPool, request: Any, settings: Settings, job: Job, samples: int | None
+) -> Runner:
+    async def run(deadline: float) -> bytes:
+        answer = await run_job(
+            pool, job, request, deadline,
+            design_defaults=settings.design_defaults, max_samples=samples,
+        )  # fmt: skip
+        return bytes(answer.body)
+
+    return run
+
+
+@router.post("/jobs", status_code=202, response_model=JobStatus)
+@parsed_in_worker(BodySpec(JobRequest, unchanged, plan_job_of, handle=_submit_large))
+async def submit_job(
+    body: JobRequest, pool: Pool, settings: SettingsDep, http: Request
+) -> Response:
+    """Run an endpoint's request in the background (``kind`` names the endpoint): 202 with
+    the job's ``id`` and ``status``, then poll ``GET /v1/jobs/{id}``. The request is
+    validated now (a 422 under ``body.request``); errors found while it runs make the job
+    ``failed`` with the error answer the endpoint would have given. A body larger than
+    ``PLANNER_INLINE_PARSE_BYTES`` is checked, and later run, in a worker."""
+    _refuse_when_stopping(http)
+    kind = LONG_JOBS[body.kind]
+    request = kind.validate(body.request)
+    kind.check_limits(request, **_limits(settings))
+    request = await resolve_scene(http, request)  # a named scene's obstacles, as the endpoint
+    return await _submit(http, body.kind, partial(_parsed_runner, pool, request, settings))
 
 
 @router.get("/jobs", response_model=JobList)

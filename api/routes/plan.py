@@ -32,7 +32,15 @@ from planner_api.routes.worker_body import (
     parsed_in_worker,
 )
 
-__all__ = ["check_limits", "get_plan_function", "plan", "plan_batch", "prepare_plan", "router"]
+__all__ = [
+    "check_limits",
+    "get_plan_function",
+    "plan",
+    "plan_batch",
+    "plan_job_of",
+    "prepare_plan",
+    "router",
+]
 
 router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
 
@@ -64,14 +72,14 @@ def prepare_plan(body: PlanRequest, limits: RouteLimits) -> PlanRequest:
     return body
 
 
-def _plan_job(request: Request) -> PlanFunction:
+def plan_job_of(request: Request) -> PlanFunction:
     """The plan job, as the ``get_plan_function`` dependency gives it (tests override it)."""
     override = request.app.dependency_overrides.get(get_plan_function)
     return override() if override is not None else jobs.plan
 
 
 @router.post("/plan", response_model=PlanResponse)
-@parsed_in_worker(BodySpec(PlanRequest, prepare_plan, _plan_job, resolve_scene))
+@parsed_in_worker(BodySpec(PlanRequest, prepare_plan, plan_job_of, resolve_scene))
 async def plan(
     body: PlanRequest,
     pool: Pool,

@@ -48,6 +48,7 @@ from planner_api.routes.worker_body import (
     WorkerBodyRoute,
     parse_body,
     parsed_in_worker,
+    unchanged,
 )
 from planner_api.scene_store import SceneRow
 from planner_api.store_access import StoreAccess
@@ -164,7 +165,7 @@ def _no_job(_: Request) -> None:
 
 
 @router.put("/scenes/{name}", response_model=SceneInfo, responses=_QUOTAS)
-@parsed_in_worker(BodySpec(SceneRequest, lambda b, _: b, _no_job, handle=_put_large_scene))
+@parsed_in_worker(BodySpec(SceneRequest, unchanged, _no_job, handle=_put_large_scene))
 async def put_scene(
     name: NamePath, body: SceneRequest, request: Request, settings: SettingsDep, tenant: Tenant
 ) -> SceneInfo:

@@ -2,8 +2,8 @@
 exactly as the event loop does. The oracle is FastAPI's own path: one service parses every body
 on the event loop (``inline_parse_bytes`` above any body), the other hands every body to a
 worker (``inline_parse_bytes=0``); the same request must get the same status and the same
-answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes and a
-scene's PUT, bad
+answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes, a
+scene's PUT and a long job, bad
 JSON, a broken rule, a body nested too deep, a number too long, the service's limits, a design
 that breaks a rule and a named scene. Then, with ``json.loads`` of the serving process
 counting what it parses, a large plan is answered with nothing parsed there."""
@@ -11,6 +11,7 @@ counting what it parses, a large plan is answered with nothing parsed there."""
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 import starlette.requests
@@ -131,6 +132,46 @@ def test_a_scene_put_is_the_same_in_a_worker(pair, name, body):
         assert answer["http"] == 422
 
 
+def _job(c, body: dict) -> tuple[int, dict]:
+    """Submit a long job and wait for its end: (the submit's status, the job at its end)."""
+    r = c.post("/v1/jobs", json=body)
+    if r.status_code != 202:
+        return r.status_code, r.json()
+    end = time.monotonic() + 120
+    while (job := c.get(f"/v1/jobs/{r.json()['id']}").json())["status"] in ("queued", "running"):
+        assert time.monotonic() < end, job
+        time.sleep(0.02)
+    return 202, job
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        {"kind": "plan", "request": PLAN},
+        {"kind": "plan", "request": {**PLAN, "obstacles": [], "scene": "far-cloud"}},
+        {"kind": "plan", "request": {**PLAN, "obstacles": [CLOUD] * 4}},
+        {"kind": "plan", "request": {**PLAN, "obstacles": [{**CLOUD, "radius": "x"}]}},
+        {"kind": "dance", "request": PLAN},
+    ],
+    ids=["plan", "scene", "obstacles", "rule", "kind"],
+)
+def test_a_long_job_is_the_same_in_a_worker(pair, body):
+    for c in pair:
+        assert c.put("/v1/scenes/far-cloud", json={"obstacles": [CLOUD]}).status_code == 200
+    (code_a, a), (code_b, b) = (_job(c, body) for c in pair)
+    assert code_a == code_b, (a, b)
+    if code_a == 422:
+        assert [(d["loc"], d["type"]) for d in a["detail"]] == [
+            (d["loc"], d["type"]) for d in b["detail"]
+        ]
+        return
+    assert a["status"] == b["status"] == "done", (a["error"], b["error"])
+    for job in (a, b):
+        for key in _DIAGNOSTIC_TIMES:
+            job["result"]["diagnostics"].pop(key, None)
+    assert a["result"] == b["result"]
+
+
 def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
     """The serving process's ``json.loads`` (the one FastAPI reads a body with) counts the
     bodies it parses: none for the service that hands them to a worker, one for the other."""
@@ -149,5 +190,7 @@ def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
     assert parsed == []
     r = in_worker.put("/v1/scenes/parsed-elsewhere", json={"obstacles": [CLOUD]})
     assert r.status_code == 200 and parsed == [], r.text
+    code, job = _job(in_worker, {"kind": "plan", "request": PLAN})
+    assert code == 202 and job["status"] == "done" and parsed == [], job
     r = inline.post("/v1/plan", json=PLAN)  # the counter sees what the event loop parses
     assert r.status_code == 200 and len(parsed) == 1 and parsed[0] > 65536
