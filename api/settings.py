@@ -315,7 +315,8 @@ class Settings(BaseSettings):
         ge=0,
         le=1 << 30,
         description="Largest request body parsed on the event loop, bytes: a larger body of "
-        "/v1/plan, /v1/sequence, /v1/cartesian, /v1/timing, PUT /v1/scenes/{name} or POST "
+        "/v1/plan, /v1/plan/batch, /v1/sequence, /v1/cartesian, /v1/timing, PUT "
+        "/v1/scenes/{name} or POST "
         "/v1/jobs is handed to "
         "a worker as bytes and "
         "parsed there (the same rules and 422s), so that large bodies never hold up the "

@@ -7,16 +7,21 @@ input (422), a full pool (503) or the request's deadline (504).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
-from typing import Annotated
+from contextlib import asynccontextmanager
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Request, Response
+from fastapi.exceptions import RequestValidationError
 
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
-from planner_api.deps import Deadline, Pool, SettingsDep
+from planner_api.deps import Deadline, Pool, SettingsDep, get_deadline, get_pool, watch_client
 from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import JobBudget, answer_sample_limit
 from planner_api.jobs import plan as jobs
+from planner_api.logging import REQUEST_ID
+from planner_api.metrics import record_job
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
@@ -26,18 +31,28 @@ from planner_api.routes._common import (
 )
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
+    BodyInvalidError,
     BodySpec,
+    Limits,
     RouteLimits,
+    WorkerBody,
     WorkerBodyRoute,
+    load_json,
     parsed_in_worker,
+    run_worker_body,
+    unchanged,
+    validate_data,
 )
+from planner_api.workers import WorkerPool
 
 __all__ = [
+    "check_batch",
     "check_limits",
     "get_plan_function",
     "plan",
     "plan_batch",
     "plan_job_of",
+    "prepare_batch",
     "prepare_plan",
     "router",
 ]
@@ -97,23 +112,36 @@ async def plan(
     )
 
 
-@router.post("/plan/batch", response_model=PlanBatchResponse)
-async def plan_batch(
-    body: PlanBatchRequest,
-    pool: Pool,
-    deadline: Deadline,
-    settings: SettingsDep,
-    job: PlanJob,
-    request: Request,
-) -> Response:
-    """Many plan requests, spread over the workers, answered in order."""
-    if len(body.requests) > settings.max_batch:
+def prepare_batch(body: PlanBatchRequest, limits: RouteLimits) -> PlanBatchRequest:
+    """The batch route's own checks (wherever the body is parsed): the count, then every
+    item's limits as a plan's, each located at its index."""
+    if len(body.requests) > limits.max_batch:
         raise LimitExceededError(
-            f"at most {settings.max_batch} requests per batch, got {len(body.requests)}",
+            f"at most {limits.max_batch} requests per batch, got {len(body.requests)}",
             ("body", "requests"),
         )
     for i, item in enumerate(body.requests):
-        check_limits(item, settings, ("body", "requests", i))
+        check_limits(item, limits, ("body", "requests", i))
+    return body
+
+
+def check_batch(work: tuple[bytes, Limits]) -> tuple[list[bytes] | None, Any]:
+    """In a worker: a large batch body parsed and checked as the route checks it: (each
+    request's JSON again, None), or (None, the parsed batch) when a request names a scene
+    (the server resolves it)."""
+    raw, limits = work
+    data = load_json(raw)
+    body = prepare_batch(validate_data(PlanBatchRequest, data), limits)
+    if any(item.scene is not None for item in body.requests):
+        return None, body
+    return [json.dumps(item).encode() for item in data["requests"]], None
+
+
+async def _run_batch(
+    request: Request, pool: WorkerPool, job: PlanFunction, body: PlanBatchRequest, deadline: float
+) -> Response:
+    """A checked batch's scenes resolved, designs completed, plans run in order."""
+    settings = request.app.state.settings
     if any(item.scene is not None for item in body.requests):
         body = body.model_copy(
             update={"requests": [await resolve_scene(request, item) for item in body.requests]}
@@ -124,3 +152,54 @@ async def plan_batch(
     )
     results = await run_jobs(pool, job, body.requests, deadline, max_samples=samples)
     return json_response(b'{"results":[' + b",".join(results) + b"]}")
+
+
+async def _batch_large(request: Request, raw: bytes) -> Response:
+    """A batch body larger than ``PLANNER_INLINE_PARSE_BYTES``: checked in one worker, each
+    plan then parsed again in the worker that runs it (never on the event loop)."""
+    settings = request.app.state.settings
+    pool, deadline = await get_pool(request), await get_deadline(request)
+    job = plan_job_of(request)
+    async with asynccontextmanager(watch_client)(request):
+        try:
+            items, parsed = await pool.run(
+                check_batch, (raw, Limits.of(settings)), deadline=deadline
+            )
+        except BodyInvalidError as exc:
+            raise RequestValidationError(exc.items) from None
+        if parsed is not None:
+            return await _run_batch(request, pool, job, parsed, deadline)
+        samples = answer_sample_limit(
+            settings.max_trajectory_samples, settings.max_response_bytes, len(items)
+        )
+        works = [
+            WorkerBody(
+                PlanRequest, unchanged, job, item, Limits.of(settings), settings.design_defaults,
+                JobBudget(deadline, samples), REQUEST_ID.get(),
+            )
+            for item in items
+        ]  # fmt: skip
+        results: list[bytes] = []
+        for start in range(0, len(works), pool.workers):  # in rounds, as run_jobs
+            for _, (content, sample) in await pool.map(
+                run_worker_body, works[start : start + pool.workers], deadline=deadline
+            ):
+                record_job(sample)
+                results.append(content)
+    return json_response(b'{"results":[' + b",".join(results) + b"]}")
+
+
+@router.post("/plan/batch", response_model=PlanBatchResponse)
+@parsed_in_worker(BodySpec(PlanBatchRequest, prepare_batch, plan_job_of, handle=_batch_large))
+async def plan_batch(
+    body: PlanBatchRequest,
+    pool: Pool,
+    deadline: Deadline,
+    settings: SettingsDep,
+    job: PlanJob,
+    request: Request,
+) -> Response:
+    """Many plan requests, spread over the workers, answered in order. A body larger than
+    ``PLANNER_INLINE_PARSE_BYTES`` is checked in a worker, and each plan parsed in its own."""
+    body = prepare_batch(body, settings)
+    return await _run_batch(request, pool, job, body, deadline)

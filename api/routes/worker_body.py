@@ -45,10 +45,12 @@ __all__ = [
     "RouteLimits",
     "WorkerBody",
     "WorkerBodyRoute",
+    "load_json",
     "parse_body",
     "parsed_in_worker",
     "run_worker_body",
     "unchanged",
+    "validate_data",
 ]
 
 
@@ -58,6 +60,7 @@ class RouteLimits(Protocol):
 
     max_obstacles: int
     max_sequence_targets: int
+    max_batch: int
     request_timeout_s: float
 
 
@@ -67,13 +70,15 @@ class Limits:
 
     max_obstacles: int
     max_sequence_targets: int
+    max_batch: int
     request_timeout_s: float
 
     @classmethod
     def of(cls, settings: RouteLimits) -> Limits:
         return cls(
-            settings.max_obstacles, settings.max_sequence_targets, settings.request_timeout_s
-        )
+            settings.max_obstacles, settings.max_sequence_targets, settings.max_batch,
+            settings.request_timeout_s,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,8 +140,13 @@ def parse_body(model: type[BaseModel], raw: bytes) -> Any:
     mode, as FastAPI validates a body parameter); :class:`BodyInvalidError` with FastAPI's
     locations (``["body", position]`` for bad JSON, ``["body", field, ...]`` for a rule) and the
     service's answers for a body too deep or a number too long to read."""
+    return validate_data(model, load_json(raw))
+
+
+def load_json(raw: bytes) -> Any:
+    """The JSON of a body, as FastAPI reads it (:func:`parse_body`'s first half)."""
     try:
-        data = json.loads(raw)
+        return json.loads(raw)
     except json.JSONDecodeError as exc:
         raise BodyInvalidError(
             [{"loc": ["body", exc.pos], "msg": "JSON decode error", "type": "json_invalid"}]
@@ -151,6 +161,10 @@ def parse_body(model: type[BaseModel], raw: bytes) -> Any:
             [{"loc": ["body"], "type": "number_too_long",
               "msg": f"a number in the body is too long to read ({str(exc).split(';')[0]})"}]
         ) from None  # fmt: skip
+
+
+def validate_data(model: type[BaseModel], data: Any) -> Any:
+    """A body's JSON validated into ``model`` (:func:`parse_body`'s second half)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:

@@ -3,7 +3,7 @@ exactly as the event loop does. The oracle is FastAPI's own path: one service pa
 on the event loop (``inline_parse_bytes`` above any body), the other hands every body to a
 worker (``inline_parse_bytes=0``); the same request must get the same status and the same
 answer (for a 422 the same ``loc`` and ``type``), for valid requests of the four routes, a
-scene's PUT and a long job, bad
+batch, a scene's PUT and a long job, bad
 JSON, a broken rule, a body nested too deep, a number too long, the service's limits, a design
 that breaks a rule and a named scene. Then, with ``json.loads`` of the serving process
 counting what it parses, a large plan is answered with nothing parsed there."""
@@ -31,7 +31,7 @@ PLAN = {
     "planner": {"seed": 1},
     "timing": {"method": "ruckig"},
 }
-SETTINGS = {"max_obstacles": 3, "max_sequence_targets": 2, "warm": False}
+SETTINGS = {"max_obstacles": 3, "max_sequence_targets": 2, "max_batch": 3, "warm": False}
 _DIAGNOSTIC_TIMES = ("planning_time_s", "timing_time_s", "computation_time_s")
 
 
@@ -132,6 +132,34 @@ def test_a_scene_put_is_the_same_in_a_worker(pair, name, body):
         assert answer["http"] == 422
 
 
+@pytest.mark.parametrize(
+    "requests",
+    [
+        [PLAN, {**PLAN, "goal": {"q": [0.2, 2.1, 1.0], "assembly_mode": "+"}}],
+        [PLAN, {**PLAN, "obstacles": [], "scene": "far-cloud"}],
+        [PLAN, {**PLAN, "obstacles": [CLOUD] * 4}],
+        [PLAN, {**PLAN, "goal": {"q": [0.2, "x", 1.0], "assembly_mode": "+"}}],
+        [PLAN] * 4,
+    ],
+    ids=["plans", "scene", "obstacles", "rule", "count"],
+)
+def test_a_batch_is_the_same_in_a_worker(pair, requests):
+    for c in pair:
+        assert c.put("/v1/scenes/far-cloud", json={"obstacles": [CLOUD]}).status_code == 200
+    answers = [c.post("/v1/plan/batch", json={"requests": requests}) for c in pair]
+    assert answers[0].status_code == answers[1].status_code, [a.text[:300] for a in answers]
+    if answers[0].status_code == 422:
+        a, b = ([(d["loc"], d["type"]) for d in r.json()["detail"]] for r in answers)
+        assert a == b
+        return
+    results = [r.json()["results"] for r in answers]
+    for batch in results:
+        for item in batch:
+            for key in _DIAGNOSTIC_TIMES:
+                item["diagnostics"].pop(key, None)
+    assert results[0] == results[1] and all(r["status"] == "solved" for r in results[0])
+
+
 def _job(c, body: dict) -> tuple[int, dict]:
     """Submit a long job and wait for its end: (the submit's status, the job at its end)."""
     r = c.post("/v1/jobs", json=body)
@@ -192,5 +220,7 @@ def test_the_event_loop_never_parses_a_large_body(pair, monkeypatch):
     assert r.status_code == 200 and parsed == [], r.text
     code, job = _job(in_worker, {"kind": "plan", "request": PLAN})
     assert code == 202 and job["status"] == "done" and parsed == [], job
+    r = in_worker.post("/v1/plan/batch", json={"requests": [PLAN, PLAN]})
+    assert r.status_code == 200 and parsed == [], r.text
     r = inline.post("/v1/plan", json=PLAN)  # the counter sees what the event loop parses
     assert r.status_code == 200 and len(parsed) == 1 and parsed[0] > 65536
