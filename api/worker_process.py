@@ -35,10 +35,10 @@ __all__ = [
     "PARENT_WATCH_S",
     "die_with_parent",
     "forked_main",
-    "ignore_stop_signals",
     "resident_bytes",
     "send_frame",
     "serve_jobs",
+    "set_up_child",
     "worker_main",
 ]
 
@@ -126,12 +126,7 @@ def worker_main(
     is warm: it warms at the server's priority, so that a start on a busy machine is not
     slowed further."""
     out = answers.fileno()
-    die_with_parent(parent_pid)
-    ignore_stop_signals()
-    if log_setup is not None:
-        from planner_api.logging import configure_logging
-
-        configure_logging(*log_setup)  # type: ignore[arg-type]
+    set_up_child(parent_pid, log_setup)
     try:
         t0 = time.perf_counter()
         if warm_up is not None:
@@ -145,11 +140,20 @@ def worker_main(
     serve_jobs(jobs, out, max_rss_bytes)
 
 
-def ignore_stop_signals() -> None:
-    """Ctrl-C and SIGTERM are the parent's: a worker (and the warm template) ignores SIGINT
-    and dies of SIGTERM (the pool's last resort at shutdown)."""
+def set_up_child(
+    parent_pid: int, log_setup: tuple[str, str] | None, *, watch_parent: bool = True
+) -> None:
+    """What a process the pool starts (a worker, or the warm template) does first: die with
+    its parent (:func:`die_with_parent`), leave Ctrl-C and SIGTERM to the parent (it ignores
+    SIGINT and dies of SIGTERM, the pool's last resort at shutdown), and log as the server
+    does (``log_setup``; None: Python's default)."""
+    die_with_parent(parent_pid, watch=watch_parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if log_setup is not None:
+        from planner_api.logging import configure_logging
+
+        configure_logging(*log_setup)  # type: ignore[arg-type]
 
 
 def forked_main(jobs_fd: int, answers_fd: int, max_rss_bytes: int | None, nice: int) -> None:

@@ -49,12 +49,7 @@ from collections.abc import Callable
 from multiprocessing.context import BaseContext
 from typing import Any, Literal
 
-from planner_api.worker_process import (
-    PARENT_WATCH_S,
-    die_with_parent,
-    forked_main,
-    ignore_stop_signals,
-)
+from planner_api.worker_process import PARENT_WATCH_S, forked_main, set_up_child
 
 __all__ = [
     "ForkedProcess",
@@ -114,12 +109,7 @@ def template_main(
 ) -> None:
     """The template process: warm up, say so, then fork a worker for each request and report
     the exits of the workers it forked, until told to stop or the server is gone."""
-    die_with_parent(parent_pid, watch=False)  # its loop polls the parent itself
-    ignore_stop_signals()
-    if log_setup is not None:
-        from planner_api.logging import configure_logging
-
-        configure_logging(*log_setup)  # type: ignore[arg-type]
+    set_up_child(parent_pid, log_setup, watch_parent=False)  # its loop polls the parent
     try:
         t0 = time.perf_counter()
         if warm_up is not None:

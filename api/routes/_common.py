@@ -29,6 +29,7 @@ from planner_api.workers import WorkerPool
 __all__ = [
     "check_obstacle_count",
     "json_response",
+    "obstacles_within_limit",
     "run_inline",
     "run_job",
     "run_jobs",
@@ -45,6 +46,14 @@ def check_obstacle_count(obstacles: Sequence[Any], limit: int, loc: tuple[str | 
         raise LimitExceededError(
             f"at most {limit} obstacles per request, got {len(obstacles)}", loc
         )
+
+
+def obstacles_within_limit(body: Any, limits: Any) -> Any:
+    """A route's check when its only limit is the obstacle count (``limits.max_obstacles``;
+    the ``prepare`` of :mod:`planner_api.routes.worker_body`, module-level so that it crosses
+    to a worker)."""
+    check_obstacle_count(body.obstacles, limits.max_obstacles, ("body", "obstacles"))
+    return body
 
 
 def with_design_defaults(body: Any, defaults: DesignModel, loc: tuple = ("body",)) -> Any:

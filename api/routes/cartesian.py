@@ -13,30 +13,22 @@ from planner.wire import CartesianRequest, CartesianResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import cartesian as jobs
-from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes._common import obstacles_within_limit, run_job
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
     BodySpec,
-    RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
 
-__all__ = ["cartesian", "prepare_cartesian", "router"]
+__all__ = ["cartesian", "router"]
 
 router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
 
 
-def prepare_cartesian(body: CartesianRequest, limits: RouteLimits) -> CartesianRequest:
-    """The cartesian route's own check (wherever the body is parsed): the obstacles within the
-    service's limit."""
-    check_obstacle_count(body.obstacles, limits.max_obstacles, ("body", "obstacles"))
-    return body
-
-
 @router.post("/cartesian", response_model=CartesianResponse)
 @parsed_in_worker(
-    BodySpec(CartesianRequest, prepare_cartesian, lambda _: jobs.cartesian, resolve_scene)
+    BodySpec(CartesianRequest, obstacles_within_limit, lambda _: jobs.cartesian, resolve_scene)
 )
 async def cartesian(
     body: CartesianRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
@@ -45,7 +37,7 @@ async def cartesian(
     working and assembly mode, within ``path_tolerance`` of the polyline, under every rule of
     a plan; where a rule would break, stop at the last valid point (``no_path``, ``fraction``
     < 1, ``message`` naming the rule, the measured value and the point)."""
-    body = prepare_cartesian(body, settings)
+    body = obstacles_within_limit(body, settings)
     body = await resolve_scene(request, body)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(

@@ -8,28 +8,20 @@ from planner.wire import TimingRequest, TimingResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.jobs import answer_sample_limit
 from planner_api.jobs import timing as jobs
-from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes._common import obstacles_within_limit, run_job
 from planner_api.routes.worker_body import (
     BodySpec,
-    RouteLimits,
     WorkerBodyRoute,
     parsed_in_worker,
 )
 
-__all__ = ["prepare_timing", "router", "timing"]
+__all__ = ["router", "timing"]
 
 router = APIRouter(prefix="/v1", tags=["timing"], route_class=WorkerBodyRoute)
 
 
-def prepare_timing(body: TimingRequest, limits: RouteLimits) -> TimingRequest:
-    """The timing route's own check (wherever the body is parsed): the obstacles within the
-    service's limit."""
-    check_obstacle_count(body.obstacles, limits.max_obstacles, ("body", "obstacles"))
-    return body
-
-
 @router.post("/timing", response_model=TimingResponse)
-@parsed_in_worker(BodySpec(TimingRequest, prepare_timing, lambda _: jobs.timing))
+@parsed_in_worker(BodySpec(TimingRequest, obstacles_within_limit, lambda _: jobs.timing))
 async def timing(
     body: TimingRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
 ) -> Response:
@@ -38,7 +30,7 @@ async def timing(
     mode and (with ``margins`` or ``obstacles``) the planner's validity rules. A waypoint that
     breaks a joint limit or does not assemble is a 422 naming it; a path that breaks another
     rule, or cannot be timed, is a 200 with a ``status`` (``invalid_path``, ``infeasible``)."""
-    body = prepare_timing(body, settings)
+    body = obstacles_within_limit(body, settings)
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     return await run_job(
         pool,
