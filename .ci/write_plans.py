@@ -57,7 +57,8 @@ def main(out: Path) -> int:
     from planner_api.settings import Settings
 
     out.mkdir(parents=True, exist_ok=True)
-    with TestClient(create_app(Settings(workers=1))) as client:
+    # localhost: a keyless service answers the loopback names only (PLANNER_ALLOWED_HOSTS)
+    with TestClient(create_app(Settings(workers=1)), base_url="http://localhost") as client:
         # as a load balancer would: no request before the worker is warm (a first warm-up
         # on a slow machine can take longer than one request's budget)
         end = time.monotonic() + READY_TIMEOUT_S

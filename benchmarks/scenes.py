@@ -262,7 +262,7 @@ def http_named_vs_inline(obstacles: list, queries: list, repeats: int) -> list[s
     store = Path(tempfile.mkdtemp()) / "scenes.db"
     settings = Settings(workers=1, scene_store=str(store), request_timeout_s=120)
     out = []
-    with TestClient(create_app(settings)) as client:
+    with TestClient(create_app(settings), base_url="http://localhost") as client:
         while client.get("/v1/ready").status_code != 200:
             time.sleep(0.2)
         t0 = time.perf_counter()
