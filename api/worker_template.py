@@ -86,12 +86,20 @@ def widen_pipe(fd: int) -> None:
 
 
 def templates_work() -> bool:
-    """Whether this platform can fork workers from a template (``fork``, pidfds, fd passing)."""
-    return all(
-        hasattr(m, name)
-        for m, name in ((os, "fork"), (os, "pidfd_open"), (signal, "pidfd_send_signal"),
-                        (socket, "send_fds"), (socket, "AF_UNIX"), (socket, "SOCK_SEQPACKET"))
-    )  # fmt: skip
+    """Whether this platform can fork workers from a template (``fork``, pidfds, fd passing),
+    tried, not only looked up: a container runtime whose seccomp profile predates pidfds
+    (Linux 5.3) refuses ``pidfd_open`` at run time, and the pool then spawns its workers."""
+    names = ((os, "fork"), (os, "pidfd_open"), (signal, "pidfd_send_signal"),
+             (socket, "send_fds"), (socket, "AF_UNIX"), (socket, "SOCK_SEQPACKET"))  # fmt: skip
+    if not all(hasattr(m, name) for m, name in names):
+        return False
+    try:
+        os.close(os.pidfd_open(os.getpid()))
+        for end in socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET):
+            end.close()
+    except OSError:
+        return False
+    return True
 
 
 class TemplateError(RuntimeError):
@@ -219,7 +227,7 @@ class ForkedProcess:
         self._done = threading.Event()
         try:
             self._pidfd: int | None = os.pidfd_open(pid)
-        except OSError:  # it exited and was reaped already: its report is on its way
+        except ProcessLookupError:  # it exited and was reaped already: its report is on its way
             self._pidfd = None
 
     @property

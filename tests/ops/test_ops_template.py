@@ -148,3 +148,28 @@ def test_without_a_template_each_worker_warms_up_itself(tmp_path):
             pool.shutdown(timeout_s=5)
 
     asyncio.run(scenario())
+
+
+def test_a_runtime_that_refuses_pidfds_gets_spawned_workers(monkeypatch):
+    """A container whose seccomp profile predates pidfds refuses ``pidfd_open`` at run time
+    (EPERM): the pool must not fork workers it could neither signal nor watch, but spawn them."""
+    from planner_api import worker_template
+
+    def refused(_: int) -> int:
+        raise PermissionError(1, "Operation not permitted")
+
+    assert worker_template.templates_work()
+    monkeypatch.setattr(os, "pidfd_open", refused)
+    assert not worker_template.templates_work()
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 0, warm_up=None)
+        await pool.start()
+        try:
+            assert pool._template is None
+            await _until(lambda: pool.state == "ready", "the spawned worker never started")
+            assert await pool.run(abs, -2, deadline=time.monotonic() + 60) == 2
+        finally:
+            pool.shutdown(timeout_s=5)
+
+    asyncio.run(scenario())
