@@ -11,7 +11,7 @@ with what the request asks (plans, timing, sections, design studies) crosses to 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
 
@@ -30,6 +30,7 @@ __all__ = [
     "check_obstacle_count",
     "json_response",
     "obstacles_within_limit",
+    "run_in_rounds",
     "run_inline",
     "run_job",
     "run_jobs",
@@ -157,9 +158,18 @@ async def run_jobs(
         budget=JobBudget(deadline, max_samples),
         request_id=REQUEST_ID.get(),
     )
+    return await run_in_rounds(pool, job_json, bodies, deadline)
+
+
+async def run_in_rounds(
+    pool: WorkerPool, fn: Callable[[Any], tuple[bytes, Any]], args: Sequence[Any], deadline: float
+) -> list[bytes]:
+    """``fn`` (which answers a job's JSON and its metrics sample, as
+    :func:`planner_api.metrics.run_measured`) over ``args``, in rounds of one job per worker
+    (:func:`run_jobs`): the JSON of each answer, in order, each sample recorded."""
     contents: list[bytes] = []
-    for start in range(0, len(bodies), pool.workers):
-        answers = await pool.map(job_json, bodies[start : start + pool.workers], deadline=deadline)
+    for start in range(0, len(args), pool.workers):
+        answers = await pool.map(fn, args[start : start + pool.workers], deadline=deadline)
         for content, sample in answers:
             record_job(sample)
             contents.append(content)

@@ -21,10 +21,10 @@ from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import JobBudget, answer_sample_limit
 from planner_api.jobs import plan as jobs
 from planner_api.logging import REQUEST_ID
-from planner_api.metrics import record_job
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
+    run_in_rounds,
     run_job,
     run_jobs,
     with_design_defaults,
@@ -37,9 +37,9 @@ from planner_api.routes.worker_body import (
     RouteLimits,
     WorkerBody,
     WorkerBodyRoute,
+    answer_of_worker_body,
     load_json,
     parsed_in_worker,
-    run_worker_body,
     unchanged,
     validate_data,
 )
@@ -151,7 +151,7 @@ async def _run_batch(
         settings.max_trajectory_samples, settings.max_response_bytes, len(body.requests)
     )
     results = await run_jobs(pool, job, body.requests, deadline, max_samples=samples)
-    return json_response(b'{"results":[' + b",".join(results) + b"]}")
+    return _batch_answer(results)
 
 
 async def _batch_large(request: Request, raw: bytes) -> Response:
@@ -179,13 +179,11 @@ async def _batch_large(request: Request, raw: bytes) -> Response:
             )
             for item in items
         ]  # fmt: skip
-        results: list[bytes] = []
-        for start in range(0, len(works), pool.workers):  # in rounds, as run_jobs
-            for _, (content, sample) in await pool.map(
-                run_worker_body, works[start : start + pool.workers], deadline=deadline
-            ):
-                record_job(sample)
-                results.append(content)
+        results = await run_in_rounds(pool, answer_of_worker_body, works, deadline)
+    return _batch_answer(results)
+
+
+def _batch_answer(results: list[bytes]) -> Response:
     return json_response(b'{"results":[' + b",".join(results) + b"]}")
 
 

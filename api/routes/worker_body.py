@@ -45,6 +45,7 @@ __all__ = [
     "RouteLimits",
     "WorkerBody",
     "WorkerBodyRoute",
+    "answer_of_worker_body",
     "load_json",
     "parse_body",
     "parsed_in_worker",
@@ -185,6 +186,14 @@ def run_worker_body(work: WorkerBody) -> tuple[str, Any]:
         return "scene", body
     body = with_design_defaults(body, work.design_defaults)
     return "done", run_measured(work.job, body, budget=work.budget, request_id=work.request_id)
+
+
+def answer_of_worker_body(work: WorkerBody) -> tuple[bytes, Any]:
+    """In a worker: :func:`run_worker_body` of a body known to name no scene (a batch's plans,
+    checked): its (answer bytes, metrics sample)."""
+    kind, value = run_worker_body(work)
+    assert kind == "done"  # the batch's check sends every request naming a scene back
+    return value
 
 
 def parsed_in_worker(spec: BodySpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
