@@ -387,6 +387,8 @@ class JobStore:
             id=row.id,
             kind=row.kind,  # type: ignore[arg-type]
             status=row.status,  # type: ignore[arg-type]
+            created=row.submitted_at,
+            finished=row.finished_at,
             submitted_at=row.submitted_at,
             started_at=row.started_at,
             finished_at=row.finished_at,

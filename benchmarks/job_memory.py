@@ -77,7 +77,7 @@ def main() -> None:
                 sizes.append(len(body))
                 if i % 25 == 0 or i == args.jobs:
                     _, listing, _ = c.request("GET", "/v1/jobs")
-                    kept = sum(j["status"] == "done" for j in json.loads(listing)["jobs"])
+                    kept = sum(j["status"] == "done" for j in json.loads(listing))
                     rows.append((i, _rss_mb(proc.pid), _store_mb(store), kept))
                     print(f"{i} jobs", flush=True)
             print()

@@ -199,7 +199,7 @@ async def submit_job(
 async def list_jobs(store: Jobs, tenant: Tenant) -> JobList:
     """The request's tenant's jobs still kept, oldest first: id, kind, status and times (a
     job's result: ``GET /v1/jobs/{id}``)."""
-    return JobList(jobs=[store.summary(e) for e in await store.list(tenant)])
+    return JobList([store.summary(e) for e in await store.list(tenant)])
 
 
 @router.get("/jobs/{job_id}", response_model=JobStatus, responses=_NOT_FOUND)

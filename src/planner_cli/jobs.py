@@ -102,7 +102,7 @@ def list_jobs(url: UrlOption = None, api_key: KeyOption = None) -> None:
     """List the jobs still kept, oldest first.
 
     One line a job: id, kind, status, submitted and finished (UTC)."""
-    for job in call(url, api_key, "jobs").jobs:
+    for job in call(url, api_key, "jobs").root:
         typer.echo(_line(job))
 
 

@@ -190,7 +190,7 @@ def test_the_client_submits_polls_and_cancels(svc):
             time.sleep(0.02)
         assert PlanResponse.model_validate(status.result).status == "timeout"
         long = client.submit_job("plan", _sleeper(30.0)["request"])
-        listed = client.jobs().jobs  # the listing, oldest first
+        listed = client.jobs().root  # the listing, oldest first
         assert [j.id for j in listed[-2:]] == [submitted.id, long.id]
         assert listed[-2].status == "done" and listed[-1].status in ("queued", "running")
         assert client.cancel_job(long.id).status == "cancelled"

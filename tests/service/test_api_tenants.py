@@ -82,14 +82,17 @@ def test_a_tenants_job_is_404_to_another_and_listings_are_per_tenant(two):
     _same_but(c.delete(f"/v1/jobs/{job['id']}", headers=BOB),
               c.delete(f"/v1/jobs/{never}", headers=BOB), job["id"], never)  # fmt: skip
     assert c.get(f"/v1/jobs/{job['id']}", headers=ALICE).json()["status"] in ("queued", "running")
-    assert c.get("/v1/jobs", headers=BOB).json() == {"jobs": []}
-    (listed,) = c.get("/v1/jobs", headers=ALICE).json()["jobs"]
+    assert c.get("/v1/jobs", headers=BOB).json() == []
+    (listed,) = c.get("/v1/jobs", headers=ALICE).json()
     assert (listed["id"], listed["kind"]) == (job["id"], "plan")
     assert listed["status"] in ("queued", "running") and "result" not in listed
+    # the conventions' names: created (the submit time) and finished (null until it ends)
+    assert listed["created"] == job["submitted_at"] and listed["finished"] is None
     cancelled = c.delete(f"/v1/jobs/{job['id']}", headers=ALICE).json()
     assert cancelled["status"] == "cancelled"
-    (listed,) = c.get("/v1/jobs", headers=ALICE).json()["jobs"]
+    (listed,) = c.get("/v1/jobs", headers=ALICE).json()
     assert listed["status"] == "cancelled" and listed["finished_at"] is not None
+    assert listed["finished"] == listed["finished_at"] >= listed["created"]
 
 
 def test_quotas_refuse_naming_their_setting(client_factory, tmp_path):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, RootModel
 
 from planner.wire.common import _Request, _Response
 from planner.wire.meta import ErrorItem
@@ -81,11 +81,15 @@ class JobStatus(_Response):
 
 
 class JobSummary(_Response):
-    """One job of ``GET /v1/jobs``: its id, kind, state and times (no result)."""
+    """One job of ``GET /v1/jobs``: its id, kind, state and times (no result). ``created`` and
+    ``finished`` are the conventions' names; ``submitted_at`` ... ``expires_at`` the same times
+    under the names of :class:`JobStatus`."""
 
     id: str
     kind: JobKind
     status: JobState
+    created: float = Field(description="When the job was submitted, Unix time, s.")
+    finished: float | None = Field(None, description="When it ended, Unix time, s (null: not yet).")
     submitted_at: float = Field(description="When the job was submitted, Unix time, s.")
     started_at: float | None = Field(None, description="When it started running, Unix s.")
     finished_at: float | None = Field(None, description="When it ended, Unix time, s.")
@@ -94,7 +98,7 @@ class JobSummary(_Response):
     )
 
 
-class JobList(_Response):
-    """Answer of ``GET /v1/jobs``: the jobs of the request's tenant still kept, oldest first."""
-
-    jobs: list[JobSummary]
+class JobList(RootModel[list[JobSummary]]):
+    """Answer of ``GET /v1/jobs``: the jobs of the request's tenant still kept, oldest first,
+    as a JSON array (the conventions' ``[{"id", "kind", "status", "created", "finished"}]``;
+    ``.root`` is the list)."""
