@@ -25,7 +25,6 @@ from planner_api.deps import Pool, SettingsDep, Tenant, get_deadline, get_pool, 
 from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
 from planner_api.job_store import LONG_JOBS, JobStore, Runner
 from planner_api.jobs import Job, JobBudget, answer_sample_limit
-from planner_api.logging import REQUEST_ID
 from planner_api.metrics import record_job
 from planner_api.routes._common import run_job
 from planner_api.routes.plan import plan_job_of
@@ -33,13 +32,12 @@ from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
     BodyInvalidError,
     BodySpec,
-    Limits,
-    WorkerBody,
     WorkerBodyRoute,
     parse_body,
     parsed_in_worker,
     run_worker_body,
     unchanged,
+    worker_body,
 )
 from planner_api.settings import Settings
 from planner_api.workers import WorkerPool
@@ -151,10 +149,7 @@ async def _submit_large(http: Request, raw: bytes) -> Response:
 
     def make_run(job: Job, samples: int | None) -> Runner:
         async def run(deadline: float) -> bytes:
-            work = WorkerBody(
-                model, unchanged, job, inner, Limits.of(settings), settings.design_defaults,
-                JobBudget(deadline, samples), REQUEST_ID.get(),
-            )  # fmt: skip
+            work = worker_body(model, job, inner, settings, JobBudget(deadline, samples))
             _, (content, sample) = await pool.run(run_worker_body, work, deadline=deadline)
             record_job(sample)
             return content

@@ -20,7 +20,6 @@ from planner_api.deps import Deadline, Pool, SettingsDep, get_deadline, get_pool
 from planner_api.exceptions import LimitExceededError
 from planner_api.jobs import JobBudget, answer_sample_limit
 from planner_api.jobs import plan as jobs
-from planner_api.logging import REQUEST_ID
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
@@ -35,13 +34,12 @@ from planner_api.routes.worker_body import (
     BodySpec,
     Limits,
     RouteLimits,
-    WorkerBody,
     WorkerBodyRoute,
     answer_of_worker_body,
     load_json,
     parsed_in_worker,
-    unchanged,
     validate_data,
+    worker_body,
 )
 from planner_api.workers import WorkerPool
 
@@ -172,13 +170,8 @@ async def _batch_large(request: Request, raw: bytes) -> Response:
         samples = answer_sample_limit(
             settings.max_trajectory_samples, settings.max_response_bytes, len(items)
         )
-        works = [
-            WorkerBody(
-                PlanRequest, unchanged, job, item, Limits.of(settings), settings.design_defaults,
-                JobBudget(deadline, samples), REQUEST_ID.get(),
-            )
-            for item in items
-        ]  # fmt: skip
+        budget = JobBudget(deadline, samples)
+        works = [worker_body(PlanRequest, job, item, settings, budget) for item in items]
         results = await run_in_rounds(pool, answer_of_worker_body, works, deadline)
     return _batch_answer(results)
 

@@ -52,6 +52,7 @@ __all__ = [
     "run_worker_body",
     "unchanged",
     "validate_data",
+    "worker_body",
 ]
 
 
@@ -119,6 +120,23 @@ class WorkerBody:
     design_defaults: DesignModel
     budget: JobBudget
     request_id: str | None
+
+
+def worker_body(
+    model: type[BaseModel],
+    job: Job,
+    raw: bytes,
+    settings: Any,
+    budget: JobBudget,
+    prepare: Callable[[Any, RouteLimits], Any] | None = None,
+) -> WorkerBody:
+    """A :class:`WorkerBody` of a route's request: the service's limits and default design
+    from ``settings``, the request id of the request being served; ``prepare`` None: the
+    body's checks were made already (:func:`unchanged`)."""
+    return WorkerBody(
+        model, prepare or unchanged, job, raw, Limits.of(settings), settings.design_defaults,
+        budget, REQUEST_ID.get(),
+    )  # fmt: skip
 
 
 class BodyInvalidError(Exception):
@@ -239,10 +257,7 @@ async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
     job = spec.job(request)
     assert job is not None  # a route with a job of its own has a handle instead
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
-    work = WorkerBody(
-        spec.model, spec.prepare, job, raw, Limits.of(settings), settings.design_defaults,
-        JobBudget(deadline, samples), REQUEST_ID.get(),
-    )  # fmt: skip
+    work = worker_body(spec.model, job, raw, settings, JobBudget(deadline, samples), spec.prepare)
     async with asynccontextmanager(watch_client)(request):
         try:
             kind, value = await pool.run(run_worker_body, work, deadline=deadline)
