@@ -236,14 +236,20 @@ class JobStore:
         """Store a job of ``kind`` for ``tenant`` and start it here (queued until a slot is
         free). 429 when the tenant has ``per_tenant`` unfinished jobs, 503 when the table is
         full of unfinished jobs or the store cannot answer (nothing is started then)."""
-        row = JobRow(id=uuid.uuid4().hex, tenant=tenant, kind=kind, status="queued",
-                     submitted_at=time.time())  # fmt: skip
+        row = JobRow(
+            id=uuid.uuid4().hex, tenant=tenant, kind=kind, status="queued", submitted_at=time.time()
+        )
         retry = max(1, round(min(self.timeout_s, 60.0)))
         await self.access.jobs(
-            lambda t: t.insert(row, self.replica, max_jobs=self.max_jobs,
-                               per_tenant=self.per_tenant, retry_after_s=retry),
+            lambda t: t.insert(
+                row,
+                self.replica,
+                max_jobs=self.max_jobs,
+                per_tenant=self.per_tenant,
+                retry_after_s=retry,
+            ),
             write=True,
-        )  # fmt: skip
+        )
         context = contextvars.copy_context()
         context.run(CLIENT_GONE.set, None)  # the submitting request's client may leave
         loop = asyncio.get_running_loop()
@@ -311,8 +317,7 @@ class JobStore:
                 )
                 return
             except StoreUnavailableError as exc:
-                logger.warning("job %s: its end not stored (try %d): %s", job_id, attempt + 1,
-                               exc)  # fmt: skip
+                logger.warning("job %s: its end not stored (try %d): %s", job_id, attempt + 1, exc)
                 await asyncio.sleep(self.poll_s * 2**attempt)
         logger.error("job %s: its end (%s) could not be stored", job_id, status)
 

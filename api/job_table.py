@@ -166,18 +166,26 @@ class JobTable:
     def _row(self, values: Any, *, now: float, result: Any = None) -> JobRow:
         jid, tenant, kind, status, submitted, started, finished, expires, error = values[:9]
         row = JobRow(
-            id=str(jid), tenant=str(tenant), kind=str(kind), status=str(status),
-            submitted_at=float(submitted), started_at=started, finished_at=finished,
+            id=str(jid),
+            tenant=str(tenant),
+            kind=str(kind),
+            status=str(status),
+            submitted_at=float(submitted),
+            started_at=started,
+            finished_at=finished,
             expires_at=expires,
             error=None if error is None else JobError.model_validate_json(error),
             result=None if result is None else bytes(result),
-        )  # fmt: skip
+        )
         heartbeat = values[9]
         if not row.finished and heartbeat is not None and heartbeat < now - STALE_S:
             row = replace(
-                row, status="failed", finished_at=float(heartbeat),
-                expires_at=float(heartbeat) + self.ttl_s, error=lost_error(_STALE_WHY),
-            )  # fmt: skip
+                row,
+                status="failed",
+                finished_at=float(heartbeat),
+                expires_at=float(heartbeat) + self.ttl_s,
+                error=lost_error(_STALE_WHY),
+            )
         return row
 
     def _housekeeping(self, con: Any, now: float) -> None:
@@ -304,9 +312,16 @@ class JobTable:
             con.execute(
                 f"UPDATE jobs SET status = {p}, result = {p}, bytes = {p}, error = {p}, "
                 f"finished_at = {p}, expires_at = {p} WHERE id = {p} AND status IN {_UNFINISHED}",
-                (status, result, size, None if error is None else error.model_dump_json(),
-                 now, now + self.ttl_s, job_id),
-            )  # fmt: skip
+                (
+                    status,
+                    result,
+                    size,
+                    None if error is None else error.model_dump_json(),
+                    now,
+                    now + self.ttl_s,
+                    job_id,
+                ),
+            )
 
     def cancel(self, tenant: str, job_id: str) -> JobRow | None:
         """Mark a queued or running job of ``tenant`` ``cancelled`` (its owner's poll stops

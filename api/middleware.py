@@ -158,9 +158,12 @@ class RequestGate:
             if host not in self.allowed_hosts:
                 shown = repr(host[:100]) if host else "none was given"
                 await _answer(
-                    send, 400, f"{HOST_NOT_ALLOWED}: {shown}", "host_not_allowed",
+                    send,
+                    400,
+                    f"{HOST_NOT_ALLOWED}: {shown}",
+                    "host_not_allowed",
                     ["header", "host"],
-                )  # fmt: skip
+                )
                 return
         try:
             too_large = int(headers.get("content-length", "0")) > self.max_body_bytes

@@ -328,8 +328,9 @@ class SqliteSceneStore(_SqlStore):
             if not columns:
                 con.execute(_SCHEMA)
             elif "tenant" not in columns:
-                logger.info("migrating the scene store %s: scenes of tenant %r", self.path,
-                            DEFAULT_TENANT)  # fmt: skip
+                logger.info(
+                    "migrating the scene store %s: scenes of tenant %r", self.path, DEFAULT_TENANT
+                )
                 con.execute(f"CREATE TABLE scenes_v2 ({_COLUMNS})")
                 con.execute(
                     "INSERT INTO scenes_v2 (tenant, name, version, hash, body, updated_at, "

@@ -92,10 +92,14 @@ class WatchdogMixin:
         if reason == "deadline":
             logger.warning(
                 "worker %s stopped: its job ran past its deadline (%.2f s after it); starting "
-                "a replacement", worker.process.pid, late_s,
-            )  # fmt: skip
+                "a replacement",
+                worker.process.pid,
+                late_s,
+            )
         else:
             logger.warning(
                 "worker %s stopped: its job was cancelled (%.2f s after the cancel); starting "
-                "a replacement", worker.process.pid, late_s,
-            )  # fmt: skip
+                "a replacement",
+                worker.process.pid,
+                late_s,
+            )

@@ -164,9 +164,13 @@ def _parsed_runner(
 ) -> Runner:
     async def run(deadline: float) -> bytes:
         answer = await run_job(
-            pool, job, request, deadline,
-            design_defaults=settings.design_defaults, max_samples=samples,
-        )  # fmt: skip
+            pool,
+            job,
+            request,
+            deadline,
+            design_defaults=settings.design_defaults,
+            max_samples=samples,
+        )
         return bytes(answer.body)
 
     return run

@@ -92,20 +92,29 @@ def _not_found(name: str) -> HTTPException:
 
 
 _STORE_ERRORS = {
-    503: {"model": ErrorResponse, "description": "The scene store cannot answer in time "
-          "(store_unavailable, with Retry-After): nothing was changed."},
-}  # fmt: skip
+    503: {
+        "model": ErrorResponse,
+        "description": "The scene store cannot answer in time "
+        "(store_unavailable, with Retry-After): nothing was changed.",
+    },
+}
 _NOT_FOUND = {
     **_STORE_ERRORS,
     404: {"model": ErrorResponse, "description": "No scene of this tenant has that name."},
 }
 _QUOTAS = {
     **_STORE_ERRORS,
-    413: {"model": ErrorResponse, "description": "The tenant's stored bytes would pass "
-          "PLANNER_SCENE_BYTES_MAX (quota_exceeded)."},
-    422: {"model": ErrorResponse, "description": "A field breaks a rule, or the tenant's "
-          "scene count would pass PLANNER_SCENES_MAX (quota_exceeded)."},
-}  # fmt: skip
+    413: {
+        "model": ErrorResponse,
+        "description": "The tenant's stored bytes would pass "
+        "PLANNER_SCENE_BYTES_MAX (quota_exceeded).",
+    },
+    422: {
+        "model": ErrorResponse,
+        "description": "A field breaks a rule, or the tenant's "
+        "scene count would pass PLANNER_SCENES_MAX (quota_exceeded).",
+    },
+}
 
 
 def serialise_scene(body: SceneRequest, max_obstacles: int) -> tuple[str, str, int, int]:
@@ -144,9 +153,14 @@ async def _put_large_scene(request: Request, raw: bytes) -> Response:
     name = request.path_params["name"]
     if re.fullmatch(SCENE_NAME_PATTERN, name) is None:
         raise RequestValidationError(
-            [{"loc": ("path", "name"), "type": "string_pattern_mismatch",
-              "msg": f"String should match pattern '{SCENE_NAME_PATTERN}'"}]
-        )  # fmt: skip
+            [
+                {
+                    "loc": ("path", "name"),
+                    "type": "string_pattern_mismatch",
+                    "msg": f"String should match pattern '{SCENE_NAME_PATTERN}'",
+                }
+            ]
+        )
     tenant = await request_tenant(request)
     settings = request.app.state.settings
     pool, deadline = await get_pool(request), await get_deadline(request)

@@ -78,9 +78,11 @@ class Limits:
     @classmethod
     def of(cls, settings: RouteLimits) -> Limits:
         return cls(
-            settings.max_obstacles, settings.max_sequence_targets, settings.max_batch,
+            settings.max_obstacles,
+            settings.max_sequence_targets,
+            settings.max_batch,
             settings.request_timeout_s,
-        )  # fmt: skip
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,9 +136,15 @@ def worker_body(
     from ``settings``, the request id of the request being served; ``prepare`` None: the
     body's checks were made already (:func:`unchanged`)."""
     return WorkerBody(
-        model, prepare or unchanged, job, raw, Limits.of(settings), settings.design_defaults,
-        budget, REQUEST_ID.get(),
-    )  # fmt: skip
+        model,
+        prepare or unchanged,
+        job,
+        raw,
+        Limits.of(settings),
+        settings.design_defaults,
+        budget,
+        REQUEST_ID.get(),
+    )
 
 
 class BodyInvalidError(Exception):
@@ -172,14 +180,24 @@ def load_json(raw: bytes) -> Any:
         ) from None
     except RecursionError:
         raise BodyInvalidError(
-            [{"loc": ["body"], "msg": "the body is nested too deeply to read",
-              "type": "json_too_deep"}]
-        ) from None  # fmt: skip
+            [
+                {
+                    "loc": ["body"],
+                    "msg": "the body is nested too deeply to read",
+                    "type": "json_too_deep",
+                }
+            ]
+        ) from None
     except ValueError as exc:  # an integer longer than Python converts (sys.int_info)
         raise BodyInvalidError(
-            [{"loc": ["body"], "type": "number_too_long",
-              "msg": f"a number in the body is too long to read ({str(exc).split(';')[0]})"}]
-        ) from None  # fmt: skip
+            [
+                {
+                    "loc": ["body"],
+                    "type": "number_too_long",
+                    "msg": f"a number in the body is too long to read ({str(exc).split(';')[0]})",
+                }
+            ]
+        ) from None
 
 
 def validate_data(model: type[BaseModel], data: Any) -> Any:
@@ -267,9 +285,13 @@ async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
             assert spec.resolve_scene is not None  # a model without a scene has none to name
             body = await spec.resolve_scene(request, value)
             return await run_job(
-                pool, job, body, deadline,
-                design_defaults=settings.design_defaults, max_samples=samples,
-            )  # fmt: skip
+                pool,
+                job,
+                body,
+                deadline,
+                design_defaults=settings.design_defaults,
+                max_samples=samples,
+            )
     content, sample = value
     record_job(sample)
     return json_response(content)

@@ -44,8 +44,10 @@ def _when(stamp: float | None) -> str:
 
 
 def _line(job: Any) -> str:
-    return (f"{job.id}\t{job.kind}\t{job.status}\tsubmitted {_when(job.submitted_at)}\t"
-            f"finished {_when(job.finished_at)}")  # fmt: skip
+    return (
+        f"{job.id}\t{job.kind}\t{job.status}\tsubmitted {_when(job.submitted_at)}\t"
+        f"finished {_when(job.finished_at)}"
+    )
 
 
 @reported
@@ -90,8 +92,9 @@ def status(
     job = call(url, api_key, "job", job_id)
     typer.echo(_line(job))
     if job.status == "failed" and job.error is not None:
-        fail([f"{job.error.status_code} {d.type}: {d.msg}" for d in job.error.detail],
-             EXIT_NO_ANSWER)  # fmt: skip
+        fail(
+            [f"{job.error.status_code} {d.type}: {d.msg}" for d in job.error.detail], EXIT_NO_ANSWER
+        )
     if out is not None and job.status == "done":
         out.write_text(json.dumps(job.result, indent=2))
         typer.echo(f"{job.id}: result written to {out}", err=True)

@@ -55,7 +55,11 @@ def call(url: str | None, api_key: str | None, method: str, *args: Any, **kwargs
     except NotFoundError as exc:
         fail([str(exc)], EXIT_NO_ANSWER)
     except TransportError as exc:
-        fail([f"no planning service answers at {base_url(url)} ({exc}): start one with "
-              "'planner serve', or name its URL with --url or PLANNER_URL"])  # fmt: skip
+        fail(
+            [
+                f"no planning service answers at {base_url(url)} ({exc}): start one with "
+                "'planner serve', or name its URL with --url or PLANNER_URL"
+            ]
+        )
     except PlannerClientError as exc:
         fail([str(exc)], EXIT_BAD_INPUT)

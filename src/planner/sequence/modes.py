@@ -215,10 +215,22 @@ def choose_modes(
         # a target with no candidate in its own working mode (unreachable there, or invalid):
         # no assignment exists; the targets as given say which and why
         return solve_with_goals(
-            design, start, targets, goals, stops, cycle, t0,
-            obstacles=obstacles, margins=margins, options=options, timing=timing,
-            limits=limits, deadline=deadline, inertia=inertia, gravity=gravity,
-        )  # fmt: skip
+            design,
+            start,
+            targets,
+            goals,
+            stops,
+            cycle,
+            t0,
+            obstacles=obstacles,
+            margins=margins,
+            options=options,
+            timing=timing,
+            limits=limits,
+            deadline=deadline,
+            inertia=inertia,
+            gravity=gravity,
+        )
     blends = [
         (0.0 if stops[i] or i >= n else targets[i].blend + timing.max_deviation)
         for i in range(len(goals))

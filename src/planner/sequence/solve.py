@@ -550,11 +550,25 @@ def solve_with_goals(
     if not (compare_stops and exact_at):
         return result
     stopped = solve_with_goals(
-        design, start, targets, goals, [s or e for s, e in zip(stops, exact, strict=True)],
-        cycle, t0, obstacles=obstacles, margins=margins, options=options, timing=timing,
-        limits=limits, deadline=deadline, inertia=inertia, gravity=gravity,
-        plan_cache=plan_cache, extra=extra, compare_stops=False,
-    )  # fmt: skip
+        design,
+        start,
+        targets,
+        goals,
+        [s or e for s, e in zip(stops, exact, strict=True)],
+        cycle,
+        t0,
+        obstacles=obstacles,
+        margins=margins,
+        options=options,
+        timing=timing,
+        limits=limits,
+        deadline=deadline,
+        inertia=inertia,
+        gravity=gravity,
+        plan_cache=plan_cache,
+        extra=extra,
+        compare_stops=False,
+    )
     return _quicker_with_stops(result, stopped, exact_at)
 
 

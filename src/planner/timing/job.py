@@ -178,6 +178,19 @@ def validate_inputs(
                 f"limits.torque[{j}] = {limits.torque[j]:.6g} N m"
             )
     return TimingJob(
-        design, w, limits, str(method), str(assembly_mode), rate, v_cart, dev_in, stop,
-        check_states, resolution, deadline, cap, torque, via,
-    )  # fmt: skip
+        design,
+        w,
+        limits,
+        str(method),
+        str(assembly_mode),
+        rate,
+        v_cart,
+        dev_in,
+        stop,
+        check_states,
+        resolution,
+        deadline,
+        cap,
+        torque,
+        via,
+    )
