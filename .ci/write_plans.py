@@ -19,12 +19,22 @@ ROOT = Path(__file__).resolve().parents[1]
 #: How long the service may take to warm its worker, s (as tests/conftest.py).
 READY_TIMEOUT_S = 300.0
 
-DESIGN = {"L0": 0.5, "L1": 0.2, "L2": 0.6, "link_radius": 0.02,
-          "joint_min": [-3.141592653589793] * 3, "joint_max": [3.141592653589793] * 3}  # fmt: skip
+DESIGN = {
+    "L0": 0.5,
+    "L1": 0.2,
+    "L2": 0.6,
+    "link_radius": 0.02,
+    "joint_min": [-3.141592653589793] * 3,
+    "joint_max": [3.141592653589793] * 3,
+}
 MARGINS = {"kappa_max": 10.0, "serial_min": 0.05, "clearance": 0.01}
 START = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
-COMMON = {"design": DESIGN, "start": START, "margins": MARGINS,
-          "planner": {"seed": 1, "time_budget_s": 5.0}}  # fmt: skip
+COMMON = {
+    "design": DESIGN,
+    "start": START,
+    "margins": MARGINS,
+    "planner": {"seed": 1, "time_budget_s": 5.0},
+}
 SCENES = {
     "free_space": {"goal": {"q": [0.5, 2.2, 1.1], "assembly_mode": "+"}},
     "obstacles": {

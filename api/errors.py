@@ -154,10 +154,11 @@ async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         if isinstance(cause, ValueError) and "integer string conversion" in str(cause):
             # valid JSON, but an integer longer than Python converts (sys.int_info)
             return error_response(
-                422, f"a number in the body is too long to read ({str(cause).split(';')[0]})",
+                422,
+                f"a number in the body is too long to read ({str(cause).split(';')[0]})",
                 "number_too_long",
                 ("body",),
-            )  # fmt: skip
+            )
         if isinstance(cause, RecursionError):
             return error_response(
                 422, "the body is nested too deeply to read", "json_too_deep", ("body",)

@@ -158,23 +158,27 @@ class _PoolCollector:
         for name, (doc, value) in values.items():
             yield GaugeMetricFamily(name, doc, value=value)
         yield CounterMetricFamily(
-            "planner_pool_rejected", "Jobs refused because the pool was full (503).",
+            "planner_pool_rejected",
+            "Jobs refused because the pool was full (503).",
             value=pool.rejected,
-        )  # fmt: skip
+        )
         yield CounterMetricFamily(
-            "planner_pool_worker_restarts", "Worker processes that died and were replaced.",
+            "planner_pool_worker_restarts",
+            "Worker processes that died and were replaced.",
             value=pool.restarts,
-        )  # fmt: skip
+        )
         yield CounterMetricFamily(
-            "planner_pool_worker_kills", "Workers killed because their job ran past its "
+            "planner_pool_worker_kills",
+            "Workers killed because their job ran past its "
             "deadline plus the overrun grace, or was cancelled (replaced warm).",
             value=pool.kills,
-        )  # fmt: skip
+        )
         yield CounterMetricFamily(
-            "planner_pool_worker_recycles", "Workers recycled because their memory after a "
+            "planner_pool_worker_recycles",
+            "Workers recycled because their memory after a "
             "job exceeded PLANNER_WORKER_MAX_RSS_MB (replacement warm first).",
             value=pool.recycles,
-        )  # fmt: skip
+        )
 
 
 class Metrics:
@@ -193,32 +197,43 @@ class Metrics:
         self.registry = CollectorRegistry(auto_describe=True)
         r = self.registry
         self.requests = Counter(
-            "planner_http_requests", "HTTP requests answered.", ["method", "route", "status"],
+            "planner_http_requests",
+            "HTTP requests answered.",
+            ["method", "route", "status"],
             registry=r,
-        )  # fmt: skip
+        )
         self.latency = Histogram(
             "planner_http_request_duration_seconds",
             "Time from a request's arrival to its last byte, s.",
-            ["method", "route"], buckets=DURATION_BUCKETS, registry=r,
-        )  # fmt: skip
+            ["method", "route"],
+            buckets=DURATION_BUCKETS,
+            registry=r,
+        )
         self.in_progress = Gauge(
             "planner_http_requests_in_progress", "Requests being served.", registry=r
         )
         self.job_seconds = Histogram(
-            "planner_job_duration_seconds", "Time of a job in its worker process, s.", ["job"],
-            buckets=DURATION_BUCKETS, registry=r,
-        )  # fmt: skip
+            "planner_job_duration_seconds",
+            "Time of a job in its worker process, s.",
+            ["job"],
+            buckets=DURATION_BUCKETS,
+            registry=r,
+        )
         self.plan_outcomes = Counter(
             "planner_plan_outcomes", "Finished plans by status.", ["status"], registry=r
         )
         self.planning_seconds = Histogram(
-            "planner_planning_duration_seconds", "The planner's search, s.",
-            buckets=DURATION_BUCKETS, registry=r,
-        )  # fmt: skip
+            "planner_planning_duration_seconds",
+            "The planner's search, s.",
+            buckets=DURATION_BUCKETS,
+            registry=r,
+        )
         self.timing_seconds = Histogram(
-            "planner_timing_duration_seconds", "Time parameterisation of a path, s.",
-            buckets=DURATION_BUCKETS, registry=r,
-        )  # fmt: skip
+            "planner_timing_duration_seconds",
+            "Time parameterisation of a path, s.",
+            buckets=DURATION_BUCKETS,
+            registry=r,
+        )
         Gauge("planner_build_info", "Service version.", ["version"], registry=r).labels(
             version
         ).set(1)

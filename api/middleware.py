@@ -176,18 +176,25 @@ class RequestGate:
         if guarded and self.api_keys is not None:
             if tenant_of(headers, self.api_keys) is None:
                 await _answer(
-                    send, 401, API_KEY_REQUIRED,
-                    "unauthorized", [], [(b"www-authenticate", b"Bearer")],
-                )  # fmt: skip
+                    send,
+                    401,
+                    API_KEY_REQUIRED,
+                    "unauthorized",
+                    [],
+                    [(b"www-authenticate", b"Bearer")],
+                )
                 return
         if guarded and scope.get("method") in _BODY_METHODS and _route_takes(scope):
             content_type = headers.get("content-type", "")
             if not _is_json(content_type):
                 got = f"got {content_type!r}" if content_type else "none was given"
                 await _answer(
-                    send, 415, f"the body must be JSON: send Content-Type: application/json "
-                    f"({got})", "unsupported_media_type", ["header", "content-type"],
-                )  # fmt: skip
+                    send,
+                    415,
+                    f"the body must be JSON: send Content-Type: application/json ({got})",
+                    "unsupported_media_type",
+                    ["header", "content-type"],
+                )
                 return
         chunks: list[bytes] = []
         outcome = ""  # why the body is not there: "timeout", "too_large" or "disconnect"
@@ -212,9 +219,13 @@ class RequestGate:
             outcome = "timeout"
         if outcome == "timeout":
             await _answer(
-                send, 408, f"the request body did not arrive within {self.body_timeout_s:g} s",
-                "body_timeout", ["body"], [(b"connection", b"close")],
-            )  # fmt: skip
+                send,
+                408,
+                f"the request body did not arrive within {self.body_timeout_s:g} s",
+                "body_timeout",
+                ["body"],
+                [(b"connection", b"close")],
+            )
             return
         if outcome == "too_large":
             await self._too_large(send)
@@ -238,9 +249,13 @@ class RequestGate:
 
     async def _too_large(self, send: Send) -> None:
         await _answer(
-            send, 413, f"the request body exceeds {self.max_body_bytes} bytes",
-            "body_too_large", ["body"], [(b"connection", b"close")],
-        )  # fmt: skip
+            send,
+            413,
+            f"the request body exceeds {self.max_body_bytes} bytes",
+            "body_too_large",
+            ["body"],
+            [(b"connection", b"close")],
+        )
 
 
 async def _answer(

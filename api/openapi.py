@@ -133,25 +133,29 @@ def install_docs(app: FastAPI) -> None:
 
     @app.get("/docs", include_in_schema=False)
     def swagger() -> HTMLResponse:
-        return _with_policy(get_swagger_ui_html(
-            openapi_url="/openapi.json",
-            title=title,
-            swagger_js_url="/static/docs/swagger-ui-bundle.js",
-            swagger_css_url="/static/docs/swagger-ui.css",
-            swagger_favicon_url="/static/docs/favicon-32x32.png",
-            # no badge: Swagger UI would send the schema to an outside validator
-            swagger_ui_parameters={"validatorUrl": None},
-        ))  # fmt: skip
+        return _with_policy(
+            get_swagger_ui_html(
+                openapi_url="/openapi.json",
+                title=title,
+                swagger_js_url="/static/docs/swagger-ui-bundle.js",
+                swagger_css_url="/static/docs/swagger-ui.css",
+                swagger_favicon_url="/static/docs/favicon-32x32.png",
+                # no badge: Swagger UI would send the schema to an outside validator
+                swagger_ui_parameters={"validatorUrl": None},
+            )
+        )
 
     @app.get("/redoc", include_in_schema=False)
     def redoc() -> HTMLResponse:
-        return _with_policy(get_redoc_html(
-            openapi_url="/openapi.json",
-            title=title,
-            redoc_js_url="/static/docs/redoc.standalone.js",
-            redoc_favicon_url="/static/docs/favicon-32x32.png",
-            with_google_fonts=False,
-        ))  # fmt: skip
+        return _with_policy(
+            get_redoc_html(
+                openapi_url="/openapi.json",
+                title=title,
+                redoc_js_url="/static/docs/redoc.standalone.js",
+                redoc_favicon_url="/static/docs/favicon-32x32.png",
+                with_google_fonts=False,
+            )
+        )
 
 
 def _with_policy(page: HTMLResponse) -> HTMLResponse:
@@ -159,17 +163,19 @@ def _with_policy(page: HTMLResponse) -> HTMLResponse:
     its own inline script by hash, inline styles (Swagger UI and ReDoc style their elements
     from script), images as data URLs, ReDoc's worker from a blob; framed by no one."""
     html = bytes(page.body).decode()
-    policy = "; ".join([
-        "default-src 'self'",
-        f"script-src 'self' {script_hashes(html)}".strip(),
-        "style-src 'self' 'unsafe-inline'",
-        "img-src 'self' data:",
-        "worker-src 'self' blob:",
-        "connect-src 'self'",
-        "object-src 'none'",
-        "base-uri 'none'",
-        "form-action 'none'",
-        "frame-ancestors 'none'",
-    ])  # fmt: skip
+    policy = "; ".join(
+        [
+            "default-src 'self'",
+            f"script-src 'self' {script_hashes(html)}".strip(),
+            "style-src 'self' 'unsafe-inline'",
+            "img-src 'self' data:",
+            "worker-src 'self' blob:",
+            "connect-src 'self'",
+            "object-src 'none'",
+            "base-uri 'none'",
+            "form-action 'none'",
+            "frame-ancestors 'none'",
+        ]
+    )
     page.headers["Content-Security-Policy"] = policy
     return page

@@ -145,9 +145,13 @@ class SceneRow:
     def info(self) -> dict[str, Any]:
         """The fields of :class:`planner.wire.SceneInfo`."""
         return {
-            "name": self.name, "version": self.version, "hash": self.hash,
-            "updated_at": self.updated_at, "obstacles": self.obstacles, "points": self.points,
-        }  # fmt: skip
+            "name": self.name,
+            "version": self.version,
+            "hash": self.hash,
+            "updated_at": self.updated_at,
+            "obstacles": self.obstacles,
+            "points": self.points,
+        }
 
 
 class SceneStore(Protocol):

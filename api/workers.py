@@ -274,12 +274,17 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         process = self._ctx.Process(
             target=worker_main,
             args=(
-                jobs_out, answers_in, os.getpid(), self._log_setup, self._warm_up,
-                self.max_rss_bytes, self.nice,
+                jobs_out,
+                answers_in,
+                os.getpid(),
+                self._log_setup,
+                self._warm_up,
+                self.max_rss_bytes,
+                self.nice,
             ),
             name="planner-worker",
             daemon=True,
-        )  # fmt: skip
+        )
         try:
             process.start()
         except BaseException:
@@ -470,8 +475,10 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         logger.info(
             "worker %s holds %.0f MB after its job (more than PLANNER_WORKER_MAX_RSS_MB = %.0f):"
             " recycling it once a replacement is warm",
-            worker.process.pid, rss / 2**20, self.max_rss_bytes / 2**20,  # type: ignore[operator]
-        )  # fmt: skip
+            worker.process.pid,
+            rss / 2**20,
+            self.max_rss_bytes / 2**20,  # type: ignore[operator]
+        )
         self._spawn_requests.put((0.0, worker))
 
     def _retire_locked(self, worker: Worker) -> None:

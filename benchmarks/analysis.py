@@ -133,12 +133,16 @@ def main() -> None:
     rows_f = figure_rows(args.figure_repeat)
     width = max(len(r[0]) for r in rows_f)
     print()
-    print(f"{'figure (PNG, 80 dpi)'.ljust(width)}  cold n={screen} [s]  cold n={printed} [s]  "
-          f"cached n={screen} [s]  goal [s]  ok")  # fmt: skip
+    print(
+        f"{'figure (PNG, 80 dpi)'.ljust(width)}  cold n={screen} [s]  cold n={printed} [s]  "
+        f"cached n={screen} [s]  goal [s]  ok"
+    )
     for name, cold, cold_print, cached in rows_f:
         ok = "yes" if cold < FIGURE_GOAL_S else "NO"
-        print(f"{name.ljust(width)}  {cold:14.3f}  {cold_print:15.3f}  {cached:16.4f}  "
-              f"{FIGURE_GOAL_S:8.1f}  {ok}")  # fmt: skip
+        print(
+            f"{name.ljust(width)}  {cold:14.3f}  {cold_print:15.3f}  {cached:16.4f}  "
+            f"{FIGURE_GOAL_S:8.1f}  {ok}"
+        )
 
 
 if __name__ == "__main__":

@@ -90,10 +90,13 @@ def _drops(url: str, stop: threading.Event, period_s: float) -> None:
 BIG_PLAN = {
     **SMALL,
     "obstacles": [
-        {"type": "points", "radius": 0.01,
-         "points": [[3.0 + 1e-6 * i, 3.0 + 1e-3 * (i % 1000), 3.0] for i in range(200_000)]}
+        {
+            "type": "points",
+            "radius": 0.01,
+            "points": [[3.0 + 1e-6 * i, 3.0 + 1e-3 * (i % 1000), 3.0] for i in range(200_000)],
+        }
     ],
-}  # fmt: skip
+}
 
 
 def _bodies(url: str, stop: threading.Event, clients: int = 16) -> None:
@@ -147,10 +150,12 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=10.0, help="seconds per window")
     ap.add_argument("--seconds", type=float, default=60.0, help="disturbed seconds per kind")
     ap.add_argument(
-        "--inline-parse-bytes", type=int, default=None,
+        "--inline-parse-bytes",
+        type=int,
+        default=None,
         help="PLANNER_INLINE_PARSE_BYTES (default: the service's); 1073741824 parses every "
         "body on the event loop, as before large bodies went to the workers",
-    )  # fmt: skip
+    )
     ap.add_argument("--kinds", default="pairs,drops,bodies", help="disturbances, comma-separated")
     args = ap.parse_args()
     print(f"# availability under kills ({machine_line()})")
@@ -199,8 +204,10 @@ def main() -> None:
                 rate = len(lat) / seconds
                 ratio = rate / (len(calm) / seconds)
                 extra = f"{kills:.0f} | {fewest:.0f}" if name == kind else "|"
-                print(f"| {kind} | {name} | {rate:.1f} | {1e3 * q[49]:.1f} | {1e3 * q[98]:.1f} "
-                      f"| {ratio:.2f} | {extra} |")  # fmt: skip
+                print(
+                    f"| {kind} | {name} | {rate:.1f} | {1e3 * q[49]:.1f} | {1e3 * q[98]:.1f} "
+                    f"| {ratio:.2f} | {extra} |"
+                )
     finally:
         probe.close()
         proc.terminate()

@@ -92,12 +92,18 @@ def main() -> None:
     print_machine()
     designs = [("default", Design.default()), ("L0=.6 L1=.25 L2=.45", Design(0.6, 0.25, 0.45))]
     # warm the kernels and solvers outside the figures
-    plan_cartesian(Design.default(), starts(Design.default(), np.random.default_rng(1), 1)[0],
-                   [[0.5, 0.1, 0.1]], timing=args.method)  # fmt: skip
+    plan_cartesian(
+        Design.default(),
+        starts(Design.default(), np.random.default_rng(1), 1)[0],
+        [[0.5, 0.1, 0.1]],
+        timing=args.method,
+    )
     print(f"timing: {args.method}, tool speed 0.25 m/s, path tolerance 1 mm")
-    print(f"{'design':<22} {'kind':<18} {'success':>9} {'fraction':>8} {'p50 ms':>8} "
-          f"{'p95 ms':>8} {'cpu p50':>8} {'solved p50':>10} {'max dev mm':>10} "
-          f"{'waypts':>8}")  # fmt: skip
+    print(
+        f"{'design':<22} {'kind':<18} {'success':>9} {'fraction':>8} {'p50 ms':>8} "
+        f"{'p95 ms':>8} {'cpu p50':>8} {'solved p50':>10} {'max dev mm':>10} "
+        f"{'waypts':>8}"
+    )
     goal = None
     for name, design in designs:
         for kind in ("line 0.3 m", "3-point polyline"):

@@ -95,8 +95,17 @@ def numpy_torques(design, inertia, q, passive, qd, qdd, gravity):
         jw = np.zeros_like(q)
         ju[:, j] = -a * s
         jw[:, j] = a * c
-        translation(prox.mass, sign * half + a * c, a * s, -a * s * d, a * c * d,
-                    a * (-dd * s - d**2 * c), a * (dd * c - d**2 * s), ju, jw)  # fmt: skip
+        translation(
+            prox.mass,
+            sign * half + a * c,
+            a * s,
+            -a * s * d,
+            a * c * d,
+            a * (-dd * s - d**2 * c),
+            a * (dd * c - d**2 * s),
+            ju,
+            jw,
+        )
         jphi = np.zeros_like(q)
         jphi[:, j] = 1.0
         rotation(prox, t2 if j == 1 else t3, d, dd, jphi)
@@ -245,8 +254,9 @@ def timing(paths: int, rng: np.random.Generator, repeats: int = 3) -> None:
             dyn, grav = model.split(q, qd, qdd)
             peak = np.nanmax(np.abs(dyn + grav), axis=0)
             limit = np.maximum(0.6 * peak, 1.3 * np.nanmax(np.abs(grav), axis=0))
-            limits = JointLimits(velocity=base.velocity, acceleration=base.acceleration,
-                                 torque=tuple(limit.tolist()))  # fmt: skip
+            limits = JointLimits(
+                velocity=base.velocity, acceleration=base.acceleration, torque=tuple(limit.tolist())
+            )
             limited = time_path(design, w, limits)
         except TimingError:
             continue
@@ -267,19 +277,29 @@ def timing(paths: int, rng: np.random.Generator, repeats: int = 3) -> None:
         print("no path could be timed")
         return
     t_free, t_lim, ratio, repairs = (np.array(x) for x in zip(*rows, strict=True))
-    print(f"torque-limited toppra, {len(rows)} seeded 20-waypoint paths (default design; CPU "
-          f"time of this process, the best of {repeats} interleaved runs per path)")  # fmt: skip
+    print(
+        f"torque-limited toppra, {len(rows)} seeded 20-waypoint paths (default design; CPU "
+        f"time of this process, the best of {repeats} interleaved runs per path)"
+    )
     print(f"{'':<44} {'p50':>10} {'p95':>10}")
-    print(f"{'velocity/acceleration only [ms]':<44} {np.median(t_free) * 1e3:>10.1f} "
-          f"{np.percentile(t_free, 95) * 1e3:>10.1f}")  # fmt: skip
-    print(f"{'with torque limits [ms]':<44} {np.median(t_lim) * 1e3:>10.1f} "
-          f"{np.percentile(t_lim, 95) * 1e3:>10.1f}")  # fmt: skip
+    print(
+        f"{'velocity/acceleration only [ms]':<44} {np.median(t_free) * 1e3:>10.1f} "
+        f"{np.percentile(t_free, 95) * 1e3:>10.1f}"
+    )
+    print(
+        f"{'with torque limits [ms]':<44} {np.median(t_lim) * 1e3:>10.1f} "
+        f"{np.percentile(t_lim, 95) * 1e3:>10.1f}"
+    )
     cost = t_lim / t_free
-    print(f"{'time ratio torque / velocity-only':<44} {np.median(cost):>10.2f} "
-          f"{np.percentile(cost, 95):>10.2f}   goal <= 1.5: "
-          f"{'met' if np.median(cost) <= 1.5 else 'NOT met'} (p50)")  # fmt: skip
-    print(f"{'duration torque-optimal / uniform slow-down':<44} {np.median(ratio):>10.3f} "
-          f"{np.percentile(ratio, 95):>10.3f}   (max {np.max(ratio):.3f})")  # fmt: skip
+    print(
+        f"{'time ratio torque / velocity-only':<44} {np.median(cost):>10.2f} "
+        f"{np.percentile(cost, 95):>10.2f}   goal <= 1.5: "
+        f"{'met' if np.median(cost) <= 1.5 else 'NOT met'} (p50)"
+    )
+    print(
+        f"{'duration torque-optimal / uniform slow-down':<44} {np.median(ratio):>10.3f} "
+        f"{np.percentile(ratio, 95):>10.3f}   (max {np.max(ratio):.3f})"
+    )
     print(f"{'repairs':<44} {np.median(repairs):>10.0f} {np.max(repairs):>10.0f}")
 
 

@@ -51,10 +51,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "store.sqlite3"
         settings = {
-            "PLANNER_WORKERS": "2", "PLANNER_SCENE_STORE": str(store),
-            "PLANNER_JOBS_MAX_MB": str(args.jobs_max_mb), "PLANNER_MAX_JOBS": "1000",
-            "PLANNER_JOBS_PER_TENANT": "1000", "PLANNER_MAX_TRAJECTORY_SAMPLES": "70000",
-        }  # fmt: skip
+            "PLANNER_WORKERS": "2",
+            "PLANNER_SCENE_STORE": str(store),
+            "PLANNER_JOBS_MAX_MB": str(args.jobs_max_mb),
+            "PLANNER_MAX_JOBS": "1000",
+            "PLANNER_JOBS_PER_TENANT": "1000",
+            "PLANNER_MAX_TRAJECTORY_SAMPLES": "70000",
+        }
         proc, url = start_service(settings, quiet=True)
         try:
             c = LightClient(url, timeout_s=120)
@@ -81,8 +84,10 @@ def main() -> None:
                     rows.append((i, _rss_mb(proc.pid), _store_mb(store), kept))
                     print(f"{i} jobs", flush=True)
             print()
-            print(f"result of one job: {sizes[0] / 2**20:.1f} MB; PLANNER_JOBS_MAX_MB = "
-                  f"{args.jobs_max_mb:g}; server at start {base:.0f} MB")  # fmt: skip
+            print(
+                f"result of one job: {sizes[0] / 2**20:.1f} MB; PLANNER_JOBS_MAX_MB = "
+                f"{args.jobs_max_mb:g}; server at start {base:.0f} MB"
+            )
             print()
             print(
                 "| jobs done | server RSS MB | over the start, MB | store file MB | results kept |"

@@ -33,14 +33,24 @@ from planner_api.middleware import RequestObserver
 
 
 async def _endpoint(scope, receive, send) -> None:  # type: ignore[no-untyped-def]
-    await send({"type": "http.response.start", "status": 200,
-                "headers": [(b"content-type", b"application/json")]})  # fmt: skip
+    await send(
+        {
+            "type": "http.response.start",
+            "status": 200,
+            "headers": [(b"content-type", b"application/json")],
+        }
+    )
     await send({"type": "http.response.body", "body": b"{}"})
 
 
 def _time_asgi(app: Callable[..., Awaitable[None]], n: int, batch: int = 500) -> float:
-    scope = {"type": "http", "method": "POST", "path": "/v1/fk", "headers": [
-        (b"x-request-id", b"bench-1")], "client": ("127.0.0.1", 1)}  # fmt: skip
+    scope = {
+        "type": "http",
+        "method": "POST",
+        "path": "/v1/fk",
+        "headers": [(b"x-request-id", b"bench-1")],
+        "client": ("127.0.0.1", 1),
+    }
 
     async def receive() -> dict:
         return {"type": "http.request", "body": b"", "more_body": False}

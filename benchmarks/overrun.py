@@ -72,10 +72,14 @@ def main() -> None:
     args = parser.parse_args()
     print_machine()
     proc, url = start_service(
-        {"PLANNER_WORKERS": "1", "PLANNER_REQUEST_TIMEOUT_S": str(args.timeout),
-         "PLANNER_OVERRUN_GRACE_S": str(args.grace)},
-        ready_s=600, quiet=True,
-    )  # fmt: skip
+        {
+            "PLANNER_WORKERS": "1",
+            "PLANNER_REQUEST_TIMEOUT_S": str(args.timeout),
+            "PLANNER_OVERRUN_GRACE_S": str(args.grace),
+        },
+        ready_s=600,
+        quiet=True,
+    )
     port = int(url.rsplit(":", 1)[1])
     try:
         wait_ready(url, 600)

@@ -225,9 +225,13 @@ def build_mode_change_queries(
                     )
                     for qt in qs[free.is_valid(qs)] if len(qs) else []:
                         c = crossing_through(
-                            design, qt, assembly_mode=asm, flipped=flipped,
-                            sign_before=1 if before[j] == "+" else -1, margin=0.0525,
-                        )  # fmt: skip
+                            design,
+                            qt,
+                            assembly_mode=asm,
+                            flipped=flipped,
+                            sign_before=1 if before[j] == "+" else -1,
+                            margin=0.0525,
+                        )
                         if c is None or not (
                             chk_b.is_valid_one(*c.q_in) and chk_a.is_valid_one(*c.q_out)
                         ):
@@ -292,9 +296,15 @@ def run_product(
             transits.append(len(res.path.transits))
         proven += res.diagnostics.proven_infeasible
     return dict(
-        times=times, lengths=lengths, solved=solved, direct=direct, n=len(queries),
-        transits=transits, proven=proven, guided=guided,
-    )  # fmt: skip
+        times=times,
+        lengths=lengths,
+        solved=solved,
+        direct=direct,
+        n=len(queries),
+        transits=transits,
+        proven=proven,
+        guided=guided,
+    )
 
 
 def run_naive(kind: str, queries, budget: float, resolution: float, defaults: bool) -> dict:
@@ -408,8 +418,10 @@ def map_rows(args, options: PlanOptions) -> None:
     from planner.analysis import regions as R
 
     print("\nregion map in the planner (options.region_map on / off)")
-    print(f"{'scene':<34} {'n':>4} {'map':>4} {'solved':>6} {'proven':>6} {'p50 ms':>8} "
-          f"{'p95 ms':>8} {'max ms':>8}")  # fmt: skip
+    print(
+        f"{'scene':<34} {'n':>4} {'map':>4} {'solved':>6} {'proven':>6} {'p50 ms':>8} "
+        f"{'p95 ms':>8} {'max ms':>8}"
+    )
     five = replace(options, time_budget_s=5.0)
     queries = disconnected_queries(args.queries)
     for label, cold in (("disconnected, map cached", False), ("disconnected, map cold", True)):
@@ -422,8 +434,10 @@ def map_rows(args, options: PlanOptions) -> None:
             times.append(time.perf_counter() - t0)
             proven += res.diagnostics.proven_infeasible
         t = np.asarray(times) * 1e3
-        print(f"{label + ' (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
-              f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}")  # fmt: skip
+        print(
+            f"{label + ' (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
+            f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}"
+        )
     wall_design, plates, _ = build_scene("wall")
     times, proven = [], 0
     for start, goal in wall_queries(args.queries):
@@ -432,8 +446,10 @@ def map_rows(args, options: PlanOptions) -> None:
         times.append(time.perf_counter() - t0)
         proven += res.diagnostics.proven_infeasible
     t = np.asarray(times) * 1e3
-    print(f"{'wall of plates (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
-          f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}")  # fmt: skip
+    print(
+        f"{'wall of plates (5 s budget)':<34} {len(t):>4} {'on':>4} {0:>6} {proven:>6} "
+        f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f}"
+    )
     scenes = [(k, None, build_queries(k, args.queries)) for k in ("free", "spheres", "boxes")]
     for name, design in DESIGNS.items():
         for kind in MODE_SCENES:
@@ -447,9 +463,11 @@ def map_rows(args, options: PlanOptions) -> None:
             r = run_product(kind, qs, budget, opts, design=design)
             t = np.asarray(r["times"]) * 1e3
             label = kind if named is None else f"{kind} {named[0]}"
-            print(f"{label:<34} {r['n']:>4} {'on' if on else 'off':>4} {r['solved']:>6} "
-                  f"{r['proven']:>6} {np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} "
-                  f"{t.max():>8.1f}")  # fmt: skip
+            print(
+                f"{label:<34} {r['n']:>4} {'on' if on else 'off':>4} {r['solved']:>6} "
+                f"{r['proven']:>6} {np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} "
+                f"{t.max():>8.1f}"
+            )
 
 
 def main() -> None:
@@ -464,10 +482,11 @@ def main() -> None:
     parser.add_argument("--modes-budget", type=float, default=2.0)
     parser.add_argument("--scenes", default=",".join(SCENES))
     parser.add_argument(
-        "--map", action="store_true",
+        "--map",
+        action="store_true",
         help="only the region-map rows: disconnected scene, map on / off on every scene "
         "and mode changes on four designs",
-    )  # fmt: skip
+    )
     args = parser.parse_args()
 
     options = PlanOptions(name=args.planner, time_budget_s=args.budget, range=args.range)

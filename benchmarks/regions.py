@@ -71,10 +71,14 @@ def _cold_builds(design: Design, n: int, runs: int) -> tuple[list[float], list[f
 def build_times(runs: int) -> None:
     """p50 of cold builds per design and resolution; at 256 also p90 and the CPU time (the
     machine is shared: wall time counts the other processes' turns too)."""
-    print(f"cold builds (cache cleared), p50 of {runs} at n = 256 (5 at 128 and 512); goal at "
-          f"256: <= {GOAL_256 * 1e3:.0f} ms\n")  # fmt: skip
-    print("| design | n = 128 | n = 256 p50 | n = 256 p90 | n = 256 CPU p50 | n = 512 | "
-          "goal met | regions per mode, asm + (certified) |")  # fmt: skip
+    print(
+        f"cold builds (cache cleared), p50 of {runs} at n = 256 (5 at 128 and 512); goal at "
+        f"256: <= {GOAL_256 * 1e3:.0f} ms\n"
+    )
+    print(
+        "| design | n = 128 | n = 256 p50 | n = 256 p90 | n = 256 CPU p50 | n = 512 | "
+        "goal met | regions per mode, asm + (certified) |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     R.region_map(Design.default(), n=16)  # load the kernels
     for name, design in DESIGNS.items():
@@ -86,10 +90,12 @@ def build_times(runs: int) -> None:
         rmap = R.region_map(design, n=256)
         over, cert = rmap.region_count(), rmap.region_count(certified=True)
         per = " ".join(f"{m}:{over[0, k]}({cert[0, k]})" for k, m in enumerate(WORKING_MODES))
-        print(f"| {name} | {statistics.median(w128) * 1e3:.1f} ms | {p50 * 1e3:.1f} ms | "
-              f"{p90 * 1e3:.1f} ms | {statistics.median(c256) * 1e3:.1f} ms | "
-              f"{statistics.median(w512) * 1e3:.0f} ms | {'yes' if p50 <= GOAL_256 else 'no'} | "
-              f"{per} |")  # fmt: skip
+        print(
+            f"| {name} | {statistics.median(w128) * 1e3:.1f} ms | {p50 * 1e3:.1f} ms | "
+            f"{p90 * 1e3:.1f} ms | {statistics.median(c256) * 1e3:.1f} ms | "
+            f"{statistics.median(w512) * 1e3:.0f} ms | {'yes' if p50 <= GOAL_256 else 'no'} | "
+            f"{per} |"
+        )
 
 
 def _timed(build) -> tuple[float, float, int]:
@@ -118,11 +124,15 @@ def speed(runs: int) -> None:
 
     designs = {**DESIGNS, "cut limits 0.3/0.3/0.4 (no mirror)": CUT}
     blocks = -(-runs // SPEED_BLOCK)
-    print(f"cold builds, old (before issue 17) and new interleaved in blocks of "
-          f"{SPEED_BLOCK}, medians of {blocks * SPEED_BLOCK} each; goal at 256: <= "
-          f"{GOAL_256 * 1e3:.0f} ms\n")  # fmt: skip
-    print("| design | n | old wall | new wall | old CPU | new CPU | CPU old / new | "
-          "new wall p90 | page faults old / new |")  # fmt: skip
+    print(
+        f"cold builds, old (before issue 17) and new interleaved in blocks of "
+        f"{SPEED_BLOCK}, medians of {blocks * SPEED_BLOCK} each; goal at 256: <= "
+        f"{GOAL_256 * 1e3:.0f} ms\n"
+    )
+    print(
+        "| design | n | old wall | new wall | old CPU | new CPU | CPU old / new | "
+        "new wall p90 | page faults old / new |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     margins = Margins()
     for design in designs.values():  # compile both routes before timing
@@ -137,12 +147,15 @@ def speed(runs: int) -> None:
                 for _ in range(SPEED_BLOCK):
                     R.clear_cache()
                     new.append(_timed(lambda d=design, n=n: R.region_map(d, margins, n)))
-            med = [statistics.median(t[k] for t in runs_)
-                   for k in (0, 1, 2) for runs_ in (old, new)]  # fmt: skip
+            med = [
+                statistics.median(t[k] for t in runs_) for k in (0, 1, 2) for runs_ in (old, new)
+            ]
             p90 = float(np.quantile([t[0] for t in new], 0.9)) * 1e3
-            print(f"| {name} | {n} | {med[0] * 1e3:.1f} ms | {med[1] * 1e3:.1f} ms | "
-                  f"{med[2] * 1e3:.1f} ms | {med[3] * 1e3:.1f} ms | {med[2] / med[3]:.2f} | "
-                  f"{p90:.1f} ms | {med[4]:.0f} / {med[5]:.0f} |")  # fmt: skip
+            print(
+                f"| {name} | {n} | {med[0] * 1e3:.1f} ms | {med[1] * 1e3:.1f} ms | "
+                f"{med[2] * 1e3:.1f} ms | {med[3] * 1e3:.1f} ms | {med[2] / med[3]:.2f} | "
+                f"{p90:.1f} ms | {med[4]:.0f} / {med[5]:.0f} |"
+            )
 
 
 #: The paper's convex and non-convex working modes (section 3.3) with their mirrors about AB.
@@ -155,11 +168,15 @@ def twice_as_large(m: int = 400) -> None:
     mirror image of '-'): what the certified regions of the convex pair, of the non-convex
     pair and of the whole component (every mode a change of working mode reaches from there)
     cover, in the linkage plane (the paper's sections) and in 3-D (theta1 a full turn)."""
-    print(f"\n\"twice as large\": certified regions (n = 256, default margins), assembly mode "
-          f"'+', linkage plane on a {m} x {m} raster and 3-D volume as theta1 turns\n")  # fmt: skip
-    print("| design | component | convex m^2 | non-convex m^2 | all m^2 | all / convex | "
-          "all / non-convex | convex m^3 | non-convex m^3 | all m^3 | 3-D all / convex | "
-          "3-D all / non-convex |")  # fmt: skip
+    print(
+        f'\n"twice as large": certified regions (n = 256, default margins), assembly mode '
+        f"'+', linkage plane on a {m} x {m} raster and 3-D volume as theta1 turns\n"
+    )
+    print(
+        "| design | component | convex m^2 | non-convex m^2 | all m^2 | all / convex | "
+        "all / non-convex | convex m^3 | non-convex m^3 | all m^3 | 3-D all / convex | "
+        "3-D all / non-convex |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, design in DESIGNS.items():
         rmap = R.region_map(design, n=256)
@@ -174,9 +191,11 @@ def twice_as_large(m: int = 400) -> None:
             if a[2] < 0.01 * cov.area(r.id for r in mine):
                 continue  # slivers of undecided-free cells: not a workspace
             ratios = [f"{x[2] / x[k]:.2f}" if x[k] > 0 else "-" for x in (a, v) for k in (0, 1)]
-            print(f"| {name} | {comp} | {a[0]:.3f} | {a[1]:.3f} | {a[2]:.3f} | {ratios[0]} | "
-                  f"{ratios[1]} | {v[0]:.3f} | {v[1]:.3f} | {v[2]:.3f} | {ratios[2]} | "
-                  f"{ratios[3]} |")  # fmt: skip
+            print(
+                f"| {name} | {comp} | {a[0]:.3f} | {a[1]:.3f} | {a[2]:.3f} | {ratios[0]} | "
+                f"{ratios[1]} | {v[0]:.3f} | {v[1]:.3f} | {v[2]:.3f} | {ratios[2]} | "
+                f"{ratios[3]} |"
+            )
 
 
 def _valid(design, rng):
@@ -206,18 +225,28 @@ def proofs(count: int) -> None:
         ok = R.prove_disconnected(rmap, ends[0], ends[1], "-")
         runs.append(time.perf_counter() - t0)
     t0 = time.perf_counter()
-    res = plan(CUT, JointPosture(ends[0], "-"), JointPosture(ends[1], "-"),
-               options=PlanOptions(time_budget_s=1.0, region_map=False))  # fmt: skip
+    res = plan(
+        CUT,
+        JointPosture(ends[0], "-"),
+        JointPosture(ends[1], "-"),
+        options=PlanOptions(time_budget_s=1.0, region_map=False),
+    )
     t_plan = time.perf_counter() - t0
     t0 = time.perf_counter()
-    proven = plan(CUT, JointPosture(ends[0], "-"), JointPosture(ends[1], "-"),
-                  options=PlanOptions(time_budget_s=5.0))  # fmt: skip
+    proven = plan(
+        CUT,
+        JointPosture(ends[0], "-"),
+        JointPosture(ends[1], "-"),
+        options=PlanOptions(time_budget_s=5.0),
+    )
     t_proven = time.perf_counter() - t0
-    print(f"\ndisconnected scene (joint limits cut the general design): proven {ok}, proof "
-          f"median {statistics.median(runs) * 1e6:.0f} us on a cached map; the search alone "
-          f"answers {res.status.value} after {t_plan:.2f} s (1 s budget); the planner "
-          f"(map on, 5 s budget) {proven.status.value}, proven_infeasible "
-          f"{proven.diagnostics.proven_infeasible}, after {t_proven * 1e3:.1f} ms")  # fmt: skip
+    print(
+        f"\ndisconnected scene (joint limits cut the general design): proven {ok}, proof "
+        f"median {statistics.median(runs) * 1e6:.0f} us on a cached map; the search alone "
+        f"answers {res.status.value} after {t_plan:.2f} s (1 s budget); the planner "
+        f"(map on, 5 s budget) {proven.status.value}, proven_infeasible "
+        f"{proven.diagnostics.proven_infeasible}, after {t_proven * 1e3:.1f} ms"
+    )
 
     rng = np.random.default_rng(2024)
     designs = list(DESIGNS.values())
@@ -235,14 +264,19 @@ def proofs(count: int) -> None:
             R.prove_disconnected(R.region_map(design, n=PROOF_RESOLUTION), qa, qb, asm)
         )
         proven += claim
-        result = plan(design, JointPosture(qa, asm), JointPosture(qb, asm),
-                      options=PlanOptions(time_budget_s=0.05 if claim else 0.5, seed=1 + k,
-                                          region_map=False))  # fmt: skip
+        result = plan(
+            design,
+            JointPosture(qa, asm),
+            JointPosture(qb, asm),
+            options=PlanOptions(time_budget_s=0.05 if claim else 0.5, seed=1 + k, region_map=False),
+        )
         solved += result.solved
         false += result.solved and claim
-    print(f"\n{count} seeded queries over the four designs: {solved} solved, {proven} proven "
-          f"disconnected, false proofs (solved and proven): {false}  "
-          f"[{time.perf_counter() - t0:.0f} s]")  # fmt: skip
+    print(
+        f"\n{count} seeded queries over the four designs: {solved} solved, {proven} proven "
+        f"disconnected, false proofs (solved and proven): {false}  "
+        f"[{time.perf_counter() - t0:.0f} s]"
+    )
 
 
 def obstacle_soak(queries: int, seed: int = 23) -> None:
@@ -264,8 +298,12 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
     )
     from planner.planning.tolerance import goal_ball, prove_goal_set
 
-    designs = [Design.default(), Design.paper_optimum(), Design(0.3, 0.3, 0.4),
-               Design(0.6, 0.25, 0.45)]  # fmt: skip
+    designs = [
+        Design.default(),
+        Design.paper_optimum(),
+        Design(0.3, 0.3, 0.4),
+        Design(0.6, 0.25, 0.45),
+    ]
     from planner.warmup import warm_up
 
     warm_up()  # numba kernels compiled (the proof's too) outside the measurements
@@ -275,9 +313,17 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
     done = 0
     while done < queries:
         base = designs[done % len(designs)]
-        design = base if done % 2 else Design(base.L0, base.L1, base.L2,
-                                              joint_min=(-2.0, -np.pi, -np.pi),
-                                              joint_max=(2.0, np.pi, np.pi))  # fmt: skip
+        design = (
+            base
+            if done % 2
+            else Design(
+                base.L0,
+                base.L1,
+                base.L2,
+                joint_min=(-2.0, -np.pi, -np.pi),
+                joint_max=(2.0, np.pi, np.pi),
+            )
+        )
         obstacles = []
         for _ in range(rng.integers(2, 7)):
             c = rng.uniform(-0.7, 0.7, 3)
@@ -299,8 +345,13 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
         m0, m1 = modes[rng.integers(len(modes))], modes[rng.integers(len(modes))]
         start = valid[m0][rng.integers(len(valid[m0]))]
         goal = valid[m1][rng.integers(len(valid[m1]))]
-        res = plan(design, JointPosture(start, asm), JointPosture(goal, asm), obstacles=obstacles,
-                   options=PlanOptions(time_budget_s=0.5, seed=done + 1, region_map=False))  # fmt: skip
+        res = plan(
+            design,
+            JointPosture(start, asm),
+            JointPosture(goal, asm),
+            obstacles=obstacles,
+            options=PlanOptions(time_budget_s=0.5, seed=done + 1, region_map=False),
+        )
         t0 = time.perf_counter()
         proof = prove_disconnected_with_obstacles(design, Margins(), obstacles, start, goal, asm)
         dt = (time.perf_counter() - t0) * 1e3
@@ -315,8 +366,12 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
         else:
             target = JointPosture(goal + shift, asm)
         t0 = time.perf_counter()
-        ball = prove_goal_set(design, JointPosture(start, asm), goal_ball(target, radius),
-                              obstacles=obstacles) is not None  # fmt: skip
+        ball = (
+            prove_goal_set(
+                design, JointPosture(start, asm), goal_ball(target, radius), obstacles=obstacles
+            )
+            is not None
+        )
         t_ball.append((time.perf_counter() - t0) * 1e3)
         done += 1
         proven += proof.proven
@@ -329,23 +384,34 @@ def obstacle_soak(queries: int, seed: int = 23) -> None:
             if solved % 4 == 0:
                 planned += 1
                 answer = plan_with_goal_options(
-                    design, JointPosture(start, asm), target, obstacles=obstacles,
-                    options=PlanOptions(time_budget_s=0.2, seed=done), tolerance=radius,
+                    design,
+                    JointPosture(start, asm),
+                    target,
+                    obstacles=obstacles,
+                    options=PlanOptions(time_budget_s=0.2, seed=done),
+                    tolerance=radius,
                     prefer="best_conditioned" if done % 2 else "shortest",
-                )  # fmt: skip
+                )
                 false_plan += answer.diagnostics.proven_infeasible
         else:
             t_other.append(dt)
         if done % 100 == 0:
-            print(f"  {done}/{queries} queries: {solved} solved, {proven} proven, {false} false "
-                  f"proofs; balls: {ball_proven} proven, {false_ball} false", flush=True)  # fmt: skip
-    print(f"\nobstacle proof soak: {done} queries, {solved} solved by the search, {proven} proven "
-          f"(of the {done - solved} unsolved), false proofs: {false}")  # fmt: skip
-    print(f"the same goals in a tolerance ball: {ball_proven} balls proven (of the "
-          f"{done - solved} unsolved), false ball proofs: {false_ball}; the planner with the "
-          f"tolerance and prefer on {planned} solved queries: false proofs {false_plan}; ball "
-          f"proof p50 {np.percentile(t_ball, 50):.1f} ms, p95 {np.percentile(t_ball, 95):.1f} "
-          "ms")  # fmt: skip
+            print(
+                f"  {done}/{queries} queries: {solved} solved, {proven} proven, {false} false "
+                f"proofs; balls: {ball_proven} proven, {false_ball} false",
+                flush=True,
+            )
+    print(
+        f"\nobstacle proof soak: {done} queries, {solved} solved by the search, {proven} proven "
+        f"(of the {done - solved} unsolved), false proofs: {false}"
+    )
+    print(
+        f"the same goals in a tolerance ball: {ball_proven} balls proven (of the "
+        f"{done - solved} unsolved), false ball proofs: {false_ball}; the planner with the "
+        f"tolerance and prefer on {planned} solved queries: false proofs {false_plan}; ball "
+        f"proof p50 {np.percentile(t_ball, 50):.1f} ms, p95 {np.percentile(t_ball, 95):.1f} "
+        "ms"
+    )
     for label, t in (("solved queries", t_solved), ("unsolved queries", t_other)):
         if t:
             print(
@@ -362,9 +428,10 @@ def main() -> None:
     parser.add_argument("--claim", action="store_true", help="only the 'twice as large' table")
     parser.add_argument("--speed", action="store_true", help="only old against new builds")
     parser.add_argument(
-        "--obstacles", action="store_true",
+        "--obstacles",
+        action="store_true",
         help="only the soak of the proof with obstacles (--queries of them)",
-    )  # fmt: skip
+    )
     args = parser.parse_args()
     print_machine()
     if args.speed:

@@ -151,8 +151,13 @@ def queries(n: int, rng: np.random.Generator) -> None:
                 rows["undecided"] += 1  # the two routes disagree: counted, not planned
                 continue
             t = time.perf_counter()
-            res = plan(design, JointPosture(qa, asm), JointPosture(qb, asm), margins=MARGINS,
-                       options=PlanOptions(time_budget_s=10.0, seed=done))  # fmt: skip
+            res = plan(
+                design,
+                JointPosture(qa, asm),
+                JointPosture(qb, asm),
+                margins=MARGINS,
+                options=PlanOptions(time_budget_s=10.0, seed=done),
+            )
             times.append(time.perf_counter() - t)
             if map_joined:
                 rows["joined"] += 1
@@ -167,10 +172,14 @@ def queries(n: int, rng: np.random.Generator) -> None:
                 )
             print(f"query {done}/{n}: {res.status.value}", file=sys.stderr, flush=True)
     print(f"\nfree-space joint queries: {n} (seeded), plan budget 10 s")
-    print(f"{'queries joined by both':>28} {'solved':>7} {'via detour':>11} "
-          f"{'apart by both':>14} {'proven':>7} {'routes disagree':>16} {'p50 plan s':>11}")  # fmt: skip
-    print(f"{rows['joined']:>28} {rows['solved']:>7} {rows['detours']:>11} {rows['apart']:>14} "
-          f"{rows['proven']:>7} {rows['undecided']:>16} {statistics.median(times):>11.3f}")  # fmt: skip
+    print(
+        f"{'queries joined by both':>28} {'solved':>7} {'via detour':>11} "
+        f"{'apart by both':>14} {'proven':>7} {'routes disagree':>16} {'p50 plan s':>11}"
+    )
+    print(
+        f"{rows['joined']:>28} {rows['solved']:>7} {rows['detours']:>11} {rows['apart']:>14} "
+        f"{rows['proven']:>7} {rows['undecided']:>16} {statistics.median(times):>11.3f}"
+    )
     for line in failures:
         print("  not solved:", line)
 
@@ -186,18 +195,30 @@ def sequences(n: int, rng: np.random.Generator) -> None:
         flood = Flood(design, asm)
         qs, _, _ = flood.random_point(rng, design)
         start = JointPosture(qs, asm)
-        points = [forward_batch(design, flood.random_point(rng, design)[0], asm).p[0]
-                  for _ in range(2)]  # fmt: skip
+        points = [
+            forward_batch(design, flood.random_point(rng, design)[0], asm).p[0] for _ in range(2)
+        ]
         stops = rng.uniform(size=2) < 0.5
-        targets = [SequenceTarget(CartesianTarget(p), stop=bool(s), blend=0.0 if s else 0.02)
-                   for p, s in zip(points, stops, strict=True)]  # fmt: skip
+        targets = [
+            SequenceTarget(CartesianTarget(p), stop=bool(s), blend=0.0 if s else 0.02)
+            for p, s in zip(points, stops, strict=True)
+        ]
         brute = {}
         for modes in itertools.product(WORKING_MODES, repeat=2):
-            fixed = [SequenceTarget(CartesianTarget(t.goal.p, m), t.stop, t.blend)
-                     for t, m in zip(targets, modes, strict=True)]  # fmt: skip
+            fixed = [
+                SequenceTarget(CartesianTarget(t.goal.p, m), t.stop, t.blend)
+                for t, m in zip(targets, modes, strict=True)
+            ]
             try:
-                r = solve_sequence(design, start, fixed, cycle=True, objective="fixed",
-                                   margins=MARGINS, limits=limits)  # fmt: skip
+                r = solve_sequence(
+                    design,
+                    start,
+                    fixed,
+                    cycle=True,
+                    objective="fixed",
+                    margins=MARGINS,
+                    limits=limits,
+                )
             except InputError:  # a blend too long for this assignment's legs
                 continue
             brute[modes] = r.cycle_time if r.solved else math.inf
@@ -206,8 +227,9 @@ def sequences(n: int, rng: np.random.Generator) -> None:
             continue  # not a choice
         done += 1
         best_time, best_modes = min((v, k) for k, v in finite.items())
-        r = solve_sequence(design, start, targets, cycle=True, objective="time",
-                           margins=MARGINS, limits=limits)  # fmt: skip
+        r = solve_sequence(
+            design, start, targets, cycle=True, objective="time", margins=MARGINS, limits=limits
+        )
         same = r.solved and math.isclose(r.cycle_time, best_time, rel_tol=1e-9)
         agree += same
         side = WORKING_MODES[flood_mode(design, qs, asm)][0]
@@ -216,11 +238,14 @@ def sequences(n: int, rng: np.random.Generator) -> None:
         brute_timed += len(finite)
         if r.solved:
             worst = max(worst, r.cycle_time / best_time - 1.0)
-        print(f"sequence {done}/{n}: {'agrees' if same else 'differs'}", file=sys.stderr,
-              flush=True)  # fmt: skip
+        print(
+            f"sequence {done}/{n}: {'agrees' if same else 'differs'}", file=sys.stderr, flush=True
+        )
     print(f"\nmode choice for time: {n} seeded cycles through two 'any' targets, 64 assignments")
-    print(f"{'sequences':>10} {'= brute force':>14} {'best crosses axis':>20} "
-          f"{'worst excess':>13} {'timed (search)':>15} {'solved (brute)':>15}")  # fmt: skip
+    print(
+        f"{'sequences':>10} {'= brute force':>14} {'best crosses axis':>20} "
+        f"{'worst excess':>13} {'timed (search)':>15} {'solved (brute)':>15}"
+    )
     print(f"{n:>10} {agree:>14} {crossing:>20} {worst:>12.2%} {timed:>15} {brute_timed:>15}")
 
 

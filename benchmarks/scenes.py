@@ -220,10 +220,16 @@ def run(name: str, obstacles: list, queries: list, budget: float, design: Design
     p90 = times[min(len(times) - 1, int(0.9 * len(times)))]
     rows = sum(len(getattr(o, "points", ())) or 1 for o in obstacles)
     return {
-        "name": name, "rows": rows, "build": build * 1e3, "p50": statistics.median(times) * 1e3,
-        "p90": p90 * 1e3, "solved": solved, "queries": len(queries), "states": states * 1e3,
+        "name": name,
+        "rows": rows,
+        "build": build * 1e3,
+        "p50": statistics.median(times) * 1e3,
+        "p90": p90 * 1e3,
+        "solved": solved,
+        "queries": len(queries),
+        "states": states * 1e3,
         "valid": valid * 1e3,
-    }  # fmt: skip
+    }
 
 
 def row_text(r: dict, dropped: int) -> str:
@@ -236,8 +242,17 @@ def row_text(r: dict, dropped: int) -> str:
 def baseline_rows(src: str, names: list[str], args: argparse.Namespace) -> dict[str, dict]:
     """The same scenes and queries planned by another checkout's ``src`` (a subprocess with
     that ``PYTHONPATH``; its numba caches are its own): name -> row numbers."""
-    cmd = [sys.executable, __file__, "--json", "--scenes", ",".join(names),
-           "--queries", str(args.queries), "--budget", str(args.budget)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        __file__,
+        "--json",
+        "--scenes",
+        ",".join(names),
+        "--queries",
+        str(args.queries),
+        "--budget",
+        str(args.budget),
+    ]
     env = {**os.environ, "PYTHONPATH": src}
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
     rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
@@ -301,10 +316,13 @@ def main() -> None:
     ap.add_argument("--http", type=int, default=5, help="plans of the HTTP comparison")
     ap.add_argument("--scenes", default="", help="comma-separated scene names (default all)")
     ap.add_argument(
-        "--baseline", action="append", default=[], metavar="SRC",
+        "--baseline",
+        action="append",
+        default=[],
+        metavar="SRC",
         help="another checkout's src folder: free space and 5 spheres planned by it too, "
         "side by side (repeatable)",
-    )  # fmt: skip
+    )
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # baseline rows
     args = ap.parse_args()
     design = Design.default()
@@ -319,28 +337,38 @@ def main() -> None:
         return
     print_machine()
     print(f"{args.queries} queries per scene, budget {args.budget} s, seed 1")
-    print("| scene | rows | build ms | plan p50 ms | plan p90 ms | solved | dropped "
-          "| 2,000 states ms | 2,000 valid ms |")  # fmt: skip
+    print(
+        "| scene | rows | build ms | plan p50 ms | plan p90 ms | solved | dropped "
+        "| 2,000 states ms | 2,000 valid ms |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     mine = {}
     for name, obstacles in chosen.items():
         queries, dropped = build_queries(design, obstacles, args.queries)
         mine[name] = run(name, obstacles, queries, args.budget, design)
         print(row_text(mine[name], dropped), flush=True)
-    print("\n(solved: over queries with a certified path through the joint grid; dropped: "
-          "pairs the grid's components joined but no certified grid path did)")  # fmt: skip
+    print(
+        "\n(solved: over queries with a certified path through the joint grid; dropped: "
+        "pairs the grid's components joined but no certified grid path did)"
+    )
     small = [n for n in ("free", "5 spheres") if n in mine]
     for src in args.baseline:
         base = baseline_rows(src, small, args)
-        again = {n: run(n, chosen[n], build_queries(design, chosen[n], args.queries)[0],
-                        args.budget, design) for n in small}  # fmt: skip
+        again = {
+            n: run(
+                n, chosen[n], build_queries(design, chosen[n], args.queries)[0], args.budget, design
+            )
+            for n in small
+        }
         print(f"\nplan p50 ms against {src} (this code before and after it, same queries)")
         print("| scene | this code | baseline | this code again | ratio |")
         print("|---|---|---|---|---|")
         for n in small:
             ours = statistics.median([mine[n]["p50"], again[n]["p50"]])
-            print(f"| {n} | {mine[n]['p50']:.2f} | {base[n]['p50']:.2f} | "
-                  f"{again[n]['p50']:.2f} | {ours / base[n]['p50']:.2f} |")  # fmt: skip
+            print(
+                f"| {n} | {mine[n]['p50']:.2f} | {base[n]['p50']:.2f} | "
+                f"{again[n]['p50']:.2f} | {ours / base[n]['p50']:.2f} |"
+            )
     if "100,000-point cloud" in chosen:
         obstacles = chosen["100,000-point cloud"]
         queries, _ = build_queries(design, obstacles, args.queries)

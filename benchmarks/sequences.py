@@ -114,9 +114,11 @@ def main() -> None:
     design = Design.default()
 
     pick, start, h, d, stops_result = place_cycle(design, timing)
-    print(f"Adept cycle on the default design (reach {design.reach:.2f} m): up {1e3 * h:.1f} mm, "
-          f"across {1e3 * d:.1f} mm, pick at {pick.round(3).tolist()} m, start "
-          f"{np.round(start.q, 4).tolist()} rad; timing {args.method}, one process")  # fmt: skip
+    print(
+        f"Adept cycle on the default design (reach {design.reach:.2f} m): up {1e3 * h:.1f} mm, "
+        f"across {1e3 * d:.1f} mm, pick at {pick.round(3).tolist()} m, start "
+        f"{np.round(start.q, 4).tolist()} rad; timing {args.method}, one process"
+    )
     legs = [leg.plan.diagnostics.path_length for leg in stops_result.legs]
     corner = [0, 1, 3, 4]  # the top corners' targets (up, across, place, up, across back)
     blends = [0.0] * 5
@@ -135,21 +137,30 @@ def main() -> None:
     results = {}
     for name, (modes, stops, bl, objective) in variants.items():
         targets = adept_targets(pick, h, d, modes, stops, bl)
-        wall, r = timed(lambda t=targets, o=objective: solve_sequence(
-            design, start, t, cycle=True, objective=o, timing=timing), args.repeats)  # fmt: skip
+        wall, r = timed(
+            lambda t=targets, o=objective: solve_sequence(
+                design, start, t, cycle=True, objective=o, timing=timing
+            ),
+            args.repeats,
+        )
         results[name] = r
-        print(f"{name:<26} {r.status.value:>8} {r.cycle_time:>10.4f} {1e3 * wall:>19.1f}  "
-              f"{' '.join(m for m in r.diagnostics.modes if m)}")  # fmt: skip
+        print(
+            f"{name:<26} {r.status.value:>8} {r.cycle_time:>10.4f} {1e3 * wall:>19.1f}  "
+            f"{' '.join(m for m in r.diagnostics.modes if m)}"
+        )
     base = results["every target a stop"].cycle_time
     gain = 1 - results["top corners passed"].cycle_time / base
     print(f"passing the corners: {100 * gain:.1f} % shorter than stopping   goal: >= 25 %")
-    targets_q = np.array([start.q, *[stops_result.path.waypoints[leg.waypoint_index]
-                                     for leg in stops_result.legs]])  # fmt: skip
+    targets_q = np.array(
+        [start.q, *[stops_result.path.waypoints[leg.waypoint_index] for leg in stops_result.legs]]
+    )
     radii = [0.0, *blends, 0.0]
     flags = [True, *passing, True]
     bound = cycle_bound(targets_q, radii, flags, JointLimits.default())
-    print(f"lower bound of any pass-through cycle (per joint, rest where it turns): "
-          f"{bound:.4f} s, at most {100 * (1 - bound / base):.1f} % shorter")  # fmt: skip
+    print(
+        f"lower bound of any pass-through cycle (per joint, rest where it turns): "
+        f"{bound:.4f} s, at most {100 * (1 - bound / base):.1f} % shorter"
+    )
 
     print()
     print("mode choice against every single fixed mode (all targets in it) and the 'any' rule")
@@ -160,8 +171,14 @@ def main() -> None:
         for all_stop in (True, False):
             stops, bl = ([True] * 5, [0.0] * 5) if all_stop else (passing, blends)
             try:
-                r = solve_sequence(design, start, adept_targets(pick, h, d, [mode] * 5, stops, bl),
-                                   cycle=True, objective="fixed", timing=timing)  # fmt: skip
+                r = solve_sequence(
+                    design,
+                    start,
+                    adept_targets(pick, h, d, [mode] * 5, stops, bl),
+                    cycle=True,
+                    objective="fixed",
+                    timing=timing,
+                )
             except InputError:  # this mode's legs are shorter than twice the blends
                 row.append("blend > leg/2")
                 continue
@@ -169,63 +186,105 @@ def main() -> None:
             fixed_best[all_stop] = min(fixed_best[all_stop], c)
             row.append(f"{c:.4f}" if np.isfinite(c) else r.status.value)
         print(f"{'all ' + mode:<26} {row[0]:>17} {row[1]:>18}")
-    print(f"{'the any rule (fixed)':<26} {results['every target a stop'].cycle_time:>17.4f} "
-          f"{results['top corners passed'].cycle_time:>18.4f}")  # fmt: skip
+    print(
+        f"{'the any rule (fixed)':<26} {results['every target a stop'].cycle_time:>17.4f} "
+        f"{results['top corners passed'].cycle_time:>18.4f}"
+    )
     t_s, t_p = results["stops, modes for time"], results["passed, modes for time"]
     print(f"{'modes for time':<26} {t_s.cycle_time:>17.4f} {t_p.cycle_time:>18.4f}")
-    for label, r, key, rule in (("stops", t_s, True, "every target a stop"),
-                                ("passed", t_p, False, "top corners passed")):  # fmt: skip
+    for label, r, key, rule in (
+        ("stops", t_s, True, "every target a stop"),
+        ("passed", t_p, False, "top corners passed"),
+    ):
         beats = 1 - r.cycle_time / results[rule].cycle_time
         ok = r.cycle_time <= fixed_best[key] + 1e-9
-        print(f"  {label}: {'never slower' if ok else 'SLOWER'} than the best fixed mode "
-              f"({fixed_best[key]:.4f} s); {100 * beats:.1f} % shorter than the 'any' rule; "
-              f"{r.diagnostics.estimates} assignments evaluated, gap "
-              f"{r.diagnostics.extra.get('gap_s', 0.0):.3g} s; runner-up "
-              f"{r.diagnostics.runner_up[1] if r.diagnostics.runner_up else float('nan'):.4f} s")  # fmt: skip
+        print(
+            f"  {label}: {'never slower' if ok else 'SLOWER'} than the best fixed mode "
+            f"({fixed_best[key]:.4f} s); {100 * beats:.1f} % shorter than the 'any' rule; "
+            f"{r.diagnostics.estimates} assignments evaluated, gap "
+            f"{r.diagnostics.extra.get('gap_s', 0.0):.3g} s; runner-up "
+            f"{r.diagnostics.runner_up[1] if r.diagnostics.runner_up else float('nan'):.4f} s"
+        )
 
     print()
-    spheres = [Sphere(center=c, radius=0.04) for c in
-               ([0.0, 0.0, 0.5], [0.3, 0.5, 0.4], [-0.4, 0.3, 0.3], [0.2, -0.6, 0.3],
-                [-0.3, -0.5, 0.4])]  # fmt: skip
-    ring = [pick + np.array([0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)), 0.05 * np.sin(2 * a)])
-            for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)]  # fmt: skip
+    spheres = [
+        Sphere(center=c, radius=0.04)
+        for c in (
+            [0.0, 0.0, 0.5],
+            [0.3, 0.5, 0.4],
+            [-0.4, 0.3, 0.3],
+            [0.2, -0.6, 0.3],
+            [-0.3, -0.5, 0.4],
+        )
+    ]
+    ring = [
+        pick + np.array([0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)), 0.05 * np.sin(2 * a)])
+        for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    ]
     mode = stops_result.diagnostics.modes[0]
-    print("12-target sequence, default design, 5 spheres (p50 of "
-          f"{args.repeats}, planned and timed in this process)")  # fmt: skip
+    print(
+        "12-target sequence, default design, 5 spheres (p50 of "
+        f"{args.repeats}, planned and timed in this process)"
+    )
     print(f"{'targets':<34} {'status':>8} {'cycle [s]':>10} {'p50 [ms]':>9} {'goal':>8}")
     for label, tgts, objective in (
-        (f"12 stops, mode {mode} given", [SequenceTarget(CartesianTarget(p, mode)) for p in ring],
-         "fixed"),
-        ("12 stops, 'any', modes for time", [SequenceTarget(CartesianTarget(p)) for p in ring],
-         "time"),
-        (f"12 passed (blend 0.01), mode {mode}",
-         [SequenceTarget(CartesianTarget(p, mode), stop=False, blend=0.01) for p in ring],
-         "fixed"),
-    ):  # fmt: skip
-        wall, r = timed(lambda t=tgts, o=objective: solve_sequence(
-            design, start, t, obstacles=spheres, objective=o, timing=timing), args.repeats)  # fmt: skip
-        print(f"{label:<34} {r.status.value:>8} {r.cycle_time:>10.4f} {1e3 * wall:>9.1f} "
-              f"{'<= 200':>8}")  # fmt: skip
+        (
+            f"12 stops, mode {mode} given",
+            [SequenceTarget(CartesianTarget(p, mode)) for p in ring],
+            "fixed",
+        ),
+        (
+            "12 stops, 'any', modes for time",
+            [SequenceTarget(CartesianTarget(p)) for p in ring],
+            "time",
+        ),
+        (
+            f"12 passed (blend 0.01), mode {mode}",
+            [SequenceTarget(CartesianTarget(p, mode), stop=False, blend=0.01) for p in ring],
+            "fixed",
+        ),
+    ):
+        wall, r = timed(
+            lambda t=tgts, o=objective: solve_sequence(
+                design, start, t, obstacles=spheres, objective=o, timing=timing
+            ),
+            args.repeats,
+        )
+        print(
+            f"{label:<34} {r.status.value:>8} {r.cycle_time:>10.4f} {1e3 * wall:>9.1f} "
+            f"{'<= 200':>8}"
+        )
 
     print()
     print("per extra target beyond 12 (rings of n targets, 5 spheres, p50, side by side)")
-    print(f"{'targets':<34} {'n=12 [ms]':>10} {'n=24 [ms]':>10} {'n=36 [ms]':>10} "
-          f"{'ms/target':>10} {'goal':>6}")  # fmt: skip
-    for label, stop, blend in (("stops, mode given", True, 0.0),
-                               ("passed (blend 0.01), mode given", False, 0.01)):  # fmt: skip
+    print(
+        f"{'targets':<34} {'n=12 [ms]':>10} {'n=24 [ms]':>10} {'n=36 [ms]':>10} "
+        f"{'ms/target':>10} {'goal':>6}"
+    )
+    for label, stop, blend in (
+        ("stops, mode given", True, 0.0),
+        ("passed (blend 0.01), mode given", False, 0.01),
+    ):
         walls = []
         for n in (12, 24, 36):
-            ring = [pick + np.array([0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)),
-                                     0.05 * np.sin(2 * a)])
-                    for a in np.linspace(0, 2 * np.pi, n, endpoint=False)]  # fmt: skip
+            ring = [
+                pick
+                + np.array([0.08 * np.cos(a), d * (0.5 + 0.5 * np.sin(a)), 0.05 * np.sin(2 * a)])
+                for a in np.linspace(0, 2 * np.pi, n, endpoint=False)
+            ]
             tgts = [SequenceTarget(CartesianTarget(p, mode), stop=stop, blend=blend) for p in ring]
-            wall, r = timed(lambda t=tgts: solve_sequence(
-                design, start, t, obstacles=spheres, objective="fixed", timing=timing),
-                args.repeats)  # fmt: skip
+            wall, r = timed(
+                lambda t=tgts: solve_sequence(
+                    design, start, t, obstacles=spheres, objective="fixed", timing=timing
+                ),
+                args.repeats,
+            )
             walls.append(wall if r.solved else float("nan"))
         per = (walls[2] - walls[0]) / 24
-        print(f"{label:<34} {1e3 * walls[0]:>10.1f} {1e3 * walls[1]:>10.1f} "
-              f"{1e3 * walls[2]:>10.1f} {1e3 * per:>10.1f} {'<= 20':>6}")  # fmt: skip
+        print(
+            f"{label:<34} {1e3 * walls[0]:>10.1f} {1e3 * walls[1]:>10.1f} "
+            f"{1e3 * walls[2]:>10.1f} {1e3 * per:>10.1f} {'<= 20':>6}"
+        )
 
 
 if __name__ == "__main__":

@@ -71,13 +71,32 @@ def _mix(rng: np.random.Generator, n: int) -> list[tuple[str, str, dict | None]]
         elif kind == "analyze":
             out.append(("POST", "/v1/analyze", {"q": q, "assembly_mode": "+"}))
         elif kind == "plan":
-            out.append(("POST", "/v1/plan", {"start": start,
-                        "goal": {"q": goal, "assembly_mode": "+"}, "planner": {"seed": 1}}))  # fmt: skip
+            out.append(
+                (
+                    "POST",
+                    "/v1/plan",
+                    {
+                        "start": start,
+                        "goal": {"q": goal, "assembly_mode": "+"},
+                        "planner": {"seed": 1},
+                    },
+                )
+            )
         elif kind == "plan_sphere":
-            out.append(("POST", "/v1/plan", {"start": start,
-                        "goal": {"q": goal, "assembly_mode": "+"}, "planner": {"seed": 1},
-                        "obstacles": [{"type": "sphere", "center": [0.5, 0.0, -0.4],
-                                       "radius": 0.08}]}))  # fmt: skip
+            out.append(
+                (
+                    "POST",
+                    "/v1/plan",
+                    {
+                        "start": start,
+                        "goal": {"q": goal, "assembly_mode": "+"},
+                        "planner": {"seed": 1},
+                        "obstacles": [
+                            {"type": "sphere", "center": [0.5, 0.0, -0.4], "radius": 0.08}
+                        ],
+                    },
+                )
+            )
         elif kind == "timing":
             out.append(("POST", "/v1/timing", {"waypoints": [q, goal]}))
         elif kind == "figure":
@@ -135,10 +154,14 @@ def _round(url: str, requests: list, seconds: float, concurrency: int) -> dict:
         "rate": len(latencies) / wall,
         "load": f"{load:.1f} -> {os.getloadavg()[0]:.1f}",
     }
-    print(f"  total {row['requests']} in {wall:.1f} s = {row['rate']:.0f} req/s; "
-          f"by status: {row['by_status']}")  # fmt: skip
-    print(f"  latency p50 {row['p50']:.1f} ms, p95 {row['p95']:.1f} ms, "
-          f"p99 {row['p99']:.1f} ms; load average {row['load']}")  # fmt: skip
+    print(
+        f"  total {row['requests']} in {wall:.1f} s = {row['rate']:.0f} req/s; "
+        f"by status: {row['by_status']}"
+    )
+    print(
+        f"  latency p50 {row['p50']:.1f} ms, p95 {row['p95']:.1f} ms, "
+        f"p99 {row['p99']:.1f} ms; load average {row['load']}"
+    )
     return row
 
 
@@ -149,13 +172,17 @@ def main() -> None:
     parser.add_argument("--concurrency", type=int, default=32)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     args = parser.parse_args()
-    settings = {"PLANNER_WORKERS": str(args.workers),
-                "PLANNER_QUEUE_SIZE": str(args.concurrency * 2)}  # fmt: skip
+    settings = {
+        "PLANNER_WORKERS": str(args.workers),
+        "PLANNER_QUEUE_SIZE": str(args.concurrency * 2),
+    }
     proc, url = start_service(settings)
     try:
         requests = _mix(np.random.default_rng(7), 2000)
-        print(f"soak: {args.workers} workers, concurrency {args.concurrency}, "
-              f"{args.seconds:g} s per round")  # fmt: skip
+        print(
+            f"soak: {args.workers} workers, concurrency {args.concurrency}, "
+            f"{args.seconds:g} s per round"
+        )
         print(f"memory at ready:       {_memory(proc.pid)}")
         rows = []
         for k in (1, 2):
@@ -165,13 +192,17 @@ def main() -> None:
             rows.append(row)
             print(f"memory after round {k}: {row['memory']}")
         print()
-        print("| round | requests | by status | p50 | p95 | p99 | throughput | load (1 min) "
-              "| RSS after |")  # fmt: skip
+        print(
+            "| round | requests | by status | p50 | p95 | p99 | throughput | load (1 min) "
+            "| RSS after |"
+        )
         print("|---|---|---|---|---|---|---|---|---|")
         for k, row in enumerate(rows, 1):
-            print(f"| {k} | {row['requests']:,} | {row['by_status']} | {row['p50']:.0f} ms | "
-                  f"{row['p95']:.0f} ms | {row['p99']:.0f} ms | {row['rate']:.0f} req/s | "
-                  f"{row['load']} | {row['memory']} |")  # fmt: skip
+            print(
+                f"| {k} | {row['requests']:,} | {row['by_status']} | {row['p50']:.0f} ms | "
+                f"{row['p95']:.0f} ms | {row['p99']:.0f} ms | {row['rate']:.0f} req/s | "
+                f"{row['load']} | {row['memory']} |"
+            )
     finally:
         proc.terminate()
         proc.wait(timeout=60)

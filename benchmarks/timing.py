@@ -120,8 +120,10 @@ def main() -> None:
     print()
     print("goals (issue 16), side by side: computation time (cpu p50, the runs above) and")
     print("duration (default limits: jerk = 25 x acceleration)")
-    print(f"{'checker':<12} {'toppra p50 [ms]':>16} {'ruckig p50 [ms]':>16} {'ruckig/toppra':>14} "
-          f"{'goal':>6} {'duration ratio p50':>19} {'max':>7} {'goal':>7}")  # fmt: skip
+    print(
+        f"{'checker':<12} {'toppra p50 [ms]':>16} {'ruckig p50 [ms]':>16} {'ruckig/toppra':>14} "
+        f"{'goal':>6} {'duration ratio p50':>19} {'max':>7} {'goal':>7}"
+    )
     for name, suffix in (("none", ""), ("kappa(A)", " + kappa(A) check")):
         top, ruck = cpu["toppra" + suffix], cpu["ruckig" + suffix]
         ratio = [
@@ -136,12 +138,15 @@ def main() -> None:
 
     print()
     print("duration relative to toppra (same v, a; toppra blends 0.05 rad)")
-    print(f"{'jerk / acceleration [1/s]':<26} {'ruckig p50':>11} {'p95':>7} {'max':>7} "
-          f"{'rest-at-every-waypoint p50':>27} {'ruckig dev max [rad]':>21}")  # fmt: skip
+    print(
+        f"{'jerk / acceleration [1/s]':<26} {'ruckig p50':>11} {'p95':>7} {'max':>7} "
+        f"{'rest-at-every-waypoint p50':>27} {'ruckig dev max [rad]':>21}"
+    )
     top = [t.duration for t in results["toppra"]]
     for ratio_ja in (10.0, 25.0, 50.0):
-        lim = JointLimits(limits.velocity, limits.acceleration,
-                          tuple(a * ratio_ja for a in limits.acceleration))  # fmt: skip
+        lim = JointLimits(
+            limits.velocity, limits.acceleration, tuple(a * ratio_ja for a in limits.acceleration)
+        )
         r_blend, r_stop, devs = [], [], []
         for w, t_top in zip(paths, top, strict=True):
             blend = time_path(design, w, lim, method="ruckig")
@@ -157,8 +162,10 @@ def main() -> None:
 
     print()
     print("repairs: a small forbidden box inside one corner per path (blend passes through it)")
-    print(f"{'method':<10} {'cases':>6} {'returned':>9} {'repaired':>9} {'refused':>8} "
-          f"{'repairs max':>12} {'wall p50 [ms]':>14}")  # fmt: skip
+    print(
+        f"{'method':<10} {'cases':>6} {'returned':>9} {'repaired':>9} {'refused':>8} "
+        f"{'repairs max':>12} {'wall p50 [ms]':>14}"
+    )
     cases = []
     for i, w in enumerate(paths):
         box = corner_box_checker(w, 1 + i % (args.waypoints - 2))

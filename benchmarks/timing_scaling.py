@@ -79,8 +79,10 @@ def main() -> None:
     time_path(design, random_walk(rng, 5), limits, method="ruckig", check_states=check)
     print(f"time_path on {args.paths} seeded random walks per size, kappa(A) checker, one process")
     print()
-    print(f"{'method':<8} {'caches':<7} {'waypoints':>9} {'wall p50 [ms]':>14} "
-          f"{'ms/waypoint':>12} {'repairs':>8} {'sections':>9} {'moves':>7}")  # fmt: skip
+    print(
+        f"{'method':<8} {'caches':<7} {'waypoints':>9} {'wall p50 [ms]':>14} "
+        f"{'ms/waypoint':>12} {'repairs':>8} {'sections':>9} {'moves':>7}"
+    )
     rows: dict[tuple, list] = {}
     for n in args.sizes:
         paths = [random_walk(rng, n) for _ in range(args.paths)]

@@ -122,8 +122,9 @@ def main() -> None:
         try:
             with sync_playwright() as p:
                 browser = p.chromium.launch(
-                    executable_path=str(CHROMIUM), args=["--headless", "--no-sandbox", "--disable-gpu"]
-                )  # fmt: skip
+                    executable_path=str(CHROMIUM),
+                    args=["--headless", "--no-sandbox", "--disable-gpu"],
+                )
                 page = browser.new_page(viewport={"width": 1400, "height": 900})
                 page.goto(url + "/")
                 expect(page.locator("#regions-box")).to_have_attribute("data-state", "loaded")

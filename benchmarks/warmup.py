@@ -72,8 +72,10 @@ def main() -> None:
     args = parser.parse_args()
     print_machine()
     print("fresh process per round; times in ms, median over rounds")
-    print(f"{'case':<22} {'warm_up s':>9} {'1st plan':>9} {'2nd plan':>9} {'ratio':>6} "
-          f"{'1st fig':>8} {'2nd fig':>8} {'ratio':>6}")  # fmt: skip
+    print(
+        f"{'case':<22} {'warm_up s':>9} {'1st plan':>9} {'2nd plan':>9} {'ratio':>6} "
+        f"{'1st fig':>8} {'2nd fig':>8} {'ratio':>6}"
+    )
     ratios = {}
     for kind in ("cold", "warm"):
         rounds = [run(kind) for _ in range(args.repeat)]
@@ -86,8 +88,10 @@ def main() -> None:
         f1, f2 = 1e3 * med("figure_s", 0), 1e3 * med("figure_s", 1)
         label = "no warm_up()" if kind == "cold" else "after warm_up()"
         ratios[kind] = p1 / p2
-        print(f"{label:<22} {w:>9.2f} {p1:>9.1f} {p2:>9.1f} {p1 / p2:>6.1f} "
-              f"{f1:>8.1f} {f2:>8.1f} {f1 / f2:>6.1f}")  # fmt: skip
+        print(
+            f"{label:<22} {w:>9.2f} {p1:>9.1f} {p2:>9.1f} {p1 / p2:>6.1f} "
+            f"{f1:>8.1f} {f2:>8.1f} {f1 / f2:>6.1f}"
+        )
     verdict = "met" if ratios["warm"] <= 2.0 else "NOT met"
     print(f"goal: first plan after warm_up() <= 2x a warm one: {verdict}")
 

@@ -24,8 +24,12 @@ URL = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("PLANNER_URL", "http:
 START = {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"}
 GOAL = {"q": [1.0, 1.0, 2.0], "assembly_mode": "+"}
 BALL = {"type": "sphere", "center": [0.623, -0.013, -0.426], "radius": 0.08}  # on P's way
-FLOOR = {"type": "box", "center": [0.0, 0.0, -0.75], "size": [2.0, 2.0, 0.1],
-         "quaternion": [1.0, 0.0, 0.0, 0.0]}  # fmt: skip
+FLOOR = {
+    "type": "box",
+    "center": [0.0, 0.0, -0.75],
+    "size": [2.0, 2.0, 0.1],
+    "quaternion": [1.0, 0.0, 0.0, 0.0],
+}
 CLEARANCE = 0.01  # m
 LINK_RADIUS = 0.02  # m, the default robot's
 

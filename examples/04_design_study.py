@@ -34,15 +34,19 @@ def main() -> None:
             d = preset.design
             check = client.check_design(d, rel_se=0.05)
             kinds = ", ".join(check.parallel_singularities) or "none"
-            print(f"{preset.name:<18} {d.L0:>5.2f} {d.L1:>5.2f} {d.L2:>5.2f} "
-                  f"{check.volume:>11.4f}  {kinds}")  # fmt: skip
+            print(
+                f"{preset.name:<18} {d.L0:>5.2f} {d.L1:>5.2f} {d.L2:>5.2f} "
+                f"{check.volume:>11.4f}  {kinds}"
+            )
             # check: the rule of erratum 4
             assert check.singularity_free == (2 * d.L1 < d.L0 < 2 * (d.L2 - d.L1))
 
         ws = client.workspace(resolution=48, rel_se=0.01, joint=False)
         s = ws.sampled_volume
-        print(f"default robot: closed-form volume {ws.volume:.4f} m^3, sampled "
-              f"{s.value:.4f} +- {s.standard_error:.4f} m^3, GCI {ws.gci.value:.3f}")  # fmt: skip
+        print(
+            f"default robot: closed-form volume {ws.volume:.4f} m^3, sampled "
+            f"{s.value:.4f} +- {s.standard_error:.4f} m^3, GCI {ws.gci.value:.3f}"
+        )
         # check: without joint limits in the way (full turns), the sample finds the closed form
         assert abs(s.value - ws.volume) < 4 * s.standard_error + 0.005 * ws.volume
         section = ws.cartesian_section

@@ -55,8 +55,10 @@ def main() -> None:
         if result.status != "solved":
             raise SystemExit(1)
         traj = result.trajectory
-        print(f"duration: {traj.duration:.3f} s, {len(traj.points)} points of joints "
-              f"{', '.join(traj.joint_names)}")  # fmt: skip
+        print(
+            f"duration: {traj.duration:.3f} s, {len(traj.points)} points of joints "
+            f"{', '.join(traj.joint_names)}"
+        )
 
         # check: P stays within the tolerance of the polyline, by the service's kinematics of
         # each sample (POST /v1/fk) against the straight segments

@@ -54,8 +54,9 @@ def main() -> None:
         assert np.linalg.norm(p - PICK) < 1e-4, "the start is the pick point"
         times = {}
         for stop in (True, False):
-            r = client.sequence(start=START, targets=cycle(stop), cycle=True,
-                                timing={"sample_rate_hz": 200})  # fmt: skip
+            r = client.sequence(
+                start=START, targets=cycle(stop), cycle=True, timing={"sample_rate_hz": 200}
+            )
             label = "stops at every target" if stop else "passing the top corners"
             print(f"{label}: status: {r.status}, cycle time {r.cycle_time:.3f} s")
             print(f"  {r.message}")
@@ -67,8 +68,10 @@ def main() -> None:
                 i = int(np.argmin(np.abs(t - leg.end_time)))
                 speed = float(np.linalg.norm(qd[i]))
                 passing = not stop and leg.target_index in (0, 1)
-                print(f"  target {leg.target_index}: {leg.working_mode}, "
-                      f"t {leg.start_time:.3f}..{leg.end_time:.3f} s, speed {speed:.3f} rad/s")  # fmt: skip
+                print(
+                    f"  target {leg.target_index}: {leg.working_mode}, "
+                    f"t {leg.start_time:.3f}..{leg.end_time:.3f} s, speed {speed:.3f} rad/s"
+                )
                 assert (speed > 0.05) if passing else (speed <= 1e-9), "rest or speed"
             times[stop] = r.cycle_time
             if not stop:

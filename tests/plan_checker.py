@@ -387,8 +387,9 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
     if segments[0]["start_index"] != 0 or segments[-1]["end_index"] != len(w) - 1:
         report.fail("the segments do not run from the first waypoint to the last")
     if len(transits) != len(segments) - 1:
-        report.fail(f"{len(segments)} segments need {len(segments) - 1} transits, got "
-                    f"{len(transits)}")  # fmt: skip
+        report.fail(
+            f"{len(segments)} segments need {len(segments) - 1} transits, got {len(transits)}"
+        )
     for k, seg in enumerate(segments):
         if seg["assembly_mode"] != asm:
             report.fail(f"segment {k} is in assembly mode {seg['assembly_mode']}, start in {asm}")
@@ -396,12 +397,16 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
             report.fail(f"segment {k} has indices {seg['start_index']}..{seg['end_index']}")
     for k, (a, b, t) in enumerate(zip(segments[:-1], segments[1:], transits, strict=False)):
         if not a["end_index"] == b["start_index"] == t["index"]:
-            report.fail(f"transit {k} at {t['index']} is not where segment {k} ends "
-                        f"({a['end_index']}) and {k + 1} begins ({b['start_index']})")  # fmt: skip
+            report.fail(
+                f"transit {k} at {t['index']} is not where segment {k} ends "
+                f"({a['end_index']}) and {k + 1} begins ({b['start_index']})"
+            )
         diff = [i for i in range(3) if a["working_mode"][i] != b["working_mode"][i]]
         if diff != [_FLIPPED_INDEX.get(t["flipped"], -1)]:
-            report.fail(f"transit {k}: {a['working_mode']} -> {b['working_mode']} does not flip "
-                        f"exactly the {t['flipped']!r} sign")  # fmt: skip
+            report.fail(
+                f"transit {k}: {a['working_mode']} -> {b['working_mode']} does not flip "
+                f"exactly the {t['flipped']!r} sign"
+            )
         if _KIND_FLIPS.get(t["kind"]) != t["flipped"]:
             report.fail(f"transit {k}: kind {t['kind']} does not flip {t['flipped']!r}")
     if len(report.failures) > before:
@@ -416,8 +421,9 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
         c = _FLIPPED_INDEX[t["flipped"]]
         m = pt.measures[0]
         if not pt.ok[0] or abs(m[c]) > TRANSIT_TOL:
-            report.fail(f"transit {k} ({t['kind']}): the {t['flipped']} measure is {m[c]:.3g}, "
-                        "not 0")  # fmt: skip
+            report.fail(
+                f"transit {k} ({t['kind']}): the {t['flipped']} measure is {m[c]:.3g}, not 0"
+            )
         leg = {"A": (pt.theta4[0], w[i, 1]), "B": (pt.theta5[0], w[i, 2])}.get(t["flipped"])
         if leg is not None:
             stretched = math.cos(leg[0] - leg[1]) > 0
@@ -437,8 +443,7 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
             post = postures(design, q, branch)
             report.postures_checked += len(q)
             where = f"segment {k}, piece {i}-{i + 1}"
-            _common_rules(report, post, obstacles, radius, kmax, cmin, lo, hi, branch, where,
-                          worst)  # fmt: skip
+            _common_rules(report, post, obstacles, radius, kmax, cmin, lo, hi, branch, where, worst)
             signed = post.measures * signs
             exempt = np.zeros((len(q), 3), dtype=bool)
             if i + 1 == seg["end_index"] and i + 1 in ends_at:  # ends on a transit
@@ -452,13 +457,28 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
             worst["serial"] = min(worst["serial"], low)
             if low < smin - MARGIN_TOL:
                 j = np.unravel_index(int(np.argmin(kept)), kept.shape)
-                report.fail(f"{where}: signed serial measure {j[1]} is {low:.6g} < serial_min "
-                            f"{smin} for working mode {seg['working_mode']}")  # fmt: skip
+                report.fail(
+                    f"{where}: signed serial measure {j[1]} is {low:.6g} < serial_min "
+                    f"{smin} for working mode {seg['working_mode']}"
+                )
 
     trajectory = response.get("trajectory")
     if trajectory:
-        _check_trajectory(report, request, trajectory, w, segments, transits, design, margins,
-                          limits, obstacles, branch, step, worst)  # fmt: skip
+        _check_trajectory(
+            report,
+            request,
+            trajectory,
+            w,
+            segments,
+            transits,
+            design,
+            margins,
+            limits,
+            obstacles,
+            branch,
+            step,
+            worst,
+        )
     report.worst = worst
     return report
 
@@ -466,8 +486,10 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
 def _sign_kept(report: PlanCheck, signed: np.ndarray, where: str) -> None:
     """The flipped measure keeps its segment's sign everywhere but on the transit posture."""
     if len(signed) and float(signed.min()) <= 0.0:
-        report.fail(f"{where}: the flipped measure changes sign before the transit "
-                    f"({float(signed.min()):.3g})")  # fmt: skip
+        report.fail(
+            f"{where}: the flipped measure changes sign before the transit "
+            f"({float(signed.min()):.3g})"
+        )
 
 
 def _common_rules(report, post, obstacles, radius, kmax, cmin, lo, hi, branch, where, worst):
@@ -487,8 +509,21 @@ def _common_rules(report, post, obstacles, radius, kmax, cmin, lo, hi, branch, w
             report.fail(f"{where}: link clearance falls to {clear:.6g} m < {cmin} m")
 
 
-def _check_trajectory(report, request, traj, w, segments, transits, design, margins, limits,
-                      obstacles, branch, step, worst):  # fmt: skip
+def _check_trajectory(
+    report,
+    request,
+    traj,
+    w,
+    segments,
+    transits,
+    design,
+    margins,
+    limits,
+    obstacles,
+    branch,
+    step,
+    worst,
+):
     """The timed trajectory: time axis, ends at rest, rate limits and finite differences,
     then every sample (and the chords between them, densified) against the validity rules
     of the segment it follows."""
@@ -497,8 +532,9 @@ def _check_trajectory(report, request, traj, w, segments, transits, design, marg
     qd = np.asarray(traj.get("qd") or [], float).reshape(-1, 3)
     qdd = np.asarray(traj.get("qdd") or [], float).reshape(-1, 3)
     if not (len(t) == len(q) == len(qd) == len(qdd)) or len(t) < 2:
-        report.fail(f"trajectory arrays have lengths t {len(t)}, q {len(q)}, qd {len(qd)}, "
-                    f"qdd {len(qdd)}")  # fmt: skip
+        report.fail(
+            f"trajectory arrays have lengths t {len(t)}, q {len(q)}, qd {len(qd)}, qdd {len(qdd)}"
+        )
         return
     dt = np.diff(t)
     if abs(t[0]) > 1e-12 or np.any(dt <= 0) or abs(t[-1] - float(traj["duration"])) > 1e-9:
@@ -540,16 +576,25 @@ def _check_trajectory(report, request, traj, w, segments, transits, design, marg
     post = postures(design, dense, branch)
     report.postures_checked += len(dense)
     smin = margins["serial_min"]
-    _common_rules(report, post, obstacles, float(design["link_radius"]), margins["kappa_max"],
-                  margins["clearance"], np.asarray(design["joint_min"], float),
-                  np.asarray(design["joint_max"], float), branch, "trajectory", worst)  # fmt: skip
+    _common_rules(
+        report,
+        post,
+        obstacles,
+        float(design["link_radius"]),
+        margins["kappa_max"],
+        margins["clearance"],
+        np.asarray(design["joint_min"], float),
+        np.asarray(design["joint_max"], float),
+        branch,
+        "trajectory",
+        worst,
+    )
     timing = request.get("timing") or {}
     near = timing.get("max_deviation")
     near = DEFAULT_MAX_DEVIATION if near is None else float(near)
     piece, dist = _distance_to_pieces(dense, w)
     if float(dist.max()) > near + 1e-6:
-        report.fail(f"trajectory strays {float(dist.max()):.4g} rad from the path (allowed "
-                    f"{near})")  # fmt: skip
+        report.fail(f"trajectory strays {float(dist.max()):.4g} rad from the path (allowed {near})")
     seg_of = np.zeros(len(w) - 1, dtype=int)
     for k, seg in enumerate(segments):
         seg_of[seg["start_index"] : seg["end_index"]] = k
@@ -564,8 +609,10 @@ def _check_trajectory(report, request, traj, w, segments, transits, design, marg
     low = float(kept.min())
     worst["serial"] = min(worst["serial"], low)
     if low < smin - MARGIN_TOL:
-        report.fail(f"trajectory: signed serial measure falls to {low:.6g} < serial_min {smin} "
-                    "away from the transits (or leaves its segment's working mode)")  # fmt: skip
+        report.fail(
+            f"trajectory: signed serial measure falls to {low:.6g} < serial_min {smin} "
+            "away from the transits (or leaves its segment's working mode)"
+        )
     # the working modes follow the segments in order
     defined = np.all(np.abs(post.measures) > SIGN_EPS, axis=1)
     seen = [_label(s) for s in post.measures[defined]]

@@ -31,8 +31,12 @@ from planner.validity import Margins
 
 BUDGET = {"seed": 1, "time_budget_s": 5.0}  # generous: a cold worker must not turn it no_path
 SPHERE = {"type": "sphere", "center": [0.549, -0.025, -0.376], "radius": 0.1}
-BOX = {"type": "box", "center": [0.0, 0.0, -0.95], "size": [2.0, 2.0, 0.1],
-       "quaternion": [0.9990482, 0.0436194, 0.0, 0.0]}  # fmt: skip
+BOX = {
+    "type": "box",
+    "center": [0.0, 0.0, -0.95],
+    "size": [2.0, 2.0, 0.1],
+    "quaternion": [0.9990482, 0.0436194, 0.0, 0.0],
+}
 CAPSULE = {"type": "capsule", "a": [-0.6, 0.75, 0.6], "b": [0.6, 0.75, 0.6], "radius": 0.05}
 START = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}  # working mode +-+
 # a posture of working mode +++ reached from START through one leg-A transit
@@ -87,25 +91,33 @@ def plans(api):
 def test_defaults_are_the_librarys():
     d = Design.default()
     assert DEFAULT_DESIGN == {
-        "L0": d.L0, "L1": d.L1, "L2": d.L2, "link_radius": d.link_radius,
-        "joint_min": list(d.joint_min), "joint_max": list(d.joint_max),
-    }  # fmt: skip
+        "L0": d.L0,
+        "L1": d.L1,
+        "L2": d.L2,
+        "link_radius": d.link_radius,
+        "joint_min": list(d.joint_min),
+        "joint_max": list(d.joint_max),
+    }
     m = Margins()
     assert DEFAULT_MARGINS == {
-        "kappa_max": m.kappa_max, "serial_min": m.serial_min, "clearance": m.clearance
-    }  # fmt: skip
+        "kappa_max": m.kappa_max,
+        "serial_min": m.serial_min,
+        "clearance": m.clearance,
+    }
     lim = JointLimits.default()
     assert DEFAULT_LIMITS == {
-        "velocity": list(lim.velocity), "acceleration": list(lim.acceleration),
+        "velocity": list(lim.velocity),
+        "acceleration": list(lim.acceleration),
         "jerk": list(lim.jerk),
-    }  # fmt: skip
+    }
     assert DEFAULT_MAX_DEVIATION == LIBRARY_MAX_DEVIATION
 
 
 @pytest.mark.parametrize(
-    "design", [Design.default(), Design.paper_optimum(), Design(0.3, 0.25, 0.4)],
+    "design",
+    [Design.default(), Design.paper_optimum(), Design(0.3, 0.25, 0.4)],
     ids=["default", "paper", "other"],
-)  # fmt: skip
+)
 def test_kinematics_agree_with_the_library(design):
     """Points, serial measures, working modes and kappa(A) of the checker's own formulas
     against planner.kinematics, in both assembly modes."""

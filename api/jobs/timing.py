@@ -62,8 +62,9 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     margins = margins_to_core(request.margins or MarginsModel())
     working_mode = request.working_mode
     if working_mode is None:
-        working_mode = mode_label(forward_batch(design, q0[None], request.assembly_mode)
-                                  .working_mode_signs[0])  # fmt: skip
+        working_mode = mode_label(
+            forward_batch(design, q0[None], request.assembly_mode).working_mode_signs[0]
+        )
         if working_mode not in WORKING_MODES:  # the first waypoint sits on a serial singularity
             with located("body", "waypoints", 0):
                 raise InputError(

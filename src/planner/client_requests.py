@@ -126,7 +126,13 @@ def _floats(values: Any) -> Any:
 def _scene_path(name: str) -> str:
     """``/v1/scenes/{name}``, the name checked first (a safe identifier, never a path)."""
     if not isinstance(name, str) or re.fullmatch(SCENE_NAME_PATTERN, name) is None:
-        detail = [{"loc": ["path", "name"], "msg": f"a scene name must match {SCENE_NAME_PATTERN}, got {name!r}", "type": "string_pattern_mismatch"}]  # fmt: skip
+        detail = [
+            {
+                "loc": ["path", "name"],
+                "msg": f"a scene name must match {SCENE_NAME_PATTERN}, got {name!r}",
+                "type": "string_pattern_mismatch",
+            }
+        ]
         raise InvalidRequestError(_describe_item(detail[0]), status_code=None, detail=detail)
     return f"/v1/scenes/{name}"
 

@@ -613,9 +613,23 @@ def _spheres_min(
 
 @njit(cache=True, inline="always")
 def segment_min_distance(
-    ax, ay, az, bx, by, bz, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes,
-    sphere_grid, upper, relax_from, relax,
-):  # pragma: no cover  # fmt: skip
+    ax,
+    ay,
+    az,
+    bx,
+    by,
+    bz,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    upper,
+    relax_from,
+    relax,
+):  # pragma: no cover
     """A lower bound L on the smallest signed distance D from segment a-b to every obstacle
     (the packed arrays of :class:`PackedObstacles`, in its order), or a value >= ``upper``
     when every obstacle is at least ``upper`` away.
@@ -646,9 +660,20 @@ def segment_min_distance(
             return best
     elif spheres.shape[0] > 0:
         best = _spheres_min(
-            spheres, sphere_nodes, sphere_grid, ax, ay, az, bx, by, bz, best, relax_from, relax,
+            spheres,
+            sphere_nodes,
+            sphere_grid,
+            ax,
+            ay,
+            az,
+            bx,
+            by,
+            bz,
+            best,
+            relax_from,
+            relax,
             stop,
-        )  # fmt: skip
+        )
         if best < stop:
             return best
     if capsules.shape[0] > 0 and capsule_nodes.shape[0] == 1:
@@ -674,10 +699,23 @@ def _segments_distance(
 ):  # pragma: no cover - compiled
     for i in range(a.shape[0]):
         out[i] = segment_min_distance(
-            a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2],
-            spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid,
-            np.inf, 0.0, 0.0,
-        )  # fmt: skip
+            a[i, 0],
+            a[i, 1],
+            a[i, 2],
+            b[i, 0],
+            b[i, 1],
+            b[i, 2],
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            sphere_grid,
+            np.inf,
+            0.0,
+            0.0,
+        )
 
 
 def segment_obstacle_distance(

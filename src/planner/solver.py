@@ -170,18 +170,31 @@ def solve(
     if held is not None and timing.method != "none":
         return Solution(PlanResult(PlanStatus.INVALID_START, held, None, Diagnostics(0.0)))
     result = plan_with_goal_options(
-        design, start, goal, obstacles=obstacles, margins=margins,
-        options=search_budget(options, deadline), prefer=prefer, tolerance=tolerance,
+        design,
+        start,
+        goal,
+        obstacles=obstacles,
+        margins=margins,
+        options=search_budget(options, deadline),
+        prefer=prefer,
+        tolerance=tolerance,
         deadline=None if deadline is None else deadline - ANSWER_RESERVE_S,
-    )  # fmt: skip
+    )
     if timing.method == "none" or result.path is None:
         return Solution(result)
     try:
         trajectory = time_plan(
-            design, result.path, obstacles=obstacles, margins=margins, timing=timing,
-            limits=limits, stop_at_transits=options.stop_at_transits, deadline=deadline,
-            inertia=inertia, gravity=gravity,
-        )  # fmt: skip
+            design,
+            result.path,
+            obstacles=obstacles,
+            margins=margins,
+            timing=timing,
+            limits=limits,
+            stop_at_transits=options.stop_at_transits,
+            deadline=deadline,
+            inertia=inertia,
+            gravity=gravity,
+        )
     except TimingError as exc:  # deadline, no profile, or the dense re-check failed
         return Solution(result, timing_error=exc)
     return Solution(result, trajectory)

@@ -65,8 +65,7 @@ def _dynamics(state: _State) -> None:
     from planner.dynamics import Inertia, inverse_dynamics
 
     q = np.array([[0.0, 2.0, 1.0]])
-    inverse_dynamics(state.design, Inertia.default(state.design), q, q, q,
-                     with_mass_matrix=True)  # fmt: skip
+    inverse_dynamics(state.design, Inertia.default(state.design), q, q, q, with_mass_matrix=True)
 
 
 def _validity(state: _State) -> None:
@@ -155,9 +154,14 @@ def _obstacle_proof(state: _State) -> None:
     ]
     for level in LEVELS:
         prove_disconnected_with_obstacles(
-            state.design, Margins(), scene, np.array([1.0, 2.0, 1.0]),
-            np.array([-1.0, 2.0, 1.0]), "+", levels=(level,),
-        )  # fmt: skip
+            state.design,
+            Margins(),
+            scene,
+            np.array([1.0, 2.0, 1.0]),
+            np.array([-1.0, 2.0, 1.0]),
+            "+",
+            levels=(level,),
+        )
 
 
 def _corridor(state: _State) -> None:
@@ -192,9 +196,13 @@ def _time_plans(state: _State, method: str) -> None:
             time_path(state.design, np.array([_START, _GOAL]), JointLimits.default(), method=method)
             continue
         time_plan(
-            state.design, result.path, obstacles=obstacles, margins=margins, timing=timing,
+            state.design,
+            result.path,
+            obstacles=obstacles,
+            margins=margins,
+            timing=timing,
             stop_at_transits=bool(result.path.transits),
-        )  # fmt: skip
+        )
 
 
 def _analysis(state: _State) -> None:

@@ -92,9 +92,11 @@ def mjcf(
     model = DesignModel.model_validate(design_data(design, l0, l1, l2))
     with located("home"):
         text = to_mjcf(
-            model.to_design(), gravity=_triple("gravity", gravity),
-            home=_triple("home", home), assembly_mode=assembly_mode,
-        )  # fmt: skip
+            model.to_design(),
+            gravity=_triple("gravity", gravity),
+            home=_triple("home", home),
+            assembly_mode=assembly_mode,
+        )
     if output is None:
         typer.echo(text, nl=False)
     else:
@@ -124,9 +126,11 @@ def inertia_report(
     from planner.sequence.adept import place_adept_cycle
 
     designs = {"default": Design.default(), "paper-optimum": Design.paper_optimum()}
-    typer.echo("| design | working mode | cells | five-bar: median | p95 | max | serial: "
-               "median | p95 | max | median ratio | planar block: five-bar median | serial "
-               "median | median ratio |")  # fmt: skip
+    typer.echo(
+        "| design | working mode | cells | five-bar: median | p95 | max | serial: "
+        "median | p95 | max | median ratio | planar block: five-bar median | serial "
+        "median | median ratio |"
+    )
     typer.echo("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, design in designs.items():
         cmp = serial_comparison(design, Inertia.default(design), resolution=resolution)
@@ -139,8 +143,10 @@ def inertia_report(
                 f"{r['planar_ratio_median']:.2f} |"
             )
     typer.echo("")
-    typer.echo("| design | cycle [s] | torque | robot | peak tau1, tau2, tau3 [N m] | "
-               "RMS tau1, tau2, tau3 [N m] |")  # fmt: skip
+    typer.echo(
+        "| design | cycle [s] | torque | robot | peak tau1, tau2, tau3 [N m] | "
+        "RMS tau1, tau2, tau3 [N m] |"
+    )
     typer.echo("|---|---|---|---|---|---|")
     for name, design in designs.items():
         inertia = Inertia.default(design)
@@ -149,8 +155,16 @@ def inertia_report(
         t = np.linspace(0.0, traj.duration, samples)
         q, qd, qdd, _ = traj.at(t)
         for part, gravity in (("total", (0.0, 0.0, -9.81)), ("inertial", (0.0, 0.0, 0.0))):
-            par, ser = cycle_torques(design, inertia, t, q, qd, qdd, gravity=gravity,
-                                     assembly_mode=cycle.start.assembly_mode)  # fmt: skip
+            par, ser = cycle_torques(
+                design,
+                inertia,
+                t,
+                q,
+                qd,
+                qdd,
+                gravity=gravity,
+                assembly_mode=cycle.start.assembly_mode,
+            )
             for robot, st in (("five-bar", par), ("serial", ser)):
                 typer.echo(
                     f"| {name} | {traj.duration:.3f} | {part} | {robot} | "

@@ -69,8 +69,9 @@ def _write_named_figures(
         for index, name in enumerate(names):
             progress.step(f"figure {name}", index)
             for fmt in fmts:
-                image = render_figure(name, DesignModel(**design).to_design(), n=n,
-                                      fmt=fmt, dpi=dpi)  # fmt: skip
+                image = render_figure(
+                    name, DesignModel(**design).to_design(), n=n, fmt=fmt, dpi=dpi
+                )
                 path = outdir / f"{name}.{fmt}"
                 path.write_bytes(image)
                 progress.echo(str(path))

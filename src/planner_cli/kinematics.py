@@ -77,9 +77,12 @@ def no_posture_reason(design: Design, p: list[float], working_mode: str, reached
         return (
             f"no posture in working mode {working_mode} reaches P = {at}; it is reached in "
             f"working mode{'s' if len(reached) > 1 else ''} {', '.join(reached)} only"
-            + (" (a 0 sign: P on that serial singularity, where the + and - modes meet)"
-               if on_singularity else "")
-        )  # fmt: skip
+            + (
+                " (a 0 sign: P on that serial singularity, where the + and - modes meet)"
+                if on_singularity
+                else ""
+            )
+        )
     outer, inner = design.L1 + design.L2, abs(design.L2 - design.L1)
     legs = []
     for leg, pivot_y in (("A", -design.L0 / 2), ("B", design.L0 / 2)):

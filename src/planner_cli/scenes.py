@@ -55,8 +55,10 @@ def put(
     info = _call(
         url, api_key, "put_scene", name, data.get("obstacles", []), design=data.get("design")
     )
-    typer.echo(f"{info.name}: version {info.version}, hash {info.hash[:16]}, "
-               f"{info.obstacles} obstacles, {info.points} points")  # fmt: skip
+    typer.echo(
+        f"{info.name}: version {info.version}, hash {info.hash[:16]}, "
+        f"{info.obstacles} obstacles, {info.points} points"
+    )
 
 
 @reported
@@ -82,8 +84,9 @@ def get(
 def list_scenes(url: UrlOption = None, api_key: KeyOption = None) -> None:
     """List the stored scenes: name, version, obstacles, points, hash."""
     for s in _call(url, api_key, "scenes").scenes:
-        typer.echo(f"{s.name}\tv{s.version}\t{s.obstacles} obstacles\t{s.points} points\t"
-                   f"{s.hash[:16]}")  # fmt: skip
+        typer.echo(
+            f"{s.name}\tv{s.version}\t{s.obstacles} obstacles\t{s.points} points\t{s.hash[:16]}"
+        )
 
 
 @reported

@@ -209,9 +209,22 @@ def classify_kernel(
                     for p2 in range(split):
                         cc2, ss2 = sub2[i2, p2, 0], sub2[i2, p2, 1]
                         ssure, smiss, _ = _cell_bounds(
-                            L0, L1, L2, b_lo, b_hi, s, cc2, ss2, cc3, ss3, e2, e3,
-                            sub_lo, sub_hi, sub_cen,
-                        )  # fmt: skip
+                            L0,
+                            L1,
+                            L2,
+                            b_lo,
+                            b_hi,
+                            s,
+                            cc2,
+                            ss2,
+                            cc3,
+                            ss3,
+                            e2,
+                            e3,
+                            sub_lo,
+                            sub_hi,
+                            sub_cen,
+                        )
                         so, sv, sp = _decide(ssure, smiss, sub_lo, sub_hi, smin)
                         over |= so
                         valid &= sv
@@ -393,8 +406,9 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
                 if i2 > 0:
                     _join(parent, rest & nb_d, m, x0, nb_d, start[i3 * n2 + i2 - 1])
                     if i3 > 0:
-                        _join(parent, rest & ~nb_d & nb_a, m, x0, nb_a,
-                              start[(i3 - 1) * n2 + i2 - 1])  # fmt: skip
+                        _join(
+                            parent, rest & ~nb_d & nb_a, m, x0, nb_a, start[(i3 - 1) * n2 + i2 - 1]
+                        )
     counts = np.zeros(LAYERS, dtype=np.int64)
     slot_label = np.empty(total, dtype=np.int64)
     for i3 in range(n3):
@@ -598,13 +612,26 @@ def _classify(
     mirror = cells.mirrored
     for ai in (0,) if mirror else (0, 1):
         classify_kernel(
-            design.L0, design.L1, design.L2, 2.0 * design.L2 * lo, 2.0 * design.L2 * hi,
-            margins.serial_min, 1.0 if ai == 0 else -1.0, theta2, theta3, a2, a3, split,
-            sub2, sub3, *(getattr(cells, f)[ai] for f in fields),
-        )  # fmt: skip
+            design.L0,
+            design.L1,
+            design.L2,
+            2.0 * design.L2 * lo,
+            2.0 * design.L2 * hi,
+            margins.serial_min,
+            1.0 if ai == 0 else -1.0,
+            theta2,
+            theta3,
+            a2,
+            a3,
+            split,
+            sub2,
+            sub3,
+            *(getattr(cells, f)[ai] for f in fields),
+        )
     if mirror:
-        mirror_kernel(*(getattr(cells, f)[0] for f in fields),
-                        *(getattr(cells, f)[1] for f in fields))  # fmt: skip
+        mirror_kernel(
+            *(getattr(cells, f)[0] for f in fields), *(getattr(cells, f)[1] for f in fields)
+        )
     return cells
 
 
@@ -652,8 +679,11 @@ def _label_layers(cells: _Cells, n: int) -> tuple[np.ndarray, np.ndarray, list[t
     layers = [label_kernel(cells.bits[0], labels[0], certified[0])]
     if cells.mirrored:  # the other assembly mode's components are the mirror images
         start, slot_label = layers[0][4], layers[0][5]
-        layers.append(mirror_label_kernel(cells.bits[1], cells.bits[0], start, slot_label,
-                                            labels[1], certified[1]))  # fmt: skip
+        layers.append(
+            mirror_label_kernel(
+                cells.bits[1], cells.bits[0], start, slot_label, labels[1], certified[1]
+            )
+        )
     else:
         layers.append(label_kernel(cells.bits[1], labels[1], certified[1]))
     return labels, certified, layers
@@ -685,16 +715,18 @@ def _transit_graph(
             for side, mi in enumerate(pair):
                 for lab in range(1, int(counts[ai, mi]) + 1):
                     cell = int(first[mi, lab])
-                    comp = int(slot_label[_slot_of(int(flat_bits[ai, cell]), start, cell,
-                                                       BITS_B + b)])  # fmt: skip
+                    comp = int(
+                        slot_label[_slot_of(int(flat_bits[ai, cell]), start, cell, BITS_B + b)]
+                    )
                     members[b].setdefault(comp, ([], []))[side].append(
                         int(region_index[ai, mi, lab])
                     )
             for comp, (plus, minus) in members[b].items():
                 joining[b, comp] = bool(plus and minus)
         kinds = np.zeros((12, first.shape[1], len(TRANSIT_KINDS)), dtype=np.int64)
-        transit_kernel(cells.bits[ai], cells.kind[ai], start, slot_label, joining, kinds,
-                         transit_cells[ai])  # fmt: skip
+        transit_kernel(
+            cells.bits[ai], cells.kind[ai], start, slot_label, joining, kinds, transit_cells[ai]
+        )
         for b in range(12):
             for comp, (plus, minus) in members[b].items():
                 groups.append(plus + minus)
@@ -758,8 +790,18 @@ def reference_region_map(design: Design, margins: Margins, n: int, split: int) -
         for i, (ai, mi, lab) in enumerate(raw)
     )
     status, centre_mode, m_lo, m_hi = cells.status, cells.centre_mode, cells.m_lo, cells.m_hi
-    for arr in (theta2, theta3, status, labels, certified, centre_mode, transit_cells,
-                region_index, m_lo, m_hi):  # fmt: skip
+    for arr in (
+        theta2,
+        theta3,
+        status,
+        labels,
+        certified,
+        centre_mode,
+        transit_cells,
+        region_index,
+        m_lo,
+        m_hi,
+    ):
         arr.setflags(write=False)
     return RegionMap(
         design=design,

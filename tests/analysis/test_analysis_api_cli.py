@@ -50,8 +50,11 @@ def test_design_check_default_design_is_singularity_free(client):
     ],
 )
 def test_bad_design_is_422_naming_the_field(client, design, field):
-    r = client.post("/v1/design/check", content='{"design": ' + design + "}",
-                    headers={"content-type": "application/json"})  # fmt: skip
+    r = client.post(
+        "/v1/design/check",
+        content='{"design": ' + design + "}",
+        headers={"content-type": "application/json"},
+    )
     assert r.status_code == 422
     locs = [e["loc"] for e in r.json()["detail"]]
     assert any(loc[:3] == ["body", "design", field] for loc in locs), locs

@@ -87,8 +87,11 @@ def test_volume_optimum_is_the_papers_for_fixed_reach():
     assert r.design.L1 == pytest.approx(0.4, abs=1e-4)
     assert r.design.L2 == pytest.approx(0.4, abs=1e-4)
     # independent check: no design on a grid of the same reach does better
-    grid = [closed_form_volume(Design(l0, l1, 0.8 - l1))
-            for l0 in np.linspace(0, 0.8, 9) for l1 in np.linspace(0.05, 0.75, 15)]  # fmt: skip
+    grid = [
+        closed_form_volume(Design(l0, l1, 0.8 - l1))
+        for l0 in np.linspace(0, 0.8, 9)
+        for l1 in np.linspace(0.05, 0.75, 15)
+    ]
     assert r.value >= max(grid) - 1e-12
 
 
@@ -97,8 +100,14 @@ def test_sampled_objective_improves_on_a_poor_design():
     assert 0.0 <= r.design.L0 <= 0.8 and r.design.L1 + r.design.L2 == pytest.approx(0.8)
     from planner.analysis.workspace import sample_workspace
 
-    poor = sample_workspace(Design(0.7, 0.1, 0.7), rel_se=None, n_per_replicate=128,
-                            replicates=4, kappa_max=10.0, seed=1)  # fmt: skip
+    poor = sample_workspace(
+        Design(0.7, 0.1, 0.7),
+        rel_se=None,
+        n_per_replicate=128,
+        replicates=4,
+        kappa_max=10.0,
+        seed=1,
+    )
     assert r.value > poor.well_conditioned.value
 
 

@@ -105,8 +105,13 @@ def test_half_turn_of_theta1_keeps_the_volume_but_halves_each_mode():
     """Every P is reached with theta1 or theta1 + pi (s_axis flips): a half-turn window of
     theta1 keeps all points but each working mode reaches only half of them."""
     base = Design.singularity_free()
-    d = Design(base.L0, base.L1, base.L2, joint_min=(-math.pi / 2, -math.pi, -math.pi),
-               joint_max=(math.pi / 2, math.pi, math.pi))  # fmt: skip
+    d = Design(
+        base.L0,
+        base.L1,
+        base.L2,
+        joint_min=(-math.pi / 2, -math.pi, -math.pi),
+        joint_max=(math.pi / 2, math.pi, math.pi),
+    )
     s = sample_workspace(d, rel_se=0.004, replicates=16, seed=5)
     exact = closed_form_volume(d)
     assert abs(s.volume.value - exact) <= 3 * s.volume.standard_error
@@ -126,8 +131,12 @@ def test_quarter_turn_of_theta1_halves_the_volume():
 def test_well_conditioned_volume_is_monotone_in_the_bound():
     d = Design(0.3, 0.3, 0.4)
     mode = ["+-+"]
-    vals = [sample_workspace(d, rel_se=None, kappa_max=k, seed=0, working_modes=mode)
-            .well_conditioned.value for k in (1.0, 1.5, 3.0, 1e9)]  # fmt: skip
+    vals = [
+        sample_workspace(
+            d, rel_se=None, kappa_max=k, seed=0, working_modes=mode
+        ).well_conditioned.value
+        for k in (1.0, 1.5, 3.0, 1e9)
+    ]
     full = sample_workspace(d, rel_se=None, seed=0, working_modes=mode).volume.value
     assert vals[0] == 0.0  # kappa = 1 exactly is a surface: no volume
     assert vals[1] < vals[2] < vals[3]

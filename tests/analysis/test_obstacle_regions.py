@@ -101,8 +101,10 @@ def test_blocked_proximal_cells_hold_no_link_clear_of_the_spheres() -> None:
     theta1, h1 = O.theta1_grid(design, 0.08)
     blocked_a, blocked_b = O.proximal_tables(design, margins, spheres, theta1, h1, rmap)
     limit = design.link_radius + margins.clearance
-    for table, theta, h, base in ((blocked_a, rmap.theta2, rmap.h2, -design.L0 / 2),
-                                  (blocked_b, rmap.theta3, rmap.h3, design.L0 / 2)):  # fmt: skip
+    for table, theta, h, base in (
+        (blocked_a, rmap.theta2, rmap.h2, -design.L0 / 2),
+        (blocked_b, rmap.theta3, rmap.h3, design.L0 / 2),
+    ):
         assert 0.02 < table.mean() < 0.9  # the scene blocks some cells, not all
         i, k = np.nonzero(table)
         i, k = np.repeat(i, 8), np.repeat(k, 8)
@@ -160,8 +162,13 @@ def test_a_wall_is_proven_and_its_window_is_not() -> None:
         for s, g in zip(q[ok & (q[:, 0] > 0.3)][:3], q[ok & (q[:, 0] < -0.3)][:3], strict=False):
             if solved >= 4:
                 break
-            res = plan(design, JointPosture(s, "+"), JointPosture(g, "+"), obstacles=WINDOW,
-                       options=PlanOptions(time_budget_s=0.5, seed=1, region_map=False))  # fmt: skip
+            res = plan(
+                design,
+                JointPosture(s, "+"),
+                JointPosture(g, "+"),
+                obstacles=WINDOW,
+                options=PlanOptions(time_budget_s=0.5, seed=1, region_map=False),
+            )
             proof = O.prove_disconnected_with_obstacles(design, margins, WINDOW, s, g, "+")
             if res.solved:
                 solved += 1
@@ -177,10 +184,17 @@ def test_no_false_proof_for_queries_a_found_path_joins() -> None:
     solved = changed = 0
     for trial in range(64):
         base = DESIGNS[trial % len(DESIGNS)]
-        design = base if trial % 2 else Design(
-            base.L0, base.L1, base.L2, joint_min=(-2.0, -np.pi, -np.pi),
-            joint_max=(2.0, np.pi, np.pi),
-        )  # fmt: skip
+        design = (
+            base
+            if trial % 2
+            else Design(
+                base.L0,
+                base.L1,
+                base.L2,
+                joint_min=(-2.0, -np.pi, -np.pi),
+                joint_max=(2.0, np.pi, np.pi),
+            )
+        )
         obstacles = seeded_scene(rng)
         asm = "+" if trial % 3 else "-"
         q = rng.uniform(design.joint_min, design.joint_max, (4000, 3))
@@ -196,8 +210,13 @@ def test_no_false_proof_for_queries_a_found_path_joins() -> None:
         m1 = m0 if trial % 2 or len(modes) == 1 else modes[rng.integers(len(modes))]
         start = valid[m0][rng.integers(len(valid[m0]))]
         goal = valid[m1][rng.integers(len(valid[m1]))]
-        res = plan(design, JointPosture(start, asm), JointPosture(goal, asm), obstacles=obstacles,
-                   options=PlanOptions(time_budget_s=0.5, seed=trial + 1, region_map=False))  # fmt: skip
+        res = plan(
+            design,
+            JointPosture(start, asm),
+            JointPosture(goal, asm),
+            obstacles=obstacles,
+            options=PlanOptions(time_budget_s=0.5, seed=trial + 1, region_map=False),
+        )
         if res.status is not PlanStatus.SOLVED:
             continue
         solved += 1

@@ -75,9 +75,11 @@ def test_every_cell_agrees_with_dense_sampling(name):
     k3, k2 = np.meshgrid(np.arange(rmap.n), np.arange(rmap.n), indexing="ij")
     k3, k2 = k3.ravel(), k2.ravel()
     u = np.concatenate(
-        [[[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.0, 0.0]],
-         rng.uniform(-0.5, 0.5, (4, 2))]
-    )  # fmt: skip
+        [
+            [[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.0, 0.0]],
+            rng.uniform(-0.5, 0.5, (4, 2)),
+        ]
+    )
     t2 = rmap.theta2[k2][:, None] + u[None, :, 0] * rmap.h2
     t3 = rmap.theta3[k3][:, None] + u[None, :, 1] * rmap.h3
     t1 = rng.uniform(design.joint_min[0], design.joint_max[0], t2.shape)
@@ -421,9 +423,11 @@ def test_no_false_proof_on_solved_queries():
             proven += 1
             continue  # proven pairs are not planned here (the planner spends its budget)
         result = plan(
-            design, JointPosture(qa, asm), JointPosture(qb, asm),
+            design,
+            JointPosture(qa, asm),
+            JointPosture(qb, asm),
             options=PlanOptions(time_budget_s=0.25, seed=1 + k),
-        )  # fmt: skip
+        )
         solved += result.solved
     assert solved > 10
     assert proven > 0
@@ -439,9 +443,11 @@ def test_proven_queries_are_not_solved():
         if not R.prove_disconnected(rmap, qa, qb, asm):
             continue
         result = plan(
-            design, JointPosture(qa, asm), JointPosture(qb, asm),
+            design,
+            JointPosture(qa, asm),
+            JointPosture(qb, asm),
             options=PlanOptions(time_budget_s=0.1, seed=1 + k, region_map=False),
-        )  # fmt: skip
+        )
         assert not result.solved, (design, qa, qb, asm)
         checked += 1
         if checked >= 8:

@@ -106,8 +106,12 @@ def test_bench_runs_a_script_and_refuses_unknown_names():
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
     done = subprocess.run(
         [sys.executable, "-m", "planner_cli", "bench", "kinematics", "--quick"],
-        capture_output=True, text=True, timeout=300, env=env, cwd=ROOT,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+        cwd=ROOT,
+    )
     assert done.returncode == 0, done.stderr
     assert "== kinematics" in done.stdout and "forward" in done.stdout
     assert "bench: [1/1] kinematics" in done.stderr  # progress, not mixed into the tables

@@ -75,11 +75,20 @@ def test_numbers_as_arguments_keeps_option_values_and_argument_order():
     params = ik.get_params(typer.Context(ik))
     assert numbers_as_arguments(params, ["0.1", "0.2"]) == ["0.1", "0.2"]  # nothing to do
     assert numbers_as_arguments(params, ["-1", "--L2", "-0.5", "2", "-3", "--help"]) == [
-        "--L2", "-0.5", "--help", "--", "-1", "2", "-3",
-    ]  # fmt: skip
+        "--L2",
+        "-0.5",
+        "--help",
+        "--",
+        "-1",
+        "2",
+        "-3",
+    ]
     assert numbers_as_arguments(params, ["--L1=-2", "-1", "--", "-x"]) == [
-        "--L1=-2", "--", "-1", "-x",
-    ]  # fmt: skip
+        "--L1=-2",
+        "--",
+        "-1",
+        "-x",
+    ]
 
 
 # ---------------------------------------------------------------------------- help

@@ -323,11 +323,18 @@ def test_bad_options_are_rejected():
 
 
 def test_check_design_sends_only_the_options_given():
-    answer = {"design": {}, "volume": 1.0, "parallel_singularities": [], "singularity_free": True,
-              "reasons": {}, "operative_working_modes": [], "kappa_max": 10.0,
-              "sampled_volume": {"value": 1, "standard_error": 0, "n_samples": 1},
-              "well_conditioned_fraction": {"value": 1, "standard_error": 0, "n_samples": 1},
-              "gci": {"value": 1, "standard_error": 0, "n_samples": 1}}  # fmt: skip
+    answer = {
+        "design": {},
+        "volume": 1.0,
+        "parallel_singularities": [],
+        "singularity_free": True,
+        "reasons": {},
+        "operative_working_modes": [],
+        "kappa_max": 10.0,
+        "sampled_volume": {"value": 1, "standard_error": 0, "n_samples": 1},
+        "well_conditioned_fraction": {"value": 1, "standard_error": 0, "n_samples": 1},
+        "gci": {"value": 1, "standard_error": 0, "n_samples": 1},
+    }
     script = Script(httpx.Response(200, json=answer))
     with _sync(script) as c:
         assert c.check_design({"L0": 0.4}, seed=3).singularity_free is True

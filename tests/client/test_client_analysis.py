@@ -58,8 +58,12 @@ def test_timing_and_workspace_send_only_what_is_given():
         out = c.timing(np.array([[0, 1, 2], [0.1, 1, 2]]), limits={"velocity": np.ones(3)})
     assert isinstance(out, TimingResponse) and out.status == "infeasible"
     body = json.loads(script.requests[0].content)
-    assert body == {"waypoints": [[0, 1, 2], [0.1, 1, 2]], "design": {}, "method": "toppra",
-                    "limits": {"velocity": [1, 1, 1]}}  # fmt: skip
+    assert body == {
+        "waypoints": [[0, 1, 2], [0.1, 1, 2]],
+        "design": {},
+        "method": "toppra",
+        "limits": {"velocity": [1, 1, 1]},
+    }
     with PlannerClient("http://x", transport=httpx.MockTransport(script)) as c:
         with pytest.raises(InvalidRequestError) as info:
             c.timing([[0, 1, 2], [0, 1, 2]], limits={"velocity": [1, 0, 1]})

@@ -65,8 +65,9 @@ def test_serial_comparison_cells_and_values() -> None:
         assert c.kappa_A[0] <= 10 and c.min_serial[0] >= 0.05
         m = mass_matrix_by_polarisation(design, inertia, "+", q)[0]
         np.testing.assert_allclose(cmp.parallel[i, j], np.linalg.eigvalsh(m)[-1], rtol=1e-6)
-        np.testing.assert_allclose(cmp.parallel_planar[i, j],
-                                   np.linalg.eigvalsh(m[1:, 1:])[-1], rtol=1e-6)  # fmt: skip
+        np.testing.assert_allclose(
+            cmp.parallel_planar[i, j], np.linalg.eigvalsh(m[1:, 1:])[-1], rtol=1e-6
+        )
         ms = arm.mass_matrix(serial_coordinates(fb.q, fb.passive))[0]
         np.testing.assert_allclose(cmp.serial[i, j], np.linalg.eigvalsh(ms)[-1], rtol=1e-12)
     assert np.all(np.isnan(cmp.parallel[cmp.working_mode < 0]))

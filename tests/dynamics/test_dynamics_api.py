@@ -24,8 +24,13 @@ INERTIA = {
     "base": {"inertia": 0.03},
     "rotor": [0.002, 0.001, 0.003],
 }
-LIB_INERTIA = Inertia(LinkInertia(0.7, 0.3, 0.004, 0.0075), LinkInertia(1.1, 0.65, 0.02, 0.001),
-                      0.8, 0.03, (0.002, 0.001, 0.003))  # fmt: skip
+LIB_INERTIA = Inertia(
+    LinkInertia(0.7, 0.3, 0.004, 0.0075),
+    LinkInertia(1.1, 0.65, 0.02, 0.001),
+    0.8,
+    0.03,
+    (0.002, 0.001, 0.003),
+)
 
 
 def _loc(r) -> list:
@@ -34,20 +39,38 @@ def _loc(r) -> list:
 
 
 def test_dynamics_endpoint_answers_the_library(api) -> None:
-    body = {"q": Q, "qd": QD, "qdd": QDD, "gravity": [0.0, 1.0, -9.81], "assembly_mode": "-",
-            "design": {"inertia": INERTIA}}  # fmt: skip
+    body = {
+        "q": Q,
+        "qd": QD,
+        "qdd": QDD,
+        "gravity": [0.0, 1.0, -9.81],
+        "assembly_mode": "-",
+        "design": {"inertia": INERTIA},
+    }
     r = api.post("/v1/dynamics", json=body)
     assert r.status_code == 200, r.text
     out = r.json()
-    ref = inverse_dynamics(Design.default(), LIB_INERTIA, np.array(Q), np.array(QD),
-                           np.array(QDD), assembly_mode="-", gravity=(0.0, 1.0, -9.81),
-                           with_mass_matrix=True)  # fmt: skip
+    ref = inverse_dynamics(
+        Design.default(),
+        LIB_INERTIA,
+        np.array(Q),
+        np.array(QD),
+        np.array(QDD),
+        assembly_mode="-",
+        gravity=(0.0, 1.0, -9.81),
+        with_mass_matrix=True,
+    )
     np.testing.assert_allclose(out["tau"], ref.tau, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(out["mass_matrix"], ref.mass_matrix, rtol=1e-12, atol=1e-14)
     # absent inertia: the documented defaults; a part given alone keeps the others' defaults
     default = api.post("/v1/dynamics", json={"q": Q, "qd": QD, "qdd": QDD}).json()
-    ref = inverse_dynamics(Design.default(), Inertia.default(Design.default()), np.array(Q),
-                           np.array(QD), np.array(QDD))  # fmt: skip
+    ref = inverse_dynamics(
+        Design.default(),
+        Inertia.default(Design.default()),
+        np.array(Q),
+        np.array(QD),
+        np.array(QDD),
+    )
     np.testing.assert_allclose(default["tau"], ref.tau, rtol=1e-12, atol=1e-12)
     part = api.post(
         "/v1/dynamics",
@@ -58,8 +81,12 @@ def test_dynamics_endpoint_answers_the_library(api) -> None:
 
 
 def test_a_singular_posture_is_a_422_naming_it(api) -> None:
-    body = {"q": [[0.0, 1.0, 1.3], [0.0, 1.0, 1.0]], "qd": [[0, 0, 0]] * 2,
-            "qdd": [[0, 0, 0]] * 2, "design": {"L0": 0.0, "L1": 0.4, "L2": 0.4}}  # fmt: skip
+    body = {
+        "q": [[0.0, 1.0, 1.3], [0.0, 1.0, 1.0]],
+        "qd": [[0, 0, 0]] * 2,
+        "qdd": [[0, 0, 0]] * 2,
+        "design": {"L0": 0.0, "L1": 0.4, "L2": 0.4},
+    }
     r = api.post("/v1/dynamics", json=body)
     assert _loc(r) == ["body", "q", 1]
     assert "singular" in r.json()["detail"][0]["msg"]
@@ -139,10 +166,17 @@ def test_plan_with_torque_limits_carries_tau_and_the_ratio(api) -> None:
 
 
 def test_timing_endpoint_with_torque_limits(api) -> None:
-    body = {"waypoints": [[0, 2.0, 1.0], [0.8, 2.3, 1.2], [1.5, 1.9, 0.9]],
-            "method": "ruckig", "gravity": [0, 0, -9.81],
-            "limits": {"velocity": [3, 3, 3], "acceleration": [30, 30, 30],
-                       "jerk": [500, 500, 500], "torque": [9.0, 2.0, 2.0]}}  # fmt: skip
+    body = {
+        "waypoints": [[0, 2.0, 1.0], [0.8, 2.3, 1.2], [1.5, 1.9, 0.9]],
+        "method": "ruckig",
+        "gravity": [0, 0, -9.81],
+        "limits": {
+            "velocity": [3, 3, 3],
+            "acceleration": [30, 30, 30],
+            "jerk": [500, 500, 500],
+            "torque": [9.0, 2.0, 2.0],
+        },
+    }
     out = api.post("/v1/timing", json=body).json()
     assert out["status"] == "solved", out["message"]
     assert out["diagnostics"]["max_torque_ratio"] <= 1.0 + 1e-6
@@ -157,14 +191,17 @@ def test_client_dynamics(api) -> None:
     from planner.client import PlannerClient
 
     def forward(request: httpx.Request) -> httpx.Response:
-        r = api.request(request.method, request.url.path, content=request.content,
-                        headers={"content-type": "application/json"})  # fmt: skip
+        r = api.request(
+            request.method,
+            request.url.path,
+            content=request.content,
+            headers={"content-type": "application/json"},
+        )
         return httpx.Response(r.status_code, content=r.content, headers=r.headers)
 
     with PlannerClient("http://x", transport=httpx.MockTransport(forward)) as client:
         out = client.dynamics(Q, QD, QDD, design={"inertia": INERTIA}, gravity=[0, 0, -9.81])
-    ref = inverse_dynamics(Design.default(), LIB_INERTIA, np.array(Q), np.array(QD),
-                           np.array(QDD))  # fmt: skip
+    ref = inverse_dynamics(Design.default(), LIB_INERTIA, np.array(Q), np.array(QD), np.array(QDD))
     np.testing.assert_allclose(out.tau, ref.tau, rtol=1e-12, atol=1e-12)
 
 
@@ -214,9 +251,13 @@ def test_cartesian_with_torque_limits_and_an_inertia(api) -> None:
     start = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
     p0 = api.post("/v1/fk", json={"q": start["q"], "assembly_mode": "+"}).json()
     p = np.array(p0["postures"][0]["p"])
-    body = {"start": start, "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
-            "design": {"inertia": INERTIA}, "gravity": [0.0, 0.0, -5.0],
-            "limits": {"torque": [20.0, 8.0, 8.0]}}  # fmt: skip
+    body = {
+        "start": start,
+        "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
+        "design": {"inertia": INERTIA},
+        "gravity": [0.0, 0.0, -5.0],
+        "limits": {"torque": [20.0, 8.0, 8.0]},
+    }
     out = api.post("/v1/cartesian", json=body).json()
     assert out["status"] == "solved", out["message"]
     traj = out["trajectory"]
@@ -239,18 +280,32 @@ def test_cartesian_start_held_by_gravity_is_invalid_start(api) -> None:
     start = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
     p0 = api.post("/v1/fk", json={"q": start["q"], "assembly_mode": "+"}).json()
     p = np.array(p0["postures"][0]["p"])
-    body = {"start": start, "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
-            "limits": {"torque": [5.0, 2.0, 2.0]}}  # fmt: skip
+    body = {
+        "start": start,
+        "waypoints": [(p + np.array([0.05, 0.0, 0.05])).tolist()],
+        "limits": {"torque": [5.0, 2.0, 2.0]},
+    }
     out = api.post("/v1/cartesian", json=body).json()
-    held = inverse_dynamics(Design.default(), Inertia.default(Design.default()),
-                            np.array(start["q"]), np.zeros(3), np.zeros(3)).tau[0]  # fmt: skip
+    held = inverse_dynamics(
+        Design.default(),
+        Inertia.default(Design.default()),
+        np.array(start["q"]),
+        np.zeros(3),
+        np.zeros(3),
+    ).tau[0]
     assert abs(held[0]) > 5.0  # the oracle: gravity alone breaks limits.torque[0]
     assert out["status"] == "invalid_start", out["message"]
     assert f"tau1| = {abs(held[0]):.6g} N m" in out["message"]
     assert "limits.torque[0] = 5 N m" in out["message"]
     assert out["trajectory"] is None and out["fraction"] == 0.0
-    plan = api.post("/v1/plan", json={"start": start, "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
-                                      "limits": body["limits"]}).json()  # fmt: skip
+    plan = api.post(
+        "/v1/plan",
+        json={
+            "start": start,
+            "goal": {"q": [0.8, 2.3, 1.2], "assembly_mode": "+"},
+            "limits": body["limits"],
+        },
+    ).json()
     assert plan["status"] == "invalid_start" and plan["message"] == out["message"]
     untimed = api.post("/v1/cartesian", json={**body, "timing": {"method": "none"}}).json()
     assert untimed["status"] == "solved", untimed["message"]  # no timing, no torque rule
@@ -259,22 +314,35 @@ def test_cartesian_start_held_by_gravity_is_invalid_start(api) -> None:
 #: The sequence of issue 36 that answered 500 (gravity on theta1 above its limit where only
 #: theta2 and theta3 move): now solved, its torque ratio reported.
 ISSUE_36_SEQUENCE = {
-    "design": {"L0": 0.3398, "L1": 0.346, "L2": 0.5009, "link_radius": 0.0112,
-               "inertia": {"proximal": {"mass": 0.9459, "com": 0.5113, "I_perp": 0.0098,
-                                        "I_axial": 0.0089},
-                           "distal": {"mass": 0.1268, "com": 0.6074, "I_perp": 0.0075,
-                                      "I_axial": 0.0062},
-                           "payload": {"mass": 1.6038}, "base": {"inertia": 0.0087},
-                           "rotor": [0.0026, 0.0016, 0.0027]}},
-    "start": {"q": [-0.3249, 2.0669, -2.3286], "assembly_mode": "+"}, "cycle": True,
+    "design": {
+        "L0": 0.3398,
+        "L1": 0.346,
+        "L2": 0.5009,
+        "link_radius": 0.0112,
+        "inertia": {
+            "proximal": {"mass": 0.9459, "com": 0.5113, "I_perp": 0.0098, "I_axial": 0.0089},
+            "distal": {"mass": 0.1268, "com": 0.6074, "I_perp": 0.0075, "I_axial": 0.0062},
+            "payload": {"mass": 1.6038},
+            "base": {"inertia": 0.0087},
+            "rotor": [0.0026, 0.0016, 0.0027],
+        },
+    },
+    "start": {"q": [-0.3249, 2.0669, -2.3286], "assembly_mode": "+"},
+    "cycle": True,
     "margins": {"kappa_max": 10, "serial_min": 0.05, "clearance": 0.01},
-    "limits": {"velocity": [2.0933, 2.3585, 2.4519], "acceleration": [6.5664, 17.4075, 13.3698],
-               "torque": [8.6829, 9.4724, 12.4909]},
-    "timing": {"method": "toppra", "sample_rate_hz": 100}, "planner": {"seed": 2},
-    "targets": [{"goal": {"p": [0.187, 0.1548, 0.0969]}, "stop": False, "blend": 0.03},
-                {"goal": {"p": [0.187, -0.0993, 0.0969]}, "stop": False, "blend": 0.03},
-                {"goal": {"p": [0.187, -0.0993, 0.063]}}],
-}  # fmt: skip
+    "limits": {
+        "velocity": [2.0933, 2.3585, 2.4519],
+        "acceleration": [6.5664, 17.4075, 13.3698],
+        "torque": [8.6829, 9.4724, 12.4909],
+    },
+    "timing": {"method": "toppra", "sample_rate_hz": 100},
+    "planner": {"seed": 2},
+    "targets": [
+        {"goal": {"p": [0.187, 0.1548, 0.0969]}, "stop": False, "blend": 0.03},
+        {"goal": {"p": [0.187, -0.0993, 0.0969]}, "stop": False, "blend": 0.03},
+        {"goal": {"p": [0.187, -0.0993, 0.063]}},
+    ],
+}
 
 
 def test_random_sequences_with_inertia_and_torque_limits_never_answer_5xx(api) -> None:

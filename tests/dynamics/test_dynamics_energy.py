@@ -65,12 +65,15 @@ def test_power_balance_along_random_motions(name: str, mode: str, inertia_kind: 
         t = np.linspace(0.0, 2.0, 41)
         if not np.all(forward_batch(design, q(np.linspace(-0.1, 2.1, 400)), mode).ok):
             continue
-        tau = inverse_dynamics(design, inertia, q(t), qd(t), qdd(t), assembly_mode=mode,
-                               gravity=g).tau  # fmt: skip
+        tau = inverse_dynamics(
+            design, inertia, q(t), qd(t), qdd(t), assembly_mode=mode, gravity=g
+        ).tau
         power = np.sum(tau * qd(t), axis=1)
         h = 1e-4
-        de_dt = (energy_along(design, inertia, mode, q, t + h, g)
-                 - energy_along(design, inertia, mode, q, t - h, g)) / (2 * h)  # fmt: skip
+        de_dt = (
+            energy_along(design, inertia, mode, q, t + h, g)
+            - energy_along(design, inertia, mode, q, t - h, g)
+        ) / (2 * h)
         scale = np.max(np.abs(tau * qd(t))) + 1e-12
         np.testing.assert_allclose(power, de_dt, rtol=0, atol=1e-5 * scale)
         checked += 1
@@ -92,8 +95,15 @@ def test_mass_matrix_is_the_hessian_of_the_kinetic_energy(name: str, mode: str) 
         assert np.all(np.abs(m - ref) <= 1e-7 * scale)
         np.testing.assert_array_equal(m, np.swapaxes(m, 1, 2))
         assert np.all(np.linalg.eigvalsh(m) > 0)
-        batch = inverse_dynamics(design, inertia, q, np.zeros_like(q), np.zeros_like(q),
-                                 assembly_mode=mode, with_mass_matrix=True)  # fmt: skip
+        batch = inverse_dynamics(
+            design,
+            inertia,
+            q,
+            np.zeros_like(q),
+            np.zeros_like(q),
+            assembly_mode=mode,
+            with_mass_matrix=True,
+        )
         np.testing.assert_array_equal(batch.mass_matrix, m)
 
 
@@ -106,8 +116,11 @@ def test_torques_split_as_m_qdd_plus_h() -> None:
     qd, qdd = rng.normal(size=q.shape), rng.normal(size=q.shape) * 5
     full = inverse_dynamics(design, ODD, q, qd, qdd, with_mass_matrix=True)
     h = inverse_dynamics(design, ODD, q, qd, np.zeros_like(q)).tau
-    np.testing.assert_allclose(full.tau, np.einsum("nij,nj->ni", full.mass_matrix, qdd) + h,
-                               atol=1e-10 * np.max(np.abs(full.tau)))  # fmt: skip
+    np.testing.assert_allclose(
+        full.tau,
+        np.einsum("nij,nj->ni", full.mass_matrix, qdd) + h,
+        atol=1e-10 * np.max(np.abs(full.tau)),
+    )
 
 
 def test_gravity_torque_is_the_gradient_of_the_potential() -> None:
@@ -120,11 +133,17 @@ def test_gravity_torque_is_the_gradient_of_the_potential() -> None:
     q = random_postures(design, "-", 30, seed=8)
     tau = inverse_dynamics(design, inertia, q, 0 * q, 0 * q, assembly_mode="-").tau
     h = 1e-6
-    grad = np.stack([
-        (potential_energy(design, inertia, "-", q + h * e, g)
-         - potential_energy(design, inertia, "-", q - h * e, g)) / (2 * h)
-        for e in np.eye(3)
-    ], axis=1)  # fmt: skip
+    grad = np.stack(
+        [
+            (
+                potential_energy(design, inertia, "-", q + h * e, g)
+                - potential_energy(design, inertia, "-", q - h * e, g)
+            )
+            / (2 * h)
+            for e in np.eye(3)
+        ],
+        axis=1,
+    )
     np.testing.assert_allclose(tau, grad, atol=1e-7)
 
 
@@ -160,8 +179,9 @@ def test_singular_and_unassembled_postures_are_flagged() -> None:
     design = Design(L0=0.5, L1=0.3, L2=0.35)  # L0 + 2 L1 > 2 L2: CD can be stretched
     t3 = _stretched_theta3(design, 2.5)
     near = np.array([[0.2, 2.5, t3 - 1e-4], [0.2, 2.5, t3 - 1e-6]])
-    nb = inverse_dynamics(design, Inertia.default(design), near, 0 * near, 0 * near,
-                          with_mass_matrix=True)  # fmt: skip
+    nb = inverse_dynamics(
+        design, Inertia.default(design), near, 0 * near, 0 * near, with_mass_matrix=True
+    )
     assert np.all(nb.ok)
     top = np.linalg.eigvalsh(nb.mass_matrix)[:, -1]
     assert nb.kappa_A[1] > 5 * nb.kappa_A[0]

@@ -60,8 +60,14 @@ def _mujoco_inverse(model, data, dofs, qpos, qd, qdd):
     s[pas] = -pinv @ j[:, act]
     qvel = s @ qd
     h = 1e-6
-    jdot_v = (_loop_jacobian(model, data, qpos + h * qvel)
-              - _loop_jacobian(model, data, qpos - h * qvel)) @ qvel / (2 * h)  # fmt: skip
+    jdot_v = (
+        (
+            _loop_jacobian(model, data, qpos + h * qvel)
+            - _loop_jacobian(model, data, qpos - h * qvel)
+        )
+        @ qvel
+        / (2 * h)
+    )
     qacc = np.zeros(model.nv)
     qacc[act] = qdd
     qacc[pas] = -pinv @ (j[:, act] @ qdd + jdot_v)
@@ -85,13 +91,13 @@ def test_inverse_dynamics_and_mass_matrix_agree_with_mujoco(design: Design, mode
     qdd = rng.normal(0, 4.0, size=q.shape)
     for inertia in (Inertia.default(design), ODD):
         model, data, dofs = _load(design, inertia, mode)
-        ours = inverse_dynamics(design, inertia, q, qd, qdd, assembly_mode=mode,
-                                gravity=GRAVITY, with_mass_matrix=True)  # fmt: skip
+        ours = inverse_dynamics(
+            design, inertia, q, qd, qdd, assembly_mode=mode, gravity=GRAVITY, with_mass_matrix=True
+        )
         qpos = mjcf_qpos(design, q, mode)
         for i in range(q.shape[0]):
             tau, m = _mujoco_inverse(model, data, dofs, qpos[i], qd[i], qdd[i])
-            np.testing.assert_allclose(ours.tau[i], tau, rtol=0,
-                                       atol=1e-6 * np.max(np.abs(tau)))  # fmt: skip
+            np.testing.assert_allclose(ours.tau[i], tau, rtol=0, atol=1e-6 * np.max(np.abs(tau)))
             np.testing.assert_allclose(ours.mass_matrix[i], m, rtol=0, atol=1e-6 * np.max(m))
 
 
@@ -131,8 +137,13 @@ def test_every_inertia_the_model_accepts_loads_in_mujoco() -> None:
         ip = float(10 ** rng.uniform(-6, 0))
         ia = 2 * ip * (1 + 1e-12) if k % 2 else 2 * ip
         link = LinkInertia(float(rng.uniform(0.05, 2)), float(rng.uniform(0, 1)), ip, ia)
-        inertia = Inertia(proximal=link, distal=link, payload_mass=0.5, base_inertia=0.01,
-                          rotor=(0.001, 0.001, 0.001))  # fmt: skip
+        inertia = Inertia(
+            proximal=link,
+            distal=link,
+            payload_mass=0.5,
+            base_inertia=0.01,
+            rotor=(0.001, 0.001, 0.001),
+        )
         model = mujoco.MjModel.from_xml_string(to_mjcf(design, inertia))
         moments = np.sort(model.body_inertia[1:], axis=1)
         hit = np.isclose(moments[:, 0], ip, rtol=1e-12) & np.isclose(moments[:, 2], ia, rtol=1e-11)
@@ -152,8 +163,7 @@ def test_mujoco_simulation_under_the_products_torques_follows_the_motion() -> No
     amp, om = np.array([0.3, -0.2, 0.25]), np.array([5.0, 7.0, 6.0])
 
     def motion(t: float):
-        return (q0 + amp * np.sin(om * t), amp * om * np.cos(om * t),
-                -amp * om**2 * np.sin(om * t))  # fmt: skip
+        return (q0 + amp * np.sin(om * t), amp * om * np.cos(om * t), -amp * om**2 * np.sin(om * t))
 
     q, qd, _ = motion(0.0)
     data.qpos[:] = mjcf_qpos(design, q[None], "+")[0]
@@ -203,8 +213,12 @@ def test_design_mjcf_endpoints_load_in_mujoco(api) -> None:
     query): application/xml that MuJoCo loads, the loop closed on the product's P at the
     keyframe, the request's masses, rotors and gravity in the model; the client's
     design_mjcf is the POST."""
-    body = {"design": {"L0": 0.3, "L1": 0.25, "L2": 0.45, "inertia": INERTIA_WIRE},
-            "gravity": list(GRAVITY), "assembly_mode": "-", "home": [0.4, 2.2, 0.8]}  # fmt: skip
+    body = {
+        "design": {"L0": 0.3, "L1": 0.25, "L2": 0.45, "inertia": INERTIA_WIRE},
+        "gravity": list(GRAVITY),
+        "assembly_mode": "-",
+        "home": [0.4, 2.2, 0.8],
+    }
     r = api.post("/v1/design/mjcf", json=body)
     assert r.status_code == 200, r.text
     assert r.headers["content-type"].startswith("application/xml")
@@ -214,8 +228,7 @@ def test_design_mjcf_endpoints_load_in_mujoco(api) -> None:
     np.testing.assert_allclose(model.body("proximal_C").mass, 0.7)
     np.testing.assert_allclose(model.body("distal_C").mass, 1.1)
     np.testing.assert_allclose(model.dof_armature[[0, 1, 3]], [0.002, 0.001, 0.003])
-    assert r.text == to_mjcf(design, ODD, gravity=GRAVITY, home=(0.4, 2.2, 0.8),
-                             assembly_mode="-")  # fmt: skip
+    assert r.text == to_mjcf(design, ODD, gravity=GRAVITY, home=(0.4, 2.2, 0.8), assembly_mode="-")
     g = api.get("/v1/design/mjcf", params={"L0": 0.3, "L1": 0.25, "L2": 0.45})
     assert g.status_code == 200 and g.headers["content-type"].startswith("application/xml")
     model = _closes_on_p(g.text, design, np.array([0.0, 2.0, 1.0]), "+")
@@ -225,13 +238,18 @@ def test_design_mjcf_endpoints_load_in_mujoco(api) -> None:
     from planner.client import PlannerClient
 
     def forward(request: httpx.Request) -> httpx.Response:
-        out = api.request(request.method, request.url.path, content=request.content,
-                          headers={"content-type": "application/json"})  # fmt: skip
+        out = api.request(
+            request.method,
+            request.url.path,
+            content=request.content,
+            headers={"content-type": "application/json"},
+        )
         return httpx.Response(out.status_code, content=out.content, headers=out.headers)
 
     with PlannerClient("http://x", transport=httpx.MockTransport(forward)) as client:
-        xml = client.design_mjcf(body["design"], assembly_mode="-", gravity=GRAVITY,
-                                 home=[0.4, 2.2, 0.8])  # fmt: skip
+        xml = client.design_mjcf(
+            body["design"], assembly_mode="-", gravity=GRAVITY, home=[0.4, 2.2, 0.8]
+        )
     assert xml.decode() == r.text
 
 

@@ -11,8 +11,13 @@ from planner import Design, link_points
 from planner.dynamics import Inertia, LinkInertia
 from planner.dynamics.serial import SerialArm, serial_coordinates, serial_motion
 
-ODD = Inertia(LinkInertia(0.7, 0.3, 0.004, 0.0075), LinkInertia(1.1, 0.65, 0.02, 0.001),
-              0.8, 0.03, (0.002, 0.001, 0.003))  # fmt: skip
+ODD = Inertia(
+    LinkInertia(0.7, 0.3, 0.004, 0.0075),
+    LinkInertia(1.1, 0.65, 0.02, 0.001),
+    0.8,
+    0.03,
+    (0.002, 0.001, 0.003),
+)
 ARMS = {
     "default": SerialArm(Design.default(), Inertia.default(Design.default())),
     "odd": SerialArm(Design(L0=0.3, L1=0.25, L2=0.45), ODD, elbow_mass=0.9, base_inertia=0.01),

@@ -76,8 +76,12 @@ def test_gravity_at_the_start_breaking_a_limit() -> None:
     s = solve(DESIGN, JointPosture(PATH[0]), JointPosture(PATH[1]), limits=limits)
     assert s.status is PlanStatus.INVALID_START
     assert "tau1| = 6.67" in s.message and "limits.torque[0] = 5" in s.message
-    ok = solve(DESIGN, JointPosture(PATH[0]), JointPosture(PATH[1]),
-               limits=JointLimits(**FAST, torque=TORQUE))  # fmt: skip
+    ok = solve(
+        DESIGN,
+        JointPosture(PATH[0]),
+        JointPosture(PATH[1]),
+        limits=JointLimits(**FAST, torque=TORQUE),
+    )
     assert ok.solved and ok.trajectory.max_torque_ratio <= 1 + 1e-6
 
 
@@ -120,8 +124,9 @@ def test_torque_grid_bounds_both_sides_of_arc_junctions(monkeypatch) -> None:
     q, qd, qdd, _ = free.at(np.linspace(0.0, free.duration, 20001))
     dyn, grav = model.split(q, qd, qdd)
     limit = np.maximum(0.6 * np.max(np.abs(dyn + grav), 0), 1.3 * np.max(np.abs(grav), 0))
-    limits = JointLimits(velocity=base.velocity, acceleration=base.acceleration,
-                         torque=tuple(limit.tolist()))  # fmt: skip
+    limits = JointLimits(
+        velocity=base.velocity, acceleration=base.acceleration, torque=tuple(limit.tolist())
+    )
     path = BlendedPath.from_waypoints(w, 0.1)
     junctions = [k for k in range(len(path.kind) - 1) if path.kind[k] == ARC == path.kind[k + 1]]
     assert junctions  # the case at hand
@@ -141,6 +146,11 @@ def test_torque_grid_bounds_both_sides_of_arc_junctions(monkeypatch) -> None:
         assert np.any((grid > b) & (grid < b + 0.01 * (path.s0[k + 2] - b)))
     assert peak_ratio() <= 1.01
     plain = tm.section_grid
-    monkeypatch.setattr(tm, "section_grid", lambda p, lo, hi, refine=1, arc_junctions=False,
-                        arc_refine=1: plain(p, lo, hi, refine, arc_refine=arc_refine))  # fmt: skip
+    monkeypatch.setattr(
+        tm,
+        "section_grid",
+        lambda p, lo, hi, refine=1, arc_junctions=False, arc_refine=1: plain(
+            p, lo, hi, refine, arc_refine=arc_refine
+        ),
+    )
     assert peak_ratio() > 1.03

@@ -38,8 +38,13 @@ async def _app(scope, receive, send) -> None:  # type: ignore[no-untyped-def]
     if scope["path"] == "/slow":
         await asyncio.sleep(2 * HEADER_TIMEOUT_S)
     body = b"x" * BIG if scope["path"] == "/big" else b"ok"
-    await send({"type": "http.response.start", "status": 200,
-                "headers": [(b"content-length", str(len(body)).encode())]})  # fmt: skip
+    await send(
+        {
+            "type": "http.response.start",
+            "status": 200,
+            "headers": [(b"content-length", str(len(body)).encode())],
+        }
+    )
     await send({"type": "http.response.body", "body": body})
 
 
@@ -47,8 +52,9 @@ class _Served:
     def __init__(self, base: type) -> None:
         protocol = guarded_protocol(HEADER_TIMEOUT_S, SEND_TIMEOUT_S, base)
         # log_config=None: uvicorn leaves the process's logging as it is (other tests' state)
-        config = uvicorn.Config(_app, host="127.0.0.1", port=0, http=protocol, lifespan="off",
-                                log_config=None)  # fmt: skip
+        config = uvicorn.Config(
+            _app, host="127.0.0.1", port=0, http=protocol, lifespan="off", log_config=None
+        )
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()

@@ -97,8 +97,10 @@ def test_configure_logging_and_uvicorn_config_write_json(capsys):
         assert len(err) == 1
         line = json.loads(err[0])
         assert (line["message"], line["request_id"], line["logger"]) == (
-            "hello there", "r-9", "uvicorn.error",
-        )  # fmt: skip
+            "hello there",
+            "r-9",
+            "uvicorn.error",
+        )
         logging.config.dictConfig(uvicorn_log_config("warning", "text"))
         logging.getLogger("uvicorn").warning("plain")
         err = capsys.readouterr().err

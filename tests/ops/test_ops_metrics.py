@@ -17,8 +17,11 @@ START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 
 
 def _plan(seed: int, budget: float) -> dict:
-    return {"start": START, "goal": {"p": [0.3, 0.1, 0.2]},
-            "planner": {"seed": seed, "time_budget_s": budget}}  # fmt: skip
+    return {
+        "start": START,
+        "goal": {"p": [0.3, 0.1, 0.2]},
+        "planner": {"seed": seed, "time_budget_s": budget},
+    }
 
 
 def scrape(client) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
@@ -57,8 +60,10 @@ def test_request_counts_and_latencies_per_route(client_factory):
     fk = {"method": "POST", "route": "/v1/fk"}
     assert sample(m, "planner_http_requests_total", **fk, status="200") == 2
     assert sample(m, "planner_http_requests_total", **fk, status="422") == 2
-    assert sample(m, "planner_http_requests_total", method="GET", route="<unmatched>",
-                  status="404") == 1  # fmt: skip
+    assert (
+        sample(m, "planner_http_requests_total", method="GET", route="<unmatched>", status="404")
+        == 1
+    )
     # the histogram counts every answered /v1/fk request, with a positive total time
     assert sample(m, "planner_http_request_duration_seconds_count", **fk) == 4
     assert sample(m, "planner_http_request_duration_seconds_sum", **fk) > 0
@@ -73,8 +78,9 @@ def test_oversized_body_is_counted_on_its_route(client_factory):
         r = c.post("/v1/fk", content=b"[" * 2000, headers={"content-type": "application/json"})
         assert r.status_code == 413
         m = scrape(c)
-    assert sample(m, "planner_http_requests_total", method="POST", route="/v1/fk",
-                  status="413") == 1  # fmt: skip
+    assert (
+        sample(m, "planner_http_requests_total", method="POST", route="/v1/fk", status="413") == 1
+    )
 
 
 def test_plan_outcomes_and_durations_come_from_the_workers(client_factory):
@@ -116,10 +122,11 @@ def test_pool_saturation_and_rejections(client_factory):
         assert sample(idle, "planner_pool_ready") == 1
         answers: list[int] = []
         threads = [
-            threading.Thread(target=lambda: answers.append(
-                c.post("/v1/plan", json=_plan(1, 1.0)).status_code))
+            threading.Thread(
+                target=lambda: answers.append(c.post("/v1/plan", json=_plan(1, 1.0)).status_code)
+            )
             for _ in range(2)
-        ]  # fmt: skip
+        ]
         for t in threads:
             t.start()
         pool = c.app.state.pool
@@ -140,8 +147,10 @@ def test_pool_saturation_and_rejections(client_factory):
     assert sample(busy, "planner_http_requests_in_progress") == 3  # two plans and the scrape
     assert sample(busy, "planner_pool_rejected_total") == 0
     assert sample(after, "planner_pool_rejected_total") == 1
-    assert sample(after, "planner_http_requests_total", method="POST", route="/v1/plan",
-                  status="503") == 1  # fmt: skip
+    assert (
+        sample(after, "planner_http_requests_total", method="POST", route="/v1/plan", status="503")
+        == 1
+    )
 
 
 def test_metrics_can_be_switched_off(client_factory):
@@ -178,6 +187,5 @@ def test_real_plan_reports_its_diagnostics(api):
     assert gained("planner_job_duration_seconds_count", job="plan") == 1
     # the job's time in the worker covers planning and timing, the request's covers the job
     job_s = gained("planner_job_duration_seconds_sum", job="plan")
-    request_s = gained("planner_http_request_duration_seconds_sum", method="POST",
-                       route="/v1/plan")  # fmt: skip
+    request_s = gained("planner_http_request_duration_seconds_sum", method="POST", route="/v1/plan")
     assert d["planning_time_s"] + d["timing_time_s"] <= job_s <= request_s

@@ -243,9 +243,11 @@ def test_a_client_that_disconnects_has_its_job_cancelled(tmp_path, unused_port):
         sock = socket.create_connection(("127.0.0.1", unused_port), timeout=10)
         sock.sendall(
             b"POST /v1/plan HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-            b"X-Request-ID: gone-1\r\nContent-Length: " + str(len(body)).encode() + b"\r\n\r\n"
+            b"X-Request-ID: gone-1\r\nContent-Length: "
+            + str(len(body)).encode()
+            + b"\r\n\r\n"
             + body
-        )  # fmt: skip
+        )
         worker = _wait_started(tmp_path / "worker.pid")
         t0 = time.monotonic()
         sock.close()

@@ -34,8 +34,13 @@ def test_every_setting_is_documented_with_its_default():
         default = field.default
         if field.default_factory is not None or default is None:
             continue  # computed defaults are described in words
-        shown = str(default).lower() if isinstance(default, bool) else f"{default:g}" if (
-            isinstance(default, float)) else str(default)  # fmt: skip
+        shown = (
+            str(default).lower()
+            if isinstance(default, bool)
+            else f"{default:g}"
+            if (isinstance(default, float))
+            else str(default)
+        )
         assert f"`{shown}`" in rows[name], (name, rows[name])
 
 
@@ -46,10 +51,17 @@ def test_operations_settings_from_environment(monkeypatch):
     monkeypatch.setenv("PLANNER_METRICS", "false")
     s = Settings()
     assert (s.log_level, s.log_format, s.shutdown_timeout_s, s.metrics) == (
-        "warning", "text", 12.5, False,
-    )  # fmt: skip
-    for name, bad in [("LOG_LEVEL", "loud"), ("LOG_FORMAT", "xml"),
-                      ("SHUTDOWN_TIMEOUT_S", "-1"), ("SHUTDOWN_TIMEOUT_S", "inf")]:  # fmt: skip
+        "warning",
+        "text",
+        12.5,
+        False,
+    )
+    for name, bad in [
+        ("LOG_LEVEL", "loud"),
+        ("LOG_FORMAT", "xml"),
+        ("SHUTDOWN_TIMEOUT_S", "-1"),
+        ("SHUTDOWN_TIMEOUT_S", "inf"),
+    ]:
         monkeypatch.setenv(f"PLANNER_{name}", bad)
         with pytest.raises(ValidationError, match=name.lower()):
             Settings()

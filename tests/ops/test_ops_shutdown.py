@@ -54,8 +54,11 @@ def _start(tmp_path: Path, port: int, **env: str) -> tuple[subprocess.Popen[byte
     with log.open("wb") as out:
         process = subprocess.Popen(
             [sys.executable, "-c", "import ops_jobs; ops_jobs.serve('sleep_pid', warm_up=False)"],
-            cwd=ROOT, env=full_env, stdout=out, stderr=subprocess.STDOUT,
-        )  # fmt: skip
+            cwd=ROOT,
+            env=full_env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
     url = f"http://127.0.0.1:{port}"
     end = time.monotonic() + 180  # every worker started: slow on a loaded machine
     while True:
@@ -75,8 +78,11 @@ def _plan_in_thread(url: str, sleep_s: float, request_id: str) -> tuple[threadin
     def go() -> None:
         body = {**PLAN, "planner": {"time_budget_s": sleep_s}}
         try:
-            out.append(httpx.post(f"{url}/v1/plan", json=body, timeout=60,
-                                  headers={"X-Request-ID": request_id}))  # fmt: skip
+            out.append(
+                httpx.post(
+                    f"{url}/v1/plan", json=body, timeout=60, headers={"X-Request-ID": request_id}
+                )
+            )
         except httpx.HTTPError as exc:  # pragma: no cover - reported by the assertion
             out.append(exc)
 

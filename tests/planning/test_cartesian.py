@@ -67,8 +67,7 @@ def seg_dist(pts, a, b):
 
 
 def poly_dist(pts, vertices):
-    return np.min([seg_dist(pts, a, b) for a, b in pairwise(vertices)],
-                  axis=0)  # fmt: skip
+    return np.min([seg_dist(pts, a, b) for a, b in pairwise(vertices)], axis=0)
 
 
 def start_at(design: Design, p, mode="+-+"):
@@ -96,8 +95,9 @@ def test_timed_trajectory_keeps_p_within_tolerance(method, offsets):
     start = start_at(DEFAULT, P_MID)
     wp = P_MID + np.asarray(offsets)
     tol = 1e-3
-    res = plan_cartesian(DEFAULT, start, wp, path_tolerance=tol, timing=method,
-                         cartesian_speed=0.25)  # fmt: skip
+    res = plan_cartesian(
+        DEFAULT, start, wp, path_tolerance=tol, timing=method, cartesian_speed=0.25
+    )
     assert res.status.value == "solved" and res.fraction == 1.0, res.message
     traj = res.trajectory
     assert traj is not None, res.timing_error
@@ -112,8 +112,7 @@ def test_timed_trajectory_keeps_p_within_tolerance(method, offsets):
     assert dev.max() <= tol, dev.max()
     # the joint path alone stays within the chord share
     w = res.path.waypoints
-    dense = np.concatenate([a + np.linspace(0, 1, 200)[:, None] * (b - a)
-                            for a, b in pairwise(w)])  # fmt: skip
+    dense = np.concatenate([a + np.linspace(0, 1, 200)[:, None] * (b - a) for a, b in pairwise(w)])
     assert poly_dist(own_fk(DEFAULT, dense, start.assembly_mode)[0], vertices).max() <= (
         CHORD_SHARE * tol
     )
@@ -165,8 +164,9 @@ def test_line_into_a_serial_singularity_stops_at_the_margin_sphere():
     assert res.status.value == "no_path" and res.fraction < 1
     assert res.stop.rule == "serial_min"
     a = np.array([0.0, -DEFAULT.L0 / 2, 0.0])
-    r = math.sqrt(DEFAULT.L1**2 + DEFAULT.L2**2
-                  + 2 * DEFAULT.L1 * DEFAULT.L2 * math.sqrt(1 - m.serial_min**2))  # fmt: skip
+    r = math.sqrt(
+        DEFAULT.L1**2 + DEFAULT.L2**2 + 2 * DEFAULT.L1 * DEFAULT.L2 * math.sqrt(1 - m.serial_min**2)
+    )
     # the crossing of the line with the sphere |AP| = r, by bisection (independent)
     lo, hi = 0.0, 1.0
     for _ in range(60):
@@ -231,8 +231,7 @@ def test_line_into_a_parallel_singularity_stops_at_kappa_max():
     assert res.stop.value > 10
     # every posture of the joint path keeps kappa <= 10 (dense, our FK)
     w = res.path.waypoints
-    dense = np.concatenate([a + np.linspace(0, 1, 100)[:, None] * (b - a)
-                            for a, b in pairwise(w)])  # fmt: skip
+    dense = np.concatenate([a + np.linspace(0, 1, 100)[:, None] * (b - a) for a, b in pairwise(w)])
     _, t4, t5, *_ = own_fk(design, dense, "+")
     assert kappa_ok(own_kappa(t4, t5), 10)
     assert any(e.kind == "kappa_max" and e.entering for e in res.events)
@@ -283,8 +282,9 @@ def test_line_out_of_the_workspace_stops_before_leaving_it():
 
 
 def test_joint_limits_stop_the_line():
-    design = Design(0.5, 0.2, 0.6, joint_min=(-0.3, -math.pi, -math.pi),
-                    joint_max=(0.3, math.pi, math.pi))  # fmt: skip
+    design = Design(
+        0.5, 0.2, 0.6, joint_min=(-0.3, -math.pi, -math.pi), joint_max=(0.3, math.pi, math.pi)
+    )
     start = start_at(design, P_MID)
     goal = P_MID + np.array([0.0, 0.0, 0.3])  # turns theta1 past -0.3
     res = plan_cartesian(design, start, goal[None], timing="none")

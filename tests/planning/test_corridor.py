@@ -209,8 +209,13 @@ def test_cut_off_goal_falls_back_and_answers_no_path_within_the_budget():
     assert not res.diagnostics.proven_infeasible  # the grid is a guide, never a proof
     # the budget bounds the search (loose: one OMPL call may overrun its own limit a little)
     assert res.diagnostics.planning_time_s < budget + 1.0
-    proven = plan(NARROW, JointPosture(q_start, "+"), JointPosture(q_goal, "+"),
-                  obstacles=obstacles, options=PlanOptions(time_budget_s=budget, seed=2))  # fmt: skip
+    proven = plan(
+        NARROW,
+        JointPosture(q_start, "+"),
+        JointPosture(q_goal, "+"),
+        obstacles=obstacles,
+        options=PlanOptions(time_budget_s=budget, seed=2),
+    )
     assert proven.status is PlanStatus.NO_PATH and proven.diagnostics.proven_infeasible
     assert proven.diagnostics.planner == "region_map"
 

@@ -251,9 +251,13 @@ def test_any_mode_changes_mode_when_the_start_mode_cannot_reach():
     assert len(res.path.transits) >= 1 and res.path.segments[-1].working_mode != "++-"
     check_mode_path(design, start, res, goal_p=p)
     report = check_library_plan(
-        design, start, {"p": p.tolist(), "working_mode": "any"}, MARGINS, [],
+        design,
+        start,
+        {"p": p.tolist(), "working_mode": "any"},
+        MARGINS,
+        [],
         plan_answer(res),
-    )  # fmt: skip
+    )
     assert report.ok, report
 
 
@@ -322,9 +326,13 @@ def test_path_state_checker_accepts_the_crossing_only_near_it():
     t = res.path.transits[0]
     # other postures on the same singular surface, far from this crossing, are not valid
     others = sample_transits(
-        design, t.kind, working_mode=res.path.segments[0].working_mode, assembly_mode="+",
-        n=200, rng=np.random.default_rng(0),
-    )  # fmt: skip
+        design,
+        t.kind,
+        working_mode=res.path.segments[0].working_mode,
+        assembly_mode="+",
+        n=200,
+        rng=np.random.default_rng(0),
+    )
     far = others[np.linalg.norm(others - np.array(t.q), axis=1) > 0.3]
     assert len(far) > 10 and not check(far).any()
     # a valid posture of a mode the path does not visit is not valid either
@@ -346,9 +354,16 @@ def test_no_transit_on_a_walk_is_unreachable_with_the_reason():
     )
     t0 = time.perf_counter()
     res = plan_mode_change(
-        design, start, "+-+", {"+--": np.array([[0.0, 1.0, -1.0]])}, obstacles=(),
-        margins=MARGINS, options=OPTIONS, t0=t0, deadline=t0 + 60.0,
-    )  # fmt: skip
+        design,
+        start,
+        "+-+",
+        {"+--": np.array([[0.0, 1.0, -1.0]])},
+        obstacles=(),
+        margins=MARGINS,
+        options=OPTIONS,
+        t0=t0,
+        deadline=t0 + 60.0,
+    )
     assert res.status is PlanStatus.UNREACHABLE
     assert "leg_B_stretched or leg_B_folded" in res.message
 

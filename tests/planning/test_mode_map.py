@@ -74,8 +74,12 @@ def test_impossible_walks_are_left_out_and_the_plan_still_solves():
             for m, x in zip(modes, q, strict=True)
         ):
             continue
-        res = plan(design, JointPosture(q[0], "+"), JointPosture(q[1], "+"),
-                   options=PlanOptions(time_budget_s=1.0, seed=2))  # fmt: skip
+        res = plan(
+            design,
+            JointPosture(q[0], "+"),
+            JointPosture(q[1], "+"),
+            options=PlanOptions(time_budget_s=1.0, seed=2),
+        )
         if not res.solved:
             continue
         used = tuple(s.working_mode for s in res.path.segments)
@@ -105,8 +109,10 @@ SPLIT_QUERIES = [
 
 
 def _modes(design, asm, q_start, q_goal):
-    return (posture_mode(design, JointPosture(q_start, asm)),
-            posture_mode(design, JointPosture(q_goal, asm)))  # fmt: skip
+    return (
+        posture_mode(design, JointPosture(q_start, asm)),
+        posture_mode(design, JointPosture(q_goal, asm)),
+    )
 
 
 @pytest.mark.parametrize("query", SPLIT_QUERIES, ids=range(len(SPLIT_QUERIES)))

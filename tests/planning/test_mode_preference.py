@@ -16,8 +16,9 @@ from planner.validity import Margins, ValidityChecker
 def own_max_kappa(design: Design, waypoints: np.ndarray, asm: str, per: int = 400) -> float:
     """kappa(A) = max(|tan(d/2)|, |cot(d/2)|), d = theta4 - theta5, from docs/conventions.md:
     theta4 - theta5 is the apex angle of the isosceles triangle C-P-D (|CD| = 2 L2 sin(g/2))."""
-    q = np.concatenate([a + np.linspace(0, 1, per)[:, None] * (b - a)
-                        for a, b in pairwise(waypoints)])  # fmt: skip
+    q = np.concatenate(
+        [a + np.linspace(0, 1, per)[:, None] * (b - a) for a, b in pairwise(waypoints)]
+    )
     half = design.L0 / 2
     cu, cw = -half + design.L1 * np.cos(q[:, 1]), design.L1 * np.sin(q[:, 1])
     du, dw = half + design.L1 * np.cos(q[:, 2]), design.L1 * np.sin(q[:, 2])

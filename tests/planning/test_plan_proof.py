@@ -54,12 +54,14 @@ def test_the_proof_holds_with_obstacles_and_for_cartesian_goals():
     'any' another branch of the inverse kinematics is reachable: no proof there."""
     start, goal = cut_ends(PROOF_RESOLUTION)
     far = [Sphere([1.5, 1.5, 1.5], 0.1)]
-    res = plan(CUT, JointPosture(start, "-"), JointPosture(goal, "-"), obstacles=far,
-               options=BUDGET)  # fmt: skip
+    res = plan(
+        CUT, JointPosture(start, "-"), JointPosture(goal, "-"), obstacles=far, options=BUDGET
+    )
     _assert_proven(res, _mode(CUT, start, "-"))
     p = forward_batch(CUT, goal, "-").p[0]
-    res = plan(CUT, JointPosture(start, "-"), CartesianTarget(p, _mode(CUT, goal, "-")),
-               options=BUDGET)  # fmt: skip
+    res = plan(
+        CUT, JointPosture(start, "-"), CartesianTarget(p, _mode(CUT, goal, "-")), options=BUDGET
+    )
     _assert_proven(res, _mode(CUT, start, "-"))
     # in 'any' the start's own mode reaches p (another IK branch): solved, and the map does
     # not prove the path's end apart
@@ -87,10 +89,15 @@ def test_a_wall_of_obstacles_is_not_proven_by_the_2d_map():
     design = Design.default()
     start, goal = JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.0, 1.0], "+")
     p = forward_batch(design, start.q, "+").p[0]
-    cage = [Box(p + off, size, [1.0, 0.0, 0.0, 0.0]) for off, size in (
-        ([0.12, 0, 0], [0.02, 0.3, 0.3]), ([-0.12, 0, 0], [0.02, 0.3, 0.3]),
-        ([0, 0, 0.12], [0.3, 0.3, 0.02]), ([0, 0, -0.12], [0.3, 0.3, 0.02]),
-    )]  # fmt: skip
+    cage = [
+        Box(p + off, size, [1.0, 0.0, 0.0, 0.0])
+        for off, size in (
+            ([0.12, 0, 0], [0.02, 0.3, 0.3]),
+            ([-0.12, 0, 0], [0.02, 0.3, 0.3]),
+            ([0, 0, 0.12], [0.3, 0.3, 0.02]),
+            ([0, 0, -0.12], [0.3, 0.3, 0.02]),
+        )
+    ]
     res = plan(design, start, goal, obstacles=cage, options=PlanOptions(time_budget_s=0.3))
     assert res.status in (PlanStatus.NO_PATH, PlanStatus.INVALID_START, PlanStatus.INVALID_GOAL)
     assert not res.diagnostics.proven_infeasible
@@ -167,12 +174,22 @@ def test_no_proof_on_mode_change_queries_the_search_solves(k):
     for i in range(8):
         asm = "+-"[i % 2]
         qa, qb = _random_valid(design, margins, rng, asm), _random_valid(design, margins, rng, asm)
-        res = plan(design, JointPosture(qa, asm), JointPosture(qb, asm), margins=margins,
-                   options=PlanOptions(time_budget_s=0.3, seed=1 + i, region_map=False))  # fmt: skip
+        res = plan(
+            design,
+            JointPosture(qa, asm),
+            JointPosture(qb, asm),
+            margins=margins,
+            options=PlanOptions(time_budget_s=0.3, seed=1 + i, region_map=False),
+        )
         if res.solved:
             solved += 1
             assert not R.prove_disconnected(rmap, qa, qb, asm)
-            again = plan(design, JointPosture(qa, asm), JointPosture(qb, asm), margins=margins,
-                         options=PlanOptions(time_budget_s=0.3, seed=1 + i))  # fmt: skip
+            again = plan(
+                design,
+                JointPosture(qa, asm),
+                JointPosture(qb, asm),
+                margins=margins,
+                options=PlanOptions(time_budget_s=0.3, seed=1 + i),
+            )
             assert not again.diagnostics.proven_infeasible
     assert solved > 0

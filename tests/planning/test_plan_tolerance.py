@@ -69,9 +69,13 @@ def test_a_point_behind_a_wall_is_proven_over_its_whole_tolerance():
     options = PlanOptions(time_budget_s=2.0, seed=1)
     for mode in ("any", _mode(LIMITED, np.array([-1.0, 2.0, 1.0]), "+")):
         res = plan_with_goal_options(
-            LIMITED, start, CartesianTarget(p, mode), obstacles=WALL, options=options,
+            LIMITED,
+            start,
+            CartesianTarget(p, mode),
+            obstacles=WALL,
+            options=options,
             tolerance=0.02,
-        )  # fmt: skip
+        )
         assert res.status is PlanStatus.NO_PATH and res.diagnostics.proven_infeasible, res.message
         assert "within goal.tolerance = 0.02 m of goal.p" in res.message
         assert "region map with obstacles" in res.message
@@ -108,15 +112,17 @@ def test_a_blocked_exact_goal_finds_a_valid_one_in_the_set():
     options = PlanOptions(time_budget_s=1.0, seed=1)
     goal = CartesianTarget(p, "any")
     assert plan(design, start, goal, obstacles=sphere, options=options).status in (
-        PlanStatus.INVALID_GOAL, PlanStatus.UNREACHABLE,
-    )  # fmt: skip
+        PlanStatus.INVALID_GOAL,
+        PlanStatus.UNREACHABLE,
+    )
     goals = sample_goal_set(design, start, goal, 0.15, obstacles=sphere)
     assert goals.count > 0
     for mode, q in goals.targets.items():  # valid, in their mode, inside the ball
         assert ValidityChecker(design, Margins(), sphere, "+", mode).is_valid(q).all()
         assert np.all(np.linalg.norm(forward_batch(design, q, "+").p - p, axis=1) <= 0.15)
-    res = plan_with_goal_options(design, start, goal, obstacles=sphere, options=options,
-                                 tolerance=0.15)  # fmt: skip
+    res = plan_with_goal_options(
+        design, start, goal, obstacles=sphere, options=options, tolerance=0.15
+    )
     assert res.solved, res.message
     end = forward_batch(design, res.path.waypoints[-1], "+").p[0]
     assert 0.06 + design.link_radius < np.linalg.norm(end - p) <= 0.15
@@ -132,10 +138,17 @@ def test_no_proof_over_a_ball_that_holds_a_goal_the_search_reaches(part):
     found = 0
     for trial in range(12):
         base = (Design.default(), Design(0.3, 0.3, 0.4))[trial % 2]
-        design = base if (trial // 2) % 2 else Design(
-            base.L0, base.L1, base.L2, joint_min=(-2.0, -np.pi, -np.pi),
-            joint_max=(2.0, np.pi, np.pi),
-        )  # fmt: skip
+        design = (
+            base
+            if (trial // 2) % 2
+            else Design(
+                base.L0,
+                base.L1,
+                base.L2,
+                joint_min=(-2.0, -np.pi, -np.pi),
+                joint_max=(2.0, np.pi, np.pi),
+            )
+        )
         obstacles = seeded_scene(rng, most=5)
         asm = "+-"[trial % 2]
         q = rng.uniform(design.joint_min, design.joint_max, (3000, 3))
@@ -165,8 +178,9 @@ def test_no_proof_over_a_ball_that_holds_a_goal_the_search_reaches(part):
         on = PlanOptions(time_budget_s=0.3, seed=trial + 1)
         ball = goal_ball(goal, radius)
         assert prove_goal_set(design, start, ball, obstacles=obstacles, options=on) is None
-        res = plan_with_goal_options(design, start, goal, obstacles=obstacles, options=on,
-                                     prefer=prefer, tolerance=radius)  # fmt: skip
+        res = plan_with_goal_options(
+            design, start, goal, obstacles=obstacles, options=on, prefer=prefer, tolerance=radius
+        )
         assert not res.diagnostics.proven_infeasible, (trial, res.message)
     assert found >= 5
 
@@ -175,8 +189,12 @@ def test_an_unreachable_message_names_each_working_mode_once():
     """A point no mode reaches (a sphere swallows it): the answer says why per working mode,
     each of the eight named once (it once read "in -++ in working mode -++")."""
     design = Design.default()
-    res = plan(design, JointPosture([0.0, 2.0, 1.0], "+"), CartesianTarget([0.3, 0.1, -0.5]),
-               obstacles=[Sphere([0.3, 0.1, -0.5], 0.1)])  # fmt: skip
+    res = plan(
+        design,
+        JointPosture([0.0, 2.0, 1.0], "+"),
+        CartesianTarget([0.3, 0.1, -0.5]),
+        obstacles=[Sphere([0.3, 0.1, -0.5], 0.1)],
+    )
     assert res.status is PlanStatus.UNREACHABLE
     for mode in WORKING_MODES:
         assert len(re.findall(rf"(?<![+-]){re.escape(mode)}(?![+-])", res.message)) == 1, mode

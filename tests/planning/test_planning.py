@@ -112,8 +112,13 @@ def test_wall_gives_no_path_within_budget():
     """Without the region map the search runs its whole budget and says so."""
     budget = 0.3
     t0 = time.perf_counter()
-    res = plan(WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL,
-               options=PlanOptions(time_budget_s=budget, region_map=False))  # fmt: skip
+    res = plan(
+        WALL_DESIGN,
+        WALL_START,
+        WALL_GOAL,
+        obstacles=WALL,
+        options=PlanOptions(time_budget_s=budget, region_map=False),
+    )
     elapsed = time.perf_counter() - t0
     assert res.status is PlanStatus.NO_PATH and res.path is None
     assert "no path" in res.message and not res.diagnostics.proven_infeasible
@@ -126,8 +131,9 @@ def test_wall_is_proven_by_the_region_map_with_obstacles():
     """With the map the first search slice finds nothing, and the 3-D grid proves the wall:
     ``no_path`` with ``proven_infeasible``, at most the first try searched (none when this
     scene's corridor grid is cached already and tried first), the grid named."""
-    res = plan(WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL,
-               options=PlanOptions(time_budget_s=5.0))  # fmt: skip
+    res = plan(
+        WALL_DESIGN, WALL_START, WALL_GOAL, obstacles=WALL, options=PlanOptions(time_budget_s=5.0)
+    )
     assert res.status is PlanStatus.NO_PATH and res.path is None
     assert res.diagnostics.proven_infeasible and res.diagnostics.planner == "region_map"
     assert res.diagnostics.searches <= 1

@@ -126,8 +126,13 @@ def test_free_space_answers_agree_with_the_region_map(seed):
         query = _query(rng, design, asm, kind)
         assert query is not None
         start, goal, wire, modes = query
-        res = plan(design, start, goal, margins=MARGINS,
-                   options=PlanOptions(time_budget_s=BUDGET_S, seed=1 + i))  # fmt: skip
+        res = plan(
+            design,
+            start,
+            goal,
+            margins=MARGINS,
+            options=PlanOptions(time_budget_s=BUDGET_S, seed=1 + i),
+        )
         _check(design, start, goal, wire, (), res)
         here = _components(rmap, design, start.q, asm, {_mode(design, start.q, asm)})
         if isinstance(goal, JointPosture):
@@ -161,8 +166,14 @@ def test_answers_among_obstacles_are_checked(seed):
             continue
         i, asked = asked, asked + 1
         start, goal, wire, _ = query
-        res = plan(design, start, goal, obstacles=obstacles, margins=MARGINS,
-                   options=PlanOptions(time_budget_s=2.0, seed=1 + i))  # fmt: skip
+        res = plan(
+            design,
+            start,
+            goal,
+            obstacles=obstacles,
+            margins=MARGINS,
+            options=PlanOptions(time_budget_s=2.0, seed=1 + i),
+        )
         _check(design, start, goal, wire, obstacles, res)
         solved += res.solved
     assert solved > 0

@@ -60,8 +60,11 @@ def valid_everywhere(design, q, obstacles, margins) -> np.ndarray:
 def solved():
     obstacles = [Sphere(center=(0.35, 0.1, -0.7), radius=0.1)]
     out = {}
-    for name, targets in (("stops", pick_place(True)), ("blend", pick_place(False, 0.05)),
-                          ("exact", pick_place(False))):  # fmt: skip
+    for name, targets in (
+        ("stops", pick_place(True)),
+        ("blend", pick_place(False, 0.05)),
+        ("exact", pick_place(False)),
+    ):
         out[name] = solve_sequence(
             DESIGN, START, targets, cycle=True, objective="fixed", obstacles=obstacles
         )
@@ -112,8 +115,9 @@ def test_passing_through_blended_corners_is_faster_than_stopping(solved):
 def test_planning_only_gives_legs_without_times():
     from planner.timing import TimingOptions
 
-    r = solve_sequence(DESIGN, START, pick_place(True), objective="fixed",
-                       timing=TimingOptions(method="none"))  # fmt: skip
+    r = solve_sequence(
+        DESIGN, START, pick_place(True), objective="fixed", timing=TimingOptions(method="none")
+    )
     assert r.status is PlanStatus.SOLVED and r.trajectory is None
     assert all(math.isnan(leg.end_time) for leg in r.legs)
     assert math.isnan(r.cycle_time)
@@ -154,8 +158,9 @@ def test_an_invalid_start_is_the_first_legs_status():
     p_start = forward_batch(DESIGN, START.q[None], "+").p[0]
     obstacles = [Sphere(center=p_start, radius=0.02)]
     for objective in ("fixed", "time"):
-        r = solve_sequence(DESIGN, START, pick_place(True), cycle=True, objective=objective,
-                           obstacles=obstacles)  # fmt: skip
+        r = solve_sequence(
+            DESIGN, START, pick_place(True), cycle=True, objective=objective, obstacles=obstacles
+        )
         assert r.status is PlanStatus.INVALID_START
         assert r.message.startswith("target 0:")
 
@@ -183,8 +188,10 @@ def _brute_force(targets, cycle, design=DESIGN, start=START, **kwargs):
     timed as a "fixed" sequence: the cycle time of each (inf where it fails)."""
     out = {}
     for modes in itertools.product(WORKING_MODES, repeat=len(targets)):
-        fixed = [SequenceTarget(CartesianTarget(t.goal.p, m), t.stop, t.blend)
-                 for t, m in zip(targets, modes, strict=True)]  # fmt: skip
+        fixed = [
+            SequenceTarget(CartesianTarget(t.goal.p, m), t.stop, t.blend)
+            for t, m in zip(targets, modes, strict=True)
+        ]
         r = solve_sequence(design, start, fixed, cycle=cycle, objective="fixed", **kwargs)
         out[modes] = r.cycle_time if r.solved else math.inf
     return out
@@ -226,8 +233,10 @@ def test_the_mode_choice_for_time_crosses_the_axis_where_that_is_quicker():
         "margins": Margins(kappa_max=10, serial_min=0.05, clearance=0.01),
         "limits": JointLimits(velocity=(2, 2, 2), acceleration=(10, 10, 10)),
     }
-    targets = [SequenceTarget(CartesianTarget(np.array(p))) for p in
-               ([0.0055, -0.2827, 0.3529], [0.0055, -0.5047, 0.3529])]  # fmt: skip
+    targets = [
+        SequenceTarget(CartesianTarget(np.array(p)))
+        for p in ([0.0055, -0.2827, 0.3529], [0.0055, -0.5047, 0.3529])
+    ]
     brute = _brute_force(targets, True, design, start, **kwargs)
     best_time, best_modes = min((v, k) for k, v in brute.items())
     assert best_modes[0][0] != best_modes[1][0]  # the best assignment crosses the axis
@@ -281,9 +290,14 @@ def test_torque_limits_bound_the_sequence_and_lengthen_it():
     np.testing.assert_allclose(np.abs(traj.tau).max(axis=0), need, rtol=1e-6)
     limit = 0.6 * need
     slow = solve_sequence(
-        DESIGN, START, targets, objective="fixed", inertia=inertia, gravity=G0,
+        DESIGN,
+        START,
+        targets,
+        objective="fixed",
+        inertia=inertia,
+        gravity=G0,
         limits=replace(LIMITS, torque=tuple(float(x) for x in limit)),
-    )  # fmt: skip
+    )
     assert slow.status is PlanStatus.SOLVED, slow.message
     t = slow.trajectory
     tau = inverse_dynamics(DESIGN, inertia, t.q, t.qd, t.qdd, gravity=G0).tau

@@ -28,21 +28,23 @@ TIMING = TimingOptions(method="toppra", sample_rate_hz=100)
 def adept(stop: bool, blends=(0.0,) * 5) -> list[SequenceTarget]:
     points = [PICK + UP, PICK + UP + ACROSS, PICK + ACROSS, PICK + UP + ACROSS, PICK + UP]
     stops = [stop, stop, True, stop, stop]
-    return [SequenceTarget(CartesianTarget(p, "+++"), stop=s, blend=b)
-            for p, s, b in zip(points, stops, blends, strict=True)]  # fmt: skip
+    return [
+        SequenceTarget(CartesianTarget(p, "+++"), stop=s, blend=b)
+        for p, s, b in zip(points, stops, blends, strict=True)
+    ]
 
 
 @pytest.fixture(scope="module")
 def cycles():
-    stops = solve_sequence(DESIGN, START, adept(True), cycle=True, objective="fixed",
-                           timing=TIMING)  # fmt: skip
+    stops = solve_sequence(DESIGN, START, adept(True), cycle=True, objective="fixed", timing=TIMING)
     assert stops.solved, stops.message
     lengths = [leg.plan.diagnostics.path_length for leg in stops.legs]
     blends = [0.0] * 5
     for i in (0, 1, 3, 4):  # 90 % of the rule's limit: half the shorter adjacent leg
         blends[i] = 0.9 * 0.5 * min(lengths[i], lengths[i + 1])
-    passed = solve_sequence(DESIGN, START, adept(False, blends), cycle=True,
-                            objective="fixed", timing=TIMING)  # fmt: skip
+    passed = solve_sequence(
+        DESIGN, START, adept(False, blends), cycle=True, objective="fixed", timing=TIMING
+    )
     assert passed.solved, passed.message
     return stops, passed, blends
 
@@ -79,8 +81,10 @@ def test_each_top_corner_is_passed_within_its_blend_in_order(cycles):
 
 
 def test_a_mode_change_reports_its_transits_per_leg_with_their_times():
-    targets = [SequenceTarget(CartesianTarget(PICK + UP, "+-+")),
-               SequenceTarget(CartesianTarget(PICK, "+++"))]  # fmt: skip
+    targets = [
+        SequenceTarget(CartesianTarget(PICK + UP, "+-+")),
+        SequenceTarget(CartesianTarget(PICK, "+++")),
+    ]
     result = solve_sequence(DESIGN, START, targets, objective="fixed", timing=TIMING)
     assert result.solved, result.message
     curve = result.trajectory.curve
@@ -114,8 +118,10 @@ def test_passing_a_corner_exactly_is_never_slower_than_stopping_there(method):
         after = [0.0, 2.1, 1.0] if sharp else [0.6, 2.1, 1.0]
 
         def targets(stop: bool, corner=corner, after=after) -> list[SequenceTarget]:
-            return [SequenceTarget(JointPosture(corner), stop=stop, blend=0.0),
-                    SequenceTarget(JointPosture(after))]  # fmt: skip
+            return [
+                SequenceTarget(JointPosture(corner), stop=stop, blend=0.0),
+                SequenceTarget(JointPosture(after)),
+            ]
 
         passing = solve_sequence(DESIGN, start, targets(False), cycle=True, timing=timing)
         stopping = solve_sequence(DESIGN, start, targets(True), cycle=True, timing=timing)

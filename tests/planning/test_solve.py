@@ -37,8 +37,10 @@ MARGINS = Margins(clearance=0.01)
 def _checked(solution, goal_wire: dict, obstacles=(), margins=MARGINS, limits=None) -> None:
     request = plan_request(DESIGN, START, goal_wire, margins, obstacles)
     if limits is not None:
-        request["limits"] = {"velocity": list(limits.velocity),
-                             "acceleration": list(limits.acceleration)}  # fmt: skip
+        request["limits"] = {
+            "velocity": list(limits.velocity),
+            "acceleration": list(limits.acceleration),
+        }
     answer = plan_response(solution).model_dump(mode="json")
     report = check_plan(request, answer)
     assert report.ok, str(report)
@@ -46,19 +48,29 @@ def _checked(solution, goal_wire: dict, obstacles=(), margins=MARGINS, limits=No
 
 @pytest.mark.parametrize("method", ["toppra", "ruckig"])
 def test_one_call_plans_and_times_and_the_checker_agrees(method):
-    limits = JointLimits(velocity=(1.0, 1.5, 1.5), acceleration=(4.0, 6.0, 6.0),
-                         jerk=(100.0, 100.0, 100.0))  # fmt: skip
+    limits = JointLimits(
+        velocity=(1.0, 1.5, 1.5), acceleration=(4.0, 6.0, 6.0), jerk=(100.0, 100.0, 100.0)
+    )
     options = PlanOptions(seed=1)
-    s = solve(DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS, options=options,
-              timing=TimingOptions(method=method), limits=limits)  # fmt: skip
+    s = solve(
+        DESIGN,
+        START,
+        GOAL,
+        obstacles=SPHERE,
+        margins=MARGINS,
+        options=options,
+        timing=TimingOptions(method=method),
+        limits=limits,
+    )
     assert s.solved and s.timing_error is None, s.message
     assert s.plan.diagnostics.searches >= 1  # a real search, not the straight motion
     traj = s.trajectory
     assert np.allclose(traj.q[0], START.q) and np.allclose(traj.q[-1], GOAL.q)
     assert np.all(np.abs(traj.qd) <= np.asarray(limits.velocity) * (1 + 1e-6))
     # the plan is the planner's own with the same seed: solve adds the timing, nothing else
-    alone = plan_with_goal_options(DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS,
-                                   options=options)  # fmt: skip
+    alone = plan_with_goal_options(
+        DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS, options=options
+    )
     assert np.array_equal(alone.path.waypoints, s.path.waypoints)
     _checked(s, {"q": GOAL.q.tolist(), "assembly_mode": "+"}, SPHERE, limits=limits)
 
@@ -75,8 +87,9 @@ def test_a_mode_change_comes_to_rest_at_its_transit_when_asked():
 
 
 def test_timing_none_is_the_path_alone():
-    s = solve(DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS,
-              timing=TimingOptions(method="none"))  # fmt: skip
+    s = solve(
+        DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS, timing=TimingOptions(method="none")
+    )
     assert s.plan.solved and s.trajectory is None and s.timing_error is None
     assert plan_response(s).trajectory is None
 
@@ -109,8 +122,14 @@ def test_a_passed_deadline_stops_the_timing_not_the_caller():
 
 def test_a_timing_error_names_its_field_under_timing():
     with pytest.raises(InputError) as err:
-        solve(DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS,
-              timing=TimingOptions(sample_rate_hz=10_000.0, max_samples=10))  # fmt: skip
+        solve(
+            DESIGN,
+            START,
+            GOAL,
+            obstacles=SPHERE,
+            margins=MARGINS,
+            timing=TimingOptions(sample_rate_hz=10_000.0, max_samples=10),
+        )
     assert err.value.field_path == ("timing", "sample_rate_hz")
 
 

@@ -41,8 +41,13 @@ def _wall_points(window: bool) -> np.ndarray:
 def test_a_cloud_wall_is_proven_by_the_plan_and_its_window_is_not():
     wall = [Points(_wall_points(window=False), 0.015)]
     assert len(wall[0].points) > 10_000  # far above the 2,000 rows once the proof's limit
-    res = plan(LIMITED, JointPosture(START, "+"), JointPosture(GOAL, "+"), obstacles=wall,
-               options=PlanOptions(time_budget_s=5.0, seed=1))  # fmt: skip
+    res = plan(
+        LIMITED,
+        JointPosture(START, "+"),
+        JointPosture(GOAL, "+"),
+        obstacles=wall,
+        options=PlanOptions(time_budget_s=5.0, seed=1),
+    )
     assert res.status is PlanStatus.NO_PATH and res.diagnostics.proven_infeasible, res.message
     assert "region map with obstacles" in res.message
 
@@ -58,8 +63,13 @@ def test_a_cloud_wall_is_proven_by_the_plan_and_its_window_is_not():
         q = rng.uniform(LIMITED.joint_min, LIMITED.joint_max, (8000, 3))
         ok = chk.is_valid(q)
         for s, g in zip(q[ok & (q[:, 0] > 0.3)][:2], q[ok & (q[:, 0] < -0.3)][:2], strict=False):
-            found = plan(LIMITED, JointPosture(s, "+"), JointPosture(g, "+"), obstacles=window,
-                         options=PlanOptions(time_budget_s=1.0, seed=1, region_map=False))  # fmt: skip
+            found = plan(
+                LIMITED,
+                JointPosture(s, "+"),
+                JointPosture(g, "+"),
+                obstacles=window,
+                options=PlanOptions(time_budget_s=1.0, seed=1, region_map=False),
+            )
             if not found.solved:
                 continue
             solved += 1
@@ -85,10 +95,12 @@ def test_the_union_bound_never_blocks_a_valid_posture():
     assert len(blocked) > 1000
     pick = blocked[rng.choice(len(blocked), 4000)]
     lo = np.asarray(LIMITED.joint_min)
-    q = np.column_stack([
-        theta1[pick[:, 0]] + h1 * rng.uniform(-0.5, 0.5, len(pick)),
-        lo[1] + rmap.h2 * (pick[:, 2] + rng.uniform(0, 1, len(pick))),
-        lo[2] + rmap.h3 * (pick[:, 1] + rng.uniform(0, 1, len(pick))),
-    ])  # fmt: skip
+    q = np.column_stack(
+        [
+            theta1[pick[:, 0]] + h1 * rng.uniform(-0.5, 0.5, len(pick)),
+            lo[1] + rmap.h2 * (pick[:, 2] + rng.uniform(0, 1, len(pick))),
+            lo[2] + rmap.h3 * (pick[:, 1] + rng.uniform(0, 1, len(pick))),
+        ]
+    )
     for mode in WORKING_MODES:
         assert not ValidityChecker(LIMITED, Margins(), wall, "+", mode).is_valid(q).any()

@@ -48,8 +48,12 @@ def test_put_get_list_delete(store):
     store.put(T, "b", "{}", "h3", 0, 0)
     got = store.get(T, "a")
     assert (got.version, got.hash, got.body, got.obstacles, got.points) == (
-        2, "h2", '{"obstacles": [1]}', 1, 5
-    )  # fmt: skip
+        2,
+        "h2",
+        '{"obstacles": [1]}',
+        1,
+        5,
+    )
     assert store.get(T, "a", body=False).body is None
     assert [r.name for r in store.list(T)] == ["a", "b"]
     assert store.delete(T, "a").version == 2

@@ -149,9 +149,11 @@ def test_tree_query_equals_the_minimum_over_every_obstacle(seed):
     np.testing.assert_array_equal(got, one_by_one)
     # spheres and the cloud by numpy's closed form, a route independent of the kernels
     balls = np.vstack(
-        [np.array([[*o.center, o.radius] for o in obs if isinstance(o, Sphere)]),
-         np.column_stack([cloud.points, np.full(len(cloud.points), cloud.radius)])]
-    )  # fmt: skip
+        [
+            np.array([[*o.center, o.radius] for o in obs if isinstance(o, Sphere)]),
+            np.column_stack([cloud.points, np.full(len(cloud.points), cloud.radius)]),
+        ]
+    )
     for i in range(len(a)):
         ref = np.min(_point_segment(balls[:, :3], a[i], b[i]) - balls[:, 3])
         only_balls = segment_obstacle_distance(

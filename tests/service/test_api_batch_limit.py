@@ -39,8 +39,11 @@ def test_the_schema_states_the_services_obstacle_limit(api):
     cap of 10,000), and one obstacle more than it is refused."""
     limit = api.app.state.settings.max_obstacles
     schemas = api.get("/openapi.json").json()["components"]["schemas"]
-    lists = {name: s["properties"]["obstacles"] for name, s in schemas.items()
-             if "items" in s.get("properties", {}).get("obstacles", {})}  # fmt: skip
+    lists = {
+        name: s["properties"]["obstacles"]
+        for name, s in schemas.items()
+        if "items" in s.get("properties", {}).get("obstacles", {})
+    }
     found = {name: prop.get("maxItems") for name, prop in lists.items()}
     assert {"PlanRequest", "SequenceRequest"} <= set(found)
     assert all(v == limit for v in found.values()), found

@@ -312,8 +312,18 @@ def test_the_route_is_documented_with_its_errors(api):
     assert {"200", "422", "503", "504"} <= set(op["responses"])
     schemas = api.get("/openapi.json").json()["components"]["schemas"]
     request = schemas["CartesianRequest"]["properties"]
-    assert {"design", "start", "waypoints", "path_tolerance", "obstacles", "scene", "margins",
-            "timing", "limits", "gravity"} == set(request)  # fmt: skip
+    assert {
+        "design",
+        "start",
+        "waypoints",
+        "path_tolerance",
+        "obstacles",
+        "scene",
+        "margins",
+        "timing",
+        "limits",
+        "gravity",
+    } == set(request)
     response = schemas["CartesianResponse"]["properties"]
     assert {"status", "message", "fraction", "path", "trajectory", "diagnostics"} <= set(response)
     assert "max_path_deviation" in schemas["CartesianDiagnosticsModel"]["properties"]

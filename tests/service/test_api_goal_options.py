@@ -74,8 +74,10 @@ def test_best_conditioned_is_never_worse_than_shortest_in_max_kappa(api):
 
 
 def test_prefer_needs_working_mode_any(api):
-    body = {"start": START, "goal": {"p": [0.45, 0.3, 0.1], "working_mode": "+-+",
-                                     "prefer": "best_conditioned"}}  # fmt: skip
+    body = {
+        "start": START,
+        "goal": {"p": [0.45, 0.3, 0.1], "working_mode": "+-+", "prefer": "best_conditioned"},
+    }
     r = api.post("/v1/plan", json=body)
     assert r.status_code == 422
     item = r.json()["detail"][0]
@@ -103,8 +105,12 @@ def test_a_cartesian_goal_within_tolerance_is_used_when_the_exact_one_is_out_of_
 def test_a_joint_goal_within_tolerance_is_used_when_the_exact_one_breaks_a_limit(api):
     design = {"joint_max": [0.5, math.pi, math.pi]}
     goal_q = [0.52, 2.8609, 0.2807]  # theta1 0.02 rad beyond its limit 0.5
-    body = {"design": design, "start": START, "planner": {"seed": 1},
-            "goal": {"q": goal_q, "assembly_mode": "+"}}  # fmt: skip
+    body = {
+        "design": design,
+        "start": START,
+        "planner": {"seed": 1},
+        "goal": {"q": goal_q, "assembly_mode": "+"},
+    }
     exact = api.post("/v1/plan", json=body).json()
     assert exact["status"] == "invalid_goal", exact
     body["goal"]["tolerance"] = 0.05

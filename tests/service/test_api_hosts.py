@@ -44,8 +44,13 @@ def test_a_keyless_service_answers_the_loopback_names(keyless, host):
     ["evil.example", "evil.example:8000", "localhost.evil.example", "10.0.0.5:8000", "[::2]"],
 )
 def test_a_keyless_service_refuses_other_hosts_in_the_error_shape(keyless, host):
-    for method, url in [("GET", "/v1/version"), ("POST", "/v1/fk"), ("GET", "/"),
-                        ("GET", "/docs"), ("GET", "/metrics")]:  # fmt: skip
+    for method, url in [
+        ("GET", "/v1/version"),
+        ("POST", "/v1/fk"),
+        ("GET", "/"),
+        ("GET", "/docs"),
+        ("GET", "/metrics"),
+    ]:
         r = keyless.request(method, url, headers={"host": host}, json={"q": [0, 1, 2]})
         assert r.status_code == 400, (url, r.status_code, r.text)
         (item,) = r.json()["detail"]

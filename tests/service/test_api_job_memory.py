@@ -27,8 +27,9 @@ def _answer(size: int):  # type: ignore[no-untyped-def]
 
 def _jobs(path, **bounds) -> JobStore:  # type: ignore[no-untyped-def]
     """A job store on a SQLite file of the test's own (as the service's, without a pool)."""
-    access = StoreAccess(str(path), timeout_s=5, threads=2, retry_after_s=1,
-                         job_ttl_s=bounds.get("ttl_s", 60))  # fmt: skip
+    access = StoreAccess(
+        str(path), timeout_s=5, threads=2, retry_after_s=1, job_ttl_s=bounds.get("ttl_s", 60)
+    )
     return JobStore(access, running=1, timeout_s=10, **{"ttl_s": 60, **bounds})
 
 
@@ -48,8 +49,7 @@ def _held(store: JobStore) -> tuple[int, list[str]]:
 
 def test_kept_results_stay_within_the_bound_and_the_oldest_go_first(tmp_path):
     async def scenario() -> None:
-        store = _jobs(tmp_path / "s.db", max_jobs=100, max_result_bytes=1000,
-                      max_total_bytes=2500)  # fmt: skip
+        store = _jobs(tmp_path / "s.db", max_jobs=100, max_result_bytes=1000, max_total_bytes=2500)
         ids = []
         for _ in range(6):
             row = await store.submit("plan", _answer(1000))
@@ -68,8 +68,7 @@ def test_kept_results_stay_within_the_bound_and_the_oldest_go_first(tmp_path):
 
 def test_a_result_over_its_bound_fails_the_job_and_holds_nothing(tmp_path):
     async def scenario() -> None:
-        store = _jobs(tmp_path / "s.db", max_jobs=10, max_result_bytes=1000,
-                      max_total_bytes=2000)  # fmt: skip
+        store = _jobs(tmp_path / "s.db", max_jobs=10, max_result_bytes=1000, max_total_bytes=2000)
         row = await store.submit("regions", _answer(1001))
         await _finish(store, row.id)
         row = await store.get(row.id)
@@ -85,8 +84,9 @@ def test_a_result_over_its_bound_fails_the_job_and_holds_nothing(tmp_path):
 
 def test_expired_and_count_evicted_jobs_give_their_bytes_back(tmp_path):
     async def scenario() -> None:
-        store = _jobs(tmp_path / "s.db", max_jobs=2, ttl_s=0.5, max_result_bytes=100,
-                      max_total_bytes=1000)  # fmt: skip
+        store = _jobs(
+            tmp_path / "s.db", max_jobs=2, ttl_s=0.5, max_result_bytes=100, max_total_bytes=1000
+        )
         for _ in range(3):  # the third evicts the first by count
             await _finish(store, (await store.submit("plan", _answer(100))).id)
         held, ids = _held(store)
@@ -136,8 +136,9 @@ def test_a_trajectory_job_is_bounded_before_its_samples_exist(client_factory):
         assert r.status_code == 202, r.text
         end = time.monotonic() + 120
         while (job := c.get(f"/v1/jobs/{r.json()['id']}").json())["status"] not in (
-            "done", "failed",
-        ):  # fmt: skip
+            "done",
+            "failed",
+        ):
             assert time.monotonic() < end, job
             time.sleep(0.02)
         assert job["status"] == "failed", job["status"]

@@ -39,8 +39,11 @@ def _sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRespo
 
 
 def _sleeper(seconds: float) -> dict:
-    request = {"start": START, "goal": {"p": [0.3, 0.1, 0.2]},
-               "planner": {"time_budget_s": seconds}}  # fmt: skip
+    request = {
+        "start": START,
+        "goal": {"p": [0.3, 0.1, 0.2]},
+        "planner": {"time_budget_s": seconds},
+    }
     return {"kind": "plan", "request": request}
 
 
@@ -97,10 +100,11 @@ def test_two_replicas_on_postgresql_share_poll_list_and_cancel(client_factory, p
                 assert c.delete(f"/v1/jobs/{long['id']}", headers=BOB).status_code == 404
                 assert c.get("/v1/jobs", headers=BOB).json() == []
             busy = _until(
-                lambda: next((w.process.pid for w in a.app.state.pool._workers
-                              if w.state == "busy"), None),
+                lambda: next(
+                    (w.process.pid for w in a.app.state.pool._workers if w.state == "busy"), None
+                ),
                 "the job never reached A's worker",
-            )  # fmt: skip
+            )
             r = b.delete(f"/v1/jobs/{long['id']}", headers=ALICE)
             assert r.status_code == 200 and r.json()["status"] == "cancelled"
             assert _status(a, long["id"], ALICE)["status"] == "cancelled"
@@ -113,8 +117,10 @@ def test_sqlite_a_restart_fails_unfinished_jobs_and_keeps_finished_ones(client_f
     store = str(tmp_path / "store.db")
     with _app(client_factory, store) as first:
         quick = first.post("/v1/jobs", json=_sleeper(0.01)).json()
-        done = _until(lambda: (s := _status(first, quick["id"]))["status"] == "done" and s,
-                      "the quick job never finished")  # fmt: skip
+        done = _until(
+            lambda: (s := _status(first, quick["id"]))["status"] == "done" and s,
+            "the quick job never finished",
+        )
         long = first.post("/v1/jobs", json=_sleeper(30.0)).json()
         _until(lambda: _status(first, long["id"])["status"] == "running", "never running")
     with _app(client_factory, store) as second:
@@ -128,8 +134,9 @@ def test_sqlite_a_restart_fails_unfinished_jobs_and_keeps_finished_ones(client_f
         assert kept["status"] == "done" and kept["result"] == done["result"]
         listed = second.get("/v1/jobs").json()
         assert [(j["id"], j["status"]) for j in listed] == [
-            (quick["id"], "done"), (long["id"], "failed"),
-        ]  # fmt: skip
+            (quick["id"], "done"),
+            (long["id"], "failed"),
+        ]
 
 
 def test_a_running_row_whose_owner_stopped_heartbeating_is_lost(client_factory, tmp_path):
@@ -207,12 +214,21 @@ def test_the_cli_submits_polls_lists_and_cancels(client_factory, tmp_path, monke
     with _app(client_factory, str(tmp_path / "store.db")) as c:
 
         def forward(r: httpx.Request) -> httpx.Response:
-            answer = c.request(r.method, r.url.path, content=r.content,
-                               headers={"content-type": "application/json"})  # fmt: skip
+            answer = c.request(
+                r.method,
+                r.url.path,
+                content=r.content,
+                headers={"content-type": "application/json"},
+            )
             return httpx.Response(answer.status_code, content=answer.content)
 
-        monkeypatch.setattr(service, "make_client", lambda url, key: PlannerClient(
-            "http://localhost", transport=httpx.MockTransport(forward)))  # fmt: skip
+        monkeypatch.setattr(
+            service,
+            "make_client",
+            lambda url, key: PlannerClient(
+                "http://localhost", transport=httpx.MockTransport(forward)
+            ),
+        )
         r = runner.invoke(app, ["job", "submit", "plan", str(request)])
         assert r.exit_code == 0, r.output
         job_id = r.stdout.strip()
@@ -224,8 +240,9 @@ def test_the_cli_submits_polls_lists_and_cancels(client_factory, tmp_path, monke
         long = runner.invoke(app, ["job", "submit", "plan", str(long_request)]).stdout.strip()
         r = runner.invoke(app, ["job", "list"])
         assert r.exit_code == 0 and [line.split("\t")[0] for line in r.stdout.splitlines()] == [
-            job_id, long,
-        ]  # fmt: skip
+            job_id,
+            long,
+        ]
         r = runner.invoke(app, ["job", "cancel", long])
         assert r.exit_code == 0 and f"{long}\tplan\tcancelled" in r.stdout, r.output
         r = runner.invoke(app, ["job", "status", "0" * 32])

@@ -48,8 +48,15 @@ def svc(client_factory, tmp_path_factory):
     """The module's service, its jobs in a store of its own (the bounds count its jobs only;
     one tenant may fill them all)."""
     store = str(tmp_path_factory.mktemp("jobs") / "store.db")
-    client = client_factory(workers=2, jobs_running=1, max_jobs=3, jobs_per_tenant=3,
-                            job_ttl_s=TTL_S, scene_store=store, warm=False)  # fmt: skip
+    client = client_factory(
+        workers=2,
+        jobs_running=1,
+        max_jobs=3,
+        jobs_per_tenant=3,
+        job_ttl_s=TTL_S,
+        scene_store=store,
+        warm=False,
+    )
     client.app.dependency_overrides[get_plan_function] = lambda: _sleep_pid
     with client as c:
         yield c
@@ -173,8 +180,12 @@ def test_a_method_the_job_path_does_not_take_is_405_naming_both_it_takes(svc):
 
 def _forwarding(c) -> httpx.MockTransport:
     def handle(request: httpx.Request) -> httpx.Response:
-        r = c.request(request.method, request.url.path, content=request.content,
-                      headers={"content-type": "application/json"})  # fmt: skip
+        r = c.request(
+            request.method,
+            request.url.path,
+            content=request.content,
+            headers={"content-type": "application/json"},
+        )
         return httpx.Response(r.status_code, content=r.content, headers=r.headers)
 
     return httpx.MockTransport(handle)

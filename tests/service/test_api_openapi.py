@@ -106,15 +106,29 @@ def test_schemathesis_finds_no_failure_on_any_operation(live_server, tmp_path):
     drawn by test_api_workspace.py); both still get the fuzzing phase's examples (about 3,100
     cases in all instead of 3,800)."""
     command = [
-        sys.executable, "-m", "schemathesis.cli",
-        "--config-file", str(ROOT / "tests" / "schemathesis.toml"),
-        "run", f"{live_server}/openapi.json",
+        sys.executable,
+        "-m",
+        "schemathesis.cli",
+        "--config-file",
+        str(ROOT / "tests" / "schemathesis.toml"),
+        "run",
+        f"{live_server}/openapi.json",
         # every check; the response-time check only as a hang guard, far above the request
         # budget (30 s): a speed bound would fail on a slow machine
-        "--checks", "all", "--max-response-time", "300",
-        "--max-examples", "12", "--seed", "1", "--workers", "2",
-        "--request-timeout", "60", "--generation-deterministic",
-    ]  # fmt: skip
+        "--checks",
+        "all",
+        "--max-response-time",
+        "300",
+        "--max-examples",
+        "12",
+        "--seed",
+        "1",
+        "--workers",
+        "2",
+        "--request-timeout",
+        "60",
+        "--generation-deterministic",
+    ]
     out = subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=tmp_path)
     report = out.stdout[-6000:] + out.stderr[-2000:]
     assert out.returncode == 0, report

@@ -27,8 +27,9 @@ def test_volume_optimum_for_fixed_reach_is_the_papers(api):
 def test_volume_optimum_inside_bounds(api):
     # the volume grows with L1 and L2 (for L0 = 0: 4/3 pi ((L1 + L2)^3 - |L1 - L2|^3)) and
     # shrinks with L0: the optimum is the corner L0 = 0, L1 = L2 = 0.3
-    out = _optimize(api, reach=None, L0_bounds=[0.0, 0.2], L1_bounds=[0.1, 0.3],
-                    L2_bounds=[0.1, 0.3])  # fmt: skip
+    out = _optimize(
+        api, reach=None, L0_bounds=[0.0, 0.2], L1_bounds=[0.1, 0.3], L2_bounds=[0.1, 0.3]
+    )
     d = out["design"]
     assert d["L0"] == pytest.approx(0.0, abs=1e-4)
     assert d["L1"] == pytest.approx(0.3, abs=1e-4) and d["L2"] == pytest.approx(0.3, abs=1e-4)
@@ -37,16 +38,19 @@ def test_volume_optimum_inside_bounds(api):
 
 def test_sampled_objective_with_a_small_budget(api):
     template = {"link_radius": 0.01, "joint_min": [-3, -3, -3], "joint_max": [3, 3, 3]}
-    out = _optimize(api, objective="gci", reach=0.8, n_samples=64, maxiter=1, seed=2,
-                    design=template)  # fmt: skip
+    out = _optimize(
+        api, objective="gci", reach=0.8, n_samples=64, maxiter=1, seed=2, design=template
+    )
     d = out["design"]
     assert 0.0 < out["value"] <= 1.0
     assert d["L1"] + d["L2"] == pytest.approx(0.8)
     assert 0.0 <= d["L0"] <= 0.8 and 0.04 - 1e-9 <= d["L1"] <= 0.76 + 1e-9
     assert d["link_radius"] == 0.01 and d["joint_max"] == [3, 3, 3]  # the template's
     # deterministic for a seed
-    assert _optimize(api, objective="gci", reach=0.8, n_samples=64, maxiter=1, seed=2,
-                     design=template) == out  # fmt: skip
+    assert (
+        _optimize(api, objective="gci", reach=0.8, n_samples=64, maxiter=1, seed=2, design=template)
+        == out
+    )
 
 
 @pytest.mark.parametrize(

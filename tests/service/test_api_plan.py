@@ -62,8 +62,10 @@ def test_cartesian_speed_bound_holds(api):
 
 def test_batch_of_timed_plans_in_order(api):
     goals = [[0.3, 1.0, 2.0], [0.4, 1.05, 2.05], [0.25, 0.95, 2.1]]
-    requests = [{"start": START, "goal": {"q": g, "assembly_mode": "+"}, "planner": {"seed": 1}}
-                for g in goals]  # fmt: skip
+    requests = [
+        {"start": START, "goal": {"q": g, "assembly_mode": "+"}, "planner": {"seed": 1}}
+        for g in goals
+    ]
     r = api.post("/v1/plan/batch", json={"requests": requests})
     assert r.status_code == 200, r.text
     for g, result in zip(goals, r.json()["results"], strict=True):

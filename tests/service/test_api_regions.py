@@ -109,9 +109,15 @@ def test_bad_input_is_422_naming_the_field(api, body, loc):
 
 def test_client_builds_the_request_and_refuses_bad_resolution_locally():
     sent: list[httpx.Request] = []
-    answer = {"design": GENERAL, "margins": {"kappa_max": 10, "serial_min": 0.05},
-              "resolution": 64, "regions": [], "transits": [], "components": 0,
-              "computation_time_s": 0.0}  # fmt: skip
+    answer = {
+        "design": GENERAL,
+        "margins": {"kappa_max": 10, "serial_min": 0.05},
+        "resolution": 64,
+        "regions": [],
+        "transits": [],
+        "components": 0,
+        "computation_time_s": 0.0,
+    }
 
     def handler(request: httpx.Request) -> httpx.Response:
         sent.append(request)
@@ -169,15 +175,30 @@ def test_cli_names_the_bad_field():
     "name", ["region_map", "region_images", "regions_convex_mode", "regions_nonconvex_mode"]
 )
 def test_region_figures_are_served(api, name):
-    r = api.get(f"/v1/figures/{name}.png",
-                params={"L0": 0.3, "L1": 0.3, "L2": 0.4, "resolution": 32, "dpi": 30})  # fmt: skip
+    r = api.get(
+        f"/v1/figures/{name}.png",
+        params={"L0": 0.3, "L1": 0.3, "L2": 0.4, "resolution": 32, "dpi": 30},
+    )
     assert r.status_code == 200 and r.headers["content-type"] == "image/png"
     assert r.content.startswith(b"\x89PNG\r\n\x1a\n")
 
 
 def test_cli_writes_named_figures(tmp_path):
-    r = CliRunner().invoke(cli_app, ["figures", str(tmp_path), "--named", "region_map",
-                                     "--n", "32", "--formats", "png", "--dpi", "30"])  # fmt: skip
+    r = CliRunner().invoke(
+        cli_app,
+        [
+            "figures",
+            str(tmp_path),
+            "--named",
+            "region_map",
+            "--n",
+            "32",
+            "--formats",
+            "png",
+            "--dpi",
+            "30",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert (tmp_path / "region_map.png").read_bytes().startswith(b"\x89PNG")
     r = CliRunner().invoke(cli_app, ["figures", str(tmp_path), "--named", "no_such_figure"])

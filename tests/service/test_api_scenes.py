@@ -112,9 +112,12 @@ def test_a_sequence_in_a_named_scene_equals_the_inline_sequence(api):
     name = f"sequence-{time.monotonic_ns()}"
     assert api.put(f"/v1/scenes/{name}", json={"obstacles": [cloud]}).status_code == 200
     body = {
-        "start": START, "targets": [{"goal": GOAL}, {"goal": START}], "objective": "fixed",
-        "timing": {"method": "none"}, "planner": {"seed": 2},
-    }  # fmt: skip
+        "start": START,
+        "targets": [{"goal": GOAL}, {"goal": START}],
+        "objective": "fixed",
+        "timing": {"method": "none"},
+        "planner": {"seed": 2},
+    }
     named = api.post("/v1/sequence", json={**body, "scene": name}).json()
     inline = api.post("/v1/sequence", json={**body, "obstacles": [cloud]}).json()
     assert named["status"] == inline["status"] == "solved", named["message"]

@@ -61,8 +61,10 @@ def test_a_held_write_lock_leaves_reads_and_fails_writes_with_503(locked_store):
     assert got.status_code == 200 and got.json()["scene"]["obstacles"] == [SPHERE]
     assert [s["name"] for s in c.get("/v1/scenes").json()["scenes"]] == ["kept"]
     # a plan naming the scene reads it: it is served (the worker answers or not, no 503)
-    plan = c.post("/v1/plan", json={"start": START, "goal": GOAL, "scene": "kept",
-                                    "timing": {"method": "none"}})  # fmt: skip
+    plan = c.post(
+        "/v1/plan",
+        json={"start": START, "goal": GOAL, "scene": "kept", "timing": {"method": "none"}},
+    )
     assert plan.status_code == 200, plan.text
     msg = _unavailable(c.put("/v1/scenes/new", json={"obstacles": []}))
     assert "3 s (PLANNER_STORE_TIMEOUT_S)" in msg and "nothing was changed" in msg

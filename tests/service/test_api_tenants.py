@@ -50,13 +50,25 @@ def test_a_tenants_scene_is_404_to_another_and_names_are_per_tenant(two):
     c = two
     mine = c.put("/v1/scenes/table-1", json={"obstacles": [SPHERE]}, headers=ALICE).json()
     assert mine["version"] == 1
-    _same_but(c.get("/v1/scenes/table-1", headers=BOB), c.get("/v1/scenes/never", headers=BOB),
-              "table-1", "never")  # fmt: skip
-    _same_but(c.delete("/v1/scenes/table-1", headers=BOB),
-              c.delete("/v1/scenes/never", headers=BOB), "table-1", "never")  # fmt: skip
+    _same_but(
+        c.get("/v1/scenes/table-1", headers=BOB),
+        c.get("/v1/scenes/never", headers=BOB),
+        "table-1",
+        "never",
+    )
+    _same_but(
+        c.delete("/v1/scenes/table-1", headers=BOB),
+        c.delete("/v1/scenes/never", headers=BOB),
+        "table-1",
+        "never",
+    )
     assert c.get("/v1/scenes", headers=BOB).json() == {"scenes": []}
-    plan = {"start": START, "goal": {"q": [0.1, 1.0, 2.0], "assembly_mode": "+"}, "scene": "table-1",
-            "planner": {"time_budget_s": 0.01}}  # fmt: skip
+    plan = {
+        "start": START,
+        "goal": {"q": [0.1, 1.0, 2.0], "assembly_mode": "+"},
+        "scene": "table-1",
+        "planner": {"time_budget_s": 0.01},
+    }
     r = c.post("/v1/plan", json=plan, headers=BOB)
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "scene"]
     # bob's PUT of the same name is bob's own scene: version 1, alice's untouched
@@ -73,14 +85,28 @@ def test_a_tenants_scene_is_404_to_another_and_names_are_per_tenant(two):
 
 def test_a_tenants_job_is_404_to_another_and_listings_are_per_tenant(two):
     c = two
-    body = {"kind": "plan", "request": {"start": START, "goal": {"p": [0.3, 0.1, 0.2]},
-                                        "planner": {"time_budget_s": 30}}}  # fmt: skip
+    body = {
+        "kind": "plan",
+        "request": {
+            "start": START,
+            "goal": {"p": [0.3, 0.1, 0.2]},
+            "planner": {"time_budget_s": 30},
+        },
+    }
     job = c.post("/v1/jobs", json=body, headers=ALICE).json()
     never = "0" * 32
-    _same_but(c.get(f"/v1/jobs/{job['id']}", headers=BOB),
-              c.get(f"/v1/jobs/{never}", headers=BOB), job["id"], never)  # fmt: skip
-    _same_but(c.delete(f"/v1/jobs/{job['id']}", headers=BOB),
-              c.delete(f"/v1/jobs/{never}", headers=BOB), job["id"], never)  # fmt: skip
+    _same_but(
+        c.get(f"/v1/jobs/{job['id']}", headers=BOB),
+        c.get(f"/v1/jobs/{never}", headers=BOB),
+        job["id"],
+        never,
+    )
+    _same_but(
+        c.delete(f"/v1/jobs/{job['id']}", headers=BOB),
+        c.delete(f"/v1/jobs/{never}", headers=BOB),
+        job["id"],
+        never,
+    )
     assert c.get(f"/v1/jobs/{job['id']}", headers=ALICE).json()["status"] in ("queued", "running")
     assert c.get("/v1/jobs", headers=BOB).json() == []
     (listed,) = c.get("/v1/jobs", headers=ALICE).json()
@@ -98,8 +124,13 @@ def test_a_tenants_job_is_404_to_another_and_listings_are_per_tenant(two):
 def test_quotas_refuse_naming_their_setting(client_factory, tmp_path):
     keys = tmp_path / "keys"
     keys.write_text("# tenants of this test\nalice alice-key\nbob   bob-key  \n")
-    with client_factory(api_keys=str(keys), scene_store=str(tmp_path / "s.db"), scenes_max=2,
-                        scene_bytes_max=4096, warm=False) as c:  # fmt: skip
+    with client_factory(
+        api_keys=str(keys),
+        scene_store=str(tmp_path / "s.db"),
+        scenes_max=2,
+        scene_bytes_max=4096,
+        warm=False,
+    ) as c:
         for name in ("a", "b"):
             assert c.put(f"/v1/scenes/{name}", json={"obstacles": []}, headers=ALICE).is_success
         r = c.put("/v1/scenes/c", json={"obstacles": []}, headers=ALICE)
@@ -109,8 +140,7 @@ def test_quotas_refuse_naming_their_setting(client_factory, tmp_path):
         assert "PLANNER_SCENES_MAX" in item["msg"]
         assert c.put("/v1/scenes/a", json={"obstacles": [SPHERE]}, headers=ALICE).is_success
         assert c.put("/v1/scenes/c", json={"obstacles": []}, headers=BOB).is_success
-        big = {"obstacles": [{"type": "points", "points": [[1.0, 2.0, 3.0]] * 400,
-                              "radius": 0.01}]}  # fmt: skip
+        big = {"obstacles": [{"type": "points", "points": [[1.0, 2.0, 3.0]] * 400, "radius": 0.01}]}
         r = c.put("/v1/scenes/big", json=big, headers=BOB)
         assert r.status_code == 413, r.text
         item = r.json()["detail"][0]

@@ -36,8 +36,11 @@ def _trapezoid_duration(distance: float, v: float, a: float) -> float:
 def test_straight_move_takes_the_closed_form_time(api, delta, v, a):
     q0 = np.array([0.1, 0.8, 1.6])
     q1 = q0 + delta
-    out = _timing(api, waypoints=[q0.tolist(), q1.tolist()],
-                  limits={"velocity": [v] * 3, "acceleration": [a] * 3})  # fmt: skip
+    out = _timing(
+        api,
+        waypoints=[q0.tolist(), q1.tolist()],
+        limits={"velocity": [v] * 3, "acceleration": [a] * 3},
+    )
     assert out["status"] == "solved"
     # along a straight line the joint with the largest travel binds: scale to path length
     d = np.abs(np.array(delta))
@@ -117,10 +120,12 @@ def test_validity_rules_apply_margins_and_obstacles(api):
 def test_bad_validity_fields_are_422(api):
     for change, loc in [
         ({"margins": {"kappa_max": 1.0}}, ["body", "margins", "kappa_max"]),
-        ({"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": -1}]},
-         ["body", "obstacles", 0, "sphere", "radius"]),
+        (
+            {"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": -1}]},
+            ["body", "obstacles", 0, "sphere", "radius"],
+        ),
         ({"working_mode": "+x+"}, ["body", "working_mode"]),
-    ]:  # fmt: skip
+    ]:
         r = api.post("/v1/timing", json={"waypoints": PATH, **change})
         assert r.status_code == 422, r.text
         assert loc in [item["loc"] for item in r.json()["detail"]], r.text
@@ -170,8 +175,11 @@ def test_waypoint_that_does_not_assemble_is_named(api):
 
 def test_too_many_samples_is_422_naming_the_rate(api):
     # a slow move at a high rate: more output samples than the library allows
-    body = {"waypoints": [[0, 0.5, 1.0], [3.0, 0.5, 1.0]], "sample_rate_hz": 10_000,
-            "limits": {"velocity": [0.001] * 3}}  # fmt: skip
+    body = {
+        "waypoints": [[0, 0.5, 1.0], [3.0, 0.5, 1.0]],
+        "sample_rate_hz": 10_000,
+        "limits": {"velocity": [0.001] * 3},
+    }
     r = api.post("/v1/timing", json=body)
     assert r.status_code == 422
     assert r.json()["detail"][0]["loc"] == ["body", "sample_rate_hz"]

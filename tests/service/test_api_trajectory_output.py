@@ -122,8 +122,13 @@ def test_points_and_arrays_carry_the_same_samples(api, route):
 
 
 def test_responses_parse_either_format():
-    arrays = {"duration": 1.0, "t": [0.0, 1.0], "q": [[0, 0, 0], [1, 1, 1]],
-              "qd": [[0, 0, 0]] * 2, "qdd": [[0, 0, 0]] * 2}  # fmt: skip
+    arrays = {
+        "duration": 1.0,
+        "t": [0.0, 1.0],
+        "q": [[0, 0, 0], [1, 1, 1]],
+        "qd": [[0, 0, 0]] * 2,
+        "qdd": [[0, 0, 0]] * 2,
+    }
     points = to_points(TrajectoryModel.model_validate(arrays)).model_dump()
     for traj, cls in ((arrays, TrajectoryModel), (points, TrajectoryPointsModel)):
         for model in (PlanResponse, CartesianResponse):
@@ -156,8 +161,12 @@ def test_csv_round_trip_gives_back_the_same_numbers(api, tmp_path, form):
 
 
 def test_ruckig_csv_has_the_jerk_columns(api, tmp_path):
-    body = {"start": START, "goal": {"q": [0.3, 2.6, 0.5], "assembly_mode": "+"},
-            "timing": {"method": "ruckig"}, "planner": {"seed": 1}}  # fmt: skip
+    body = {
+        "start": START,
+        "goal": {"q": [0.3, 2.6, 0.5], "assembly_mode": "+"},
+        "timing": {"method": "ruckig"},
+        "planner": {"seed": 1},
+    }
     traj = PlanResponse.model_validate(api.post("/v1/plan", json=body).json()).trajectory
     write_csv(traj, tmp_path / "r.csv")
     _, header, data = _read_plain_csv(tmp_path / "r.csv")
@@ -170,8 +179,12 @@ def _forwarding(api) -> httpx.MockTransport:
     """A transport handing each request to the in-process service."""
 
     def handle(request: httpx.Request) -> httpx.Response:
-        r = api.request(request.method, request.url.path, content=request.content,
-                        headers={"content-type": "application/json"})  # fmt: skip
+        r = api.request(
+            request.method,
+            request.url.path,
+            content=request.content,
+            headers={"content-type": "application/json"},
+        )
         return httpx.Response(r.status_code, content=r.content, headers=r.headers)
 
     return httpx.MockTransport(handle)
@@ -179,10 +192,13 @@ def _forwarding(api) -> httpx.MockTransport:
 
 def test_client_cartesian_returns_the_services_answer(api):
     with PlannerClient("http://planner.test", transport=_forwarding(api)) as client:
-        answer = client.cartesian(start=START, waypoints=np.array([[0.45, 0.3, 0.1]]),
-                                  timing={"format": "points"})  # fmt: skip
-        served = api.post("/v1/cartesian", json={"start": START, "waypoints": [[0.45, 0.3, 0.1]],
-                                                 "timing": {"format": "points"}}).json()  # fmt: skip
+        answer = client.cartesian(
+            start=START, waypoints=np.array([[0.45, 0.3, 0.1]]), timing={"format": "points"}
+        )
+        served = api.post(
+            "/v1/cartesian",
+            json={"start": START, "waypoints": [[0.45, 0.3, 0.1]], "timing": {"format": "points"}},
+        ).json()
         assert answer.status == "solved" and answer.fraction == 1.0
         assert isinstance(answer.trajectory, TrajectoryPointsModel)
         assert (
@@ -194,8 +210,11 @@ def test_client_cartesian_returns_the_services_answer(api):
 
 
 def test_cli_plan_writes_the_trajectory_csv(tmp_path):
-    body = {"start": START, "goal": {"q": [0.3, 2.6, 0.5], "assembly_mode": "+"},
-            "planner": {"seed": 1}}  # fmt: skip
+    body = {
+        "start": START,
+        "goal": {"q": [0.3, 2.6, 0.5], "assembly_mode": "+"},
+        "planner": {"seed": 1},
+    }
     (tmp_path / "req.json").write_text(json.dumps(body))
     out, table = tmp_path / "full.json", tmp_path / "traj.csv"
     r = runner.invoke(
@@ -211,13 +230,27 @@ def test_cli_plan_writes_the_trajectory_csv(tmp_path):
 
 def test_cli_cartesian_follows_the_line_and_names_the_stop(api, tmp_path):
     table = tmp_path / "c.csv"
-    r = runner.invoke(app, ["cartesian", *map(str, START["q"]), "0.45", "0.3", "0.1",
-                            "--speed", "0.25", "--csv", str(table)])  # fmt: skip
+    r = runner.invoke(
+        app,
+        [
+            "cartesian",
+            *map(str, START["q"]),
+            "0.45",
+            "0.3",
+            "0.1",
+            "--speed",
+            "0.25",
+            "--csv",
+            str(table),
+        ],
+    )
     assert r.exit_code == 0, r.output
     lines = r.stdout.splitlines()
     assert lines[0] == "status: solved" and "fraction: 1" in lines
-    served = api.post("/v1/cartesian", json={"start": START, "waypoints": [[0.45, 0.3, 0.1]],
-                                             "limits": {"cartesian_speed": 0.25}}).json()  # fmt: skip
+    served = api.post(
+        "/v1/cartesian",
+        json={"start": START, "waypoints": [[0.45, 0.3, 0.1]], "limits": {"cartesian_speed": 0.25}},
+    ).json()
     _, _, data = _read_plain_csv(table)
     assert data[:, 0].tolist() == served["trajectory"]["t"]
     assert any(line.startswith("  max_path_deviation: ") for line in lines)
@@ -229,8 +262,9 @@ def test_cli_cartesian_follows_the_line_and_names_the_stop(api, tmp_path):
     # bad input: exit 2 naming the field
     r = runner.invoke(app, ["cartesian", "0", "2", "1", "0.4"])
     assert r.exit_code == 2 and "numbers" in r.output
-    r = runner.invoke(app, ["cartesian", *map(str, START["q"]), "0.4", "0", "0",
-                            "--velocity-scaling", "2"])  # fmt: skip
+    r = runner.invoke(
+        app, ["cartesian", *map(str, START["q"]), "0.4", "0", "0", "--velocity-scaling", "2"]
+    )
     assert r.exit_code == 2 and "limits.velocity_scaling" in r.output
 
 

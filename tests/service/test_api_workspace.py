@@ -40,8 +40,9 @@ def _hollow_spheres_volume(L0: float, L1: float, L2: float, n: int = 400_000) ->
 
 
 def test_paper_optimum_volume_is_the_sphere_and_the_sample_agrees(api):
-    ws = _workspace(api, design=PAPER_OPTIMUM, rel_se=0.01, sections={"cartesian": False,
-                                                                        "joint": False})  # fmt: skip
+    ws = _workspace(
+        api, design=PAPER_OPTIMUM, rel_se=0.01, sections={"cartesian": False, "joint": False}
+    )
     expected = 4 / 3 * math.pi * 0.8**3
     assert ws["volume"] == pytest.approx(expected, rel=1e-12)
     s = ws["sampled_volume"]
@@ -57,8 +58,12 @@ def test_paper_optimum_volume_is_the_sphere_and_the_sample_agrees(api):
 @pytest.mark.parametrize("design", [(0.5, 0.2, 0.6), (0.6, 0.25, 0.45), (0.3, 0.5, 0.2)])
 def test_volume_matches_an_independent_monte_carlo(api, design):
     L0, L1, L2 = design
-    ws = _workspace(api, design={"L0": L0, "L1": L1, "L2": L2}, rel_se=0.02,
-                    sections={"cartesian": False, "joint": False})  # fmt: skip
+    ws = _workspace(
+        api,
+        design={"L0": L0, "L1": L1, "L2": L2},
+        rel_se=0.02,
+        sections={"cartesian": False, "joint": False},
+    )
     mc = _hollow_spheres_volume(L0, L1, L2)
     assert ws["volume"] == pytest.approx(mc, rel=0.02)
     s = ws["sampled_volume"]
@@ -68,12 +73,16 @@ def test_volume_matches_an_independent_monte_carlo(api, design):
 def test_quarter_turn_of_theta1_halves_the_sampled_volume(api):
     # theta1 in [0, pi/2] sweeps a quarter turn on each side of AB (w > 0 and w < 0)
     design = {"joint_min": [0.0, -math.pi, -math.pi], "joint_max": [math.pi / 2, math.pi, math.pi]}
-    ws = _workspace(api, design=design, rel_se=0.01, sections={"cartesian": False,
-                                                               "joint": False})  # fmt: skip
+    ws = _workspace(api, design=design, rel_se=0.01, sections={"cartesian": False, "joint": False})
     s = ws["sampled_volume"]
     assert abs(s["value"] - ws["volume"] / 2) < 3.5 * s["standard_error"] + 0.002 * ws["volume"]
-    off = _workspace(api, design=design, joint_limits=False, rel_se=0.02,
-                     sections={"cartesian": False, "joint": False})  # fmt: skip
+    off = _workspace(
+        api,
+        design=design,
+        joint_limits=False,
+        rel_se=0.02,
+        sections={"cartesian": False, "joint": False},
+    )
     assert off["sampled_volume"]["value"] == pytest.approx(ws["volume"], rel=0.05)
 
 
@@ -98,10 +107,12 @@ def test_cartesian_section_cells_agree_with_ik_and_analyze(api):
         if mine:
             checked_reached += 1
             kappas = [
-                api.post("/v1/analyze", json={"q": p["q"], "assembly_mode": p["assembly_mode"],
-                                              "design": design}).json()["kappa_A"]
+                api.post(
+                    "/v1/analyze",
+                    json={"q": p["q"], "assembly_mode": p["assembly_mode"], "design": design},
+                ).json()["kappa_A"]
                 for p in mine
-            ]  # fmt: skip
+            ]
             finite = [k for k in kappas if k is not None and k < 1e6]
             if finite and sec["best_kappa"][j][i] is not None:
                 assert sec["best_kappa"][j][i] == pytest.approx(min(finite), rel=1e-6)
@@ -112,8 +123,12 @@ def test_cartesian_section_cells_agree_with_ik_and_analyze(api):
 
 def test_joint_section_cells_agree_with_fk(api):
     design = {"L0": 0.6, "L1": 0.25, "L2": 0.45}
-    ws = _workspace(api, design=design, rel_se=0.05,
-                    sections={"resolution": 10, "cartesian": False, "theta1": 0.3})  # fmt: skip
+    ws = _workspace(
+        api,
+        design=design,
+        rel_se=0.05,
+        sections={"resolution": 10, "cartesian": False, "theta1": 0.3},
+    )
     sec = ws["joint_section"]
     assert sec["kind"] == "joint" and sec["labels"] == ["+", "-"]
     assert sec["x"][0] == pytest.approx(-math.pi + math.pi / 10)  # cell centres over the limits
@@ -182,8 +197,12 @@ def test_png_and_svg_of_a_design_given_in_the_query(api):
 
 
 def test_every_figure_is_an_image_or_a_422_for_every_preset(api):
-    designs = [{"L0": 0.5, "L1": 0.2, "L2": 0.6}, PAPER_OPTIMUM, {"L0": 0.6, "L1": 0.25,
-               "L2": 0.45}, {"L0": 1.5, "L1": 0.2, "L2": 0.5}]  # fmt: skip
+    designs = [
+        {"L0": 0.5, "L1": 0.2, "L2": 0.6},
+        PAPER_OPTIMUM,
+        {"L0": 0.6, "L1": 0.25, "L2": 0.45},
+        {"L0": 1.5, "L1": 0.2, "L2": 0.5},
+    ]
     for design in designs:
         for name in FIGURE_NAMES:
             r = api.get(f"/v1/figures/{name}.png", params={**design, "resolution": 16, "dpi": 20})
@@ -196,13 +215,17 @@ def test_every_figure_is_an_image_or_a_422_for_every_preset(api):
     r = api.get("/v1/figures/parallel_c_equals_d.png")
     assert r.status_code == 422 and "C and D cannot meet" in r.json()["detail"][0]["msg"]
     # the mode-change design has a stretched CD in its convex mode: drawn
-    r = api.get("/v1/figures/working_mode_and_parallel_singularity.png",
-                params={"L0": 0.6, "L1": 0.25, "L2": 0.45, "dpi": 20})  # fmt: skip
+    r = api.get(
+        "/v1/figures/working_mode_and_parallel_singularity.png",
+        params={"L0": 0.6, "L1": 0.25, "L2": 0.45, "dpi": 20},
+    )
     assert r.status_code == 200
 
 
-@pytest.mark.parametrize("path", ["/v1/figures/nope.png", "/v1/figures/cartesian_section.jpg",
-                                  "/v1/figures/cartesian_section"])  # fmt: skip
+@pytest.mark.parametrize(
+    "path",
+    ["/v1/figures/nope.png", "/v1/figures/cartesian_section.jpg", "/v1/figures/cartesian_section"],
+)
 def test_unknown_figure_or_format_is_404_listing_the_names(api, path):
     r = api.get(path)
     assert r.status_code == 404

@@ -89,9 +89,16 @@ def test_dense_check_catches_what_the_output_samples_miss():
     # And a limit exceeded by the curve is reported.
     slow = JointLimits(velocity=(0.5,) * 3, acceleration=(8.0,) * 3)
     report = dense_check(
-        curve, design=DESIGN, assembly_mode="+", waypoints=w, limits=slow, resolution=0.01,
-        extra_times=t_out, check_states=None, max_cartesian_speed=None,
-    )  # fmt: skip
+        curve,
+        design=DESIGN,
+        assembly_mode="+",
+        waypoints=w,
+        limits=slow,
+        resolution=0.01,
+        extra_times=t_out,
+        check_states=None,
+        max_cartesian_speed=None,
+    )
     assert not report.limits_ok and report.worst_limit[0] == "velocity"
 
 
@@ -190,9 +197,15 @@ def test_dense_check_flags_postures_farther_than_the_allowance():
     path = BlendedPath.from_waypoints(CORNER, 0.05)
     curve = ToppraCurve(path, solve_toppra(path, LIMITS))
     common = dict(
-        design=DESIGN, assembly_mode="+", waypoints=CORNER, limits=LIMITS, resolution=0.01,
-        extra_times=np.zeros(0), check_states=None, max_cartesian_speed=None,
-    )  # fmt: skip
+        design=DESIGN,
+        assembly_mode="+",
+        waypoints=CORNER,
+        limits=LIMITS,
+        resolution=0.01,
+        extra_times=np.zeros(0),
+        check_states=None,
+        max_cartesian_speed=None,
+    )
     loose = dense_check(curve, deviation_limit=np.array([0.0, 0.05, 0.0]), **common)
     assert not loose.bad_state.any()
     # The arc's farthest point from the two segments: r (1 - cos(a/2)), r = l = 0.05 / tan(pi/8)

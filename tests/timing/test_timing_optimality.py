@@ -27,9 +27,12 @@ def _random_path(rng: np.random.Generator) -> np.ndarray:
 
 
 def _random_limits(rng: np.random.Generator, **extra) -> JointLimits:
-    return JointLimits(velocity=tuple(rng.uniform(1.5, 3.0, 3)),
-                       acceleration=tuple(rng.uniform(5.0, 15.0, 3)),
-                       jerk=(400.0,) * 3, **extra)  # fmt: skip
+    return JointLimits(
+        velocity=tuple(rng.uniform(1.5, 3.0, 3)),
+        acceleration=tuple(rng.uniform(5.0, 15.0, 3)),
+        jerk=(400.0,) * 3,
+        **extra,
+    )
 
 
 def test_velocity_only_toppra_is_within_half_a_percent_of_a_finer_grid(monkeypatch):
@@ -55,8 +58,9 @@ def _uniform_slow_down(design, inertia, traj, torque: np.ndarray) -> float:
     dyn = total - rest
     assert np.all(np.abs(rest) <= torque)
     with np.errstate(divide="ignore", invalid="ignore"):
-        room = np.where(dyn > 0, (torque - rest) / dyn, np.where(dyn < 0, (torque + rest) / -dyn,
-                                                                 np.inf))  # fmt: skip
+        room = np.where(
+            dyn > 0, (torque - rest) / dyn, np.where(dyn < 0, (torque + rest) / -dyn, np.inf)
+        )
     c = min(1.0, float(np.sqrt(np.min(room))))
     return traj.duration / c
 

@@ -126,8 +126,9 @@ def test_cartesian_speed_bound_with_ruckig():
     w = random_walk(9, n=6)
     free = time_path(DESIGN, w, LIMITS, method="ruckig")
     vmax = 0.5 * float(free.p_speed.max())
-    traj = time_path(DESIGN, w, LIMITS, method="ruckig", max_cartesian_speed=vmax,
-                     sample_rate_hz=500.0)  # fmt: skip
+    traj = time_path(
+        DESIGN, w, LIMITS, method="ruckig", max_cartesian_speed=vmax, sample_rate_hz=500.0
+    )
     assert traj.p_speed.max() <= vmax * TOL
     assert traj.duration > free.duration
     assert isinstance(traj.curve, TimeScaledCurve)  # the chain needed the uniform slow-down
@@ -153,8 +154,10 @@ def test_deviation_is_held_to_max_deviation(delta):
 def _benchmark_walks(n: int) -> list[np.ndarray]:
     """The seeded 20-waypoint walks of ``benchmarks/timing.py`` (same generator and seed)."""
     rng = np.random.default_rng(0)
-    return [np.clip(np.cumsum(rng.uniform(-0.5, 0.5, size=(20, 3)), axis=0), -2.5, 2.5)
-            for _ in range(n)]  # fmt: skip
+    return [
+        np.clip(np.cumsum(rng.uniform(-0.5, 0.5, size=(20, 3)), axis=0), -2.5, 2.5)
+        for _ in range(n)
+    ]
 
 
 def test_curve_evaluation_matches_ruckig_move_by_move():
@@ -179,8 +182,9 @@ def test_short_segment_between_blends_becomes_one_middle_state():
     deviation allowance hold, as the dense re-check of time_path guarantees)."""
     limits = JointLimits.default()
     w = _benchmark_walks(80)[79]
-    path = BlendedPath.from_waypoints(w, np.full(20, 0.05), np.zeros(20, bool),
-                                      min_blend_radius(limits))  # fmt: skip
+    path = BlendedPath.from_waypoints(
+        w, np.full(20, 0.05), np.zeros(20, bool), min_blend_radius(limits)
+    )
     profile = solve_toppra(path, limits)
     t_merge = float(np.max(limits.acceleration_array / limits.jerk_array))
     tags = [m[1] for m in _through_marks(path, profile, t_merge)]

@@ -95,8 +95,9 @@ def test_first_round_work_is_linear(monkeypatch, method):
 def test_caches_change_no_result(monkeypatch):
     w = motif_path(3)
     check = corner_box(w, 5)
-    with_cache = {m: time_path(DESIGN, w, LIMITS, method=m, check_states=check)
-                  for m in ("toppra", "ruckig")}  # fmt: skip
+    with_cache = {
+        m: time_path(DESIGN, w, LIMITS, method=m, check_states=check) for m in ("toppra", "ruckig")
+    }
     # every key unique: nothing is ever found in the caches
     monkeypatch.setattr(toppra_method, "section_key", lambda *a: object())
     monkeypatch.setattr(ruckig_method, "section_key", lambda *a: object())

@@ -109,8 +109,15 @@ def test_a_chain_keeps_the_cartesian_speed_bound():
     method = "ruckig"
     free = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS, via_at=[1, 2])
     bound = 0.5 * float(np.max(free.p_speed))
-    traj = time_path(DESIGN, ADEPT, LIMITS, method=method, max_deviation=BLENDS, via_at=[1, 2],
-                     max_cartesian_speed=bound)  # fmt: skip
+    traj = time_path(
+        DESIGN,
+        ADEPT,
+        LIMITS,
+        method=method,
+        max_deviation=BLENDS,
+        via_at=[1, 2],
+        max_cartesian_speed=bound,
+    )
     q, qd, _, _ = traj.at(fine_times(traj.duration, 20001))
     # P's speed recomputed here by central differences of the forward kinematics
     h = 1e-6

@@ -21,8 +21,12 @@ TINY = [0.0, 0.0, -2.225073858507e-311]
 def test_a_subnormal_path_times_without_warnings(method):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        traj = time_path(Design.default(), np.array([TINY, [0.0, 0.0, 0.0]]),
-                         JointLimits.default(), method=method)  # fmt: skip
+        traj = time_path(
+            Design.default(),
+            np.array([TINY, [0.0, 0.0, 0.0]]),
+            JointLimits.default(),
+            method=method,
+        )
     assert traj.duration == 0.0 and np.array_equal(traj.q[-1], [0.0, 0.0, 0.0])
     assert np.all(traj.qd == 0.0)
 

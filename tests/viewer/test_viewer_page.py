@@ -122,9 +122,26 @@ def test_the_csv_download_is_the_library_writers_format(page, method):
 #: Numbers whose 17-digit forms take every branch of Python's "g" format: zero and its sign,
 #: the exponent's thresholds (1e-4, 1e16, 1e17), rounding up to a new power of ten, the
 #: smallest and largest floats.
-AWKWARD = [0.0, -0.0, 0.1, -1 / 3, 1e-4, 9.99999999999999e-5, 1e-5, 1.5e-300, 5e-324, 1e16,
-           1e17, 123456789012345678.0, 0.99999999999999999, 2.0**-30, 1.7976931348623157e308,
-           -2.5, 100.0, 6.02214076e23]  # fmt: skip
+AWKWARD = [
+    0.0,
+    -0.0,
+    0.1,
+    -1 / 3,
+    1e-4,
+    9.99999999999999e-5,
+    1e-5,
+    1.5e-300,
+    5e-324,
+    1e16,
+    1e17,
+    123456789012345678.0,
+    0.99999999999999999,
+    2.0**-30,
+    1.7976931348623157e308,
+    -2.5,
+    100.0,
+    6.02214076e23,
+]
 
 
 def test_the_pages_number_format_is_pythons(page):

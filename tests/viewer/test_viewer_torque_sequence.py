@@ -99,8 +99,10 @@ def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path
     body = json.loads(sent.value.post_data)
     assert body["cycle"] is True
     assert [t["goal"]["p"] for t in body["targets"]] == [
-        [0.35, -0.1, -0.4], [0.35, 0.2, -0.4], [0.35, 0.2, -0.45],
-    ]  # fmt: skip
+        [0.35, -0.1, -0.4],
+        [0.35, 0.2, -0.4],
+        [0.35, 0.2, -0.45],
+    ]
     assert [t["stop"] for t in body["targets"]] == [False, False, True]
     assert [t.get("blend") for t in body["targets"]] == [0.04, 0.04, None]
     assert answer["status"] == "solved", answer["message"]
@@ -173,20 +175,28 @@ def test_payload_and_gravity_fields_go_out_and_set_the_torques_drawn(page, live_
     oracle = httpx.post(
         f"{live_server}/v1/dynamics",
         json={
-            "design": body["design"], "gravity": [0, 0, 0], "assembly_mode": "+",
-            "q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"],
+            "design": body["design"],
+            "gravity": [0, 0, 0],
+            "assembly_mode": "+",
+            "q": tr["q"],
+            "qd": tr["qd"],
+            "qdd": tr["qdd"],
         },
         timeout=60,
-    ).json()  # fmt: skip
+    ).json()
     drawn = torque_plot(page)
     assert np.allclose(drawn["tau"], oracle["tau"], rtol=1e-9, atol=1e-9)
     # the same motion with gravity and the default payload needs other torques
     other = httpx.post(
         f"{live_server}/v1/dynamics",
-        json={"design": {k: v for k, v in body["design"].items() if k != "inertia"},
-              "q": tr["q"], "qd": tr["qd"], "qdd": tr["qdd"]},
+        json={
+            "design": {k: v for k, v in body["design"].items() if k != "inertia"},
+            "q": tr["q"],
+            "qd": tr["qd"],
+            "qdd": tr["qdd"],
+        },
         timeout=60,
-    ).json()  # fmt: skip
+    ).json()
     assert not np.allclose(other["tau"], oracle["tau"], atol=1e-3)
     # a negative mass is said as typed, in the service's words
     page.locator("input[name='design.inertia.payload.mass']").fill("-1")

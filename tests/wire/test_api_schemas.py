@@ -158,8 +158,12 @@ def test_the_obstacle_schemas_require_their_type():
     schema says so (``required``, no default); tests/service/test_api_openapi.py reads the
     service's document."""
     defs = PlanRequest.model_json_schema()["$defs"]
-    for name, tag in [("SphereObstacle", "sphere"), ("BoxObstacle", "box"),
-                      ("CapsuleObstacle", "capsule"), ("PointsObstacle", "points")]:  # fmt: skip
+    for name, tag in [
+        ("SphereObstacle", "sphere"),
+        ("BoxObstacle", "box"),
+        ("CapsuleObstacle", "capsule"),
+        ("PointsObstacle", "points"),
+    ]:
         schema = defs[name]
         assert schema["required"][0] == "type", (name, schema["required"])
         assert schema["properties"]["type"] == {"const": tag, "title": "Type", "type": "string"}
@@ -257,8 +261,13 @@ def test_third_part_dynamics_vocabulary():
     assert set(InertiaModel.model_fields) == {"proximal", "distal", "payload", "base", "rotor"}
     assert set(LinkInertiaModel.model_fields) == {"mass", "com", "I_perp", "I_axial"}
     assert set(DynamicsRequest.model_fields) == {
-        "design", "gravity", "assembly_mode", "q", "qd", "qdd"
-    }  # fmt: skip
+        "design",
+        "gravity",
+        "assembly_mode",
+        "q",
+        "qd",
+        "qdd",
+    }
     assert {"tau", "mass_matrix"} <= set(DynamicsResponse.model_fields)
     assert PlanRequest.model_fields["gravity"].default_factory() == [0.0, 0.0, -9.81]
     assert "torque" in schemas.Limits.model_fields

@@ -69,8 +69,12 @@ def test_an_inner_location_wins():
 def test_library_errors_name_their_argument():
     """The library sets ``field`` where it knows it: no caller parses messages."""
     with pytest.raises(InputError) as info:
-        time_path(Design.default(), np.array([[0, 2, 1], [0.1, 2, 1]]), JointLimits.default(),
-                  sample_rate_hz=-1.0)  # fmt: skip
+        time_path(
+            Design.default(),
+            np.array([[0, 2, 1], [0.1, 2, 1]]),
+            JointLimits.default(),
+            sample_rate_hz=-1.0,
+        )
     assert info.value.field == "sample_rate_hz"
     with pytest.raises(LimitsError) as info:
         JointLimits(velocity=(1.0, 0.0, 1.0), acceleration=(1.0, 1.0, 1.0))

@@ -208,9 +208,22 @@ def corners_inside(
         if _inside_one(2, boxes, box_nodes, c1, s1, u0, u1, w0, w1, spread, limit):
             return True
         if _union_inside(
-            c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes,
-            capsule_nodes, box_nodes, sphere_grid, limit,
-        ):  # fmt: skip
+            c1,
+            s1,
+            a1,
+            u0,
+            u1,
+            w0,
+            w1,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            sphere_grid,
+            limit,
+        ):
             return True
     return False
 
@@ -222,9 +235,22 @@ UNION_DEPTH = 3
 
 @njit(cache=True)
 def _union_inside(
-    c1, s1, a1, u0, u1, w0, w1, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
-    box_nodes, sphere_grid, limit,
-):  # pragma: no cover  # fmt: skip
+    c1,
+    s1,
+    a1,
+    u0,
+    u1,
+    w0,
+    w1,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    limit,
+):  # pragma: no cover
     """The union bound of :func:`corners_inside`: every point of the rectangle, moved by up
     to its spread, is closer than ``limit`` to some obstacle. A piece holds when its centre's
     distance D plus half its diagonal plus its spread is below ``limit`` (D is 1-Lipschitz);
@@ -248,9 +274,23 @@ def _union_inside(
         half = 0.5 * math.sqrt((b - a) ** 2 + (d - c) ** 2)
         x, y, z = wc * c1, uc, -wc * s1
         dist = segment_min_distance(
-            x, y, z, x, y, z, spheres, capsules, boxes, sphere_nodes, capsule_nodes,
-            box_nodes, sphere_grid, limit - spread, 0.0, 0.0,
-        )  # fmt: skip
+            x,
+            y,
+            z,
+            x,
+            y,
+            z,
+            spheres,
+            capsules,
+            boxes,
+            sphere_nodes,
+            capsule_nodes,
+            box_nodes,
+            sphere_grid,
+            limit - spread,
+            0.0,
+            0.0,
+        )
         if dist + half + spread < limit:
             continue
         if dist + spread >= limit or depth >= UNION_DEPTH:

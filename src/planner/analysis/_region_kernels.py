@@ -489,8 +489,15 @@ def label_kernel(bits, over, certified):  # pragma: no cover - compiled
                 if nb_d & rest:
                     _join(parent, rest & nb_d, m, x0, nb_d, start[i3 * n2 + i2 - 1], ~nb_c)
                 if nb_a & rest & ~nb_d:
-                    _join(parent, rest & ~nb_d & nb_a, m, x0, nb_a,
-                          start[(i3 - 1) * n2 + i2 - 1], ~nb_c)  # fmt: skip
+                    _join(
+                        parent,
+                        rest & ~nb_d & nb_a,
+                        m,
+                        x0,
+                        nb_a,
+                        start[(i3 - 1) * n2 + i2 - 1],
+                        ~nb_c,
+                    )
     counts = np.zeros(LAYERS, dtype=np.int64)
     slot_label = np.empty(total, dtype=np.int64)
     for i3 in range(n3):

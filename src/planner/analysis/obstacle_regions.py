@@ -137,20 +137,35 @@ def theta1_grid(design: Design, width: float) -> tuple[np.ndarray, float]:
 
 
 def proximal_tables(
-    design: Design, margins: Margins, obstacles: Sequence[Obstacle], theta1: np.ndarray,
-    h1: float, rmap: R.RegionMap,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    design: Design,
+    margins: Margins,
+    obstacles: Sequence[Obstacle],
+    theta1: np.ndarray,
+    h1: float,
+    rmap: R.RegionMap,
+) -> tuple[np.ndarray, np.ndarray]:
     """(blocked_a (n1, n) over (theta1, theta2), blocked_b (n1, n) over (theta1, theta3)):
     the proximal link A-C (B-D) breaks the clearance rule at every posture of the cell."""
     packed = pack_obstacles(obstacles)
     limit = design.link_radius + margins.clearance - _DIST_SLACK
     a1 = 0.5 * h1 * (1.0 + _REL_SLACK)
     out = []
-    for base_u, theta, h in ((-0.5 * design.L0, rmap.theta2, rmap.h2),
-                             (0.5 * design.L0, rmap.theta3, rmap.h3)):  # fmt: skip
+    for base_u, theta, h in (
+        (-0.5 * design.L0, rmap.theta2, rmap.h2),
+        (0.5 * design.L0, rmap.theta3, rmap.h3),
+    ):
         table = np.empty((len(theta1), len(theta)), dtype=np.bool_)
-        K.proximal_blocked(base_u, design.L1, theta1, a1, theta, 0.5 * h * (1.0 + _REL_SLACK),
-                           *packed, limit, table)  # fmt: skip
+        K.proximal_blocked(
+            base_u,
+            design.L1,
+            theta1,
+            a1,
+            theta,
+            0.5 * h * (1.0 + _REL_SLACK),
+            *packed,
+            limit,
+            table,
+        )
         out.append(table)
     return out[0], out[1]
 
@@ -162,9 +177,12 @@ def _mask(rmap: R.RegionMap, ai: int, components: set[int]) -> np.ndarray:
         labs = rmap.labels[ai, mi]
         ids = rmap.region_index[ai, mi]
         keep = np.array(
-            [lab > 0 and rmap.regions[int(ids[lab])].component in components
-             for lab in range(len(ids))], dtype=np.bool_,
-        )  # fmt: skip
+            [
+                lab > 0 and rmap.regions[int(ids[lab])].component in components
+                for lab in range(len(ids))
+            ],
+            dtype=np.bool_,
+        )
         mask |= keep[labs]
     s = rmap.margins.serial_min
     lo, hi = rmap.measure_low[ai], rmap.measure_high[ai]
@@ -244,20 +262,33 @@ def _grid(design, margins, obstacles, assembly_mode, components, n, width) -> _G
     theta1, h1 = theta1_grid(design, width)
     ai = ASSEMBLY_MODES.index(assembly_mode)
     return _Grid(
-        rmap, theta1, h1, _mask(rmap, ai, components),
+        rmap,
+        theta1,
+        h1,
+        _mask(rmap, ai, components),
         *proximal_tables(design, margins, obstacles, theta1, h1, rmap),
         point_sets(design, margins, rmap, assembly_mode),
         design.link_radius + margins.clearance - _DIST_SLACK,
-    )  # fmt: skip
+    )
 
 
 def _passable(grid: _Grid, packed, cell) -> bool:
     i = cell[0]
     a1 = 0.5 * grid.h1 * (1.0 + _REL_SLACK)
-    return bool(K.cell_passable(
-        grid.mask, grid.blocked_a, grid.blocked_b, grid.sets, math.cos(grid.theta1[i]),
-        math.sin(grid.theta1[i]), a1, *packed, grid.limit, *cell,
-    ))  # fmt: skip
+    return bool(
+        K.cell_passable(
+            grid.mask,
+            grid.blocked_a,
+            grid.blocked_b,
+            grid.sets,
+            math.cos(grid.theta1[i]),
+            math.sin(grid.theta1[i]),
+            a1,
+            *packed,
+            grid.limit,
+            *cell,
+        )
+    )
 
 
 #: Cell codes of :func:`cell_states`.
@@ -265,9 +296,14 @@ OUTSIDE, BLOCKED, PASSABLE = 0, 1, 2
 
 
 def cell_states(
-    design: Design, margins: Margins, obstacles: Sequence[Obstacle], start_q: np.ndarray,
-    assembly_mode: str, n: int, width: float,
-) -> tuple[np.ndarray, np.ndarray, R.RegionMap]:  # fmt: skip
+    design: Design,
+    margins: Margins,
+    obstacles: Sequence[Obstacle],
+    start_q: np.ndarray,
+    assembly_mode: str,
+    n: int,
+    width: float,
+) -> tuple[np.ndarray, np.ndarray, R.RegionMap]:
     """For tests and figures: every cell of the grid a proof from ``start_q`` uses at one
     level, evaluated (the flood evaluates only those it meets). Returns (states (n1, n, n)
     int8 [i1, k3, k2]: :data:`OUTSIDE` the mask, :data:`BLOCKED`, :data:`PASSABLE`;
@@ -276,9 +312,17 @@ def cell_states(
     comps = {r.component for r in R.regions_at(rmap, np.asarray(start_q, float), assembly_mode)}
     grid = _grid(design, margins, obstacles, assembly_mode, comps, n, width)
     out = np.empty((len(grid.theta1), n, n), dtype=np.int8)
-    K.all_states(grid.mask, grid.blocked_a, grid.blocked_b, grid.sets, grid.theta1,
-                 0.5 * grid.h1 * (1.0 + _REL_SLACK), *pack_obstacles(obstacles), grid.limit,
-                 out)  # fmt: skip
+    K.all_states(
+        grid.mask,
+        grid.blocked_a,
+        grid.blocked_b,
+        grid.sets,
+        grid.theta1,
+        0.5 * grid.h1 * (1.0 + _REL_SLACK),
+        *pack_obstacles(obstacles),
+        grid.limit,
+        out,
+    )
     return out, grid.theta1, rmap
 
 
@@ -314,12 +358,25 @@ def _prove_on(
         return ObstacleProof(True, shape, 0)
     # the flood dives towards a few goal cells first (the order only; ``goal`` decides)
     cells = np.argwhere(goal)
-    guide = np.vstack([np.asarray(targets, dtype=np.int64).reshape(-1, 3),
-                       cells[:: max(1, len(cells) // _GUIDE_CELLS)]])  # fmt: skip
+    guide = np.vstack(
+        [
+            np.asarray(targets, dtype=np.int64).reshape(-1, 3),
+            cells[:: max(1, len(cells) // _GUIDE_CELLS)],
+        ]
+    )
     visits = np.zeros(1, dtype=np.int64)
     reached = K.flood_reaches(
-        grid.mask, grid.blocked_a, grid.blocked_b, grid.sets, theta1,
-        0.5 * h1 * (1.0 + _REL_SLACK), *packed, grid.limit,
-        np.asarray(start_cell, dtype=np.int64), goal, guide.astype(np.int64), visits,
-    )  # fmt: skip
+        grid.mask,
+        grid.blocked_a,
+        grid.blocked_b,
+        grid.sets,
+        theta1,
+        0.5 * h1 * (1.0 + _REL_SLACK),
+        *packed,
+        grid.limit,
+        np.asarray(start_cell, dtype=np.int64),
+        goal,
+        guide.astype(np.int64),
+        visits,
+    )
     return ObstacleProof(reached == 0, shape, int(visits[0]))

@@ -84,15 +84,41 @@ def inverse_kernel(L1, L2, params, q, passive, ok, qd, qdd, g, out):  # pragma: 
         tau3 = r3 * dd3
         # proximal links
         a = f1 * L1
-        x1, x2, x3 = _translation(m1, a * s2, a * c2 * d2, a * (-dd2 * s2 - d2 * d2 * c2),
-                                  a * (dd2 * c2 - d2 * d2 * s2), -a * s2, 0.0, a * c2, 0.0,
-                                  d1, dd1, ge, gy, gk)  # fmt: skip
+        x1, x2, x3 = _translation(
+            m1,
+            a * s2,
+            a * c2 * d2,
+            a * (-dd2 * s2 - d2 * d2 * c2),
+            a * (dd2 * c2 - d2 * d2 * s2),
+            -a * s2,
+            0.0,
+            a * c2,
+            0.0,
+            d1,
+            dd1,
+            ge,
+            gy,
+            gk,
+        )
         tau1 += x1
         tau2 += x2
         tau3 += x3
-        x1, x2, x3 = _translation(m1, a * s3, a * c3 * d3, a * (-dd3 * s3 - d3 * d3 * c3),
-                                  a * (dd3 * c3 - d3 * d3 * s3), 0.0, -a * s3, 0.0, a * c3,
-                                  d1, dd1, ge, gy, gk)  # fmt: skip
+        x1, x2, x3 = _translation(
+            m1,
+            a * s3,
+            a * c3 * d3,
+            a * (-dd3 * s3 - d3 * d3 * c3),
+            a * (dd3 * c3 - d3 * d3 * s3),
+            0.0,
+            -a * s3,
+            0.0,
+            a * c3,
+            d1,
+            dd1,
+            ge,
+            gy,
+            gk,
+        )
         tau1 += x1
         tau2 += x2
         tau3 += x3
@@ -126,8 +152,9 @@ def inverse_kernel(L1, L2, params, q, passive, ok, qd, qdd, g, out):  # pragma: 
                 dw = L1 * c * d + b * cp * dp
                 ddu = L1 * (-dd * s - d * d * c) + b * (-ddp * sp - dp * dp * cp)
                 ddw = L1 * (dd * c - d * d * s) + b * (ddp * cp - dp * dp * sp)
-                x1, x2, x3 = _translation(m, w, dw, ddu, ddw, ju2, ju3, jw2, jw3,
-                                          d1, dd1, ge, gy, gk)  # fmt: skip
+                x1, x2, x3 = _translation(
+                    m, w, dw, ddu, ddw, ju2, ju3, jw2, jw3, d1, dd1, ge, gy, gk
+                )
                 tau1 += x1
                 tau2 += x2
                 tau3 += x3

@@ -188,9 +188,15 @@ def serial_comparison(
         par_planar[keep] = np.linalg.eigvalsh(m_par[keep][:, 1:, 1:])[:, -1]
     par = np.where(keep, par, np.nan)
     return SerialComparison(
-        imap.theta2, imap.theta3, par.reshape(n, n), ser.reshape(n, n),
-        par_planar.reshape(n, n), ser_planar.reshape(n, n), index.reshape(n, n), assembly_mode,
-    )  # fmt: skip
+        imap.theta2,
+        imap.theta3,
+        par.reshape(n, n),
+        ser.reshape(n, n),
+        par_planar.reshape(n, n),
+        ser_planar.reshape(n, n),
+        index.reshape(n, n),
+        assembly_mode,
+    )
 
 
 def cycle_torques(
@@ -209,8 +215,9 @@ def cycle_torques(
     samples (M, 3) at times t (M,)) and for its serial counterpart moving P the same way
     (:func:`~planner.dynamics.serial.serial_motion`): (five-bar, serial)."""
     arm = arm if arm is not None else SerialArm(design, inertia)
-    tau = inverse_dynamics(design, inertia, q, qd, qdd, assembly_mode=assembly_mode,
-                           gravity=gravity).tau  # fmt: skip
+    tau = inverse_dynamics(
+        design, inertia, q, qd, qdd, assembly_mode=assembly_mode, gravity=gravity
+    ).tau
     qs, qsd, qsdd = serial_motion(design, q, qd, qdd, assembly_mode)
     tau_s = arm.inverse_dynamics(qs, qsd, qsdd, gravity=gravity)
     if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(tau_s))):

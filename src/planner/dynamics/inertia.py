@@ -117,8 +117,14 @@ class LinkInertia:
             )
 
 
-def tube_inertia(length: float, radius: float, name: str, *, wall: float = DEFAULT_WALL,
-                 density: float = ALUMINIUM_DENSITY) -> LinkInertia:  # fmt: skip
+def tube_inertia(
+    length: float,
+    radius: float,
+    name: str,
+    *,
+    wall: float = DEFAULT_WALL,
+    density: float = ALUMINIUM_DENSITY,
+) -> LinkInertia:
     """A uniform tube of outer radius ``radius`` and wall ``wall`` (solid when thinner),
     ``length`` long, centre of mass at its middle:
     ``m = rho pi (ro^2 - ri^2) L``, ``I_perp = m (3 (ro^2 + ri^2) + L^2) / 12``,

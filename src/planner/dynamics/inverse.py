@@ -45,8 +45,9 @@ def _rates(name: str, value: object, n: int) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise InputError(f"{name} must have shape (N, 3), got {np.shape(value)}", field=name)
     if arr.shape[0] != n:
-        raise InputError(f"{name} must have {n} rows (one per posture of q), got {arr.shape[0]}",
-                         field=name)  # fmt: skip
+        raise InputError(
+            f"{name} must have {n} rows (one per posture of q), got {arr.shape[0]}", field=name
+        )
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{name} must be finite (no NaN or infinity)", field=name)
     return arr
@@ -75,8 +76,21 @@ def _kinematics(design: Design, q: np.ndarray, assembly_mode: object) -> _Kin:
 def _params(inertia: Inertia) -> np.ndarray:
     """The inertia as the kernel's parameter vector (order :data:`_kernels.PARAMS`)."""
     p, d = inertia.proximal, inertia.distal
-    return np.array([p.mass, p.com, p.I_perp, p.I_axial, d.mass, d.com, d.I_perp, d.I_axial,
-                     inertia.payload_mass, inertia.base_inertia, *inertia.rotor])  # fmt: skip
+    return np.array(
+        [
+            p.mass,
+            p.com,
+            p.I_perp,
+            p.I_axial,
+            d.mass,
+            d.com,
+            d.I_perp,
+            d.I_axial,
+            inertia.payload_mass,
+            inertia.base_inertia,
+            *inertia.rotor,
+        ]
+    )
 
 
 def _forces(
@@ -91,10 +105,17 @@ def _forces(
     loop of :mod:`planner.dynamics._kernels`; NaN where the posture is not ``ok``)."""
     out = np.empty_like(kin.q)
     _kernels.inverse_kernel(
-        design.L1, design.L2, _params(inertia), kin.q, kin.passive, kin.ok,
-        np.ascontiguousarray(qd, dtype=float), np.ascontiguousarray(qdd, dtype=float),
-        np.asarray(gravity, dtype=float), out,
-    )  # fmt: skip
+        design.L1,
+        design.L2,
+        _params(inertia),
+        kin.q,
+        kin.passive,
+        kin.ok,
+        np.ascontiguousarray(qd, dtype=float),
+        np.ascontiguousarray(qdd, dtype=float),
+        np.asarray(gravity, dtype=float),
+        out,
+    )
     return out
 
 
@@ -174,8 +195,9 @@ def inverse_dynamics_terms(
     n = kin.q.shape[0]
     out = []
     for qd, qdd, gravity in terms:
-        tau = _forces(design, inertia, kin, _rates("qd", qd, n), _rates("qdd", qdd, n),
-                      check_gravity(gravity))  # fmt: skip
+        tau = _forces(
+            design, inertia, kin, _rates("qd", qd, n), _rates("qdd", qdd, n), check_gravity(gravity)
+        )
         tau[~kin.ok] = np.nan
         out.append(tau)
     return out

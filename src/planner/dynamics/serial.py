@@ -88,8 +88,12 @@ def serial_motion(
         r = L1 * (qd[:, 2:3] * nrm(t3) - qd[:, 1:2] * nrm(t2))
         t4d = np.sum(r * a(t5), axis=1) / s
         t5d = np.sum(r * a(t4), axis=1) / s
-        r2 = L1 * (qdd[:, 2:3] * nrm(t3) - qd[:, 2:3] ** 2 * a(t3)
-                   - qdd[:, 1:2] * nrm(t2) + qd[:, 1:2] ** 2 * a(t2))  # fmt: skip
+        r2 = L1 * (
+            qdd[:, 2:3] * nrm(t3)
+            - qd[:, 2:3] ** 2 * a(t3)
+            - qdd[:, 1:2] * nrm(t2)
+            + qd[:, 1:2] ** 2 * a(t2)
+        )
         r2 += L2 * (t4d[:, None] ** 2 * a(t4) - t5d[:, None] ** 2 * a(t5))
         t4dd = np.sum(r2 * a(t5), axis=1) / s
     qs = serial_coordinates(fb.q, fb.passive)
@@ -154,11 +158,17 @@ class SerialArm:
         w2 = wc + f2 * d.L2 * sp
         wp = wc + d.L2 * sp
         m11 = (
-            self.base_inertia + i.rotor[0]
-            + m1 * w1**2 + m2 * w2**2 + me * wc**2 + mp * wp**2
-            + pr.I_perp * s2**2 + pr.I_axial * np.cos(t2) ** 2
-            + di.I_perp * sp**2 + di.I_axial * np.cos(phi) ** 2
-        )  # fmt: skip
+            self.base_inertia
+            + i.rotor[0]
+            + m1 * w1**2
+            + m2 * w2**2
+            + me * wc**2
+            + mp * wp**2
+            + pr.I_perp * s2**2
+            + pr.I_axial * np.cos(t2) ** 2
+            + di.I_perp * sp**2
+            + di.I_axial * np.cos(phi) ** 2
+        )
         a = m1 * f1**2 * d.L1**2 + pr.I_perp + (m2 + me + mp) * d.L1**2
         b = (m2 * f2 + mp) * d.L1 * d.L2 * np.cos(phi - t2)
         c = m2 * f2**2 * d.L2**2 + di.I_perp + mp * d.L2**2

@@ -153,11 +153,15 @@ def _describe(
         hi, lo = design.L1 + design.L2, abs(design.L2 - design.L1)
         for name, r in (("AP", ra), ("BP", rb)):
             if r > hi:
-                return r, (f"workspace: |{name}| = {_fmt_value(r, hi)} m > L1 + L2 = {hi:.6g} m, "
-                           "P is out of reach")  # fmt: skip
+                return r, (
+                    f"workspace: |{name}| = {_fmt_value(r, hi)} m > L1 + L2 = {hi:.6g} m, "
+                    "P is out of reach"
+                )
             if r < lo:
-                return r, (f"workspace: |{name}| = {_fmt_value(r, lo)} m < |L2 - L1| = "
-                           f"{lo:.6g} m, P is out of reach")  # fmt: skip
+                return r, (
+                    f"workspace: |{name}| = {_fmt_value(r, lo)} m < |L2 - L1| = "
+                    f"{lo:.6g} m, P is out of reach"
+                )
         return float("nan"), (
             f"workspace: working mode {checker.working_mode} does not reach P there"
         )
@@ -324,9 +328,21 @@ def plan_cartesian(
     def early(status: PlanStatus, message: str, mode: str = "") -> CartesianResult:
         poly = np.vstack([fb.p[0][None] if fb.ok[0] else np.full((1, 3), np.nan), pts])
         return CartesianResult(
-            status, message, 0.0, None, poly, np.zeros(0), np.zeros((0, 3)), None, None, "",
-            (), mode, asm, CartesianDiagnostics(time.perf_counter() - t0),
-        )  # fmt: skip
+            status,
+            message,
+            0.0,
+            None,
+            poly,
+            np.zeros(0),
+            np.zeros((0, 3)),
+            None,
+            None,
+            "",
+            (),
+            mode,
+            asm,
+            CartesianDiagnostics(time.perf_counter() - t0),
+        )
 
     mode = posture_mode(design, start)
     if mode is None:
@@ -406,8 +422,7 @@ def plan_cartesian(
     # 2-3. joint waypoints up to end_s: chords within the tolerance, motions certified
     tol_chord = chord_share * tol
     n0 = max(1, math.ceil(end_s / INITIAL_STEP))
-    s = np.unique(np.concatenate([np.linspace(0.0, end_s, n0 + 1),
-                                  poly.cum[poly.cum < end_s]]))  # fmt: skip
+    s = np.unique(np.concatenate([np.linspace(0.0, end_s, n0 + 1), poly.cum[poly.cum < end_s]]))
     if end_s == 0.0:
         s = np.zeros(1)
     q, ok, w, _ = walker.posture_at(s, q0)
@@ -431,9 +446,15 @@ def plan_cartesian(
         # chord bounds of the uncertified pieces
         tail = slice(certified, len(s) - 1)
         b_tail = chord_deviation_bound(
-            design, q[tail], q[certified + 1 :], w[tail], w[certified + 1 :],
-            poly.at(s[tail]), poly.at(s[certified + 1 :]), asm,
-        )  # fmt: skip
+            design,
+            q[tail],
+            q[certified + 1 :],
+            w[tail],
+            w[certified + 1 :],
+            poly.at(s[tail]),
+            poly.at(s[certified + 1 :]),
+            asm,
+        )
         bound = np.concatenate([bound[:certified], b_tail])
         too_far = b_tail > tol_chord
         short = np.diff(s[certified:]) <= MIN_PIECE
@@ -471,8 +492,11 @@ def plan_cartesian(
                 cut_reason = "midpoint"
                 q_stop_bad = qm[first] if okm[first] else None
                 p_stop_bad = poly.at(np.array([s_mid[first]]))[0]
-                stop_rule = (str(checker.check_states(qm[first][None]).reason[0])
-                             if okm[first] else "workspace")  # fmt: skip
+                stop_rule = (
+                    str(checker.check_states(qm[first][None]).reason[0])
+                    if okm[first]
+                    else "workspace"
+                )
                 keep = idx < k
                 idx, s_mid, qm, wm = idx[keep], s_mid[keep], qm[keep], wm[keep]
             s = np.insert(s, idx + 1, s_mid)
@@ -597,9 +621,12 @@ def plan_cartesian(
             )
         else:
             value, sentence = _describe(
-                design, checker, rule, q_stop_bad,
+                design,
+                checker,
+                rule,
+                q_stop_bad,
                 p_stop_bad if p_stop_bad is not None else p_end,
-            )  # fmt: skip
+            )
         where = f" at P = {_fmt_point(p_end)}, {100 * fraction:.1f} % along the path"
         ahead = [e for e in events if e.fraction >= fraction - 1e-9 and e.entering]
         hint = f"; ahead: {ahead[0].detail} at {100 * ahead[0].fraction:.1f} %" if ahead else ""
@@ -625,13 +652,20 @@ def plan_cartesian(
 
         def timed(method: str):
             return time_path(
-                design, q, limits, method=method, assembly_mode=asm,
-                sample_rate_hz=sample_rate_hz, max_cartesian_speed=cartesian_speed,
-                max_deviation=dev, check_states=checker.is_valid,
+                design,
+                q,
+                limits,
+                method=method,
+                assembly_mode=asm,
+                sample_rate_hz=sample_rate_hz,
+                max_cartesian_speed=cartesian_speed,
+                max_deviation=dev,
+                check_states=checker.is_valid,
                 check_resolution=check_resolution or DEFAULT_CHECK_RESOLUTION,
-                inertia=inertia, gravity=gravity,
+                inertia=inertia,
+                gravity=gravity,
                 deadline=deadline,
-            )  # fmt: skip
+            )
 
         try:
             trajectory = timed(timing)
@@ -654,10 +688,12 @@ def plan_cartesian(
             pt = forward_batch(design, qt, asm).p
             dev_measured = float(np.max(distance_to_polyline_3d(poly.vertices, pt)))
     if trajectory is None and len(q) >= 2:
-        dense = np.concatenate([q[i] + np.linspace(0, 1, 9)[:, None] * (q[i + 1] - q[i])
-                                for i in range(len(q) - 1)])  # fmt: skip
-        dev_measured = float(np.max(distance_to_polyline_3d(
-            poly.vertices, forward_batch(design, dense, asm).p)))  # fmt: skip
+        dense = np.concatenate(
+            [q[i] + np.linspace(0, 1, 9)[:, None] * (q[i + 1] - q[i]) for i in range(len(q) - 1)]
+        )
+        dev_measured = float(
+            np.max(distance_to_polyline_3d(poly.vertices, forward_batch(design, dense, asm).p))
+        )
     elif len(q) < 2:
         dev_measured = 0.0
     diagnostics = CartesianDiagnostics(
@@ -676,6 +712,18 @@ def plan_cartesian(
     if timing_error:
         message += f" (timing: {timing_error})"
     return CartesianResult(
-        status, message, fraction, path, poly.vertices, s, p_way, stop, trajectory,
-        timing_error, events, mode, asm, diagnostics,
-    )  # fmt: skip
+        status,
+        message,
+        fraction,
+        path,
+        poly.vertices,
+        s,
+        p_way,
+        stop,
+        trajectory,
+        timing_error,
+        events,
+        mode,
+        asm,
+        diagnostics,
+    )

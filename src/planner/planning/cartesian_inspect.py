@@ -117,9 +117,15 @@ def inspect_cartesian(
     def add(kind, s_global, entering, detail, seg):
         p = poly.at(np.array([s_global]))[0]
         events.append(
-            PathEvent(kind, int(poly.given_index[seg + 1] - 1), s_global / poly.length, p,
-                      entering, detail)
-        )  # fmt: skip
+            PathEvent(
+                kind,
+                int(poly.given_index[seg + 1] - 1),
+                s_global / poly.length,
+                p,
+                entering,
+                detail,
+            )
+        )
 
     for k in range(len(poly.lengths)):
         p0, d, length = poly.vertices[k], poly.dirs[k], float(poly.lengths[k])
@@ -134,26 +140,40 @@ def inspect_cartesian(
                     grad = float((p0 + s * d - c) @ d)  # > 0: moving away from the centre
                     entering = grad * outward > 0
                     verb = "leaves" if entering else "enters"
-                    add(kind, s0 + s, entering,
+                    add(
+                        kind,
+                        s0 + s,
+                        entering,
                         f"{kind}: |{leg}P| = {radius:.6g} m, the line {verb} the workspace",
-                        k)  # fmt: skip
+                        k,
+                    )
             for sign, which in ((+1, "stretched"), (-1, "folded")):
                 radius = math.sqrt(max(L1 * L1 + L2 * L2 + sign * 2 * L1 * L2 * root, 0.0))
                 for s in _sphere_crossings(p0, d, length, c, radius):
                     grad = float((p0 + s * d - c) @ d)
                     entering = grad * sign > 0
-                    add("serial_min", s0 + s, entering,
+                    add(
+                        "serial_min",
+                        s0 + s,
+                        entering,
                         f"serial_min: |sin(theta{4 if leg == 'A' else 5} - "
                         f"theta{2 if leg == 'A' else 3})| = {sm:g} (leg {leg} near {which}, "
-                        f"|{leg}P| = {radius:.6g} m)", k)  # fmt: skip
+                        f"|{leg}P| = {radius:.6g} m)",
+                        k,
+                    )
         for s in _cylinder_crossings(p0, d, length, 0.0):
             add("P_on_axis", s0 + s, True, "P_on_axis: P meets the axis AB (w = 0)", k)
         for s in _cylinder_crossings(p0, d, length, sm * design.reach):
             q = p0 + s * d
             entering = float(q[0] * d[0] + q[2] * d[2]) < 0
-            add("serial_min", s0 + s, entering,
+            add(
+                "serial_min",
+                s0 + s,
+                entering,
                 f"serial_min: |w| / (L1 + L2) = {sm:g} (P {sm * design.reach:.4g} m from "
-                "the axis AB)", k)  # fmt: skip
+                "the axis AB)",
+                k,
+            )
 
     # probed: kappa(A) and the joint limits along the working mode's branch
     mode = posture_mode(design, start)
@@ -176,8 +196,11 @@ def inspect_cartesian(
         run = np.cumprod(ok).astype(bool)  # the branch exists from the start up to here
         qc = unwrap_chain(np.nan_to_num(q[1:]), start.q) if n > 1 else q
         qc = np.vstack([start.q[None], qc])
-        jl_ok = np.all((qc >= np.asarray(design.joint_min) - 1e-12)
-                       & (qc <= np.asarray(design.joint_max) + 1e-12), axis=1)  # fmt: skip
+        jl_ok = np.all(
+            (qc >= np.asarray(design.joint_min) - 1e-12)
+            & (qc <= np.asarray(design.joint_max) + 1e-12),
+            axis=1,
+        )
         for kind, good in (("kappa_max", kappa_ok), ("joint_limits", jl_ok)):
             for i in np.flatnonzero((good[1:] != good[:-1]) & run[1:] & run[:-1]):
                 ga = bool(good[i])
@@ -208,8 +231,12 @@ def inspect_cartesian(
                     if dist[i] < 1e-3:
                         kind_p = "C=D" if cd[i] < 0.5 else "CD_stretched"
                         seg = int(poly.segment_of(np.array([s[i]]))[0])
-                        add("parallel", float(s[i]), True,
-                            f"parallel: C, D and P nearly aligned ({kind_p}), kappa(A) "
-                            "very large", seg)  # fmt: skip
+                        add(
+                            "parallel",
+                            float(s[i]),
+                            True,
+                            f"parallel: C, D and P nearly aligned ({kind_p}), kappa(A) very large",
+                            seg,
+                        )
     events.sort(key=lambda e: e.fraction)
     return tuple(events)

@@ -234,9 +234,13 @@ def _build(
     # obstacle-free first: every rule but theta1's limit depends on (theta2, theta3) only,
     # and every theta1 centre lies inside the limits
     free = ValidityChecker(
-        design, checker.margins, (), checker.assembly_mode, checker.working_mode,
+        design,
+        checker.margins,
+        (),
+        checker.assembly_mode,
+        checker.working_mode,
         serial_rules=checker.serial_rules,
-    )  # fmt: skip
+    )
     q2 = np.stack([np.full(g2.size, axes[0][0]), g2.ravel(), g3.ravel()], axis=1)
     columns = np.flatnonzero(free.is_valid(q2))
     valid = np.zeros((n[0], n[1] * n[2]), dtype=bool)
@@ -313,11 +317,16 @@ def corridor_path(
     s, g = ends
     n1, n2, n3 = grid.shape
     flat = _astar(
-        np.ascontiguousarray(grid.valid.ravel()), grid.weight, n1, n2, n3,
+        np.ascontiguousarray(grid.valid.ravel()),
+        grid.weight,
+        n1,
+        n2,
+        n3,
         np.array(grid.step, dtype=float),
-        s[0] * n2 * n3 + s[1] * n3 + s[2], g[0] * n2 * n3 + g[1] * n3 + g[2],
+        s[0] * n2 * n3 + s[1] * n3 + s[2],
+        g[0] * n2 * n3 + g[1] * n3 + g[2],
         HEURISTIC_WEIGHT,
-    )  # fmt: skip
+    )
     if len(flat) == 0:  # pragma: no cover - same component, so A* finds a path
         return CorridorOutcome(None, 0, 0, "no grid path")
     cells = np.stack(np.unravel_index(flat, grid.shape), axis=1)

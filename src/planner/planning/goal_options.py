@@ -90,9 +90,13 @@ class _Problem:
         from planner.planning.modes import plan
 
         return plan(
-            self.design, self.start, goal,
-            obstacles=self.obstacles, margins=self.margins, options=options,
-        )  # fmt: skip
+            self.design,
+            self.start,
+            goal,
+            obstacles=self.obstacles,
+            margins=self.margins,
+            options=options,
+        )
 
 
 def _plan_preferring(
@@ -179,9 +183,16 @@ def plan_with_goal_options(
     result, note = _plan_preferring(problem, goal, prefer, options, deadline)
     if tolerance > 0.0 and result.status.value in RETRIED_STATUSES and _left(deadline) > 0.01:
         result = plan_within_tolerance(
-            design, start, goal, tolerance, result, obstacles=obstacles, margins=margins,
-            options=_with_budget(options, options.time_budget_s, deadline), t0=t0,
-        )  # fmt: skip
+            design,
+            start,
+            goal,
+            tolerance,
+            result,
+            obstacles=obstacles,
+            margins=margins,
+            options=_with_budget(options, options.time_budget_s, deadline),
+            t0=t0,
+        )
         note = ""
     elif tolerance > 0.0 and result.status.value in RETRIED_STATUSES:
         # no time left for the set: the exact goal's proof covers its point only

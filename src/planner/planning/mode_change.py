@@ -154,8 +154,7 @@ class _ModeChangeSearch:
             if len(q):  # theta1 is set along the line and checked in :meth:`crossings`
                 q[:, 0] = np.clip(0.0, self.design.joint_min[0], self.design.joint_max[0])
                 flipped = FLIP_NAMES[flipped_sign(before, after)]
-                kinds = [transit_kind(self.design, x, self.asm, flipped)
-                         for x in q[:1]] * len(q)  # fmt: skip
+                kinds = [transit_kind(self.design, x, self.asm, flipped) for x in q[:1]] * len(q)
                 self._pools[key] = (q, kinds)
                 self.map_pools.add(key)
                 return self._pools[key]
@@ -464,8 +463,9 @@ def plan_mode_change(
     seqs = mode_sequences(start_mode, list(targets))
     if rmap is not None:  # walks the region map's transit graph cannot realise go (all
         # kept when none is left: longer walks than these may exist, the search says so)
-        seqs = [s for s in seqs if walk_possible(rmap, start.assembly_mode, s, start.q,
-                                                 targets[s[-1]])] or seqs  # fmt: skip
+        seqs = [
+            s for s in seqs if walk_possible(rmap, start.assembly_mode, s, start.q, targets[s[-1]])
+        ] or seqs
     ranked = []
     for seq in seqs:
         est = search.estimate(seq, start.q, targets[seq[-1]][0])

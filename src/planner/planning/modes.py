@@ -162,11 +162,15 @@ class _Request:
             return self.obstacle_disproof(asked, searched_s=time.perf_counter() - t0)
 
         return plan_single_mode(
-            self.design, self.start, goal,
-            obstacles=self.obstacles, margins=self.margins, options=options,
+            self.design,
+            self.start,
+            goal,
+            obstacles=self.obstacles,
+            margins=self.margins,
+            options=options,
             before_search=self.disproof if before_search is None else before_search,
             when_stuck=when_stuck if options.region_map else None,
-        )  # fmt: skip
+        )
 
     def _sliced(self, options: PlanOptions) -> bool:
         """Whether a mode change among obstacles first searches for
@@ -181,9 +185,14 @@ class _Request:
         :func:`planner.planning.proofs.disprove_with_obstacles`. ``searched_s``: how long the
         search ran before (for the message)."""
         return disprove_with_obstacles(
-            self.design, self.margins, self.obstacles, self.start, goals,
-            searched_s=searched_s, t0=self.t0,
-        )  # fmt: skip
+            self.design,
+            self.margins,
+            self.obstacles,
+            self.start,
+            goals,
+            searched_s=searched_s,
+            t0=self.t0,
+        )
 
     def region_map(self) -> region_maps.RegionMap | None:
         """The design's obstacle-free region map for a proof, when it is cheap now
@@ -269,10 +278,17 @@ class _Request:
 
         def run(deadline: float) -> PlanResult:
             return plan_mode_change(
-                self.design, self.start, start_mode, targets,
-                obstacles=self.obstacles, margins=self.margins, options=self.options,
-                t0=self.t0, deadline=deadline, rmap=rmap,
-            )  # fmt: skip
+                self.design,
+                self.start,
+                start_mode,
+                targets,
+                obstacles=self.obstacles,
+                margins=self.margins,
+                options=self.options,
+                t0=self.t0,
+                deadline=deadline,
+                rmap=rmap,
+            )
 
         if not (prove and self._sliced(self.options)):
             return run(self.deadline)
@@ -281,8 +297,9 @@ class _Request:
             return first
         proof = self.obstacle_disproof(goals, searched_s=time.perf_counter() - t0)
         if proof is not None:
-            return replace(proof, diagnostics=replace(
-                proof.diagnostics, searches=first.diagnostics.searches))  # fmt: skip
+            return replace(
+                proof, diagnostics=replace(proof.diagnostics, searches=first.diagnostics.searches)
+            )
         second = run(self.deadline)
         searches = first.diagnostics.searches + second.diagnostics.searches
         return replace(second, diagnostics=replace(second.diagnostics, searches=searches))
@@ -431,10 +448,15 @@ def _shorter_through_transits(
     if not bound < limit:
         return first
     best = estimated_transit_length(
-        request.design, request.start, start_mode, targets,
-        obstacles=request.obstacles, margins=request.margins, options=request.options,
+        request.design,
+        request.start,
+        start_mode,
+        targets,
+        obstacles=request.obstacles,
+        margins=request.margins,
+        options=request.options,
         deadline=request.deadline,
-    )  # fmt: skip
+    )
     if not best < limit:
         return first
     other = request.mode_change(start_mode, targets, prove=False)

@@ -307,8 +307,9 @@ def plan_in_region(
             if waypoints is None and stuck:
                 answer, when_stuck = when_stuck(q_goals), None
                 if answer is not None:
-                    return replace(answer, diagnostics=replace(answer.diagnostics,
-                                                               searches=searches))  # fmt: skip
+                    return replace(
+                        answer, diagnostics=replace(answer.diagnostics, searches=searches)
+                    )
             if waypoints is None and guide:
                 guided = corridor.guided_search(checker, q_start, q_goal, options, deadline)
                 searches += guided.searches
@@ -331,9 +332,14 @@ def plan_in_region(
 
 
 def _certified(
-    checker: ValidityChecker, waypoints: np.ndarray, name: str, certified: bool, t0: float,
-    attempts: int, searches: int,
-) -> PlanResult | None:  # fmt: skip
+    checker: ValidityChecker,
+    waypoints: np.ndarray,
+    name: str,
+    certified: bool,
+    t0: float,
+    attempts: int,
+    searches: int,
+) -> PlanResult | None:
     """The ``solved`` answer of a found path after its final re-certification, except of
     motions certified already (``certified``: the straight motion; a corridor path without
     OMPL repairs, each motion by the motion test); None when it fails."""
@@ -365,9 +371,13 @@ def _certified(
 
 
 def _no_path(
-    checker: ValidityChecker, options: PlanOptions, last_status: str, t0: float, attempts: int,
+    checker: ValidityChecker,
+    options: PlanOptions,
+    last_status: str,
+    t0: float,
+    attempts: int,
     searches: int,
-) -> PlanResult:  # fmt: skip
+) -> PlanResult:
     message = (
         f"no path found within {options.time_budget_s:g} s in working mode "
         f"{checker.working_mode}" + (f" (OMPL: {last_status})" if last_status else "")

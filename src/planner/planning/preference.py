@@ -124,9 +124,10 @@ def choose_plan(
         mode = min(table, key=lambda m: (table[m][0], table[m][1], m))
         why = f"the lowest largest kappa(A) along the path ({table[mode][0]:.4g})"
     others = ", ".join(
-        f"{m}: kappa {k:.4g}, {length:.4g} rad" for m, (k, length) in sorted(table.items())
+        f"{m}: kappa {k:.4g}, {length:.4g} rad"
+        for m, (k, length) in sorted(table.items())
         if m != mode
-    )  # fmt: skip
+    )
     message = f"working mode {mode} chosen ({prefer}): {why}" + (
         f"; other modes: {others}" if others else ""
     )
@@ -150,7 +151,11 @@ def plan_candidates(
     out = {}
     for mode in modes:
         out[mode] = plan(
-            design, start, CartesianTarget(p, mode),
-            obstacles=obstacles, margins=margins, options=options,
-        )  # fmt: skip
+            design,
+            start,
+            CartesianTarget(p, mode),
+            obstacles=obstacles,
+            margins=margins,
+            options=options,
+        )
     return out

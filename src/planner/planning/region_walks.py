@@ -255,6 +255,7 @@ def theta1_along(
     dd = float(d @ d)
     t = np.clip((q[:, 1:] - q_from[1:]) @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(q))
     out = q.copy()
-    out[:, 0] = np.clip(q_from[0] + t * (q_goal[0] - q_from[0]), design.joint_min[0],
-                        design.joint_max[0])  # fmt: skip
+    out[:, 0] = np.clip(
+        q_from[0] + t * (q_goal[0] - q_from[0]), design.joint_min[0], design.joint_max[0]
+    )
     return out

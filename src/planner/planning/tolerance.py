@@ -293,10 +293,17 @@ def _search(
             return proof, "", float("nan")
     if others and start_mode is not None and time.perf_counter() < deadline:
         result = plan_mode_change(
-            design, start, start_mode, others, obstacles=obstacles, margins=margins,
-            options=options, t0=t0, deadline=deadline,
+            design,
+            start,
+            start_mode,
+            others,
+            obstacles=obstacles,
+            margins=margins,
+            options=options,
+            t0=t0,
+            deadline=deadline,
             rmap=proof_region_map(design, margins, options, deadline),
-        )  # fmt: skip
+        )
         searches += result.diagnostics.searches
         if result.solved:
             mode = result.path.segments[-1].working_mode
@@ -345,10 +352,17 @@ def plan_within_tolerance(
 
     def prove() -> PlanResult | None:
         if not asked:
-            asked.append(prove_goal_set(
-                design, start, goals.ball, obstacles=obstacles, margins=margins,
-                options=options, deadline=time.perf_counter() + options.time_budget_s,
-            ))  # fmt: skip
+            asked.append(
+                prove_goal_set(
+                    design,
+                    start,
+                    goals.ball,
+                    obstacles=obstacles,
+                    margins=margins,
+                    options=options,
+                    deadline=time.perf_counter() + options.time_budget_s,
+                )
+            )
         return asked[0]
 
     if goals.count:
@@ -371,9 +385,10 @@ def plan_within_tolerance(
         )
         return replace(proof, message=f"{proof.message} ({was})", diagnostics=diag)
     diag = Diagnostics(
-        planning_time_s=time.perf_counter() - t0, attempts=exact.diagnostics.attempts,
+        planning_time_s=time.perf_counter() - t0,
+        attempts=exact.diagnostics.attempts,
         searches=searches,
-    )  # fmt: skip
+    )
     if goals.count:
         message = (
             f"no path found to any of the {goals.count} valid goals sampled within "

@@ -120,8 +120,10 @@ def _needs_parallel(design: Design, kind: str, name: str) -> None:
 def _named_cartesian_section(design: Design, n: int) -> Figure:
     return _cartesian_section_figure(
         "Cross-section of the Cartesian workspace (best kappa(A) over the working modes)",
-        design, n, "Lines: serial and parallel singularity loci.",
-    )  # fmt: skip
+        design,
+        n,
+        "Lines: serial and parallel singularity loci.",
+    )
 
 
 def _named_joint_section(design: Design, n: int) -> Figure:

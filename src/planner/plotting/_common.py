@@ -77,8 +77,15 @@ def _legend_below(ax: Axes, ncol: int = 3, handles: list | None = None) -> None:
     if not handles:  # nothing labelled is drawn (e.g. a design without that locus)
         return
     kwargs = {"handles": handles}
-    leg = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=ncol, fontsize=7,
-                    frameon=False, handlelength=2.6, **kwargs)  # fmt: skip
+    leg = ax.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.13),
+        ncol=ncol,
+        fontsize=7,
+        frameon=False,
+        handlelength=2.6,
+        **kwargs,
+    )
     for line in leg.get_lines():
         line.set_linewidth(max(line.get_linewidth(), 2.0))
 
@@ -171,10 +178,16 @@ def _joint_labels(ax: Axes, design: Design, points: dict[str, np.ndarray]) -> No
             away = np.array([np.sign(pt[0]) or 1.0, -1.0])  # the base: below and outwards
         norm = float(np.hypot(*away))
         away = np.array([0.0, 1.0]) if norm < 1e-9 else away / norm
-        ax.annotate(" = ".join(names), pt, xytext=pt + off * away, fontsize=9,
-                    fontweight="bold", ha="center", va="center",
-                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                          "alpha": 0.8})  # fmt: skip
+        ax.annotate(
+            " = ".join(names),
+            pt,
+            xytext=pt + off * away,
+            fontsize=9,
+            fontweight="bold",
+            ha="center",
+            va="center",
+            bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+        )
 
 
 def plot_loci(
@@ -210,12 +223,27 @@ def plot_loci(
         elif label is not None:
             seen.add(label)
         if np.ptp(finite, axis=0).max() < 1e-6:
-            ax.plot(*finite[0], "x", color=style["color"], ms=10, mew=2, label=label,
-                    path_effects=effects)  # fmt: skip
+            ax.plot(
+                *finite[0],
+                "x",
+                color=style["color"],
+                ms=10,
+                mew=2,
+                label=label,
+                path_effects=effects,
+            )
             continue
         if space == "joint" and kind == "C=D" and not locus.fills_region:
-            ax.plot(xy[:, 0], xy[:, 1], "o", color=style["color"], ms=7, mfc="none",
-                    label=label, path_effects=effects)  # fmt: skip
+            ax.plot(
+                xy[:, 0],
+                xy[:, 1],
+                "o",
+                color=style["color"],
+                ms=7,
+                mfc="none",
+                label=label,
+                path_effects=effects,
+            )
             continue
         ax.plot(xy[:, 0], xy[:, 1], label=label, path_effects=effects, **style)
     if legend:
@@ -269,11 +297,24 @@ def _kappa_panel(fig: Figure, ax: Axes, section: Section, slots: list[int]) -> N
     img = _best_kappa(section, slots)
     sing = np.any(section.reached[..., slots] & section.singular[..., slots], axis=-1)
     norm = LogNorm(*_KAPPA_RANGE, clip=True)
-    im = ax.imshow(img, origin="lower", extent=_extent(section), cmap="viridis_r", norm=norm,
-                   interpolation="nearest", aspect="equal")  # fmt: skip
+    im = ax.imshow(
+        img,
+        origin="lower",
+        extent=_extent(section),
+        cmap="viridis_r",
+        norm=norm,
+        interpolation="nearest",
+        aspect="equal",
+    )
     shade = np.where(sing & np.isnan(img), 1.0, np.nan)
-    ax.imshow(shade, origin="lower", extent=_extent(section), cmap=ListedColormap(["0.55"]),
-              interpolation="nearest", aspect="equal")  # fmt: skip
+    ax.imshow(
+        shade,
+        origin="lower",
+        extent=_extent(section),
+        cmap=ListedColormap(["0.55"]),
+        interpolation="nearest",
+        aspect="equal",
+    )
     cb = fig.colorbar(im, ax=ax, shrink=0.8, ticks=_KAPPA_TICKS)
     cb.ax.set_yticklabels([f"{t:g}" for t in _KAPPA_TICKS])
     cb.ax.minorticks_off()

@@ -31,11 +31,14 @@ def figure_inertia_map(design: Design, n: int = 128) -> Figure:
     cmp = serial_comparison(design, Inertia.default(design), resolution=min(int(n), 256))
     stats = cmp.by_mode()
     extent = [cmp.theta2[0], cmp.theta2[-1], cmp.theta3[0], cmp.theta3[-1]]
-    both = np.concatenate([cmp.parallel[np.isfinite(cmp.parallel)],
-                           cmp.serial[np.isfinite(cmp.serial)]])  # fmt: skip
+    both = np.concatenate(
+        [cmp.parallel[np.isfinite(cmp.parallel)], cmp.serial[np.isfinite(cmp.serial)]]
+    )
     norm = LogNorm(vmin=float(np.min(both)), vmax=float(np.max(both))) if both.size else None
-    loci = {kind: loc.select(assembly_mode="+") if kind != "C=D" else loc
-            for kind, loc in {**_serial(design), **_parallel(design)}.items()}  # fmt: skip
+    loci = {
+        kind: loc.select(assembly_mode="+") if kind != "C=D" else loc
+        for kind, loc in {**_serial(design), **_parallel(design)}.items()
+    }
     panels = (
         ("five-bar (motors on the base)", cmp.parallel, "viridis", norm, "parallel_median"),
         ("serial counterpart (elbow motor at C)", cmp.serial, "viridis", norm, "serial_median"),
@@ -45,25 +48,39 @@ def figure_inertia_map(design: Design, n: int = 128) -> Figure:
     fig = Figure(figsize=(15, 6.2))
     for k, (title, image, cmap, nrm, key) in enumerate(panels):
         ax = fig.add_subplot(1, 3, k + 1)
-        shown = ax.imshow(image.T, origin="lower", extent=extent, cmap=cmap, norm=nrm,
-                          interpolation="nearest", aspect="equal")  # fmt: skip
-        fig.colorbar(shown, ax=ax, shrink=0.7,
-                     label="largest eigenvalue of M [kg m^2]" if k < 2 else "ratio")  # fmt: skip
+        shown = ax.imshow(
+            image.T,
+            origin="lower",
+            extent=extent,
+            cmap=cmap,
+            norm=nrm,
+            interpolation="nearest",
+            aspect="equal",
+        )
+        fig.colorbar(
+            shown, ax=ax, shrink=0.7, label="largest eigenvalue of M [kg m^2]" if k < 2 else "ratio"
+        )
         _plot_loci(ax, loci, "joint", legend=False, halo=True)
         for slot, label in enumerate(WORKING_MODES):
             cells = np.argwhere(cmp.working_mode == slot)
             if not len(cells) or label not in stats:
                 continue
             i, j = cells[len(cells) // 2]
-            ax.annotate(f"{label}\nmedian {stats[label][key]:.3g}", (cmp.theta2[i], cmp.theta3[j]),
-                        fontsize=7, ha="center", va="center",
-                        bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8})  # fmt: skip
+            ax.annotate(
+                f"{label}\nmedian {stats[label][key]:.3g}",
+                (cmp.theta2[i], cmp.theta3[j]),
+                fontsize=7,
+                ha="center",
+                va="center",
+                bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8},
+            )
         if k == 0:
             _legend_below(ax, ncol=2)
         ax.set_title(title, fontsize=9)
         _joint_axes(ax)
     fig.suptitle(
         "Reflected inertia over the workspace: largest eigenvalue of M per working mode "
-        f"(assembly mode '+'; default inertia)\n{_design_text(design)}", fontsize=10
-    )  # fmt: skip
+        f"(assembly mode '+'; default inertia)\n{_design_text(design)}",
+        fontsize=10,
+    )
     return fig

@@ -102,12 +102,16 @@ def figure_04(design: Design = GENERAL_DESIGN) -> Figure:
     axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
     for k, ax in enumerate(axes):
         draw_posture(ax, design, b.q[i, k], b.passive[i, k], colour=_MODE_COLOURS[k])
-        ax.set_title(f"working mode {WORKING_MODES[k]}  (kappa(A) = {c.kappa_A[i, k]:.2f})",
-                     fontsize=9)  # fmt: skip
+        ax.set_title(
+            f"working mode {WORKING_MODES[k]}  (kappa(A) = {c.kappa_A[i, k]:.2f})", fontsize=9
+        )
         _cartesian_axes(ax)
         ax.label_outer()
-    fig.suptitle(f"Fig. 4: the four working modes (s_axis = +) at P = ({p[i, 1]:.3f}, "
-                 f"{p[i, 0]:.3f}) m\n{_design_text(design)}", fontsize=10)  # fmt: skip
+    fig.suptitle(
+        f"Fig. 4: the four working modes (s_axis = +) at P = ({p[i, 1]:.3f}, "
+        f"{p[i, 0]:.3f}) m\n{_design_text(design)}",
+        fontsize=10,
+    )
     return fig
 
 
@@ -118,9 +122,13 @@ def _posture_figure(title: str, design: Design, locus: Locus, note: str) -> Figu
     draw_posture(ax, design, locus.q[i], locus.passive[i], colour="tab:red")
     c = conditioning(design, locus.q[i], locus.passive[i], locus.uw[i, 1])
     ax.set_title(f"{title}\n{_design_text(design)}", fontsize=10)
-    ax.text(0.02, 0.02, f"{note}\nkappa(A) = {float(c.kappa_A):.3g}, "
-            f"min serial margin = {float(c.min_serial):.3g}",
-            transform=ax.transAxes, fontsize=8)  # fmt: skip
+    ax.text(
+        0.02,
+        0.02,
+        f"{note}\nkappa(A) = {float(c.kappa_A):.3g}, min serial margin = {float(c.min_serial):.3g}",
+        transform=ax.transAxes,
+        fontsize=8,
+    )
     _cartesian_axes(ax)
     return fig
 
@@ -128,15 +136,23 @@ def _posture_figure(title: str, design: Design, locus: Locus, note: str) -> Figu
 def figure_05(design: Design = GENERAL_DESIGN) -> Figure:
     """Parallel singularity: P the midpoint of a stretched CD."""
     locus = _parallel(design)["CD_stretched"]
-    return _posture_figure("Fig. 5: parallel singularity, C, P, D aligned (CD stretched)",
-                           design, locus, "A cannot resist a force normal to CD")  # fmt: skip
+    return _posture_figure(
+        "Fig. 5: parallel singularity, C, P, D aligned (CD stretched)",
+        design,
+        locus,
+        "A cannot resist a force normal to CD",
+    )
 
 
 def figure_06(design: Design = GENERAL_DESIGN) -> Figure:
     """Parallel singularity: C = D, P turns freely about them."""
     locus = _parallel(design)["C=D"]
-    fig = _posture_figure("Fig. 6: parallel singularity, C = D", design, locus,
-                          "P can turn about C = D with the actuators locked")  # fmt: skip
+    fig = _posture_figure(
+        "Fig. 6: parallel singularity, C = D",
+        design,
+        locus,
+        "P can turn about C = D with the actuators locked",
+    )
     ax = fig.axes[0]
     i = _pick(locus, design)
     cd = _in_plane(design, locus.q[i], locus.passive[i])[2]
@@ -148,12 +164,21 @@ def figure_06(design: Design = GENERAL_DESIGN) -> Figure:
 def figure_07(design: Design = GENERAL_DESIGN) -> Figure:
     """Serial singularity: leg B stretched, P on the workspace boundary."""
     locus = _serial(design)["leg_B_stretched"]
-    fig = _posture_figure("Fig. 7: serial singularity, leg B stretched (B, D, P aligned)",
-                          design, locus, "P cannot move along BP")  # fmt: skip
+    fig = _posture_figure(
+        "Fig. 7: serial singularity, leg B stretched (B, D, P aligned)",
+        design,
+        locus,
+        "P cannot move along BP",
+    )
     ax = fig.axes[0]
     t = np.linspace(0, 2 * np.pi, 400)
-    ax.plot(design.L0 / 2 + design.reach * np.cos(t), design.reach * np.sin(t), ":",
-            color="0.5", label="|BP| = L1 + L2")  # fmt: skip
+    ax.plot(
+        design.L0 / 2 + design.reach * np.cos(t),
+        design.reach * np.sin(t),
+        ":",
+        color="0.5",
+        label="|BP| = L1 + L2",
+    )
     ax.legend(loc="upper right", fontsize=7)
     return fig
 
@@ -181,15 +206,28 @@ def _joint_section_figure(title: str, design: Design, n: int) -> Figure:
     for k, mode in enumerate(section.labels):
         ax = fig.add_subplot(1, 2, k + 1)
         img = _mode_index_image(section, k)
-        ax.imshow(img, origin="lower", extent=_extent(section), cmap=_mode_cmap(), vmin=-0.5,
-                  vmax=_BASE_POINT + 0.5, interpolation="nearest", aspect="equal")  # fmt: skip
-        mine = {kind: loc.select(assembly_mode=mode) if kind != "C=D" else loc
-                for kind, loc in loci.items()}  # fmt: skip
+        ax.imshow(
+            img,
+            origin="lower",
+            extent=_extent(section),
+            cmap=_mode_cmap(),
+            vmin=-0.5,
+            vmax=_BASE_POINT + 0.5,
+            interpolation="nearest",
+            aspect="equal",
+        )
+        mine = {
+            kind: loc.select(assembly_mode=mode) if kind != "C=D" else loc
+            for kind, loc in loci.items()
+        }
         plot_loci(ax, mine, "joint", legend=False, halo=True)
         handles, _ = ax.get_legend_handles_labels()
         values = {int(v) for v in np.unique(img[np.isfinite(img)])}
-        handles += [Patch(color=_MODE_COLOURS[v], label=f"mode {WORKING_MODES[v]}")
-                    for v in sorted(values) if v < _SINGULAR]  # fmt: skip
+        handles += [
+            Patch(color=_MODE_COLOURS[v], label=f"mode {WORKING_MODES[v]}")
+            for v in sorted(values)
+            if v < _SINGULAR
+        ]
         handles.append(Patch(color=_SINGULAR_COLOUR, label="serial-singular cell"))
         if _BASE_POINT in values:
             handles.append(Patch(color=_BASE_POINT_COLOUR, label="P = A = B (erratum 6)"))
@@ -203,26 +241,32 @@ def _joint_section_figure(title: str, design: Design, n: int) -> Figure:
 def figure_08(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.paper_optimum()
     return _cartesian_section_figure(
-        "Fig. 8: cross-section of the Cartesian workspace (L0 = 0, L1 = L2)", design, n,
+        "Fig. 8: cross-section of the Cartesian workspace (L0 = 0, L1 = L2)",
+        design,
+        n,
         "Modes with s_A = s_B are parallel-singular everywhere (C = D): only ++-, +-+ (and "
         "mirrors) operate.\nAll singularities lie on the boundary: |OP| = L1 + L2, the axis, P = O.",
-    )  # fmt: skip
+    )
 
 
 def figure_09(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.paper_optimum()
     return _joint_section_figure(
         "Fig. 9: cross-section of the joint space (L0 = 0, L1 = L2); grey: P at the base "
-        "point A = B (erratum 6)", design, n,
-    )  # fmt: skip
+        "point A = B (erratum 6)",
+        design,
+        n,
+    )
 
 
 def figure_10(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
     design = design or Design.singularity_free()
     return _cartesian_section_figure(
         "Fig. 10: Cartesian workspace free of parallel singularities (2 L1 < L0 < 2 (L2 - L1))",
-        design, n, "kappa(A) stays bounded: only serial singularities, on the boundary.",
-    )  # fmt: skip
+        design,
+        n,
+        "kappa(A) stays bounded: only serial singularities, on the boundary.",
+    )
 
 
 def figure_11(design: Design | None = None, n: int = PRINT_RESOLUTION) -> Figure:
@@ -245,8 +289,11 @@ def figure_12(design: Design = MODE_CHANGE_DESIGN) -> Figure:
         kind = "convex" if k == 0 else "non-convex"
         ax.set_title(f"{kind} working mode {mode}: kappa(A) = {c.kappa_A[0, s]:.3g}", fontsize=9)
         _cartesian_axes(ax)
-    fig.suptitle(f"Fig. 12: working mode and parallel singularity, P = ({p[1]:.3f}, {p[0]:.3f}) m"
-                 f"\n{_design_text(design)}", fontsize=10)  # fmt: skip
+    fig.suptitle(
+        f"Fig. 12: working mode and parallel singularity, P = ({p[1]:.3f}, {p[0]:.3f}) m"
+        f"\n{_design_text(design)}",
+        fontsize=10,
+    )
     return fig
 
 
@@ -263,12 +310,19 @@ def _mode_workspace_figure(title: str, design: Design, modes: tuple[str, str], n
     plot_loci(ax, par, "cartesian", legend=False, labels=False)
     plot_loci(ax, par2, "cartesian", legend=False, labels=False)
     drawn = any(np.isfinite(v.uw).any() for v in (*par.values(), *par2.values()))
-    ax.plot([], [], color="red" if drawn else "none",
-            label="parallel singularity in these modes" if drawn
-            else "no parallel singularity in these modes")  # fmt: skip
+    ax.plot(
+        [],
+        [],
+        color="red" if drawn else "none",
+        label="parallel singularity in these modes"
+        if drawn
+        else "no parallel singularity in these modes",
+    )
     _legend_below(ax, ncol=2)
-    ax.set_title(f"{title}\nmodes {modes[0]} (w > 0) and {modes[1]} (w < 0); "
-                 f"{_design_text(design)}", fontsize=9)  # fmt: skip
+    ax.set_title(
+        f"{title}\nmodes {modes[0]} (w > 0) and {modes[1]} (w < 0); {_design_text(design)}",
+        fontsize=9,
+    )
     _cartesian_axes(ax)
     return fig
 
@@ -341,11 +395,23 @@ def figure_15(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) ->
         reached = section.reached[..., slots]
         kappa = np.where(reached, section.kappa_A[..., slots], np.inf).min(axis=-1)
         kappa = np.where(reached.any(axis=-1), kappa, np.nan)
-        ax.imshow(kappa, origin="lower", extent=_extent(section), cmap=band_colours, norm=norm,
-                  interpolation="nearest", aspect="equal")  # fmt: skip
-        segs = [[seg for m in modes
-                 for seg in _segments(loci[level].select(working_mode=m).polyline("cartesian"))]
-                for level in ISO_LEVELS]  # fmt: skip
+        ax.imshow(
+            kappa,
+            origin="lower",
+            extent=_extent(section),
+            cmap=band_colours,
+            norm=norm,
+            interpolation="nearest",
+            aspect="equal",
+        )
+        segs = [
+            [
+                seg
+                for m in modes
+                for seg in _segments(loci[level].select(working_mode=m).polyline("cartesian"))
+            ]
+            for level in ISO_LEVELS
+        ]
         widths = [2.4 if level == 1.0 else 1.0 for level in ISO_LEVELS]
         colours = ["tab:blue" if level == 1.0 else "0.15" for level in ISO_LEVELS]
         long = [[g for g in ss if _length(g) >= long_enough] for ss in segs]
@@ -355,25 +421,32 @@ def figure_15(design: Design = MODE_CHANGE_DESIGN, n: int = PRINT_RESOLUTION) ->
                 ax.plot(g[:, 0], g[:, 1], color=c, lw=lw)
         cs = ContourSet(ax, list(ISO_LEVELS), long, colors=colours, linewidths=widths)
         with_curves = [lvl for lvl, ss in zip(ISO_LEVELS, long, strict=True) if ss]
-        ax.clabel(cs, with_curves, inline=True, inline_spacing=2, fontsize=7,
-                  fmt=_iso_label)  # fmt: skip
+        ax.clabel(cs, with_curves, inline=True, inline_spacing=2, fontsize=7, fmt=_iso_label)
         for m in modes:
             sel = {kk: v.select(working_mode=m) for kk, v in par.items()}
             plot_loci(ax, sel, "cartesian", legend=False, labels=False)
         handles = [
             Line2D([], [], color="tab:blue", lw=2.4, label="isotropy, kappa(A) = 1"),
-            Line2D([], [], color="0.15", lw=1.0,
-                   label="kappa(A) = " + ", ".join(f"{v:g}" for v in ISO_LEVELS[1:])),
+            Line2D(
+                [],
+                [],
+                color="0.15",
+                lw=1.0,
+                label="kappa(A) = " + ", ".join(f"{v:g}" for v in ISO_LEVELS[1:]),
+            ),
             Line2D([], [], color="red", lw=1.6, label="parallel singularity"),
             Patch(color=band_colours(band_colours.N - 1), label="kappa(A) > 10"),
             Patch(color=band_colours(0), label="kappa(A) < 1.25"),
-        ]  # fmt: skip
+        ]
         _legend_below(ax, ncol=2, handles=handles)
         kind = "convex" if k == 0 else "non-convex"
         ax.set_title(f"{kind} modes {modes[0]} (w > 0) / {modes[1]} (w < 0)", fontsize=9)
         _cartesian_axes(ax)
-    fig.suptitle(f"Fig. 15: isoconditioning curves of kappa(A) for two working modes "
-                 f"(labels: kappa)\n{_design_text(design)}", fontsize=10)  # fmt: skip
+    fig.suptitle(
+        f"Fig. 15: isoconditioning curves of kappa(A) for two working modes "
+        f"(labels: kappa)\n{_design_text(design)}",
+        fontsize=10,
+    )
     return fig
 
 

@@ -66,10 +66,15 @@ def figure_region_map(design: Design, n: int = PRINT_RESOLUTION, *, margins=None
             if sure.any():
                 k3, k2 = np.nonzero(sure)
                 m = len(k3) // 2
-                ax.text(rmap.theta2[k2[m]], rmap.theta3[k3[m]],
-                        f"{region.working_mode}\n#{region.component}", fontsize=7,
-                        ha="center", va="center",
-                        bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1})  # fmt: skip
+                ax.text(
+                    rmap.theta2[k2[m]],
+                    rmap.theta3[k3[m]],
+                    f"{region.working_mode}\n#{region.component}",
+                    fontsize=7,
+                    ha="center",
+                    va="center",
+                    bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1},
+                )
         ax.imshow(img, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
         tk3, tk2 = np.nonzero(rmap.transit_cells[ai].max(axis=0) > 0)
         ax.plot(rmap.theta2[tk2], rmap.theta3[tk3], ",", color="black")
@@ -106,8 +111,9 @@ def figure_region_images(design: Design, n: int = PRINT_RESOLUTION, *, margins=N
             if len(p) == 0:
                 continue
             ax.scatter(p[:, 0], p[:, 1], s=0.6, color=colours[region.id], lw=0, rasterized=True)
-            handles.append(Patch(color=colours[region.id],
-                                 label=f"{region.working_mode} #{region.component}"))  # fmt: skip
+            handles.append(
+                Patch(color=colours[region.id], label=f"{region.working_mode} #{region.component}")
+            )
         for x in (-design.L0 / 2, design.L0 / 2):
             ax.plot([x], [0.0], "ko", ms=3)
         ax.set_xlim(-reach - design.L0 / 2, reach + design.L0 / 2)
@@ -155,8 +161,9 @@ def _figure_mode_regions(
         img = _coverage_image(cov, ids, colours, [r.id for r in mine])
         ax.imshow(img, origin="lower", extent=extent, interpolation="nearest")
         pair, every = cov.area(ids), cov.area(r.id for r in mine)
-        handles = [Patch(color=colours[i], label=f"{rmap.regions[i].working_mode} region {i}")
-                   for i in ids]  # fmt: skip
+        handles = [
+            Patch(color=colours[i], label=f"{rmap.regions[i].working_mode} region {i}") for i in ids
+        ]
         handles.append(Patch(color=(0.85, 0.85, 0.85), label="other working modes only"))
         for x in (-design.L0 / 2, design.L0 / 2):
             ax.plot([x], [0.0], "ko", ms=3)

@@ -69,8 +69,9 @@ def place_adept_cycle(design: Design, **solve_options: object) -> AdeptCycle:
         No placement of the grid solves.
     """
     h, d = ADEPT_UP * design.reach, ADEPT_ACROSS * design.reach
-    for x, z, y in itertools.product((0.35, 0.45, 0.25, 0.55), (-0.45, -0.35, -0.55, -0.25),
-                                     (-0.15, -0.25, -0.05, 0.0)):  # fmt: skip
+    for x, z, y in itertools.product(
+        (0.35, 0.45, 0.25, 0.55), (-0.45, -0.35, -0.55, -0.25), (-0.15, -0.25, -0.05, 0.0)
+    ):
         pick = np.array([x, y, z]) * design.reach / 0.8
         ik = inverse_batch(design, pick)
         for k in np.flatnonzero(ik.ok[0]):
@@ -78,8 +79,9 @@ def place_adept_cycle(design: Design, **solve_options: object) -> AdeptCycle:
                 continue
             start = JointPosture(ik.q[0, k], "+")
             targets = adept_targets(pick, h, d, ["any"] * 5, [True] * 5, [0.0] * 5)
-            r = solve_sequence(design, start, targets, cycle=True, objective="fixed",
-                               **solve_options)  # type: ignore[arg-type]  # fmt: skip
+            r = solve_sequence(
+                design, start, targets, cycle=True, objective="fixed", **solve_options
+            )  # type: ignore[arg-type]
             if r.solved:
                 return AdeptCycle(pick, start, h, d, r)
     raise LookupError("no placement of the Adept cycle solved")

@@ -235,8 +235,16 @@ def choose_modes(
         (0.0 if stops[i] or i >= n else targets[i].blend + timing.max_deviation)
         for i in range(len(goals))
     ]
-    kwargs = {"obstacles": obstacles, "margins": margins, "options": options,
-              "timing": timing, "limits": limits, "deadline": deadline, "inertia": inertia, "gravity": gravity}  # fmt: skip
+    kwargs = {
+        "obstacles": obstacles,
+        "margins": margins,
+        "options": options,
+        "timing": timing,
+        "limits": limits,
+        "deadline": deadline,
+        "inertia": inertia,
+        "gravity": gravity,
+    }
     cache: dict = {}
     refused: InputError | None = None
     attempts = 0
@@ -263,9 +271,16 @@ def choose_modes(
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
         try:
             result = solve_with_goals(
-                design, start, targets, [c.goal for c in chosen], stops, cycle, t0,
-                plan_cache=cache, **kwargs,
-            )  # fmt: skip
+                design,
+                start,
+                targets,
+                [c.goal for c in chosen],
+                stops,
+                cycle,
+                t0,
+                plan_cache=cache,
+                **kwargs,
+            )
         except InputError as exc:
             # a blend larger than half a leg of this assignment (its legs differ from the
             # others'): this assignment is out, the error kept in case every one is

@@ -118,10 +118,15 @@ def _plan_legs(
         result = cache.get(key) if cache is not None else None
         if result is None:
             result = solve(
-                design, JointPosture(q, start.assembly_mode), goal, obstacles=obstacles,
-                margins=margins, options=options, timing=TimingOptions(method="none"),
+                design,
+                JointPosture(q, start.assembly_mode),
+                goal,
+                obstacles=obstacles,
+                margins=margins,
+                options=options,
+                timing=TimingOptions(method="none"),
                 deadline=deadline,
-            ).plan  # fmt: skip
+            ).plan
             if cache is not None:
                 cache[key] = result
         plans.append(result)
@@ -404,9 +409,16 @@ def solve_sequence(
     stops = [t.stop for t in targets] + ([True] if cycle else [])
     stops[-1] = True
 
-    kwargs = {"obstacles": tuple(obstacles), "margins": margins, "options": options,
-              "timing": timing, "limits": limits, "deadline": deadline,
-              "inertia": inertia, "gravity": gravity}  # fmt: skip
+    kwargs = {
+        "obstacles": tuple(obstacles),
+        "margins": margins,
+        "options": options,
+        "timing": timing,
+        "limits": limits,
+        "deadline": deadline,
+        "inertia": inertia,
+        "gravity": gravity,
+    }
     if objective == "time" and any(
         isinstance(g, CartesianTarget) and g.working_mode == "any" for g in goals
     ):
@@ -449,12 +461,20 @@ def solve_with_goals(
     extra = extra or {}
     plan_cache = {} if plan_cache is None else plan_cache
     plans, failed = _plan_legs(
-        design, start, goals, obstacles=obstacles, margins=margins, options=options,
-        deadline=deadline, cache=plan_cache,
-    )  # fmt: skip
+        design,
+        start,
+        goals,
+        obstacles=obstacles,
+        margins=margins,
+        options=options,
+        deadline=deadline,
+        cache=plan_cache,
+    )
     planning_time = time.perf_counter() - t0
-    modes = tuple(_arrival_mode(p.path) if p.path is not None and isinstance(g, CartesianTarget) else ""
-                  for p, g in zip(plans, goals, strict=False))  # fmt: skip
+    modes = tuple(
+        _arrival_mode(p.path) if p.path is not None and isinstance(g, CartesianTarget) else ""
+        for p, g in zip(plans, goals, strict=False)
+    )
     diagnostics = SequenceDiagnostics(
         planning_time_s=planning_time,
         modes=modes,
@@ -510,18 +530,31 @@ def solve_with_goals(
         )
     try:
         trajectory = time_plan(
-            design, joined, obstacles=obstacles, margins=margins, timing=timing, limits=limits,
-            stop_at_transits=options.stop_at_transits, deadline=deadline,
-            max_deviation=deviation, stop_at=stop_at, via_at=via_at, inertia=inertia,
+            design,
+            joined,
+            obstacles=obstacles,
+            margins=margins,
+            timing=timing,
+            limits=limits,
+            stop_at_transits=options.stop_at_transits,
+            deadline=deadline,
+            max_deviation=deviation,
+            stop_at=stop_at,
+            via_at=via_at,
+            inertia=inertia,
             gravity=gravity,
-        )  # fmt: skip
+        )
     except TimingError as exc:
         late = isinstance(exc, TimingDeadlineError)
         status = PlanStatus.TIMEOUT if late else PlanStatus.NO_PATH
         return SequenceResult(
-            status, f"the legs were planned but could not be timed: {exc}", legs_with(None),
-            joined, timing_error=exc, diagnostics=diagnostics,
-        )  # fmt: skip
+            status,
+            f"the legs were planned but could not be timed: {exc}",
+            legs_with(None),
+            joined,
+            timing_error=exc,
+            diagnostics=diagnostics,
+        )
     reach = [
         (0.0 if stops[i] else (targets[i].blend if i < n else 0.0)) + timing.max_deviation + 0.01
         for i in range(len(at))

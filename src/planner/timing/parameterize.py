@@ -339,10 +339,23 @@ def time_path(
     """
     t_start = time.perf_counter()
     job = validate_inputs(
-        design, waypoints, limits, method, assembly_mode, sample_rate_hz,
-        max_cartesian_speed, max_deviation, stop_at, check_resolution, check_states,
-        deadline, max_samples, inertia, gravity, via_at,
-    )  # fmt: skip
+        design,
+        waypoints,
+        limits,
+        method,
+        assembly_mode,
+        sample_rate_hz,
+        max_cartesian_speed,
+        max_deviation,
+        stop_at,
+        check_resolution,
+        check_states,
+        deadline,
+        max_samples,
+        inertia,
+        gravity,
+        via_at,
+    )
     if job.limits.torque is None:
         return _timed(job, t_start)[0]
     # with torque limits: the torque-limited timing, or the velocity-only one slowed down
@@ -488,10 +501,16 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
         best: PathProfile | None = None
         for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
             profile = solve_toppra(
-                path, lim, speed_gain=gain, max_cartesian_speed=job.v_cart, refine=refine,
-                arc_refine=arc_refine, deadline=job.deadline, torque_model=job.torque,
+                path,
+                lim,
+                speed_gain=gain,
+                max_cartesian_speed=job.v_cart,
+                refine=refine,
+                arc_refine=arc_refine,
+                deadline=job.deadline,
+                torque_model=job.torque,
                 cache=state.sections,
-            )  # fmt: skip
+            )
             if job.method != "toppra":
                 break
             fitted = _fit_time_scale(
@@ -516,8 +535,9 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
 def _fitted_chain(curve: Curve, job: TimingJob) -> Curve:
     """A chain of moves slowed uniformly for the Cartesian speed bound and torque limits."""
     if job.v_cart is not None:
-        curve = _fit_cartesian_speed(curve, job.design, job.assembly_mode, job.resolution,
-                                     job.v_cart)  # fmt: skip
+        curve = _fit_cartesian_speed(
+            curve, job.design, job.assembly_mode, job.resolution, job.v_cart
+        )
     return _fit_torque(curve, job)
 
 
@@ -525,10 +545,20 @@ def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) ->
     """``curve`` with its via sections spliced in where faster (:func:`splice_vias`)."""
     if state.via is None or state.profile is None:
         return curve
-    return splice_vias(curve, state.path, state.profile, state.via, state.dev0, lim,
-                       jerk=job.method == "ruckig", fit=lambda c: _fitted_chain(c, job),
-                       chains=state.via_chains, dropped=state.via_off, key=state.scale,
-                       deadline=job.deadline)  # fmt: skip
+    return splice_vias(
+        curve,
+        state.path,
+        state.profile,
+        state.via,
+        state.dev0,
+        lim,
+        jerk=job.method == "ruckig",
+        fit=lambda c: _fitted_chain(c, job),
+        chains=state.via_chains,
+        dropped=state.via_off,
+        key=state.scale,
+        deadline=job.deadline,
+    )
 
 
 def _output_times(job: TimingJob, curve: Curve) -> np.ndarray:
@@ -625,8 +655,13 @@ def _repair(job: TimingJob, state: _State, curve: Curve, report: CheckReport) ->
         state.scale *= min(1.0 / ratio, 1.0 - 1e-4) * (1.0 - 1e-3)
         state.refine *= 2
         state.profile = None
-        logger.info("timing repair %d: %s limit x%.6f, limits scaled to %.6f", repairs,
-                    rule, ratio, state.scale)  # fmt: skip
+        logger.info(
+            "timing repair %d: %s limit x%.6f, limits scaled to %.6f",
+            repairs,
+            rule,
+            ratio,
+            state.scale,
+        )
 
 
 def _result(

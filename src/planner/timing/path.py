@@ -144,9 +144,19 @@ class BlendedPath:
         if n == 1:
             empty3 = np.zeros((0, 3))
             return cls(
-                w, index_map, np.zeros(0, np.int8), np.zeros(1), empty3, empty3, empty3,
-                np.zeros(0), np.zeros(0, int), np.zeros(1), np.zeros(1), np.zeros(1),
-            )  # fmt: skip
+                w,
+                index_map,
+                np.zeros(0, np.int8),
+                np.zeros(1),
+                empty3,
+                empty3,
+                empty3,
+                np.zeros(0),
+                np.zeros(0, int),
+                np.zeros(1),
+                np.zeros(1),
+                np.zeros(1),
+            )
 
         seg = np.diff(w, axis=0)
         seg_len = np.linalg.norm(seg, axis=1)
@@ -159,9 +169,11 @@ class BlendedPath:
         # and reversals; a blend next to one may take the whole segment, else half of it
         unblended = np.ones(n, bool)
         unblended[1:-1] = (
-            stop[1:-1] | (dev[1:-1] <= 0.0) | (alpha[1:-1] > np.pi - REVERSAL_ANGLE)
+            stop[1:-1]
+            | (dev[1:-1] <= 0.0)
+            | (alpha[1:-1] > np.pi - REVERSAL_ANGLE)
             | (alpha[1:-1] < STRAIGHT_ANGLE)
-        )  # fmt: skip
+        )
         share = np.where(unblended, 1.0, 0.5)
         is_stop = np.zeros(n, bool)
         is_stop[0] = is_stop[-1] = True

@@ -269,8 +269,9 @@ def _solve_move(
     TimingInfeasibleError
         Ruckig rejects the move or returns an error code.
     """
-    as_lists = tuple(tuple(np.asarray(x, dtype=float).tolist() for x in st)
-                     for st in (start, target))  # fmt: skip
+    as_lists = tuple(
+        tuple(np.asarray(x, dtype=float).tolist() for x in st) for st in (start, target)
+    )
     traj = RuckigTrajectory(3)
     error = _calculate(otg, inp, *as_lists, traj)
     if error:
@@ -413,16 +414,22 @@ def _through_marks(path: BlendedPath, profile: PathProfile, t_merge: float) -> l
         if not (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][0] <= m[0])
     ]
     # consecutive rests at one position (a stop at the path's end) are one
-    marks = [m for i, m in enumerate(marks)
-             if not (i > 0 and m[1] == _REST and marks[i - 1][1] == _REST
-                     and m[0] <= marks[i - 1][0])]  # fmt: skip
+    marks = [
+        m
+        for i, m in enumerate(marks)
+        if not (i > 0 and m[1] == _REST and marks[i - 1][1] == _REST and m[0] <= marks[i - 1][0])
+    ]
     t_marks, _, _ = profile.at_path(np.array([m[0] for m in marks]))
     out: list[tuple[float, int, tuple[int, ...]]] = []
     i = 0
     while i < len(marks):
         m = marks[i]
-        if (m[1] == _EXIT and i + 1 < len(marks) and marks[i + 1][1] == _ENTRY
-                and t_marks[i + 1] - t_marks[i] < t_merge):  # fmt: skip
+        if (
+            m[1] == _EXIT
+            and i + 1 < len(marks)
+            and marks[i + 1][1] == _ENTRY
+            and t_marks[i + 1] - t_marks[i] < t_merge
+        ):
             out.append((0.5 * (m[0] + marks[i + 1][0]), _MIDDLE, m[2] + marks[i + 1][2]))
             i += 2
             continue
@@ -483,8 +490,13 @@ def build_ruckig_curve(
     inp.max_jerk = j_max.tolist()
     inp.synchronization = Synchronization.Phase
     cache = cache if cache is not None else MoveCache()
-    settings = (*v_max.tolist(), *a_max.tolist(), *j_max.tolist(), through_acceleration,
-                *speed_factors)  # fmt: skip
+    settings = (
+        *v_max.tolist(),
+        *a_max.tolist(),
+        *j_max.tolist(),
+        through_acceleration,
+        *speed_factors,
+    )
 
     # the time a joint needs to bring its largest acceleration to zero under its jerk limit
     marks = _through_marks(path, profile, t_merge=float(np.max(a_max / j_max)))

@@ -154,8 +154,9 @@ class _TorqueConstraint(toppra.constraint.LinearConstraint):
         its limit: no speed along the path holds that posture. toppra's seidel LP cannot
         say so (it divides by the zero row's norm: a ZeroDivisionError, once a 500)."""
         scale = np.maximum(np.abs(a).max(axis=0), 1e-300)  # (3,): per-joint size of a
-        still = (np.abs(a) <= 1e-12 * scale) & (np.abs(b) <= 1e-12 * np.maximum(
-            np.abs(b).max(axis=0), scale))  # fmt: skip
+        still = (np.abs(a) <= 1e-12 * scale) & (
+            np.abs(b) <= 1e-12 * np.maximum(np.abs(b).max(axis=0), scale)
+        )
         over = still & (np.abs(c) > self._limit)
         if not over.any():
             return

@@ -113,8 +113,9 @@ class ToppraCurve:
         check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
         s_geo = np.linspace(prof.s[0], prof.s[-1], n)
         ds = np.diff(prof.s)
-        frac = np.concatenate([[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1),
-                               [1.0 - 1e-9]])  # fmt: skip
+        frac = np.concatenate(
+            [[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1), [1.0 - 1e-9]]
+        )
         s_sub = (prof.s[:-1, None] + ds[:, None] * frac[None, :]).ravel()
         return np.unique(np.concatenate([s_geo, s_sub, prof.s]))
 
@@ -156,8 +157,9 @@ def p_velocity(
     speed = np.linalg.norm(qd, axis=1)
     u = np.where(speed[:, None] > 0, qd / np.maximum(speed, 1e-300)[:, None], 0.0)
     m = q.shape[0]
-    batch = forward_batch(design, np.concatenate([q, q + FD_STEP * u, q - FD_STEP * u]),
-                          assembly_mode)  # fmt: skip
+    batch = forward_batch(
+        design, np.concatenate([q, q + FD_STEP * u, q - FD_STEP * u]), assembly_mode
+    )
     p = batch.p[:m]
     dp = (batch.p[m : 2 * m] - batch.p[2 * m :]) / (2 * FD_STEP)
     ok = batch.ok[:m] & batch.ok[m : 2 * m] & batch.ok[2 * m :]

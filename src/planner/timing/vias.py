@@ -231,8 +231,15 @@ def build_via_chain(
 
         corner, r_in, v_lim = vertex[i].tolist(), r_i * _INSIDE, v_max.tolist()
 
-        def cost(z: np.ndarray, before=before, after=after, corner=corner, r_i=r_i,
-                 r_in=r_in, v_lim=v_lim) -> float:  # fmt: skip
+        def cost(
+            z: np.ndarray,
+            before=before,
+            after=after,
+            corner=corner,
+            r_i=r_i,
+            r_in=r_in,
+            v_lim=v_lim,
+        ) -> float:
             # plain floats: this runs some 500 times per via. Outside the ball or the
             # velocity limits: projected, with a penalty that points back inside (so the
             # simplex does not wander off)
@@ -264,9 +271,14 @@ def build_via_chain(
             starts.append(np.concatenate([0.5 * r_i * inward, 0.5 * v_max * along]))
         found = [starts[0], *starts[1:]]
         for z0 in starts:
-            found.append(minimize(cost, z0, method="Nelder-Mead",
-                                  options={"maxiter": iterations, "xatol": 1e-7,
-                                           "fatol": 1e-10}).x)  # fmt: skip
+            found.append(
+                minimize(
+                    cost,
+                    z0,
+                    method="Nelder-Mead",
+                    options={"maxiter": iterations, "xatol": 1e-7, "fatol": 1e-10},
+                ).x
+            )
         # the fastest whose two moves stay within the allowance (sampled: the dense
         # re-check decides), else the arc's own state
         z = starts[0]

@@ -99,10 +99,15 @@ def dynamics_answer(request: DynamicsRequest) -> DynamicsResponse:
     inertia = inertia if inertia is not None else Inertia.default(design)
     q = np.asarray(request.q, dtype=float)
     batch = inverse_dynamics(
-        design, inertia, q, np.asarray(request.qd, dtype=float),
-        np.asarray(request.qdd, dtype=float), assembly_mode=request.assembly_mode,
-        gravity=request.gravity, with_mass_matrix=True,
-    )  # fmt: skip
+        design,
+        inertia,
+        q,
+        np.asarray(request.qd, dtype=float),
+        np.asarray(request.qdd, dtype=float),
+        assembly_mode=request.assembly_mode,
+        gravity=request.gravity,
+        with_mass_matrix=True,
+    )
     bad = np.flatnonzero(~batch.ok)
     if bad.size:
         i = int(bad[0])
@@ -149,8 +154,9 @@ class MjcfQuery(_Request):
 
     def design_fields(self) -> dict[str, float]:
         """The design fields given in the query."""
-        return {k: v for k in ("L0", "L1", "L2", "link_radius")
-                if (v := getattr(self, k)) is not None}  # fmt: skip
+        return {
+            k: v for k in ("L0", "L1", "L2", "link_radius") if (v := getattr(self, k)) is not None
+        }
 
 
 def mjcf_answer(
@@ -168,6 +174,9 @@ def mjcf_answer(
         inertia = inertia_to_core(request.design)
     with located(*loc):
         return to_mjcf(
-            design, inertia, gravity=request.gravity, home=request.home,
+            design,
+            inertia,
+            gravity=request.gravity,
+            home=request.home,
             assembly_mode=request.assembly_mode,
-        )  # fmt: skip
+        )

@@ -213,10 +213,16 @@ class PlanInputs:
     def solve_kwargs(self) -> dict[str, Any]:
         """The keyword arguments of :func:`planner.solve` after ``design, start, goal``."""
         return {
-            "obstacles": self.obstacles, "margins": self.margins, "options": self.options,
-            "timing": self.timing, "limits": self.limits, "prefer": self.prefer,
-            "tolerance": self.tolerance, "inertia": self.inertia, "gravity": self.gravity,
-        }  # fmt: skip
+            "obstacles": self.obstacles,
+            "margins": self.margins,
+            "options": self.options,
+            "timing": self.timing,
+            "limits": self.limits,
+            "prefer": self.prefer,
+            "tolerance": self.tolerance,
+            "inertia": self.inertia,
+            "gravity": self.gravity,
+        }
 
 
 def plan_inputs(request: PlanRequest) -> PlanInputs:
@@ -243,9 +249,19 @@ def plan_inputs(request: PlanRequest) -> PlanInputs:
     prefer = getattr(request.goal, "prefer", "shortest")
     inertia = inertia_to_core(request.design)
     return PlanInputs(
-        design, start, goal, obstacles, margins, options, timing, limits, prefer,
-        request.goal.tolerance, inertia, tuple(request.gravity),  # type: ignore[arg-type]
-    )  # fmt: skip
+        design,
+        start,
+        goal,
+        obstacles,
+        margins,
+        options,
+        timing,
+        limits,
+        prefer,
+        request.goal.tolerance,
+        inertia,
+        tuple(request.gravity),  # type: ignore[arg-type]
+    )
 
 
 def planner_options_to_core(

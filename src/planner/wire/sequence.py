@@ -198,10 +198,16 @@ class SequenceInputs:
         """The keyword arguments of :func:`planner.solve_sequence` after ``design, start,
         targets``."""
         return {
-            "cycle": self.cycle, "objective": self.objective, "obstacles": self.obstacles,
-            "margins": self.margins, "options": self.options, "timing": self.timing,
-            "limits": self.limits, "inertia": self.inertia, "gravity": self.gravity,
-        }  # fmt: skip
+            "cycle": self.cycle,
+            "objective": self.objective,
+            "obstacles": self.obstacles,
+            "margins": self.margins,
+            "options": self.options,
+            "timing": self.timing,
+            "limits": self.limits,
+            "inertia": self.inertia,
+            "gravity": self.gravity,
+        }
 
 
 def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
@@ -232,12 +238,19 @@ def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
         with located("body", "targets", i):
             targets.append(SequenceTarget(goal, t.stop, t.blend))
     return SequenceInputs(
-        design, start, targets, request.cycle, request.objective,
-        scene_obstacles(request), margins_to_core(request.margins),
-        planner_options_to_core(request.planner), timing_to_core(request.timing, request.limits),
-        joint_limits_to_core(request.limits), inertia_to_core(request.design),
+        design,
+        start,
+        targets,
+        request.cycle,
+        request.objective,
+        scene_obstacles(request),
+        margins_to_core(request.margins),
+        planner_options_to_core(request.planner),
+        timing_to_core(request.timing, request.limits),
+        joint_limits_to_core(request.limits),
+        inertia_to_core(request.design),
         tuple(request.gravity),  # type: ignore[arg-type]
-    )  # fmt: skip
+    )
 
 
 def _refuse(loc: tuple, message: str) -> None:
