@@ -6,7 +6,7 @@ On two designs (the default, singularity-free one and L0 = 0.6, L1 = 0.25, L2 = 
 a CD-stretched parallel singularity), seeded cases across the workspace: a start posture drawn
 uniformly in joint space (kept when valid with the default margins), then either a line of
 0.3 m in a random direction or a 3-point polyline of 0.15 m legs. Each is planned with
-:func:`planner.planning.cartesian.plan_cartesian` (default path tolerance 1 mm, toppra timing
+:func:`planner.cartesian.plan.plan_cartesian` (default path tolerance 1 mm, toppra timing
 with a tool speed of 0.25 m/s unless told otherwise). Reported per design and kind: success
 (fraction 1), mean fraction, p50/p95 of the whole call (planning + timing; and the p50 of
 the solved cases alone), the largest
@@ -26,8 +26,8 @@ import numpy as np
 from _machine import print_machine
 
 from planner import Design, forward_batch
+from planner.cartesian.plan import plan_cartesian
 from planner.planning import JointPosture, posture_mode
-from planner.planning.cartesian import plan_cartesian
 from planner.validity import Margins, ValidityChecker
 
 

@@ -259,7 +259,7 @@ def proofs(count: int) -> None:
             qb, asm_b = _valid(design, rng)
             if asm_b == asm:
                 break
-        # the endpoint's resolution and the planner's (planner.planning.modes)
+        # the endpoint's resolution and the planner's (planner.planning.dispatch)
         claim = R.prove_disconnected(R.region_map(design, n=256), qa, qb, asm) or (
             R.prove_disconnected(R.region_map(design, n=PROOF_RESOLUTION), qa, qb, asm)
         )

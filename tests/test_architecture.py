@@ -39,6 +39,7 @@ CORE = (
     "planner.validity",
     "planner.transits",
     "planner.planning",
+    "planner.cartesian",
     "planner.timing",
     "planner.analysis",
     "planner.exceptions",
@@ -234,7 +235,7 @@ def test_no_room_reaches_into_the_private_parts_of_another() -> None:
 
 
 #: What the wire may take from the planning room: its data classes, never a search.
-WIRE_PLANNING = ("planner.planning.problem", "planner.planning.result")
+WIRE_PLANNING = ("planner.planning.problem", "planner.planning.result", "planner.cartesian.result")
 
 
 def test_the_wire_converts_and_runs_no_search() -> None:
@@ -246,7 +247,10 @@ def test_the_wire_converts_and_runs_no_search() -> None:
         for name, imported in IMPORTS.items()
         if _within(name, ("planner.wire",))
         for module in imported
-        if (_within(module, ("planner.planning",)) and not _within(module, WIRE_PLANNING))
+        if (
+            _within(module, ("planner.planning", "planner.cartesian"))
+            and not _within(module, WIRE_PLANNING)
+        )
         or _within(module, ("planner.solver",))
         or (
             _within(module, ("planner.sequence",))

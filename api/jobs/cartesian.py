@@ -17,7 +17,7 @@ __all__ = ["cartesian"]
 
 def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> CartesianResponse:
     """``POST /v1/cartesian``: the request's library objects
-    (:func:`planner.wire.cartesian_inputs`), :func:`planner.planning.cartesian.plan_cartesian`
+    (:func:`planner.wire.cartesian_inputs`), :func:`planner.cartesian.plan.plan_cartesian`
     (the straight path, certified, and its timing), and one response built once
     (:func:`planner.wire.cartesian_response`).
 
@@ -27,7 +27,7 @@ def cartesian(request: CartesianRequest, budget: JobBudget = UNBOUNDED) -> Carte
     its chunks of probes, its refinement rounds and in the timing) with
     :class:`planner.exceptions.DeadlineError` (504).
     """
-    from planner.planning.cartesian import plan_cartesian
+    from planner.cartesian.plan import plan_cartesian
 
     inputs = cartesian_inputs(request)
     try:

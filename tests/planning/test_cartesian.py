@@ -1,4 +1,4 @@
-"""Straight tool paths (planner.planning.cartesian) against independent routes.
+"""Straight tool paths (planner.cartesian.plan) against independent routes.
 
 Forward kinematics, kappa(A), the serial measures and link clearance are re-derived here from
 the closed forms of docs/conventions.md with numpy alone (nothing from the library's
@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 
 from planner import Design
-from planner.geometry import Sphere
-from planner.kinematics import WORKING_MODES, inverse_batch
-from planner.planning.cartesian import (
+from planner.cartesian.plan import (
     CHORD_SHARE,
     chord_deviation_bound,
     inspect_cartesian,
     plan_cartesian,
 )
-from planner.planning.cartesian_walk import BISECT_TOL
-from planner.planning.cartesian_walk import narrow_bracket as _narrow
+from planner.cartesian.walk import BISECT_TOL
+from planner.cartesian.walk import narrow_bracket as _narrow
+from planner.geometry import Sphere
+from planner.kinematics import WORKING_MODES, inverse_batch
 from planner.planning.problem import JointPosture
 from planner.validity import Margins
 
@@ -378,7 +378,7 @@ def test_a_short_line_of_a_long_robot_gets_an_answer(direction):
 def test_rounds_running_out_stop_at_the_certified_part(monkeypatch):
     """Past MAX_REFINEMENTS passes the answer is the certified part of the path, a no_path with a stop
     point and its rule, never an error (the old code raised, a 422 for valid input)."""
-    import planner.planning.cartesian as cartesian
+    import planner.cartesian.plan as cartesian
 
     monkeypatch.setattr(cartesian, "MAX_REFINEMENTS", 2)
     p0 = own_fk(LONG, LONG_START.q, "+")[0][0]

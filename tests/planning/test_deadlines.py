@@ -17,9 +17,9 @@ import pytest
 
 from planner.analysis.optimize import optimize_design
 from planner.analysis.regions import cached_region_map, region_map
+from planner.cartesian.plan import plan_cartesian
 from planner.design import Design
 from planner.exceptions import DeadlineError
-from planner.planning.cartesian import plan_cartesian
 from planner.planning.problem import JointPosture
 from planner.validity import Margins
 

@@ -265,7 +265,7 @@ def test_any_mode_changes_mode_when_the_start_region_is_cut_off():
     """The goal point's solution in the start's mode lies in another component of that mode's
     region (joint limits at +-pi split it): the single-mode search finds no path, 'any'
     reaches the point in another mode through a transit."""
-    from planner.planning.planner import plan_single_mode
+    from planner.planning.single_mode import plan_single_mode
 
     design = DESIGNS["free"]
     rng = np.random.default_rng(1)

@@ -160,7 +160,7 @@ def test_invalid_start_and_goal_name_rule_and_value():
 
 def test_other_mode_or_assembly_is_unreachable_for_a_single_mode_plan():
     from planner.kinematics import WORKING_MODES, inverse_batch
-    from planner.planning.planner import plan_single_mode  # plan() changes mode
+    from planner.planning.single_mode import plan_single_mode  # plan() changes mode
 
     ik = inverse_batch(DESIGN, forward_batch(DESIGN, START.q, "+").p)
     slot = WORKING_MODES.index("++-")

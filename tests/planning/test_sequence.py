@@ -20,7 +20,7 @@ from planner.geometry import Sphere
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.planning import CartesianTarget, JointPosture, PlanStatus
 from planner.sequence import MAX_SEQUENCE_TARGETS
-from planner.sequence.modes import leg_lower_bound
+from planner.sequence.mode_search import leg_lower_bound
 from planner.timing import JointLimits, time_path
 from planner.validity import Margins, ValidityChecker
 

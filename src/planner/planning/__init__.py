@@ -2,7 +2,7 @@
 and working-mode changes through serial-singularity transits.
 
 The one entry point: :func:`plan` (``plan(design, start, goal, *, obstacles, margins,
-options)``, from :mod:`planner.planning.modes`), returning a :class:`PlanResult` whose
+options)``, from :mod:`planner.planning.dispatch`), returning a :class:`PlanResult` whose
 statuses and fields are the wire vocabulary's. It plans in the start's working mode first
 (:func:`plan_single_mode`, for callers that must not change mode) and through transits when
 the goal needs another mode.
@@ -12,11 +12,10 @@ With obstacles, :mod:`planner.planning.corridor` (a coarse 3-D grid of a mode's 
 guides the search through narrow passages (``PlanOptions.corridor``).
 """
 
+from planner.planning.dispatch import plan
 from planner.planning.goal_options import plan_with_goal_options
 from planner.planning.mode_graph import mode_sequences
-from planner.planning.modes import plan
 from planner.planning.path_rules import path_state_checker
-from planner.planning.planner import goal_candidates, plan_in_region, plan_single_mode, posture_mode
 from planner.planning.problem import PLANNERS, CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import (
     Diagnostics,
@@ -25,6 +24,12 @@ from planner.planning.result import (
     PlanStatus,
     Segment,
     Transit,
+)
+from planner.planning.single_mode import (
+    goal_candidates,
+    plan_in_region,
+    plan_single_mode,
+    posture_mode,
 )
 
 __all__ = [

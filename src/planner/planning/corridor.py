@@ -512,7 +512,7 @@ def guided_search(
     *,
     shape: tuple[int, int, int] = DEFAULT_SHAPE,
 ) -> GuidedOutcome:
-    """The corridor's part of :func:`planner.planning.planner.plan_in_region` (with obstacles).
+    """The corridor's part of :func:`planner.planning.single_mode.plan_in_region` (with obstacles).
 
     Policy (measured on ``benchmarks/planning.py``, docs/planning.md "Narrow passages"): when
     the checker's grid is cached, the corridor is tried at once (a warm grid costs a look-up);

@@ -87,7 +87,7 @@ class _Problem:
     margins: Margins | None
 
     def plan(self, goal: JointPosture | CartesianTarget, options: PlanOptions) -> PlanResult:
-        from planner.planning.modes import plan
+        from planner.planning.dispatch import plan
 
         return plan(
             self.design,

@@ -17,7 +17,7 @@ For a goal in another working mode than the start's (the dispatcher
    clearance), nearest first to the straight line from the segment's start to the goal,
    and crossed as :mod:`planner.planning.crossings` says (a crossing is kept only when it
    is valid there).
-3. *Segments*: each planned with :func:`planner.planning.planner.plan_in_region` in its own
+3. *Segments*: each planned with :func:`planner.planning.single_mode.plan_in_region` in its own
    mode's checker (every rule, serial margin included), from the previous q_out to the next
    q_in (the last one to the goal candidates); a segment that fails falls back to the next
    transit candidate, then to the next mode sequence, all within ``options.time_budget_s``,
@@ -39,7 +39,6 @@ from planner.design import Design
 from planner.geometry import Obstacle
 from planner.planning.crossings import crossing_signs_hold
 from planner.planning.mode_graph import FLIP_NAMES, flipped_sign, mode_sequences
-from planner.planning.planner import plan_in_region
 from planner.planning.problem import JointPosture, PlanOptions
 from planner.planning.region_walks import (
     cached_map_transits,
@@ -56,6 +55,7 @@ from planner.planning.result import (
     Segment,
     Transit,
 )
+from planner.planning.single_mode import plan_in_region
 from planner.transits import (
     Crossing,
     crossing_through,

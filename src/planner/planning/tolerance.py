@@ -14,7 +14,7 @@ goal. :func:`plan_within_tolerance` runs when the exact goal's plan was not solv
    asked goal first (at most :data:`MAX_PER_MODE` per mode).
 2. *The search* over that set: in the start's working mode, the straight motion to each goal
    in turn, then one OMPL search towards all of them at once
-   (:func:`planner.planning.planner.plan_to_goal_set`); goals of other modes through transits
+   (:func:`planner.planning.single_mode.plan_to_goal_set`); goals of other modes through transits
    (:func:`planner.planning.mode_change.plan_mode_change`, which takes a set of goals per mode).
    The two share one more ``options.time_budget_s``.
 3. *The proof*, asked once after the straight motions failed and before the first search
@@ -41,10 +41,10 @@ from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
 from planner.planning.mode_change import plan_mode_change
-from planner.planning.planner import joint_shifts, plan_to_goal_set, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.proofs import proof_region_map
 from planner.planning.result import Diagnostics, PlanResult, PlanStatus, proven_no_path
+from planner.planning.single_mode import joint_shifts, plan_to_goal_set, posture_mode
 from planner.validity import Margins, ValidityChecker
 
 __all__ = [

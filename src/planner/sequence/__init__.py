@@ -5,7 +5,7 @@ shortest cycle.
 :func:`solve_sequence` (:mod:`planner.sequence.solve`) is the call, exported as
 ``planner.solve_sequence`` beside :func:`planner.solve`; its inputs and answer are the data
 classes of :mod:`planner.sequence.problem` (light: the wire imports them alone), and the
-working-mode search of ``objective="time"`` is :mod:`planner.sequence.modes`.
+working-mode search of ``objective="time"`` is :mod:`planner.sequence.mode_search`.
 """
 
 from planner.sequence.problem import (

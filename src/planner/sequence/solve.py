@@ -6,7 +6,7 @@ cycle time. The steps, each a function here:
 1. the targets checked (:func:`_checked_targets`: at least one, at most
    :data:`~planner.sequence.problem.MAX_SEQUENCE_TARGETS`, each blend >= 0);
 2. with ``objective="time"``, each Cartesian target in working mode "any" gets the mode
-   that makes the whole cycle shortest (:func:`planner.sequence.modes.choose_modes`);
+   that makes the whole cycle shortest (:func:`planner.sequence.mode_search.choose_modes`);
 3. every leg planned in turn from the previous arrival posture by :func:`planner.solve`
    (the plan with its validity rules, obstacles and margins; timing off), so a leg is
    planned exactly as a single plan is (:func:`_plan_legs`); the first leg that fails
@@ -368,7 +368,7 @@ def solve_sequence(
     cycle : return to ``start`` at the end (the return leg's ``target_index`` is
         ``len(targets)``).
     objective : "time" (default: each Cartesian target in working mode "any" gets the mode
-        that makes the whole trajectory shortest, :mod:`planner.sequence.modes`) or "fixed"
+        that makes the whole trajectory shortest, :mod:`planner.sequence.mode_search`) or "fixed"
         (each target as given; "any" is the single plan's rule).
     timing, limits : as for :func:`planner.solve`; ``timing.method="none"`` plans the legs
         only. ``timing.max_deviation`` is the corner allowance of the legs' own corners.
@@ -422,7 +422,7 @@ def solve_sequence(
     if objective == "time" and any(
         isinstance(g, CartesianTarget) and g.working_mode == "any" for g in goals
     ):
-        from planner.sequence.modes import choose_modes
+        from planner.sequence.mode_search import choose_modes
 
         return choose_modes(design, start, targets, goals, stops, cycle, t0, **kwargs)
     return solve_with_goals(design, start, targets, goals, stops, cycle, t0, **kwargs)
@@ -450,7 +450,7 @@ def solve_with_goals(
     compare_stops: bool = True,
 ) -> SequenceResult:
     """Steps 3-6 of :func:`solve_sequence` for goals whose working modes are settled (the
-    targets' own, or an assignment of :mod:`planner.sequence.modes`): plan the legs
+    targets' own, or an assignment of :mod:`planner.sequence.mode_search`): plan the legs
     (``plan_cache``: leg plans already made, by leg, start posture and goal), join, time,
     read the legs' times. ``extra``: the mode search's diagnostics (``runner_up``,
     ``estimates``). With ``compare_stops``, a sequence passing targets exactly (blend 0) is

@@ -1,7 +1,7 @@
 """``POST /v1/cartesian``: straight tool paths (``docs/cartesian.md``). The request, its
 timing options, the response (a plan response plus ``fraction``, the stopping point and
 the deviation from the polyline) and the conversions to and from
-:func:`planner.planning.cartesian.plan_cartesian`, once each way.
+:func:`planner.cartesian.plan.plan_cartesian`, once each way.
 """
 
 from __future__ import annotations
@@ -169,7 +169,7 @@ class CartesianResponse(_Response):
 @dataclass(frozen=True)
 class CartesianInputs:
     """A Cartesian request as the library's objects (each field's errors located): the
-    arguments of :func:`planner.planning.cartesian.plan_cartesian`."""
+    arguments of :func:`planner.cartesian.plan.plan_cartesian`."""
 
     design: Design
     start: Any
@@ -226,7 +226,7 @@ def _finite(x: float) -> float | None:
 
 def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> CartesianResponse:
     """The answer of one straight path, built once from a
-    :class:`planner.planning.cartesian.CartesianResult`."""
+    :class:`planner.cartesian.plan.CartesianResult`."""
     d = result.diagnostics
     timed = result.trajectory is not None
     diagnostics = CartesianDiagnosticsModel(

@@ -4,7 +4,7 @@ through transits when the goal needs another working mode, and asks the region m
 when no path may exist.
 
 Goals in the start's own mode go to the single-mode planner
-(:func:`planner.planning.planner.plan_single_mode`) unchanged. A goal in another working mode
+(:func:`planner.planning.single_mode.plan_single_mode`) unchanged. A goal in another working mode
 of the start's assembly mode is planned through serial-singularity transits
 (:func:`planner.planning.mode_change.plan_mode_change`). A Cartesian target with
 ``working_mode`` "any" is first planned in the start's mode; the mode change is tried when
@@ -33,7 +33,6 @@ from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
 from planner.planning.mode_change import estimated_transit_length, plan_mode_change
-from planner.planning.planner import goal_candidates, plan_single_mode, posture_mode
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.proofs import (
     disprove_with_map,
@@ -41,6 +40,7 @@ from planner.planning.proofs import (
     proof_region_map,
 )
 from planner.planning.result import Diagnostics, PlanResult, PlanStatus
+from planner.planning.single_mode import goal_candidates, plan_single_mode, posture_mode
 from planner.validity import Margins, ValidityChecker
 
 __all__ = [
@@ -58,7 +58,7 @@ BETTER_RATIO = 0.7
 #: asks the 3-D proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans
 #: among obstacles are found well within it (``benchmarks/planning.py``), and a stuck one can
 #: afford the proof's few to tens of milliseconds. A single-mode search asks it after its
-#: first try (:func:`planner.planning.planner.plan_in_region`).
+#: first try (:func:`planner.planning.single_mode.plan_in_region`).
 OBSTACLE_PROOF_AFTER_S = 0.03
 
 
@@ -79,7 +79,7 @@ def plan(
     One function per kind of goal: :func:`_plan_to_joint_goal`,
     :func:`_plan_to_point_in_mode` (Cartesian target in a given working mode) and
     :func:`_plan_to_point_in_any_mode` (``working_mode`` 'any'). Each asks the single-mode
-    planner (:func:`planner.planning.planner.plan_single_mode`) first, and plans through
+    planner (:func:`planner.planning.single_mode.plan_single_mode`) first, and plans through
     transits (:func:`planner.planning.mode_change.plan_mode_change`) when that answer calls
     for it.
 

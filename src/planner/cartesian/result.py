@@ -1,4 +1,4 @@
-"""Results of a straight tool path (:func:`planner.planning.cartesian.plan_cartesian`): the
+"""Results of a straight tool path (:func:`planner.cartesian.plan.plan_cartesian`): the
 answer, where and why it stops short, the surfaces the polyline meets, and its measures.
 
 Pure data, like :mod:`planner.planning.result` (whose statuses and plan diagnostics these
@@ -48,7 +48,7 @@ class StopPoint:
 @dataclass(frozen=True, slots=True)
 class PathEvent:
     """A surface the polyline meets, found by
-    :func:`planner.planning.cartesian_inspect.inspect_cartesian`.
+    :func:`planner.cartesian.inspection.inspect_cartesian`.
 
     Attributes
     ----------
@@ -109,7 +109,7 @@ class CartesianDiagnostics:
 
 @dataclass(frozen=True, eq=False)
 class CartesianResult:
-    """Result of :func:`planner.planning.cartesian.plan_cartesian`.
+    """Result of :func:`planner.cartesian.plan.plan_cartesian`.
 
     Attributes
     ----------

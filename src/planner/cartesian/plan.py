@@ -28,11 +28,11 @@ How a straight path is built (``docs/cartesian.md`` has the full argument):
    (:func:`blend_allowance`).
 
 One module a part, this one the plan (steps 1-4) and the family's public face (it exports the
-names users import from ``planner.planning.cartesian``): :mod:`planner.planning.cartesian_walk`
+names users import from ``planner.cartesian.plan``): :mod:`planner.cartesian.walk`
 (the polyline, the inverse kinematics of the mode's branch along it, the bisection of step 1),
-:mod:`planner.planning.cartesian_chords` (the bounds of steps 2 and 4),
-:mod:`planner.planning.cartesian_inspect` (the pre-check) and
-:mod:`planner.planning.cartesian_result` (the answer).
+:mod:`planner.cartesian.chords` (the bounds of steps 2 and 4),
+:mod:`planner.cartesian.inspection` (the pre-check) and
+:mod:`planner.cartesian.result` (the answer).
 """
 
 from __future__ import annotations
@@ -44,29 +44,19 @@ from typing import Literal
 
 import numpy as np
 
-from planner.design import Design
-from planner.exceptions import (
-    DeadlineError,
-    InputError,
-    TimingDeadlineError,
-    TimingError,
-    check_deadline,
-)
-from planner.geometry import Obstacle
-from planner.kinematics import WORKING_MODES, conditioning, forward_batch
-from planner.planning.cartesian_chords import (
+from planner.cartesian.chords import (
     blend_allowance,
     chord_deviation_bound,
     second_derivative_bound,
 )
-from planner.planning.cartesian_inspect import inspect_cartesian
-from planner.planning.cartesian_result import (
+from planner.cartesian.inspection import inspect_cartesian
+from planner.cartesian.result import (
     CartesianDiagnostics,
     CartesianResult,
     PathEvent,
     StopPoint,
 )
-from planner.planning.cartesian_walk import (
+from planner.cartesian.walk import (
     BISECT_TOL,
     PROBE_STEP,
     Polyline,
@@ -77,9 +67,19 @@ from planner.planning.cartesian_walk import (
     narrow_bracket,
     unwrap_chain,
 )
-from planner.planning.planner import posture_mode
+from planner.design import Design
+from planner.exceptions import (
+    DeadlineError,
+    InputError,
+    TimingDeadlineError,
+    TimingError,
+    check_deadline,
+)
+from planner.geometry import Obstacle
+from planner.kinematics import WORKING_MODES, conditioning, forward_batch
 from planner.planning.problem import JointPosture
 from planner.planning.result import PlanPath, PlanStatus, Segment
+from planner.planning.single_mode import posture_mode
 from planner.validity import Margins, ValidityChecker
 
 __all__ = [

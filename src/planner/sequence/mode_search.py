@@ -55,7 +55,7 @@ from planner.exceptions import InputError
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, goal_candidates
-from planner.planning.planner import posture_mode
+from planner.planning.single_mode import posture_mode
 from planner.sequence.problem import SequenceDiagnostics, SequenceResult, SequenceTarget
 from planner.sequence.solve import _solved_message, solve_with_goals
 from planner.timing.limits import JointLimits

@@ -1,6 +1,6 @@
 """Single-mode planning: :func:`plan_single_mode` and its building block :func:`plan_in_region`.
 
-The library's entry point is :func:`planner.planning.plan` (:mod:`planner.planning.modes`),
+The library's entry point is :func:`planner.planning.plan` (:mod:`planner.planning.dispatch`),
 which calls :func:`plan_single_mode` first and changes working mode when the goal needs it.
 A single-mode plan lives in one working mode and one assembly mode, both taken from the start
 posture.
@@ -253,7 +253,7 @@ def plan_in_region(
     gets what remains of the budget when the corridor finds nothing.
     ``before_search``, when given, is called once with ``q_goals`` just before the first OMPL
     search (the straight motion failed); a result it returns is the answer, no search run
-    (the planner's proof that no path exists, :func:`planner.planning.modes.plan`).
+    (the planner's proof that no path exists, :func:`planner.planning.dispatch.plan`).
     ``when_stuck``, when given and the scene has obstacles, is called once with ``q_goals``
     when the first try found nothing (the corridor, when its grid is cached; else a plain
     search of :data:`planner.planning.corridor.FIRST_TRY_S`), before a corridor grid is built:

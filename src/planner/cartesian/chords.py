@@ -1,7 +1,7 @@
 """Chord bounds of a straight tool path: how far P strays from the Cartesian line along a
 straight joint motion, and how far a timing blend may cut a corner.
 
-Between two consecutive joint waypoints of :func:`planner.planning.cartesian.plan_cartesian`
+Between two consecutive joint waypoints of :func:`planner.cartesian.plan.plan_cartesian`
 the robot moves on the straight joint segment, whose P leaves the Cartesian line;
 :func:`chord_deviation_bound` bounds that deviation from above (a second-derivative bound,
 :func:`second_derivative_bound`, proved in its docstring), and the plan splits a piece until

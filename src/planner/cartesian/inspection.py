@@ -4,7 +4,7 @@ parallel singular surface, before any planning.
 
 The serial surfaces are closed forms (spheres about A and B, a cylinder about the axis AB),
 met by each straight segment at the roots of quadratics; kappa(A) and the joint limits are
-probed along the working mode's branch and bisected (:mod:`planner.planning.cartesian_walk`).
+probed along the working mode's branch and bisected (:mod:`planner.cartesian.walk`).
 """
 
 from __future__ import annotations
@@ -13,12 +13,9 @@ import math
 
 import numpy as np
 
-from planner.design import Design
-from planner.exceptions import check_deadline
-from planner.kinematics import WORKING_MODES, forward_batch
-from planner.planning.cartesian_chords import cd_length
-from planner.planning.cartesian_result import PathEvent
-from planner.planning.cartesian_walk import (
+from planner.cartesian.chords import cd_length
+from planner.cartesian.result import PathEvent
+from planner.cartesian.walk import (
     BISECT_TOL,
     PROBE_STEP,
     Polyline,
@@ -28,8 +25,11 @@ from planner.planning.cartesian_walk import (
     unwrap_chain,
     unwrap_to,
 )
-from planner.planning.planner import posture_mode
+from planner.design import Design
+from planner.exceptions import check_deadline
+from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning.problem import JointPosture
+from planner.planning.single_mode import posture_mode
 from planner.validity import Margins
 
 #: Most probes of the pre-check's probed rules (kappa_max, joint limits, parallel
@@ -92,7 +92,7 @@ def inspect_cartesian(
     kappa_max and parallel surfaces are found by probing every ``probe_step`` m and bisecting;
     so are the joint limits (literal, unwrapped from the start). At most
     :data:`MAX_INSPECT_PROBES` probes: a longer polyline is probed more coarsely (a pre-check's
-    hints; :func:`planner.planning.cartesian.plan_cartesian` itself probes every
+    hints; :func:`planner.cartesian.plan.plan_cartesian` itself probes every
     :data:`PROBE_STEP` m). Past ``deadline`` (a :func:`time.monotonic` value),
     :class:`~planner.exceptions.DeadlineError`.
 

@@ -7,9 +7,9 @@ waypoints in order. Its points are turned into postures by the inverse kinematic
 start's working mode (:func:`branch_ik`: one branch, the mode's sign triple fixes it; a point
 where the branch does not exist or changes assembly mode has none), unwrapped towards a
 reference (:func:`unwrap_to`, :func:`unwrap_chain`). :class:`Walker` holds what the steps of
-:func:`planner.planning.cartesian.plan_cartesian` share; :func:`narrow_bracket` locates the
+:func:`planner.cartesian.plan.plan_cartesian` share; :func:`narrow_bracket` locates the
 first change of a rule between two probes (:data:`PROBE_STEP` apart) to :data:`BISECT_TOL`,
-for the plan and for :func:`planner.planning.cartesian_inspect.inspect_cartesian`.
+for the plan and for :func:`planner.cartesian.inspection.inspect_cartesian`.
 """
 
 from __future__ import annotations
@@ -167,7 +167,7 @@ def narrow_bracket(
 
 
 class Walker:
-    """State shared by the steps of :func:`planner.planning.cartesian.plan_cartesian`."""
+    """State shared by the steps of :func:`planner.cartesian.plan.plan_cartesian`."""
 
     def __init__(self, design, checker, poly, q0, slot, asm_sign):
         self.design = design
