@@ -31,7 +31,7 @@ belongs to the tenant that submitted it (:mod:`planner_api.tenants`): for every 
 its id answers the same 404 as an id never given (no existence leak), and a listing shows
 each tenant its own jobs only.
 
-Not to be confused with :mod:`planner_api.jobs`, the package of the job *functions* that every
+Not to be confused with :mod:`planner.endpoints`, the package of the job *functions* that every
 endpoint runs in a worker; this module's kinds name them.
 """
 
@@ -50,6 +50,12 @@ from typing import Any
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
+from planner.endpoints import Job
+from planner.endpoints import cartesian as cartesian_jobs
+from planner.endpoints import design as design_jobs
+from planner.endpoints import plan as plan_jobs
+from planner.endpoints import sequence as sequence_jobs
+from planner.endpoints import timing as timing_jobs
 from planner.wire import (
     CartesianRequest,
     DesignCheckRequest,
@@ -72,12 +78,6 @@ from planner_api.exceptions import (
     StoreUnavailableError,
 )
 from planner_api.job_table import HEARTBEAT_S, JobRow
-from planner_api.jobs import Job
-from planner_api.jobs import cartesian as cartesian_jobs
-from planner_api.jobs import design as design_jobs
-from planner_api.jobs import plan as plan_jobs
-from planner_api.jobs import sequence as sequence_jobs
-from planner_api.jobs import timing as timing_jobs
 from planner_api.store_access import StoreAccess
 from planner_api.tenants import DEFAULT_TENANT
 from planner_api.workers import CLIENT_GONE

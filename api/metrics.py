@@ -49,7 +49,7 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from pydantic import BaseModel
 
-from planner_api.jobs import UNBOUNDED, Job, JobBudget, as_json
+from planner.endpoints import UNBOUNDED, Job, JobBudget, as_json
 from planner_api.logging import REQUEST_ID
 
 __all__ = ["CURRENT", "JobSample", "Metrics", "metrics", "record_job", "router", "run_measured"]
@@ -92,7 +92,7 @@ def run_measured(
     budget: JobBudget = UNBOUNDED,
     request_id: str | None = None,
 ) -> tuple[bytes, JobSample]:
-    """In a worker: :func:`planner_api.jobs.as_json` of ``job(request, budget)`` and its
+    """In a worker: :func:`planner.endpoints.as_json` of ``job(request, budget)`` and its
     :class:`JobSample`.
 
     ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job

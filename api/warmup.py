@@ -38,9 +38,9 @@ def warm_up_inline() -> float:
     their numba kernels (~2 s on a loaded 2-core machine, which would otherwise block the event
     loop on the first such request). Run in a thread at start-up; ``/v1/ready`` waits for it.
     Returns its seconds."""
+    from planner.endpoints import kinematics
     from planner.warmup import quiet_library_logs
     from planner.wire import AnalyzeRequest, FKRequest, IKRequest
-    from planner_api.jobs import kinematics
     from planner_api.metrics import run_measured
 
     t0 = time.perf_counter()
@@ -52,8 +52,8 @@ def warm_up_inline() -> float:
 
 
 def _run_jobs() -> None:
+    from planner.endpoints import JobBudget, cartesian, kinematics, plan
     from planner.wire import CartesianRequest, FKRequest, IKRequest, PlanRequest
-    from planner_api.jobs import JobBudget, cartesian, kinematics, plan
     from planner_api.metrics import run_measured
     from planner_api.routes import worker_body  # noqa: F401  (a large body's job, imported)
 

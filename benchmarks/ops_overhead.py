@@ -1,6 +1,6 @@
 """Cost of the observability layer per request: the request-id / metrics / access-log
 middleware (:class:`planner_api.middleware.RequestObserver`) and the job sample returned by the
-workers (:func:`planner_api.metrics.run_measured` against :func:`planner_api.jobs.as_json`).
+workers (:func:`planner_api.metrics.run_measured` against :func:`planner.endpoints.as_json`).
 
 Both are timed in-process, with and without the layer, in the same run, on the same inputs
 (medians of batches; the ratio is of those medians):
@@ -24,9 +24,9 @@ from collections.abc import Awaitable, Callable
 
 from _machine import print_machine
 
+from planner.endpoints import as_json
+from planner.endpoints import kinematics as jobs
 from planner.wire import FKRequest
-from planner_api.jobs import as_json
-from planner_api.jobs import kinematics as jobs
 from planner_api.logging import JsonFormatter, RequestIdFilter
 from planner_api.metrics import Metrics, run_measured
 from planner_api.middleware import RequestObserver

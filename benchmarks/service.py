@@ -53,6 +53,10 @@ from _machine import print_machine
 from _server import ROOT, free_port, start_service
 
 from planner.client import AsyncPlannerClient
+from planner.endpoints import cartesian as cartesian_jobs
+from planner.endpoints import kinematics as kinematics_jobs
+from planner.endpoints import plan as plan_jobs
+from planner.endpoints import timing as timing_jobs
 from planner.wire import (
     AnalyzeRequest,
     CartesianRequest,
@@ -60,10 +64,6 @@ from planner.wire import (
     PlanRequest,
     TimingRequest,
 )
-from planner_api.jobs import cartesian as cartesian_jobs
-from planner_api.jobs import kinematics as kinematics_jobs
-from planner_api.jobs import plan as plan_jobs
-from planner_api.jobs import timing as timing_jobs
 
 
 def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:

@@ -169,15 +169,15 @@ def run(kind: str, body: dict[str, Any]) -> dict[str, Any]:
     from planner import wire
 
     if kind == "plan":
-        from planner_api.jobs.plan import plan as job
+        from planner.endpoints.plan import plan as job
 
         request: Any = wire.PlanRequest.model_validate(body)
     elif kind == "sequence":
-        from planner_api.jobs.sequence import sequence as job
+        from planner.endpoints.sequence import sequence as job
 
         request = wire.SequenceRequest.model_validate(body)
     else:
-        from planner_api.jobs.cartesian import cartesian as job
+        from planner.endpoints.cartesian import cartesian as job
 
         request = wire.CartesianRequest.model_validate(body)
     return strip(json.loads(job(request).model_dump_json()))

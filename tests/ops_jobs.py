@@ -8,8 +8,8 @@ import os
 import sys
 import time
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import DiagnosticsModel, PlanRequest, PlanResponse
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 logger = logging.getLogger("tests.ops_jobs")
 

@@ -61,6 +61,7 @@ CORE_FORBIDDEN = (
     "typer",
     SERVICE_NAME,
     "planner.wire",
+    "planner.endpoints",
     "planner.client",
     "planner_cli",
 )
@@ -121,7 +122,41 @@ def test_the_tree_is_read() -> None:
     """The rules below see the whole tree (a wrong root would make every rule vacuous)."""
     assert "planner.validity" in SOURCES
     assert "planner.planning.ompl_backend" in SOURCES
-    assert f"{SERVICE_NAME}.jobs.plan" in SOURCES
+    assert "planner.endpoints.plan" in SOURCES
+
+
+#: What the endpoints (each request's work without HTTP) may never import: the service, HTTP
+#: and the CLI; the CLI may import the endpoints but never the service package (other than to
+#: start it: ``planner serve``).
+ENDPOINTS_FORBIDDEN = (
+    SERVICE_NAME,
+    "fastapi",
+    "starlette",
+    "uvicorn",
+    "httpx",
+    "typer",
+    "planner_cli",
+)
+
+
+def test_the_endpoints_know_nothing_of_http_and_the_cli_nothing_of_the_service() -> None:
+    """The CLI answers a request in its own process through :mod:`planner.endpoints` (the
+    library), never through :mod:`planner_api`; the endpoints import no HTTP."""
+    endpoints = sorted(
+        f"{name} imports {module}"
+        for name, imported in IMPORTS.items()
+        if _within(name, ("planner.endpoints",))
+        for module in imported
+        if _within(module, ENDPOINTS_FORBIDDEN)
+    )
+    cli = sorted(
+        f"{name} imports {module}"
+        for name, imported in IMPORTS.items()
+        if _within(name, ("planner_cli",)) and name != "planner_cli.serve"
+        for module in imported
+        if _within(module, (SERVICE_NAME,))
+    )
+    assert endpoints == [] and cli == []
 
 
 def test_the_packages_installed_are_the_folders() -> None:
@@ -264,7 +299,7 @@ def test_the_wire_converts_and_runs_no_search() -> None:
 def test_the_plan_job_is_convert_solve_respond() -> None:
     """The service's plan job calls the library's plan-and-time step (:func:`planner.solve`),
     not the planner and the timing one by one."""
-    imported = IMPORTS[f"{SERVICE_NAME}.jobs.plan"]
+    imported = IMPORTS["planner.endpoints.plan"]
     assert "planner.solver" in imported
     assert not any(
         _within(m, ("planner.planning.goal_options", "planner.timing.parameterize"))
@@ -343,17 +378,17 @@ def test_the_library_is_typed() -> None:
     assert "py.typed" in pyproject
 
 
-def test_the_jobs_mirror_the_routes() -> None:
-    """One jobs module per resource: ``jobs/<name>.py`` is run by ``routes/<name>.py``, and a
-    route module runs no other resource's jobs."""
-    jobs = {n.rsplit(".", 1)[1] for n in SOURCES if n.startswith(f"{SERVICE_NAME}.jobs.")}
+def test_the_endpoints_mirror_the_routes() -> None:
+    """One endpoints module per resource: ``planner/endpoints/<name>.py`` is run by the
+    service's ``routes/<name>.py``, and a route module runs no other resource's endpoint."""
+    jobs = {n.rsplit(".", 1)[1] for n in SOURCES if n.startswith("planner.endpoints.")}
     routes = {n.rsplit(".", 1)[1] for n in SOURCES if n.startswith(f"{SERVICE_NAME}.routes.")}
     assert jobs and jobs <= routes, sorted(jobs - routes)
     for name in routes:
         used = {
             m.rsplit(".", 1)[1]
             for m in IMPORTS[f"{SERVICE_NAME}.routes.{name}"]
-            if m.startswith(f"{SERVICE_NAME}.jobs.")
+            if m.startswith("planner.endpoints.")
             and m.count(".") == 2
             and m.rsplit(".", 1)[1] in jobs
         }

@@ -19,9 +19,9 @@ from fastapi import Response
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
+from planner.endpoints import Job, JobBudget
 from planner.wire import DesignModel
 from planner_api.exceptions import LimitExceededError
-from planner_api.jobs import Job, JobBudget
 from planner_api.logging import REQUEST_ID
 from planner_api.metrics import record_job, run_measured
 from planner_api.workers import WorkerPool
@@ -125,7 +125,7 @@ async def run_job(
     guarantees it). The worker reports the job's durations, recorded here
     (:mod:`planner_api.metrics`). The body's design is completed from ``design_defaults`` first
     (:func:`with_design_defaults`). ``max_samples`` bounds the answer's trajectory samples
-    (:func:`planner_api.jobs.answer_sample_limit`)."""
+    (:func:`planner.endpoints.answer_sample_limit`)."""
     body = with_design_defaults(body, design_defaults)
     job_json = partial(
         run_measured,

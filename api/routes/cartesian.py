@@ -1,6 +1,6 @@
 """POST /v1/cartesian: straight tool paths, computed in a worker like a plan.
 
-The job is :func:`planner_api.jobs.cartesian.cartesian`. A finished path is a 200 whatever its
+The job is :func:`planner.endpoints.cartesian.cartesian`. A finished path is a 200 whatever its
 status (``solved`` exactly when ``fraction`` = 1); errors are for invalid input (422), a full
 pool (503) or the request's deadline (504).
 """
@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
+from planner.endpoints import answer_sample_limit
+from planner.endpoints import cartesian as jobs
 from planner.wire import CartesianRequest, CartesianResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
-from planner_api.jobs import answer_sample_limit
-from planner_api.jobs import cartesian as jobs
 from planner_api.routes._common import obstacles_within_limit, run_job
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (

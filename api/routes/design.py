@@ -13,6 +13,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
 from planner.design import Design
+from planner.endpoints import design as jobs
 from planner.wire import (
     MJCF_MEDIA_TYPE,
     DesignCheckRequest,
@@ -28,7 +29,6 @@ from planner.wire import (
     RegionsResponse,
 )
 from planner_api.deps import Deadline, Pool, SettingsDep
-from planner_api.jobs import design as jobs
 from planner_api.routes._common import json_response, run_job, with_design_defaults
 
 __all__ = [

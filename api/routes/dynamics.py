@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from planner.endpoints import dynamics as jobs
 from planner.wire import DynamicsRequest, DynamicsResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
-from planner_api.jobs import dynamics as jobs
 from planner_api.routes._common import run_job
 
 __all__ = ["dynamics", "router"]

@@ -20,11 +20,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Request, Response
 from fastapi.exceptions import RequestValidationError
 
+from planner.endpoints import Job, JobBudget, answer_sample_limit
 from planner.wire import ErrorResponse, JobList, JobRequest, JobStatus
 from planner_api.deps import Pool, SettingsDep, Tenant, get_deadline, get_pool, request_tenant
 from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
 from planner_api.job_store import LONG_JOBS, JobStore, Runner
-from planner_api.jobs import Job, JobBudget, answer_sample_limit
 from planner_api.metrics import record_job
 from planner_api.routes._common import run_job
 from planner_api.routes.plan import plan_job_of

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from planner.endpoints import kinematics as jobs
 from planner.wire import (
     AnalyzeRequest,
     AnalyzeResponse,
@@ -14,7 +15,6 @@ from planner.wire import (
     IKResponse,
 )
 from planner_api.deps import Deadline, SettingsDep
-from planner_api.jobs import kinematics as jobs
 from planner_api.routes._common import run_inline
 
 __all__ = ["analyze", "fk", "ik", "router"]

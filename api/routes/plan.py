@@ -1,6 +1,6 @@
 """POST /v1/plan and /v1/plan/batch.
 
-The job is :func:`planner_api.jobs.plan.plan`, resolved through the ``get_plan_function`` dependency
+The job is :func:`planner.endpoints.plan.plan`, resolved through the ``get_plan_function`` dependency
 (tests override it). A finished search is a 200 whatever its status; errors are for invalid
 input (422), a full pool (503) or the request's deadline (504).
 """
@@ -15,11 +15,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Request, Response
 from fastapi.exceptions import RequestValidationError
 
+from planner.endpoints import JobBudget, answer_sample_limit
+from planner.endpoints import plan as jobs
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 from planner_api.deps import Deadline, Pool, SettingsDep, get_deadline, get_pool, watch_client
 from planner_api.exceptions import LimitExceededError
-from planner_api.jobs import JobBudget, answer_sample_limit
-from planner_api.jobs import plan as jobs
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,

@@ -1,6 +1,6 @@
 """POST /v1/sequence: task sequences, computed in a worker like a plan.
 
-The job is :func:`planner_api.jobs.sequence.sequence`. A finished sequence is a 200 whatever
+The job is :func:`planner.endpoints.sequence.sequence`. A finished sequence is a 200 whatever
 its status (``solved`` only when every leg is; else the status of the first leg that failed,
 its index in ``message``); errors are for invalid input (422: no targets, more than
 ``PLANNER_MAX_SEQUENCE_TARGETS``, a negative blend or one larger than half its shorter leg),
@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
+from planner.endpoints import answer_sample_limit
+from planner.endpoints import sequence as jobs
 from planner.wire import SequenceRequest, SequenceResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.exceptions import LimitExceededError
-from planner_api.jobs import answer_sample_limit
-from planner_api.jobs import sequence as jobs
 from planner_api.routes._common import check_obstacle_count, run_job
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from planner.endpoints import answer_sample_limit
+from planner.endpoints import timing as jobs
 from planner.wire import TimingRequest, TimingResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
-from planner_api.jobs import answer_sample_limit
-from planner_api.jobs import timing as jobs
 from planner_api.routes._common import obstacles_within_limit, run_job
 from planner_api.routes.worker_body import (
     BodySpec,

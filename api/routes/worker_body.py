@@ -31,9 +31,9 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from pydantic import BaseModel, ValidationError
 
+from planner.endpoints import Job, JobBudget, answer_sample_limit
 from planner.wire import DesignModel
 from planner_api.deps import get_deadline, get_pool, watch_client
-from planner_api.jobs import Job, JobBudget, answer_sample_limit
 from planner_api.logging import REQUEST_ID
 from planner_api.metrics import record_job, run_measured
 from planner_api.routes._common import json_response, run_job, with_design_defaults

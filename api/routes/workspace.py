@@ -7,11 +7,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
 
+from planner.endpoints import workspace as jobs
 from planner.wire import ErrorResponse, FigureQuery, WorkspaceRequest, WorkspaceResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.errors import error_response
 from planner_api.exceptions import LimitExceededError
-from planner_api.jobs import workspace as jobs
 from planner_api.routes._common import run_job
 
 __all__ = ["figure", "router", "workspace"]

@@ -107,8 +107,8 @@ def regions(
     between them across serial surfaces (each end's region and its cells, and the crossing
     cells of the transit set that joins them), or with --json the answer of POST
     /v1/design/regions. Example: planner regions --design paper-optimum --resolution 128"""
+    from planner.endpoints.design import regions as job
     from planner.wire import RegionsRequest
-    from planner_api.jobs.design import regions as job
 
     margins = {k: v for k, v in {"kappa_max": kappa_max, "serial_min": serial_min}.items() if v}
     data = {"design": design_data(design, l0, l1, l2), "margins": margins, "resolution": resolution}

@@ -49,8 +49,8 @@ def dynamics(
 
     Prints the JSON that POST /v1/dynamics answers (tau, N m; mass_matrix). Example:
     planner dynamics 0 2 1 --qdd 1,0,0  (the default inertia: docs/dynamics.md)"""
+    from planner.endpoints.dynamics import dynamics as job
     from planner.wire import DynamicsRequest
-    from planner_api.jobs.dynamics import dynamics as job
 
     if request is not None:
         try:

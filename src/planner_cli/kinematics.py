@@ -28,8 +28,8 @@ def fk(
     """Direct kinematics of q, computed locally.
 
     Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
+    from planner.endpoints.kinematics import fk as job
     from planner.wire import FKRequest
-    from planner_api.jobs.kinematics import fk as job
 
     data = {"q": q, "assembly_mode": assembly_mode, "design": design_data(design, l0, l1, l2)}
     typer.echo(job(FKRequest.model_validate(data)).model_dump_json(indent=2))
@@ -49,8 +49,8 @@ def ik(
 
     Exit status: 0 one posture or more; 1 none (the JSON's list is empty, and stderr says why:
     P out of reach of a leg, or reached only in other working modes); 2 an invalid input."""
+    from planner.endpoints.kinematics import ik as job
     from planner.wire import IKRequest
-    from planner_api.jobs.kinematics import ik as job
 
     data = {"p": p, "working_mode": working_mode, "design": design_data(design, l0, l1, l2)}
     body = IKRequest.model_validate(data)

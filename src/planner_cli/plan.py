@@ -50,8 +50,8 @@ def plan(
         fail([f"cannot read {request}: {exc}"])
     with Progress("plan") as progress:
         progress.step("loading the planner", 0)
+        from planner.endpoints.plan import plan as job
         from planner.wire import PlanRequest
-        from planner_api.jobs.plan import plan as job
 
         body = PlanRequest.model_validate_json(text)
         progress.step(f"planning (search budget {body.planner.time_budget_s:g} s) and timing", 0)
@@ -109,8 +109,8 @@ def cartesian(
         )
     with Progress("cartesian") as progress:
         progress.step("loading the planner", 0)
+        from planner.endpoints.cartesian import cartesian as job
         from planner.wire import CartesianRequest
-        from planner_api.jobs.cartesian import cartesian as job
 
         data = {
             "design": design_data(design, l0, l1, l2),

@@ -38,8 +38,8 @@ def sequence(
         fail([f"cannot read {request}: {exc}"])
     with Progress("sequence") as progress:
         progress.step("loading the planner", 0)
+        from planner.endpoints.sequence import sequence as job
         from planner.wire import SequenceRequest
-        from planner_api.jobs.sequence import sequence as job
 
         body = SequenceRequest.model_validate_json(text)
         legs = len(body.targets) + body.cycle

@@ -73,11 +73,11 @@ def test_the_service_jobs_pass_their_request_deadline_to_the_library():
     request's deadline (``JobBudget.deadline``) to the library: with one already past, each
     stops at its first check (DeadlineError, answered 504 by the error table) instead of
     running the issue's requests for minutes (the pool's watchdog bounds any other job)."""
+    from planner.endpoints import JobBudget
+    from planner.endpoints.cartesian import cartesian
+    from planner.endpoints.design import optimize_design as optimize_job
+    from planner.endpoints.design import regions
     from planner.wire import CartesianRequest, DesignOptimizeRequest, RegionsRequest
-    from planner_api.jobs import JobBudget
-    from planner_api.jobs.cartesian import cartesian
-    from planner_api.jobs.design import optimize_design as optimize_job
-    from planner_api.jobs.design import regions
 
     past = JobBudget(deadline=time.monotonic() - 1.0)
     cases = [

@@ -313,9 +313,9 @@ def test_a_mode_search_whose_deadline_passed_ends_as_a_timeout(late_by):
     through the service's job (its answer, never a 500)."""
     import time
 
+    from planner.endpoints import JobBudget
+    from planner.endpoints.sequence import sequence as sequence_job
     from planner.wire import SequenceRequest
-    from planner_api.jobs import JobBudget
-    from planner_api.jobs.sequence import sequence as sequence_job
 
     targets = pick_place(stop_corners=True)
     deadline = time.monotonic() - late_by

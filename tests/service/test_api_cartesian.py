@@ -334,8 +334,8 @@ def test_the_worker_warm_up_runs_a_straight_path_through_its_timing(monkeypatch)
     """The service's warm-up runs one job of each kind, a Cartesian one included, and that one
     goes the whole way (planning and timing), so no request pays their first calls."""
     import planner_api.metrics as metrics
+    from planner.endpoints import cartesian as jobs
     from planner_api import warmup
-    from planner_api.jobs import cartesian as jobs
 
     seen: list = []
     monkeypatch.setattr(metrics, "run_measured", lambda job, body, **_: seen.append((job, body)))

@@ -10,7 +10,7 @@ import time
 import httpx
 import pytest
 
-from planner_api.jobs import BYTES_PER_SAMPLE, answer_sample_limit
+from planner.endpoints import BYTES_PER_SAMPLE, answer_sample_limit
 
 FK = {"q": [0.0, 1.0, 2.0]}
 START = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}

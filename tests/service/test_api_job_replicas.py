@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse
-from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 
 ALICE = {"X-API-Key": "alice-key"}

@@ -21,8 +21,8 @@ import httpx
 import pytest
 
 from planner.client import PlannerClient
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse, RegionsResponse, SequenceResponse
-from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}

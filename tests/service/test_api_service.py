@@ -13,9 +13,9 @@ import time
 import pytest
 from pydantic import ValidationError
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse
 from planner_api.exceptions import PoolSaturatedError
-from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 from planner_api.settings import Settings
 from planner_api.workers import WorkerPool

@@ -13,8 +13,8 @@ import time
 
 import pytest
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse
-from planner_api.jobs import UNBOUNDED, JobBudget
 from planner_api.routes.plan import get_plan_function
 
 ALICE = {"X-API-Key": "alice-key"}

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from planner import Design
+from planner.endpoints.plan import plan
 from planner.timing import JointLimits, time_path
 from planner.wire import PlanRequest
-from planner_api.jobs.plan import plan
 
 TINY = [0.0, 0.0, -2.225073858507e-311]
 

@@ -4,7 +4,7 @@
 :func:`planner.planning.plan` plans to one exact goal; :func:`plan_with_goal_options` calls it
 once, or a few times, and :func:`planner.planning.preference.choose_plan` chooses among the
 candidates. It is the library's function behind ``goal.prefer`` and ``goal.tolerance`` of
-``POST /v1/plan`` (the wire converts, :mod:`planner_api.jobs.plan` calls this), so a library
+``POST /v1/plan`` (the wire converts, :mod:`planner.endpoints.plan` calls this), so a library
 user gets the same options without the service.
 
 ``prefer`` (a Cartesian target with ``working_mode`` "any"):

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 from planner.wire import (
@@ -21,7 +22,6 @@ from planner.wire import (
     timing_error,
     trajectory_model,
 )
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["timing"]
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import DynamicsRequest, DynamicsResponse, dynamics_answer
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["dynamics"]
 

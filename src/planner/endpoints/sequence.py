@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import SequenceRequest, SequenceResponse, sequence_inputs, sequence_response
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["sequence"]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner.constants import KAPPA_SOLVABLE
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.exceptions import AssemblyError
 from planner.kinematics import SERIAL_KINDS, Manipulator
 from planner.wire import (
@@ -19,7 +20,6 @@ from planner.wire import (
     located,
     posture_model,
 )
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["analyze", "fk", "ik"]
 

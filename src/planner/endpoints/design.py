@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 
 from planner.constants import ANSWER_RESERVE_S
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.exceptions import InputError
 from planner.wire import (
     DesignCheckRequest,
@@ -23,7 +24,6 @@ from planner.wire import (
     regions_model,
     sampled_value,
 )
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["design_check", "mjcf", "mjcf_of_query", "optimize_design", "regions"]
 

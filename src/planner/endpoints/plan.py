@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse, plan_inputs, plan_response
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["plan"]
 

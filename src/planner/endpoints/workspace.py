@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.kinematics import mode_label
 from planner.wire import (
     DesignModel,
@@ -18,7 +19,6 @@ from planner.wire import (
     located,
     sampled_value,
 )
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["figure", "section_grid", "workspace"]
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.exceptions import InputError
 from planner.wire import (
     CartesianRequest,
@@ -10,7 +11,6 @@ from planner.wire import (
     cartesian_response,
     located,
 )
-from planner_api.jobs import UNBOUNDED, JobBudget
 
 __all__ = ["cartesian"]
 

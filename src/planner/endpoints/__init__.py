@@ -1,11 +1,14 @@
-"""The service's jobs, one module per resource as in :mod:`planner_api.routes`: request
-model in, response model out, run in a worker process (:mod:`planner_api.workers`). No
-FastAPI here: the same functions serve the CLI.
+"""Each endpoint's work without HTTP, one module per resource as in
+:mod:`planner_api.routes`: a request model of :mod:`planner.wire` in, its response model out.
+The service runs these functions in its worker processes (:mod:`planner_api`), the CLI in its
+own process (:mod:`planner_cli`), tests and benchmarks directly: one answer for one request
+whoever asks. It sits above the wire and the core (a motion endpoint converts the request
+once, runs the motion pipeline :func:`planner.motion.run`, and builds the response once) and
+below the service and the CLI; it knows nothing of HTTP (no FastAPI, no service settings).
 
-This module holds what every job shares: its budget (:class:`JobBudget`), the answer's
-sample bound, and :func:`as_json` (the call a worker makes). The wire <-> library
-conversions are those of :mod:`planner.wire`; a library error raised while converting one
-field is located there (:func:`planner.wire.located`), so :mod:`planner_api.errors` can name
+This module holds what every endpoint shares: its budget (:class:`JobBudget`), the answer's
+sample bound, and :func:`as_json` (the call a worker makes). A library error raised while
+converting one field is located there (:func:`planner.wire.located`), so the service can name
 the field in its 422 answer.
 """
 
