@@ -1,42 +1,29 @@
-"""Plan and time in one call: :func:`solve`, the library's plan-and-time step.
+"""Plan and time a motion to a goal: the goal kind of :mod:`planner.motion` (:class:`GoalMotion`)
+and :func:`solve`, the library's keyword call for it.
 
 A motion for a robot is a path that the planner certified *and* a trajectory that respects
-the actuators' limits and was checked again, densely, against the path's own rules. Both
-steps live in their rooms (:mod:`planner.planning` searches with OMPL, :mod:`planner.timing`
-times with TOPPRA or Ruckig); :func:`solve` is the one call that joins them, so that a
-library user, the service's plan job, the CLI, the warm-up and the benchmarks all take the
-same route:
+the actuators' limits and was checked again, densely, against the path's own rules. The
+planning step of this kind is :func:`planner.planning.plan_with_goal_options` (the goal
+options ``prefer`` and ``tolerance`` included), its search cut to the problem's budget; the
+rest (the gravity check at the start, the timing of the path under its own rules per piece,
+:func:`planner.motion.path_timing`, the dense re-check, the one deadline policy) is the
+pipeline's, :func:`planner.motion.run`, shared with the straight paths and the sequences.
 
-1. the plan: :func:`planner.planning.plan_with_goal_options` (the goal options ``prefer`` and
-   ``tolerance`` included), its search cut to the deadline policy below;
-2. the timing (unless ``timing.method`` is ``"none"`` or no path was found):
-   :func:`planner.timing.time_path` on the path's waypoints, with the path's own validity
-   rules per piece (:func:`planner.planning.path_state_checker`: each segment's working mode,
-   serial rules off next to a transit, within ``timing.max_deviation`` of the path) re-checked
-   densely, coming to rest at the transits when asked.
-
-The deadline policy (one, here): ``deadline`` is a :func:`time.monotonic` value by which the
-whole answer must be ready. The searches may run until ``deadline -``
-:data:`planner.constants.ANSWER_RESERVE_S` (the
-search budget ``options.time_budget_s`` is cut to what remains), so that a search that runs
-out ends as ``no_path`` with time left to answer, not as a missed deadline; the timing runs
-until ``deadline`` itself (past it, :class:`~planner.exceptions.TimingDeadlineError`: the
-service's status ``timeout``).
+:func:`solve` builds the :class:`~planner.motion.MotionProblem` from its keywords and runs the
+pipeline; a caller holding a problem already (the wire, a sequence's legs) runs
+``run(problem, GoalMotion(goal, prefer, tolerance))`` itself.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
-import numpy as np
-
-from planner.constants import ANSWER_RESERVE_S
 from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia
-from planner.exceptions import InputError, TimingError
+from planner.exceptions import TimingError
 from planner.geometry import Obstacle
+from planner.motion import MotionProblem, Planned, Timed, path_timing, run
 from planner.planning import (
     CartesianTarget,
     JointPosture,
@@ -44,17 +31,15 @@ from planner.planning import (
     PlanPath,
     PlanResult,
     PlanStatus,
-    path_state_checker,
     plan_with_goal_options,
 )
 from planner.planning.result import Diagnostics
 from planner.timing.limits import JointLimits
 from planner.timing.options import TimingOptions
-from planner.timing.torque import gravity_at_start
 from planner.timing.trajectory import Trajectory
 from planner.validity import Margins
 
-__all__ = ["Solution", "search_budget", "solve", "time_plan"]
+__all__ = ["GoalMotion", "Solution", "solve"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,15 +79,43 @@ class Solution:
         return self.plan.solved and self.timing_error is None
 
 
-def search_budget(options: PlanOptions, deadline: float | None) -> PlanOptions:
-    """``options`` with its search budget cut to what remains before ``deadline`` less
-    :data:`~planner.constants.ANSWER_RESERVE_S` (at least 10 ms); unchanged without a deadline."""
-    if deadline is None:
-        return options
-    left = deadline - time.monotonic() - ANSWER_RESERVE_S
-    if left >= options.time_budget_s:
-        return options
-    return replace(options, time_budget_s=max(left, 0.01))
+@dataclass(frozen=True, slots=True, eq=False)
+class GoalMotion:
+    """A motion to one goal (a joint posture, or a Cartesian target in a working mode or
+    "any") with the goal options ``prefer`` and ``tolerance``
+    (:func:`planner.planning.plan_with_goal_options`): a :class:`planner.motion.Motion` whose
+    answer is a :class:`Solution`."""
+
+    goal: JointPosture | CartesianTarget
+    prefer: str = "shortest"
+    tolerance: float = 0.0
+
+    def plan(self, problem: MotionProblem) -> Planned[PlanResult]:
+        """The search, cut to the budget's search deadline; the path timed under its own
+        rules (:func:`planner.motion.path_timing`)."""
+        budget = problem.budget
+        result = plan_with_goal_options(
+            problem.design,
+            problem.start,
+            self.goal,
+            obstacles=problem.obstacles,
+            margins=problem.margins,
+            options=budget.search_options(problem.options),
+            prefer=self.prefer,
+            tolerance=self.tolerance,
+            deadline=budget.search_deadline,
+        )
+        timing = None if result.path is None else path_timing(problem, result.path)
+        return Planned(result.status, result.message, result, timing)
+
+    def answer(
+        self, problem: MotionProblem, planned: Planned[PlanResult], timed: Timed
+    ) -> Solution:
+        """The plan, its trajectory or the timing's error."""
+        plan = planned.detail
+        if plan is None:  # stopped before planning
+            plan = PlanResult(planned.status, planned.message, None, Diagnostics(0.0))
+        return Solution(plan, timed.trajectory, timed.error)
 
 
 def solve(
@@ -163,97 +176,16 @@ def solve(
     >>> s.solved, s.trajectory.q[-1].round(6).tolist()
     (True, [0.4, 2.2, 1.1])
     """
-    margins = margins if margins is not None else Margins()
-    options = options if options is not None else PlanOptions()
-    timing = timing if timing is not None else TimingOptions()
-    held = gravity_at_start(design, start.q, start.assembly_mode, limits, inertia, gravity)
-    if held is not None and timing.method != "none":
-        return Solution(PlanResult(PlanStatus.INVALID_START, held, None, Diagnostics(0.0)))
-    result = plan_with_goal_options(
+    problem = MotionProblem.of(
         design,
         start,
-        goal,
         obstacles=obstacles,
         margins=margins,
-        options=search_budget(options, deadline),
-        prefer=prefer,
-        tolerance=tolerance,
-        deadline=None if deadline is None else deadline - ANSWER_RESERVE_S,
+        options=options,
+        timing=timing,
+        limits=limits,
+        inertia=inertia,
+        gravity=gravity,
+        deadline=deadline,
     )
-    if timing.method == "none" or result.path is None:
-        return Solution(result)
-    try:
-        trajectory = time_plan(
-            design,
-            result.path,
-            obstacles=obstacles,
-            margins=margins,
-            timing=timing,
-            limits=limits,
-            stop_at_transits=options.stop_at_transits,
-            deadline=deadline,
-            inertia=inertia,
-            gravity=gravity,
-        )
-    except TimingError as exc:  # deadline, no profile, or the dense re-check failed
-        return Solution(result, timing_error=exc)
-    return Solution(result, trajectory)
-
-
-def time_plan(
-    design: Design,
-    path: PlanPath,
-    *,
-    obstacles: Sequence[Obstacle] = (),
-    margins: Margins | None = None,
-    timing: TimingOptions | None = None,
-    limits: JointLimits | None = None,
-    stop_at_transits: bool = False,
-    deadline: float | None = None,
-    inertia: Inertia | None = None,
-    gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
-    max_deviation: float | np.ndarray | None = None,
-    stop_at: Sequence[int] = (),
-    via_at: Sequence[int] = (),
-) -> Trajectory:
-    """The timing step of :func:`solve` for a planned path: :func:`planner.timing.time_path`
-    under the path's own rules per piece (:func:`planner.planning.path_state_checker`),
-    coming to rest at the transits when ``stop_at_transits`` or ``timing.stop_at_transits``.
-    A sequence (:func:`planner.sequence.solve_sequence`) times its joined legs here too, with
-    its own corner allowance per waypoint (``max_deviation``, shape (N,), rad; default
-    ``timing.max_deviation`` everywhere) and its stop targets (``stop_at``: waypoint indices
-    where the trajectory comes to rest, besides the transits) and its pass-through targets
-    (``via_at``: waypoints passed as free via states within their ``max_deviation``,
-    :mod:`planner.timing.vias`). Raises :class:`~planner.exceptions.TimingError` as ``time_path`` does; an
-    :class:`~planner.exceptions.InputError` names its field under ``timing.``."""
-    from planner.timing import time_path
-
-    margins = margins if margins is not None else Margins()
-    timing = timing if timing is not None else TimingOptions()
-    limits = limits if limits is not None else JointLimits.default()
-    check = path_state_checker(design, margins, obstacles, path, near=timing.max_deviation)
-    stop = stop_at_transits or timing.stop_at_transits
-    rests = sorted({*(t.index for t in path.transits if stop), *(int(i) for i in stop_at)})
-    deviation = timing.max_deviation if max_deviation is None else max_deviation
-    try:
-        return time_path(
-            design,
-            np.asarray(path.waypoints, dtype=float),
-            limits,
-            method=timing.method,
-            assembly_mode=path.segments[0].assembly_mode if path.segments else "+",
-            sample_rate_hz=timing.sample_rate_hz,
-            max_cartesian_speed=timing.max_cartesian_speed,
-            max_deviation=deviation,
-            stop_at=rests,
-            check_states=check,
-            deadline=deadline,
-            max_samples=timing.max_samples,
-            inertia=inertia,
-            gravity=gravity,
-            via_at=[int(i) for i in via_at],
-        )
-    except InputError as exc:
-        if exc.field is not None and not exc.field_path[:1] == ("timing",):
-            exc.field = ("timing", *exc.field_path)
-        raise
+    return run(problem, GoalMotion(goal, prefer, tolerance))

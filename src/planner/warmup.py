@@ -9,8 +9,7 @@ on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's t
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
 entry points (the paths the service's jobs take: :func:`planner.planning.plan`,
-:func:`planner.solver.time_plan` (the timing step of :func:`planner.solve`) with TOPPRA and
-with Ruckig, the workspace analysis,
+:func:`planner.motion.time_planned` (the pipeline's timing step) with TOPPRA and with Ruckig, the workspace analysis,
 :func:`planner.plotting.render_figure`), so that afterwards the first job of each kind costs
 what the second one does. The service's workers call it when they start (``/v1/ready`` waits
 for them); ``make run`` / ``make test`` and the Docker build call ``planner warm-up`` so that
@@ -184,25 +183,25 @@ def _corridor(state: _State) -> None:
 
 
 def _time_plans(state: _State, method: str) -> None:
-    """Time every path found as :func:`planner.solve` does (:func:`planner.solver.time_plan`:
-    the path's own rules re-checked densely), coming to rest at the transits of the
-    mode-change path."""
-    from planner.solver import time_plan
+    """Time every path found as :func:`planner.solve` does (the pipeline's timing step,
+    :func:`planner.motion.time_planned`: the path's own rules re-checked densely), coming to
+    rest at the transits of the mode-change path."""
+    from planner.motion import MotionProblem, path_timing, time_planned
+    from planner.planning import JointPosture
     from planner.timing import JointLimits, TimingOptions, time_path
 
-    timing = TimingOptions(method=method)
     for result, obstacles, margins in state.plans:
         if result.path is None:  # a budget too short on a very slow machine: time a line
             time_path(state.design, np.array([_START, _GOAL]), JointLimits.default(), method=method)
             continue
-        time_plan(
-            state.design,
-            result.path,
-            obstacles=obstacles,
-            margins=margins,
-            timing=timing,
-            stop_at_transits=bool(result.path.transits),
+        timing = TimingOptions(method=method, stop_at_transits=bool(result.path.transits))
+        start = JointPosture(result.path.waypoints[0], result.path.segments[0].assembly_mode)
+        problem = MotionProblem.of(
+            state.design, start, obstacles=obstacles, margins=margins, timing=timing
         )
+        timed = time_planned(problem, path_timing(problem, result.path))
+        if timed.error is not None:
+            raise timed.error
 
 
 def _analysis(state: _State) -> None:

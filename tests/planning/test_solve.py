@@ -21,8 +21,9 @@ from planner import Design
 from planner.constants import ANSWER_RESERVE_S
 from planner.exceptions import InputError, TimingDeadlineError
 from planner.geometry import Sphere
+from planner.motion import Budget
 from planner.planning import CartesianTarget, JointPosture, PlanOptions, plan_with_goal_options
-from planner.solver import search_budget, solve
+from planner.solver import solve
 from planner.timing import JointLimits, TimingOptions
 from planner.validity import Margins
 from planner.wire import plan_response
@@ -102,11 +103,13 @@ def test_an_unsolved_plan_is_not_timed():
 
 def test_the_deadline_policy_keeps_the_answer_reserve():
     options = PlanOptions(time_budget_s=5.0)
-    assert search_budget(options, None) is options
-    cut = search_budget(options, time.monotonic() + 1.0)
+    assert Budget().search_options(options) is options and Budget().search_deadline is None
+    soon = Budget.within(1.0)
+    cut = soon.search_options(options)
     assert cut.time_budget_s <= 1.0 - ANSWER_RESERVE_S
-    assert search_budget(options, time.monotonic() - 1.0).time_budget_s == pytest.approx(0.01)
-    assert search_budget(options, time.monotonic() + 100.0) is options
+    assert soon.search_deadline == pytest.approx(soon.deadline - ANSWER_RESERVE_S)
+    assert Budget.within(-1.0).search_options(options).time_budget_s == pytest.approx(0.01)
+    assert Budget.within(100.0).search_options(options) is options
 
 
 def test_a_passed_deadline_stops_the_timing_not_the_caller():

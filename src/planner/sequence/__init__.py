@@ -2,7 +2,9 @@
 stopping at some and passing through the others, with the working modes chosen for the
 shortest cycle.
 
-:func:`solve_sequence` (:mod:`planner.sequence.solve`) is the call, exported as
+:func:`plan_sequence` (:mod:`planner.sequence.solve`) answers a
+:class:`~planner.motion.MotionProblem` and its targets through the motion pipeline
+(:class:`SequenceMotion`); :func:`solve_sequence` is its keyword call, exported as
 ``planner.solve_sequence`` beside :func:`planner.solve`; its inputs and answer are the data
 classes of :mod:`planner.sequence.problem` (light: the wire imports them alone), and the
 working-mode search of ``objective="time"`` is :mod:`planner.sequence.mode_search`.
@@ -16,7 +18,7 @@ from planner.sequence.problem import (
     SequenceResult,
     SequenceTarget,
 )
-from planner.sequence.solve import solve_sequence
+from planner.sequence.solve import SequenceMotion, plan_sequence, solve_sequence
 
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
@@ -24,6 +26,8 @@ __all__ = [
     "Leg",
     "SequenceDiagnostics",
     "SequenceResult",
+    "SequenceMotion",
     "SequenceTarget",
+    "plan_sequence",
     "solve_sequence",
 ]

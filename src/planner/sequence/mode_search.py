@@ -21,7 +21,8 @@ search is exact with respect to what it evaluates:
    best-first search over targets x modes, the exact remaining bound of the dynamic
    programme as its heuristic, so each completed assignment popped is the next best);
 4. **refined by real plans**: each popped assignment is planned and timed for real
-   (:func:`~planner.sequence.solve.solve_with_goals`, leg plans shared between assignments),
+   (:class:`~planner.sequence.solve.SequenceMotion` through the pipeline, leg plans shared
+   between assignments),
    until the next assignment's bound is no smaller than the best real cycle time found: no
    assignment left can beat it, so the best found is the optimum over every assignment (of
    the cycle times the planner and the timing give). At most :data:`MAX_REFINED` are
@@ -50,16 +51,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.design import Design
-from planner.dynamics import DEFAULT_GRAVITY, Inertia
 from planner.exceptions import InputError
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
-from planner.planning import CartesianTarget, JointPosture, PlanOptions, PlanStatus, goal_candidates
+from planner.motion import MotionProblem, run
+from planner.planning import CartesianTarget, JointPosture, PlanStatus, goal_candidates
 from planner.planning.single_mode import posture_mode
 from planner.sequence.problem import SequenceDiagnostics, SequenceResult, SequenceTarget
-from planner.sequence.solve import _solved_message, solve_with_goals
+from planner.sequence.solve import SequenceMotion, _solved_message
 from planner.timing.limits import JointLimits
-from planner.timing.options import TimingOptions
 from planner.validity import Margins, ValidityChecker
 
 __all__ = ["MAX_REFINED", "Candidate", "assignment_bounds", "choose_modes", "leg_lower_bound"]
@@ -188,64 +188,36 @@ def _proven_out(result: SequenceResult) -> bool:
 
 
 def choose_modes(
-    design: Design,
-    start: JointPosture,
+    problem: MotionProblem,
     targets: Sequence[SequenceTarget],
     goals: Sequence[JointPosture | CartesianTarget],
     stops: Sequence[bool],
     cycle: bool,
     t0: float,
-    *,
-    obstacles: Sequence[Obstacle],
-    margins: Margins,
-    options: PlanOptions,
-    timing: TimingOptions,
-    limits: JointLimits,
-    deadline: float | None,
-    inertia: Inertia | None = None,
-    gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
 ) -> SequenceResult:
     """The sequence with each "any" target's working mode chosen for the shortest cycle
     (module docstring); its message names the modes chosen and the runner-up's cycle time,
     ``diagnostics.estimates`` counts the assignments evaluated, ``diagnostics.extra`` holds
     ``gap_s`` (0 when the optimum is proven) and ``bound_s`` (the best assignment's bound)."""
-    layers = [_candidates(design, start, g, margins, obstacles) for g in goals]
+    start, timing, limits = problem.start, problem.timing, problem.limits
+    deadline = problem.budget.deadline
+    layers = [
+        _candidates(problem.design, start, g, problem.margins, problem.obstacles) for g in goals
+    ]
     n = len(targets)
+
+    def motion(chosen: Sequence[JointPosture | CartesianTarget]) -> SequenceMotion:
+        return SequenceMotion(tuple(targets), tuple(chosen), tuple(stops), cycle, t0, cache)
+
+    cache: dict = {}
     if not all(layers):
         # a target with no candidate in its own working mode (unreachable there, or invalid):
         # no assignment exists; the targets as given say which and why
-        return solve_with_goals(
-            design,
-            start,
-            targets,
-            goals,
-            stops,
-            cycle,
-            t0,
-            obstacles=obstacles,
-            margins=margins,
-            options=options,
-            timing=timing,
-            limits=limits,
-            deadline=deadline,
-            inertia=inertia,
-            gravity=gravity,
-        )
+        return run(problem, motion(goals))
     blends = [
         (0.0 if stops[i] or i >= n else targets[i].blend + timing.max_deviation)
         for i in range(len(goals))
     ]
-    kwargs = {
-        "obstacles": obstacles,
-        "margins": margins,
-        "options": options,
-        "timing": timing,
-        "limits": limits,
-        "deadline": deadline,
-        "inertia": inertia,
-        "gravity": gravity,
-    }
-    cache: dict = {}
     refused: InputError | None = None
     attempts = 0
     evaluated: list[tuple[float, tuple[str, ...], SequenceResult]] = []
@@ -270,17 +242,7 @@ def choose_modes(
             break
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
         try:
-            result = solve_with_goals(
-                design,
-                start,
-                targets,
-                [c.goal for c in chosen],
-                stops,
-                cycle,
-                t0,
-                plan_cache=cache,
-                **kwargs,
-            )
+            result = run(problem, motion([c.goal for c in chosen]))
         except InputError as exc:
             # a blend larger than half a leg of this assignment (its legs differ from the
             # others'): this assignment is out, the error kept in case every one is

@@ -1,0 +1,184 @@
+"""One motion problem: what every kind of motion shares, built once and carried by every step.
+
+A plan to a goal, a straight tool path and a task sequence all need the same things: the robot
+(its design and its inertial model), where it starts, the scene (obstacles, packed once), the
+rules (margins), the actuators (limits), gravity, the options of the search and of the timing,
+and one budget of time. :class:`MotionProblem` holds them, frozen; the wire builds it once
+from a request (:func:`planner.wire.motion_problem`), a library user builds it directly (or
+through the keyword helpers :func:`planner.solve`, :func:`planner.solve_sequence`,
+:func:`planner.cartesian.plan_cartesian`), and :func:`planner.motion.run` hands it to every step.
+
+:class:`Budget` is the one deadline policy, on one clock (:func:`time.monotonic`, the same value
+in every process of a machine, so a service can hand a request's deadline to a worker):
+the searches may run until ``deadline -`` :data:`~planner.constants.ANSWER_RESERVE_S` (a search
+that runs out ends as ``no_path`` with time left to answer), the rest (the timing, its dense
+re-check, a straight path's certification) until ``deadline`` itself; past it, the answer's
+status is ``timeout``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from planner.constants import ANSWER_RESERVE_S
+from planner.design import Design
+from planner.dynamics import DEFAULT_GRAVITY, Inertia, check_gravity
+from planner.exceptions import InputError, check_deadline
+from planner.geometry import Obstacle, PackedObstacles, pack_obstacles
+from planner.planning.problem import JointPosture, PlanOptions
+from planner.timing.limits import JointLimits
+from planner.timing.options import TimingOptions
+from planner.validity import Margins
+
+__all__ = ["UNBOUNDED", "Budget", "MotionProblem"]
+
+
+@dataclass(frozen=True, slots=True)
+class Budget:
+    """The time one answer may take: a deadline on :func:`time.monotonic`, or None (no
+    deadline). See the module docstring for the policy."""
+
+    deadline: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.deadline is not None and not (
+            isinstance(self.deadline, int | float) and math.isfinite(self.deadline)
+        ):
+            raise InputError(
+                f"deadline must be a finite time.monotonic() value, got {self.deadline!r}"
+            )
+
+    @classmethod
+    def within(cls, seconds: float | None) -> Budget:
+        """A budget ending ``seconds`` from now (None: unbounded)."""
+        return cls(None if seconds is None else time.monotonic() + float(seconds))
+
+    def left(self) -> float:
+        """Seconds until the deadline (inf without one; negative once passed)."""
+        return math.inf if self.deadline is None else self.deadline - time.monotonic()
+
+    @property
+    def search_deadline(self) -> float | None:
+        """The searches' deadline: the answer's less the reserve that leaves time to answer."""
+        return None if self.deadline is None else self.deadline - ANSWER_RESERVE_S
+
+    def search_options(self, options: PlanOptions) -> PlanOptions:
+        """``options`` with the search budget cut to what remains before
+        :attr:`search_deadline` (at least 10 ms); unchanged without a deadline."""
+        if self.deadline is None:
+            return options
+        left = self.deadline - time.monotonic() - ANSWER_RESERVE_S
+        if left >= options.time_budget_s:
+            return options
+        return replace(options, time_budget_s=max(left, 0.01))
+
+    def check(self, doing: str) -> None:
+        """:class:`~planner.exceptions.DeadlineError` naming ``doing`` once the deadline has
+        passed (cheap: for every round of a long loop)."""
+        check_deadline(self.deadline, doing)
+
+
+#: No deadline: the budget of a call that may take as long as it needs.
+UNBOUNDED = Budget()
+
+
+def _packed(obstacles: tuple[Obstacle, ...]) -> PackedObstacles:
+    return pack_obstacles(obstacles)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MotionProblem:
+    """What every kind of motion shares (see the module docstring), checked once here.
+
+    Parameters
+    ----------
+    design : the robot's :class:`~planner.design.Design`.
+    start : the :class:`~planner.planning.JointPosture` the motion starts from, at rest.
+    obstacles : the scene (spheres, boxes, capsules, point clouds of
+        :mod:`planner.geometry`), kept as one tuple and packed once: every validity checker of
+        every step is built from this same tuple and finds its packing in the geometry's cache.
+    margins : the validity rules' :class:`~planner.validity.Margins` (default: the defaults).
+    options : the search's :class:`~planner.planning.PlanOptions` (per leg for a sequence).
+    timing : the :class:`~planner.timing.TimingOptions` (method, rate, corner allowance,
+        tool speed, the sample bound ``max_samples``).
+    limits : the actuators' :class:`~planner.timing.JointLimits` (default
+        :meth:`~planner.timing.JointLimits.default`).
+    inertia : the robot's :class:`~planner.dynamics.Inertia`, or None: the default model is
+        used where torques are asked (``limits.torque``).
+    gravity : m/s^2 in the base frame, 3 finite numbers.
+    budget : the answer's :class:`Budget`.
+    """
+
+    design: Design
+    start: JointPosture
+    obstacles: tuple[Obstacle, ...] = ()
+    margins: Margins = field(default_factory=Margins)
+    options: PlanOptions = field(default_factory=PlanOptions)
+    timing: TimingOptions = field(default_factory=TimingOptions)
+    limits: JointLimits = field(default_factory=JointLimits.default)
+    inertia: Inertia | None = None
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY
+    budget: Budget = UNBOUNDED
+
+    def __post_init__(self) -> None:
+        checks: tuple[tuple[str, Any, type | tuple[type, ...]], ...] = (
+            ("design", self.design, Design),
+            ("start", self.start, JointPosture),
+            ("margins", self.margins, Margins),
+            ("options", self.options, PlanOptions),
+            ("timing", self.timing, TimingOptions),
+            ("limits", self.limits, JointLimits),
+            ("budget", self.budget, Budget),
+        )
+        for name, value, kind in checks:
+            if not isinstance(value, kind):
+                raise InputError(
+                    f"{name} must be a {kind.__name__}, got {type(value).__name__}",  # type: ignore[union-attr]
+                    field=name,
+                )
+        if self.inertia is not None and not isinstance(self.inertia, Inertia):
+            raise InputError(
+                f"inertia must be an Inertia or None, got {type(self.inertia).__name__}",
+                field="inertia",
+            )
+        g = check_gravity(self.gravity)
+        object.__setattr__(self, "gravity", (float(g[0]), float(g[1]), float(g[2])))
+        obstacles = tuple(self.obstacles)
+        object.__setattr__(self, "obstacles", obstacles)
+        _packed(obstacles)  # packed once, here: every later checker finds it in the cache
+
+    @classmethod
+    def of(
+        cls,
+        design: Design,
+        start: JointPosture,
+        *,
+        obstacles: Any = (),
+        margins: Margins | None = None,
+        options: PlanOptions | None = None,
+        timing: TimingOptions | None = None,
+        limits: JointLimits | None = None,
+        inertia: Inertia | None = None,
+        gravity: Any = DEFAULT_GRAVITY,
+        deadline: float | None = None,
+    ) -> MotionProblem:
+        """The problem of the library's keyword calls (None: a field's default)."""
+        return cls(
+            design,
+            start,
+            tuple(obstacles),
+            margins if margins is not None else Margins(),
+            options if options is not None else PlanOptions(),
+            timing if timing is not None else TimingOptions(),
+            limits if limits is not None else JointLimits.default(),
+            inertia,
+            gravity,
+            Budget(deadline),
+        )
+
+    def with_(self, **changes: Any) -> MotionProblem:
+        """A copy with ``changes`` (e.g. another start, or timing options), checked again."""
+        return replace(self, **changes)
