@@ -1,4 +1,4 @@
-"""Named numerical tolerances shared by the kinematics, validity, analysis and planning code.
+"""Named numerical tolerances (and the few names and bounds) shared by the kinematics, validity, analysis and planning code.
 
 One place for every tolerance that decides whether the loop closes, whether a point is on a
 singular set, or how close to a boundary still counts as on it. The numba kernels take them
@@ -8,6 +8,8 @@ would freeze a global's value at compile time.
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 __all__ = [
     "ANSWER_RESERVE_S",
     "ASSEMBLY_TOL",
@@ -16,9 +18,19 @@ __all__ = [
     "KAPPA_SOLVABLE",
     "MAX_POINTS",
     "MAX_SEQUENCE_TARGETS",
+    "PLANNERS",
     "REACH_TOL",
     "SIGN_TOL",
+    "PlannerName",
 ]
+
+#: Planner names accepted by :class:`planner.planning.PlanOptions` (each works with a motion
+#: validator that answers the two-state ``checkMotion`` only, the one the ompl wheel honours
+#: from Python): the one list, kept here (light to import) so that the wire's
+#: ``planner.name`` takes it as its type without loading the planning room.
+PlannerName = Literal["rrtconnect", "rrt", "rrtstar", "prmstar", "bitstar", "aorrtc", "lbkpiece"]
+#: The same names as a tuple, in that order.
+PLANNERS: tuple[str, ...] = get_args(PlannerName)
 
 #: Relative slack of the loop closure: the loop closes when 0 < |CD|^2 <= 4 L2^2 (1 +
 #: ASSEMBLY_TOL) (:func:`planner._kernels.close_loop`, used by the kinematics and the validity

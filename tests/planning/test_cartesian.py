@@ -378,9 +378,9 @@ def test_a_short_line_of_a_long_robot_gets_an_answer(direction):
 def test_rounds_running_out_stop_at_the_certified_part(monkeypatch):
     """Past MAX_REFINEMENTS passes the answer is the certified part of the path, a no_path with a stop
     point and its rule, never an error (the old code raised, a 422 for valid input)."""
-    import planner.cartesian.plan as cartesian
+    import planner.cartesian.certify as certify
 
-    monkeypatch.setattr(cartesian, "MAX_REFINEMENTS", 2)
+    monkeypatch.setattr(certify, "MAX_REFINEMENTS", 2)
     p0 = own_fk(LONG, LONG_START.q, "+")[0][0]
     end = p0 + np.array([0.0, 20.0, 0.0])
     res = plan_cartesian(

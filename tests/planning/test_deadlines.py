@@ -47,9 +47,11 @@ def test_a_cartesian_path_over_huge_links_stops_at_its_deadline():
     # the same call, short, first: imports and compiled kernels are not the deadline's
     plan_cartesian(Design.default(), SMALL_START, SMALL_WAYPOINT, timing="none")
     t0 = time.monotonic()
-    with pytest.raises(DeadlineError, match="deadline passed"):
-        plan_cartesian(HUGE, START, FAR, margins=Margins(kappa_max=1e6), deadline=t0 + 0.5)
+    res = plan_cartesian(HUGE, START, FAR, margins=Margins(kappa_max=1e6), deadline=t0 + 0.5)
     assert time.monotonic() - t0 < 0.5 + SLACK_S
+    # the one timeout answer of every kind of motion: a status, not an exception
+    assert res.status.value == "timeout" and "deadline passed" in res.message, res.message
+    assert res.trajectory is None
 
 
 def test_a_design_optimisation_stops_at_its_deadline():
@@ -69,10 +71,12 @@ def test_a_region_map_past_its_deadline_is_not_built_nor_cached():
 
 
 def test_the_service_jobs_pass_their_request_deadline_to_the_library():
-    """The jobs of /v1/cartesian, /v1/design/optimize and /v1/design/regions hand the
+    """The endpoints of /v1/cartesian, /v1/design/optimize and /v1/design/regions hand the
     request's deadline (``JobBudget.deadline``) to the library: with one already past, each
-    stops at its first check (DeadlineError, answered 504 by the error table) instead of
-    running the issue's requests for minutes (the pool's watchdog bounds any other job)."""
+    stops at its first check instead of running the issue's requests for minutes (the pool's
+    watchdog bounds any other job): a motion answers status ``timeout`` (the one timeout
+    answer of the motion pipeline), an analysis raises DeadlineError (a 504 by the error
+    table)."""
     from planner.endpoints import JobBudget
     from planner.endpoints.cartesian import cartesian
     from planner.endpoints.design import optimize_design as optimize_job
@@ -80,8 +84,11 @@ def test_the_service_jobs_pass_their_request_deadline_to_the_library():
     from planner.wire import CartesianRequest, DesignOptimizeRequest, RegionsRequest
 
     past = JobBudget(deadline=time.monotonic() - 1.0)
+    t0 = time.monotonic()
+    answer = cartesian(CartesianRequest.model_validate(_huge_cartesian_body()), past)
+    assert time.monotonic() - t0 < SLACK_S
+    assert answer.status == "timeout" and answer.trajectory is None, answer.message
     cases = [
-        (cartesian, CartesianRequest.model_validate(_huge_cartesian_body())),
         (optimize_job, DesignOptimizeRequest.model_validate(
             {"objective": "well_conditioned_volume", "n_samples": 8192})),
         (regions, RegionsRequest.model_validate(

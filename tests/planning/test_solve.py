@@ -26,7 +26,7 @@ from planner.planning import CartesianTarget, JointPosture, PlanOptions, plan_wi
 from planner.solver import solve
 from planner.timing import JointLimits, TimingOptions
 from planner.validity import Margins
-from planner.wire import plan_response
+from planner.wire import solution_response
 
 DESIGN = Design.default()
 START = JointPosture([0.2, 1.0, 2.0], "+")
@@ -42,7 +42,7 @@ def _checked(solution, goal_wire: dict, obstacles=(), margins=MARGINS, limits=No
             "velocity": list(limits.velocity),
             "acceleration": list(limits.acceleration),
         }
-    answer = plan_response(solution).model_dump(mode="json")
+    answer = solution_response(solution).model_dump(mode="json")
     report = check_plan(request, answer)
     assert report.ok, str(report)
 
@@ -92,7 +92,7 @@ def test_timing_none_is_the_path_alone():
         DESIGN, START, GOAL, obstacles=SPHERE, margins=MARGINS, timing=TimingOptions(method="none")
     )
     assert s.plan.solved and s.trajectory is None and s.timing_error is None
-    assert plan_response(s).trajectory is None
+    assert solution_response(s).trajectory is None
 
 
 def test_an_unsolved_plan_is_not_timed():
@@ -120,7 +120,7 @@ def test_a_passed_deadline_stops_the_timing_not_the_caller():
     s = solve(DESIGN, START, near, deadline=time.monotonic() - 1.0)
     assert s.plan.solved and s.trajectory is None
     assert isinstance(s.timing_error, TimingDeadlineError)
-    assert plan_response(s).status == "timeout"
+    assert solution_response(s).status == "timeout"
 
 
 def test_a_timing_error_names_its_field_under_timing():

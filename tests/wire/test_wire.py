@@ -96,8 +96,9 @@ def test_a_plan_answer_declares_every_diagnostics_field():
          "goal": {"q": [0.3, 2.1, 0.9], "assembly_mode": "+"}, "planner": {"seed": 1}}
     )  # fmt: skip
     inputs = plan_inputs(request)
-    assert inputs.design is request.design.to_design()  # built once, at validation
-    result = plan(inputs.design, inputs.start, inputs.goal, options=inputs.options)
+    problem = inputs.problem
+    assert problem.design is request.design.to_design()  # built once, at validation
+    result = plan(problem.design, problem.start, inputs.goal, options=problem.options)
     answer = plan_response(result)
     assert answer.status == "solved"
     d = answer.diagnostics

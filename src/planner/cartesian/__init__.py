@@ -8,7 +8,14 @@ it walks the inverse kinematics of one working mode along the line
 :class:`~planner.cartesian.result.CartesianResult`.
 """
 
-from planner.cartesian.plan import plan_cartesian
+from planner.cartesian.plan import StraightMotion, plan_cartesian
 from planner.cartesian.result import CartesianDiagnostics, CartesianResult, PathEvent, StopPoint
 
-__all__ = ["CartesianDiagnostics", "CartesianResult", "PathEvent", "StopPoint", "plan_cartesian"]
+__all__ = [
+    "CartesianDiagnostics",
+    "CartesianResult",
+    "PathEvent",
+    "StopPoint",
+    "StraightMotion",
+    "plan_cartesian",
+]

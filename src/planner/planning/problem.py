@@ -8,22 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.constants import PLANNERS, PlannerName
 from planner.exceptions import InputError
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
 
-__all__ = ["PLANNERS", "CartesianTarget", "JointPosture", "PlanOptions"]
-
-#: Planner names accepted by :class:`PlanOptions` (each works with a motion validator that
-#: answers the two-state ``checkMotion`` only, the one the ompl wheel honours from Python).
-PLANNERS: tuple[str, ...] = (
-    "rrtconnect",
-    "rrt",
-    "rrtstar",
-    "prmstar",
-    "bitstar",
-    "aorrtc",
-    "lbkpiece",
-)
+__all__ = ["PLANNERS", "CartesianTarget", "JointPosture", "PlanOptions", "PlannerName"]
 
 
 def _triple(name: str, value: object) -> np.ndarray:

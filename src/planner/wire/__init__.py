@@ -3,15 +3,15 @@ conversions between wire models and the library's objects, done once each way.
 
 Shared by the service, the client and the CLI, and importable without FastAPI. Split by
 endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
-diagnostics), :mod:`~planner.wire.plan`, :mod:`~planner.wire.timing`,
-:mod:`~planner.wire.kinematics`, :mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`,
-:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.dynamics`
-(torques and mass matrices), :mod:`~planner.wire.sequence` (task sequences),
-:mod:`~planner.wire.scenes` (named scenes) and :mod:`~planner.wire.meta`
-(health, version, errors). The wire converts and runs nothing: a job calls the library
-:mod:`~planner.wire.cartesian` (straight tool paths), :mod:`~planner.wire.jobs` (long jobs)
-and :mod:`~planner.wire.meta` (health, version, errors). The wire converts and runs nothing: a job calls the library
-(:func:`planner.solve` for a plan) between the conversions.
+diagnostics), :mod:`~planner.wire.motion` (the fields every motion request shares and their
+one conversion into a :class:`planner.motion.MotionProblem`), :mod:`~planner.wire.plan`,
+:mod:`~planner.wire.sequence` (task sequences), :mod:`~planner.wire.cartesian` (straight tool
+paths), :mod:`~planner.wire.timing`, :mod:`~planner.wire.kinematics`,
+:mod:`~planner.wire.design`, :mod:`~planner.wire.analysis`, :mod:`~planner.wire.dynamics`
+(torques and mass matrices), :mod:`~planner.wire.scenes` (named scenes),
+:mod:`~planner.wire.jobs` (long jobs) and :mod:`~planner.wire.meta` (health, version,
+errors). The wire converts and runs nothing: an endpoint (:mod:`planner.endpoints`) converts
+a request once, runs the library (for a motion, :func:`planner.motion.run`) and responds.
 
 Requests forbid unknown fields (a typo is a 422 naming the field, not a silently ignored
 option) and check every number for finiteness and a sane range, so the library never sees
@@ -156,12 +156,20 @@ from planner.wire.meta import (
     Readiness,
     VersionInfo,
 )
+from planner.wire.motion import (
+    MotionRequest,
+    PlannerOptions,
+    finite,
+    goal_to_core,
+    motion_problem,
+    planner_options_to_core,
+    posture_to_core,
+)
 from planner.wire.plan import (
     PathModel,
     PlanBatchRequest,
     PlanBatchResponse,
     PlanInputs,
-    PlannerOptions,
     PlanRequest,
     PlanResponse,
     PlanStatus,
@@ -171,7 +179,7 @@ from planner.wire.plan import (
     path_model,
     plan_inputs,
     plan_response,
-    planner_options_to_core,
+    solution_response,
 )
 from planner.wire.scenes import (
     SCENE_NAME_PATTERN,
@@ -298,6 +306,7 @@ __all__ = [
     "Matrix3",
     "MjcfQuery",
     "MjcfRequest",
+    "MotionRequest",
     "Objective",
     "Obstacle",
     "PathModel",
@@ -360,11 +369,14 @@ __all__ = [
     "count_points",
     "design_to_core",
     "dynamics_answer",
+    "finite",
+    "goal_to_core",
     "inertia_to_core",
     "joint_limits_to_core",
     "located",
     "margins_to_core",
     "mjcf_answer",
+    "motion_problem",
     "obstacle_from_dict",
     "obstacles_to_core",
     "path_model",
@@ -373,12 +385,14 @@ __all__ = [
     "planner_options_to_core",
     "points_from_arrays",
     "posture_model",
+    "posture_to_core",
     "regions_model",
     "sampled_value",
     "scene_hash",
     "scene_obstacles",
     "sequence_inputs",
     "sequence_response",
+    "solution_response",
     "timing_error",
     "timing_to_core",
     "trajectory_arrays",

@@ -6,44 +6,33 @@ the deviation from the polyline) and the conversions to and from
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
-from pydantic import Field, PrivateAttr
+from pydantic import Field
 
-from planner.design import Design
 from planner.wire.common import (
-    GRAVITY_FIELD,
-    MAX_OBSTACLES,
-    DesignModel,
     DiagnosticsModel,
-    Gravity,
-    JointPostureModel,
-    MarginsModel,
-    Obstacle,
     Point3,
     Vec3,
     WorkingModeLabel,
-    _DesignField,
     _Request,
     _Response,
-    design_to_core,
-    inertia_to_core,
     located,
-    margins_to_core,
 )
+from planner.wire.motion import MotionRequest, finite, motion_problem
 from planner.wire.plan import PathModel, PlanStatus, path_model
-from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import (
     _FORMAT_DESCRIPTION,
     AnyTrajectory,
-    Limits,
     TrajectoryFormat,
-    joint_limits_to_core,
     trajectory_model,
 )
+
+if TYPE_CHECKING:
+    from planner.cartesian.result import CartesianResult
+    from planner.motion.problem import MotionProblem
 
 __all__ = [
     "MAX_CARTESIAN_WAYPOINTS",
@@ -83,14 +72,12 @@ class CartesianTimingOptions(_Request):
     format: TrajectoryFormat = Field("arrays", description=_FORMAT_DESCRIPTION)
 
 
-class CartesianRequest(_Request):
+class CartesianRequest(MotionRequest):
     """Body of ``POST /v1/cartesian``: P moves on straight segments from the start's P through
     each waypoint in turn, in the start's working and assembly mode (never changed), within
     ``path_tolerance`` of the polyline along the timed trajectory. Only ``start`` and
     ``waypoints`` are required."""
 
-    design: DesignModel = _DesignField
-    start: JointPostureModel
     waypoints: Annotated[list[Point3], Field(min_length=1, max_length=MAX_CARTESIAN_WAYPOINTS)] = (
         Field(description="Points P goes through in order, m (at least one).")
     )
@@ -101,18 +88,7 @@ class CartesianRequest(_Request):
         description="Largest distance of P from the polyline along the trajectory, m, in "
         "[1e-5, 0.1]; default 1 mm.",
     )
-    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
-    scene: SceneName | None = Field(
-        None,
-        description="A stored scene's name (PUT /v1/scenes/{name}): its obstacles join "
-        "`obstacles`, its design is the robot when `design` is absent; unknown: 422.",
-    )
-    #: the named scene's library obstacles, set by the service (:func:`with_scene`)
-    _scene_obstacles: tuple[Any, ...] | None = PrivateAttr(None)
-    margins: MarginsModel = Field(default_factory=MarginsModel)
     timing: CartesianTimingOptions = Field(default_factory=CartesianTimingOptions)
-    limits: Limits = Field(default_factory=Limits)
-    gravity: Gravity = GRAVITY_FIELD
 
 
 class CartesianStop(_Response):
@@ -166,32 +142,29 @@ class CartesianResponse(_Response):
 
 
 # ---------------------------------------------------------------------------- conversions
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class CartesianInputs:
     """A Cartesian request as the library's objects (each field's errors located): the
-    arguments of :func:`planner.cartesian.plan.plan_cartesian`."""
+    :class:`~planner.motion.MotionProblem` and what :class:`planner.cartesian.StraightMotion`
+    takes besides."""
 
-    design: Design
-    start: Any
+    problem: MotionProblem
     waypoints: np.ndarray
-    obstacles: list[Any]
-    margins: Any
-    limits: Any
-    options: dict[str, Any]
+    path_tolerance: float
 
 
-def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
+def cartesian_inputs(
+    request: CartesianRequest, *, deadline: float | None = None, max_samples: int | None = None
+) -> CartesianInputs:
     """The library objects of a Cartesian request (a bad value raises the library's error,
-    located at its field). A polyline longer than :data:`MAX_POLYLINE_REACHES` reaches
-    (L1 + L2), from the start's P, is an :class:`~planner.exceptions.InputError` at
-    ``waypoints``."""
+    located at its field): its problem (:func:`planner.wire.motion_problem`), its waypoints
+    and tolerance. A polyline longer than :data:`MAX_POLYLINE_REACHES` reaches (L1 + L2),
+    from the start's P, is an :class:`~planner.exceptions.InputError` at ``waypoints``."""
     from planner.exceptions import InputError
     from planner.kinematics import forward_batch
-    from planner.planning.problem import JointPosture as CorePosture
 
-    design = design_to_core(request.design)
-    with located("body", "start"):
-        start = CorePosture(np.array(request.start.q), request.start.assembly_mode)
+    problem = motion_problem(request, deadline=deadline, max_samples=max_samples)
+    design, start = problem.design, problem.start
     waypoints = np.asarray(request.waypoints, dtype=float)
     fb = forward_batch(design, start.q, start.assembly_mode)
     if fb.ok[0]:
@@ -206,25 +179,12 @@ def cartesian_inputs(request: CartesianRequest) -> CartesianInputs:
                     "the ball of radius L1 + L2 about A)",
                     field="waypoints",
                 )
-    obstacles = scene_obstacles(request)
-    margins = margins_to_core(request.margins)
-    limits = joint_limits_to_core(request.limits)
-    options = {
-        "path_tolerance": request.path_tolerance,
-        "timing": request.timing.method,
-        "sample_rate_hz": request.timing.sample_rate_hz,
-        "cartesian_speed": request.limits.cartesian_speed,
-        "inertia": inertia_to_core(request.design),
-        "gravity": tuple(request.gravity),
-    }
-    return CartesianInputs(design, start, waypoints, obstacles, margins, limits, options)
+    return CartesianInputs(problem, waypoints, float(request.path_tolerance))
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if x is not None and math.isfinite(x) else None
-
-
-def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> CartesianResponse:
+def cartesian_response(
+    result: CartesianResult, *, format: TrajectoryFormat = "arrays"
+) -> CartesianResponse:
     """The answer of one straight path, built once from a
     :class:`planner.cartesian.plan.CartesianResult`."""
     d = result.diagnostics
@@ -234,15 +194,15 @@ def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> C
         timing_time_s=d.timing_time_s if timed else None,
         timing_repairs=getattr(result.trajectory, "repairs", None) if timed else None,
         max_torque_ratio=getattr(result.trajectory, "max_torque_ratio", None) if timed else None,
-        path_length=_finite(d.path_length),
-        min_clearance=_finite(d.min_clearance),
-        max_kappa_A=_finite(d.max_kappa_A),
-        min_serial_margin=_finite(d.min_serial_margin),
+        path_length=finite(d.path_length),
+        min_clearance=finite(d.min_clearance),
+        max_kappa_A=finite(d.max_kappa_A),
+        min_serial_margin=finite(d.min_serial_margin),
         planner="cartesian",
-        max_path_deviation=_finite(d.max_path_deviation),
-        chord_bound=_finite(d.chord_bound),
-        blend_deviation_bound=_finite(d.blend_deviation_bound),
-        cartesian_length=_finite(d.cartesian_length),
+        max_path_deviation=finite(d.max_path_deviation),
+        chord_bound=finite(d.chord_bound),
+        blend_deviation_bound=finite(d.blend_deviation_bound),
+        cartesian_length=finite(d.cartesian_length),
     )
     stop = result.stop
     return CartesianResponse(
@@ -256,7 +216,7 @@ def cartesian_response(result: Any, *, format: TrajectoryFormat = "arrays") -> C
         if stop is None
         else CartesianStop(
             rule=stop.rule,
-            value=_finite(stop.value),
+            value=finite(stop.value),
             p=np.asarray(stop.p, dtype=float).tolist(),
             fraction=float(stop.fraction),
         ),

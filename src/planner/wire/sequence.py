@@ -6,50 +6,36 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, PrivateAttr
+from pydantic import Field
 
 from planner.constants import MAX_SEQUENCE_TARGETS
-from planner.design import Design
 from planner.wire.common import (
-    GRAVITY_FIELD,
-    MAX_OBSTACLES,
-    DesignModel,
     DiagnosticsModel,
     Goal,
-    Gravity,
-    JointGoal,
-    JointPostureModel,
-    MarginsModel,
-    Obstacle,
-    _DesignField,
     _Request,
     _Response,
-    design_to_core,
-    inertia_to_core,
     located,
-    margins_to_core,
 )
+from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.plan import (
     PathModel,
-    PlannerOptions,
     PlanStatus,
     path_model,
-    planner_options_to_core,
 )
-from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import (
     AnyTrajectory,
-    Limits,
     TimingOptionsModel,
     TrajectoryFormat,
-    joint_limits_to_core,
     timing_error,
-    timing_to_core,
     trajectory_model,
 )
+
+if TYPE_CHECKING:
+    from planner.motion.problem import MotionProblem
+    from planner.sequence.problem import SequenceTarget
 
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
@@ -82,11 +68,9 @@ class SequenceTargetModel(_Request):
     )
 
 
-class SequenceRequest(_Request):
+class SequenceRequest(MotionRequest):
     """Body of ``POST /v1/sequence``. Only ``start`` and ``targets`` are required."""
 
-    design: DesignModel = _DesignField
-    start: JointPostureModel
     targets: list[SequenceTargetModel] = Field(
         min_length=1,
         max_length=MAX_SEQUENCE_TARGETS,
@@ -99,21 +83,10 @@ class SequenceRequest(_Request):
         description="'time' (default): choose each Cartesian 'any' target's working mode for "
         "the shortest whole trajectory; 'fixed': each target as given.",
     )
-    obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
-    scene: SceneName | None = Field(
-        None,
-        description="A stored scene's name (PUT /v1/scenes/{name}): its obstacles join "
-        "`obstacles`, its design is the robot when `design` is absent; unknown: 422.",
-    )
-    #: the named scene's library obstacles, set by the service (:func:`with_scene`)
-    _scene_obstacles: tuple[Any, ...] | None = PrivateAttr(None)
-    margins: MarginsModel = Field(default_factory=MarginsModel)
     planner: PlannerOptions = Field(
         default_factory=PlannerOptions, description="Search options of every leg."
     )
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
-    limits: Limits = Field(default_factory=Limits)
-    gravity: Gravity = GRAVITY_FIELD
 
 
 class LegModel(_Response):
@@ -176,51 +149,28 @@ class SequenceResponse(_Response):
 
 
 # ---------------------------------------------------------------------------- conversions
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SequenceInputs:
-    """A sequence request as the library's objects (the arguments of
-    :func:`planner.solve_sequence`)."""
+    """A sequence request as the library's objects: the
+    :class:`~planner.motion.MotionProblem` and what :func:`planner.sequence.plan_sequence`
+    takes besides."""
 
-    design: Design
-    start: Any
-    targets: list[Any]
+    problem: MotionProblem
+    targets: list[SequenceTarget]
     cycle: bool
     objective: str
-    obstacles: list[Any]
-    margins: Any
-    options: Any
-    timing: Any
-    limits: Any
-    inertia: Any = None
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-
-    def solve_kwargs(self) -> dict[str, Any]:
-        """The keyword arguments of :func:`planner.solve_sequence` after ``design, start,
-        targets``."""
-        return {
-            "cycle": self.cycle,
-            "objective": self.objective,
-            "obstacles": self.obstacles,
-            "margins": self.margins,
-            "options": self.options,
-            "timing": self.timing,
-            "limits": self.limits,
-            "inertia": self.inertia,
-            "gravity": self.gravity,
-        }
 
 
-def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
+def sequence_inputs(
+    request: SequenceRequest, *, deadline: float | None = None, max_samples: int | None = None
+) -> SequenceInputs:
     """The library objects of a sequence request (a bad value raises the library's error,
-    located at its field). A target's goal takes no ``tolerance`` nor ``prefer``: a sequence
-    reaches each target exactly, and chooses the modes by its ``objective``."""
-    from planner.planning.problem import CartesianTarget as CoreTarget
-    from planner.planning.problem import JointPosture as CorePosture
+    located at its field): its problem (:func:`planner.wire.motion_problem`) and targets. A
+    target's goal takes no ``tolerance`` nor ``prefer``: a sequence reaches each target
+    exactly, and chooses the modes by its ``objective``."""
     from planner.sequence.problem import SequenceTarget
 
-    design = design_to_core(request.design)
-    with located("body", "start"):
-        start = CorePosture(np.array(request.start.q), request.start.assembly_mode)
+    problem = motion_problem(request, deadline=deadline, max_samples=max_samples)
     targets = []
     for i, t in enumerate(request.targets):
         g = t.goal
@@ -229,28 +179,10 @@ def sequence_inputs(request: SequenceRequest) -> SequenceInputs:
             _refuse((*loc, "tolerance"), "a sequence target takes no tolerance (0)")
         if getattr(g, "prefer", "shortest") != "shortest":
             _refuse((*loc, "prefer"), "a sequence chooses the modes by its objective")
-        with located(*loc):
-            goal = (
-                CorePosture(np.array(g.q), g.assembly_mode)
-                if isinstance(g, JointGoal | JointPostureModel)
-                else CoreTarget(np.array(g.p), g.working_mode)
-            )
+        goal = goal_to_core(g, loc)
         with located("body", "targets", i):
             targets.append(SequenceTarget(goal, t.stop, t.blend))
-    return SequenceInputs(
-        design,
-        start,
-        targets,
-        request.cycle,
-        request.objective,
-        scene_obstacles(request),
-        margins_to_core(request.margins),
-        planner_options_to_core(request.planner),
-        timing_to_core(request.timing, request.limits),
-        joint_limits_to_core(request.limits),
-        inertia_to_core(request.design),
-        tuple(request.gravity),  # type: ignore[arg-type]
-    )
+    return SequenceInputs(problem, targets, request.cycle, request.objective)
 
 
 def _refuse(loc: tuple, message: str) -> None:
@@ -260,13 +192,9 @@ def _refuse(loc: tuple, message: str) -> None:
         raise InputError(message)
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if x is not None and np.isfinite(x) else None
-
-
 def _extreme(values: list[float], fn) -> float | None:
-    finite = [v for v in values if v is not None and np.isfinite(v)]
-    return _finite(fn(finite)) if finite else None
+    kept = [v for v in values if v is not None and np.isfinite(v)]
+    return finite(fn(kept)) if kept else None
 
 
 def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> SequenceResponse:
@@ -280,10 +208,10 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
             status=leg.plan.status.value,
             path=path_model(leg.plan.path) if leg.plan.path is not None else None,
             working_mode=leg.working_mode,
-            start_time=_finite(leg.start_time),
-            end_time=_finite(leg.end_time),
-            pass_distance=_finite(leg.pass_distance),
-            pass_speed=_finite(leg.pass_speed),
+            start_time=finite(leg.start_time),
+            end_time=finite(leg.end_time),
+            pass_distance=finite(leg.pass_distance),
+            pass_speed=finite(leg.pass_speed),
             transit_times=[float(t) for t in leg.transit_times],
         )
         for leg in result.legs
@@ -311,9 +239,9 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
         planner=",".join(sorted({p.planner for p in plans if p.planner})) or None,
         modes=list(d.modes),
         runner_up_modes=list(runner[0]) if runner is not None else None,
-        runner_up_cycle_time=_finite(runner[1]) if runner is not None else None,
+        runner_up_cycle_time=finite(runner[1]) if runner is not None else None,
         assignments_evaluated=d.estimates,
-        optimality_gap_s=_finite(d.extra.get("gap_s")) if "gap_s" in d.extra else None,
+        optimality_gap_s=finite(d.extra.get("gap_s")) if "gap_s" in d.extra else None,
         stopped_targets=list(d.stopped_targets),
         **extra,
     )
@@ -322,6 +250,6 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
         message=result.message,
         legs=legs,
         trajectory=trajectory_model(traj, format) if traj is not None else None,
-        cycle_time=_finite(result.cycle_time),
+        cycle_time=finite(result.cycle_time),
         diagnostics=diagnostics,
     )

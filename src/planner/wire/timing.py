@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
@@ -39,6 +39,10 @@ from planner.wire.common import (
     _Response,
     located,
 )
+
+if TYPE_CHECKING:
+    from planner.timing.options import TimingOptions
+    from planner.wire.cartesian import CartesianTimingOptions
 
 __all__ = [
     "MAX_TIMING_WAYPOINTS",
@@ -267,22 +271,24 @@ def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "l
 
 
 def timing_to_core(
-    model: TimingOptionsModel, limits: Limits, loc: tuple[str | int, ...] = ("body", "timing")
-) -> Any:
+    model: TimingOptionsModel | CartesianTimingOptions,
+    limits: Limits,
+    loc: tuple[str | int, ...] = ("body", "timing"),
+) -> TimingOptions:
     """The request's ``timing`` (and ``limits.cartesian_speed``) as
-    :class:`planner.timing.TimingOptions` (an absent ``max_deviation``: the timing default);
-    a bad value raises the library's error located at ``loc.<field>``."""
+    :class:`planner.timing.TimingOptions` (an absent ``max_deviation``: the timing default; a
+    straight path's timing has no corner allowance nor transits: they follow from its
+    tolerance); a bad value raises the library's error located at ``loc.<field>``."""
     from planner.timing.options import DEFAULT_MAX_DEVIATION
     from planner.timing.options import TimingOptions as CoreTiming
 
+    deviation = getattr(model, "max_deviation", None)
     with located(*loc):
         return CoreTiming(
             method=model.method,
             sample_rate_hz=model.sample_rate_hz,
-            max_deviation=(
-                DEFAULT_MAX_DEVIATION if model.max_deviation is None else model.max_deviation
-            ),
-            stop_at_transits=model.stop_at_transits,
+            max_deviation=(DEFAULT_MAX_DEVIATION if deviation is None else deviation),
+            stop_at_transits=getattr(model, "stop_at_transits", False),
             max_cartesian_speed=limits.cartesian_speed,
         )
 
