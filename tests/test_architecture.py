@@ -438,3 +438,18 @@ def test_no_module_is_over_the_line_budget() -> None:
         if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES
     }
     assert long == {}
+
+
+#: The rooms whose deadlines and budgets are compared with a clock: one clock for all of
+#: them, :func:`time.monotonic`, the one a caller's ``deadline`` is given on (a deadline on
+#: another clock would be compared with the wrong time).
+ONE_CLOCK = ("planner.planning", "planner.cartesian", "planner.sequence", "planner.motion")
+
+
+def test_the_motion_rooms_read_one_clock() -> None:
+    found = sorted(
+        name
+        for name, path in SOURCES.items()
+        if _within(name, ONE_CLOCK) and "perf_counter" in path.read_text()
+    )
+    assert any(_within(n, ("planner.planning",)) for n in SOURCES) and found == []

@@ -178,7 +178,7 @@ def _corridor(state: _State) -> None:
     if len(marked) >= 2:
         a, b = grid.centres(marked[[0, -1]])
         corridor.corridor_path(
-            checker, grid, a, b, options=PlanOptions(), deadline=time.perf_counter() + 1.0
+            checker, grid, a, b, options=PlanOptions(), deadline=time.monotonic() + 1.0
         )
 
 
@@ -186,8 +186,9 @@ def _time_plans(state: _State, method: str) -> None:
     """Time every path found as :func:`planner.solve` does (the pipeline's timing step,
     :func:`planner.motion.time_planned`: the path's own rules re-checked densely), coming to
     rest at the transits of the mode-change path."""
-    from planner.motion import MotionProblem, path_timing, time_planned
+    from planner.motion import MotionProblem, Planned, path_timing, time_planned
     from planner.planning import JointPosture
+    from planner.solver import GoalMotion
     from planner.timing import JointLimits, TimingOptions, time_path
 
     for result, obstacles, margins in state.plans:
@@ -199,9 +200,11 @@ def _time_plans(state: _State, method: str) -> None:
         problem = MotionProblem.of(
             state.design, start, obstacles=obstacles, margins=margins, timing=timing
         )
-        timed = time_planned(problem, path_timing(problem, result.path))
+        planned = Planned(result.status, result.message, result, path_timing(problem, result.path))
+        timed = time_planned(problem, planned.timing)
         if timed.error is not None:
             raise timed.error
+        GoalMotion(JointPosture(result.path.waypoints[-1])).answer(problem, planned, timed)
 
 
 def _analysis(state: _State) -> None:

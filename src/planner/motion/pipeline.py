@@ -159,25 +159,25 @@ def time_planned(problem: MotionProblem, request: TimingRequest) -> Timed:
     limits, timing options, torques and deadline), the fallback methods tried in turn. An
     :class:`~planner.exceptions.InputError` of the timing (the sample bound) is raised with
     its field under ``timing.``."""
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     methods = (problem.timing.method, *(m for m in request.fallback if m != problem.timing.method))
     failures: list[tuple[str, str]] = []
     for method in methods:
         try:
             trajectory = _time_path(problem, request, method)
         except TimingDeadlineError as exc:
-            return Timed(error=exc, time_s=time.perf_counter() - t0)
+            return Timed(error=exc, time_s=time.monotonic() - t0)
         except TimingError as exc:
             failures.append((method, str(exc)))
             if method == methods[-1]:
                 said = tuple(f"{m}: {why}" for m, why in failures)
-                return Timed(error=exc, time_s=time.perf_counter() - t0, failures=said)
+                return Timed(error=exc, time_s=time.monotonic() - t0, failures=said)
             continue
         note = ""
         if failures:
             first, why = failures[0]
             note = f"{first} failed ({why}); timed with {method} instead"
-        return Timed(trajectory, note=note, time_s=time.perf_counter() - t0)
+        return Timed(trajectory, note=note, time_s=time.monotonic() - t0)
     raise AssertionError("unreachable: at least one method is tried")
 
 

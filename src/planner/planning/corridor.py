@@ -223,7 +223,7 @@ def _build(
 ) -> CorridorGrid | float:
     """Mark and label the cells (the work of :func:`corridor_grid`, uncached); the projected
     time (s) instead when it exceeds ``max_time_s``."""
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     design = checker.design
     lo = np.asarray(design.joint_min, dtype=float)
     hi = np.asarray(design.joint_max, dtype=float)
@@ -250,7 +250,7 @@ def _build(
         for i in range(n[0]):
             q[:, 0] = axes[0][i]
             valid[i, columns] = checker.is_valid(q)
-            projected = (time.perf_counter() - t0) * n[0] / (i + 1)
+            projected = (time.monotonic() - t0) * n[0] / (i + 1)
             if max_time_s is not None and projected > max_time_s:
                 logger.debug("corridor grid not built: projected %.3f s", projected)
                 return projected
@@ -263,7 +263,7 @@ def _build(
     weight = (1.0 + DEPTH_PENALTY / np.maximum(depth, 1) ** 2).ravel()
     for a in (lo, step, valid, labels, weight):
         a.flags.writeable = False
-    return CorridorGrid(shape, lo, step, valid, labels, weight, time.perf_counter() - t0)
+    return CorridorGrid(shape, lo, step, valid, labels, weight, time.monotonic() - t0)
 
 
 #: The per-process LRU cache of :func:`corridor_grid`: key -> grid.
@@ -300,7 +300,7 @@ def corridor_path(
     and costs little, a successful one certifies its whole motion: one success per anchor).
     A piece between two consecutive waypoints that cannot be certified is repaired by an OMPL
     search between its ends (:data:`REPAIR_BUDGET_S`, at most :data:`MAX_REPAIRS`), within
-    ``deadline`` (``time.perf_counter()`` value).
+    ``deadline`` (``time.monotonic()`` value).
 
     Returns
     -------
@@ -407,10 +407,10 @@ def _shortcut(
             out.append(points[best])
             a = best
             continue
-        if repairs >= MAX_REPAIRS or time.perf_counter() >= deadline:
+        if repairs >= MAX_REPAIRS or time.monotonic() >= deadline:
             return None, repairs
         repairs += 1
-        budget = min(REPAIR_BUDGET_S, deadline - time.perf_counter())
+        budget = min(REPAIR_BUDGET_S, deadline - time.monotonic())
         fix = ompl_backend.search(checker, points[a], points[a + 1], options, budget)
         if fix.waypoints is None:
             return None, repairs
@@ -525,7 +525,7 @@ def guided_search(
     """
     grid = cached_corridor_grid(checker, shape)
     if grid is None:
-        left = deadline - time.perf_counter()
+        left = deadline - time.monotonic()
         if left < BUILD_MIN_BUDGET_S:
             return GuidedOutcome(None, "", 0, "", False)
         grid = corridor_grid(checker, shape, max_time_s=BUILD_SHARE * left)

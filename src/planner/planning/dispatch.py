@@ -104,7 +104,7 @@ def plan(
         rule in every joint solution, or no mode sequence has a transit posture (the message
         says why); ``no_path`` when the budget ran out.
     """
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     options = options if options is not None else PlanOptions()
     request = _Request(
         design,
@@ -152,14 +152,14 @@ class _Request:
         Among obstacles, a first try that found nothing asks :meth:`obstacle_disproof`
         about the goals that proof was asked about (every candidate the request allows)
         before the rest of the budget is searched."""
-        t0 = time.perf_counter()
+        t0 = time.monotonic()
         options = self.options
         if share != 1.0:
             options = replace(options, time_budget_s=options.time_budget_s * share)
 
         def when_stuck(goals: np.ndarray) -> PlanResult | None:
             asked = self._asked[-1] if self._asked else goals
-            return self.obstacle_disproof(asked, searched_s=time.perf_counter() - t0)
+            return self.obstacle_disproof(asked, searched_s=time.monotonic() - t0)
 
         return plan_single_mode(
             self.design,
@@ -273,7 +273,7 @@ class _Request:
         proof = self.disproof(goals) if prove else None
         if proof is not None:
             return proof
-        t0 = time.perf_counter()
+        t0 = time.monotonic()
         rmap = self.region_map()
 
         def run(deadline: float) -> PlanResult:
@@ -295,7 +295,7 @@ class _Request:
         first = run(min(self.deadline, t0 + OBSTACLE_PROOF_AFTER_S))
         if first.status is not PlanStatus.NO_PATH:
             return first
-        proof = self.obstacle_disproof(goals, searched_s=time.perf_counter() - t0)
+        proof = self.obstacle_disproof(goals, searched_s=time.monotonic() - t0)
         if proof is not None:
             return replace(
                 proof, diagnostics=replace(proof.diagnostics, searches=first.diagnostics.searches)
@@ -327,7 +327,7 @@ class _Request:
     def finish(self, status: PlanStatus, message: str) -> PlanResult:
         """An answer without a path, timed from the request's start."""
         logger.info("plan %s: %s", status.value, message)
-        return PlanResult(status, message, None, Diagnostics(time.perf_counter() - self.t0))
+        return PlanResult(status, message, None, Diagnostics(time.monotonic() - self.t0))
 
 
 def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
@@ -462,5 +462,5 @@ def _shorter_through_transits(
     other = request.mode_change(start_mode, targets, prove=False)
     if other.solved and other.diagnostics.path_length < first.diagnostics.path_length:
         return other
-    planning_time_s = time.perf_counter() - request.t0
+    planning_time_s = time.monotonic() - request.t0
     return replace(first, diagnostics=replace(first.diagnostics, planning_time_s=planning_time_s))

@@ -177,7 +177,7 @@ def plan_with_goal_options(
         raise InputError(
             f"tolerance must be a finite number >= 0, got {tolerance!r}", field="tolerance"
         )
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     options = options or PlanOptions()
     problem = _Problem(design, start, obstacles, margins)
     result, note = _plan_preferring(problem, goal, prefer, options, deadline)

@@ -234,7 +234,7 @@ class _ModeChangeSearch:
         order = list(dict.fromkeys(int(k) for k in np.stack(rankings, axis=1).ravel()))
         out: list[tuple[bool, float, _Candidate]] = []
         for k in order[:CROSSING_TRIES]:
-            if time.perf_counter() > self.deadline:
+            if time.monotonic() > self.deadline:
                 break
             c = crossing_through(
                 self.design,
@@ -288,7 +288,7 @@ class _ModeChangeSearch:
         )
 
     def segment(self, mode: str, q_from: np.ndarray, q_goals: np.ndarray) -> PlanResult:
-        remaining = self.deadline - time.perf_counter()
+        remaining = self.deadline - time.monotonic()
         budget = min(remaining, self.options.time_budget_s * self.share)
         key = mode.encode() + q_from.tobytes() + q_goals.tobytes()
         if budget <= 0 or self._failed.get(key, -1.0) >= budget:
@@ -327,7 +327,7 @@ class _ModeChangeSearch:
         q_goal = q_goals[0]
 
         def step(i: int, q_from: np.ndarray) -> tuple[list[PlanResult], list[_Candidate]] | None:
-            if time.perf_counter() > self.deadline:
+            if time.monotonic() > self.deadline:
                 return None
             if i == len(seq) - 1:
                 res = self.segment(seq[i], q_from, q_goals)
@@ -344,7 +344,7 @@ class _ModeChangeSearch:
                 rest = step(i + 1, cand.crossing.q_out)
                 if rest is not None:
                     return [res, *rest[0]], [cand, *rest[1]]
-                if time.perf_counter() > self.deadline:
+                if time.monotonic() > self.deadline:
                     return None
             return None
 
@@ -432,7 +432,7 @@ def plan_mode_change(
         if out is None:
             return None
         path, diag = _assemble(out[0], out[1], search.free, start.assembly_mode)
-        diag = replace(diag, planning_time_s=time.perf_counter() - t0, searches=search.searches)
+        diag = replace(diag, planning_time_s=time.monotonic() - t0, searches=search.searches)
         modes = " -> ".join(seq)
         return PlanResult(
             PlanStatus.SOLVED, f"solved through {len(seq) - 1} transit(s): {modes}", path, diag
@@ -452,7 +452,7 @@ def plan_mode_change(
 
     search.share = ROUND_SHARES[0]
     for walk in walks_by_region:
-        if time.perf_counter() > deadline:
+        if time.monotonic() > deadline:
             break
         solved = attempt(modes_of(walk), walk)
         if solved is not None:
@@ -481,7 +481,7 @@ def plan_mode_change(
             + "; ".join(reasons)
             + ")",
             None,
-            Diagnostics(planning_time_s=time.perf_counter() - t0),
+            Diagnostics(planning_time_s=time.monotonic() - t0),
         )
     # guided by the map without regions (when it placed neither), then today's rounds on
     # sampled surfaces
@@ -493,7 +493,7 @@ def plan_mode_change(
         if share > ROUND_SHARES[0] and returning:
             search.guided()
             for walk in returning:
-                if time.perf_counter() > deadline:
+                if time.monotonic() > deadline:
                     break
                 solved = attempt(modes_of(walk), walk)
                 if solved is not None:
@@ -501,7 +501,7 @@ def plan_mode_change(
         if not guided and search.rmap is not None:
             search.unguided()
         for _, _, seq in ranked:
-            if time.perf_counter() > deadline:
+            if time.monotonic() > deadline:
                 break
             solved = attempt(seq, None)
             if solved is not None:
@@ -517,7 +517,7 @@ def plan_mode_change(
         f"no path found within {options.time_budget_s:g} s through transits "
         f"({len(tried)} of {n_seqs} mode sequences tried{walks})",
         None,
-        Diagnostics(planning_time_s=time.perf_counter() - t0, searches=search.searches),
+        Diagnostics(planning_time_s=time.monotonic() - t0, searches=search.searches),
     )
 
 

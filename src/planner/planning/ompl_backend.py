@@ -161,7 +161,7 @@ def search(
         raw = _waypoints(path)
         waypoints = raw
         if options.simplify:
-            t0 = time.perf_counter()
+            t0 = time.monotonic()
             simplifier = og.PathSimplifier(si)
             # rope shortcutting then vertex reduction: on benchmarks/planning.py within 3 % of
             # the length of OMPL's full simplify() at a third of its time
@@ -173,7 +173,7 @@ def search(
             # the simplifier only keeps motions the validator accepted; the caller
             # (plan_in_region) certifies the final path once more
             waypoints, simplified = _waypoints(path), True
-            logger.debug("simplification took %.4f s", time.perf_counter() - t0)
+            logger.debug("simplification took %.4f s", time.monotonic() - t0)
             del simplifier
         del path
     ompl_status = str(status)

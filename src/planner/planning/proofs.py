@@ -56,12 +56,12 @@ def proof_region_map(
 ) -> region_maps.RegionMap | None:
     """The design's obstacle-free region map at :data:`PROOF_RESOLUTION` for a proof, when it
     is cheap now: cached, or built while at least :data:`PROOF_MIN_BUDGET_S` remains before
-    ``deadline`` (a :func:`time.perf_counter` value); None otherwise, or when
+    ``deadline`` (a :func:`time.monotonic` value); None otherwise, or when
     ``options.region_map`` is off."""
     if not options.region_map:
         return None
     rmap = region_maps.cached_region_map(design, margins, PROOF_RESOLUTION)
-    if rmap is None and deadline - time.perf_counter() >= PROOF_MIN_BUDGET_S:
+    if rmap is None and deadline - time.monotonic() >= PROOF_MIN_BUDGET_S:
         rmap = region_maps.region_map(design, margins, PROOF_RESOLUTION)
     return rmap
 
@@ -72,7 +72,7 @@ def disprove_with_map(
     """``no_path`` with ``diagnostics.proven_infeasible`` when the region map ``rmap`` proves
     that no valid path joins ``start`` to any of the goal candidates ``goals`` (K, 3) (every
     candidate the request allows; valid postures); None when it cannot (or there is no map,
-    or no goal). ``t0``: the request's start (a :func:`time.perf_counter` value).
+    or no goal). ``t0``: the request's start (a :func:`time.monotonic` value).
 
     The argument is :func:`planner.analysis.regions.prove_disconnected`'s: the map is
     obstacle-free, and obstacles only remove postures, so its proof holds with them. The

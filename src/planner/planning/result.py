@@ -120,7 +120,7 @@ def proven_no_path(message: str, t0: float) -> PlanResult:
     path exists (the region map's, with or without obstacles, for the goal candidates or a
     whole tolerance ball; :mod:`planner.planning.proofs`, :mod:`planner.planning.tolerance`).
     ``message`` says which proof and why; ``planning_time_s`` runs from ``t0`` (a
-    :func:`time.perf_counter` value, the request's start); ``planner`` is 'region_map'.
+    :func:`time.monotonic` value, the request's start); ``planner`` is 'region_map'.
     Logged once here, at info level."""
     logger.info("plan no_path (proven): %s", message)
     return PlanResult(
@@ -128,6 +128,6 @@ def proven_no_path(message: str, t0: float) -> PlanResult:
         message,
         None,
         Diagnostics(
-            planning_time_s=time.perf_counter() - t0, planner="region_map", proven_infeasible=True
+            planning_time_s=time.monotonic() - t0, planner="region_map", proven_infeasible=True
         ),
     )

@@ -164,12 +164,12 @@ def plan_single_mode(
         lies in another working or assembly mode, out of reach, or breaks a rule in every
         joint solution; ``no_path`` when the search budget ran out.
     """
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
 
     def finish(status: PlanStatus, message: str, path=None, **diag) -> PlanResult:
-        d = Diagnostics(planning_time_s=time.perf_counter() - t0, **diag)
+        d = Diagnostics(planning_time_s=time.monotonic() - t0, **diag)
         if status is not PlanStatus.SOLVED:
             logger.info("plan %s: %s", status.value, message)
         return PlanResult(status, message, path, d)
@@ -266,11 +266,11 @@ def plan_in_region(
         ``solved`` (one segment in the checker's modes, every motion certified) or
         ``no_path``; ``diagnostics.searches`` counts the OMPL searches run.
     """
-    t0 = time.perf_counter() if _t0 is None else _t0
+    t0 = time.monotonic() if _t0 is None else _t0
     options = options if options is not None else PlanOptions()
     q_start = np.array(q_start, dtype=float)
     q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
-    deadline = time.perf_counter() + options.time_budget_s
+    deadline = time.monotonic() + options.time_budget_s
     attempts = searches = 0
     last_status = ""
     for q_goal in q_goals:
@@ -283,7 +283,7 @@ def plan_in_region(
                 answer, before_search = before_search(q_goals), None
                 if answer is not None:
                     return answer
-            budget = deadline - time.perf_counter()
+            budget = deadline - time.monotonic()
             if budget <= 0:
                 break
             # with obstacles: the corridor at once when its grid is cached; else a short
@@ -315,7 +315,7 @@ def plan_in_region(
                 searches += guided.searches
                 last_status = guided.ompl_status or last_status
                 waypoints, name, certified = guided.waypoints, guided.name, guided.certified
-            budget = deadline - time.perf_counter()
+            budget = deadline - time.monotonic()
             if waypoints is None and budget > 0:
                 searches += 1
                 outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
@@ -358,7 +358,7 @@ def _certified(
         f"solved in working mode {mode} ({name})",
         path,
         Diagnostics(
-            planning_time_s=time.perf_counter() - t0,
+            planning_time_s=time.monotonic() - t0,
             path_length=report.length,
             min_clearance=report.min_clearance,
             max_kappa_A=report.max_kappa_A,
@@ -387,7 +387,7 @@ def _no_path(
         PlanStatus.NO_PATH,
         message,
         None,
-        Diagnostics(planning_time_s=time.perf_counter() - t0, attempts=attempts, searches=searches),
+        Diagnostics(planning_time_s=time.monotonic() - t0, attempts=attempts, searches=searches),
     )
 
 
@@ -409,7 +409,7 @@ def plan_to_goal_set(
     ``diagnostics.attempts`` is the number of straight motions tried. ``before_search``, when
     given, is called once with ``q_goals`` after the straight motions failed, before the
     search: a result it returns is the answer (the proof over the whole goal set)."""
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     options = options if options is not None else PlanOptions()
     q_start = np.array(q_start, dtype=float)
     q_goals = np.atleast_2d(np.array(q_goals, dtype=float))
@@ -426,7 +426,7 @@ def plan_to_goal_set(
         answer = before_search(q_goals)
         if answer is not None:
             return answer
-    budget = options.time_budget_s - (time.perf_counter() - t0)
+    budget = options.time_budget_s - (time.monotonic() - t0)
     if budget <= 0:
         return _no_path(checker, options, "", t0, attempts, 0)
     if len(q_goals) > search_goals:

@@ -208,8 +208,8 @@ def prove_goal_set(
     (:func:`planner.analysis.goal_cells.prove_ball_disconnected`), then with obstacles the
     3-D map (:func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles` with
     the ball). None when neither can (or ``options.region_map`` is off). ``deadline``: a
-    :func:`time.perf_counter` value before which the obstacle-free map may be built."""
-    t0 = time.perf_counter()
+    :func:`time.monotonic` value before which the obstacle-free map may be built."""
+    t0 = time.monotonic()
     margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
     if not options.region_map:
@@ -262,7 +262,7 @@ def _search(
     offset); the result is ``no_path`` when nothing was found within the budget, or the
     proof's answer: ``prove`` is asked once, after the straight motions and before the
     first search (it costs milliseconds, a search its budget)."""
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     deadline = t0 + options.time_budget_s
     start_mode = posture_mode(design, start)
     own = goals.targets.get(start_mode) if start_mode is not None else None
@@ -291,7 +291,7 @@ def _search(
         proof = prove()
         if proof is not None:
             return proof, "", float("nan")
-    if others and start_mode is not None and time.perf_counter() < deadline:
+    if others and start_mode is not None and time.monotonic() < deadline:
         result = plan_mode_change(
             design,
             start,
@@ -329,7 +329,7 @@ def plan_within_tolerance(
     """The answer to a goal with ``tolerance`` > 0 whose exact goal was answered ``exact``
     (not solved): the goal set searched as a set, then the proof over the whole set (see the
     module docstring). ``options.time_budget_s`` is the set search's budget; ``t0`` (a
-    :func:`time.perf_counter` value) the request's start, for ``planning_time_s``.
+    :func:`time.monotonic` value) the request's start, for ``planning_time_s``.
 
     Returns ``solved`` (the message says how far from the asked goal the path ends);
     ``no_path`` with ``proven_infeasible`` only when the proof covers every allowed goal;
@@ -337,7 +337,7 @@ def plan_within_tolerance(
     says no proof covers the set); ``exact`` itself (its proof dropped) when the ball holds
     no valid goal that the sampling found.
     """
-    t0 = time.perf_counter() if t0 is None else t0
+    t0 = time.monotonic() if t0 is None else t0
     margins = margins if margins is not None else Margins()
     options = options if options is not None else PlanOptions()
     cartesian = isinstance(goal, CartesianTarget)
@@ -360,7 +360,7 @@ def plan_within_tolerance(
                     obstacles=obstacles,
                     margins=margins,
                     options=options,
-                    deadline=time.perf_counter() + options.time_budget_s,
+                    deadline=time.monotonic() + options.time_budget_s,
                 )
             )
         return asked[0]
@@ -375,17 +375,17 @@ def plan_within_tolerance(
                 f"searched as a set; {was})"
             )
             diag = replace(
-                found.diagnostics, planning_time_s=time.perf_counter() - t0, searches=searches
+                found.diagnostics, planning_time_s=time.monotonic() - t0, searches=searches
             )
             return replace(found, message=f"{found.message}; {note}", diagnostics=diag)
     proof = prove()
     if proof is not None and (goals.count or exact.status is PlanStatus.NO_PATH):
         diag = replace(
-            proof.diagnostics, planning_time_s=time.perf_counter() - t0, searches=searches
+            proof.diagnostics, planning_time_s=time.monotonic() - t0, searches=searches
         )
         return replace(proof, message=f"{proof.message} ({was})", diagnostics=diag)
     diag = Diagnostics(
-        planning_time_s=time.perf_counter() - t0,
+        planning_time_s=time.monotonic() - t0,
         attempts=exact.diagnostics.attempts,
         searches=searches,
     )

@@ -261,7 +261,7 @@ def choose_modes(
                 "the deadline passed before any working-mode assignment of the targets was "
                 f"planned ({attempts - 1} tried)",
                 (),
-                diagnostics=SequenceDiagnostics(planning_time_s=time.perf_counter() - t0),
+                diagnostics=SequenceDiagnostics(planning_time_s=time.monotonic() - t0),
             )
         raise refused  # every assignment tried was refused (a blend too large for its legs)
     evaluated.sort(key=lambda e: e[0])
@@ -283,7 +283,7 @@ def choose_modes(
     proven = {} if timing.method == "none" else {"gap_s": max(cost - min([rest, *unproven]), 0.0)}
     diagnostics = replace(
         result.diagnostics,
-        planning_time_s=time.perf_counter() - t0 - result.diagnostics.timing_time_s,
+        planning_time_s=time.monotonic() - t0 - result.diagnostics.timing_time_s,
         modes=shown,
         runner_up=runner,
         estimates=len(evaluated),

@@ -202,7 +202,7 @@ def plan_sequence(
     """The sequence of ``targets`` under ``problem`` (the arguments as for
     :func:`solve_sequence`): the mode search of ``objective="time"`` when a Cartesian target
     is in working mode "any", else :class:`SequenceMotion` through the pipeline."""
-    t0 = time.perf_counter()
+    t0 = time.monotonic()
     targets = _checked_targets(targets)
     if objective not in OBJECTIVES:
         raise InputError(
@@ -247,7 +247,7 @@ class SequenceMotion:
     whose answer is a :class:`~planner.sequence.SequenceResult`.
 
     ``goals`` and ``stops`` have one entry per leg (the return to the start included with
-    ``cycle``); ``t0`` is when the sequence's work began (:func:`time.perf_counter`);
+    ``cycle``); ``t0`` is when the sequence's work began (:func:`time.monotonic`);
     ``plan_cache`` holds the leg plans already made (shared between the assignments of a
     mode search); ``extra`` the mode search's diagnostics (``runner_up``, ``estimates``).
     With ``compare_stops``, a sequence passing targets exactly (blend 0) is timed again with
@@ -268,7 +268,7 @@ class SequenceMotion:
         allowances and the stops of the one timing."""
         n = len(self.targets)
         plans, failed = _plan_legs(problem, self.goals, self.plan_cache)
-        planning_time = time.perf_counter() - self.t0
+        planning_time = time.monotonic() - self.t0
         modes = tuple(
             _arrival_mode(p.path) if p.path is not None and isinstance(g, CartesianTarget) else ""
             for p, g in zip(plans, self.goals, strict=False)
@@ -316,7 +316,7 @@ class SequenceMotion:
         failure is ``no_path`` (``timeout`` when the deadline passed), the legs kept."""
         joined = planned.detail
         if joined is None:  # stopped before planning (gravity at the start, the deadline)
-            diagnostics = SequenceDiagnostics(planning_time_s=time.perf_counter() - self.t0)
+            diagnostics = SequenceDiagnostics(planning_time_s=time.monotonic() - self.t0)
             return SequenceResult(planned.status, planned.message, (), diagnostics=diagnostics)
         diagnostics = SequenceDiagnostics(
             planning_time_s=joined.planning_time_s,
