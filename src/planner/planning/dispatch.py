@@ -13,10 +13,10 @@ path (the shorter solved path wins).
 
 *When the proofs are asked* (:mod:`planner.planning.proofs` says what each proves): the region
 map's proof before the first OMPL search (and before a mode-change search), over every goal
-candidate the request allows (:meth:`_Request.disproof`). With obstacles, a search whose first
+candidate the request allows (:meth:`_Search.disproof`). With obstacles, a search whose first
 try found nothing (single mode: the corridor's, or a short plain search; mode change:
 :data:`OBSTACLE_PROOF_AFTER_S`) asks the 3-D proof before it goes on with the rest of the
-budget (:meth:`_Request.obstacle_disproof`).
+budget (:meth:`_Search.obstacle_disproof`).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ logger = logging.getLogger(__name__)
 #: the single-mode path's length.
 BETTER_RATIO = 0.7
 #: With obstacles, the search time (s) after which a mode-change search that found nothing
-#: asks the 3-D proof (:meth:`_Request.obstacle_disproof`) before it goes on: most plans
+#: asks the 3-D proof (:meth:`_Search.obstacle_disproof`) before it goes on: most plans
 #: among obstacles are found well within it (``benchmarks/planning.py``), and a stuck one can
 #: afford the proof's few to tens of milliseconds. A single-mode search asks it after its
 #: first try (:func:`planner.planning.single_mode.plan_in_region`).
@@ -106,7 +106,7 @@ def plan(
     """
     t0 = time.monotonic()
     options = options if options is not None else PlanOptions()
-    request = _Request(
+    request = _Search(
         design,
         start,
         tuple(obstacles),
@@ -123,8 +123,11 @@ def plan(
 
 
 @dataclass(frozen=True, slots=True)
-class _Request:
-    """What every step of :func:`plan` shares: the problem, its clock and its deadline."""
+class _Search:
+    """One call's search state, shared by every step of :func:`plan`: its inputs, its clock
+    and deadline, and what its steps learn (goal candidates per mode, the goal sets the
+    proofs were asked about). Not a problem object: :class:`planner.motion.MotionProblem`
+    is that, one layer up; this lives and dies with one call."""
 
     design: Design
     start: JointPosture
@@ -330,11 +333,11 @@ class _Request:
         return PlanResult(status, message, None, Diagnostics(time.monotonic() - self.t0))
 
 
-def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
+def _plan_to_joint_goal(request: _Search, goal: JointPosture) -> PlanResult:
     """A joint goal: the single-mode plan, or through transits when the goal lies in another
     working mode of the start's assembly mode (the single-mode planner answers every other
     case, checks and messages included, at no extra cost). A goal in the start's mode but
-    in another region of it (:meth:`_Request.elsewhere`) is planned through transits at
+    in another region of it (:meth:`_Search.elsewhere`) is planned through transits at
     once: the detour through other modes, back to the start's."""
 
     first = request.single_mode(goal, before_search=request.disproof_or_detour)
@@ -352,7 +355,7 @@ def _plan_to_joint_goal(request: _Request, goal: JointPosture) -> PlanResult:
     return request.mode_change(start_mode, {goal_mode: goal.q[None].copy()})
 
 
-def _plan_to_point_in_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
+def _plan_to_point_in_mode(request: _Search, goal: CartesianTarget) -> PlanResult:
     """A Cartesian target in a given working mode: the single-mode plan, or through
     transits when that mode is not the start's, or when it is but the goal's candidates lie
     in other regions of it than the start (as for a joint goal)."""
@@ -371,11 +374,11 @@ def _plan_to_point_in_mode(request: _Request, goal: CartesianTarget) -> PlanResu
     return request.mode_change(start_mode, targets)
 
 
-def _plan_to_point_in_any_mode(request: _Request, goal: CartesianTarget) -> PlanResult:
+def _plan_to_point_in_any_mode(request: _Search, goal: CartesianTarget) -> PlanResult:
     """A Cartesian target in working mode 'any': the start's mode first with half the
     budget, then through transits to the other modes when that fails, or when their
     estimate is shorter than :data:`BETTER_RATIO` times the single-mode path. When the start's
-    own candidates lie in other regions of its mode (:meth:`_Request.elsewhere`), no
+    own candidates lie in other regions of its mode (:meth:`_Search.elsewhere`), no
     single-mode search runs: the plan goes through transits to every mode's candidates, the
     start's mode included (a detour back to it)."""
     start_mode = request.start_mode()
@@ -436,7 +439,7 @@ def _in_mode(mode: str, why: str) -> str:
 
 
 def _shorter_through_transits(
-    request: _Request, first: PlanResult, start_mode: str, targets: dict[str, np.ndarray]
+    request: _Search, first: PlanResult, start_mode: str, targets: dict[str, np.ndarray]
 ) -> PlanResult:
     """The shorter of the solved single-mode plan ``first`` and a plan through transits to
     ``targets``; the transit search runs only when it may beat ``first`` by

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -45,6 +46,9 @@ from planner.planning.tolerance import plan_within_tolerance
 from planner.validity import Margins
 
 __all__ = ["RETRIED_STATUSES", "plan_with_goal_options"]
+
+#: A search of :func:`planner.planning.plan` with the call's robot, start and rules bound.
+Search = Callable[..., PlanResult]
 
 #: Statuses of the exact goal after which the goals within ``goal.tolerance`` are tried.
 RETRIED_STATUSES = frozenset({"invalid_goal", "unreachable", "no_path"})
@@ -77,30 +81,10 @@ def _with_budget(options: PlanOptions, budget: float, deadline: float | None) ->
     return replace(options, time_budget_s=max(min(budget, _left(deadline)), 0.01))
 
 
-@dataclass(frozen=True, slots=True)
-class _Problem:
-    """What every search of one call shares: the robot, the start and the rules."""
-
-    design: Design
-    start: JointPosture
-    obstacles: Sequence[Obstacle]
-    margins: Margins | None
-
-    def plan(self, goal: JointPosture | CartesianTarget, options: PlanOptions) -> PlanResult:
-        from planner.planning.dispatch import plan
-
-        return plan(
-            self.design,
-            self.start,
-            goal,
-            obstacles=self.obstacles,
-            margins=self.margins,
-            options=options,
-        )
-
-
 def _plan_preferring(
-    problem: _Problem,
+    design: Design,
+    start: JointPosture,
+    search: Search,
     goal: JointPosture | CartesianTarget,
     prefer: str,
     options: PlanOptions,
@@ -108,7 +92,7 @@ def _plan_preferring(
 ) -> tuple[PlanResult, str]:
     """One exact goal: the plan and a sentence on the working mode chosen ("" for a joint
     goal or a given mode)."""
-    first = problem.plan(goal, options)
+    first = search(goal, options=options)
     if not isinstance(goal, CartesianTarget) or goal.working_mode != "any" or not first.solved:
         return first, ""
     mode = _goal_mode(first)
@@ -117,12 +101,12 @@ def _plan_preferring(
             f"working mode {mode} chosen (shortest: the planner's shortest joint path, "
             f"{first.diagnostics.path_length:.4g} rad)"
         )
-    reach = Manipulator(problem.design).inverse(goal.p)
+    reach = Manipulator(design).inverse(goal.p)
     others = sorted(
         {
             p.working_mode
             for p in reach
-            if p.assembly_mode == problem.start.assembly_mode
+            if p.assembly_mode == start.assembly_mode
             and p.working_mode in WORKING_MODES
             and p.working_mode != mode
         }
@@ -132,10 +116,10 @@ def _plan_preferring(
         share = options.time_budget_s / len(others)
         if _left(deadline) <= 0.01 * (len(others) - i):
             break
-        res = problem.plan(CartesianTarget(goal.p, m), _with_budget(options, share, deadline))
+        res = search(CartesianTarget(goal.p, m), options=_with_budget(options, share, deadline))
         if res.solved and _goal_mode(res) == m:
             candidates[m] = res
-    choice = choose_plan(problem.design, candidates, "best_conditioned")
+    choice = choose_plan(design, candidates, "best_conditioned")
     assert choice is not None  # the first plan is solved
     return choice.result, choice.message
 
@@ -179,8 +163,11 @@ def plan_with_goal_options(
         )
     t0 = time.monotonic()
     options = options or PlanOptions()
-    problem = _Problem(design, start, obstacles, margins)
-    result, note = _plan_preferring(problem, goal, prefer, options, deadline)
+    from planner.planning.dispatch import plan
+
+    # every search of this call shares the robot, the start and the rules: bound once
+    search = partial(plan, design, start, obstacles=obstacles, margins=margins)
+    result, note = _plan_preferring(design, start, search, goal, prefer, options, deadline)
     if tolerance > 0.0 and result.status.value in RETRIED_STATUSES and _left(deadline) > 0.01:
         result = plan_within_tolerance(
             design,

@@ -380,9 +380,7 @@ def plan_within_tolerance(
             return replace(found, message=f"{found.message}; {note}", diagnostics=diag)
     proof = prove()
     if proof is not None and (goals.count or exact.status is PlanStatus.NO_PATH):
-        diag = replace(
-            proof.diagnostics, planning_time_s=time.monotonic() - t0, searches=searches
-        )
+        diag = replace(proof.diagnostics, planning_time_s=time.monotonic() - t0, searches=searches)
         return replace(proof, message=f"{proof.message} ({was})", diagnostics=diag)
     diag = Diagnostics(
         planning_time_s=time.monotonic() - t0,
