@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia
-from planner.exceptions import TimingError
+from planner.exceptions import TimingDeadlineError, TimingError
 from planner.geometry import Obstacle
 from planner.motion import MotionProblem, Planned, Timed, path_timing, run
 from planner.planning import (
@@ -63,7 +63,14 @@ class Solution:
 
     @property
     def status(self) -> PlanStatus:
-        return self.plan.status
+        """The answer's status: the plan's, except that a path the timing could not turn into
+        a checked trajectory is ``no_path``, and one whose timing ran past the deadline is
+        ``timeout`` (the one timeout answer of the motion pipeline)."""
+        if self.timing_error is None:
+            return self.plan.status
+        if isinstance(self.timing_error, TimingDeadlineError):
+            return PlanStatus.TIMEOUT
+        return PlanStatus.NO_PATH
 
     @property
     def message(self) -> str:
