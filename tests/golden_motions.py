@@ -39,6 +39,17 @@ PICK_START = {"q": [0.90975, 2.76741, 1.04726], "assembly_mode": "+"}
 PICK = [0.35, -0.1, -0.45]
 
 
+def at_posture(q: list[float], assembly_mode: str = "+") -> list[float]:
+    """P of the joint posture ``q`` of the golden design, m (a Cartesian target there)."""
+    import numpy as np
+
+    from planner.design import Design
+    from planner.kinematics import forward_batch
+
+    design = Design(**DESIGN)
+    return forward_batch(design, np.asarray(q, dtype=float), assembly_mode).p[0].tolist()
+
+
 def _at(dy: float, dz: float) -> list[float]:
     return [PICK[0], PICK[1] + dy, PICK[2] + dz]
 

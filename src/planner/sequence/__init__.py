@@ -10,6 +10,7 @@ classes of :mod:`planner.sequence.problem` (light: the wire imports them alone),
 working-mode search of ``objective="time"`` is :mod:`planner.sequence.mode_search`.
 """
 
+from planner.sequence.motion import SequenceMotion
 from planner.sequence.problem import (
     MAX_SEQUENCE_TARGETS,
     OBJECTIVES,
@@ -18,7 +19,7 @@ from planner.sequence.problem import (
     SequenceResult,
     SequenceTarget,
 )
-from planner.sequence.solve import SequenceMotion, plan_sequence, solve_sequence
+from planner.sequence.solve import plan_sequence, solve_sequence
 
 __all__ = [
     "MAX_SEQUENCE_TARGETS",

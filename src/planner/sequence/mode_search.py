@@ -21,7 +21,7 @@ search is exact with respect to what it evaluates:
    best-first search over targets x modes, the exact remaining bound of the dynamic
    programme as its heuristic, so each completed assignment popped is the next best);
 4. **refined by real plans**: each popped assignment is planned and timed for real
-   (:class:`~planner.sequence.solve.SequenceMotion` through the pipeline, leg plans shared
+   (:class:`~planner.sequence.motion.SequenceMotion` through the pipeline, leg plans shared
    between assignments),
    until the next assignment's bound is no smaller than the best real cycle time found: no
    assignment left can beat it, so the best found is the optimum over every assignment (of
@@ -57,8 +57,8 @@ from planner.kinematics import WORKING_MODES
 from planner.motion import MotionProblem, run
 from planner.planning import CartesianTarget, JointPosture, PlanStatus, goal_candidates
 from planner.planning.single_mode import posture_mode
+from planner.sequence.motion import SequenceMotion, solved_message
 from planner.sequence.problem import SequenceDiagnostics, SequenceResult, SequenceTarget
-from planner.sequence.solve import SequenceMotion, _solved_message
 from planner.timing.limits import JointLimits
 from planner.validity import Margins, ValidityChecker
 
@@ -292,5 +292,5 @@ def choose_modes(
     duration = result.cycle_time if result.trajectory is not None else None
     turning = result.diagnostics.extra.get("turning", ())
     by_timing = [i for i in result.diagnostics.stopped_targets if i not in turning]
-    message = _solved_message(n, cycle, shown, extra, duration, by_timing, turning)
+    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning)
     return replace(result, message=message, diagnostics=diagnostics)
