@@ -195,6 +195,7 @@ from planner.wire.scenes import (
 )
 from planner.wire.sequence import (
     MAX_SEQUENCE_TARGETS,
+    BlendModel,
     LegModel,
     Objective,
     SequenceDiagnosticsModel,
@@ -254,6 +255,7 @@ __all__ = [
     "AnyTrajectory",
     "AssemblyModeLabel",
     "BaseInertiaModel",
+    "BlendModel",
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianDiagnosticsModel",
