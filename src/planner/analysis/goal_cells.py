@@ -82,10 +82,6 @@ class GoalBall:
         if bad or not self.working_modes:
             raise InputError(f"working_modes must be among {WORKING_MODES}, got {bad or '()'}")
 
-    def contains_p(self, p: np.ndarray) -> np.ndarray:
-        """(M,) bool: which points P (M, 3) lie in the ball (kind "point")."""
-        return np.linalg.norm(np.atleast_2d(p) - self.centre, axis=1) <= self.radius + _SLACK
-
 
 def _interval_gap(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Distance from x to [lo, hi] (0 inside)."""

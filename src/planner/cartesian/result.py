@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.planning.result import Diagnostics, PlanPath, PlanStatus
+from planner.planning.result import PlanPath, PlanStatus
 
 __all__ = ["CartesianDiagnostics", "CartesianResult", "PathEvent", "StopPoint"]
 
@@ -85,7 +85,7 @@ class CartesianDiagnostics:
     planning_time_s, timing_time_s : float, s
     path_length : float, rad -- joint-space length of the path.
     cartesian_length : float, m -- length of the polyline achieved.
-    max_kappa_A, min_serial_margin, min_clearance : extremes (as :class:`Diagnostics`).
+    max_kappa_A, min_serial_margin, min_clearance : extremes (as :class:`planner.planning.result.Diagnostics`).
     chord_bound : float, m -- largest certified chord deviation of the joint pieces.
     max_path_deviation : float, m -- largest measured distance of P from the polyline: over
         the timed trajectory's dense check times when timed, else over the joint pieces
@@ -153,16 +153,3 @@ class CartesianResult:
     @property
     def solved(self) -> bool:
         return self.status is PlanStatus.SOLVED
-
-    def plan_diagnostics(self) -> Diagnostics:
-        """The plan-style :class:`~planner.planning.result.Diagnostics` of this path."""
-        d = self.diagnostics
-        return Diagnostics(
-            planning_time_s=d.planning_time_s,
-            path_length=d.path_length,
-            min_clearance=d.min_clearance,
-            max_kappa_A=d.max_kappa_A,
-            min_serial_margin=d.min_serial_margin,
-            planner="cartesian",
-            attempts=1,
-        )
