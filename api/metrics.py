@@ -248,22 +248,28 @@ class _CacheCollector:
                 for i, v in enumerate(values[:4]):
                     total[i] += v
                 total[4] = max(total[4], values[4])
-        families = {
-            "entries": GaugeMetricFamily("planner_cache_entries", "Entries kept.", labels=["cache"]),
-            "bytes": GaugeMetricFamily("planner_cache_bytes", "Bytes of the entries kept.",
-                                       labels=["cache"]),
-            "hits": CounterMetricFamily("planner_cache_hits", "Lookups that found an entry.",
-                                        labels=["cache"]),
-            "misses": CounterMetricFamily("planner_cache_misses", "Lookups that found none.",
-                                          labels=["cache"]),
-            "budget": GaugeMetricFamily("planner_cache_budget_bytes",
-                                        "The cache's bound in each process (its share of "
-                                        "PLANNER_CACHE_MB), bytes.", labels=["cache"]),
-        }  # fmt: skip
+        # in the order of a report's values: entries, bytes, hits, misses, budget
+        families = (
+            GaugeMetricFamily("planner_cache_entries", "Entries kept.", labels=["cache"]),
+            GaugeMetricFamily(
+                "planner_cache_bytes", "Bytes of the entries kept.", labels=["cache"]
+            ),
+            CounterMetricFamily(
+                "planner_cache_hits", "Lookups that found an entry.", labels=["cache"]
+            ),
+            CounterMetricFamily(
+                "planner_cache_misses", "Lookups that found none.", labels=["cache"]
+            ),
+            GaugeMetricFamily(
+                "planner_cache_budget_bytes",
+                "The cache's bound in each process (its share of PLANNER_CACHE_MB), bytes.",
+                labels=["cache"],
+            ),
+        )
         for name, values in sorted(totals.items()):
-            for family, value in zip(families.values(), values, strict=True):
+            for family, value in zip(families, values, strict=True):
                 family.add_metric([name], value)
-        yield from families.values()
+        yield from families
 
 
 class Metrics:

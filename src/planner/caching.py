@@ -81,22 +81,23 @@ class CacheShare(NamedTuple):
 #: Every process-wide cache by name (``room.what``): its share of the budget (together at
 #: most 1), its most entries, and what it holds. A worker fills the library's; the serving
 #: process the service's (``scenes.resolved``) and the few it computes itself.
-CACHES: dict[str, CacheShare] = {
-    "geometry.packed": CacheShare(0.25, 16, "packed obstacle sets of more than 64 rows, by content"),
-    "geometry.packed_small": CacheShare(0.02, 256, "packed obstacle sets of at most 64 rows, by content"),
-    "geometry.by_identity": CacheShare(0.18, 8, "packed obstacle lists of 16+ objects or a cloud, by identity"),
-    "corridor.grids": CacheShare(0.06, 32, "corridor grids of (design, margins, obstacles, modes, shape)"),
-    "corridor.too_costly": CacheShare(0.0001, 32, "projected times (s) of corridor builds stopped"),
-    "regions.maps": CacheShare(0.25, 16, "region maps of (design, margins, n, refine)"),
-    "region_walks.transits": CacheShare(0.01, 512, "transit postures of a region map and flip"),
-    "plotting.sections": CacheShare(0.04, 16, "workspace sections of (kind, design, n)"),
-    "plotting.loci": CacheShare(0.02, 16, "singularity loci of (kind, design)"),
-    "plotting.iso": CacheShare(0.01, 16, "isoconditioning loci of (design, level)"),
-    "plotting.figures": CacheShare(0.02, 16, "rendered figure bytes of (name, design, n, format, dpi)"),
-    "timing.joint_constraints": CacheShare(0.001, 32, "toppra joint constraints of (v, a) limits"),
-    "wire.designs": CacheShare(0.001, 256, "designs of (L0, L1, L2, link radius, joint limits)"),
-    "scenes.resolved": CacheShare(0.10, 32, "the service's resolved scenes (obstacles, design) by hash"),
+_TABLE = {
+    "geometry.packed": (0.25, 16, "packed obstacle sets of more than 64 rows, by content"),
+    "geometry.packed_small": (0.02, 256, "packed obstacle sets of at most 64 rows, by content"),
+    "geometry.by_identity": (0.18, 8, "packed obstacle lists of 16+ objects or a cloud, by identity"),
+    "corridor.grids": (0.06, 32, "corridor grids of (design, margins, obstacles, modes, shape)"),
+    "corridor.too_costly": (0.0001, 32, "projected times (s) of corridor builds stopped"),
+    "regions.maps": (0.25, 16, "region maps of (design, margins, n, refine)"),
+    "region_walks.transits": (0.01, 512, "transit postures of a region map and flip"),
+    "plotting.sections": (0.04, 16, "workspace sections of (kind, design, n)"),
+    "plotting.loci": (0.02, 16, "singularity loci of (kind, design)"),
+    "plotting.iso": (0.01, 16, "isoconditioning loci of (design, level)"),
+    "plotting.figures": (0.02, 16, "rendered figure bytes of (name, design, n, format, dpi)"),
+    "timing.joint_constraints": (0.001, 32, "toppra joint constraints of (v, a) limits"),
+    "wire.designs": (0.001, 256, "designs of (L0, L1, L2, link radius, joint limits)"),
+    "scenes.resolved": (0.10, 32, "the service's resolved scenes (obstacles, design) by hash"),
 }  # fmt: skip
+CACHES: dict[str, CacheShare] = {name: CacheShare(*row) for name, row in _TABLE.items()}
 
 
 class CacheStats(NamedTuple):
