@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner import caching
 from planner.analysis import _region_kernels as K
 from planner.analysis import coverage as C
 from planner.analysis import regions as R
@@ -236,15 +237,15 @@ def test_cache_returns_the_same_read_only_map():
 def test_cache_keeps_at_most_its_bytes(monkeypatch):
     """The LRU cache drops the least recently used map beyond its byte budget and does not
     keep a map larger than the budget."""
-    R.clear_cache()
+    caching.clear("regions")
     a = R.region_map(Design.default(), n=64)
-    monkeypatch.setattr(R._CACHE, "max_bytes", int(1.5 * R._nbytes(a)))
+    monkeypatch.setattr(R._CACHE, "max_bytes", int(1.5 * caching.nbytes_of(a)))
     b = R.region_map(Design.paper_optimum(), n=64)
     assert R.region_map(Design.paper_optimum(), n=64) is b
     assert R.region_map(Design.default(), n=64) is not a  # dropped for b
     big = R.region_map(Design.default(), n=128)
     assert R.region_map(Design.default(), n=128) is not big  # never kept
-    R.clear_cache()
+    caching.clear("regions")
 
 
 def test_coverage_areas_match_the_jacobian_integral():

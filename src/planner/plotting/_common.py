@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from functools import lru_cache
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -18,6 +17,7 @@ from planner.analysis.loci import (
     serial_loci,
 )
 from planner.analysis.sections import Section, cartesian_section, joint_section
+from planner.caching import cached
 from planner.design import Design
 from planner.kinematics import link_points
 
@@ -65,9 +65,6 @@ SCREEN_RESOLUTION = 96
 #: HTTP: ``?resolution=256&dpi=150``).
 PRINT_RESOLUTION = 256
 
-#: Rendered figures and their inputs kept per worker process (a few designs' worth).
-_CACHE_SIZE = 16
-
 
 def _legend_below(ax: Axes, ncol: int = 3, handles: list | None = None) -> None:
     """The axes' legend in a frameless row under the x label, with line samples long and
@@ -99,7 +96,7 @@ def _read_only(obj: object) -> None:
             value.setflags(write=False)
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.sections")
 def _section(kind: str, design: Design, n: int) -> Section:
     """:func:`cartesian_section` or :func:`joint_section` of a design, once per process."""
     section = cartesian_section(design, n) if kind == "cartesian" else joint_section(design, n)
@@ -107,7 +104,7 @@ def _section(kind: str, design: Design, n: int) -> Section:
     return section
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.loci")
 def _loci(kind: str, design: Design) -> dict[str, Locus]:
     """:func:`parallel_loci` or :func:`serial_loci` of a design, once per process (a fresh
     dict each call; the loci in it are shared and read-only)."""

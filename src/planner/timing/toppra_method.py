@@ -14,7 +14,6 @@ limits hold exactly at every instant.
 
 from __future__ import annotations
 
-import functools
 import logging
 import time
 from collections.abc import Callable
@@ -27,6 +26,7 @@ import toppra.constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from toppra.interpolator import AbstractGeometricPath
 
+from planner.caching import cached
 from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
@@ -306,7 +306,7 @@ def _straight_rest_to_rest(
     return np.array([s_start, s_start + length / 2, s_end]), np.array([0.0, peak, 0.0])
 
 
-@functools.lru_cache(maxsize=32)
+@cached("timing.joint_constraints")
 def _joint_constraints(v: tuple[float, ...], a: tuple[float, ...]) -> tuple:
     """toppra's joint velocity and acceleration constraints (cached: their constructors
     format the limits into strings, about 2 ms; the objects hold no path state)."""

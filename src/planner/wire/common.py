@@ -5,7 +5,6 @@ validity margins (``docs/conventions.md``, *Shared objects*).
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -26,6 +25,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from planner.caching import cached
 from planner.constants import MAX_POINTS
 from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
 from planner.exceptions import DesignError, InputError, PlannerError
@@ -300,7 +300,7 @@ class DesignModel(_Request):
         )
 
 
-@functools.lru_cache(maxsize=256)
+@cached("wire.designs")
 def _design_of(
     L0: float,
     L1: float,
