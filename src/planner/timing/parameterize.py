@@ -529,9 +529,7 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":
         return _with_vias(job, state, ToppraCurve(path, state.profile), lim)
-    curve = build_ruckig_curve(
-        path, state.profile, lim, deadline=job.deadline, cache=state.moves
-    )
+    curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline, cache=state.moves)
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
 
