@@ -99,6 +99,7 @@ from planner.wire.common import (
     margins_to_core,
     obstacle_from_dict,
     obstacles_to_core,
+    triple_to_core,
 )
 from planner.wire.design import (
     MAX_REGION_RESOLUTION,
@@ -398,5 +399,6 @@ __all__ = [
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",
+    "triple_to_core",
     "with_scene",
 ]
