@@ -45,6 +45,7 @@ from planner.wire.common import (
 if TYPE_CHECKING:
     from planner.timing.limits import JointLimits
     from planner.timing.options import TimingOptions
+    from planner.timing.trajectory import Trajectory
     from planner.wire.cartesian import CartesianTimingOptions
 
 __all__ = [
@@ -380,7 +381,7 @@ def arrays_from_points(points_form: Mapping) -> TrajectoryArrays:
 
 
 def trajectory_model(
-    traj: Any, format: TrajectoryFormat = "arrays"
+    traj: Trajectory, format: TrajectoryFormat = "arrays"
 ) -> TrajectoryModel | TrajectoryPointsModel:
     """The wire form of a :class:`planner.timing.Trajectory`, in ``format`` (``"points"``:
     :func:`points_from_arrays`, the same samples)."""
@@ -389,7 +390,7 @@ def trajectory_model(
     return _arrays_model(traj)
 
 
-def _arrays_model(traj: Any) -> TrajectoryModel:
+def _arrays_model(traj: Trajectory) -> TrajectoryModel:
     return TrajectoryModel(
         method=traj.method,
         duration=traj.duration,
@@ -406,7 +407,7 @@ def _arrays_model(traj: Any) -> TrajectoryModel:
     )
 
 
-def _tau_list(traj: Any) -> list[list[float]] | None:
+def _tau_list(traj: Trajectory) -> list[list[float]] | None:
     """The trajectory's torques as lists (None without them; a NaN, which a checked
     trajectory does not have, would not be JSON)."""
     tau = getattr(traj, "tau", None)
