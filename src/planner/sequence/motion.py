@@ -173,10 +173,7 @@ class SequenceMotion:
             estimates=self.extra.get("estimates", 0),
         )
         if joined.failed is not None or joined.path is None:
-            legs = tuple(
-                Leg(i, p, _arrival_mode(p.path))
-                for i, p in enumerate(joined.plans)
-            )
+            legs = tuple(Leg(i, p, _arrival_mode(p.path)) for i, p in enumerate(joined.plans))
             return SequenceResult(planned.status, planned.message, legs, diagnostics=diagnostics)
         n = len(self.targets)
         untimed_legs = tuple(

@@ -155,6 +155,7 @@ from planner.wire.meta import (
     ErrorResponse,
     Health,
     Readiness,
+    ReadinessStatus,
     VersionInfo,
 )
 from planner.wire.motion import (
@@ -326,6 +327,7 @@ __all__ = [
     "Preference",
     "Rates3",
     "Readiness",
+    "ReadinessStatus",
     "RegionModel",
     "RegionTransitModel",
     "RegionsRequest",
