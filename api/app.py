@@ -7,6 +7,7 @@ import functools
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 from fastapi import FastAPI
 
@@ -38,7 +39,7 @@ __all__ = ["create_app"]
 logger = logging.getLogger(__name__)
 
 #: Error answers of the job routes' own (the gate's and the pool's: planner_api.openapi).
-_ERRORS = {422: {"model": ErrorResponse}}
+_ERRORS: dict[int | str, dict[str, Any]] = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
 

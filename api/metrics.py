@@ -328,9 +328,9 @@ class Metrics:
         Gauge("planner_build_info", "Service version.", ["version"], registry=r).labels(
             version
         ).set(1)
-        r.register(_PoolCollector(get_pool))  # type: ignore[arg-type]
+        r.register(_PoolCollector(get_pool))
         self._caches = _CacheCollector(get_pool)
-        r.register(self._caches)  # type: ignore[arg-type]
+        r.register(self._caches)
 
     def record_job(self, sample: JobSample) -> None:
         """Record one job's :class:`JobSample` (in the process that serves /metrics)."""

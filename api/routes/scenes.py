@@ -87,18 +87,18 @@ def _not_found(name: str) -> HTTPException:
     return HTTPException(404, f"no scene named {name!r} (PUT /v1/scenes/{name} stores one)")
 
 
-_STORE_ERRORS = {
+_STORE_ERRORS: dict[int | str, dict[str, Any]] = {
     503: {
         "model": ErrorResponse,
         "description": "The scene store cannot answer in time "
         "(store_unavailable, with Retry-After): nothing was changed.",
     },
 }
-_NOT_FOUND = {
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {
     **_STORE_ERRORS,
     404: {"model": ErrorResponse, "description": "No scene of this tenant has that name."},
 }
-_QUOTAS = {
+_QUOTAS: dict[int | str, dict[str, Any]] = {
     **_STORE_ERRORS,
     413: {
         "model": ErrorResponse,

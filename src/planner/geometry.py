@@ -219,7 +219,7 @@ class PackedObstacles(NamedTuple):
     sphere_grid: np.ndarray  # (K,) the sphere rows' grid, empty when they have none
 
     @property
-    def count(self) -> int:
+    def count(self) -> int:  # type: ignore[override]  # the obstacles', not tuple.count
         return len(self.spheres) + len(self.capsules) + len(self.boxes)
 
 

@@ -168,6 +168,7 @@ def optimize_design(
         if progress is not None:
             progress(name, index, total)
 
+    res: optimize.OptimizeResult
     if objective == "volume":
         best = None
         for k, frac in enumerate((0.25, 0.5, 0.75)):
@@ -176,6 +177,7 @@ def optimize_design(
             res = optimize.minimize(loss, x0, method="L-BFGS-B", bounds=bounds)
             if best is None or res.fun < best.fun:
                 best = res
+        assert best is not None  # three local starts ran
         res = best
         tell("done", 3, 3)
     else:
@@ -190,7 +192,8 @@ def optimize_design(
         tell(f"generation 1 of {maxiter}", 0, maxiter)
         res = optimize.differential_evolution(
             loss,
-            bounds,
+            # scipy takes (min, max) pairs, one per variable; scipy-stubs types one pair only
+            bounds,  # type: ignore[arg-type]
             seed=seed,
             maxiter=maxiter,
             popsize=8,

@@ -8,10 +8,14 @@ reuse); the wire's response is built from them by :func:`planner.wire.cartesian_
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.planning.result import PlanPath, PlanStatus
+
+if TYPE_CHECKING:
+    from planner.timing.trajectory import Trajectory
 
 __all__ = ["CartesianDiagnostics", "CartesianResult", "PathEvent", "StopPoint"]
 
@@ -141,7 +145,7 @@ class CartesianResult:
     s: np.ndarray
     p: np.ndarray
     stop: StopPoint | None
-    trajectory: object | None
+    trajectory: Trajectory | None
     timing_error: str
     events: tuple[PathEvent, ...]
     working_mode: str

@@ -200,9 +200,9 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
     (their packed arrays as bytes, with their shapes), the modes, the serial rules and the
     shape."""
     obstacles = tuple((a.shape, a.tobytes()) for a in checker.packed[:3])
-    shape = tuple(int(n) for n in shape)
-    if len(shape) != 3 or min(shape) < 2:
-        raise ValueError(f"shape must be 3 cell counts >= 2, got {shape!r}")
+    cells = tuple(int(n) for n in shape)
+    if len(cells) != 3 or min(cells) < 2:
+        raise ValueError(f"shape must be 3 cell counts >= 2, got {cells!r}")
     return (
         checker.design,
         checker.margins,
@@ -210,7 +210,7 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
         checker.assembly_mode,
         checker.working_mode,
         checker.serial_rules,
-        shape,
+        cells,
     )
 
 

@@ -74,8 +74,9 @@ def _goal_key(goal: JointPosture | CartesianTarget) -> tuple:
     return ("p", goal.p.tobytes(), goal.working_mode)
 
 
-def _arrival_mode(path: PlanPath) -> str:
-    return path.segments[-1].working_mode if path.segments else ""
+def _arrival_mode(path: PlanPath | None) -> str:
+    """The working mode a leg arrives in; "" without a path or segments."""
+    return path.segments[-1].working_mode if path is not None and path.segments else ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -195,10 +196,7 @@ class SequenceMotion:
             estimates=self.extra.get("estimates", 0),
         )
         if joined.failed is not None or joined.path is None:
-            legs = tuple(
-                Leg(i, p, _arrival_mode(p.path) if p.path is not None else "")
-                for i, p in enumerate(joined.plans)
-            )
+            legs = tuple(Leg(i, p, _arrival_mode(p.path)) for i, p in enumerate(joined.plans))
             return SequenceResult(planned.status, planned.message, legs, diagnostics=diagnostics)
         n = len(self.targets)
         untimed_legs = tuple(

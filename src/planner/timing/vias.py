@@ -233,8 +233,8 @@ def build_via_chain(
 
         def cost(
             z: np.ndarray,
-            before=before,
-            after=after,
+            before: tuple[list, list] = before,
+            after: tuple[list, list] = after,
             corner=corner,
             r_i=r_i,
             r_in=r_in,
@@ -378,7 +378,7 @@ class SplicedCurve:
         return q, qd, qdd, jerk
 
     def check_times(self, resolution: float) -> np.ndarray:
-        out = []
+        out: list[np.ndarray | list[float]] = []
         for t0, t1, curve, off in self._pieces():
             c = self.base if curve is None else curve
             tc = c.check_times(resolution) + off
@@ -386,7 +386,7 @@ class SplicedCurve:
         return np.unique(np.concatenate(out))
 
     def rest_times(self) -> np.ndarray:
-        out = []
+        out: list[np.ndarray | list[float]] = []
         for t0, t1, curve, off in self._pieces():
             c = self.base if curve is None else curve
             tc = c.rest_times() + off

@@ -35,7 +35,7 @@ from planner.wire.timing import (
 
 if TYPE_CHECKING:
     from planner.motion.problem import MotionProblem
-    from planner.sequence.problem import SequenceTarget
+    from planner.sequence.problem import SequenceResult, SequenceTarget
 
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
@@ -223,7 +223,9 @@ def _extreme(values: list[float], fn) -> float | None:
     return finite(fn(kept)) if kept else None
 
 
-def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> SequenceResponse:
+def sequence_response(
+    result: SequenceResult, *, format: TrajectoryFormat = "arrays"
+) -> SequenceResponse:
     """The answer of a :class:`planner.sequence.SequenceResult`, built once: its legs (each
     leg's path as planned), the one trajectory in ``format``, the cycle time, the plans'
     extremes over every leg and the mode search's diagnostics (a timing failure: ``no_path``
