@@ -151,7 +151,7 @@ def run_measured(
     seconds = time.perf_counter() - start
     name = getattr(job, "__name__", type(job).__name__)
     model = models[0] if models else None
-    where = {"pid": os.getpid(), "caches": cache_report()}
+    pid, caches = os.getpid(), cache_report()
     if isinstance(model, PlanResponse):
         sample = JobSample(
             name,
@@ -159,10 +159,11 @@ def run_measured(
             str(model.status),
             model.diagnostics.planning_time_s,
             model.diagnostics.timing_time_s,
-            **where,
+            pid=pid,
+            caches=caches,
         )
     else:
-        sample = JobSample(name, seconds, **where)
+        sample = JobSample(name, seconds, pid=pid, caches=caches)
     return content, sample
 
 
@@ -249,7 +250,7 @@ class _CacheCollector:
                     total[i] += v
                 total[4] = max(total[4], values[4])
         # in the order of a report's values: entries, bytes, hits, misses, budget
-        families = (
+        families: tuple[GaugeMetricFamily | CounterMetricFamily, ...] = (
             GaugeMetricFamily("planner_cache_entries", "Entries kept.", labels=["cache"]),
             GaugeMetricFamily(
                 "planner_cache_bytes", "Bytes of the entries kept.", labels=["cache"]

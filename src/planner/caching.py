@@ -316,8 +316,8 @@ def _nbytes(value: object, seen: set[int], depth: int) -> int:
     return _OBJECT_BYTES + sum(_nbytes(p, seen, depth - 1) for p in parts)
 
 
-@functools.cache  # a type's slot names: one small constant per class, not request data
 def _slots(cls: type) -> tuple[str, ...]:
+    """A class's slot names over its MRO (a walk of a few classes: not worth a cache)."""
     return tuple(
         s
         for k in cls.__mro__

@@ -299,6 +299,6 @@ def choose_modes(
     duration = result.cycle_time if result.trajectory is not None else None
     turning = result.diagnostics.extra.get("turning", ())
     by_timing = [i for i in result.diagnostics.stopped_targets if i not in turning]
-    blends = result.diagnostics.blends
-    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning, blends)
+    uses = result.diagnostics.blends
+    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning, uses)
     return replace(result, message=message, diagnostics=diagnostics)

@@ -140,8 +140,8 @@ class SequenceMotion:
             message = f"{leg_name(failed, n)}: {bad.message}"
             return Planned(bad.status, message, _Joined(tuple(plans), planning_time, modes, failed))
         joined, at = join_legs(np.asarray(problem.start.q, dtype=float), plans)
-        asked = [not s for s in self.stops]  # the pass-through targets asked for
-        turning = turning_back(np.asarray(joined.waypoints), at, asked)
+        wanted = [not s for s in self.stops]  # the pass-through targets asked for
+        turning = turning_back(np.asarray(joined.waypoints), at, wanted)
         stops = list(self.stops)
         for i in turning:
             stops[i] = True
