@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 from fastapi import FastAPI
 
 import planner
+from planner import caching
 from planner.wire import ErrorResponse
 from planner_api.deps import ApiKey, WatchClient
 from planner_api.errors import install_error_handlers
@@ -28,7 +31,7 @@ from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
 from planner_api.store_access import StoreAccess
-from planner_api.warmup import warm_up_inline, warm_up_worker
+from planner_api.warmup import start_worker, warm_up_inline
 from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
@@ -36,7 +39,7 @@ __all__ = ["create_app"]
 logger = logging.getLogger(__name__)
 
 #: Error answers of the job routes' own (the gate's and the pool's: planner_api.openapi).
-_ERRORS = {422: {"model": ErrorResponse}}
+_ERRORS: dict[int | str, dict[str, Any]] = {422: {"model": ErrorResponse}}
 #: Seconds the workers get to stop at the lifespan's end once the shutdown grace is spent.
 _KILL_AFTER_DRAIN_S = 2.0
 
@@ -52,10 +55,12 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
 
     The worker pool starts with the application's lifespan (``with TestClient(app)`` in
     tests, or a server). ``warm_up=False`` (tests of the gate, the key, the limits, the
-    metrics) announces each worker ready as soon as it has started, without
+    metrics) announces each worker ready as soon as it has sized its caches, without
     :func:`~planner_api.warmup.warm_up_worker`: its first job pays the imports instead.
+    Every process's caches get ``settings.cache_mb`` (:func:`planner.caching.configure`).
     """
     settings = settings or get_settings()
+    caching.configure(budget_mb=settings.cache_mb)  # this process's; the workers' at start
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -64,7 +69,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             settings.queue_size or 0,
             retry_after_s=settings.retry_after_s,
             log_setup=(settings.log_level, settings.log_format),
-            warm_up=warm_up_worker if warm_up else None,
+            warm_up=functools.partial(start_worker, settings.cache_mb, warm_up),
             overrun_grace_s=settings.overrun_grace_s,
             overrun_max_s=settings.overrun_max_s,
             max_rss_mb=settings.worker_max_rss_mb or None,

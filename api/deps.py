@@ -67,12 +67,9 @@ async def require_api_key(
     does. The gate (:mod:`planner_api.middleware`) checked it before the body was read; this
     is the routes' own check, and what tells them the tenant."""
     keys = settings.tenant_keys
-    if keys is None:
-        tenant: str | None = DEFAULT_TENANT
-    else:
-        tenant = tenant_of(request.headers, keys)
-        if tenant is None:
-            raise AuthenticationError(API_KEY_REQUIRED)
+    tenant = DEFAULT_TENANT if keys is None else tenant_of(request.headers, keys)
+    if tenant is None:
+        raise AuthenticationError(API_KEY_REQUIRED)
     request.state.tenant = tenant
     return tenant
 

@@ -45,6 +45,7 @@ import time
 import uuid
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from fastapi.exceptions import RequestValidationError
@@ -77,7 +78,7 @@ from planner_api.exceptions import (
     ShuttingDownError,
     StoreUnavailableError,
 )
-from planner_api.job_table import HEARTBEAT_S, JobRow
+from planner_api.job_table import HEARTBEAT_S, JobRow, JobTable
 from planner_api.store_access import StoreAccess
 from planner_api.tenants import DEFAULT_TENANT
 from planner_api.workers import CLIENT_GONE
@@ -333,7 +334,8 @@ class JobStore:
                 continue
             ids = list(self._tasks)
             try:
-                for job_id in await self.access.jobs(lambda t, ids=ids: t.ended(ids)):
+                # ids bound now (a lambda would close over the loop's variable)
+                for job_id in await self.access.jobs(partial(JobTable.ended, job_ids=ids)):
                     task = self._tasks.get(job_id)
                     if task is not None:
                         task.cancel()
@@ -390,8 +392,8 @@ class JobStore:
         """The job as a line of ``GET /v1/jobs``."""
         return JobSummary(
             id=row.id,
-            kind=row.kind,  # type: ignore[arg-type]
-            status=row.status,  # type: ignore[arg-type]
+            kind=row.kind,
+            status=row.status,
             created=row.submitted_at,
             finished=row.finished_at,
             submitted_at=row.submitted_at,

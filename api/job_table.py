@@ -26,6 +26,7 @@ submitting at once cannot both take the last place.
 
 from __future__ import annotations
 
+import builtins
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -336,10 +337,11 @@ class JobTable:
             )
         return self.get(tenant, job_id)
 
-    def ended(self, job_ids: list[str]) -> list[str]:
+    # ``builtins.list``: in the class body, ``list`` is the method :meth:`list`
+    def ended(self, job_ids: builtins.list[str]) -> builtins.list[str]:
         """Which of ``job_ids`` are no longer queued or running in the table (cancelled by
         another replica, failed as lost, or gone)."""
-        p, still = self._p, set()
+        p, still = self._p, set[str]()
         with self._read() as con:
             if con is None:
                 return list(job_ids)

@@ -31,12 +31,24 @@ planner_pool_rejected_total                counter    jobs refused with 503 (poo
 planner_pool_worker_kills_total            counter    workers killed: job past deadline + grace,
                                                       or cancelled (client gone, DELETE)
 planner_pool_worker_recycles_total         counter    workers recycled over the memory bound
+planner_cache_entries                      gauge      cache: entries kept
+planner_cache_bytes                        gauge      cache: bytes of the entries kept
+planner_cache_hits_total                   counter    cache: lookups that found an entry
+planner_cache_misses_total                 counter    cache: lookups that found none
+planner_cache_budget_bytes                 gauge      cache: its bound in each process
 planner_build_info                         gauge      version; always 1
 =========================================  =========  ==========================================
+
+The caches (:mod:`planner.caching`, ``cache`` its name) live in every process: each job's
+:class:`JobSample` carries its worker's :func:`planner.caching.stats` after the job, and a
+scrape sums the last report of each live worker with the serving process's own (a worker
+replaced takes its counts with it, which Prometheus' ``rate`` reads as a counter reset).
 """
 
 from __future__ import annotations
 
+import os
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
@@ -49,10 +61,20 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.exposition import CONTENT_TYPE_LATEST
 from pydantic import BaseModel
 
+from planner import caching
 from planner.endpoints import UNBOUNDED, Job, JobBudget, as_json
 from planner_api.logging import REQUEST_ID
 
-__all__ = ["CURRENT", "JobSample", "Metrics", "metrics", "record_job", "router", "run_measured"]
+__all__ = [
+    "CURRENT",
+    "JobSample",
+    "Metrics",
+    "cache_report",
+    "metrics",
+    "record_job",
+    "router",
+    "run_measured",
+]
 
 #: Buckets (s) for request and job durations: 1 ms to 60 s.
 DURATION_BUCKETS = (
@@ -76,6 +98,11 @@ class JobSample:
         A plan's ``status``; None for other jobs.
     planning_time_s, timing_time_s : float or None
         A plan's ``diagnostics`` durations, s (None when absent).
+    pid : int or None
+        The process that ran the job.
+    caches : tuple or None
+        That process's caches after the job: (name, entries, bytes, hits, misses,
+        budget bytes) each (:func:`cache_report`).
     """
 
     job: str
@@ -83,6 +110,14 @@ class JobSample:
     status: str | None = None
     planning_time_s: float | None = None
     timing_time_s: float | None = None
+    pid: int | None = None
+    caches: tuple[tuple[str, int, int, int, int, int], ...] | None = None
+
+
+def cache_report() -> tuple[tuple[str, int, int, int, int, int], ...]:
+    """This process's :func:`planner.caching.stats` as plain tuples (a few hundred bytes
+    pickled): (name, entries, bytes, hits, misses, budget bytes) per cache."""
+    return tuple((name, *s) for name, s in caching.stats().items())
 
 
 def run_measured(
@@ -116,6 +151,7 @@ def run_measured(
     seconds = time.perf_counter() - start
     name = getattr(job, "__name__", type(job).__name__)
     model = models[0] if models else None
+    pid, caches = os.getpid(), cache_report()
     if isinstance(model, PlanResponse):
         sample = JobSample(
             name,
@@ -123,9 +159,11 @@ def run_measured(
             str(model.status),
             model.diagnostics.planning_time_s,
             model.diagnostics.timing_time_s,
+            pid=pid,
+            caches=caches,
         )
     else:
-        sample = JobSample(name, seconds)
+        sample = JobSample(name, seconds, pid=pid, caches=caches)
     return content, sample
 
 
@@ -179,6 +217,60 @@ class _PoolCollector:
             "job exceeded PLANNER_WORKER_MAX_RSS_MB (replacement warm first).",
             value=pool.recycles,
         )
+
+
+class _CacheCollector:
+    """The caches of the serving process and of its live workers (their last reports,
+    :meth:`Metrics.record_job`), summed per cache at scrape time."""
+
+    def __init__(self, get_pool: Callable[[], Any]) -> None:
+        self._get_pool = get_pool
+        self._lock = threading.Lock()
+        #: pid -> the last cache report of that worker
+        self._reports: dict[int, tuple[tuple[str, int, int, int, int, int], ...]] = {}
+
+    def record(self, sample: JobSample) -> None:
+        """Keep a worker's report (the serving process's own is read live)."""
+        if sample.caches is not None and sample.pid is not None and sample.pid != os.getpid():
+            with self._lock:
+                self._reports[sample.pid] = sample.caches
+
+    def collect(self) -> Iterator[Metric]:
+        pool = self._get_pool()
+        live = set(pool.pids) if pool is not None else set()
+        with self._lock:
+            for pid in [p for p in self._reports if p not in live]:
+                del self._reports[pid]  # a worker gone: its caches with it
+            reports = [*self._reports.values(), cache_report()]
+        totals: dict[str, list[int]] = {}
+        for report in reports:
+            for name, *values in report:
+                total = totals.setdefault(name, [0, 0, 0, 0, 0])
+                for i, v in enumerate(values[:4]):
+                    total[i] += v
+                total[4] = max(total[4], values[4])
+        # in the order of a report's values: entries, bytes, hits, misses, budget
+        families: tuple[GaugeMetricFamily | CounterMetricFamily, ...] = (
+            GaugeMetricFamily("planner_cache_entries", "Entries kept.", labels=["cache"]),
+            GaugeMetricFamily(
+                "planner_cache_bytes", "Bytes of the entries kept.", labels=["cache"]
+            ),
+            CounterMetricFamily(
+                "planner_cache_hits", "Lookups that found an entry.", labels=["cache"]
+            ),
+            CounterMetricFamily(
+                "planner_cache_misses", "Lookups that found none.", labels=["cache"]
+            ),
+            GaugeMetricFamily(
+                "planner_cache_budget_bytes",
+                "The cache's bound in each process (its share of PLANNER_CACHE_MB), bytes.",
+                labels=["cache"],
+            ),
+        )
+        for name, values in sorted(totals.items()):
+            for family, value in zip(families, values, strict=True):
+                family.add_metric([name], value)
+        yield from families
 
 
 class Metrics:
@@ -237,11 +329,14 @@ class Metrics:
         Gauge("planner_build_info", "Service version.", ["version"], registry=r).labels(
             version
         ).set(1)
-        r.register(_PoolCollector(get_pool))  # type: ignore[arg-type]
+        r.register(_PoolCollector(get_pool))
+        self._caches = _CacheCollector(get_pool)
+        r.register(self._caches)
 
     def record_job(self, sample: JobSample) -> None:
         """Record one job's :class:`JobSample` (in the process that serves /metrics)."""
         self.job_seconds.labels(sample.job).observe(sample.seconds)
+        self._caches.record(sample)
         if sample.status is not None:
             self.plan_outcomes.labels(sample.status).inc()
         if sample.planning_time_s is not None:

@@ -100,7 +100,7 @@ def _route_takes(scope: Scope) -> bool:
     if cache is None:
         cache = {}
         if router is not None:
-            router._planner_takes = cache  # type: ignore[union-attr]
+            router._planner_takes = cache
     key = (scope.get("method"), scope.get("path"))
     found = cache.get(key)
     if found is None:

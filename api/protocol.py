@@ -120,7 +120,7 @@ class _Guard:
         _reset(transport)
 
     # the protocol's hooks
-    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+    def connection_made(self, transport: asyncio.Transport) -> None:
         super().connection_made(transport)  # type: ignore[misc]
         self._arm_header_timer()
 

@@ -35,6 +35,8 @@ PLANNER_OVERRUN_GRACE_S   0.5                             a job computing this l
 PLANNER_OVERRUN_MAX_S     max(5, 2 x the grace)           ... or running this long (wall), s
 PLANNER_WORKER_MAX_RSS_MB 2048                            a worker holding more memory after a
                                                           job is recycled (0: never), MB
+PLANNER_CACHE_MB          1024                            budget of each process's caches, MiB
+                                                          (below PLANNER_WORKER_MAX_RSS_MB)
 PLANNER_JOB_TIMEOUT_S     600                             time budget of one long job, s
 PLANNER_JOB_TTL_S         3600                            a finished long job is kept this long
 PLANNER_MAX_JOBS          256                             long jobs kept (finished or not)
@@ -74,6 +76,7 @@ from pydantic import (
 )
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from planner.caching import DEFAULT_BUDGET_MB
 from planner.design import PRESET_NAMES, Design
 from planner.exceptions import DesignError
 from planner.wire import (
@@ -261,6 +264,15 @@ class Settings(BaseSettings):
         description="A worker whose resident memory after a job exceeds this many MB is "
         "recycled: a replacement warms up first, then the old worker stops (0: never).",
     )
+    cache_mb: float = Field(
+        DEFAULT_BUDGET_MB,
+        ge=0.0,
+        le=1024.0**2,
+        allow_inf_nan=False,
+        description="Budget of the caches of each process (a worker's packed scenes, region "
+        "maps, corridor grids, figures; the server's resolved scenes), MiB, shared among them "
+        "as planner.caching.CACHES says (0: nothing kept); below PLANNER_WORKER_MAX_RSS_MB.",
+    )
     worker_nice: int = Field(
         5,
         ge=0,
@@ -408,6 +420,18 @@ class Settings(BaseSettings):
         if value is not None and value.get_secret_value().strip():
             parse_api_keys(value.get_secret_value())  # the error at api_keys, file and line
         return value
+
+    @model_validator(mode="after")
+    def _cache_below_recycle(self) -> Settings:
+        """The caches' budget must leave a worker room under its memory bound: a worker
+        whose caches filled would otherwise be recycled after every job."""
+        if self.worker_max_rss_mb and self.cache_mb >= self.worker_max_rss_mb:
+            raise ValueError(
+                f"PLANNER_CACHE_MB ({self.cache_mb:g}) must be below PLANNER_WORKER_MAX_RSS_MB "
+                f"({self.worker_max_rss_mb}): a worker whose caches filled would be recycled "
+                "after every job (leave room for the libraries and the jobs' own memory)"
+            )
+        return self
 
     @model_validator(mode="after")
     def _fill_queue(self) -> Settings:

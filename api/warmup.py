@@ -11,11 +11,25 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["warm_up_inline", "warm_up_worker"]
+__all__ = ["start_worker", "warm_up_inline", "warm_up_worker"]
 
 _POSTURE = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
 #: A start from which a short straight line of P is valid (docs/cartesian.md's example).
 _CARTESIAN_START = {"q": [-0.2187, 2.8609, 0.2807], "assembly_mode": "+"}
+
+
+def start_worker(cache_mb: float, warm: bool) -> float:
+    """What each worker runs before it takes jobs (the pool's ``warm_up``, bound to the
+    settings with :func:`functools.partial`): its caches sized by ``PLANNER_CACHE_MB``
+    (:func:`planner.caching.configure`; a spawned worker would start at the library's
+    default), then, with ``warm``, :func:`warm_up_worker`. Returns its seconds."""
+    from planner import caching
+
+    t0 = time.perf_counter()
+    caching.configure(budget_mb=cache_mb)
+    if warm:
+        warm_up_worker()
+    return time.perf_counter() - t0
 
 
 def warm_up_worker() -> float:

@@ -137,7 +137,8 @@ class ShutdownMixin:
             reading = {w.answers.fileno(): w for w in workers if w.reading}
             sentinels = [w.process.sentinel for w in live]
             for ready in wait_for_any([*sentinels, *reading], timeout):
-                worker = reading.get(ready)  # type: ignore[call-overload]
+                # waited on ints only (the fds and the sentinels), so ``ready`` is one
+                worker = reading.get(ready)  # type: ignore[arg-type]
                 if worker is not None and self._take_answers(worker) is False:
                     self._detach(worker)
                     self._on_exit(worker)

@@ -134,8 +134,9 @@ def template_main(
     signal.set_wakeup_fd(wake_w)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # a handler, so that SIGCHLD wakes the loop
     worker_args = (max_rss_bytes, nice)
+    watched: list[socket.socket | int] = [control, wake_r]
     while True:
-        ready, _, _ = select.select([control, wake_r], [], [], PARENT_WATCH_S)
+        ready, _, _ = select.select(watched, [], [], PARENT_WATCH_S)
         if os.getppid() != parent_pid:
             os._exit(1)
         if wake_r in ready:

@@ -65,10 +65,12 @@ def cold_median(fn: Callable[[], object], repeat: int, clear: Callable[[], None]
 
 def figure_rows(repeat: int) -> list[tuple[str, float, float, float]]:
     """(figure, cold screen s, cold print s, cached screen s) per named figure."""
-    from planner import plotting
+    from planner import caching, plotting
     from planner.exceptions import DesignError
 
-    clear = getattr(plotting, "clear_caches", lambda: None)
+    def clear() -> None:
+        caching.clear("plotting")
+
     screen = getattr(plotting, "SCREEN_RESOLUTION", 96)
     printed = getattr(plotting, "PRINT_RESOLUTION", 256)
     designs = (Design.default(), plotting.MODE_CHANGE_DESIGN, plotting.GENERAL_DESIGN)

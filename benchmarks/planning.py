@@ -59,10 +59,10 @@ from dataclasses import replace
 import numpy as np
 from _machine import print_machine
 
-from planner import Design
+from planner import Design, caching
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import JointPosture, PlanOptions, corridor, ompl_backend, plan
+from planner.planning import JointPosture, PlanOptions, ompl_backend, plan
 from planner.transits import sample_transits
 from planner.validity import Margins, ValidityChecker
 
@@ -281,10 +281,10 @@ def run_product(
     design = scene_design if design is None else design
     times, lengths, solved, direct, transits, proven = [], [], 0, 0, [], 0
     guided = 0
-    corridor.clear_cache()
+    caching.clear("corridor")
     for start, goal in queries:
         if cold:
-            corridor.clear_cache()
+            caching.clear("corridor")
         t0 = time.perf_counter()
         res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
         times.append(time.perf_counter() - t0)
@@ -415,7 +415,6 @@ def wall_queries(n: int, seed: int = 8) -> list[tuple[JointPosture, JointPosture
 def map_rows(args, options: PlanOptions) -> None:
     """The region map in the planner: the disconnected scene (map cached and cold), and the
     cost of consulting the map on the single-mode and mode-change scenes (map on vs off)."""
-    from planner.analysis import regions as R
 
     print("\nregion map in the planner (options.region_map on / off)")
     print(
@@ -428,7 +427,7 @@ def map_rows(args, options: PlanOptions) -> None:
         times, proven = [], 0
         for start, goal in queries:
             if cold:
-                R.clear_cache()
+                caching.clear("regions")
             t0 = time.perf_counter()
             res = plan(CUT, start, goal, options=five)
             times.append(time.perf_counter() - t0)

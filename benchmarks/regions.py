@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 from _machine import print_machine
 
+from planner import caching
 from planner.analysis import coverage as C
 from planner.analysis import regions as R
 from planner.design import Design
@@ -60,7 +61,7 @@ def _cold_builds(design: Design, n: int, runs: int) -> tuple[list[float], list[f
     """Wall and CPU seconds of ``runs`` cold builds (cache cleared before each)."""
     wall, cpu = [], []
     for _ in range(runs):
-        R.clear_cache()
+        caching.clear("regions")
         t0, c0 = time.perf_counter(), time.process_time()
         R.region_map(design, n=n)
         wall.append(time.perf_counter() - t0)
@@ -145,7 +146,7 @@ def speed(runs: int) -> None:
                 for _ in range(SPEED_BLOCK):
                     old.append(_timed(lambda d=design, n=n: reference_region_map(d, margins, n, 4)))
                 for _ in range(SPEED_BLOCK):
-                    R.clear_cache()
+                    caching.clear("regions")
                     new.append(_timed(lambda d=design, n=n: R.region_map(d, margins, n)))
             med = [
                 statistics.median(t[k] for t in runs_) for k in (0, 1, 2) for runs_ in (old, new)

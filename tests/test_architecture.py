@@ -453,3 +453,82 @@ def test_the_motion_rooms_read_one_clock() -> None:
         if _within(name, ONE_CLOCK) and "perf_counter" in path.read_text()
     )
     assert any(_within(n, ("planner.planning",)) for n in SOURCES) and found == []
+
+
+#: The functions that may keep :func:`functools.cache` / ``lru_cache``: functions of no
+#: arguments computed once per process, constants rather than caches (see
+#: :mod:`planner.caching`'s docstring). Every other cache is made by :mod:`planner.caching`.
+ONCE_PER_PROCESS = {
+    ("planner_api.settings", "get_settings"),
+    ("planner.viewer", "index_html"),
+    ("planner.viewer", "content_security_policy"),
+    ("planner_api.routes.design", "_presets_json"),
+}
+_FUNCTOOLS_CACHES = frozenset({"lru_cache", "cache"})
+
+
+def _cache_uses(tree: ast.Module) -> tuple[list[ast.AST], dict[int, ast.FunctionDef]]:
+    """Every reference to functools' caches or a construction of ``BoundedCache`` in a
+    module, and the functions decorated by one (by the decorator node's id)."""
+    names = {
+        alias.asname or alias.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and node.module == "functools"
+        for alias in node.names
+        if alias.name in _FUNCTOOLS_CACHES
+    }
+    uses: list[ast.AST] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name) and node.id in names:
+            uses.append(node)
+        elif (
+            isinstance(node, ast.Attribute)
+            and node.attr in _FUNCTOOLS_CACHES
+            and getattr(node.value, "id", None) == "functools"
+        ):
+            uses.append(node)
+        elif isinstance(node, ast.Call) and "BoundedCache" in (
+            getattr(node.func, "id", None),
+            getattr(node.func, "attr", None),
+        ):
+            uses.append(node)
+    decorated: dict[int, ast.FunctionDef] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef):
+            for deco in node.decorator_list:
+                for part in ast.walk(deco):
+                    decorated[id(part)] = node
+    return uses, decorated
+
+
+def test_every_cache_is_made_by_the_registry() -> None:
+    """No module but :mod:`planner.caching` uses :func:`functools.lru_cache` or
+    :func:`functools.cache`, or constructs a ``BoundedCache``: each process-wide cache is
+    made by name through the registry, which sizes it from the one budget, clears it and
+    reports it. The exceptions (:data:`ONCE_PER_PROCESS`) are functions of no arguments."""
+    breaches, allowed = [], set()
+    for name, path in SOURCES.items():
+        if name == "planner.caching":
+            continue
+        uses, decorated = _cache_uses(ast.parse(path.read_text(), str(path)))
+        for use in uses:
+            fn = decorated.get(id(use))
+            once = fn is not None and (name, fn.name) in ONCE_PER_PROCESS
+            if once and not (fn.args.args or fn.args.kwonlyargs or fn.args.vararg):
+                allowed.add((name, fn.name))
+            else:
+                breaches.append(f"{name}:{use.lineno}")
+    assert breaches == []
+    assert allowed == ONCE_PER_PROCESS  # each exception still exists (none stale)
+
+
+def test_the_cache_rule_sees_a_breach() -> None:
+    """The rule above finds each kind of breach (a rule that finds nothing proves nothing)."""
+    source = (
+        "import functools\nfrom functools import lru_cache as lc\n"
+        "@functools.cache\ndef a(x): ...\n@lc(maxsize=2)\ndef b(x): ...\n"
+        "C = BoundedCache(1, 2, len)\n"
+    )
+    uses, decorated = _cache_uses(ast.parse(source))
+    assert len(uses) == 3
+    assert sorted(decorated[id(u)].name for u in uses if id(u) in decorated) == ["a", "b"]

@@ -71,7 +71,10 @@ def with_design_defaults(body: Any, defaults: DesignModel, loc: tuple = ("body",
     update: dict[str, Any] = {}
     if "design" in fields:
         given = (
-            body.design.model_dump(exclude_unset=True) if "design" in body.model_fields_set else {}
+            # the request model's own field (checked above), unknown to BaseModel
+            body.design.model_dump(exclude_unset=True)  # type: ignore[attr-defined]
+            if "design" in body.model_fields_set
+            else {}
         )
         try:
             update["design"] = DesignModel.model_validate({**defaults.model_dump(), **given})
@@ -82,7 +85,7 @@ def with_design_defaults(body: Any, defaults: DesignModel, loc: tuple = ("body",
     if "requests" in fields:
         update["requests"] = [
             with_design_defaults(r, defaults, (*loc, "requests", i))
-            for i, r in enumerate(body.requests)
+            for i, r in enumerate(body.requests)  # type: ignore[attr-defined]  # a batch's field
         ]
     return body.model_copy(update=update) if update else body
 

@@ -6,7 +6,7 @@ MuJoCo. Each computed in a worker."""
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
 from fastapi.exceptions import RequestValidationError
@@ -85,7 +85,9 @@ async def design_regions(
     )
 
 
-_MJCF_RESPONSES = {200: {"content": {MJCF_MEDIA_TYPE: {}}, "description": "The MJCF model."}}
+_MJCF_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {"content": {MJCF_MEDIA_TYPE: {}}, "description": "The MJCF model."}
+}
 
 
 @router.post("/design/mjcf", response_class=Response, responses=_MJCF_RESPONSES)

@@ -54,7 +54,9 @@ __all__ = [
 
 router = APIRouter(prefix="/v1", tags=["jobs"], route_class=WorkerBodyRoute)
 
-_NOT_FOUND = {404: {"model": ErrorResponse, "description": "No such job (or it expired)."}}
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorResponse, "description": "No such job (or it expired)."}
+}
 
 
 def get_job_store(request: Request) -> JobStore:
@@ -145,6 +147,7 @@ async def _submit_large(http: Request, raw: bytes) -> Response:
     if parsed is not None:
         request = await resolve_scene(http, parsed)
         return await _submit(http, kind_name, partial(_parsed_runner, pool, request, settings))
+    assert inner is not None, "check_job_request gives the inner body when it parsed none"
     model = LONG_JOBS[kind_name].model
 
     def make_run(job: Job, samples: int | None) -> Runner:

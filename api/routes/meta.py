@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request, Response
 
 import planner
-from planner.wire import ErrorResponse, Health, Readiness, VersionInfo
+from planner.wire import ErrorResponse, Health, Readiness, ReadinessStatus, VersionInfo
 from planner_api.deps import ApiKey, Pool, SettingsDep
 
 __all__ = ["health", "ready", "router", "version"]
@@ -46,7 +46,7 @@ async def ready(
     a replica with its workers warm is not ready without its store: every scene request and
     every plan naming a scene would answer 503; with PostgreSQL down every replica says so,
     which an orchestrator shows instead of routing to replicas that cannot serve."""
-    state = pool.state
+    state: ReadinessStatus = pool.state
     warming = request.app.state.warming
     if request.app.state.stopping:
         state = "stopping"
@@ -59,7 +59,7 @@ async def ready(
         response.status_code = 503
         response.headers["Retry-After"] = str(settings.retry_after_s)
     return Readiness(
-        status=state,  # type: ignore[arg-type]
+        status=state,
         workers=pool.workers,
         warm=pool.warm_workers,
         store="ok" if store_error is None else "unavailable",

@@ -167,6 +167,7 @@ async def _batch_large(request: Request, raw: bytes) -> Response:
             raise RequestValidationError(exc.items) from None
         if parsed is not None:
             return await _run_batch(request, pool, job, parsed, deadline)
+        assert items is not None, "check_batch gives the items when it parsed none"
         samples = answer_sample_limit(
             settings.max_trajectory_samples, settings.max_response_bytes, len(items)
         )

@@ -24,7 +24,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException
 
-from planner.caching import BoundedCache
+from planner.caching import BoundedCache, bounded_cache
 from planner.exceptions import InputError
 from planner.wire import (
     SCENE_NAME_PATTERN,
@@ -70,13 +70,9 @@ router = APIRouter(prefix="/v1", tags=["scenes"], route_class=WorkerBodyRoute)
 NamePath = Annotated[str, Path(pattern=SCENE_NAME_PATTERN, description="The scene's name.")]
 
 
-def _nbytes(value: tuple[Any, ...]) -> int:
-    obstacles = value[0]
-    return 256 + sum(getattr(getattr(o, "points", None), "nbytes", 64) for o in obstacles)
-
-
 #: hash -> (library obstacles, design model or None) of the scenes this process resolved
-_RESOLVED: BoundedCache[tuple[Any, ...]] = BoundedCache(32, 1 << 30, _nbytes)
+#: (``scenes.resolved`` of :data:`planner.caching.CACHES`)
+_RESOLVED: BoundedCache[tuple[Any, ...]] = bounded_cache("scenes.resolved")
 
 
 def store_access(request: Request) -> StoreAccess:
@@ -91,18 +87,18 @@ def _not_found(name: str) -> HTTPException:
     return HTTPException(404, f"no scene named {name!r} (PUT /v1/scenes/{name} stores one)")
 
 
-_STORE_ERRORS = {
+_STORE_ERRORS: dict[int | str, dict[str, Any]] = {
     503: {
         "model": ErrorResponse,
         "description": "The scene store cannot answer in time "
         "(store_unavailable, with Retry-After): nothing was changed.",
     },
 }
-_NOT_FOUND = {
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {
     **_STORE_ERRORS,
     404: {"model": ErrorResponse, "description": "No scene of this tenant has that name."},
 }
-_QUOTAS = {
+_QUOTAS: dict[int | str, dict[str, Any]] = {
     **_STORE_ERRORS,
     413: {
         "model": ErrorResponse,

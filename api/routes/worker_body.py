@@ -58,12 +58,17 @@ __all__ = [
 
 class RouteLimits(Protocol):
     """The service's size limits a route's checks read (:class:`planner_api.settings.Settings`
-    has them; :class:`Limits` carries them to a worker)."""
+    has them; :class:`Limits` carries them to a worker). Read-only: a frozen :class:`Limits`
+    is one."""
 
-    max_obstacles: int
-    max_sequence_targets: int
-    max_batch: int
-    request_timeout_s: float
+    @property
+    def max_obstacles(self) -> int: ...
+    @property
+    def max_sequence_targets(self) -> int: ...
+    @property
+    def max_batch(self) -> int: ...
+    @property
+    def request_timeout_s(self) -> float: ...
 
 
 @dataclass(frozen=True, slots=True)

@@ -38,7 +38,7 @@ from collections.abc import Awaitable, Callable, Mapping
 from typing import Any, Concatenate, ParamSpec, TypeVar
 
 import httpx
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 import planner
 from planner.client_errors import (
@@ -226,7 +226,7 @@ class _BaseClient(Requests):
     def _parse(call: _Call[M], response: httpx.Response) -> M:
         if response.status_code not in call.ok_statuses:
             raise _error_from(response)
-        if call.model is bytes:
+        if not issubclass(call.model, BaseModel):  # bytes: the body as it is
             return response.content  # type: ignore[return-value]
         try:
             return call.model.model_validate_json(response.content)
@@ -254,7 +254,7 @@ class _BaseClient(Requests):
 
 
 P = ParamSpec("P")
-R = TypeVar("R")
+R = TypeVar("R", bound=BaseModel | bytes)
 
 
 def _adopt(method: Callable[..., Any], build: Callable[..., Any], owner: str) -> None:

@@ -66,6 +66,8 @@ from planner.wire import (
 __all__ = ["DesignLike", "MarginsLike", "Requests"]
 
 M = TypeVar("M", bound=BaseModel | bytes)
+#: A wire model class (what :func:`_validated` builds).
+ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +89,7 @@ DesignLike = DesignModel | Design | Mapping[str, Any] | None
 MarginsLike = BaseModel | Mapping[str, Any] | Any | None
 
 
-def _validated(model: type[M], data: Any) -> M:
+def _validated(model: type[ModelT], data: Any) -> ModelT:
     """``model`` from ``data``, a local validation error raised as InvalidRequestError."""
     try:
         return data if isinstance(data, model) else model.model_validate(data)
@@ -112,7 +114,8 @@ def _margins(margins: MarginsLike) -> dict[str, Any]:
         return margins.model_dump(exclude_none=True)
     if dataclasses.is_dataclass(margins) and not isinstance(margins, type):
         return dataclasses.asdict(margins)
-    return dict(margins or {})
+    # what is left of MarginsLike is a mapping or None; its Any member defeats the narrowing
+    return dict(margins or {})  # type: ignore[arg-type]
 
 
 def _floats(values: Any) -> Any:
@@ -386,7 +389,7 @@ class Requests:
         listing the names). Only L0, L1 and L2 of ``design`` are drawn."""
         d = _design(design)
         d = d.model_dump() if isinstance(d, DesignModel) else d
-        data = {k: d[k] for k in ("L0", "L1", "L2") if k in d}
+        data: dict[str, Any] = {k: d[k] for k in ("L0", "L1", "L2") if k in d}
         for k, v in (("resolution", resolution), ("dpi", dpi)):
             if v is not None:
                 data[k] = v

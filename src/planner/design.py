@@ -32,11 +32,11 @@ def _as_triple(name: str, value: object) -> tuple[float, float, float]:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise DesignError(f"{name} must be 3 numbers, got {value!r}") from exc
+        raise DesignError(f"{name} must be 3 numbers, got {value!r}", field=name) from exc
     if arr.shape != (3,):
-        raise DesignError(f"{name} must be 3 numbers, got shape {arr.shape}")
+        raise DesignError(f"{name} must be 3 numbers, got shape {arr.shape}", field=name)
     if not np.all(np.isfinite(arr)):
-        raise DesignError(f"{name} must be finite, got {arr.tolist()}")
+        raise DesignError(f"{name} must be finite, got {arr.tolist()}", field=name)
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
@@ -61,7 +61,9 @@ class Design:
     Raises
     ------
     DesignError
-        A number is not finite or breaks one of the rules above (the message names it).
+        A number is not finite or breaks one of the rules above (the message names it, and
+        ``field`` is its wire name: ``"L1"``, ``"joint_max"``, or ``("joint_min", 2)`` for one
+        limit, as a request's ``loc`` writes it).
     """
 
     L0: float
@@ -77,33 +79,38 @@ class Design:
             try:
                 value = float(value)
             except (TypeError, ValueError) as exc:
-                raise DesignError(f"{name} must be a number, got {value!r}") from exc
+                raise DesignError(f"{name} must be a number, got {value!r}", field=name) from exc
             if not math.isfinite(value):
-                raise DesignError(f"{name} must be finite, got {value}")
+                raise DesignError(f"{name} must be finite, got {value}", field=name)
             if value > MAX_LENGTH:
-                raise DesignError(f"{name} must be at most {MAX_LENGTH} m, got {value}")
+                raise DesignError(f"{name} must be at most {MAX_LENGTH} m, got {value}", field=name)
             object.__setattr__(self, name, value)
         for name in ("L1", "L2"):
             if getattr(self, name) < MIN_LENGTH:
                 raise DesignError(
                     f"{name} must be at least {MIN_LENGTH} m (a link has a length), "
-                    f"got {getattr(self, name)}"
+                    f"got {getattr(self, name)}",
+                    field=name,
                 )
         if self.L0 < 0:
-            raise DesignError(f"L0 must be >= 0, got {self.L0}")
+            raise DesignError(f"L0 must be >= 0, got {self.L0}", field="L0")
         if self.link_radius < 0:
-            raise DesignError(f"link_radius must be >= 0, got {self.link_radius}")
+            raise DesignError(
+                f"link_radius must be >= 0, got {self.link_radius}", field="link_radius"
+            )
         lo = _as_triple("joint_min", self.joint_min)
         hi = _as_triple("joint_max", self.joint_max)
         for i in range(3):
             if not lo[i] < hi[i]:
                 raise DesignError(
-                    f"joint_min[{i}] must be below joint_max[{i}], got {lo[i]} >= {hi[i]}"
+                    f"joint_min[{i}] must be below joint_max[{i}], got {lo[i]} >= {hi[i]}",
+                    field=("joint_min", i),
                 )
             for name, v in (("joint_min", lo[i]), ("joint_max", hi[i])):
                 if abs(v) > MAX_JOINT_TRAVEL:
                     raise DesignError(
-                        f"{name}[{i}] must lie within +-{MAX_JOINT_TRAVEL:.4f} rad, got {v}"
+                        f"{name}[{i}] must lie within +-{MAX_JOINT_TRAVEL:.4f} rad, got {v}",
+                        field=(name, i),
                     )
         object.__setattr__(self, "joint_min", lo)
         object.__setattr__(self, "joint_max", hi)

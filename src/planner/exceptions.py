@@ -71,7 +71,7 @@ class PlannerError(Exception):
         return (_rebuild_error, (type(self), self.args, self.__dict__))
 
 
-def _rebuild_error(cls: type, args: tuple, state: dict) -> PlannerError:
+def _rebuild_error(cls: type[PlannerError], args: tuple, state: dict) -> PlannerError:
     exc = cls.__new__(cls)
     Exception.__init__(exc, *args)
     exc.__dict__.update(state)

@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from planner.caching import BoundedCache
+from planner.caching import BoundedCache, bounded_cache
 from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
 from planner.spatial_index import (
@@ -219,7 +219,7 @@ class PackedObstacles(NamedTuple):
     sphere_grid: np.ndarray  # (K,) the sphere rows' grid, empty when they have none
 
     @property
-    def count(self) -> int:
+    def count(self) -> int:  # type: ignore[override]  # the obstacles', not tuple.count
         return len(self.spheres) + len(self.capsules) + len(self.boxes)
 
 
@@ -301,27 +301,17 @@ def _pack_rows(rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> PackedObstacl
 
 #: Obstacle sets are packed once per process and content: the next checker of the same set
 #: (the next request of a scene) finds its trees built; sets of more rows than this in
-#: ``_PACKED``, smaller ones in ``_PACKED_SMALL``.
+#: ``geometry.packed``, smaller ones in ``geometry.packed_small`` (:mod:`planner.caching`).
 _CACHE_FROM = 64
-_PACKED: BoundedCache[PackedObstacles] = BoundedCache(
-    16, 1 << 30, lambda p: sum(a.nbytes for a in p)
-)
+_PACKED: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed")
 #: Sets of at most ``_CACHE_FROM`` rows have a cache of their own (hashing a few rows costs
 #: a microsecond, packing them with their trees some tens: every plan packs its scene), so
 #: that many small scenes never push a large scene's trees out of ``_PACKED``.
-_PACKED_SMALL: BoundedCache[PackedObstacles] = BoundedCache(
-    256, 1 << 24, lambda p: sum(a.nbytes for a in p)
-)
+_PACKED_SMALL: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed_small")
 #: Obstacle lists of at least this many objects (or holding a cloud) are remembered by
-#: identity (:func:`pack_obstacles`), at most 8 lists and 512 MiB of their arrays.
+#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``.
 _IDENTITY_FROM = 16
-_BY_IDENTITY: BoundedCache[tuple[tuple, PackedObstacles]] = BoundedCache(
-    8,
-    1 << 29,
-    lambda v: (
-        sum(a.nbytes for a in v[1]) + sum(o.points.nbytes for o in v[0] if isinstance(o, Points))
-    ),
-)
+_BY_IDENTITY: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache("geometry.by_identity")
 
 
 # ------------------------------------------------------------------------- compiled kernels

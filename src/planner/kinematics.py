@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import MappingProxyType
-from typing import Literal
+from typing import Literal, overload
 
 import numpy as np
 
@@ -72,8 +72,12 @@ _SLOT_INDEX = tuple(np.array([0 if m[j] == "+" else 1 for m in WORKING_MODES]) f
 AssemblyMode = Literal["+", "-"]
 
 
+@overload
+def wrap_angle(x: float) -> float: ...
+@overload
+def wrap_angle(x: np.ndarray) -> np.ndarray: ...
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
-    """Angle(s) mapped into (-pi, pi]."""
+    """Angle(s) mapped into (-pi, pi]: an array for an array, a float for a float."""
     return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), 2 * np.pi)
 
 
@@ -342,7 +346,9 @@ class Conditioning:
         return np.asarray(SERIAL_KINDS)[np.argmin(self.serial, axis=-1)]
 
 
-def conditioning(design: Design, q: np.ndarray, passive: np.ndarray, w: np.ndarray) -> Conditioning:
+def conditioning(
+    design: Design, q: np.ndarray, passive: np.ndarray, w: np.ndarray | float
+) -> Conditioning:
     """Conditioning of postures given their joints, passive angles and in-plane w (shapes
     S + (3,), S + (2,), S), elementwise. Undefined postures (NaN inputs) give NaN."""
     q = np.asarray(q, dtype=float)
@@ -530,4 +536,5 @@ class Manipulator:
     def conditioning(self, posture: Posture) -> Conditioning:
         """kappa(A), kappa(B) and the serial and parallel margins of one posture (floats)."""
         c = conditioning(self._design, posture.q, posture.passive, np.float64(posture.w))
-        return Conditioning(**{f.name: float(getattr(c, f.name)) for f in fields(Conditioning)})
+        # one posture's margins are floats (the class's docstring), its fields typed as arrays
+        return Conditioning(**{f.name: float(getattr(c, f.name)) for f in fields(Conditioning)})  # type: ignore[arg-type]

@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -69,15 +69,15 @@ def _dynamics(state: _State) -> None:
 
 def _validity(state: _State) -> None:
     """The validity rules and the clearance kernels of every obstacle type."""
-    from planner.geometry import Box, Capsule, Sphere
+    from planner.geometry import Box, Capsule, Obstacle, Sphere
     from planner.validity import Margins, ValidityChecker
     from planner.validity import warm_up as warm_validity
 
     warm_validity()
-    obstacles = [
-        Sphere([2.0, 2.0, 2.0], 0.1),
-        Box([-2.0, 2.0, 2.0], [0.2, 0.2, 0.2], [1.0, 0.0, 0.0, 0.0]),
-        Capsule([2.0, -2.0, 2.0], [2.0, -2.0, 2.5], 0.05),
+    obstacles: list[Obstacle] = [
+        Sphere(np.array([2.0, 2.0, 2.0]), 0.1),
+        Box(np.array([-2.0, 2.0, 2.0]), np.array([0.2, 0.2, 0.2]), np.array([1.0, 0.0, 0.0, 0.0])),
+        Capsule(np.array([2.0, -2.0, 2.0]), np.array([2.0, -2.0, 2.5]), 0.05),
     ]
     checker = ValidityChecker(state.design, Margins(), obstacles, "+", "+-+")
     q = np.array([[0.0, 2.0, 1.0], [0.1, 2.1, 1.1]])
@@ -101,7 +101,8 @@ def _plan_ompl(state: _State) -> None:
     from planner.planning import JointPosture, PlanOptions, plan
     from planner.validity import Margins
 
-    obstacles, margins = [Sphere(*_SPHERE)], Margins(clearance=0.01)
+    centre, radius = _SPHERE
+    obstacles, margins = [Sphere(np.array(centre), radius)], Margins(clearance=0.01)
     result = plan(
         state.design,
         JointPosture(np.array(_START), "+"),
@@ -143,13 +144,13 @@ def _obstacle_proof(state: _State) -> None:
     cannot pass, both grid levels: its kernels compiled and the default design's coarser
     maps cached, so that the first stuck search among obstacles pays only the proof."""
     from planner.analysis.obstacle_regions import LEVELS, prove_disconnected_with_obstacles
-    from planner.geometry import Box, Capsule, Sphere
+    from planner.geometry import Box, Capsule, Obstacle, Sphere
     from planner.validity import Margins
 
-    scene = [
-        Box([0.65, 0.0, 0.0], [1.2, 3.0, 0.02]),
-        Sphere([0.0, 0.0, 2.0], 0.1),
-        Capsule([0.0, 2.0, 2.0], [0.0, 2.2, 2.0], 0.05),
+    scene: list[Obstacle] = [
+        Box(np.array([0.65, 0.0, 0.0]), np.array([1.2, 3.0, 0.02])),
+        Sphere(np.array([0.0, 0.0, 2.0]), 0.1),
+        Capsule(np.array([0.0, 2.0, 2.0]), np.array([0.0, 2.2, 2.0]), 0.05),
     ]
     for level in LEVELS:
         prove_disconnected_with_obstacles(
@@ -171,9 +172,14 @@ def _corridor(state: _State) -> None:
     from planner.validity import Margins, ValidityChecker
 
     checker = ValidityChecker(
-        state.design, Margins(), [Box([0.0, 0.0, 0.9], [0.2, 0.2, 0.2])], "+", "+-+"
+        state.design,
+        Margins(),
+        [Box(np.array([0.0, 0.0, 0.9]), np.array([0.2, 0.2, 0.2]))],
+        "+",
+        "+-+",
     )
     grid = corridor.corridor_grid(checker, (8, 16, 16))
+    assert grid is not None, "a grid without a time limit is always built"
     marked = np.argwhere(grid.labels == grid.labels.max())
     if len(marked) >= 2:
         a, b = grid.centres(marked[[0, -1]])
@@ -182,7 +188,7 @@ def _corridor(state: _State) -> None:
         )
 
 
-def _time_plans(state: _State, method: str) -> None:
+def _time_plans(state: _State, method: Literal["toppra", "ruckig"]) -> None:
     """Time every path found as :func:`planner.solve` does (the pipeline's timing step,
     :func:`planner.motion.time_planned`: the path's own rules re-checked densely), coming to
     rest at the transits of the mode-change path."""
@@ -200,8 +206,9 @@ def _time_plans(state: _State, method: str) -> None:
         problem = MotionProblem.of(
             state.design, start, obstacles=obstacles, margins=margins, timing=timing
         )
-        planned = Planned(result.status, result.message, result, path_timing(problem, result.path))
-        timed = time_planned(problem, planned.timing)
+        request = path_timing(problem, result.path)
+        planned = Planned(result.status, result.message, result, request)
+        timed = time_planned(problem, request)
         if timed.error is not None:
             raise timed.error
         GoalMotion(JointPosture(result.path.waypoints[-1])).answer(problem, planned, timed)

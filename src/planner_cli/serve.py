@@ -3,7 +3,7 @@ the options and the PLANNER_* environment."""
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -51,7 +51,7 @@ def serve(
     from planner_api.server import run
     from planner_api.settings import Settings
 
-    given = {
+    given: dict[str, Any] = {
         "host": host,
         "port": port,
         "workers": workers,

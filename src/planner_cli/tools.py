@@ -54,7 +54,7 @@ def _benchmarks_dir() -> Path | None:
     return None
 
 
-def _median_ms(fn, repeat: int = 5) -> float:  # type: ignore[no-untyped-def]
+def _median_ms(fn, repeat: int = 5) -> float:
     import statistics
     import time
 

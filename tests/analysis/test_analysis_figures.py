@@ -104,7 +104,7 @@ def test_screen_and_print_resolution_show_the_same_joint_regions(name):
 
 
 def test_a_cached_figure_is_the_same_image_and_its_inputs_are_read_only():
-    from planner import plotting
+    from planner.plotting import _common
 
     design = Design(L0=0.45, L1=0.2, L2=0.55)  # used by no other test: a cold cache
     first = render_figure("cartesian_section", design, n=24, dpi=30)
@@ -112,7 +112,7 @@ def test_a_cached_figure_is_the_same_image_and_its_inputs_are_read_only():
     assert again == first
     other = render_figure("cartesian_section", design, n=32, dpi=30)
     assert other != first  # the resolution is part of the key
-    section = plotting._section("cartesian", design, 24)
+    section = _common._section("cartesian", design, 24)
     fresh = cartesian_section(design, 24)
     np.testing.assert_array_equal(section.reached, fresh.reached)
     np.testing.assert_array_equal(section.kappa_A, fresh.kappa_A)

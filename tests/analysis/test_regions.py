@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner import caching
 from planner.analysis import _region_kernels as K
 from planner.analysis import coverage as C
 from planner.analysis import regions as R
@@ -236,15 +237,15 @@ def test_cache_returns_the_same_read_only_map():
 def test_cache_keeps_at_most_its_bytes(monkeypatch):
     """The LRU cache drops the least recently used map beyond its byte budget and does not
     keep a map larger than the budget."""
-    R.clear_cache()
+    caching.clear("regions")
     a = R.region_map(Design.default(), n=64)
-    monkeypatch.setattr(R._CACHE, "max_bytes", int(1.5 * R._nbytes(a)))
+    monkeypatch.setattr(R._CACHE, "max_bytes", int(1.5 * caching.nbytes_of(a)))
     b = R.region_map(Design.paper_optimum(), n=64)
     assert R.region_map(Design.paper_optimum(), n=64) is b
     assert R.region_map(Design.default(), n=64) is not a  # dropped for b
     big = R.region_map(Design.default(), n=128)
     assert R.region_map(Design.default(), n=128) is not big  # never kept
-    R.clear_cache()
+    caching.clear("regions")
 
 
 def test_coverage_areas_match_the_jacobian_integral():
@@ -368,9 +369,48 @@ def test_literal_limits_disconnect_the_paper_optimum():
 
 
 def test_never_proven_outside_the_box_or_for_invalid_postures():
-    rmap = R.region_map(CUT, n=64)
-    assert not R.prove_disconnected(rmap, [0.0, 2.0, -2.0], [0.0, 0.0, -2.0], "-")
-    assert not R.prove_disconnected(rmap, [4.0, 0.0, -2.0], [0.0, 0.0, -2.0], "-")
+    """The map proves nothing about a posture outside the joint box or in no region: paired
+    with a posture of the other component, which an in-box posture of its own component is
+    proven apart from (the positive counterpart), it is not proven apart, in either role or
+    among goal candidates, and the witness says why (no cell for an out-of-box (theta2,
+    theta3); no region at all). Each out-of-box posture lies beyond the edge of a cell of the
+    first component, so a map that clamped it into the box would claim a proof.
+
+    Mutants caught (the old test, two pairs against an invalid goal, passed all five):
+    ``prove_disconnected`` returning False; the theta1 limit dropped from ``_components_at``;
+    ``locate`` clamping (theta2, theta3) into the box; an empty set of regions taken as
+    proven apart (``if comps & start`` for a goal, ``if start is None`` for the start)."""
+    rmap = R.region_map(CUT, n=128)
+    big = [r for r in rmap.regions if r.assembly_mode == "-" and r.valid_cells > 200]
+    comps = sorted({r.component for r in big})
+    a, b = (
+        _centre(rmap, 1, next(r for r in big if r.component == c).working_mode, c) for c in comps
+    )
+    assert R.prove_disconnected(rmap, a, b, "-")  # the positive counterpart, and its witness:
+    assert {r.component for r in R.regions_at(rmap, a, "-")} == {comps[0]}
+    assert {r.component for r in R.regions_at(rmap, b, "-")} == {comps[1]}
+    lo, hi = CUT.joint_min, CUT.joint_max
+    outside = {
+        "theta1": [hi[0] + 0.5, a[1], a[2]],
+        "theta2": [a[0], hi[1] + 0.3, a[2]],
+        "theta3": [a[0], a[1], lo[2] - 0.3],
+    }
+    for joint, q in outside.items():
+        # beyond the edge of a cell of a's component (where a clamping map would put it)
+        edge = np.clip(q, np.asarray(lo) + 1e-9, np.asarray(hi) - 1e-9)
+        assert {r.component for r in R.regions_at(rmap, edge, "-")} == {comps[0]}, joint
+        assert R.regions_at(rmap, q, "-") == (), joint
+        if joint != "theta1":  # theta1 has no cell axis: locate ignores it
+            assert R.locate(rmap, q) is None, joint
+        assert not R.prove_disconnected(rmap, q, b, "-"), joint
+        assert not R.prove_disconnected(rmap, b, q, "-"), joint
+        assert not R.prove_disconnected(rmap, b, np.stack([a, q]), "-"), joint
+    invalid = np.array([0.0, 0.0, -2.0])  # inside the box, in no region of assembly mode '-'
+    assert R.locate(rmap, invalid) is not None and R.regions_at(rmap, invalid, "-") == ()
+    for other in (a, b):
+        assert not R.prove_disconnected(rmap, invalid, other, "-")
+        assert not R.prove_disconnected(rmap, other, invalid, "-")
+    assert not R.prove_disconnected(rmap, a, np.stack([b, invalid]), "-")
 
 
 def _random_valid(design, rng, count):

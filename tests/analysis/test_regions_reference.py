@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from _region_reference import reference_region_map
 
+from planner import caching
 from planner.analysis import regions as R
 from planner.design import Design
 from planner.validity import Margins
@@ -55,7 +56,7 @@ def _assert_same_map(new: R.RegionMap, old: R.RegionMap) -> None:
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_fast_map_equals_the_old_build(name, n):
     design, margins = CASES[name]
-    R.clear_cache()
+    caching.clear("regions")
     new = R.region_map(design, margins, n)
     old = reference_region_map(design, margins, n, R.DEFAULT_REFINE)
     _assert_same_map(new, old)
@@ -68,7 +69,7 @@ def test_fast_map_equals_the_old_build(name, n):
 @pytest.mark.parametrize("name", ["general", "tight-limits"])
 def test_fast_map_equals_the_old_build_at_other_refinements(name, refine):
     design, margins = CASES[name]
-    R.clear_cache()
+    caching.clear("regions")
     new = R.region_map(design, margins, 96, refine=refine)
     _assert_same_map(new, reference_region_map(design, margins, 96, refine))
 

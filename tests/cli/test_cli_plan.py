@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from plan_checker import check_plan
 from typer.testing import CliRunner
 
 from planner.wire import PlanResponse
@@ -33,11 +34,21 @@ def _write(tmp_path: Path, body: object, name: str = "request.json") -> Path:
 
 
 def test_plan_prints_a_summary_and_writes_the_full_response(api, tmp_path):
+    """The summary of a solved plan and the full answer in ``--out``: the answer passes the
+    independent check against the request (tests/plan_checker.py: from the start to the
+    goal, clear of the sphere, a consistent trajectory), the service gives the same path,
+    the summary's numbers are the answer's. Mutant caught by the check (not by comparing with
+    the service, which shares the library, nor by the old test): ``obstacles_to_core``
+    building each sphere at a quarter of its radius."""
     out = tmp_path / "result.json"
     r = runner.invoke(app, ["plan", str(_write(tmp_path, REQUEST)), "--out", str(out)])
     assert r.exit_code == 0, r.output
     full = PlanResponse.model_validate_json(out.read_text())
     assert full.status == "solved"
+    report = check_plan(REQUEST, json.loads(out.read_text()))
+    assert report.ok, report
+    assert full.path.waypoints[0] == REQUEST["start"]["q"]
+    assert full.path.waypoints[-1] == REQUEST["goal"]["q"]
     lines = r.stdout.splitlines()  # the results; the progress lines are on stderr
     assert lines[0] == "status: solved"
     assert f"waypoints: {len(full.path.waypoints)}" in lines
@@ -103,6 +114,16 @@ def test_bench_builtin_prints_its_table():
 
 
 def test_bench_runs_a_script_and_refuses_unknown_names():
+    """``planner bench kinematics --quick`` runs benchmarks/kinematics.py with the quick
+    arguments: the script's own header says the sizes it parsed, and its table holds the three
+    quantities with positive rates and each ratio the quotient of its two rates (up to the
+    printed rounding). An unknown name is refused naming it and every script of benchmarks/
+    (listed here from the folder), before anything runs.
+
+    Mutants caught: ``--quick`` not passed on (``args = []``: the script runs its full sizes;
+    the old test, which looked for the words "kinematics" and "forward", passed it), the
+    script's ratio inverted (``loop / vec``), the refusal not naming the unknown benchmark;
+    the old test passed all three."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
     done = subprocess.run(
         [sys.executable, "-m", "planner_cli", "bench", "kinematics", "--quick"],
@@ -113,7 +134,25 @@ def test_bench_runs_a_script_and_refuses_unknown_names():
         cwd=ROOT,
     )
     assert done.returncode == 0, done.stderr
-    assert "== kinematics" in done.stdout and "forward" in done.stdout
+    out = done.stdout.splitlines()
+    assert out[0] == "== kinematics (benchmarks/kinematics.py --n 100000 --loop-n 200 --repeat 3)"
+    assert "kinematics, N = 100,000 postures, median of 3, one core" in out  # as it parsed them
+    rows = {}
+    for line in out:
+        found = re.fullmatch(r"(\S.*?)\s+(\d+\.\d\d)\s+(\d+\.\d)\s+(\d+)", line)
+        if found:
+            rows[found[1]] = tuple(float(x) for x in found.groups()[1:])
+    assert list(rows) == ["forward", "inverse (x8 modes)", "conditioning"], out
+    for name, (vec_m, loop_k, ratio) in rows.items():
+        assert vec_m > 0 and loop_k > 0, name
+        # the ratio of the unrounded rates lies within the printed roundings
+        low = 1e3 * (vec_m - 0.005) / (loop_k + 0.05) - 0.5
+        high = 1e3 * (vec_m + 0.005) / max(loop_k - 0.05, 1e-9) + 0.5
+        assert low <= ratio <= high, (name, vec_m, loop_k, ratio)
     assert "bench: [1/1] kinematics" in done.stderr  # progress, not mixed into the tables
     r = runner.invoke(app, ["bench", "nope"])
-    assert r.exit_code == 2 and "kinematics" in r.output
+    assert r.exit_code == 2
+    scripts = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py") if p.stem[0] != "_")
+    message = " ".join(r.output.replace("\u2502", " ").split())  # unwrapped from its box
+    assert f"unknown benchmark nope; one of {', '.join(scripts)}" in message
+    assert "== " not in r.output  # nothing ran

@@ -4,6 +4,7 @@ finite differences, numpy's SVD, the paper's closed forms (with the errata)."""
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from planner import (
     WORKING_MODES,
     AssemblyError,
     Design,
+    DesignError,
     InputError,
     Manipulator,
     SingularPostureError,
@@ -70,19 +72,31 @@ def random_q(rng: np.random.Generator, n: int) -> np.ndarray:
         ({"L0": -0.1, "L1": 1, "L2": 1}, "L0"),
         ({"L0": 0, "L1": 1, "L2": float("inf")}, "L2"),
         ({"L0": 0, "L1": 1e9, "L2": 1}, "L1"),
+        ({"L0": "x", "L1": 1, "L2": 1}, "L0"),
         ({"L0": 0, "L1": 1, "L2": 1, "link_radius": -1}, "link_radius"),
         (
             {"L0": 0, "L1": 1, "L2": 1, "joint_min": (0, 0, 1), "joint_max": (1, 1, 1)},
-            "joint_min[2]",
+            ("joint_min", 2),
         ),
         ({"L0": 0, "L1": 1, "L2": 1, "joint_min": (0, 0)}, "joint_min"),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_min": "abc"}, "joint_min"),
         ({"L0": 0, "L1": 1, "L2": 1, "joint_max": (1, 1, float("nan"))}, "joint_max"),
-        ({"L0": 0, "L1": 1, "L2": 1, "joint_max": (1, 1, 100)}, "joint_max[2]"),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_max": (1, 1, 100)}, ("joint_max", 2)),
+        ({"L0": 0, "L1": 1, "L2": 1, "joint_min": (-100, 0, 0)}, ("joint_min", 0)),
     ],
 )
 def test_design_rejects_bad_numbers_naming_the_field(kwargs, field):
-    with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+    """A :class:`DesignError` whose message names the field and whose ``field`` is its wire
+    name (an index for one joint limit, the path a request's ``loc`` writes), kept across a
+    pickle (errors cross from the worker processes so). Mutant caught: any ``field=`` dropped
+    from the raises in ``planner.design`` (the old test matched the message only, with
+    ``field`` None in every case)."""
+    with pytest.raises(DesignError) as info:
         Design(**kwargs)
+    name = field if isinstance(field, str) else f"{field[0]}[{field[1]}]"
+    assert name in str(info.value)
+    assert info.value.field == field
+    assert pickle.loads(pickle.dumps(info.value)).field == field
 
 
 def test_presets_satisfy_their_claims():

@@ -189,3 +189,63 @@ def test_real_plan_reports_its_diagnostics(api):
     job_s = gained("planner_job_duration_seconds_sum", job="plan")
     request_s = gained("planner_http_request_duration_seconds_sum", method="POST", route="/v1/plan")
     assert d["planning_time_s"] + d["timing_time_s"] <= job_s <= request_s
+
+
+def _cache_plan(seed: int) -> dict:
+    return {
+        "start": START,
+        "goal": {"q": [0.6, 2.3, 0.8], "assembly_mode": "+"},
+        "obstacles": [{"type": "sphere", "center": [2.0, 2.0, 2.0], "radius": 0.1}],
+        "planner": {"seed": seed},
+    }
+
+
+def test_the_caches_of_the_workers_are_reported_with_their_budget(client_factory):
+    from planner import caching
+
+    try:
+        with client_factory(warm=False, cache_mb=64) as c:
+            assert c.post("/v1/plan", json=_cache_plan(1)).status_code == 200
+            first = scrape(c)
+            assert c.post("/v1/plan", json=_cache_plan(1)).status_code == 200
+            again = scrape(c)
+    finally:
+        caching.configure(budget_mb=caching.DEFAULT_BUDGET_MB)  # this process's, as before
+    small = {"cache": "geometry.packed_small"}  # the worker packs the plan's one sphere
+    assert sample(first, "planner_cache_entries", **small) >= 1
+    assert sample(first, "planner_cache_bytes", **small) > 0
+    assert sample(first, "planner_cache_misses_total", **small) >= 1
+    assert sample(again, "planner_cache_hits_total", **small) > sample(
+        first, "planner_cache_hits_total", **small
+    )  # the same scene again: found packed
+    # the worker's budget is the setting's (a worker left at the library's default would
+    # report its larger bound, and the largest bound is shown)
+    for name in ("geometry.packed", "geometry.packed_small"):
+        assert sample(again, "planner_cache_budget_bytes", cache=name) == int(
+            caching.CACHES[name].share * 64 * 2**20
+        )
+
+
+def test_cache_reports_are_summed_over_the_live_workers():
+    from planner_api.metrics import JobSample, _CacheCollector
+
+    class Pool:
+        pids = (101, 102)
+
+    collector = _CacheCollector(lambda: Pool)
+    report = (("test.cache", 2, 100, 5, 1, 1000),)
+    for pid in (101, 102, 999):
+        collector.record(JobSample("plan", 0.1, pid=pid, caches=report))
+    families = {f.name: f for f in collector.collect()}
+    values = {
+        f: next(s.value for s in families[f].samples if s.labels == {"cache": "test.cache"})
+        for f in ("planner_cache_entries", "planner_cache_bytes", "planner_cache_budget_bytes")
+    }
+    # the two live workers summed (999 is gone), the bound per process
+    assert values == {
+        "planner_cache_entries": 4,
+        "planner_cache_bytes": 200,
+        "planner_cache_budget_bytes": 1000,
+    }
+    hits = families["planner_cache_hits"].samples
+    assert next(s.value for s in hits if s.labels == {"cache": "test.cache"}) == 10

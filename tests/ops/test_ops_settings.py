@@ -80,3 +80,21 @@ def test_serve_refuses_bad_options_by_name():
     assert "log_format" in result.output
     result = CliRunner().invoke(cli, ["serve", "--shutdown-timeout", "-3"])
     assert result.exit_code == 2
+
+
+def test_the_cache_budget_stays_below_the_worker_memory_bound(monkeypatch):
+    from planner.caching import DEFAULT_BUDGET_MB
+
+    assert Settings().cache_mb == DEFAULT_BUDGET_MB < Settings().worker_max_rss_mb
+    monkeypatch.setenv("PLANNER_CACHE_MB", "300")
+    assert Settings().cache_mb == 300.0
+    monkeypatch.setenv("PLANNER_WORKER_MAX_RSS_MB", "300")
+    with pytest.raises(
+        ValidationError, match=r"PLANNER_CACHE_MB \(300\) must be below PLANNER_WORKER_MAX_RSS_MB"
+    ):
+        Settings()
+    monkeypatch.setenv("PLANNER_WORKER_MAX_RSS_MB", "0")  # never recycled: any budget
+    assert Settings().cache_mb == 300.0
+    monkeypatch.setenv("PLANNER_CACHE_MB", "-1")
+    with pytest.raises(ValidationError, match="cache_mb"):
+        Settings()

@@ -15,7 +15,7 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from planner import Design
+from planner import Design, caching
 from planner.geometry import Box
 from planner.planning import JointPosture, PlanOptions, PlanStatus, corridor, plan, posture_mode
 from planner.validity import Margins, ValidityChecker
@@ -38,9 +38,9 @@ def plate(window: bool = True, dy: float = 0.0) -> list[Box]:
 
 @pytest.fixture(autouse=True)
 def _fresh_cache():
-    corridor.clear_cache()
+    caching.clear("corridor")
     yield
-    corridor.clear_cache()
+    caching.clear("corridor")
 
 
 def crossing_pairs(checker: ValidityChecker, grid, count: int, seed: int = 3):
@@ -233,7 +233,7 @@ def test_cache_hits_for_the_same_scene_and_misses_when_an_obstacle_moves():
     assert other is not first
     assert corridor.cached_corridor_grid(checker.with_mode("+++"), (4, 8, 8)) is None
     assert corridor.cached_corridor_grid(checker, (4, 8, 9)) is None
-    corridor.clear_cache()
+    caching.clear("corridor")
     assert corridor.cached_corridor_grid(checker, (4, 8, 8)) is None
 
 
@@ -251,7 +251,7 @@ def test_corridor_off_is_the_plain_search():
     checker = ValidityChecker(NARROW, Margins(), obstacles, "+", "+-+")
     grid = corridor.corridor_grid(checker)
     (q_start, q_goal), *_ = crossing_pairs(checker, grid, 1)
-    corridor.clear_cache()
+    caching.clear("corridor")
     runs = [
         plan(
             NARROW,

@@ -59,14 +59,43 @@ def test_design_model_rejects_with_the_field(fields, loc):
     assert loc in [tuple(e["loc"]) for e in info.value.errors()]
 
 
+def _jobs_run(api, job: str) -> float:
+    """How many ``job`` jobs the service's workers have reported (``/metrics``: the duration
+    each worker process measures around a job and sends back with its answer)."""
+    for line in api.get("/metrics").text.splitlines():
+        if line.startswith(f'planner_job_duration_seconds_count{{job="{job}"}}'):
+            return float(line.rsplit(maxsplit=1)[1])
+    return 0.0
+
+
 def test_design_check_runs_in_a_worker_and_names_bad_fields(api):
-    r = api.post(
-        "/v1/design/check", json={"design": {"L0": 0.5, "L1": 0.2, "L2": 0.6}, "rel_se": 0.05}
-    )
+    """The check of a design that is not the default one is computed by a worker on that
+    design: one more ``design_check`` job reported by a worker, the answer's design the one
+    sent, its closed-form volume and singularities those of docs/conventions.md for its
+    lengths, its sampled volume cut by its joint limits (and not without them).
+
+    Mutants caught: the job checking ``Design.default()`` instead of the request's design
+    (the old test sent the default design and passed it), the route computing the answer
+    in the serving process (no worker reports the job), and the job dropping the joint limits
+    (``Design(L0, L1, L2)``)."""
+    # L0 = 0 <= 2 L1: C = D occurs; L0 + 2 L1 = 0.5 < 2 L2 = 0.7: CD never stretches
+    lengths = {"L0": 0.0, "L1": 0.25, "L2": 0.35}
+    limited = {**lengths, "joint_min": [-1.0, -2.0, -3.0], "joint_max": [1.0, 2.0, 3.0]}
+    # L0 = 0: the workspace is the shell between r = |L1 - L2| and R = L1 + L2
+    shell = 4.0 / 3.0 * math.pi * (0.6**3 - 0.1**3)
+    before = _jobs_run(api, "design_check")
+    r = api.post("/v1/design/check", json={"design": limited, "rel_se": 0.05})
     assert r.status_code == 200, r.text
+    assert _jobs_run(api, "design_check") >= before + 1  # (+2 if a long job ends meanwhile)
     body = r.json()
-    # 2 L1 < L0 < 2 (L2 - L1): no parallel singularity (docs/conventions.md, erratum 4)
-    assert body["singularity_free"] is True and body["parallel_singularities"] == []
+    assert body["design"] == {**limited, "link_radius": 0.02}
+    assert body["volume"] == pytest.approx(shell, rel=1e-9)
+    assert body["parallel_singularities"] == ["C=D"] and body["singularity_free"] is False
+    cut = body["sampled_volume"]
+    assert cut["value"] + 5 * cut["standard_error"] < 0.8 * shell  # the limits were applied
+    r = api.post("/v1/design/check", json={"design": lengths, "rel_se": 0.05})
+    full = r.json()["sampled_volume"]
+    assert full["value"] == pytest.approx(shell, abs=5 * full["standard_error"] + 0.01 * shell)
     r = api.post(
         "/v1/design/check",
         content=b'{"design": {"L2": NaN}}',

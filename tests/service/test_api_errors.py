@@ -296,3 +296,30 @@ def test_planning_budget_over_the_request_budget_is_422(api):
     (item,) = _items(r)
     assert item["loc"] == ["body", "planner", "time_budget_s"]
     assert "30 s" in item["msg"]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "loc"),
+    [
+        ({"L0": -0.1}, ["body", "design", "L0"]),
+        ({"joint_min": (-1, -1, 2), "joint_max": (1, 1, 1)}, ["body", "design", "joint_min", 2]),
+    ],
+)
+def test_a_library_design_error_is_answered_at_its_field(kwargs, loc):
+    """A :class:`planner.DesignError` that reaches the service (a design built in a job,
+    inside ``located("body", "design")``, or not located at all) is a 422 whose ``loc`` ends
+    with the error's ``field``: the path pydantic writes for the same field of a request."""
+    import asyncio
+    from contextlib import nullcontext
+
+    from planner import Design, DesignError
+    from planner.wire import located
+    from planner_api.errors import error_answer
+
+    for where in (located("body", "design"), nullcontext()):
+        with pytest.raises(DesignError) as info, where:
+            Design(**{"L0": 0.5, "L1": 0.2, "L2": 0.6, **kwargs})
+        answer = asyncio.run(error_answer(info.value))
+        (item,) = json.loads(answer.body)["detail"]
+        assert answer.status_code == 422 and item["type"] == "design_error"
+        assert item["loc"] == loc, where

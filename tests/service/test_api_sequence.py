@@ -134,13 +134,35 @@ def test_bad_input_is_a_422_naming_the_field(api, change, loc):
     assert any(d["loc"][: len(loc)] == loc for d in r.json()["detail"]), r.text
 
 
-def test_a_blend_larger_than_half_its_leg_is_a_422_at_its_blend(api):
+def test_a_blend_larger_than_half_its_leg_shrinks_to_fit(api):
+    """Never a 422: the blend shrinks to half the shorter adjacent leg, diagnostics.blends
+    gives asked and used, the message names the target."""
     request = body(False, blend=0.05, objective="fixed")
     request["targets"][0]["blend"] = 2.0
     r = api.post("/v1/sequence", json=request)
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["status"] == "solved", out["message"]
+    first = out["diagnostics"]["blends"][0]
+    assert first["target_index"] == 0 and first["unit"] == "rad" and first["asked"] == 2.0
+    assert 0 < first["used"] < 2.0
+    assert f"target 0 2 -> {first['used']:.4g} rad" in out["message"]
+
+
+def test_blend_and_blend_radius_together_is_a_422_at_blend_radius(api):
+    request = body(False, blend=0.05, objective="fixed")
+    request["targets"][0]["blend_radius"] = 0.01
+    r = api.post("/v1/sequence", json=request)
     assert r.status_code == 422, r.text
-    assert r.json()["detail"][0]["loc"][:4] == ["body", "targets", 0, "blend"]
-    assert "half the shorter adjacent leg" in r.json()["detail"][0]["msg"]
+    assert r.json()["detail"][0]["loc"][:4] == ["body", "targets", 0, "blend_radius"]
+    assert "not both" in r.json()["detail"][0]["msg"]
+    for bad in (-0.01, "x"):
+        request["targets"][0].pop("blend")
+        request["targets"][0]["blend_radius"] = bad
+        r = api.post("/v1/sequence", json=request)
+        assert r.status_code == 422, r.text
+        assert r.json()["detail"][0]["loc"][:4] == ["body", "targets", 0, "blend_radius"]
+        request["targets"][0]["blend"] = 0.05
 
 
 def test_the_service_limit_on_targets(api_with):

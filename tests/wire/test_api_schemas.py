@@ -9,7 +9,7 @@ import typing
 import pytest
 from pydantic import ValidationError
 
-from planner import schemas
+from planner import wire
 from planner.wire import (
     BoxObstacle,
     CartesianTargetModel,
@@ -40,16 +40,16 @@ def test_plan_request_fields_and_required():
     }
     required = {n for n, f in PlanRequest.model_fields.items() if f.is_required()}
     assert required == {"start", "goal"}
-    assert set(schemas.MarginsModel.model_fields) == {"kappa_max", "serial_min", "clearance"}
-    assert {"name", "time_budget_s", "seed", "simplify"} <= set(schemas.PlannerOptions.model_fields)
-    assert {"method", "sample_rate_hz"} <= set(schemas.TimingOptionsModel.model_fields)
-    assert {"velocity", "acceleration", "jerk"} <= set(schemas.Limits.model_fields)
-    assert typing.get_args(schemas.TimingOptionsModel.model_fields["method"].annotation) == (
+    assert set(wire.MarginsModel.model_fields) == {"kappa_max", "serial_min", "clearance"}
+    assert {"name", "time_budget_s", "seed", "simplify"} <= set(wire.PlannerOptions.model_fields)
+    assert {"method", "sample_rate_hz"} <= set(wire.TimingOptionsModel.model_fields)
+    assert {"velocity", "acceleration", "jerk"} <= set(wire.Limits.model_fields)
+    assert typing.get_args(wire.TimingOptionsModel.model_fields["method"].annotation) == (
         "toppra",
         "ruckig",
         "none",
     )
-    assert set(schemas.DesignModel.model_fields) == {
+    assert set(wire.DesignModel.model_fields) == {
         "L0",
         "L1",
         "L2",
@@ -61,7 +61,7 @@ def test_plan_request_fields_and_required():
 
 
 def test_plan_response_vocabulary():
-    assert set(typing.get_args(schemas.PlanStatus)) == {
+    assert set(typing.get_args(wire.PlanStatus)) == {
         "solved",
         "no_path",
         "unreachable",
@@ -72,27 +72,27 @@ def test_plan_response_vocabulary():
     assert {"status", "message", "path", "trajectory", "diagnostics"} <= set(
         PlanResponse.model_fields
     )
-    assert set(schemas.PathModel.model_fields) == {"waypoints", "segments", "transits"}
-    assert set(schemas.SegmentModel.model_fields) == {
+    assert set(wire.PathModel.model_fields) == {"waypoints", "segments", "transits"}
+    assert set(wire.SegmentModel.model_fields) == {
         "working_mode",
         "assembly_mode",
         "start_index",
         "end_index",
     }
-    assert set(schemas.TransitModel.model_fields) == {"index", "q", "kind", "flipped"}
-    assert set(typing.get_args(schemas.TransitKind)) == {
+    assert set(wire.TransitModel.model_fields) == {"index", "q", "kind", "flipped"}
+    assert set(typing.get_args(wire.TransitKind)) == {
         "P_on_axis",
         "leg_A_stretched",
         "leg_A_folded",
         "leg_B_stretched",
         "leg_B_folded",
     }
-    assert set(typing.get_args(schemas.TransitModel.model_fields["flipped"].annotation)) == {
+    assert set(typing.get_args(wire.TransitModel.model_fields["flipped"].annotation)) == {
         "axis",
         "A",
         "B",
     }
-    assert {"duration", "t", "q", "qd", "qdd"} <= set(schemas.TrajectoryModel.model_fields)
+    assert {"duration", "t", "q", "qd", "qdd"} <= set(wire.TrajectoryModel.model_fields)
     assert {
         "planning_time_s",
         "timing_time_s",
@@ -193,14 +193,14 @@ def test_second_part_vocabulary():
         TrajectoryPointsModel,
     )
 
-    limits = schemas.Limits.model_fields
+    limits = wire.Limits.model_fields
     for name in ("velocity_scaling", "acceleration_scaling"):
         assert limits[name].default == 1.0
-    assert typing.get_args(schemas.TimingOptionsModel.model_fields["format"].annotation) == (
+    assert typing.get_args(wire.TimingOptionsModel.model_fields["format"].annotation) == (
         "arrays",
         "points",
     )
-    assert schemas.TimingOptionsModel.model_fields["format"].default == "arrays"
+    assert wire.TimingOptionsModel.model_fields["format"].default == "arrays"
     assert typing.get_args(CartesianTargetModel.model_fields["prefer"].annotation) == (
         "shortest",
         "best_conditioned",
@@ -270,14 +270,13 @@ def test_third_part_dynamics_vocabulary():
     }
     assert {"tau", "mass_matrix"} <= set(DynamicsResponse.model_fields)
     assert PlanRequest.model_fields["gravity"].default_factory() == [0.0, 0.0, -9.81]
-    assert "torque" in schemas.Limits.model_fields
+    assert "torque" in wire.Limits.model_fields
     assert "tau" in TrajectoryModel.model_fields
     assert "max_torque_ratio" in DiagnosticsModel.model_fields
 
 
 def _request_models() -> list[type]:
     """Every request model of the wire (strict: ``_Request`` and its subclasses)."""
-    import planner.wire as wire
     from planner.wire.common import _Request
 
     found, todo = set(), [_Request]

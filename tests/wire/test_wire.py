@@ -19,7 +19,7 @@ from planner.wire import Limits, PlanRequest, located, plan_inputs, plan_respons
 
 
 def test_the_wire_exports_exactly_its_modules_public_names():
-    """``planner.wire.__all__`` (which ``planner.schemas`` re-exports for old clients) is the
+    """``planner.wire.__all__`` is the
     union of its modules' ``__all__``, each listing every class and function its module
     defines without a leading underscore: a model added to a module and forgotten in the
     list fails here, and so does a library name passed through the wire (the wire owns its

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from planner.design import Design
@@ -27,7 +29,7 @@ MODE_INDEX: dict[str, int] = {m: k for k, m in enumerate(WORKING_MODES)}
 MODE_SIGNS = np.array([mode_signs(m) for m in WORKING_MODES])
 
 
-def parse_modes(working_modes: object) -> np.ndarray:
+def parse_modes(working_modes: str | Iterable[str] | None) -> np.ndarray:
     """Boolean mask, shape (8,), of the allowed working modes.
 
     ``None`` or ``"any"`` allows all eight; otherwise an iterable of labels such as ``"+-+"``.
@@ -38,7 +40,7 @@ def parse_modes(working_modes: object) -> np.ndarray:
         return mask
     if isinstance(working_modes, str):
         working_modes = [working_modes]
-    for m in working_modes:  # type: ignore[union-attr]
+    for m in working_modes:
         if m not in MODE_INDEX:
             raise InputError(f"working_mode must be one of {WORKING_MODES} or 'any', got {m!r}")
         mask[MODE_INDEX[m]] = True

@@ -82,13 +82,11 @@ class GoalBall:
         if bad or not self.working_modes:
             raise InputError(f"working_modes must be among {WORKING_MODES}, got {bad or '()'}")
 
-    def contains_p(self, p: np.ndarray) -> np.ndarray:
-        """(M,) bool: which points P (M, 3) lie in the ball (kind "point")."""
-        return np.linalg.norm(np.atleast_2d(p) - self.centre, axis=1) <= self.radius + _SLACK
 
-
-def _interval_gap(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Distance from x to [lo, hi] (0 inside)."""
+def _interval_gap(
+    x: np.ndarray | float, lo: np.ndarray | float, hi: np.ndarray | float
+) -> np.ndarray:
+    """Distance from x to [lo, hi] (0 inside), elementwise."""
     return np.maximum(np.maximum(lo - x, x - hi), 0.0)
 
 
@@ -174,7 +172,7 @@ def grid_cells(
     ai = ASSEMBLY_MODES.index(assembly_mode)
     plane = plane_cells(ball, rmap, assembly_mode)
     comps = _cell_components(rmap, ai, plane)
-    keep = np.isin(comps, sorted(components)).any(axis=0)  # (n, n)
+    keep = np.asarray(np.isin(comps, sorted(components)).any(axis=0))  # (n, n)
     out = np.zeros((len(theta1), rmap.n, rmap.n), dtype=np.bool_)
     if not keep.any():
         return out

@@ -19,6 +19,7 @@ Hence
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -202,7 +203,7 @@ def _locus(kind: str, batch: PostureBatch, **extra: object) -> Locus:
     return Locus(kind, q, passive, uw, wm, am, **extra)  # type: ignore[arg-type]
 
 
-def _cat(parts: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
+def _cat(parts: Sequence[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
     """Concatenate branches (t2, t3, P) with a NaN row between them (one NaN row if none)."""
     if not parts:
         return np.full(1, np.nan), np.full(1, np.nan), np.full((1, 2), np.nan)

@@ -86,7 +86,7 @@ from planner.analysis.apex_bounds import point_sets
 from planner.analysis.goal_cells import GoalBall, grid_cells
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.geometry import Obstacle, pack_obstacles
+from planner.geometry import Obstacle, PackedObstacles, pack_obstacles
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
 from planner.validity import Margins
 
@@ -272,7 +272,7 @@ def _grid(design, margins, obstacles, assembly_mode, components, n, width) -> _G
     )
 
 
-def _passable(grid: _Grid, packed, cell) -> bool:
+def _passable(grid: _Grid, packed: PackedObstacles, cell) -> bool:
     i = cell[0]
     a1 = 0.5 * grid.h1 * (1.0 + _REL_SLACK)
     return bool(

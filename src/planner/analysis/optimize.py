@@ -226,7 +226,7 @@ def _local_starts(
         if best is None or res.fun < best.fun:
             best = res
     tell("done", 3, 3)
-    assert best is not None
+    assert best is not None  # three local starts ran
     return best
 
 
@@ -253,7 +253,8 @@ def _evolve(
     tell(f"generation 1 of {maxiter}", 0, maxiter)
     res = optimize.differential_evolution(
         loss,
-        bounds,
+        # scipy takes (min, max) pairs, one per variable; scipy-stubs types one pair only
+        bounds,  # type: ignore[arg-type]
         seed=seed,
         maxiter=maxiter,
         popsize=8,

@@ -81,7 +81,7 @@ import numpy as np
 
 from planner.analysis import _region_kernels as K
 from planner.analysis.region_queries import locate, prove_disconnected, regions_at
-from planner.caching import BoundedCache
+from planner.caching import BoundedCache, bounded_cache
 from planner.design import Design
 from planner.exceptions import InputError, check_deadline
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
@@ -97,7 +97,6 @@ __all__ = [
     "RegionMap",
     "RegionTransit",
     "cached_region_map",
-    "clear_cache",
     "locate",
     "prove_disconnected",
     "region_map",
@@ -116,10 +115,6 @@ INVALID, UNDECIDED, VALID = 0, 1, 2
 _FLIP_NAMES = ("axis", "A", "B")
 _REL_SLACK = 1e-9
 _ABS_SLACK = 1e-12
-_CACHE_SIZE = 16
-#: Most bytes of maps the per-process cache holds (a map of n x n cells holds about
-#: 250 n^2 bytes: 16 MB at 256, 62 MB at 512); a map larger than this is not kept.
-_CACHE_BYTES = 256 * 2**20
 
 
 @dataclass(frozen=True, slots=True)
@@ -275,8 +270,9 @@ def region_map(
     -------
     RegionMap
         Read-only; the same object for the same (design with its joint limits, kappa_max,
-        serial_min, n, refine) while it stays in the per-process LRU cache (at most 16 maps
-        and 256 MB: the least recently used go first).
+        serial_min, n, refine) while it stays in the per-process LRU cache
+        ``regions.maps`` (at most 16 maps and its share of the cache budget,
+        :mod:`planner.caching`: the least recently used go first).
     """
     margins = Margins() if margins is None else margins
     if not isinstance(n, int | np.integer) or isinstance(n, bool) or not 8 <= n <= MAX_RESOLUTION:
@@ -312,20 +308,10 @@ def _cache_key(design: Design, margins: Margins, n: int, refine: int) -> tuple:
     return (design, Margins(margins.kappa_max, margins.serial_min, 0.0), int(n), refine)
 
 
-def _nbytes(rmap: RegionMap) -> int:
-    """Bytes of a map's arrays."""
-    return sum(
-        v.nbytes for v in (getattr(rmap, f) for f in rmap.__slots__) if isinstance(v, np.ndarray)
-    )
-
-
-#: The per-process LRU cache of :func:`region_map`: key -> map.
-_CACHE: BoundedCache[RegionMap] = BoundedCache(_CACHE_SIZE, _CACHE_BYTES, _nbytes)
-
-
-def clear_cache() -> None:
-    """Forget every cached region map of this process."""
-    _CACHE.clear()
+#: The per-process LRU cache of :func:`region_map`: key -> map (a map of n x n cells holds
+#: about 250 n^2 bytes: 16 MB at 256, 62 MB at 512; its share:
+#: :data:`planner.caching.CACHES`).
+_CACHE: BoundedCache[RegionMap] = bounded_cache("regions.maps")
 
 
 def _sub_trig(centres: np.ndarray, a: float, split: int) -> np.ndarray:

@@ -74,11 +74,6 @@ class Section:
     singular: np.ndarray
 
     @property
-    def mode_count(self) -> np.ndarray:
-        """Shape (ny, nx), int: how many slots reach each cell."""
-        return self.reached.sum(axis=-1)
-
-    @property
     def best_kappa(self) -> np.ndarray:
         """Shape (ny, nx): smallest kappa(A) over the reaching slots (NaN where none)."""
         k = np.where(self.reached, self.kappa_A, np.inf).min(axis=-1)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -160,7 +161,7 @@ def reachable_slots(
     design: Design,
     p: np.ndarray,
     *,
-    working_modes: object = None,
+    working_modes: str | Iterable[str] | None = None,
     joint_limits: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which working modes reach each point, and kappa(A) there.
@@ -211,7 +212,7 @@ def sample_workspace(
     rel_se: float | None = 0.005,
     n_per_replicate: int = 1024,
     replicates: int = 8,
-    working_modes: object = None,
+    working_modes: str | Iterable[str] | None = None,
     joint_limits: bool = True,
     kappa_max: float | None = None,
     seed: int = 0,

@@ -65,10 +65,10 @@ def describe_stop(
         )
     rep = checker.check_states(q_bad[None])
     if rule == "joint_limits":
-        lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
-        i = int(np.argmax(np.maximum(lo - q_bad, q_bad - hi)))
-        bound = lo[i] if q_bad[i] < lo[i] else hi[i]
-        rel = "<" if q_bad[i] < lo[i] else ">"
+        q_lo, q_hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+        i = int(np.argmax(np.maximum(q_lo - q_bad, q_bad - q_hi)))
+        bound = q_lo[i] if q_bad[i] < q_lo[i] else q_hi[i]
+        rel = "<" if q_bad[i] < q_lo[i] else ">"
         return float(q_bad[i]), (
             f"joint_limits: theta{i + 1} = {_fmt_value(q_bad[i], bound)} rad {rel} "
             f"joint_{'min' if rel == '<' else 'max'}[{i}] = {bound:.6g} rad"
@@ -91,9 +91,9 @@ def describe_stop(
             f"margins.serial_min = {m.serial_min:g}"
         )
     if rule == "clearance":
-        c = float(rep.clearance[0])
-        return c, (
-            f"clearance: link clearance {_fmt_value(c, m.clearance)} m < "
+        gap = float(rep.clearance[0])
+        return gap, (
+            f"clearance: link clearance {_fmt_value(gap, m.clearance)} m < "
             f"margins.clearance = {m.clearance:g} m"
         )
     return float("nan"), checker.explain(q_bad)

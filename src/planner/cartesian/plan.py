@@ -204,7 +204,7 @@ class StraightMotion:
         poly = Polyline(np.vstack([fb.p[0][None], pts]))
         slot, asm_sign = WORKING_MODES.index(mode), 1 if asm == "+" else -1
         walker = Walker(design, checker, poly, q0, slot, asm_sign)
-        events = ()
+        events: tuple[PathEvent, ...] = ()
         if self.inspect:
             events = inspect_cartesian(
                 design, start, pts, margins=problem.margins, deadline=budget.deadline

@@ -8,10 +8,14 @@ reuse); the wire's response is built from them by :func:`planner.wire.cartesian_
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.planning.result import Diagnostics, PlanPath, PlanStatus
+from planner.planning.result import PlanPath, PlanStatus
+
+if TYPE_CHECKING:
+    from planner.timing.trajectory import Trajectory
 
 __all__ = ["CartesianDiagnostics", "CartesianResult", "PathEvent", "StopPoint"]
 
@@ -85,7 +89,7 @@ class CartesianDiagnostics:
     planning_time_s, timing_time_s : float, s
     path_length : float, rad -- joint-space length of the path.
     cartesian_length : float, m -- length of the polyline achieved.
-    max_kappa_A, min_serial_margin, min_clearance : extremes (as :class:`Diagnostics`).
+    max_kappa_A, min_serial_margin, min_clearance : extremes (as :class:`planner.planning.result.Diagnostics`).
     chord_bound : float, m -- largest certified chord deviation of the joint pieces.
     max_path_deviation : float, m -- largest measured distance of P from the polyline: over
         the timed trajectory's dense check times when timed, else over the joint pieces
@@ -141,7 +145,7 @@ class CartesianResult:
     s: np.ndarray
     p: np.ndarray
     stop: StopPoint | None
-    trajectory: object | None
+    trajectory: Trajectory | None
     timing_error: str
     events: tuple[PathEvent, ...]
     working_mode: str
@@ -153,16 +157,3 @@ class CartesianResult:
     @property
     def solved(self) -> bool:
         return self.status is PlanStatus.SOLVED
-
-    def plan_diagnostics(self) -> Diagnostics:
-        """The plan-style :class:`~planner.planning.result.Diagnostics` of this path."""
-        d = self.diagnostics
-        return Diagnostics(
-            planning_time_s=d.planning_time_s,
-            path_length=d.path_length,
-            min_clearance=d.min_clearance,
-            max_kappa_A=d.max_kappa_A,
-            min_serial_margin=d.min_serial_margin,
-            planner="cartesian",
-            attempts=1,
-        )

@@ -171,7 +171,7 @@ class Inertia:
             self, "base_inertia", _number("base.inertia", self.base_inertia, MAX_INERTIA)
         )
         try:
-            rotor = [float(x) for x in self.rotor]  # type: ignore[union-attr]
+            rotor = [float(x) for x in self.rotor]
         except (TypeError, ValueError) as exc:
             raise InputError(f"rotor must be 3 numbers, got {self.rotor!r}", field="rotor") from exc
         if len(rotor) != 3:

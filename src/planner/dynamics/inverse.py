@@ -43,7 +43,8 @@ def _rates(name: str, value: object, n: int) -> np.ndarray:
         raise InputError(f"{name} must be numbers, got {value!r}", field=name) from exc
     arr = np.atleast_2d(arr)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise InputError(f"{name} must have shape (N, 3), got {np.shape(value)}", field=name)
+        shape = np.asarray(value, dtype=float).shape  # as given, before atleast_2d
+        raise InputError(f"{name} must have shape (N, 3), got {shape}", field=name)
     if arr.shape[0] != n:
         raise InputError(
             f"{name} must have {n} rows (one per posture of q), got {arr.shape[0]}", field=name

@@ -131,7 +131,8 @@ class SerialArm:
     def _check(self, qs: object, name: str = "q") -> np.ndarray:
         arr = np.atleast_2d(np.asarray(qs, dtype=float))
         if arr.ndim != 2 or arr.shape[1] != 3:
-            raise InputError(f"{name} must have shape (N, 3), got {np.shape(qs)}", field=name)
+            shape = np.asarray(qs, dtype=float).shape  # as given, before atleast_2d
+            raise InputError(f"{name} must have shape (N, 3), got {shape}", field=name)
         return arr
 
     def points(self, qs: np.ndarray) -> dict[str, np.ndarray]:
@@ -151,6 +152,7 @@ class SerialArm:
         pr, di = i.proximal, i.distal
         m1, f1, m2, f2 = pr.mass, pr.com, di.mass, di.com
         me, mp = self.elbow_mass, i.payload_mass
+        assert self.base_inertia is not None, "SerialArm.__post_init__ sets base_inertia"
         t2, phi = qs[:, 1], qs[:, 1] + qs[:, 2]
         s2, sp = np.sin(t2), np.sin(phi)
         w1 = f1 * d.L1 * s2

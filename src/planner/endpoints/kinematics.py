@@ -50,7 +50,7 @@ def ik(request: IKRequest, budget: JobBudget = UNBOUNDED) -> IKResponse:
     return IKResponse(postures=[posture_model(m, p) for p in found])
 
 
-def _finite_or_none(x: float) -> float | None:
+def _finite_or_none(x: float | np.ndarray) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 

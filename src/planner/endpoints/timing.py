@@ -21,6 +21,7 @@ from planner.wire import (
     obstacles_to_core,
     timing_error,
     trajectory_model,
+    triple_to_core,
 )
 
 __all__ = ["timing"]
@@ -60,7 +61,7 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
 
     obstacles = obstacles_to_core(request.obstacles)
     margins = margins_to_core(request.margins or MarginsModel())
-    working_mode = request.working_mode
+    working_mode: str | None = request.working_mode
     if working_mode is None:
         working_mode = mode_label(
             forward_batch(design, q0[None], request.assembly_mode).working_mode_signs[0]
@@ -133,7 +134,7 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
                 deadline=budget.deadline,
                 max_samples=budget.max_samples,
                 inertia=inertia_to_core(request.design),
-                gravity=tuple(request.gravity),
+                gravity=triple_to_core(request.gravity),
                 **options,
             )
     except TimingDeadlineError as exc:

@@ -42,7 +42,7 @@ from numba import njit
 from scipy import ndimage
 
 from planner.analysis.heap import heap_grow, heap_pop, heap_push
-from planner.caching import BoundedCache
+from planner.caching import BoundedCache, bounded_cache
 from planner.planning import ompl_backend
 from planner.planning.problem import PlanOptions
 from planner.validity import ValidityChecker
@@ -53,7 +53,6 @@ __all__ = [
     "CorridorOutcome",
     "GuidedOutcome",
     "cached_corridor_grid",
-    "clear_cache",
     "corridor_grid",
     "corridor_path",
     "guided_search",
@@ -89,10 +88,6 @@ DEPTH_PENALTY = 4.0
 REPAIR_BUDGET_S = 0.005
 #: Most pieces repaired per corridor path before giving up (the plain search follows).
 MAX_REPAIRS = 4
-_CACHE_SIZE = 32
-#: Most bytes of grids the per-process cache holds (a grid of n cells holds 5 n bytes: 0.7
-#: MB at the default shape); a grid larger than this is not kept.
-_CACHE_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -173,8 +168,9 @@ def corridor_grid(
     -------
     CorridorGrid or None
         The same object for the same (design, margins, obstacles, assembly mode, working
-        mode, serial rules, shape) while it stays in the per-process LRU cache (at most 32
-        grids and 64 MB: the least recently used go first).
+        mode, serial rules, shape) while it stays in the per-process LRU cache
+        ``corridor.grids`` (at most 32 grids and its share of the cache budget,
+        :mod:`planner.caching`: the least recently used go first).
     """
     key = _cache_key(checker, shape)
     hit = _CACHE.get(key)
@@ -204,9 +200,9 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
     (their packed arrays as bytes, with their shapes), the modes, the serial rules and the
     shape."""
     obstacles = tuple((a.shape, a.tobytes()) for a in checker.packed[:3])
-    shape = tuple(int(n) for n in shape)
-    if len(shape) != 3 or min(shape) < 2:
-        raise ValueError(f"shape must be 3 cell counts >= 2, got {shape!r}")
+    cells = tuple(int(n) for n in shape)
+    if len(cells) != 3 or min(cells) < 2:
+        raise ValueError(f"shape must be 3 cell counts >= 2, got {cells!r}")
     return (
         checker.design,
         checker.margins,
@@ -214,7 +210,7 @@ def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
         checker.assembly_mode,
         checker.working_mode,
         checker.serial_rules,
-        shape,
+        cells,
     )
 
 
@@ -266,17 +262,11 @@ def _build(
     return CorridorGrid(shape, lo, step, valid, labels, weight, time.monotonic() - t0)
 
 
-#: The per-process LRU cache of :func:`corridor_grid`: key -> grid.
-_CACHE: BoundedCache[CorridorGrid] = BoundedCache(_CACHE_SIZE, _CACHE_BYTES, lambda g: g.nbytes)
-#: Keys whose build was stopped, with its projected time (s) (bounded in entries only).
-_TOO_COSTLY: BoundedCache[float] = BoundedCache(_CACHE_SIZE, 0, lambda _: 0)
-
-
-def clear_cache() -> None:
-    """Forget every cached corridor grid of this process (and every stopped build's
-    projection)."""
-    _CACHE.clear()
-    _TOO_COSTLY.clear()
+#: The per-process LRU cache of :func:`corridor_grid`: key -> grid (a grid of n cells holds
+#: 5 n bytes: 0.7 MB at the default shape; its share: :data:`planner.caching.CACHES`).
+_CACHE: BoundedCache[CorridorGrid] = bounded_cache("corridor.grids")
+#: Keys whose build was stopped, with its projected time (s).
+_TOO_COSTLY: BoundedCache[float] = bounded_cache("corridor.too_costly")
 
 
 # ----------------------------------------------------------------------------- the search

@@ -74,6 +74,7 @@ def _unclaimed(result: PlanResult, tolerance: float) -> PlanResult:
 
 
 def _goal_mode(result: PlanResult) -> str:
+    assert result.path is not None, "the working mode of a solved plan only"
     return result.path.segments[-1].working_mode if result.path.segments else ""
 
 

@@ -380,8 +380,9 @@ def _assemble(
             parts.append(c.q_out[None])
             t_index = n_so_far  # index of q_transit
             segs.append(Segment(mode, asm, start_index, t_index))
+            qt = c.q_transit
             transits.append(
-                Transit(t_index, tuple(float(x) for x in c.q_transit), c.kind, c.flipped)
+                Transit(t_index, (float(qt[0]), float(qt[1]), float(qt[2])), c.kind, c.flipped)
             )
             start_index = t_index
             rep = free.check_path(np.stack([c.q_in, c.q_transit, c.q_out]), certify=False)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner.analysis import regions as region_maps
+from planner.caching import cached
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, forward_batch
 from planner.planning.mode_graph import FLIP_NAMES, flipped_sign
@@ -41,24 +42,19 @@ REGION_WALKS = 16
 REGION_DETOUR = 2
 
 
-#: Transit postures of the region maps (:func:`map_transits`) per (map, assembly mode,
-#: before, after), the most recent :data:`_MAP_TRANSITS_SIZE` kept (the map is kept beside
-#: its postures, so an id reused by a new map is never mistaken for the old one).
-_MAP_TRANSITS: dict[tuple, tuple[region_maps.RegionMap, np.ndarray]] = {}
-_MAP_TRANSITS_SIZE = 512
-
-
 def cached_map_transits(
     rmap: region_maps.RegionMap, asm: str, before: str, after: str
 ) -> np.ndarray:
     """:func:`map_transits`, computed once per map and flip (a copy: callers edit theta1)."""
-    key = (id(rmap), asm, before, after)
-    hit = _MAP_TRANSITS.get(key)
-    if hit is None or hit[0] is not rmap:
-        if len(_MAP_TRANSITS) >= _MAP_TRANSITS_SIZE:
-            _MAP_TRANSITS.pop(next(iter(_MAP_TRANSITS)))
-        hit = _MAP_TRANSITS[key] = (rmap, map_transits(rmap, asm, before, after))
-    return hit[1].copy()
+    return _map_transits(rmap, asm, before, after).copy()
+
+
+@cached("region_walks.transits")
+def _map_transits(rmap: region_maps.RegionMap, asm: str, before: str, after: str) -> np.ndarray:
+    """:func:`map_transits` per (map, assembly mode, before, after): a map is hashed and
+    compared by identity, and the key holds it, so a new map is never mistaken for an old
+    one."""
+    return map_transits(rmap, asm, before, after)
 
 
 def walk_possible(

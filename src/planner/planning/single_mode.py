@@ -304,7 +304,7 @@ def plan_in_region(
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
-            if waypoints is None and stuck:
+            if waypoints is None and stuck and when_stuck is not None:
                 answer, when_stuck = when_stuck(q_goals), None
                 if answer is not None:
                     return replace(

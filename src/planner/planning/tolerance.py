@@ -269,7 +269,7 @@ def _search(
     others = {m: _spread(t, SEARCH_GOALS) for m, t in goals.targets.items() if m != start_mode}
     searches = 0
     result = PlanResult(PlanStatus.NO_PATH, "", None, Diagnostics(0.0))
-    if own is not None:
+    if own is not None and start_mode is not None:
         share = options.time_budget_s * (0.5 if others else 1.0)
         checker = ValidityChecker(design, margins, obstacles, start.assembly_mode, start_mode)
         result = plan_to_goal_set(
@@ -283,7 +283,7 @@ def _search(
         if result.diagnostics.proven_infeasible:
             return result, "", float("nan")
         searches += result.diagnostics.searches
-        if result.solved:
+        if result.solved and result.path is not None:
             end = result.path.waypoints[-1]
             k = int(np.argmin(np.linalg.norm(own - end, axis=1)))
             return result, start_mode, float(goals.offsets[start_mode][k])
@@ -305,7 +305,7 @@ def _search(
             rmap=proof_region_map(design, margins, options, deadline),
         )
         searches += result.diagnostics.searches
-        if result.solved:
+        if result.solved and result.path is not None:
             mode = result.path.segments[-1].working_mode
             end = result.path.waypoints[-1]
             k = int(np.argmin(np.linalg.norm(goals.targets[mode] - end, axis=1)))

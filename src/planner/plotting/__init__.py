@@ -14,8 +14,8 @@ use from a server thread.
 Speed: a worker draws the figures of the design a user is looking at again and again (the
 viewer asks for the workspace section and the isoconditioning map of the current design), so
 the sections and loci behind a figure are computed once per (design, resolution) and kept in
-small per-process LRU caches (:func:`functools.lru_cache`; :class:`Design` is a frozen,
-hashable dataclass), and so are the rendered bytes of :func:`render_figure`. Cached arrays are
+small per-process LRU caches (``plotting.*`` of :mod:`planner.caching`; :class:`Design` is
+a frozen, hashable dataclass), and so are the rendered bytes of :func:`render_figure`. Cached arrays are
 made read-only so that no figure can alter another's data. :data:`SCREEN_RESOLUTION` (the
 HTTP default) and :data:`PRINT_RESOLUTION` (the CLI and the committed PNGs) are the two grid
 sizes used; ``tests/analysis/test_analysis_figures.py`` checks that they agree.
@@ -25,21 +25,18 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable
-from functools import lru_cache
 
 from matplotlib.figure import Figure
 
+from planner.caching import cached
 from planner.design import Design
 from planner.plotting._common import (
-    _CACHE_SIZE,
     CONVEX,
     GENERAL_DESIGN,
     MODE_CHANGE_DESIGN,
     NONCONVEX,
     PRINT_RESOLUTION,
     SCREEN_RESOLUTION,
-    _loci,
-    _section,
     draw_posture,
     plot_loci,
 )
@@ -48,7 +45,6 @@ from planner.plotting.paper import (
     FIGURES,
     ISO_LEVELS,
     _cartesian_section_figure,
-    _iso,
     _joint_section_figure,
     figure_04,
     figure_05,
@@ -82,7 +78,6 @@ __all__ = [
     "NONCONVEX",
     "PRINT_RESOLUTION",
     "SCREEN_RESOLUTION",
-    "clear_caches",
     "draw_posture",
     "figure_04",
     "figure_05",
@@ -173,7 +168,7 @@ def render_figure(
 ) -> bytes:
     """One figure of :data:`NAMED_FIGURES` for ``design``, as PNG or SVG bytes.
 
-    The bytes are cached per process (the last :data:`_CACHE_SIZE` distinct requests), and the
+    The bytes are cached per process (``plotting.figures``, :mod:`planner.caching`), and the
     sections and loci behind them per design, so a viewer asking again for the figures of the
     design on screen gets them without recomputing or redrawing.
 
@@ -206,7 +201,7 @@ def render_figure(
     return _render(name, design, int(n), fmt, int(dpi))
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.figures")
 def _render(name: str, design: Design, n: int, fmt: str, dpi: int) -> bytes:
     """The work of :func:`render_figure` (a refused figure raises and is not cached)."""
     from planner.analysis.workspace import closed_form_volume
@@ -227,10 +222,3 @@ def _render(name: str, design: Design, n: int, fmt: str, dpi: int) -> bytes:
     except (PlannerError, ValueError, IndexError, KeyError) as exc:  # a locus it lacks
         raise DesignError(f"figure {name!r} cannot be drawn for this design: {exc}") from exc
     return buffer.getvalue()
-
-
-def clear_caches() -> None:
-    """Forget every cached section, locus and rendered figure of this process (for a
-    benchmark of cold renders, or to free memory)."""
-    for cached in (_section, _loci, _iso, _render):
-        cached.cache_clear()

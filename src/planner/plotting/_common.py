@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -18,6 +18,7 @@ from planner.analysis.loci import (
     serial_loci,
 )
 from planner.analysis.sections import Section, cartesian_section, joint_section
+from planner.caching import cached
 from planner.design import Design
 from planner.kinematics import link_points
 
@@ -46,7 +47,7 @@ NONCONVEX = ("++-", "--+")
 _MODE_COLOURS = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf",
 ]  # fmt: skip
-_LOCUS_STYLE = {
+_LOCUS_STYLE: dict[str, dict[str, Any]] = {
     "CD_stretched": {"color": "red", "lw": 1.6, "ls": "-", "label": "parallel: CD stretched"},
     "C=D": {"color": "magenta", "lw": 1.6, "ls": "--", "label": "parallel: C = D"},
     "leg_A_stretched": {"color": "navy", "lw": 1.4, "ls": "-", "label": "serial: leg A"},
@@ -64,9 +65,6 @@ SCREEN_RESOLUTION = 96
 #: Cells per axis of the print-quality figures (``planner figures``, ``docs/figures``; over
 #: HTTP: ``?resolution=256&dpi=150``).
 PRINT_RESOLUTION = 256
-
-#: Rendered figures and their inputs kept per worker process (a few designs' worth).
-_CACHE_SIZE = 16
 
 
 def _legend_below(ax: Axes, ncol: int = 3, handles: list | None = None) -> None:
@@ -99,7 +97,7 @@ def _read_only(obj: object) -> None:
             value.setflags(write=False)
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.sections")
 def _section(kind: str, design: Design, n: int) -> Section:
     """:func:`cartesian_section` or :func:`joint_section` of a design, once per process."""
     section = cartesian_section(design, n) if kind == "cartesian" else joint_section(design, n)
@@ -107,7 +105,7 @@ def _section(kind: str, design: Design, n: int) -> Section:
     return section
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.loci")
 def _loci(kind: str, design: Design) -> dict[str, Locus]:
     """:func:`parallel_loci` or :func:`serial_loci` of a design, once per process (a fresh
     dict each call; the loci in it are shared and read-only)."""
@@ -178,10 +176,11 @@ def _joint_labels(ax: Axes, design: Design, points: dict[str, np.ndarray]) -> No
             away = np.array([np.sign(pt[0]) or 1.0, -1.0])  # the base: below and outwards
         norm = float(np.hypot(*away))
         away = np.array([0.0, 1.0]) if norm < 1e-9 else away / norm
+        tip = pt + off * away
         ax.annotate(
             " = ".join(names),
-            pt,
-            xytext=pt + off * away,
+            (float(pt[0]), float(pt[1])),
+            xytext=(float(tip[0]), float(tip[1])),
             fontsize=9,
             fontweight="bold",
             ha="center",
@@ -250,10 +249,10 @@ def plot_loci(
         _legend_below(ax)
 
 
-def _extent(section: Section) -> list[float]:
+def _extent(section: Section) -> tuple[float, float, float, float]:
     dx = (section.x[1] - section.x[0]) / 2
     dy = (section.y[1] - section.y[0]) / 2
-    return [section.x[0] - dx, section.x[-1] + dx, section.y[0] - dy, section.y[-1] + dy]
+    return (section.x[0] - dx, section.x[-1] + dx, section.y[0] - dy, section.y[-1] + dy)
 
 
 #: Image values of :func:`_mode_index_image` beyond the eight working-mode slots.

@@ -30,7 +30,7 @@ def figure_inertia_map(design: Design, n: int = 128) -> Figure:
 
     cmp = serial_comparison(design, Inertia.default(design), resolution=min(int(n), 256))
     stats = cmp.by_mode()
-    extent = [cmp.theta2[0], cmp.theta2[-1], cmp.theta3[0], cmp.theta3[-1]]
+    extent = (cmp.theta2[0], cmp.theta2[-1], cmp.theta3[0], cmp.theta3[-1])
     both = np.concatenate(
         [cmp.parallel[np.isfinite(cmp.parallel)], cmp.serial[np.isfinite(cmp.serial)]]
     )

@@ -4,7 +4,6 @@ them as files."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +17,12 @@ from planner.analysis.loci import (
     Locus,
     isoconditioning_loci,
 )
+from planner.caching import cached
 from planner.design import Design
 from planner.kinematics import WORKING_MODES, conditioning, inverse_batch
 from planner.plotting._common import (
     _BASE_POINT,
     _BASE_POINT_COLOUR,
-    _CACHE_SIZE,
     _MODE_COLOURS,
     _SINGULAR,
     _SINGULAR_COLOUR,
@@ -345,7 +344,7 @@ ISO_LEVELS = (1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0)
 ISO_SAMPLES = 4001
 
 
-@lru_cache(maxsize=_CACHE_SIZE)
+@cached("plotting.iso")
 def _iso(design: Design, level: float) -> Locus:
     """:func:`isoconditioning_loci` at one level, once per process (read-only)."""
     locus = isoconditioning_loci(design, level, samples=ISO_SAMPLES)

@@ -50,7 +50,7 @@ def figure_region_map(design: Design, n: int = PRINT_RESOLUTION, *, margins=None
     colours = _region_colours(len(rmap.regions))
     fig = Figure(figsize=(12, 6.2))
     lo, hi = design.joint_min, design.joint_max
-    extent = [lo[1], hi[1], lo[2], hi[2]]
+    extent = (lo[1], hi[1], lo[2], hi[2])
     for ai, asm in enumerate(("+", "-")):
         ax = fig.add_subplot(1, 2, ai + 1)
         img = np.ones((n, n, 4))
@@ -153,7 +153,7 @@ def _figure_mode_regions(
     cov = cartesian_coverage(rmap, min(max(2 * n, 256), 512))
     colours = _region_colours(len(rmap.regions))
     fig = Figure(figsize=(12, 5.8))
-    extent = [cov.u[0], cov.u[-1], cov.w[0], cov.w[-1]]
+    extent = (cov.u[0], cov.u[-1], cov.w[0], cov.w[-1])
     for ai, asm in enumerate(("+", "-")):
         ax = fig.add_subplot(1, 2, ai + 1)
         mine = [r for r in rmap.regions if r.assembly_mode == asm and r.valid_cells]

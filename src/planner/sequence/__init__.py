@@ -14,6 +14,7 @@ from planner.sequence.motion import SequenceMotion
 from planner.sequence.problem import (
     MAX_SEQUENCE_TARGETS,
     OBJECTIVES,
+    BlendUse,
     Leg,
     SequenceDiagnostics,
     SequenceResult,
@@ -24,6 +25,7 @@ from planner.sequence.solve import plan_sequence, solve_sequence
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
     "OBJECTIVES",
+    "BlendUse",
     "Leg",
     "SequenceDiagnostics",
     "SequenceMotion",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -57,7 +57,7 @@ class AdeptCycle(NamedTuple):
     result: SequenceResult  #: the solved cycle, every target a stop
 
 
-def place_adept_cycle(design: Design, **solve_options: object) -> AdeptCycle:
+def place_adept_cycle(design: Design, **solve_options: Any) -> AdeptCycle:
     """The first pick point of a fixed grid of the workspace whose all-stops Adept cycle
     solves, with its start posture (the pick point in the first working mode with
     s_axis = '+' that reaches it, assembly mode '+'). ``solve_options`` go to
@@ -81,7 +81,7 @@ def place_adept_cycle(design: Design, **solve_options: object) -> AdeptCycle:
             targets = adept_targets(pick, h, d, ["any"] * 5, [True] * 5, [0.0] * 5)
             r = solve_sequence(
                 design, start, targets, cycle=True, objective="fixed", **solve_options
-            )  # type: ignore[arg-type]
+            )
             if r.solved:
                 return AdeptCycle(pick, start, h, d, r)
     raise LookupError("no placement of the Adept cycle solved")

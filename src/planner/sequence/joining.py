@@ -1,6 +1,7 @@
-"""Step 4 of a sequence (:mod:`planner.sequence.solve`): the legs' paths joined into one, each
-blend checked against its legs, the targets that cannot be passed at speed found, and an exact
-pass-through (blend 0) made smooth by two short straight pieces around the target."""
+"""Step 4 of a sequence (:mod:`planner.sequence.solve`): the legs' paths joined into one, the
+targets that cannot be passed at speed found, and an exact pass-through (blend 0) made smooth
+by two short straight pieces around the target. The blends are fitted to the joined legs by
+:mod:`planner.sequence.blends`."""
 
 from __future__ import annotations
 
@@ -10,11 +11,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from planner.exceptions import InputError
 from planner.planning import PlanPath, PlanResult, Segment, Transit
-from planner.sequence.problem import SequenceTarget
 
-__all__ = ["PASS_OFFSET", "check_blends", "join_legs", "smooth_pass_through", "turning_back"]
+__all__ = ["PASS_OFFSET", "join_legs", "smooth_pass_through", "turning_back"]
 
 #: An exact pass-through (blend 0) at a corner: the path runs straight through the target
 #: over this distance on either side (rad; at most a quarter of the adjacent segments), and
@@ -51,30 +50,6 @@ def join_legs(start_q: np.ndarray, plans: Sequence[PlanResult]) -> tuple[PlanPat
         transits += [replace(t, index=t.index + off) for t in path.transits]
         at.append(len(w) - 1)
     return PlanPath(np.array(w), tuple(segs), tuple(transits)), at
-
-
-def _leg_length(w: np.ndarray, a: int, b: int) -> float:
-    return float(np.sum(np.linalg.norm(np.diff(w[a : b + 1], axis=0), axis=1)))
-
-
-def check_blends(
-    w: np.ndarray, at: list[int], passes: list[bool], targets: Sequence[SequenceTarget]
-) -> None:
-    """A pass-through target's blend is at most half the shorter of its two legs (the
-    corner's blend may take at most half of either side): else an
-    :class:`~planner.exceptions.InputError` at ``targets[i].blend``."""
-    for i, passing in enumerate(passes):
-        if not passing or i >= len(targets):
-            continue
-        before = _leg_length(w, at[i - 1] if i > 0 else 0, at[i])
-        after = _leg_length(w, at[i], at[i + 1])
-        limit = 0.5 * min(before, after)
-        if targets[i].blend > limit:
-            raise InputError(
-                f"targets[{i}].blend = {targets[i].blend:g} rad is larger than half the "
-                f"shorter adjacent leg ({limit:.4g} rad)",
-                field=("targets", i, "blend"),
-            )
 
 
 def turning_back(w: np.ndarray, at: list[int], passes: list[bool]) -> list[int]:

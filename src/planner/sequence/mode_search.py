@@ -51,12 +51,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.design import Design
-from planner.exceptions import InputError
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES
 from planner.motion import MotionProblem, run
 from planner.planning import CartesianTarget, JointPosture, PlanStatus, goal_candidates
 from planner.planning.single_mode import posture_mode
+from planner.sequence.blends import AskedBlend
 from planner.sequence.motion import SequenceMotion, solved_message
 from planner.sequence.problem import SequenceDiagnostics, SequenceResult, SequenceTarget
 from planner.timing.limits import JointLimits
@@ -132,6 +132,22 @@ def _candidates(
     if not out and goal.working_mode == "any":  # let the plan say why: unreachable
         out.append(Candidate(goal, "any", np.full(3, np.nan)))
     return out
+
+
+def _largest_blend(
+    problem: MotionProblem, target: SequenceTarget, layer: Sequence[Candidate], index: int
+) -> float:
+    """How far (rad) the trajectory may pass from a pass-through target, for the bounds: its
+    blend as asked (before any shrinking, which only lengthens a motion: the bound stays a
+    lower bound) plus the corner allowance; a blend in metres at the largest joint radius
+    it means over the target's candidate postures."""
+    asm = problem.start.assembly_mode
+    radii = [
+        AskedBlend.of(problem.design, index, target, c.q, asm).rad
+        for c in layer
+        if np.all(np.isfinite(c.q))
+    ]
+    return max(radii, default=target.blend) + problem.timing.max_deviation
 
 
 def assignment_bounds(
@@ -215,10 +231,9 @@ def choose_modes(
         # no assignment exists; the targets as given say which and why
         return run(problem, motion(goals))
     blends = [
-        (0.0 if stops[i] or i >= n else targets[i].blend + timing.max_deviation)
+        0.0 if stops[i] or i >= n else _largest_blend(problem, targets[i], layers[i], i)
         for i in range(len(goals))
     ]
-    refused: InputError | None = None
     attempts = 0
     evaluated: list[tuple[float, tuple[str, ...], SequenceResult]] = []
     first_bound = math.nan
@@ -241,29 +256,21 @@ def choose_modes(
             rest = bound
             break
         chosen = [layers[i][m] for i, m in enumerate(assignment)]
-        try:
-            result = run(problem, motion([c.goal for c in chosen]))
-        except InputError as exc:
-            # a blend larger than half a leg of this assignment (its legs differ from the
-            # others'): this assignment is out, the error kept in case every one is
-            refused = refused or exc
-            continue
+        result = run(problem, motion([c.goal for c in chosen]))
         cost = result.cycle_time if result.solved else math.inf
         if timing.method == "none" and result.status is PlanStatus.SOLVED:
             cost = bound  # no timing asked: the bound is all there is to compare
         if not result.solved and not _proven_out(result):
             unproven.append(bound)
         evaluated.append((cost, tuple(c.mode for c in chosen), result))
-    if not evaluated:
-        if late or refused is None:  # the budget ran out before any assignment was planned
-            return SequenceResult(
-                PlanStatus.TIMEOUT,
-                "the deadline passed before any working-mode assignment of the targets was "
-                f"planned ({attempts - 1} tried)",
-                (),
-                diagnostics=SequenceDiagnostics(planning_time_s=time.monotonic() - t0),
-            )
-        raise refused  # every assignment tried was refused (a blend too large for its legs)
+    if not evaluated:  # the budget ran out before any assignment was planned
+        return SequenceResult(
+            PlanStatus.TIMEOUT,
+            "the deadline passed before any working-mode assignment of the targets was "
+            f"planned ({attempts - 1} tried)",
+            (),
+            diagnostics=SequenceDiagnostics(planning_time_s=time.monotonic() - t0),
+        )
     evaluated.sort(key=lambda e: e[0])
     cost, modes, result = evaluated[0]
     if not math.isfinite(cost):  # every assignment failed: the first one's answer says why
@@ -292,5 +299,6 @@ def choose_modes(
     duration = result.cycle_time if result.trajectory is not None else None
     turning = result.diagnostics.extra.get("turning", ())
     by_timing = [i for i in result.diagnostics.stopped_targets if i not in turning]
-    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning)
+    uses = result.diagnostics.blends
+    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning, uses)
     return replace(result, message=message, diagnostics=diagnostics)

@@ -16,6 +16,7 @@ from planner.planning.result import PlanPath, PlanResult, PlanStatus
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
     "OBJECTIVES",
+    "BlendUse",
     "Leg",
     "SequenceDiagnostics",
     "SequenceResult",
@@ -30,13 +31,16 @@ OBJECTIVES = ("time", "fixed")
 @dataclass(frozen=True, slots=True)
 class SequenceTarget:
     """One target of a sequence: ``goal`` (a joint posture or a Cartesian target), ``stop``
-    (at rest there; else passed at speed) and ``blend`` (rad, >= 0: how far, in joint space,
-    the trajectory may pass from the target's posture when it does not stop; 0 passes
-    exactly through it)."""
+    (at rest there; else passed at speed) and how far the trajectory may pass from it when
+    it does not stop: ``blend`` (rad, >= 0, in joint space from the target's posture) or
+    ``blend_radius`` (m, >= 0, from the target's tool point; None: ``blend`` is the one),
+    at most one of them; 0 passes exactly through. A blend that does not fit its legs
+    shrinks (:mod:`planner.sequence.blends`)."""
 
     goal: JointPosture | CartesianTarget
     stop: bool = True
     blend: float = 0.0
+    blend_radius: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.goal, JointPosture | CartesianTarget):
@@ -49,6 +53,28 @@ class SequenceTarget:
             raise InputError(f"blend must be a finite number, got {b!r}", field="blend")
         if b < 0:
             raise InputError(f"blend must be >= 0 rad, got {b!r}", field="blend")
+        r = self.blend_radius
+        if r is None:
+            return
+        if isinstance(r, bool) or not isinstance(r, int | float) or not math.isfinite(r):
+            raise InputError(
+                f"blend_radius must be a finite number, got {r!r}", field="blend_radius"
+            )
+        if r < 0:
+            raise InputError(f"blend_radius must be >= 0 m, got {r!r}", field="blend_radius")
+        if b != 0:
+            raise InputError("give blend (rad) or blend_radius (m), not both", field="blend_radius")
+
+
+@dataclass(frozen=True, slots=True)
+class BlendUse:
+    """One passed target's blend (``diagnostics.blends``): ``asked`` and ``used`` (after
+    shrinking to fit) in ``unit``, "m" (``blend_radius``) or "rad" (``blend``)."""
+
+    target_index: int
+    asked: float
+    used: float
+    unit: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +117,8 @@ class SequenceDiagnostics:
     modes and cycle time, s, when the objective compared several), ``estimates`` (the
     assignments the mode search planned and timed), ``stopped_targets`` (pass-through
     targets where the trajectory comes to rest: the path turns back there, or the timing's
-    repairs had to stop), ``extra``: ``turning`` (those where the path turns back), and from
+    repairs had to stop), ``blends`` (each passed target's blend, asked and used:
+    :class:`BlendUse`), ``extra``: ``turning`` (those where the path turns back), and from
     the mode search ``gap_s`` (what it proves: no assignment of modes, planned and timed, is
     more than this much shorter, s; 0 when the choice is proven the best; absent without
     timing, where only bounds were compared) and ``bound_s`` (the least lower bound of any
@@ -103,6 +130,7 @@ class SequenceDiagnostics:
     runner_up: tuple[tuple[str, ...], float] | None = None
     estimates: int = 0
     stopped_targets: tuple[int, ...] = ()
+    blends: tuple[BlendUse, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
 

@@ -13,8 +13,9 @@ targets (:func:`solve_sequence` is its keyword call); the steps:
    step plans every leg in turn from the previous arrival posture as a single plan is
    (:class:`planner.solver.GoalMotion`, timing off; the first leg that fails gives the
    sequence its status, its index in the message), joins the legs into one path
-   (:mod:`planner.sequence.joining`: each blend at most half the shorter adjacent leg, an
-   exact pass-through made smooth by two short straight pieces around the target) and asks
+   (:mod:`planner.sequence.joining`: an exact pass-through made smooth by two short straight
+   pieces around the target; each blend, in rad or m, shrunk to at most half the shorter
+   adjacent leg, :mod:`planner.sequence.blends`) and asks
    the pipeline to time it once under the path's own rules (:func:`planner.motion.path_timing`:
    the stops at rest and the pass-through targets passed within their ``blend``, as free via
    states, ``via_at``, where a stretch between stops holds only pass-throughs, else on arcs,
@@ -122,9 +123,9 @@ def solve_sequence(
     Raises
     ------
     InputError
-        No targets, too many, a negative blend or one larger than half the shorter adjacent
-        leg (``field`` = ``targets`` or ``("targets", i, "blend")``), an unknown objective,
-        or a timing input error (under ``timing.``).
+        No targets, too many (``field`` = ``targets``), an unknown objective, or a timing
+        input error (under ``timing.``). A blend too large for its legs shrinks, it is never
+        refused; a negative one is refused by :class:`SequenceTarget`.
     """
     problem = MotionProblem.of(
         design,

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import IO
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planner.exceptions import InputError
 
@@ -89,12 +90,12 @@ def checked_arrays(t, q, qd, qdd, jerk=None) -> tuple[np.ndarray, ...]:
 
 def write_csv(
     target: str | os.PathLike | IO[str],
-    t: np.ndarray,
-    q: np.ndarray,
-    qd: np.ndarray,
-    qdd: np.ndarray,
-    jerk: np.ndarray | None = None,
-    tau: np.ndarray | None = None,
+    t: ArrayLike,
+    q: ArrayLike,
+    qd: ArrayLike,
+    qdd: ArrayLike,
+    jerk: ArrayLike | None = None,
+    tau: ArrayLike | None = None,
 ) -> None:
     """Write samples as CSV: the units line, the header, one row per sample.
 

@@ -169,13 +169,14 @@ def validate_inputs(
     torque = None
     if inertia is not None or limits.torque is not None:
         torque = TorqueModel(design, inertia, gravity, str(assembly_mode))  # type: ignore[arg-type]
-    if torque is not None and limits.torque is not None:
-        excess = gravity_excess(torque, w[0], limits.torque_array)
+    tau_max = limits.torque_array
+    if torque is not None and tau_max is not None:
+        excess = gravity_excess(torque, w[0], tau_max)
         if excess is not None:
             j, value = excess
             raise TimingInfeasibleError(
                 f"gravity alone needs |tau{j + 1}| = {value:.6g} N m at the start, above "
-                f"limits.torque[{j}] = {limits.torque[j]:.6g} N m"
+                f"limits.torque[{j}] = {tau_max[j]:.6g} N m"
             )
     return TimingJob(
         design,

@@ -155,9 +155,10 @@ def _fit_time_scale(
     if speed_gain is not None and v_cart is not None:
         gain = speed_gain(s)
         c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
-    if torque_model is not None and limits.torque is not None:
+    tau_max = limits.torque_array
+    if torque_model is not None and tau_max is not None:
         dyn, grav = torque_model.split(q, d1 * sd[:, None], qdd)
-        c = min(c, torque_time_scale(dyn, grav, limits.torque_array, target))
+        c = min(c, torque_time_scale(dyn, grav, tau_max, target))
     if c >= 1.0:
         return prof
     logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
@@ -192,23 +193,25 @@ def _fit_torque(curve: Curve, job: TimingJob) -> Curve:
     the jerk-limited moves between them may overshoot), or the velocity-only curve of
     :func:`_slowed_velocity_only`: the dynamic part of the torques scales
     by c^2 (:func:`~planner.timing.torque.torque_time_scale`), every joint limit still holds."""
-    if job.torque is None or job.limits.torque is None:
+    tau_max = job.limits.torque_array
+    if job.torque is None or tau_max is None:
         return curve
     t = np.union1d(curve.check_times(job.resolution), torque_check_times(curve.duration))
     q, qd, qdd, _ = curve.evaluate(t)
     dyn, grav = job.torque.split(q, qd, qdd)
-    c = torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
+    c = torque_time_scale(dyn, grav, tau_max, 1.0 - _FIT_MARGIN)
     return curve if c >= 1.0 else TimeScaledCurve(curve, c)
 
 
 def _torque_slow_down(curve: Curve, job: TimingJob, report: CheckReport) -> float:
     """The uniform slow-down that brings the torques of the failed check back within the
     limits (1 without torque limits)."""
-    if job.torque is None or job.limits.torque is None:
+    tau_max = job.limits.torque_array
+    if job.torque is None or tau_max is None:
         return 1.0
     q, qd, qdd, _ = curve.evaluate(report.t)
     dyn, grav = job.torque.split(q, qd, qdd)
-    return torque_time_scale(dyn, grav, job.limits.torque_array, 1.0 - _FIT_MARGIN)
+    return torque_time_scale(dyn, grav, tau_max, 1.0 - _FIT_MARGIN)
 
 
 def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | None:
@@ -227,10 +230,10 @@ def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | N
         return {int(c) for c in corners}
     if isinstance(curve, RuckigCurve):
         found: set[int] = set()
-        for corners in curve.corners_at(t_bad):
-            if not corners:
+        for at in curve.corners_at(t_bad):
+            if not at:
                 return None
-            found.update(corners)
+            found.update(at)
         return found
     return None
 
@@ -531,9 +534,7 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":
         return _with_vias(job, state, ToppraCurve(path, state.profile), lim)
-    curve: Curve = build_ruckig_curve(
-        path, state.profile, lim, deadline=job.deadline, cache=state.moves
-    )
+    curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline, cache=state.moves)
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
 

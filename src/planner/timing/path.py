@@ -17,12 +17,16 @@ into *sections* at such stops; each section is timed from rest to rest.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from planner.exceptions import InputError
 
 __all__ = ["BlendedPath", "distance_to_polyline"]
+
+#: Which piece a boundary ``s`` belongs to, as :func:`numpy.searchsorted` names it.
+Side = Literal["left", "right"]
 
 #: Consecutive waypoints closer than this (rad) are one waypoint (a zero-length segment has
 #: no direction, and a nearly zero one gives a corner no trajectory can take at speed).
@@ -159,7 +163,7 @@ class BlendedPath:
         return int(self.kind.shape[0])
 
     def piece_index(
-        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: str = "right"
+        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: Side = "right"
     ) -> np.ndarray:
         """Index of the piece holding each ``s``, restricted to pieces ``lo..hi`` (inclusive):
         a piece boundary belongs to the later piece (``side="right"``) or the earlier one
@@ -174,7 +178,7 @@ class BlendedPath:
         order: int = 0,
         lo: int = 0,
         hi: int | None = None,
-        side: str = "right",
+        side: Side = "right",
     ) -> np.ndarray:
         """Path point (order 0), tangent q'(s) (1) or curvature vector q''(s) (2) at ``s``.
 
@@ -195,7 +199,7 @@ class BlendedPath:
         return self.evaluate_all(s, lo, hi, side)[order]
 
     def evaluate_all(
-        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: str = "right"
+        self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: Side = "right"
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, q', q'') at ``s`` in one pass, each shape (M, 3) (see :meth:`evaluate`)."""
         s = np.atleast_1d(np.asarray(s, dtype=float))

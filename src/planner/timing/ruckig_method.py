@@ -269,11 +269,11 @@ def _solve_move(
     TimingInfeasibleError
         Ruckig rejects the move or returns an error code.
     """
-    as_lists = tuple(
+    start_lists, target_lists = (
         tuple(np.asarray(x, dtype=float).tolist() for x in st) for st in (start, target)
     )
     traj = RuckigTrajectory(3)
-    error = _calculate(otg, inp, *as_lists, traj)
+    error = _calculate(otg, inp, start_lists, target_lists, traj)
     if error:
         raise TimingInfeasibleError(error)
     return _moves_from([traj], [corners])[0]

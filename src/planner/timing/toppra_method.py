@@ -14,7 +14,6 @@ limits hold exactly at every instant.
 
 from __future__ import annotations
 
-import functools
 import logging
 import time
 from collections.abc import Callable
@@ -27,6 +26,7 @@ import toppra.constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from toppra.interpolator import AbstractGeometricPath
 
+from planner.caching import cached
 from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
@@ -106,7 +106,7 @@ class _SpeedAlongPathConstraint(toppra.constraint.LinearConstraint):
         self._v_max = v_max
         self._gain = speed_gain
 
-    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):  # type: ignore[override]
+    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
         gain = self._gain(np.asarray(gridpoints, dtype=float))
         upper = np.where(gain > 0, (self._v_max / np.maximum(gain, 1e-300)) ** 2, _X_UNBOUNDED)
         xbound = np.stack([np.zeros_like(upper), np.minimum(upper, _X_UNBOUNDED)], axis=1)
@@ -133,7 +133,7 @@ class _TorqueConstraint(toppra.constraint.LinearConstraint):
         self._limit = np.asarray(limit, dtype=float)
         self._scale2 = scale**2
 
-    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):  # type: ignore[override]
+    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
         s = np.asarray(gridpoints, dtype=float)
         a, b, c = self._model.path_coefficients(path(s, 0), path(s, 1), path(s, 2))
         if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
@@ -256,7 +256,7 @@ def section_grid(
             continue
         n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
         parts.append(_beside_arcs(path, k, lo, hi, np.linspace(a, b, n + 1)[:-1]))
-    parts.append([path.s0[hi + 1]])
+    parts.append(path.s0[hi + 1 : hi + 2])
     return np.concatenate(parts)
 
 
@@ -306,7 +306,7 @@ def _straight_rest_to_rest(
     return np.array([s_start, s_start + length / 2, s_end]), np.array([0.0, peak, 0.0])
 
 
-@functools.lru_cache(maxsize=32)
+@cached("timing.joint_constraints")
 def _joint_constraints(v: tuple[float, ...], a: tuple[float, ...]) -> tuple:
     """toppra's joint velocity and acceleration constraints (cached: their constructors
     format the limits into strings, about 2 ms; the objects hold no path state)."""
@@ -399,8 +399,9 @@ def solve_toppra(
     v_cart = None if max_cartesian_speed is None else max_cartesian_speed * c
     joint_constraints = _joint_constraints(tuple(v.tolist()), tuple(a.tolist()))
     torque = None
-    if torque_model is not None and limits.torque is not None:
-        torque = _TorqueConstraint(torque_model, limits.torque_array, c)
+    tau_max = limits.torque_array
+    if torque_model is not None and tau_max is not None:
+        torque = _TorqueConstraint(torque_model, tau_max, c)
     s_all, sd_all = [np.zeros(1)], [np.zeros(1)]
     for s_start, s_end in zip(path.stops[:-1], path.stops[1:], strict=True):
         check_deadline(deadline, "while timing the path with toppra")
@@ -451,7 +452,7 @@ def solve_toppra(
             )
         sd = np.asarray(sd, dtype=float) / c
         sd[0] = sd[-1] = 0.0
-        if key is not None:
+        if cache is not None and key is not None:
             cache[key] = (grid - float(s_start), sd)
         s_all.append(grid[1:])
         sd_all.append(sd[1:])

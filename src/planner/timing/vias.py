@@ -415,7 +415,7 @@ class SplicedCurve:
         return q, qd, qdd, jerk
 
     def check_times(self, resolution: float) -> np.ndarray:
-        out = []
+        out: list[np.ndarray | list[float]] = []
         for t0, t1, curve, off in self._pieces():
             c = self.base if curve is None else curve
             tc = c.check_times(resolution) + off
@@ -423,7 +423,7 @@ class SplicedCurve:
         return np.unique(np.concatenate(out))
 
     def rest_times(self) -> np.ndarray:
-        out = []
+        out: list[np.ndarray | list[float]] = []
         for t0, t1, curve, off in self._pieces():
             c = self.base if curve is None else curve
             tc = c.rest_times() + off

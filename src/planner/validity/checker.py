@@ -386,7 +386,8 @@ def _states(q: object) -> np.ndarray:
         raise InputError(f"q must be numbers, got {q!r}") from exc
     arr = np.atleast_2d(arr)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise InputError(f"q must have shape (3,) or (N, 3), got {np.shape(q)}")
+        shape = np.asarray(q, dtype=float).shape  # as given, before atleast_2d
+        raise InputError(f"q must have shape (3,) or (N, 3), got {shape}")
     if not np.all(np.isfinite(arr)):
         raise InputError("q must be finite (no NaN or infinity)")
     return np.ascontiguousarray(arr)

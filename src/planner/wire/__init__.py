@@ -99,6 +99,7 @@ from planner.wire.common import (
     margins_to_core,
     obstacle_from_dict,
     obstacles_to_core,
+    triple_to_core,
 )
 from planner.wire.design import (
     MAX_REGION_RESOLUTION,
@@ -154,6 +155,7 @@ from planner.wire.meta import (
     ErrorResponse,
     Health,
     Readiness,
+    ReadinessStatus,
     VersionInfo,
 )
 from planner.wire.motion import (
@@ -195,6 +197,7 @@ from planner.wire.scenes import (
 )
 from planner.wire.sequence import (
     MAX_SEQUENCE_TARGETS,
+    BlendModel,
     LegModel,
     Objective,
     SequenceDiagnosticsModel,
@@ -254,6 +257,7 @@ __all__ = [
     "AnyTrajectory",
     "AssemblyModeLabel",
     "BaseInertiaModel",
+    "BlendModel",
     "BoxObstacle",
     "CapsuleObstacle",
     "CartesianDiagnosticsModel",
@@ -325,6 +329,7 @@ __all__ = [
     "Preference",
     "Rates3",
     "Readiness",
+    "ReadinessStatus",
     "RegionModel",
     "RegionTransitModel",
     "RegionsRequest",
@@ -398,5 +403,6 @@ __all__ = [
     "trajectory_arrays",
     "trajectory_model",
     "trajectory_points",
+    "triple_to_core",
     "with_scene",
 ]

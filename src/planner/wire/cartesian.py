@@ -210,7 +210,9 @@ def cartesian_response(
         message=result.message,
         fraction=float(result.fraction),
         path=path_model(result.path) if result.path is not None else None,
-        trajectory=trajectory_model(result.trajectory, format) if timed else None,
+        trajectory=(
+            trajectory_model(result.trajectory, format) if result.trajectory is not None else None
+        ),
         diagnostics=diagnostics,
         stop=None
         if stop is None

@@ -5,12 +5,12 @@ validity margins (``docs/conventions.md``, *Shared objects*).
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     BaseModel,
     BeforeValidator,
@@ -26,12 +26,15 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from planner.caching import cached
 from planner.constants import MAX_POINTS
 from planner.design import MAX_JOINT_TRAVEL, MAX_LENGTH, MIN_LENGTH, Design
 from planner.exceptions import DesignError, InputError, PlannerError
 
 if TYPE_CHECKING:
     from planner import geometry
+    from planner.dynamics import Inertia
+    from planner.validity import Margins
 
 __all__ = [
     "GRAVITY_FIELD",
@@ -81,6 +84,7 @@ __all__ = [
     "margins_to_core",
     "obstacle_from_dict",
     "obstacles_to_core",
+    "triple_to_core",
 ]
 
 #: Largest |coordinate| of a point on the wire, m: a sanity bound far above any workcell.
@@ -241,7 +245,9 @@ class DesignModel(_Request):
     @classmethod
     def _above_min(cls, value: list[float], info: ValidationInfo) -> list[float]:
         lo = info.data.get("joint_min")
-        for i in range(3 if lo is not None else 0):
+        if lo is None:  # joint_min failed its own check: nothing to compare with
+            return value
+        for i in range(3):
             if not lo[i] < value[i]:
                 raise ValueError(
                     f"joint_max[{i}] must be above joint_min[{i}], got {value[i]} <= {lo[i]}"
@@ -249,7 +255,7 @@ class DesignModel(_Request):
         return value
 
     @model_serializer(mode="wrap")
-    def _without_absent_inertia(self, handler: Any):  # type: ignore[no-untyped-def]
+    def _without_absent_inertia(self, handler: Any):
         """No ``inertia`` key when none was given: a design without one is written as it
         was before the field existed (clients compare designs by their JSON, e.g. the
         viewer against the presets). Not annotated: the schema stays the model's."""
@@ -283,8 +289,8 @@ class DesignModel(_Request):
             self.L1,
             self.L2,
             self.link_radius,
-            tuple(self.joint_min),
-            tuple(self.joint_max),
+            triple_to_core(self.joint_min),
+            triple_to_core(self.joint_max),
         )
 
     @classmethod
@@ -300,14 +306,14 @@ class DesignModel(_Request):
         )
 
 
-@functools.lru_cache(maxsize=256)
+@cached("wire.designs")
 def _design_of(
     L0: float,
     L1: float,
     L2: float,
     link_radius: float,
-    joint_min: tuple[float, ...],
-    joint_max: tuple[float, ...],
+    joint_min: tuple[float, float, float],
+    joint_max: tuple[float, float, float],
 ) -> Design:
     """The :class:`planner.Design` of these numbers, built (and its rules checked) once per
     distinct design: a service validates the same few designs in every request, and the
@@ -315,7 +321,7 @@ def _design_of(
     time (errors are not remembered)."""
     return Design(
         L0=L0, L1=L1, L2=L2, link_radius=link_radius, joint_min=joint_min, joint_max=joint_max
-    )  # type: ignore[arg-type]
+    )
 
 
 _DesignField = Field(default_factory=DesignModel, description="The robot; default robot if absent.")
@@ -637,17 +643,28 @@ def obstacles_to_core(
                         f"points in all, got {n_points} by this one",
                         field="points",
                     )
-                out.append(Points(model.points, model.radius))
+                out.append(Points(np.asarray(model.points, dtype=float), model.radius))
             elif isinstance(model, SphereObstacle):
-                out.append(Sphere(model.center, model.radius))
+                out.append(Sphere(np.asarray(model.center, dtype=float), model.radius))
             elif isinstance(model, BoxObstacle):
-                out.append(Box(model.center, model.size, model.quaternion))
+                center, size = (np.asarray(v, dtype=float) for v in (model.center, model.size))
+                out.append(Box(center, size, np.asarray(model.quaternion, dtype=float)))
             else:
-                out.append(Capsule(model.a, model.b, model.radius))
+                a, b = np.asarray(model.a, dtype=float), np.asarray(model.b, dtype=float)
+                out.append(Capsule(a, b, model.radius))
     return out
 
 
-def margins_to_core(model: MarginsModel, loc: tuple[str | int, ...] = ("body", "margins")) -> Any:
+def triple_to_core(values: Sequence[float]) -> tuple[float, float, float]:
+    """Three numbers of the wire (a list its model holds to length 3: a joint vector, rates,
+    gravity) as the library's triple."""
+    x, y, z = values
+    return (x, y, z)
+
+
+def margins_to_core(
+    model: MarginsModel, loc: tuple[str | int, ...] = ("body", "margins")
+) -> Margins:
     """The library's :class:`planner.validity.Margins` (absent fields: its defaults)."""
     from planner.validity import Margins as CoreMargins
 
@@ -663,7 +680,7 @@ def design_to_core(model: DesignModel, loc: tuple[str | int, ...] = ("body", "de
 
 def inertia_to_core(
     model: DesignModel, loc: tuple[str | int, ...] = ("body", "design", "inertia")
-) -> Any:
+) -> Inertia | None:
     """The library's :class:`planner.dynamics.Inertia` of a request's ``design.inertia``
     (absent parts: :meth:`~planner.dynamics.Inertia.default` of the design), or None when
     the request gives no inertia (the caller decides whether defaults apply)."""
@@ -685,5 +702,5 @@ def inertia_to_core(
             distal=link(wire.distal, "distal"),
             payload_mass=default.payload_mass if wire.payload is None else wire.payload.mass,
             base_inertia=default.base_inertia if wire.base is None else wire.base.inertia,
-            rotor=default.rotor if wire.rotor is None else tuple(wire.rotor),
+            rotor=default.rotor if wire.rotor is None else triple_to_core(wire.rotor),
         )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import (
@@ -24,6 +24,10 @@ from planner.wire.common import (
     _Response,
 )
 from planner.wire.plan import TransitKind
+
+if TYPE_CHECKING:
+    from planner.analysis.regions import RegionMap
+    from planner.analysis.workspace import Estimate
 
 __all__ = [
     "MAX_REGION_RESOLUTION",
@@ -159,7 +163,7 @@ class DesignOptimizeResponse(_Response):
     evaluations: int
 
 
-def sampled_value(estimate: Any) -> SampledValue:
+def sampled_value(estimate: Estimate | None) -> SampledValue:
     """The wire form of an :class:`planner.analysis.workspace.Estimate` (None: zero, no
     samples)."""
     if estimate is None:
@@ -247,7 +251,7 @@ class RegionsResponse(_Response):
     )
 
 
-def _cell_regions(rmap: Any) -> np.ndarray:
+def _cell_regions(rmap: RegionMap) -> np.ndarray:
     """Shape (2, n, n), int: the region id of each cell centre's posture per assembly mode
     (its working mode ``rmap.centre_mode``, its label in that mode's layer), -1 where none."""
     mode = np.asarray(rmap.centre_mode, dtype=np.int64)  # (2, n, n), -1: no mode
@@ -261,7 +265,7 @@ def _cell_regions(rmap: Any) -> np.ndarray:
 
 
 def regions_model(
-    rmap: Any, computation_time_s: float = 0.0, *, with_cells: bool = False
+    rmap: RegionMap, computation_time_s: float = 0.0, *, with_cells: bool = False
 ) -> RegionsResponse:
     """The wire form of a :class:`planner.analysis.regions.RegionMap`: its regions, and one
     transit per pair of regions and kind of serial surface between them."""

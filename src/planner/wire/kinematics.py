@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import (
     Field,
@@ -20,6 +20,9 @@ from planner.wire.common import (
     _Request,
     _Response,
 )
+
+if TYPE_CHECKING:
+    from planner.kinematics import Manipulator, Posture
 
 __all__ = [
     "AnalyzeRequest",
@@ -133,7 +136,7 @@ class AnalyzeResponse(_Response):
     )
 
 
-def posture_model(manipulator: Any, posture: Any) -> PostureModel:
+def posture_model(manipulator: Manipulator, posture: Posture) -> PostureModel:
     """The wire form of a library :class:`planner.kinematics.Posture` of ``manipulator``."""
     return PostureModel(
         q=posture.q.tolist(),

@@ -10,7 +10,12 @@ from pydantic import (
 
 from planner.wire.common import _Response
 
-__all__ = ["ErrorItem", "ErrorResponse", "Health", "Readiness", "VersionInfo"]
+__all__ = ["ErrorItem", "ErrorResponse", "Health", "Readiness", "ReadinessStatus", "VersionInfo"]
+
+#: ``status`` of :class:`Readiness`: the worker pool's state, or the scene store's failure.
+ReadinessStatus = Literal[
+    "ready", "starting", "recovering", "broken", "stopping", "store_unavailable"
+]
 
 
 # ---------------------------------------------------------------------------- meta, errors
@@ -30,9 +35,7 @@ class VersionInfo(_Response):
 class Readiness(_Response):
     """Answer of ``GET /v1/ready`` (HTTP 503 while not ready)."""
 
-    status: Literal[
-        "ready", "starting", "recovering", "broken", "stopping", "store_unavailable"
-    ] = Field(
+    status: ReadinessStatus = Field(
         description="'ready' once every configured worker was warm (imports done, kernels "
         "compiled), then while at least one is, and the scene store answers; 'starting' "
         "before the first time; 'recovering' while no worker is warm after that; 'broken' "

@@ -20,6 +20,7 @@ from planner.constants import PLANNERS, PlannerName
 from planner.wire.common import (
     GRAVITY_FIELD,
     MAX_OBSTACLES,
+    CartesianTargetModel,
     DesignModel,
     Gravity,
     Integer,
@@ -32,6 +33,7 @@ from planner.wire.common import (
     inertia_to_core,
     located,
     margins_to_core,
+    triple_to_core,
 )
 from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import Limits, joint_limits_to_core, timing_to_core
@@ -39,6 +41,9 @@ from planner.wire.timing import Limits, joint_limits_to_core, timing_to_core
 if TYPE_CHECKING:
     from planner.motion.problem import MotionProblem
     from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
+    from planner.wire.cartesian import CartesianRequest
+    from planner.wire.plan import PlanRequest
+    from planner.wire.sequence import SequenceRequest
 
 __all__ = [
     "MotionRequest",
@@ -116,7 +121,9 @@ def posture_to_core(model: JointPostureModel, loc: Location) -> JointPosture:
         return JointPosture(np.array(model.q), model.assembly_mode)
 
 
-def goal_to_core(model: Any, loc: Location) -> JointPosture | CartesianTarget:
+def goal_to_core(
+    model: JointPostureModel | CartesianTargetModel, loc: Location
+) -> JointPosture | CartesianTarget:
     """A goal model (a joint posture, or a Cartesian target with its working mode) as the
     library's goal, its error located at ``loc``."""
     import numpy as np
@@ -130,7 +137,7 @@ def goal_to_core(model: Any, loc: Location) -> JointPosture | CartesianTarget:
 
 
 def motion_problem(
-    request: MotionRequest,
+    request: PlanRequest | SequenceRequest | CartesianRequest,
     *,
     deadline: float | None = None,
     max_samples: int | None = None,
@@ -161,7 +168,7 @@ def motion_problem(
             replace(timing, max_samples=max_samples),
             joint_limits_to_core(request.limits),
             inertia_to_core(request.design),
-            (float(request.gravity[0]), float(request.gravity[1]), float(request.gravity[2])),
+            triple_to_core(request.gravity),
             Budget(deadline),
         )
 

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from planner.exceptions import TimingError
     from planner.motion.problem import MotionProblem
     from planner.planning.problem import CartesianTarget, JointPosture
-    from planner.planning.result import PlanResult
+    from planner.planning.result import PlanPath, PlanResult
     from planner.solver import Solution
     from planner.timing.trajectory import Trajectory
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
@@ -157,7 +157,7 @@ def plan_inputs(
     return PlanInputs(problem, goal, prefer, request.goal.tolerance)
 
 
-def path_model(path: Any) -> PathModel:
+def path_model(path: PlanPath) -> PathModel:
     """The wire form of a :class:`planner.planning.PlanPath`."""
     return PathModel(
         waypoints=np.asarray(path.waypoints, dtype=float).tolist(),

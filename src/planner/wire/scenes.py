@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 from pydantic import Field
 
@@ -27,6 +27,13 @@ from planner.wire.common import (
     located,
     obstacles_to_core,
 )
+
+if TYPE_CHECKING:
+    from planner import geometry
+    from planner.wire.motion import MotionRequest
+
+    #: A motion request of some kind (a plan, a sequence, a straight path), kept as it is.
+    AnyMotionRequest = TypeVar("AnyMotionRequest", bound=MotionRequest)
 
 __all__ = [
     "SCENE_NAME_PATTERN",
@@ -97,7 +104,11 @@ def count_points(models: Sequence[Any]) -> int:
     return sum(len(m.points) for m in models if isinstance(m, PointsObstacle))
 
 
-def with_scene(request: Any, obstacles: Sequence[Any], design: DesignModel | None = None) -> Any:
+def with_scene(
+    request: AnyMotionRequest,
+    obstacles: Sequence[geometry.Obstacle],
+    design: DesignModel | None = None,
+) -> AnyMotionRequest:
     """A copy of a plan or Cartesian request carrying its named scene's library obstacles
     (resolved by the service), and the scene's design when the request sends none."""
     update = (
@@ -110,7 +121,9 @@ def with_scene(request: Any, obstacles: Sequence[Any], design: DesignModel | Non
     return copy
 
 
-def scene_obstacles(request: Any, loc: tuple[str | int, ...] = ("body",)) -> list[Any]:
+def scene_obstacles(
+    request: MotionRequest, loc: tuple[str | int, ...] = ("body",)
+) -> list[geometry.Obstacle]:
     """The library obstacles of a request: its named scene's (when it names one) followed by
     its own ``obstacles``, the points of both together at most :data:`MAX_POINTS` (a 422 at
     the request's own cloud that passes it).

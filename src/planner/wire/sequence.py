@@ -35,10 +35,11 @@ from planner.wire.timing import (
 
 if TYPE_CHECKING:
     from planner.motion.problem import MotionProblem
-    from planner.sequence.problem import SequenceTarget
+    from planner.sequence.problem import SequenceResult, SequenceTarget
 
 __all__ = [
     "MAX_SEQUENCE_TARGETS",
+    "BlendModel",
     "LegModel",
     "Objective",
     "SequenceDiagnosticsModel",
@@ -63,8 +64,14 @@ class SequenceTargetModel(_Request):
     blend: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=math.pi)] = Field(
         0.0,
         description="When passing through: the largest joint-space distance (rad) of the "
-        "trajectory from the target's posture; 0 (default): exactly through it. At most half "
-        "the shorter adjacent leg.",
+        "trajectory from the target's posture; 0 (default): exactly through it. A blend "
+        "larger than half the shorter adjacent leg shrinks to that (diagnostics.blends).",
+    )
+    blend_radius: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=10.0)] | None = Field(
+        None,
+        description="When passing through: the largest distance (m) of the tool point P from "
+        "the target's point (MoveIt Pilz's blend_radius); instead of blend, not with it. "
+        "Shrinks to fit as blend does.",
     )
 
 
@@ -111,6 +118,16 @@ class LegModel(_Response):
     )
 
 
+class BlendModel(_Response):
+    """One passed target's blend: as asked and as used, in the unit it was asked in ("m":
+    blend_radius, "rad": blend)."""
+
+    target_index: int = Field(ge=0)
+    asked: float
+    used: float
+    unit: Literal["m", "rad"]
+
+
 class SequenceDiagnosticsModel(DiagnosticsModel):
     """The plan diagnostics over the whole sequence (extremes over every leg), and the mode
     search's."""
@@ -134,6 +151,10 @@ class SequenceDiagnosticsModel(DiagnosticsModel):
     stopped_targets: list[int] = Field(
         default_factory=list,
         description="Pass-through targets where the timing had to come to rest.",
+    )
+    blends: list[BlendModel] = Field(
+        default_factory=list,
+        description="Each passed target's blend, asked and used (after shrinking to fit).",
     )
 
 
@@ -181,7 +202,12 @@ def sequence_inputs(
             _refuse((*loc, "prefer"), "a sequence chooses the modes by its objective")
         goal = goal_to_core(g, loc)
         with located("body", "targets", i):
-            targets.append(SequenceTarget(goal, t.stop, t.blend))
+            if t.blend_radius is not None and "blend" in t.model_fields_set:
+                _refuse(
+                    ("body", "targets", i, "blend_radius"),
+                    "give blend (rad) or blend_radius (m), not both",
+                )
+            targets.append(SequenceTarget(goal, t.stop, t.blend, t.blend_radius))
     return SequenceInputs(problem, targets, request.cycle, request.objective)
 
 
@@ -197,7 +223,9 @@ def _extreme(values: list[float], fn) -> float | None:
     return finite(fn(kept)) if kept else None
 
 
-def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> SequenceResponse:
+def sequence_response(
+    result: SequenceResult, *, format: TrajectoryFormat = "arrays"
+) -> SequenceResponse:
     """The answer of a :class:`planner.sequence.SequenceResult`, built once: its legs (each
     leg's path as planned), the one trajectory in ``format``, the cycle time, the plans'
     extremes over every leg and the mode search's diagnostics (a timing failure: ``no_path``
@@ -243,6 +271,10 @@ def sequence_response(result: Any, *, format: TrajectoryFormat = "arrays") -> Se
         assignments_evaluated=d.estimates,
         optimality_gap_s=finite(d.extra.get("gap_s")) if "gap_s" in d.extra else None,
         stopped_targets=list(d.stopped_targets),
+        blends=[
+            BlendModel(target_index=b.target_index, asked=b.asked, used=b.used, unit=b.unit)
+            for b in d.blends
+        ],
         **extra,
     )
     return SequenceResponse(

@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import (
     Discriminator,
     Field,
@@ -38,10 +39,13 @@ from planner.wire.common import (
     _Request,
     _Response,
     located,
+    triple_to_core,
 )
 
 if TYPE_CHECKING:
+    from planner.timing.limits import JointLimits
     from planner.timing.options import TimingOptions
+    from planner.timing.trajectory import Trajectory
     from planner.wire.cartesian import CartesianTimingOptions
 
 __all__ = [
@@ -227,8 +231,10 @@ class TimingRequest(_Request):
     @classmethod
     def _stop_at_in_range(cls, value: list[int], info: ValidationInfo) -> list[int]:
         waypoints = info.data.get("waypoints")
-        n = len(waypoints) if waypoints is not None else None
-        for i in value if n is not None else ():
+        if waypoints is None:  # waypoints failed their own check: nothing to compare with
+            return value
+        n = len(waypoints)
+        for i in value:
             if i >= n:
                 raise ValueError(f"stop_at holds waypoint indices in [0, {n}), got {i}")
         return value
@@ -250,7 +256,9 @@ class TimingResponse(_Response):
 
 
 # ---------------------------------------------------------------------------- conversions
-def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "limits")) -> Any:
+def joint_limits_to_core(
+    model: Limits, loc: tuple[str | int, ...] = ("body", "limits")
+) -> JointLimits:
     """The request's ``limits`` as :class:`planner.timing.JointLimits` (absent fields: the
     library's defaults), scaled by ``velocity_scaling`` and ``acceleration_scaling``
     (:meth:`planner.timing.JointLimits.scaled`); a bad value raises ``LimitsError`` located at
@@ -258,12 +266,13 @@ def joint_limits_to_core(model: Limits, loc: tuple[str | int, ...] = ("body", "l
     from planner.timing import JointLimits
 
     default = JointLimits.default()
+    jerk = model.jerk or default.jerk
     with located(*loc):
         limits = JointLimits(
-            velocity=model.velocity or default.velocity,
-            acceleration=model.acceleration or default.acceleration,
-            jerk=model.jerk or default.jerk,
-            torque=model.torque,
+            velocity=triple_to_core(model.velocity or default.velocity),
+            acceleration=triple_to_core(model.acceleration or default.acceleration),
+            jerk=None if jerk is None else triple_to_core(jerk),
+            torque=None if model.torque is None else triple_to_core(model.torque),
         )
         if model.velocity_scaling != 1.0 or model.acceleration_scaling != 1.0:
             limits = limits.scaled(model.velocity_scaling, model.acceleration_scaling)
@@ -295,13 +304,13 @@ def timing_to_core(
 
 # ------------------------------------------------------------------ the points layout
 def points_from_arrays(
-    t: np.ndarray,
-    q: np.ndarray,
-    qd: np.ndarray,
-    qdd: np.ndarray,
+    t: ArrayLike,
+    q: ArrayLike,
+    qd: ArrayLike,
+    qdd: ArrayLike,
     *,
     duration: float | None = None,
-    tau: np.ndarray | None = None,
+    tau: ArrayLike | None = None,
 ) -> dict:
     """The points form (JSON-ready dict) of parallel arrays.
 
@@ -372,7 +381,7 @@ def arrays_from_points(points_form: Mapping) -> TrajectoryArrays:
 
 
 def trajectory_model(
-    traj: Any, format: TrajectoryFormat = "arrays"
+    traj: Trajectory, format: TrajectoryFormat = "arrays"
 ) -> TrajectoryModel | TrajectoryPointsModel:
     """The wire form of a :class:`planner.timing.Trajectory`, in ``format`` (``"points"``:
     :func:`points_from_arrays`, the same samples)."""
@@ -381,7 +390,7 @@ def trajectory_model(
     return _arrays_model(traj)
 
 
-def _arrays_model(traj: Any) -> TrajectoryModel:
+def _arrays_model(traj: Trajectory) -> TrajectoryModel:
     return TrajectoryModel(
         method=traj.method,
         duration=traj.duration,
@@ -398,7 +407,7 @@ def _arrays_model(traj: Any) -> TrajectoryModel:
     )
 
 
-def _tau_list(traj: Any) -> list[list[float]] | None:
+def _tau_list(traj: Trajectory) -> list[list[float]] | None:
     """The trajectory's torques as lists (None without them; a NaN, which a checked
     trajectory does not have, would not be JSON)."""
     tau = getattr(traj, "tau", None)
