@@ -1,6 +1,6 @@
-"""The parent's record of one worker process of :class:`planner_api.workers.WorkerPool`:
+"""The parent's record of one worker process of :class:`planner_api.pool.WorkerPool`:
 the process, its two pipes, its state and the job it runs; and the answers' frames
-(:func:`planner_api.worker_process.send_frame`) cut out of the bytes its pipe delivers."""
+(:func:`planner_api.pool.process.send_frame`) cut out of the bytes its pipe delivers."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any, Literal
 
-from planner_api.worker_process import FRAME_HEADER
-from planner_api.worker_template import ForkedProcess
+from planner_api.pool.process import FRAME_HEADER
+from planner_api.pool.template import ForkedProcess
 
 __all__ = ["Job", "Worker", "cpu_seconds", "describe_exit"]
 
@@ -67,7 +67,7 @@ class Worker:
     replaces: Worker | None = field(default=None, repr=False)
     #: Resident memory after its last job when over the bound, bytes (None: never over).
     rss: int | None = None
-    #: Its exit is being handled (:meth:`planner_api.workers.WorkerPool._on_exit` runs once:
+    #: Its exit is being handled (:meth:`planner_api.pool.WorkerPool._on_exit` runs once:
     #: a second run would wait for the same process and close the same pipes twice).
     exit_claimed: bool = False
 

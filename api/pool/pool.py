@@ -9,7 +9,7 @@ Processes, because OMPL's ``solve()`` and most numpy work hold the GIL. Not
 *as a whole* and fails every job in flight: this pool is a small supervisor instead, one job
 per worker at a time, so a worker that dies fails only its own job
 (:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced. Every worker is a
-fork of one warm template (:mod:`planner_api.worker_template`, which runs ``warm_up``, the
+fork of one warm template (:mod:`planner_api.pool.template`, which runs ``warm_up``, the
 service's :func:`planner_api.warmup.warm_up_worker`, once), so a replacement is warm in
 milliseconds; where fork cannot be had each worker is ``spawn``-started and warms up itself
 before it takes jobs. The template (or each spawned worker) is started by one supervisor
@@ -17,7 +17,7 @@ thread that lives as long as the pool (``PR_SET_PDEATHSIG`` fires when the threa
 spawned the process ends).
 
 Two one-way pipes per worker. Jobs go down one, pickled; answers come back on the other in
-frames (:func:`planner_api.worker_process.send_frame`) that the event loop reads itself
+frames (:func:`planner_api.pool.process.send_frame`) that the event loop reads itself
 (``loop.add_reader``, non-blocking): no reader thread to wake, no hand-over of the GIL, no
 second wake-up of the loop per job. So the pool lives in one event loop (:meth:`WorkerPool.start`
 runs in it), which delivers its results: code in the loop awaits them (:meth:`WorkerPool.run`,
@@ -59,21 +59,21 @@ from planner_api.exceptions import (
     ShuttingDownError,
     WorkerCrashedError,
 )
-from planner_api.worker_handle import Job, Worker, describe_exit
-from planner_api.worker_process import worker_main
-from planner_api.worker_shutdown import ShutdownMixin
-from planner_api.worker_template import (
+from planner_api.pool.handle import Job, Worker, describe_exit
+from planner_api.pool.process import worker_main
+from planner_api.pool.shutdown import ShutdownMixin
+from planner_api.pool.template import (
     TemplateError,
     WarmTemplate,
     templates_work,
     widen_pipe,
 )
-from planner_api.worker_wait import wait_for_jobs
-from planner_api.worker_watchdog import WatchdogMixin, default_overrun_max
+from planner_api.pool.wait import wait_for_jobs
+from planner_api.pool.watchdog import WatchdogMixin, default_overrun_max
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool", "default_overrun_max"]
 
-logger = logging.getLogger(__name__)
+logger = logging.getLogger("planner_api.pool")
 
 T = TypeVar("T")
 PoolState = Literal["starting", "ready", "recovering", "broken", "stopping"]
@@ -128,7 +128,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         is started, and once it is warm the old worker stops (``PLANNER_WORKER_MAX_RSS_MB``;
         None: never).
     template : bool
-        Fork every worker from a warm template process (:mod:`planner_api.worker_template`),
+        Fork every worker from a warm template process (:mod:`planner_api.pool.template`),
         which runs ``warm_up`` once: a replacement is warm in milliseconds. False, or a
         platform without ``fork`` and pidfds: each worker is spawned and warms up itself.
     """
@@ -409,7 +409,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         return True
 
     def _handle(self, worker: Worker, message: bytes) -> None:
-        """One message of a worker (:mod:`planner_api.worker_process`)."""
+        """One message of a worker (:mod:`planner_api.pool.process`)."""
         try:
             kind, value = pickle.loads(message)
         except Exception as exc:  # e.g. an exception class the parent cannot import

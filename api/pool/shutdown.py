@@ -1,8 +1,8 @@
-"""The end of :class:`planner_api.workers.WorkerPool`: the drain (new jobs refused, the waits
+"""The end of :class:`planner_api.pool.WorkerPool`: the drain (new jobs refused, the waits
 still open ended after a grace) and the shutdown (the workers stopped, the jobs that finish in
 the grace delivered, the template last). One part of the pool, in a module of its own (its
-life cycle and jobs are :mod:`planner_api.workers`, its watchdog
-:mod:`planner_api.worker_watchdog`)."""
+life cycle and jobs are :mod:`planner_api.pool.pool`, its watchdog
+:mod:`planner_api.pool.watchdog`)."""
 
 from __future__ import annotations
 
@@ -16,16 +16,16 @@ import time
 from multiprocessing.connection import wait as wait_for_any
 from typing import Any
 
-from planner_api.worker_handle import Job, Worker
-from planner_api.worker_template import WarmTemplate
+from planner_api.pool.handle import Job, Worker
+from planner_api.pool.template import WarmTemplate
 
 __all__ = ["ShutdownMixin"]
 
-logger = logging.getLogger("planner_api.workers")
+logger = logging.getLogger("planner_api.pool")
 
 
 class ShutdownMixin:
-    """The drain and shutdown methods of :class:`planner_api.workers.WorkerPool` (its state is
+    """The drain and shutdown methods of :class:`planner_api.pool.WorkerPool` (its state is
     the pool's: these annotations name what they use)."""
 
     _closed: bool
