@@ -3,6 +3,7 @@ analysis), one job per process at a time, each a fork of one warm template.
 
 Its parts, one job each: :mod:`~planner_api.pool.pool` (the pool: its life cycle and its
 jobs), :mod:`~planner_api.pool.handle` (the parent's record of one worker),
+:mod:`~planner_api.pool.states` (a worker's states and their one table of moves),
 :mod:`~planner_api.pool.process` (the worker's side), :mod:`~planner_api.pool.template` (the
 warm template), :mod:`~planner_api.pool.wait` (how a request waits for its jobs),
 :mod:`~planner_api.pool.watchdog` (the kills of jobs past their deadline or cancelled) and

@@ -17,6 +17,7 @@ from multiprocessing.connection import wait as wait_for_any
 from typing import Any
 
 from planner_api.pool.handle import Job, Worker
+from planner_api.pool.states import WorkerState
 from planner_api.pool.template import WarmTemplate
 
 __all__ = ["ShutdownMixin"]
@@ -90,7 +91,7 @@ class ShutdownMixin:
             self._closed = True
             self._wake.notify()
         for w in workers:
-            if w.state == "warming":
+            if w.state is WorkerState.STARTING:
                 w.process.terminate()  # nothing to lose: no job has reached it
             else:
                 try:
@@ -100,7 +101,7 @@ class ShutdownMixin:
         end = None if timeout_s is None else time.monotonic() + timeout_s
         self._serve_until_exit(workers, end)
         alive = [w for w in workers if w.process.is_alive()]
-        busy = [w for w in alive if w.state == "busy"]
+        busy = [w for w in alive if w.warmed and w.state is not WorkerState.WARM]
         if busy:
             logger.warning("terminating %d worker(s) still busy at shutdown", len(busy))
         elif alive:  # idle or warming, slow to exit: nothing is lost

@@ -11,6 +11,7 @@ import threading
 import time
 
 from planner_api.pool.handle import Job, Worker, cpu_seconds
+from planner_api.pool.states import WorkerEvent, WorkerState
 
 __all__ = ["WatchdogMixin", "default_overrun_max"]
 
@@ -50,11 +51,11 @@ class WatchdogMixin:
                 wake_at = now + WATCHDOG_IDLE_S
                 for w in self._workers:
                     job = w.job
-                    if w.state != "busy" or job is None or job.kill_at is None or w.killed:
+                    if w.state is not WorkerState.BUSY or job is None or job.kill_at is None:
                         continue
                     if job.kill_at <= now:
                         self._look_locked(w, job, now)
-                    if job.kill_at is not None and not w.killed:
+                    if job.kill_at is not None and w.state is WorkerState.BUSY:
                         wake_at = min(wake_at, job.kill_at)
                 self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
@@ -83,6 +84,7 @@ class WatchdogMixin:
 
     def _kill_locked(self, worker: Worker, reason: str, late_s: float) -> None:
         """SIGKILL ``worker`` (the caller holds the lock); its exit is expected."""
+        worker.change(WorkerEvent.KILL)
         worker.killed = reason
         self.kills += 1
         try:
