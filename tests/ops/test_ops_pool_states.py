@@ -31,7 +31,8 @@ ILLEGAL = [
 
 
 def _worker(state: WorkerState = WorkerState.STARTING) -> Worker:
-    worker = Worker(process=SimpleNamespace(pid=4242), jobs=None, answers=None)  # type: ignore[arg-type]
+    process = SimpleNamespace(pid=4242)  # what the pool's log lines read of a process
+    worker = Worker(process=process, jobs=None, answers=None)  # type: ignore[arg-type]
     worker.state = state
     return worker
 

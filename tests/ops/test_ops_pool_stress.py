@@ -8,17 +8,17 @@ and with spawned workers.
 The storm is random for a fixed seed and bounded by a count of operations, not by time. At
 the end nothing may be left: every answer that came is the answer of its own job, the pool
 has no job in flight and serves again, no process the pool started is alive (found by a mark
-in their environment, so that a worker orphaned by its template is found too), the pool closed
-every pipe, pidfd and socket it held itself, no other descriptor is left open, no thread of the pool
-runs, and no worker ever made a move its state table refuses.
+in their environment, so that a worker orphaned by its template is found too), the pool
+closed every pipe, pidfd and socket it held itself, no other descriptor is left open, no
+thread of the pool runs, and no worker ever made a move its state table refuses.
 
 One tolerance, and why: :mod:`multiprocessing` keeps two pipe ends of each process it spawns
 (the template, or a spawned worker: its sentinel and its launch pipe) until the ``Process``
 object is finalised. The pool drops those objects, and when a cycle holds one (an exception's
 traceback, a finished task) the collector closes them later; so the count of descriptors is
-taken after :func:`gc.collect`, which frees only what nothing references: a descriptor the pool
-still holds stays counted. The pool's own pipes, pidfds and sockets are checked before that, each
-closed by the pool, not by a finaliser."""
+taken after :func:`gc.collect`, which frees only what nothing references: a descriptor the
+pool still holds stays counted. The pool's own pipes, pidfds and sockets are checked before
+that, each closed by the pool, not by a finaliser."""
 
 from __future__ import annotations
 
