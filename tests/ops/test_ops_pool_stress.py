@@ -117,8 +117,15 @@ def _zombie_children() -> list[int]:
     return found
 
 
+#: The threads of pools that other tests of this process keep running (a fixture's app): not
+#: this test's to wait for.
+_OTHERS: set[threading.Thread] = set()
+
+
 def _pool_threads() -> list[str]:
-    return [t.name for t in threading.enumerate() if t.name in POOL_THREADS and t.is_alive()]
+    """The threads of this test's pools still running."""
+    threads = threading.enumerate()
+    return [t.name for t in threads if t.name in POOL_THREADS and t not in _OTHERS]
 
 
 def _settle(condition: Callable[[], bool]) -> bool:
@@ -316,6 +323,7 @@ def test_the_pool_leaks_nothing_under_a_storm_of_kills_cancels_and_shutdowns(mon
             await asyncio.sleep(0.01)
         pool.shutdown(timeout_s=1.0)
 
+    _OTHERS.update(t for t in threading.enumerate() if t.name in POOL_THREADS)
     for loop_name in LOOPS:
         run(loop_name, warm_once)
     assert _settle(lambda: not _pool_threads())
