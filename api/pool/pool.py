@@ -10,7 +10,7 @@ Processes, because OMPL's ``solve()`` and most numpy work hold the GIL. Not
 per worker at a time, so a worker that dies fails only its own job
 (:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced. Every worker is a
 fork of one warm template (:mod:`planner_api.pool.template`, which runs ``warm_up``, the
-service's :func:`planner_api.warmup.warm_up_worker`, once), so a replacement is warm in
+service's :func:`planner_api.warmup.start_worker`, once), so a replacement is warm in
 milliseconds; where fork cannot be had each worker is ``spawn``-started and warms up itself
 before it takes jobs. The template (or each spawned worker) is started by one supervisor
 thread that lives as long as the pool (``PR_SET_PDEATHSIG`` fires when the thread that
@@ -116,7 +116,8 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         How the workers log (:func:`planner_api.logging.configure_logging`); None: Python's default.
     warm_up : callable or None
         Run in each new worker before it takes jobs (module-level, picklable; the service
-        passes :func:`planner_api.warmup.warm_up_worker`). None: no warm-up.
+        passes :func:`planner_api.warmup.start_worker`: the caches sized, then the warm-up).
+        None: no warm-up.
     overrun_grace_s : float
         A job that has spent this much CPU time past its deadline and still runs has its
         worker killed (SIGKILL) and replaced (``PLANNER_OVERRUN_GRACE_S``): CPU time, so that a
