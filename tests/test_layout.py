@@ -6,6 +6,10 @@ literal of at least six constants (bucket bounds, colours), or a call whose firs
 argument is such a literal (``np.array([[...]])``, ``pytest.mark.parametrize(names, rows)``).
 On any other statement it would pack code onto fewer lines than the formatter gives it,
 which hides a module's real size from the line budget (``tests/test_architecture.py``).
+
+A function of ``src/`` or ``api/`` is at most :data:`MAX_FUNCTION_LINES` lines long, from its
+``def`` to its last line (decorators excluded, its docstring included): a longer one holds
+more than one job, and is split into named steps, each a function of its own.
 """
 
 from __future__ import annotations
@@ -115,3 +119,41 @@ def test_the_rule_tells_a_table_from_packed_code() -> None:
     ):
         [(_, node)] = skipped_statements(source)
         assert packed(node) is expected, source
+
+
+#: The most lines a function or method of src/ or api/ may have (module docstring).
+MAX_FUNCTION_LINES = 120
+#: Functions allowed over :data:`MAX_FUNCTION_LINES`, as "path:name": none.
+LONG_FUNCTIONS_ALLOWED: frozenset[str] = frozenset()
+
+
+def long_functions(source: str) -> list[tuple[str, int]]:
+    """(name, lines) of each function of ``source`` over :data:`MAX_FUNCTION_LINES`."""
+    return [
+        (node.name, n)
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and (n := (node.end_lineno or node.lineno) - node.lineno + 1) > MAX_FUNCTION_LINES
+    ]
+
+
+def test_no_function_is_over_120_lines() -> None:
+    files = [p for p in python_files() if p.relative_to(ROOT).parts[0] in ("src", "api")]
+    assert len(files) > 100
+    found = {
+        f"{path.relative_to(ROOT)}:{name}": n
+        for path in files
+        for name, n in long_functions(path.read_text())
+        if f"{path.relative_to(ROOT)}:{name}" not in LONG_FUNCTIONS_ALLOWED
+    }
+    assert found == {}
+
+
+def test_the_function_budget_counts_from_def_to_last_line() -> None:
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES - 1))
+    at_budget = "@decorator\n@another\ndef f():\n" + body
+    over = at_budget + "    return x0\n"
+    assert long_functions(at_budget) == []
+    assert long_functions(over) == [("f", MAX_FUNCTION_LINES + 1)]
+    method = "class C:\n    def m(self):\n" + body.replace("    x", "        x")
+    assert long_functions(method + "        pass\n") == [("m", MAX_FUNCTION_LINES + 1)]

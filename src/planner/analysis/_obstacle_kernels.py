@@ -378,7 +378,8 @@ def flood_reaches(
     point set of ``point_sets[k3, k2]`` (M, 4) lies inside an obstacle over the cell
     (:func:`corners_inside`, evaluated only for cells the flood meets). ``visits`` (one int)
     receives the number of passable cells met. Returns -1 when the start cell is not
-    passable (the start is then invalid: nothing is proven)."""
+    passable (the start is then invalid: nothing is proven). Two steps: the start's cell is
+    met here, the flood from it is :func:`_spread`."""
     n1, n3, n2 = theta1.shape[0], mask.shape[0], mask.shape[1]
     # 0 unknown, 1 passable (queued), 2 not passable
     state = np.zeros((n1, n3, n2), dtype=np.uint8)
@@ -419,11 +420,68 @@ def flood_reaches(
         visits[0] = 0
         return -1
     state[i, j, k] = 1
-    met = 1
     if goal[i, j, k]:
-        visits[0] = met
+        visits[0] = 1
         return 1
     size = heap_push(keys, cells, size, _to_goals(guide, i, j, k), (i << 40) | (j << 20) | k)
+    reached, met = _spread(
+        mask,
+        blocked_a,
+        blocked_b,
+        point_sets,
+        cos1,
+        sin1,
+        a1,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        sphere_grid,
+        limit,
+        goal,
+        guide,
+        state,
+        keys,
+        cells,
+        size,
+    )
+    visits[0] = met + 1
+    return reached
+
+
+@njit(cache=True)
+def _spread(
+    mask,
+    blocked_a,
+    blocked_b,
+    point_sets,
+    cos1,
+    sin1,
+    a1,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    limit,
+    goal,
+    guide,
+    state,
+    keys,
+    cells,
+    size,
+):  # pragma: no cover - compiled
+    """The flood step of :func:`flood_reaches`, from the heap (``keys``, ``cells`` of
+    ``size`` entries) that holds the start: pop the cell nearest to the guide, meet its
+    unknown 26-neighbours (``state`` 0 -> 1 passable and queued, or 2 not passable) until a
+    goal is met or the heap is empty. Returns (1 if a goal was met else 0, passable cells
+    met beyond the start)."""
+    n1, n3, n2 = state.shape[0], state.shape[1], state.shape[2]
+    met = 0
     while size > 0:
         flat, size = heap_pop(keys, cells, size)
         ci, cj, ck = flat >> 40, (flat >> 20) & 0xFFFFF, flat & 0xFFFFF
@@ -464,13 +522,11 @@ def flood_reaches(
                     state[i, j, k] = 1
                     met += 1
                     if goal[i, j, k]:
-                        visits[0] = met
-                        return 1
+                        return 1, met
                     size = heap_push(
                         keys, cells, size, _to_goals(guide, i, j, k), (i << 40) | (j << 20) | k
                     )
-    visits[0] = met
-    return 0
+    return 0, met
 
 
 @njit(cache=True, inline="always")

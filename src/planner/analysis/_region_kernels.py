@@ -269,70 +269,146 @@ def classify_kernel(
                 todo[nt] = i2
                 nt += 1
         if nt:
-            j = 0
-            for t in range(nt):
-                i2 = todo[t]
-                for p3 in range(split):
-                    for p2 in range(split):
-                        trig_s[0, j], trig_s[1, j] = sub2[i2, p2, 0], sub2[i2, p2, 1]
-                        trig_s[2, j], trig_s[3, j] = sub3[i3, p3, 0], sub3[i3, p3, 1]
-                        j += 1
-            _bounds_batch(L0, L1, L2, b_lo, b_hi, s, trig_s, e2, e3, j, out_s)
-            for t in range(nt):
-                # undecided in some mode: refined. Surely valid (invalid) where every sub-cell
-                # is, passable where some sub-cell is; bounds: the hull of the sub-cells'.
-                i2 = todo[t]
-                any_in = False
-                over, valid, passable = 0, 0xFF, 0
-                lo0 = lo1 = lo2 = np.inf
-                hi0 = hi1 = hi2 = -np.inf
-                for j in range(t * per, (t + 1) * per):
-                    fl = int(out_s[_FLAGS, j])
-                    smiss = fl & _MISS != 0
-                    so, sv, sp = _decide(fl & _SURE != 0, smiss, out_s, j, smin)
-                    over |= so
-                    valid &= sv
-                    passable |= sp
-                    if not smiss:
-                        any_in = True
-                        lo0, hi0 = min(lo0, out_s[_LO, j]), max(hi0, out_s[_HI, j])
-                        lo1, hi1 = min(lo1, out_s[_LO + 1, j]), max(hi1, out_s[_HI + 1, j])
-                        lo2, hi2 = min(lo2, out_s[_LO + 2, j]), max(hi2, out_s[_HI + 2, j])
-                out_r[_LO, i2], out_r[_LO + 1, i2], out_r[_LO + 2, i2] = lo0, lo1, lo2
-                out_r[_HI, i2], out_r[_HI + 1, i2], out_r[_HI + 2, i2] = hi0, hi1, hi2
-                over_r[i2], valid_r[i2], pass_r[i2] = over, valid, passable
-                miss_r[i2] = not any_in
-        for i2 in range(n2):
-            over, valid, miss = over_r[i2], valid_r[i2], miss_r[i2]
-            for mi in range(8):
-                status[mi, i3, i2] = ((over >> mi) & 1) + ((valid >> mi) & 1)
-            mask = (over << BITS_OVER) | (valid << BITS_VALID) | (pass_r[i2] << BITS_B)
-            centre_mode[i3, i2] = -1
-            kind[0, i3, i2] = 0
-            kind[1, i3, i2] = 1 if miss or out_r[_CEN + 3, i2] >= 0.0 else 2
-            kind[2, i3, i2] = 3 if miss or out_r[_CEN + 4, i2] >= 0.0 else 4
-            for k in range(3):
-                lo, hi = out_r[_LO + k, i2], out_r[_HI + k, i2]
-                if miss:
-                    m_lo_out[k, i3, i2] = np.nan
-                    m_hi_out[k, i3, i2] = np.nan
-                else:
-                    if lo <= 0.0 and hi >= 0.0:
-                        mask |= 1 << (BITS_ZERO + k)
-                    m_lo_out[k, i3, i2] = lo
-                    m_hi_out[k, i3, i2] = hi
-            bits[i3, i2] = mask
-            # a sign within rounding of 0 (e.g. the base point of erratum 6) is no sign
-            tiny = 1e-12
-            c0, c1, c2 = out_r[_CEN, i2], out_r[_CEN + 1, i2], out_r[_CEN + 2, i2]
-            if (
-                not miss
-                and int(out_r[_FLAGS, i2]) & _CENTRE_IN
-                and abs(c0) > tiny
-                and abs(c1) > tiny
-                and abs(c2) > tiny
-            ):
-                centre_mode[i3, i2] = 4 * (c0 < 0.0) + 2 * (c1 < 0.0) + (c2 < 0.0)
+            _refine_row(
+                L0,
+                L1,
+                L2,
+                b_lo,
+                b_hi,
+                smin,
+                s,
+                e2,
+                e3,
+                split,
+                sub2,
+                sub3[i3],
+                todo[:nt],
+                trig_s,
+                out_s,
+                out_r,
+                over_r,
+                valid_r,
+                pass_r,
+                miss_r,
+            )
+        _write_row(
+            out_r,
+            over_r,
+            valid_r,
+            pass_r,
+            miss_r,
+            status[:, i3],
+            bits[i3],
+            kind[:, i3],
+            centre_mode[i3],
+            m_lo_out[:, i3],
+            m_hi_out[:, i3],
+        )
+
+
+@njit(cache=True, nogil=True)
+def _refine_row(
+    L0,
+    L1,
+    L2,
+    b_lo,
+    b_hi,
+    smin,
+    s,
+    e2,
+    e3,
+    split,
+    sub2,
+    sub3_row,
+    todo,
+    trig_s,
+    out_s,
+    out_r,
+    over_r,
+    valid_r,
+    pass_r,
+    miss_r,
+):  # pragma: no cover - compiled
+    """The refinement step of :func:`classify_kernel` for one row: the cells ``todo``
+    (indices into the row) left undecided in some mode are bounded on their ``split x
+    split`` sub-cells (centres from ``sub2`` and the row's ``sub3_row`` (split, 2), half-
+    widths ``e2``, ``e3``; scratch ``trig_s``, ``out_s``), and their masks (``over_r``,
+    ``valid_r``, ``pass_r``, ``miss_r``) and bounds (rows of ``out_r``) replaced by those of
+    the sub-cells together."""
+    per = split * split
+    j = 0
+    for t in range(todo.shape[0]):
+        i2 = todo[t]
+        for p3 in range(split):
+            for p2 in range(split):
+                trig_s[0, j], trig_s[1, j] = sub2[i2, p2, 0], sub2[i2, p2, 1]
+                trig_s[2, j], trig_s[3, j] = sub3_row[p3, 0], sub3_row[p3, 1]
+                j += 1
+    _bounds_batch(L0, L1, L2, b_lo, b_hi, s, trig_s, e2, e3, j, out_s)
+    for t in range(todo.shape[0]):
+        # undecided in some mode: refined. Surely valid (invalid) where every sub-cell
+        # is, passable where some sub-cell is; bounds: the hull of the sub-cells'.
+        i2 = todo[t]
+        any_in = False
+        over, valid, passable = 0, 0xFF, 0
+        lo0 = lo1 = lo2 = np.inf
+        hi0 = hi1 = hi2 = -np.inf
+        for j in range(t * per, (t + 1) * per):
+            fl = int(out_s[_FLAGS, j])
+            smiss = fl & _MISS != 0
+            so, sv, sp = _decide(fl & _SURE != 0, smiss, out_s, j, smin)
+            over |= so
+            valid &= sv
+            passable |= sp
+            if not smiss:
+                any_in = True
+                lo0, hi0 = min(lo0, out_s[_LO, j]), max(hi0, out_s[_HI, j])
+                lo1, hi1 = min(lo1, out_s[_LO + 1, j]), max(hi1, out_s[_HI + 1, j])
+                lo2, hi2 = min(lo2, out_s[_LO + 2, j]), max(hi2, out_s[_HI + 2, j])
+        out_r[_LO, i2], out_r[_LO + 1, i2], out_r[_LO + 2, i2] = lo0, lo1, lo2
+        out_r[_HI, i2], out_r[_HI + 1, i2], out_r[_HI + 2, i2] = hi0, hi1, hi2
+        over_r[i2], valid_r[i2], pass_r[i2] = over, valid, passable
+        miss_r[i2] = not any_in
+
+
+@njit(cache=True, nogil=True)
+def _write_row(
+    out_r, over_r, valid_r, pass_r, miss_r, status, bits, kind, centre_mode, m_lo, m_hi
+):  # pragma: no cover - compiled
+    """The output step of :func:`classify_kernel` for one row: from the row's masks and
+    bounds, its cells' status (8, n2), bits (n2,), kind (3, n2), centre_mode (n2,) and
+    bounds m_lo, m_hi (3, n2) (views of the row in the kernel's outputs)."""
+    for i2 in range(out_r.shape[1]):
+        over, valid, miss = over_r[i2], valid_r[i2], miss_r[i2]
+        for mi in range(8):
+            status[mi, i2] = ((over >> mi) & 1) + ((valid >> mi) & 1)
+        mask = (over << BITS_OVER) | (valid << BITS_VALID) | (pass_r[i2] << BITS_B)
+        centre_mode[i2] = -1
+        kind[0, i2] = 0
+        kind[1, i2] = 1 if miss or out_r[_CEN + 3, i2] >= 0.0 else 2
+        kind[2, i2] = 3 if miss or out_r[_CEN + 4, i2] >= 0.0 else 4
+        for k in range(3):
+            lo, hi = out_r[_LO + k, i2], out_r[_HI + k, i2]
+            if miss:
+                m_lo[k, i2] = np.nan
+                m_hi[k, i2] = np.nan
+            else:
+                if lo <= 0.0 and hi >= 0.0:
+                    mask |= 1 << (BITS_ZERO + k)
+                m_lo[k, i2] = lo
+                m_hi[k, i2] = hi
+        bits[i2] = mask
+        # a sign within rounding of 0 (e.g. the base point of erratum 6) is no sign
+        tiny = 1e-12
+        c0, c1, c2 = out_r[_CEN, i2], out_r[_CEN + 1, i2], out_r[_CEN + 2, i2]
+        if (
+            not miss
+            and int(out_r[_FLAGS, i2]) & _CENTRE_IN
+            and abs(c0) > tiny
+            and abs(c1) > tiny
+            and abs(c2) > tiny
+        ):
+            centre_mode[i2] = 4 * (c0 < 0.0) + 2 * (c1 < 0.0) + (c2 < 0.0)
 
 
 @njit(cache=True, nogil=True)

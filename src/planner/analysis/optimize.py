@@ -19,6 +19,7 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from scipy import optimize
@@ -116,46 +117,15 @@ def optimize_design(
     """
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
-    if reach is None and (L1_bounds is None or L2_bounds is None):
-        raise InputError("L1_bounds and L2_bounds are required when reach is None")
-    if reach is not None and not (math.isfinite(reach) and reach > 0):
-        raise InputError(f"reach must be a positive number, got {reach}")
-    scale = reach if reach is not None else max(L1_bounds[1], L2_bounds[1])  # type: ignore[index]
-    b0 = _bounds("L0_bounds", L0_bounds, (0.0, scale))
-    b1 = _bounds("L1_bounds", L1_bounds, (0.05 * scale, 0.95 * scale))
-    if reach is not None:
-        b1 = (max(b1[0], MIN_LENGTH), min(b1[1], reach - MIN_LENGTH))
-        if b1[0] > b1[1]:
-            raise InputError(f"L1_bounds leave no room below reach = {reach}")
-        bounds = [b0, b1]
-    else:
-        bounds = [b0, b1, _bounds("L2_bounds", L2_bounds, (0.0, scale))]
-    template = template or Design(0.0, 1.0, 1.0)
-
-    def make(x: np.ndarray) -> Design:
-        l2 = reach - x[1] if reach is not None else x[2]
-        return Design(
-            max(float(x[0]), 0.0),
-            max(float(x[1]), MIN_LENGTH),
-            max(float(l2), MIN_LENGTH),
-            link_radius=template.link_radius,
-            joint_min=template.joint_min,
-            joint_max=template.joint_max,
-        )
-
-    per_rep = max(2, n_samples // 4)
-
-    def value(d: Design) -> float:
-        if objective == "volume":
-            return closed_form_volume(d)
-        s = sample_workspace(
-            d, rel_se=None, n_per_replicate=per_rep, replicates=4, kappa_max=kappa_max, seed=seed
-        )
-        if objective == "gci":
-            return s.gci.value
-        assert s.well_conditioned is not None
-        return s.well_conditioned.value
-
+    scale, bounds = _search_space(reach, L0_bounds, L1_bounds, L2_bounds)
+    make = partial(_candidate, reach=reach, template=template or Design(0.0, 1.0, 1.0))
+    value = partial(
+        _objective_value,
+        objective=objective,
+        n_per_replicate=max(2, n_samples // 4),
+        kappa_max=kappa_max,
+        seed=seed,
+    )
     calls = 0
 
     def loss(x: np.ndarray) -> float:
@@ -168,42 +138,129 @@ def optimize_design(
         if progress is not None:
             progress(name, index, total)
 
-    res: optimize.OptimizeResult
     if objective == "volume":
-        best = None
-        for k, frac in enumerate((0.25, 0.5, 0.75)):
-            tell(f"local start {k + 1} of 3", k, 3)
-            x0 = np.array([lo + frac * (hi - lo) for lo, hi in bounds])
-            res = optimize.minimize(loss, x0, method="L-BFGS-B", bounds=bounds)
-            if best is None or res.fun < best.fun:
-                best = res
-        assert best is not None  # three local starts ran
-        res = best
-        tell("done", 3, 3)
+        res = _local_starts(loss, bounds, tell)
     else:
-        generation = 0
-
-        def generation_done(intermediate_result: optimize.OptimizeResult) -> None:
-            nonlocal generation
-            generation += 1
-            if generation < maxiter:
-                tell(f"generation {generation + 1} of {maxiter}", generation, maxiter)
-
-        tell(f"generation 1 of {maxiter}", 0, maxiter)
-        res = optimize.differential_evolution(
-            loss,
-            # scipy takes (min, max) pairs, one per variable; scipy-stubs types one pair only
-            bounds,  # type: ignore[arg-type]
-            seed=seed,
-            maxiter=maxiter,
-            popsize=8,
-            tol=1e-3,
-            polish=False,
-            callback=generation_done if progress is not None else None,
+        res = _evolve(
+            loss, bounds, seed=seed, maxiter=maxiter, tell=tell, each=progress is not None
         )
-        tell("done", maxiter, maxiter)
     design = make(res.x)
     logger.info("optimize_design(%s): %s after %d evaluations", objective, design, calls)
     return DesignOptimum(
         design, objective, value(design), bool(res.success), str(res.message), calls
     )
+
+
+def _search_space(
+    reach: float | None,
+    L0_bounds: tuple[float, float] | None,
+    L1_bounds: tuple[float, float] | None,
+    L2_bounds: tuple[float, float] | None,
+) -> tuple[float, list[tuple[float, float]]]:
+    """The first step of :func:`optimize_design`: the length scale (m) and the bounds of the
+    variables, (L0, L1) with a fixed ``reach`` and (L0, L1, L2) without, defaults filled in
+    and checked."""
+    if reach is None and (L1_bounds is None or L2_bounds is None):
+        raise InputError("L1_bounds and L2_bounds are required when reach is None")
+    if reach is not None and not (math.isfinite(reach) and reach > 0):
+        raise InputError(f"reach must be a positive number, got {reach}")
+    scale = reach if reach is not None else max(L1_bounds[1], L2_bounds[1])  # type: ignore[index]
+    b0 = _bounds("L0_bounds", L0_bounds, (0.0, scale))
+    b1 = _bounds("L1_bounds", L1_bounds, (0.05 * scale, 0.95 * scale))
+    if reach is not None:
+        b1 = (max(b1[0], MIN_LENGTH), min(b1[1], reach - MIN_LENGTH))
+        if b1[0] > b1[1]:
+            raise InputError(f"L1_bounds leave no room below reach = {reach}")
+        return scale, [b0, b1]
+    return scale, [b0, b1, _bounds("L2_bounds", L2_bounds, (0.0, scale))]
+
+
+def _candidate(x: np.ndarray, *, reach: float | None, template: Design) -> Design:
+    """The design at the optimiser's point ``x`` (lengths at least ``MIN_LENGTH``; L2 =
+    ``reach`` - L1 with a fixed reach), with the link radius and joint limits of
+    ``template``."""
+    l2 = reach - x[1] if reach is not None else x[2]
+    return Design(
+        max(float(x[0]), 0.0),
+        max(float(x[1]), MIN_LENGTH),
+        max(float(l2), MIN_LENGTH),
+        link_radius=template.link_radius,
+        joint_min=template.joint_min,
+        joint_max=template.joint_max,
+    )
+
+
+def _objective_value(
+    d: Design, *, objective: str, n_per_replicate: int, kappa_max: float, seed: int
+) -> float:
+    """The objective at design ``d``: closed form for ``'volume'``, else from the same seeded
+    sample at every evaluation (:func:`planner.analysis.workspace.sample_workspace`)."""
+    if objective == "volume":
+        return closed_form_volume(d)
+    s = sample_workspace(
+        d,
+        rel_se=None,
+        n_per_replicate=n_per_replicate,
+        replicates=4,
+        kappa_max=kappa_max,
+        seed=seed,
+    )
+    if objective == "gci":
+        return s.gci.value
+    assert s.well_conditioned is not None
+    return s.well_conditioned.value
+
+
+def _local_starts(
+    loss: Callable[[np.ndarray], float],
+    bounds: list[tuple[float, float]],
+    tell: Callable[[str, int, int], None],
+) -> optimize.OptimizeResult:
+    """The smooth objective's search: L-BFGS-B from three starts (at 1/4, 1/2 and 3/4 of
+    every bound), the best of them."""
+    best = None
+    for k, frac in enumerate((0.25, 0.5, 0.75)):
+        tell(f"local start {k + 1} of 3", k, 3)
+        x0 = np.array([lo + frac * (hi - lo) for lo, hi in bounds])
+        res = optimize.minimize(loss, x0, method="L-BFGS-B", bounds=bounds)
+        if best is None or res.fun < best.fun:
+            best = res
+    tell("done", 3, 3)
+    assert best is not None  # three local starts ran
+    return best
+
+
+def _evolve(
+    loss: Callable[[np.ndarray], float],
+    bounds: list[tuple[float, float]],
+    *,
+    seed: int,
+    maxiter: int,
+    tell: Callable[[str, int, int], None],
+    each: bool,
+) -> optimize.OptimizeResult:
+    """The sampled objectives' search: differential evolution (it needs no gradient);
+    with ``each``, ``tell`` hears of each generation as it begins (through the optimiser's
+    callback, which is left out otherwise)."""
+    generation = 0
+
+    def generation_done(intermediate_result: optimize.OptimizeResult) -> None:
+        nonlocal generation
+        generation += 1
+        if generation < maxiter:
+            tell(f"generation {generation + 1} of {maxiter}", generation, maxiter)
+
+    tell(f"generation 1 of {maxiter}", 0, maxiter)
+    res = optimize.differential_evolution(
+        loss,
+        # scipy takes (min, max) pairs, one per variable; scipy-stubs types one pair only
+        bounds,  # type: ignore[arg-type]
+        seed=seed,
+        maxiter=maxiter,
+        popsize=8,
+        tol=1e-3,
+        polish=False,
+        callback=generation_done if each else None,
+    )
+    tell("done", maxiter, maxiter)
+    return res

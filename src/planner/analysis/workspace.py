@@ -261,27 +261,13 @@ def sample_workspace(
     allowed = parse_modes(working_modes)
     half_len, radius, dom = _domain(design)
     if dom == 0.0:  # L0 >= 2 (L1 + L2): the legs cannot meet off the axis
-        zero = Estimate(0.0, 0.0, 0, replicates)
-        modes = dict.fromkeys(WORKING_MODES, zero)
-        return WorkspaceSample(
-            volume=zero,
-            per_mode=modes,
-            per_mode_regular=modes,
-            gci=zero,
-            well_conditioned=None if kappa_max is None else zero,
-            well_conditioned_fraction=None if kappa_max is None else zero,
-            kappa_max=kappa_max,
-        )
+        return _empty_sample(replicates, kappa_max)
     m = max(1, math.ceil(math.log2(max(2, n_per_replicate))))
     samplers = [
         qmc.Sobol(3, scramble=True, rng=np.random.default_rng(s))
         for s in np.random.SeedSequence(seed).spawn(replicates)
     ]
-    hits = np.zeros(replicates)
-    mode_hits = np.zeros((replicates, 8))
-    regular_hits = np.zeros((replicates, 8))
-    wc_hits = np.zeros(replicates)
-    inv_kappa = np.zeros(replicates)
+    counts = _Counts.zeros(replicates)
     n = 0
     draw = 2**m
     while True:
@@ -289,19 +275,9 @@ def sample_workspace(
         for r, sampler in enumerate(samplers):
             unit = sampler.random_base2(m) if n == 0 else sampler.random(draw)
             p = _points(unit, half_len, radius)
-            reached, kappa = reachable_slots(design, p, joint_limits=joint_limits)
-            regular = reached & (kappa < KAPPA_SINGULAR)
-            mode_hits[r] += reached.sum(axis=0)
-            regular_hits[r] += regular.sum(axis=0)
-            mine = reached & allowed
-            any_hit = mine.any(axis=1)
-            hits[r] += any_hit.sum()
-            best = np.where(mine, kappa, np.inf).min(axis=1)
-            inv_kappa[r] += np.sum(1.0 / best[any_hit])
-            if kappa_max is not None:
-                wc_hits[r] += np.sum(best <= kappa_max)
+            counts.add(r, design, p, allowed, joint_limits=joint_limits, kappa_max=kappa_max)
         n += draw
-        total = Estimate.from_replicates(dom * hits / n, n * replicates)
+        total = Estimate.from_replicates(dom * counts.hits / n, n * replicates)
         done = rel_se is None or total.relative_error <= rel_se
         now = time.monotonic()
         late = deadline is not None and now + 2.0 * (now - round_start) > deadline
@@ -316,31 +292,101 @@ def sample_workspace(
                 )
             break
         draw = n
-    n_all = n * replicates
+    return counts.estimates(total, dom, n, kappa_max)
 
-    def ratio(num: np.ndarray) -> Estimate:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            vals = np.where(hits > 0, num / np.where(hits > 0, hits, 1.0), 0.0)
-        return Estimate.from_replicates(vals, n_all)
 
-    per_mode = {
-        label: Estimate.from_replicates(dom * mode_hits[:, k] / n, n_all)
-        for k, label in enumerate(WORKING_MODES)
-    }
-    per_mode_regular = {
-        label: Estimate.from_replicates(dom * regular_hits[:, k] / n, n_all)
-        for k, label in enumerate(WORKING_MODES)
-    }
-    wc = wcf = None
-    if kappa_max is not None:
-        wc = Estimate.from_replicates(dom * wc_hits / n, n_all)
-        wcf = ratio(wc_hits)
+def _empty_sample(replicates: int, kappa_max: float | None) -> WorkspaceSample:
+    """The answer of :func:`sample_workspace` for a design whose legs cannot meet off the
+    axis: every volume is 0, exactly (no sample is drawn)."""
+    zero = Estimate(0.0, 0.0, 0, replicates)
+    modes = dict.fromkeys(WORKING_MODES, zero)
     return WorkspaceSample(
-        volume=total,
-        per_mode=per_mode,
-        per_mode_regular=per_mode_regular,
-        gci=ratio(inv_kappa),
-        well_conditioned=wc,
-        well_conditioned_fraction=wcf,
+        volume=zero,
+        per_mode=modes,
+        per_mode_regular=modes,
+        gci=zero,
+        well_conditioned=None if kappa_max is None else zero,
+        well_conditioned_fraction=None if kappa_max is None else zero,
         kappa_max=kappa_max,
     )
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _Counts:
+    """What :func:`sample_workspace` counts per replicate, summed over its rounds: points
+    reached in an allowed mode (``hits``, (R,)), per slot reached at all and regularly
+    (``mode_hits``, ``regular_hits``, (R, 8)), well-conditioned (``wc_hits``), and the sum
+    of 1 / kappa(A) of the best allowed posture (``inv_kappa``)."""
+
+    hits: np.ndarray
+    mode_hits: np.ndarray
+    regular_hits: np.ndarray
+    wc_hits: np.ndarray
+    inv_kappa: np.ndarray
+
+    @classmethod
+    def zeros(cls, replicates: int) -> _Counts:
+        return cls(
+            hits=np.zeros(replicates),
+            mode_hits=np.zeros((replicates, 8)),
+            regular_hits=np.zeros((replicates, 8)),
+            wc_hits=np.zeros(replicates),
+            inv_kappa=np.zeros(replicates),
+        )
+
+    def add(
+        self,
+        r: int,
+        design: Design,
+        p: np.ndarray,
+        allowed: np.ndarray,
+        *,
+        joint_limits: bool,
+        kappa_max: float | None,
+    ) -> None:
+        """Count the points ``p`` (N, 3), m, of replicate ``r``."""
+        reached, kappa = reachable_slots(design, p, joint_limits=joint_limits)
+        regular = reached & (kappa < KAPPA_SINGULAR)
+        self.mode_hits[r] += reached.sum(axis=0)
+        self.regular_hits[r] += regular.sum(axis=0)
+        mine = reached & allowed
+        any_hit = mine.any(axis=1)
+        self.hits[r] += any_hit.sum()
+        best = np.where(mine, kappa, np.inf).min(axis=1)
+        self.inv_kappa[r] += np.sum(1.0 / best[any_hit])
+        if kappa_max is not None:
+            self.wc_hits[r] += np.sum(best <= kappa_max)
+
+    def estimates(
+        self, total: Estimate, dom: float, n: int, kappa_max: float | None
+    ) -> WorkspaceSample:
+        """The answer from ``n`` points per replicate in a domain of ``dom`` m^3, ``total``
+        the volume's estimate."""
+        n_all = n * self.hits.shape[0]
+
+        def ratio(num: np.ndarray) -> Estimate:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                vals = np.where(self.hits > 0, num / np.where(self.hits > 0, self.hits, 1.0), 0.0)
+            return Estimate.from_replicates(vals, n_all)
+
+        per_mode = {
+            label: Estimate.from_replicates(dom * self.mode_hits[:, k] / n, n_all)
+            for k, label in enumerate(WORKING_MODES)
+        }
+        per_mode_regular = {
+            label: Estimate.from_replicates(dom * self.regular_hits[:, k] / n, n_all)
+            for k, label in enumerate(WORKING_MODES)
+        }
+        wc = wcf = None
+        if kappa_max is not None:
+            wc = Estimate.from_replicates(dom * self.wc_hits / n, n_all)
+            wcf = ratio(self.wc_hits)
+        return WorkspaceSample(
+            volume=total,
+            per_mode=per_mode,
+            per_mode_regular=per_mode_regular,
+            gci=ratio(self.inv_kappa),
+            well_conditioned=wc,
+            well_conditioned_fraction=wcf,
+            kappa_max=kappa_max,
+        )

@@ -104,29 +104,43 @@ def inspect_cartesian(
     fb = forward_batch(design, start.q, start.assembly_mode)
     if not fb.ok[0]:
         return ()
-    p_start = fb.p[0]
-    poly = Polyline(np.vstack([p_start[None], as_points(waypoints)]))
+    poly = Polyline(np.vstack([fb.p[0][None], as_points(waypoints)]))
     if poly.length == 0.0:
         return ()
+    events = _closed_form_events(design, margins.serial_min, poly)
+    # probed: kappa(A) and the joint limits along the working mode's branch
+    mode = posture_mode(design, start)
+    if mode is not None:
+        check_deadline(deadline, "before probing the Cartesian pre-check")
+        events += _probed_events(design, margins, start, mode, poly, probe_step)
+    events.sort(key=lambda e: e.fraction)
+    return tuple(events)
+
+
+def _event(
+    poly: Polyline, kind: str, s_global: float, entering: bool, detail: str, seg: int
+) -> PathEvent:
+    """The event ``kind`` at arc length ``s_global`` (m) of ``poly``, on its segment
+    ``seg``, numbered by the given waypoint that segment leads to."""
+    p = poly.at(np.array([s_global]))[0]
+    return PathEvent(
+        kind,
+        int(poly.given_index[seg + 1] - 1),
+        s_global / poly.length,
+        p,
+        entering,
+        detail,
+    )
+
+
+def _closed_form_events(design: Design, sm: float, poly: Polyline) -> list[PathEvent]:
+    """The closed-form step of :func:`inspect_cartesian`: each segment's crossings with the
+    legs' stretched and folded spheres, the spheres of ``sm`` = serial_min about A and B,
+    the axis AB and the cylinder of radius ``sm`` (L1 + L2) about it."""
     L1, L2 = design.L1, design.L2
-    sm = margins.serial_min
     root = math.sqrt(1.0 - sm * sm)
     centres = {"A": np.array([0.0, -design.L0 / 2, 0.0]), "B": np.array([0.0, design.L0 / 2, 0.0])}
     events: list[PathEvent] = []
-
-    def add(kind, s_global, entering, detail, seg):
-        p = poly.at(np.array([s_global]))[0]
-        events.append(
-            PathEvent(
-                kind,
-                int(poly.given_index[seg + 1] - 1),
-                s_global / poly.length,
-                p,
-                entering,
-                detail,
-            )
-        )
-
     for k in range(len(poly.lengths)):
         p0, d, length = poly.vertices[k], poly.dirs[k], float(poly.lengths[k])
         s0 = float(poly.cum[k])
@@ -140,103 +154,109 @@ def inspect_cartesian(
                     grad = float((p0 + s * d - c) @ d)  # > 0: moving away from the centre
                     entering = grad * outward > 0
                     verb = "leaves" if entering else "enters"
-                    add(
-                        kind,
-                        s0 + s,
-                        entering,
-                        f"{kind}: |{leg}P| = {radius:.6g} m, the line {verb} the workspace",
-                        k,
-                    )
+                    detail = f"{kind}: |{leg}P| = {radius:.6g} m, the line {verb} the workspace"
+                    events.append(_event(poly, kind, s0 + s, entering, detail, k))
             for sign, which in ((+1, "stretched"), (-1, "folded")):
                 radius = math.sqrt(max(L1 * L1 + L2 * L2 + sign * 2 * L1 * L2 * root, 0.0))
                 for s in _sphere_crossings(p0, d, length, c, radius):
                     grad = float((p0 + s * d - c) @ d)
                     entering = grad * sign > 0
-                    add(
-                        "serial_min",
-                        s0 + s,
-                        entering,
+                    detail = (
                         f"serial_min: |sin(theta{4 if leg == 'A' else 5} - "
                         f"theta{2 if leg == 'A' else 3})| = {sm:g} (leg {leg} near {which}, "
-                        f"|{leg}P| = {radius:.6g} m)",
-                        k,
+                        f"|{leg}P| = {radius:.6g} m)"
                     )
+                    events.append(_event(poly, "serial_min", s0 + s, entering, detail, k))
         for s in _cylinder_crossings(p0, d, length, 0.0):
-            add("P_on_axis", s0 + s, True, "P_on_axis: P meets the axis AB (w = 0)", k)
+            detail = "P_on_axis: P meets the axis AB (w = 0)"
+            events.append(_event(poly, "P_on_axis", s0 + s, True, detail, k))
         for s in _cylinder_crossings(p0, d, length, sm * design.reach):
             q = p0 + s * d
             entering = float(q[0] * d[0] + q[2] * d[2]) < 0
-            add(
-                "serial_min",
-                s0 + s,
-                entering,
+            detail = (
                 f"serial_min: |w| / (L1 + L2) = {sm:g} (P {sm * design.reach:.4g} m from "
-                "the axis AB)",
-                k,
+                "the axis AB)"
             )
+            events.append(_event(poly, "serial_min", s0 + s, entering, detail, k))
+    return events
 
-    # probed: kappa(A) and the joint limits along the working mode's branch
-    mode = posture_mode(design, start)
-    if mode is not None:
-        slot = WORKING_MODES.index(mode)
-        asm_sign = 1 if start.assembly_mode == "+" else -1
-        check_deadline(deadline, "before probing the Cartesian pre-check")
-        n = min(max(2, math.ceil(poly.length / probe_step) + 1), MAX_INSPECT_PROBES)
-        s = np.linspace(0.0, poly.length, n)
-        q, ok, _, _ = branch_ik(design, poly.at(s), slot, asm_sign)
-        q[0] = start.q
-        lo, hi = margins.cd_range
 
-        def measures(qq, okk):
-            cd = np.where(okk, cd_length(design, np.nan_to_num(qq)) / (2 * L2), np.nan)
-            kappa_ok = (cd >= lo) & (cd <= hi)
-            return cd, kappa_ok
+def _kappa_band(
+    design: Design, margins: Margins, q: np.ndarray, ok: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """|CD| / (2 L2) of postures q (N, 3) (NaN where not ``ok``), and whether it lies in the
+    band of ``margins.kappa_max``."""
+    lo, hi = margins.cd_range
+    cd = np.where(ok, cd_length(design, np.nan_to_num(q)) / (2 * design.L2), np.nan)
+    return cd, (cd >= lo) & (cd <= hi)
 
-        cd, kappa_ok = measures(q, ok)
-        run = np.cumprod(ok).astype(bool)  # the branch exists from the start up to here
-        qc = unwrap_chain(np.nan_to_num(q[1:]), start.q) if n > 1 else q
-        qc = np.vstack([start.q[None], qc])
-        jl_ok = np.all(
-            (qc >= np.asarray(design.joint_min) - 1e-12)
-            & (qc <= np.asarray(design.joint_max) + 1e-12),
-            axis=1,
-        )
-        for kind, good in (("kappa_max", kappa_ok), ("joint_limits", jl_ok)):
-            for i in np.flatnonzero((good[1:] != good[:-1]) & run[1:] & run[:-1]):
-                ga = bool(good[i])
 
-                def classify(s_, kind=kind, ga=ga, ref=qc[i]):
-                    qm, okm, _, _ = branch_ik(design, poly.at(s_), slot, asm_sign)
-                    if kind == "kappa_max":
-                        gm = measures(qm, okm)[1]
-                    else:
-                        qm = unwrap_to(qm, ref)
-                        gm = np.all((qm >= design.joint_min) & (qm <= design.joint_max), axis=1)
-                    return gm == ga, qm, np.full(len(s_), "")
+def _probed_events(
+    design: Design,
+    margins: Margins,
+    start: JointPosture,
+    mode: str,
+    poly: Polyline,
+    probe_step: float,
+) -> list[PathEvent]:
+    """The probed step of :func:`inspect_cartesian`: along the working mode's branch, every
+    ``probe_step`` m (at most :data:`MAX_INSPECT_PROBES` probes), where kappa(A) crosses
+    kappa_max and a joint its literal limit (bisected between probes), then the parallel
+    singularities (:func:`_parallel_events`)."""
+    slot = WORKING_MODES.index(mode)
+    asm_sign = 1 if start.assembly_mode == "+" else -1
+    n = min(max(2, math.ceil(poly.length / probe_step) + 1), MAX_INSPECT_PROBES)
+    s = np.linspace(0.0, poly.length, n)
+    q, ok, _, _ = branch_ik(design, poly.at(s), slot, asm_sign)
+    q[0] = start.q
+    cd, kappa_ok = _kappa_band(design, margins, q, ok)
+    run = np.cumprod(ok).astype(bool)  # the branch exists from the start up to here
+    qc = unwrap_chain(np.nan_to_num(q[1:]), start.q) if n > 1 else q
+    qc = np.vstack([start.q[None], qc])
+    jl_ok = np.all(
+        (qc >= np.asarray(design.joint_min) - 1e-12) & (qc <= np.asarray(design.joint_max) + 1e-12),
+        axis=1,
+    )
+    events: list[PathEvent] = []
+    for kind, good in (("kappa_max", kappa_ok), ("joint_limits", jl_ok)):
+        for i in np.flatnonzero((good[1:] != good[:-1]) & run[1:] & run[:-1]):
+            ga = bool(good[i])
 
-                a, b, _, _ = narrow_bracket(float(s[i]), float(s[i + 1]), classify, BISECT_TOL)
-                seg = int(poly.segment_of(np.array([a]))[0])
+            def classify(s_, kind=kind, ga=ga, ref=qc[i]):
+                qm, okm, _, _ = branch_ik(design, poly.at(s_), slot, asm_sign)
                 if kind == "kappa_max":
-                    detail = f"kappa_max: kappa(A) = {margins.kappa_max:g}"
+                    gm = _kappa_band(design, margins, qm, okm)[1]
                 else:
-                    detail = "joint_limits: a joint reaches its literal limit"
-                add(kind, 0.5 * (a + b), bool(ga), detail, seg)
-        # parallel singularities: |CD| / (2 L2) reaching 0 or 1 between probes is inside the
-        # kappa band's complement; report where kappa(A) is largest there
-        bad = run & ~kappa_ok
-        if np.any(bad):
-            dist = np.minimum(cd, 1.0 - cd)
-            for i in np.flatnonzero(bad):
-                if 0 < i < n - 1 and dist[i] <= dist[i - 1] and dist[i] <= dist[i + 1]:
-                    if dist[i] < 1e-3:
-                        kind_p = "C=D" if cd[i] < 0.5 else "CD_stretched"
-                        seg = int(poly.segment_of(np.array([s[i]]))[0])
-                        add(
-                            "parallel",
-                            float(s[i]),
-                            True,
-                            f"parallel: C, D and P nearly aligned ({kind_p}), kappa(A) very large",
-                            seg,
-                        )
-    events.sort(key=lambda e: e.fraction)
-    return tuple(events)
+                    qm = unwrap_to(qm, ref)
+                    gm = np.all((qm >= design.joint_min) & (qm <= design.joint_max), axis=1)
+                return gm == ga, qm, np.full(len(s_), "")
+
+            a, b, _, _ = narrow_bracket(float(s[i]), float(s[i + 1]), classify, BISECT_TOL)
+            seg = int(poly.segment_of(np.array([a]))[0])
+            if kind == "kappa_max":
+                detail = f"kappa_max: kappa(A) = {margins.kappa_max:g}"
+            else:
+                detail = "joint_limits: a joint reaches its literal limit"
+            events.append(_event(poly, kind, 0.5 * (a + b), bool(ga), detail, seg))
+    return events + _parallel_events(poly, s, cd, run & ~kappa_ok)
+
+
+def _parallel_events(
+    poly: Polyline, s: np.ndarray, cd: np.ndarray, bad: np.ndarray
+) -> list[PathEvent]:
+    """Parallel singularities among the probes at arc lengths ``s`` (m): |CD| / (2 L2)
+    (``cd``) reaching 0 or 1 between probes is inside the kappa band's complement (``bad``,
+    on the branch); reported where kappa(A) is largest there."""
+    events: list[PathEvent] = []
+    if not np.any(bad):
+        return events
+    n = len(s)
+    dist = np.minimum(cd, 1.0 - cd)
+    for i in np.flatnonzero(bad):
+        if 0 < i < n - 1 and dist[i] <= dist[i - 1] and dist[i] <= dist[i + 1]:
+            if dist[i] < 1e-3:
+                kind_p = "C=D" if cd[i] < 0.5 else "CD_stretched"
+                seg = int(poly.segment_of(np.array([s[i]]))[0])
+                detail = f"parallel: C, D and P nearly aligned ({kind_p}), kappa(A) very large"
+                events.append(_event(poly, "parallel", float(s[i]), True, detail, seg))
+    return events

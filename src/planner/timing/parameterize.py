@@ -27,8 +27,8 @@ Steps, each a function that :func:`time_path` calls in turn:
    last repair. A trajectory is never returned without passing the check;
 6. sample the checked curve, ends exact: :func:`_result`;
 7. with torque limits, also the velocity-only timing slowed down uniformly until the torques
-   hold (:func:`_slowed_velocity_only`), and the quicker of the two is the answer: a
-   torque-limited timing is never slower than that floor.
+   hold (:func:`_slowed_velocity_only`), and the quicker of the two is the answer
+   (:func:`_quicker_under_torques`): a torque-limited timing is never slower than that floor.
 """
 
 from __future__ import annotations
@@ -361,8 +361,13 @@ def time_path(
     )
     if job.limits.torque is None:
         return _timed(job, t_start)[0]
-    # with torque limits: the torque-limited timing, or the velocity-only one slowed down
-    # uniformly until the torques hold, whichever is quicker (step 7)
+    return _quicker_under_torques(job, t_start)
+
+
+def _quicker_under_torques(job: TimingJob, t_start: float) -> Trajectory:
+    """Step 7, with torque limits: the torque-limited timing, or the velocity-only one
+    slowed down uniformly until the torques hold, whichever is quicker; the torque-limited
+    timing's error when neither exists."""
     limited: Trajectory | None = None
     error: TimingError | None = None
     try:

@@ -123,29 +123,8 @@ class BlendedPath:
         blends never overlap, and a short segment between a stop and a corner (the lift of a
         pick-and-place cycle) can be rounded over its whole length.
         """
-        w_in = np.asarray(waypoints, dtype=float)
-        n_in = w_in.shape[0]
-        dev_in = np.broadcast_to(np.asarray(max_deviation, dtype=float), (n_in,))
-        stop_in = np.zeros(n_in, bool) if stop_at is None else np.asarray(stop_at, bool)
-
-        # Merge consecutive duplicates; a stop on either copy is kept.
-        keep = np.ones(n_in, bool)
-        keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
-        if n_in > 1 and not keep[1:].any() and np.linalg.norm(w_in[-1] - w_in[0]) > 0.0:
-            # start and end differ (a little): keep both ends exact; not when the difference
-            # is so small (below ~1e-154 rad) that its length underflows to 0: that path is
-            # one point, at its end
-            keep[-1] = True
-        index_map = np.cumsum(keep) - 1
-        w = w_in[keep]
-        w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
-        n = w.shape[0]
-        stop = np.zeros(n, bool)
-        np.logical_or.at(stop, index_map, stop_in)
-        dev = np.full(n, np.inf)
-        np.minimum.at(dev, index_map, dev_in)
-
-        if n == 1:
+        w, index_map, stop, dev = _merge_duplicates(waypoints, max_deviation, stop_at)
+        if w.shape[0] == 1:
             empty3 = np.zeros((0, 3))
             return cls(
                 w,
@@ -161,95 +140,16 @@ class BlendedPath:
                 np.zeros(1),
                 np.zeros(1),
             )
-
         seg = np.diff(w, axis=0)
         seg_len = np.linalg.norm(seg, axis=1)
         seg_dir = seg / seg_len[:, None]
-
-        tangent = np.zeros(n)  # l at each vertex (0: not blended)
-        alpha = np.zeros(n)
-        alpha[1:-1] = np.arccos(np.clip(np.sum(seg_dir[:-1] * seg_dir[1:], axis=1), -1.0, 1.0))
-        # vertices that take no blend whatever the lengths: the ends, stops, straight corners
-        # and reversals; a blend next to one may take the whole segment, else half of it
-        unblended = np.ones(n, bool)
-        unblended[1:-1] = (
-            stop[1:-1]
-            | (dev[1:-1] <= 0.0)
-            | (alpha[1:-1] > np.pi - REVERSAL_ANGLE)
-            | (alpha[1:-1] < STRAIGHT_ANGLE)
-        )
-        share = np.where(unblended, 1.0, 0.5)
-        is_stop = np.zeros(n, bool)
-        is_stop[0] = is_stop[-1] = True
-        for k in range(1, n - 1):
-            a = float(alpha[k])
-            if a < STRAIGHT_ANGLE and not stop[k]:
-                continue
-            if stop[k] or dev[k] <= 0.0 or a > np.pi - REVERSAL_ANGLE or a < STRAIGHT_ANGLE:
-                is_stop[k] = True
-                continue
-            half = a / 2
-            tangent[k] = min(
-                seg_len[k - 1] * share[k - 1],
-                seg_len[k] * share[k + 1],
-                dev[k] / np.tan(half / 2),  # = delta sin(a/2) / (1 - cos(a/2))
-            )
-            if tangent[k] / np.tan(half) < min_radius:
-                tangent[k] = 0.0
-                is_stop[k] = True
-
-        kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
-        vertex_s = np.zeros(n)
-        blend_dev = np.zeros(n)
-        s = 0.0
-        for i in range(n - 1):
-            start = w[i] + tangent[i] * seg_dir[i]
-            length = seg_len[i] - tangent[i] - tangent[i + 1]
-            if i == 0 or tangent[i] == 0.0:
-                vertex_s[i] = s
-            if length > _PIECE_TOL:  # not the rounding left between two blends
-                kinds.append(LINE)
-                s_len.append(length)
-                origins.append(start)
-                dirs.append(seg_dir[i])
-                normals.append(np.zeros(3))
-                radii.append(np.inf)
-                corners.append(-1)
-                s += length
-            k = i + 1
-            if tangent[k] > 0.0:
-                half = alpha[k] / 2
-                r = tangent[k] / np.tan(half)
-                bis = seg_dir[k] - seg_dir[k - 1]
-                bis /= np.linalg.norm(bis)
-                centre = w[k] + bis * (r / np.cos(half))
-                x = (w[k] - tangent[k] * seg_dir[k - 1] - centre) / r
-                kinds.append(ARC)
-                s_len.append(r * alpha[k])
-                origins.append(centre)
-                dirs.append(x / np.linalg.norm(x))
-                normals.append(seg_dir[k - 1])
-                radii.append(r)
-                corners.append(k)
-                blend_dev[k] = r * (1.0 / np.cos(half) - 1.0)
-                vertex_s[k] = s + r * alpha[k] / 2
-                s += r * alpha[k]
-        vertex_s[n - 1] = s
-        s0 = np.concatenate([[0.0], np.cumsum(s_len)])
-        stops = np.unique(vertex_s[is_stop])
+        alpha, tangent, is_stop = _blend_tangents(seg_len, seg_dir, stop, dev, min_radius)
+        pieces = _pieces(w, seg_len, seg_dir, alpha, tangent)
         return cls(
             waypoints=w,
             index_map=index_map,
-            kind=np.asarray(kinds, np.int8),
-            s0=s0,
-            origin=np.asarray(origins),
-            direction=np.asarray(dirs),
-            normal=np.asarray(normals),
-            radius=np.asarray(radii),
-            corner=np.asarray(corners, int),
-            blend_deviation=blend_dev,
-            stops=stops,
-            vertex_s=vertex_s,
+            stops=np.unique(pieces["vertex_s"][is_stop]),
+            **pieces,
         )
 
     # ------------------------------------------------------------------ queries
@@ -334,6 +234,146 @@ class BlendedPath:
         if self.n_pieces == 0:
             return np.full(np.shape(s), -1)
         return self.corner[self.piece_index(np.asarray(s, dtype=float))]
+
+
+def _merge_duplicates(
+    waypoints: np.ndarray,
+    max_deviation: float | np.ndarray,
+    stop_at: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first step of :meth:`BlendedPath.from_waypoints`: consecutive duplicates merged.
+    Returns the waypoints (N, 3), rad, the index of each input waypoint among them, and
+    per waypoint whether it is a stop (a stop on either copy is kept) and its deviation
+    (the least of its copies'), rad."""
+    w_in = np.asarray(waypoints, dtype=float)
+    n_in = w_in.shape[0]
+    dev_in = np.broadcast_to(np.asarray(max_deviation, dtype=float), (n_in,))
+    stop_in = np.zeros(n_in, bool) if stop_at is None else np.asarray(stop_at, bool)
+
+    # Merge consecutive duplicates; a stop on either copy is kept.
+    keep = np.ones(n_in, bool)
+    keep[1:] = np.linalg.norm(np.diff(w_in, axis=0), axis=1) > DUPLICATE_TOL
+    if n_in > 1 and not keep[1:].any() and np.linalg.norm(w_in[-1] - w_in[0]) > 0.0:
+        # start and end differ (a little): keep both ends exact; not when the difference
+        # is so small (below ~1e-154 rad) that its length underflows to 0: that path is
+        # one point, at its end
+        keep[-1] = True
+    index_map = np.cumsum(keep) - 1
+    w = w_in[keep]
+    w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
+    n = w.shape[0]
+    stop = np.zeros(n, bool)
+    np.logical_or.at(stop, index_map, stop_in)
+    dev = np.full(n, np.inf)
+    np.minimum.at(dev, index_map, dev_in)
+    return w, index_map, stop, dev
+
+
+def _blend_tangents(
+    seg_len: np.ndarray,
+    seg_dir: np.ndarray,
+    stop: np.ndarray,
+    dev: np.ndarray,
+    min_radius: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The second step of :meth:`BlendedPath.from_waypoints`: per vertex (N,), the turning
+    angle (rad), the blend's tangent length ``l`` (rad, 0: not blended) of the method's
+    docstring, and whether the path comes to rest there (the ends, stops, reversals and
+    corners too tight for ``min_radius``), from the segments' lengths and unit directions."""
+    n = seg_len.shape[0] + 1
+    tangent = np.zeros(n)  # l at each vertex (0: not blended)
+    alpha = np.zeros(n)
+    alpha[1:-1] = np.arccos(np.clip(np.sum(seg_dir[:-1] * seg_dir[1:], axis=1), -1.0, 1.0))
+    # vertices that take no blend whatever the lengths: the ends, stops, straight corners
+    # and reversals; a blend next to one may take the whole segment, else half of it
+    unblended = np.ones(n, bool)
+    unblended[1:-1] = (
+        stop[1:-1]
+        | (dev[1:-1] <= 0.0)
+        | (alpha[1:-1] > np.pi - REVERSAL_ANGLE)
+        | (alpha[1:-1] < STRAIGHT_ANGLE)
+    )
+    share = np.where(unblended, 1.0, 0.5)
+    is_stop = np.zeros(n, bool)
+    is_stop[0] = is_stop[-1] = True
+    for k in range(1, n - 1):
+        a = float(alpha[k])
+        if a < STRAIGHT_ANGLE and not stop[k]:
+            continue
+        if stop[k] or dev[k] <= 0.0 or a > np.pi - REVERSAL_ANGLE or a < STRAIGHT_ANGLE:
+            is_stop[k] = True
+            continue
+        half = a / 2
+        tangent[k] = min(
+            seg_len[k - 1] * share[k - 1],
+            seg_len[k] * share[k + 1],
+            dev[k] / np.tan(half / 2),  # = delta sin(a/2) / (1 - cos(a/2))
+        )
+        if tangent[k] / np.tan(half) < min_radius:
+            tangent[k] = 0.0
+            is_stop[k] = True
+    return alpha, tangent, is_stop
+
+
+def _pieces(
+    w: np.ndarray,
+    seg_len: np.ndarray,
+    seg_dir: np.ndarray,
+    alpha: np.ndarray,
+    tangent: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """The last step of :meth:`BlendedPath.from_waypoints`: the lines and arcs of the path
+    along ``s``, as the fields of :class:`BlendedPath` (``kind``, ``s0``, ``origin``,
+    ``direction``, ``normal``, ``radius``, ``corner``, ``blend_deviation``, ``vertex_s``)."""
+    n = w.shape[0]
+    kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
+    vertex_s = np.zeros(n)
+    blend_dev = np.zeros(n)
+    s = 0.0
+    for i in range(n - 1):
+        start = w[i] + tangent[i] * seg_dir[i]
+        length = seg_len[i] - tangent[i] - tangent[i + 1]
+        if i == 0 or tangent[i] == 0.0:
+            vertex_s[i] = s
+        if length > _PIECE_TOL:  # not the rounding left between two blends
+            kinds.append(LINE)
+            s_len.append(length)
+            origins.append(start)
+            dirs.append(seg_dir[i])
+            normals.append(np.zeros(3))
+            radii.append(np.inf)
+            corners.append(-1)
+            s += length
+        k = i + 1
+        if tangent[k] > 0.0:
+            half = alpha[k] / 2
+            r = tangent[k] / np.tan(half)
+            bis = seg_dir[k] - seg_dir[k - 1]
+            bis /= np.linalg.norm(bis)
+            centre = w[k] + bis * (r / np.cos(half))
+            x = (w[k] - tangent[k] * seg_dir[k - 1] - centre) / r
+            kinds.append(ARC)
+            s_len.append(r * alpha[k])
+            origins.append(centre)
+            dirs.append(x / np.linalg.norm(x))
+            normals.append(seg_dir[k - 1])
+            radii.append(r)
+            corners.append(k)
+            blend_dev[k] = r * (1.0 / np.cos(half) - 1.0)
+            vertex_s[k] = s + r * alpha[k] / 2
+            s += r * alpha[k]
+    vertex_s[n - 1] = s
+    return {
+        "kind": np.asarray(kinds, np.int8),
+        "s0": np.concatenate([[0.0], np.cumsum(s_len)]),
+        "origin": np.asarray(origins),
+        "direction": np.asarray(dirs),
+        "normal": np.asarray(normals),
+        "radius": np.asarray(radii),
+        "corner": np.asarray(corners, int),
+        "blend_deviation": blend_dev,
+        "vertex_s": vertex_s,
+    }
 
 
 def distance_to_polyline(

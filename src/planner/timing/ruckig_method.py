@@ -481,23 +481,81 @@ def build_ruckig_curve(
         Ruckig rejects a move (``RuckigError``) or returns an error code.
     """
     v_max = limits.velocity_array
-    a_max = limits.acceleration_array
-    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
-    otg = Ruckig(3)
-    inp = InputParameter(3)
-    inp.max_velocity = v_max.tolist()
-    inp.max_acceleration = a_max.tolist()
-    inp.max_jerk = j_max.tolist()
-    inp.synchronization = Synchronization.Phase
+    otg, inp = Ruckig(3), _ruckig_input(limits)
     cache = cache if cache is not None else MoveCache()
     settings = (
         *v_max.tolist(),
-        *a_max.tolist(),
-        *j_max.tolist(),
+        *limits.acceleration_array.tolist(),
+        *limits.jerk_array.tolist(),  # type: ignore[union-attr]
         through_acceleration,
         *speed_factors,
     )
+    states = _through_states(path, profile, limits, through_acceleration, speed_factors)
+    # Section by section (rest to rest): a section chained in an earlier round of the same
+    # timing, with the same profile on it, is taken from the cache (:class:`MoveCache`).
+    trajs: list[RuckigTrajectory] = []
+    corners: list[tuple[int, ...]] = []
+    rests = np.flatnonzero(states.tags == _REST)
+    for r0, r1 in itertools.pairwise(rests):
+        lo, hi = states.s[r0], states.s[r1]
+        inside = (profile.s >= lo) & (profile.s <= hi)
+        key = (section_key(path, lo, hi), profile.sd[inside].tobytes(), settings)
+        got = cache.chain(key)
+        if got is None:
+            got = _chain_section(otg, inp, states, int(r0), int(r1), deadline)
+            cache.keep(key, *got)
+        trajs += got[0]
+        corners += got[1]
+    moves = _moves_from(trajs, corners, cache)
+    start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
+    return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))
 
+
+def _ruckig_input(limits: JointLimits) -> InputParameter:
+    """Ruckig's input of three joints under ``limits`` (velocity, acceleration, jerk), with
+    phase synchronisation (a move between states parallel to a segment stays on it)."""
+    inp = InputParameter(3)
+    inp.max_velocity = limits.velocity_array.tolist()
+    inp.max_acceleration = limits.acceleration_array.tolist()
+    inp.max_jerk = limits.jerk_array.tolist()  # type: ignore[union-attr]
+    inp.synchronization = Synchronization.Phase
+    return inp
+
+
+@dataclass(frozen=True, eq=False)
+class _ThroughStates:
+    """The through-states of a chain (:func:`_through_states`): per mark (in path order),
+    its (s, tag, blends) of :func:`_through_marks`, its s (rad) and tag as arrays, and its
+    posture, velocities and accelerations at every speed factor (nested lists, as Ruckig
+    takes them: ``vel[i][k]`` of mark i at factor index k)."""
+
+    marks: list[tuple[float, int, tuple[int, ...]]]
+    s: np.ndarray
+    tags: np.ndarray
+    q: list
+    vel: list
+    acc: list
+    n_factors: int
+
+    def state(self, i: int, k: int) -> tuple[list, list, list]:
+        """Through-state i at speed factor index k, as lists for Ruckig."""
+        if self.tags[i] == _REST:
+            return self.q[i], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        return self.q[i], self.vel[i][k], self.acc[i][k]
+
+
+def _through_states(
+    path: BlendedPath,
+    profile: PathProfile,
+    limits: JointLimits,
+    through_acceleration: bool,
+    speed_factors: tuple[float, ...],
+) -> _ThroughStates:
+    """The first step of :func:`build_ruckig_curve`: the marks of :func:`_through_marks`
+    and their states from the toppra ``profile`` at every speed factor."""
+    v_max = limits.velocity_array
+    a_max = limits.acceleration_array
+    j_max: np.ndarray = limits.jerk_array  # type: ignore[assignment]
     # the time a joint needs to bring its largest acceleration to zero under its jerk limit
     marks = _through_marks(path, profile, t_merge=float(np.max(a_max / j_max)))
     s_marks = np.array([m[0] for m in marks])
@@ -520,17 +578,21 @@ def build_ruckig_curve(
     if not through_acceleration:
         acc = np.zeros_like(acc)
     acc = _reachable_acceleration(vel, acc, v_max, a_max, j_max)
-    q_l, vel_l, acc_l = q.tolist(), vel.tolist(), acc.tolist()
-    zero = [0.0, 0.0, 0.0]
-    n_f = len(speed_factors)
-    ahead_k = max(n_f - 2, 0)  # the look-ahead's factor (the second slowest)
+    return _ThroughStates(
+        marks, s_marks, tags, q.tolist(), vel.tolist(), acc.tolist(), len(speed_factors)
+    )
 
-    def state(i: int, k: int) -> tuple[list, list, list]:
-        """Through-state i at speed factor index k, as lists for Ruckig."""
-        if tags[i] == _REST:
-            return q_l[i], zero, zero
-        return q_l[i], vel_l[i][k], acc_l[i][k]
 
+def _chain_section(
+    otg: Ruckig,
+    inp: InputParameter,
+    states: _ThroughStates,
+    r0: int,
+    r1: int,
+    deadline: float | None,
+) -> tuple[list[RuckigTrajectory], list[tuple[int, ...]]]:
+    """The greedy chain from the rest state r0 to the rest state r1: its moves, and the
+    blends each stands for."""
     # Greedy speed choice per through-state. A joint at its velocity limit cannot stretch
     # its move to a longer common duration (Ruckig's blocked intervals), which can make a
     # synchronised move several times longer than each joint's own minimum; a slightly
@@ -539,62 +601,43 @@ def build_ruckig_curve(
     # slower factors stop being tried after PATIENCE worse ones. Candidate moves are solved
     # for their durations only (:func:`_calculate`); the phase tables are read from the
     # chosen ones.
-    def chain_section(r0: int, r1: int) -> tuple[list, list]:
-        """The greedy chain from the rest state r0 to the rest state r1."""
-        chosen = state(r0, 0)
-        trajs: list[RuckigTrajectory] = []
-        corners: list[tuple[int, ...]] = []
-        known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
-        for i in range(r0 + 1, r1 + 1):
-            if i % 16 == 0:
-                check_deadline(deadline, "while timing the path with ruckig")
-            moving = tags[i] != _REST
-            look_ahead = moving and n_f > 1 and i + 1 < len(marks)
-            best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
-            worse = 0
-            for k in range(n_f if moving else 1):
-                target = state(i, k)
-                if known is not None and k == ahead_k:
-                    traj, known = known, None  # solved as the previous state's look-ahead
-                else:
-                    traj = _solve_duration(otg, inp, chosen, target)
-                    if traj is None:
-                        continue
-                cost = traj.duration
-                ahead: RuckigTrajectory | None = None
-                if look_ahead:
-                    ahead = _solve_duration(otg, inp, target, state(i + 1, ahead_k))
-                    cost = np.inf if ahead is None else cost + ahead.duration
-                if best is None or cost < best[0]:
-                    best, worse = (cost, traj, target, ahead), 0
-                elif best[0] < cost < np.inf:
-                    worse += 1
-                    if worse >= PATIENCE:
-                        break
-            if best is None:
-                raise TimingInfeasibleError(
-                    f"ruckig found no move into the through-state at s = {s_marks[i]:.4g} rad"
-                )
-            corners.append(tuple(sorted(set(marks[i - 1][2]) | set(marks[i][2]))))
-            trajs.append(best[1])
-            chosen, known = best[2], best[3]
-        return trajs, corners
-
-    # Section by section (rest to rest): a section chained in an earlier round of the same
-    # timing, with the same profile on it, is taken from the cache (:class:`MoveCache`).
+    n_f, marks, state = states.n_factors, states.marks, states.state
+    ahead_k = max(n_f - 2, 0)  # the look-ahead's factor (the second slowest)
+    chosen = state(r0, 0)
     trajs: list[RuckigTrajectory] = []
     corners: list[tuple[int, ...]] = []
-    rests = np.flatnonzero(tags == _REST)
-    for r0, r1 in itertools.pairwise(rests):
-        lo, hi = s_marks[r0], s_marks[r1]
-        inside = (profile.s >= lo) & (profile.s <= hi)
-        key = (section_key(path, lo, hi), profile.sd[inside].tobytes(), settings)
-        got = cache.chain(key)
-        if got is None:
-            got = chain_section(int(r0), int(r1))
-            cache.keep(key, *got)
-        trajs += got[0]
-        corners += got[1]
-    moves = _moves_from(trajs, corners, cache)
-    start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
-    return RuckigCurve(moves, start, float(np.linalg.norm(v_max)))
+    known: RuckigTrajectory | None = None  # the chosen state's look-ahead move, reused
+    for i in range(r0 + 1, r1 + 1):
+        if i % 16 == 0:
+            check_deadline(deadline, "while timing the path with ruckig")
+        moving = states.tags[i] != _REST
+        look_ahead = moving and n_f > 1 and i + 1 < len(marks)
+        best: tuple[float, RuckigTrajectory, tuple, RuckigTrajectory | None] | None = None
+        worse = 0
+        for k in range(n_f if moving else 1):
+            target = state(i, k)
+            if known is not None and k == ahead_k:
+                traj, known = known, None  # solved as the previous state's look-ahead
+            else:
+                traj = _solve_duration(otg, inp, chosen, target)
+                if traj is None:
+                    continue
+            cost = traj.duration
+            ahead: RuckigTrajectory | None = None
+            if look_ahead:
+                ahead = _solve_duration(otg, inp, target, state(i + 1, ahead_k))
+                cost = np.inf if ahead is None else cost + ahead.duration
+            if best is None or cost < best[0]:
+                best, worse = (cost, traj, target, ahead), 0
+            elif best[0] < cost < np.inf:
+                worse += 1
+                if worse >= PATIENCE:
+                    break
+        if best is None:
+            raise TimingInfeasibleError(
+                f"ruckig found no move into the through-state at s = {states.s[i]:.4g} rad"
+            )
+        corners.append(tuple(sorted(set(marks[i - 1][2]) | set(marks[i][2]))))
+        trajs.append(best[1])
+        chosen, known = best[2], best[3]
+    return trajs, corners

@@ -184,34 +184,59 @@ def build_via_chain(
         Ruckig has no move between two chosen states (cannot happen from the starting ones,
         which are toppra's, pulled inside the limits).
     """
-    from planner.exceptions import TimingInfeasibleError
-
     mover = _Mover(limits, jerk)
-    w = path.waypoints
-    ks = section.vertices
-    v_max = limits.velocity_array * _INSIDE
-    vertex = [w[k] for k in ks]
-    offset = [np.zeros(3) for _ in ks]
-    vel = [np.zeros(3) for _ in ks]
-    s_mid = np.array([path.vertex_s[k] for k in ks[1:-1]])
-    q_mid = path.evaluate(s_mid, 0)
-    tangent = path.evaluate(s_mid, 1)
-    _, sd, _ = profile.at_path(s_mid)
-    for i in range(1, len(ks) - 1):
-        offset[i] = _in_ball(q_mid[i - 1] - vertex[i], float(radius[ks[i]]))
-        vel[i] = np.clip(tangent[i - 1] * sd[i - 1], -v_max, v_max)
+    chain = _ViaChain(path, profile, section, radius, limits, mover)
+    for i in [*range(1, len(section.vertices) - 1)] * SWEEPS:
+        check_deadline(deadline, "while choosing via states")
+        chain.choose(i, iterations)
+    return chain.curve(limits), mover.calls
 
-    def state(i: int, o: np.ndarray, v: np.ndarray) -> tuple[list, list]:
-        return (vertex[i] + _in_ball(o, float(radius[ks[i]]))).tolist(), v.tolist()
 
-    def near_plan(i: int, z: np.ndarray) -> bool:
+class _ViaChain:
+    """The via states of one section while :func:`build_via_chain` chooses them: per vertex
+    of the section (the resting ends included), its offset in its ball (rad) and its
+    velocity (rad/s), first those of toppra's profile at each via's arc middle; then one via
+    at a time (:meth:`choose`), and the chain of moves through them (:meth:`curve`)."""
+
+    def __init__(
+        self,
+        path: BlendedPath,
+        profile: PathProfile,
+        section: ViaSection,
+        radius: np.ndarray,
+        limits: JointLimits,
+        mover: _Mover,
+    ) -> None:
+        self.mover = mover
+        self.w = path.waypoints
+        self.ks = ks = section.vertices
+        self.radius = radius
+        self.v_max = v_max = limits.velocity_array * _INSIDE
+        self.vertex = [self.w[k] for k in ks]
+        self.offset = [np.zeros(3) for _ in ks]
+        self.vel = [np.zeros(3) for _ in ks]
+        s_mid = np.array([path.vertex_s[k] for k in ks[1:-1]])
+        q_mid = path.evaluate(s_mid, 0)
+        tangent = path.evaluate(s_mid, 1)
+        _, sd, _ = profile.at_path(s_mid)
+        for i in range(1, len(ks) - 1):
+            self.offset[i] = _in_ball(q_mid[i - 1] - self.vertex[i], float(radius[ks[i]]))
+            self.vel[i] = np.clip(tangent[i - 1] * sd[i - 1], -v_max, v_max)
+
+    def state(self, i: int, o: np.ndarray, v: np.ndarray) -> tuple[list, list]:
+        """Vertex i's posture at offset ``o`` (projected into its ball) and velocity ``v``,
+        as lists for Ruckig."""
+        return (self.vertex[i] + _in_ball(o, float(self.radius[self.ks[i]]))).tolist(), v.tolist()
+
+    def near_plan(self, i: int, z: np.ndarray) -> bool:
         """The moves into and out of via i at ``z`` stay within the smaller allowance of
         their vias from the segments they stand for (at :data:`_DEVIATION_SAMPLES` points)."""
-        here = state(i, z[:3], np.clip(z[3:], -v_max, v_max))
-        ends = ((state(i - 1, offset[i - 1], vel[i - 1]), here, i - 1, i),
-                (here, state(i + 1, offset[i + 1], vel[i + 1]), i, i + 1))  # fmt: skip
+        ks, radius, offset, vel = self.ks, self.radius, self.offset, self.vel
+        here = self.state(i, z[:3], np.clip(z[3:], -self.v_max, self.v_max))
+        ends = ((self.state(i - 1, offset[i - 1], vel[i - 1]), here, i - 1, i),
+                (here, self.state(i + 1, offset[i + 1], vel[i + 1]), i, i + 1))  # fmt: skip
         for a, b, j0, j1 in ends:
-            traj = mover.move(*a, *b)
+            traj = self.mover.move(*a, *b)
             if traj is None:
                 return False
             tau = np.linspace(0.0, traj.duration, _DEVIATION_SAMPLES)
@@ -219,27 +244,20 @@ def build_via_chain(
             inner = [j for j in (j0, j1) if 0 < j < len(ks) - 1]
             allowed = min(float(radius[ks[j]]) for j in inner)
             seg = np.tile([ks[min(inner)] - 1, ks[max(inner)]], (q.shape[0], 1))
-            if np.max(distance_to_polyline(w, q, seg)[0]) > allowed * _INSIDE:
+            if np.max(distance_to_polyline(self.w, q, seg)[0]) > allowed * _INSIDE:
                 return False
         return True
 
-    for i in [*range(1, len(ks) - 1)] * SWEEPS:
-        check_deadline(deadline, "while choosing via states")
-        before = state(i - 1, offset[i - 1], vel[i - 1])
-        after = state(i + 1, offset[i + 1], vel[i + 1])
-        r_i = float(radius[ks[i]])
+    def cost_of(self, i: int) -> Callable[[np.ndarray], float]:
+        """The duration of the two moves next to via i as a function of its state z (6,):
+        offset and velocity, the neighbours' states as they are now."""
+        before = self.state(i - 1, self.offset[i - 1], self.vel[i - 1])
+        after = self.state(i + 1, self.offset[i + 1], self.vel[i + 1])
+        r_i = float(self.radius[self.ks[i]])
+        corner, r_in, v_lim = self.vertex[i].tolist(), r_i * _INSIDE, self.v_max.tolist()
+        duration = self.mover.duration
 
-        corner, r_in, v_lim = vertex[i].tolist(), r_i * _INSIDE, v_max.tolist()
-
-        def cost(
-            z: np.ndarray,
-            before: tuple[list, list] = before,
-            after: tuple[list, list] = after,
-            corner=corner,
-            r_i=r_i,
-            r_in=r_in,
-            v_lim=v_lim,
-        ) -> float:
+        def cost(z: np.ndarray) -> float:
             # plain floats: this runs some 500 times per via. Outside the ball or the
             # velocity limits: projected, with a penalty that points back inside (so the
             # simplex does not wander off)
@@ -252,23 +270,31 @@ def build_via_chain(
                 if abs(v[j]) > v_lim[j]:
                     penalty += abs(v[j]) - v_lim[j]
                     v[j] = math.copysign(v_lim[j], v[j])
-            return (
-                mover.duration(*before, here, v)
-                + mover.duration(here, v, *after)
-                + (10.0 * penalty)
-            )
+            return duration(*before, here, v) + duration(here, v, *after) + (10.0 * penalty)
 
-        # two starts, each searched, the better end kept: the arc's own state, and a state
-        # half-way into the ball along the corner's bisector, moving along the corner at
-        # half the speed limit (the cost has local minima: a jerk-limited chain from the
-        # arc's state alone stays 2 % slower on the benchmark cycle)
-        starts = [np.concatenate([offset[i], vel[i]])]
+        return cost
+
+    def starts(self, i: int) -> list[np.ndarray]:
+        """The searches' starts for via i: the arc's own state, and a state half-way into
+        the ball along the corner's bisector, moving along the corner at half the speed
+        limit (the cost has local minima: a jerk-limited chain from the arc's state alone
+        stays 2 % slower on the benchmark cycle)."""
+        vertex, r_i = self.vertex, float(self.radius[self.ks[i]])
+        starts = [np.concatenate([self.offset[i], self.vel[i]])]
         u_in, u_out = vertex[i] - vertex[i - 1], vertex[i + 1] - vertex[i]
         inward = u_out / np.linalg.norm(u_out) - u_in / np.linalg.norm(u_in)
         along = u_out / np.linalg.norm(u_out) + u_in / np.linalg.norm(u_in)
         if np.linalg.norm(inward) > 1e-9 and np.linalg.norm(along) > 1e-9:
             inward, along = inward / np.linalg.norm(inward), along / np.linalg.norm(along)
-            starts.append(np.concatenate([0.5 * r_i * inward, 0.5 * v_max * along]))
+            starts.append(np.concatenate([0.5 * r_i * inward, 0.5 * self.v_max * along]))
+        return starts
+
+    def choose(self, i: int, iterations: int) -> None:
+        """Via i's state: each start searched (Nelder-Mead, ``iterations``), the fastest of
+        the starts and the ends whose two moves stay within the allowance (sampled: the dense
+        re-check decides), else the arc's own state."""
+        cost = self.cost_of(i)
+        starts = self.starts(i)
         found = [starts[0], *starts[1:]]
         for z0 in starts:
             found.append(
@@ -279,26 +305,37 @@ def build_via_chain(
                     options={"maxiter": iterations, "xatol": 1e-7, "fatol": 1e-10},
                 ).x
             )
-        # the fastest whose two moves stay within the allowance (sampled: the dense
-        # re-check decides), else the arc's own state
         z = starts[0]
         for cand in sorted(found, key=cost):
-            if near_plan(i, cand):
+            if self.near_plan(i, cand):
                 z = cand
                 break
-        offset[i] = _in_ball(z[:3], r_i)
-        vel[i] = np.clip(z[3:], -v_max, v_max)
+        self.offset[i] = _in_ball(z[:3], float(self.radius[self.ks[i]]))
+        self.vel[i] = np.clip(z[3:], -self.v_max, self.v_max)
 
-    trajs, corners = [], []
-    for i in range(len(ks) - 1):
-        traj = mover.move(*state(i, offset[i], vel[i]), *state(i + 1, offset[i + 1], vel[i + 1]))
-        if traj is None:
-            raise TimingInfeasibleError("ruckig found no move between two via states")
-        trajs.append(traj)
-        corners.append(tuple(k for k in (ks[i], ks[i + 1]) if k not in (ks[0], ks[-1])))
-    moves = _moves_from(trajs, corners)
-    start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
-    return RuckigCurve(moves, start, float(np.linalg.norm(limits.velocity_array))), mover.calls
+    def curve(self, limits: JointLimits) -> RuckigCurve:
+        """The chain of moves through the chosen states, from rest to rest.
+
+        Raises
+        ------
+        TimingInfeasibleError
+            Ruckig has no move between two chosen states.
+        """
+        from planner.exceptions import TimingInfeasibleError
+
+        ks, offset, vel = self.ks, self.offset, self.vel
+        trajs, corners = [], []
+        for i in range(len(ks) - 1):
+            traj = self.mover.move(
+                *self.state(i, offset[i], vel[i]), *self.state(i + 1, offset[i + 1], vel[i + 1])
+            )
+            if traj is None:
+                raise TimingInfeasibleError("ruckig found no move between two via states")
+            trajs.append(traj)
+            corners.append(tuple(k for k in (ks[i], ks[i + 1]) if k not in (ks[0], ks[-1])))
+        moves = _moves_from(trajs, corners)
+        start = np.concatenate([[0.0], np.cumsum([m.duration for m in moves])])
+        return RuckigCurve(moves, start, float(np.linalg.norm(limits.velocity_array)))
 
 
 @dataclass(frozen=True, eq=False)

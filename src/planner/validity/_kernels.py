@@ -201,6 +201,56 @@ def evaluate_bounded(
     if reason and not full:
         out[M_REASON] = reason
         return
+    clear = _link_clearance(
+        q0,
+        prm,
+        cu,
+        cw,
+        du,
+        dw,
+        pu,
+        pw,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        sphere_grid,
+        full,
+        clear_upper,
+    )
+    out[M_CLEAR_RAW] = clear
+    out[M_CLEAR] = clear - prm[P_CLEAR]
+    if reason == 0 and out[M_CLEAR] < 0.0:
+        reason = R_CLEAR
+    out[M_REASON] = reason
+
+
+@njit(cache=True, inline="always")  # into evaluate_bounded, as that is into its callers
+def _link_clearance(
+    q0,
+    prm,
+    cu,
+    cw,
+    du,
+    dw,
+    pu,
+    pw,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    full,
+    clear_upper,
+):  # pragma: no cover
+    """The clearance step of :func:`evaluate_bounded`: the least distance (m) of the four
+    links' surfaces to the obstacles, the links given by the closed loop's in-plane points
+    C (cu, cw), D (du, dw) and P (pu, pw) and turned by theta1 = ``q0``. Exact in ``full``
+    mode below ``clear_upper``; otherwise relaxed as :func:`evaluate` says."""
     # links in 3-D: rotate in-plane (u, w) about +y by theta1
     c1, s1 = math.cos(q0), math.sin(q0)
     rad = prm[P_RAD]
@@ -214,7 +264,7 @@ def evaluate_bounded(
     relax_from = prm[P_CLEAR] + rad
     relax = 0.0 if full else 0.5
     best = upper
-    half = 0.5 * L0
+    half = 0.5 * prm[P_L0]
     ends_u = (-half, half, cu, du)
     ends_w = (0.0, 0.0, cw, dw)
     # the distal links first: they reach farthest, so in clutter they are the likelier to
@@ -250,12 +300,7 @@ def evaluate_bounded(
             best = dist
             if relax > 0.0 and best < relax_from:
                 break  # the clearance rule is broken: decided (segment_min_distance)
-    clear = best - rad
-    out[M_CLEAR_RAW] = clear
-    out[M_CLEAR] = clear - prm[P_CLEAR]
-    if reason == 0 and out[M_CLEAR] < 0.0:
-        reason = R_CLEAR
-    out[M_REASON] = reason
+    return best - rad
 
 
 @njit(cache=True)
@@ -342,12 +387,65 @@ def certify_motion(
 ):  # pragma: no cover
     """Certify the straight motion qa -> qb. Returns (reason, t): reason 0 when every posture
     of the motion is valid, else the rule found broken (or not certifiable) near parameter t.
-    Algorithm and proof: :meth:`ValidityChecker.check_motion`."""
-    dq0, dq1, dq2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
-    length = max(abs(dq0), max(abs(dq1), abs(dq2)))
+    Algorithm and proof: :meth:`ValidityChecker.check_motion`. Two steps: the coarse samples
+    (:func:`_sample_coarse`), then the certification of the pieces between them
+    (:func:`_certify_pieces`)."""
+    length = max(abs(qb[0] - qa[0]), max(abs(qb[1] - qa[1]), abs(qb[2] - qa[2])))
     n = max(1, math.ceil(length / coarse_step))
-    ts = np.empty(n + 1)
     ms = np.empty((n + 1, N_MEASURES))
+    reason, t = _sample_coarse(
+        qa,
+        qb,
+        prm,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        sphere_grid,
+        skip_ends,
+        ms,
+    )
+    if reason != 0:
+        return reason, t
+    return _certify_pieces(
+        qa,
+        qb,
+        prm,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        sphere_grid,
+        min_step / max(length, 1e-300),
+        ms,
+    )
+
+
+@njit(cache=True)
+def _sample_coarse(
+    qa,
+    qb,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    skip_ends,
+    ms,
+):  # pragma: no cover
+    """The first step of :func:`certify_motion`: the measures of the n + 1 postures at
+    t = k / n into ``ms`` (n + 1, N_MEASURES), with n = ``ms.shape[0] - 1``. Returns
+    (reason, t) of the first broken sample, (0, 1.0) when none is. With ``skip_ends`` the
+    ends are measured in full and taken as valid (the caller has checked them)."""
+    n = ms.shape[0] - 1
+    dq0, dq1, dq2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
     done = np.zeros(n + 1, dtype=np.bool_)
     if skip_ends:
         evaluate(
@@ -394,7 +492,6 @@ def certify_motion(
                 continue
             done[k] = True
             t = k / n
-            ts[k] = t
             evaluate(
                 qa[0] + t * dq0,
                 qa[1] + t * dq1,
@@ -413,17 +510,38 @@ def certify_motion(
             if ms[k, M_REASON] != 0.0:
                 return int(ms[k, M_REASON]), t
         stride //= 2
-    for k in range(n + 1):
-        ts[k] = k / n
+    return 0, 1.0
+
+
+@njit(cache=True)
+def _certify_pieces(
+    qa,
+    qb,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    tiny,
+    ms,
+):  # pragma: no cover
+    """The second step of :func:`certify_motion`: each piece [k / n, (k + 1) / n] between
+    the valid coarse samples ``ms`` is certified by the margins' Lipschitz cones, and halved
+    (depth first, an explicit stack) where they do not cover it, down to pieces of width
+    ``tiny`` (in t). Returns (reason, t) as :func:`certify_motion` does."""
+    n = ms.shape[0] - 1
+    dq0, dq1, dq2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
     rate_cd = rates(dq0, dq1, dq2, prm)[0]
-    tiny = min_step / max(length, 1e-300)
     # depth-first certification with an explicit stack of intervals
     cap = n + 128
     st_t = np.empty((cap, 2))
     st_m = np.empty((cap, 2, 3))
     top = 0
     for k in range(n):
-        st_t[top, 0], st_t[top, 1] = ts[k], ts[k + 1]
+        st_t[top, 0], st_t[top, 1] = k / n, (k + 1) / n
         for j in range(3):
             st_m[top, 0, j] = ms[k, 1 + j]
             st_m[top, 1, j] = ms[k + 1, 1 + j]
