@@ -42,6 +42,7 @@ from planner.validity import Margins
 
 VELOCITY, ACCELERATION, TORQUE = (12.0,) * 3, (400.0,) * 3, (24.0, 12.0, 12.0)
 CORNERS = (0, 1, 3, 4)  # the top corners among the five targets
+DESIGNS = {"default": Design.default(), "paper-optimum": Design.paper_optimum()}
 
 
 def with_payload(design: Design, mass: float) -> Inertia:
@@ -115,6 +116,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--nodes", type=int, default=30, help="intervals per segment")
     parser.add_argument("--payloads", type=float, nargs="+", default=[0.1, 1.0, 2.0])
+    parser.add_argument(
+        "--designs", nargs="+", default=list(DESIGNS), choices=list(DESIGNS), help="which designs"
+    )
     args = parser.parse_args()
     limits = JointLimits(VELOCITY, ACCELERATION, torque=TORQUE)
     timing = TimingOptions(method="toppra", sample_rate_hz=200)
@@ -130,7 +134,8 @@ def main() -> None:
         f"{'optimum [s]':>11} {'ratio':>6} {'goal':>5} {'tau/limit':>9} {'ipopt [s]':>9}  status"
     )
     print(header)
-    for name, design in (("default", Design.default()), ("paper-optimum", Design.paper_optimum())):
+    for name in args.designs:
+        design = DESIGNS[name]
         for mass in args.payloads:
             inertia = with_payload(design, mass)
             placed, stops, passed, postures, blends, modes = product_cycles(
