@@ -21,6 +21,7 @@ from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
+from planner_api.pool import WorkerPool
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
@@ -32,7 +33,6 @@ from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
 from planner_api.store_access import StoreAccess
 from planner_api.warmup import start_worker, warm_up_inline
-from planner_api.workers import WorkerPool
 
 __all__ = ["create_app"]
 

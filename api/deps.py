@@ -16,9 +16,9 @@ from fastapi import Depends, Request
 
 from planner_api.exceptions import AuthenticationError, PoolNotRunningError
 from planner_api.middleware import API_KEY_REQUIRED
+from planner_api.pool import CLIENT_GONE, WorkerPool
 from planner_api.settings import Settings
 from planner_api.tenants import DEFAULT_TENANT, tenant_of
-from planner_api.workers import CLIENT_GONE, WorkerPool
 
 __all__ = [
     "ApiKey",
@@ -86,7 +86,7 @@ async def request_tenant(request: Request) -> str:
 
 async def watch_client(request: Request) -> AsyncIterator[None]:
     """While the route runs, watch its connection: when the client disconnects, the event in
-    :data:`planner_api.workers.CLIENT_GONE` is resolved, and the job the route awaits is cancelled
+    :data:`planner_api.pool.CLIENT_GONE` is resolved, and the job the route awaits is cancelled
     (its worker stopped and replaced) instead of computing an answer nobody reads.
 
     The body has been read when this runs (FastAPI reads it before the dependencies), so the

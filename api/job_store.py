@@ -79,9 +79,9 @@ from planner_api.exceptions import (
     StoreUnavailableError,
 )
 from planner_api.job_table import HEARTBEAT_S, JobRow, JobTable
+from planner_api.pool import CLIENT_GONE
 from planner_api.store_access import StoreAccess
 from planner_api.tenants import DEFAULT_TENANT
-from planner_api.workers import CLIENT_GONE
 
 __all__ = ["CANCEL_POLL_S", "LONG_JOBS", "JobStore", "LongJobKind"]
 

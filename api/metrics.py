@@ -1,7 +1,7 @@
 """Prometheus metrics of one service process, exposed at ``GET /metrics``.
 
 Multi-process safety: the CPU-bound work runs in the worker processes of
-:mod:`planner_api.workers`, which record nothing. Each job is wrapped by :func:`run_measured`, which
+:mod:`planner_api.pool.pool`, which record nothing. Each job is wrapped by :func:`run_measured`, which
 returns, next to the job's JSON, a small :class:`JobSample` (the job's name, its time in the
 worker, and for a plan its status and its planning and timing durations); the parent process
 records the sample (:func:`record_job`). So every metric lives in the one process that serves
@@ -279,7 +279,7 @@ class Metrics:
     Parameters
     ----------
     get_pool : callable
-        Returns the application's :class:`planner_api.workers.WorkerPool` (or None before start-up);
+        Returns the application's :class:`planner_api.pool.WorkerPool` (or None before start-up);
         read at every scrape.
     version : str
         The service version, for ``planner_build_info``.

@@ -13,7 +13,7 @@ On SIGTERM or SIGINT:
    drain at once;
 2. **stop**: uvicorn stops accepting connections and waits up to ``shutdown_timeout_s`` for the
    requests in flight; this module's server first tells the worker pool to drain
-   (:meth:`planner_api.workers.WorkerPool.drain`): new jobs are refused with a 503, and jobs
+   (:meth:`planner_api.pool.WorkerPool.drain`): new jobs are refused with a 503, and jobs
    still running shortly before the grace ends are cancelled with a clean 503
    ``shutting_down`` (``Retry-After``; a retry lands on another replica), so every request in
    flight gets an answer. The lifespan's end then stops the worker processes, terminating any

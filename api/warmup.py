@@ -1,5 +1,5 @@
 """The warm-up of a service worker: everything a worker's first job would otherwise pay is
-paid before the worker takes jobs (:class:`planner_api.workers.WorkerPool` announces a worker warm,
+paid before the worker takes jobs (:class:`planner_api.pool.WorkerPool` announces a worker warm,
 and ``/v1/ready`` counts it, only after this returns).
 
 Measured on a 2-core machine: after the library's kernels alone were warm, the first plan

@@ -1,5 +1,5 @@
 """Worker pool benchmark: the round trip of a job that does nothing, through
-:class:`planner_api.workers.WorkerPool` alone (no HTTP), on asyncio's loop and on uvloop's
+:class:`planner_api.pool.WorkerPool` alone (no HTTP), on asyncio's loop and on uvloop's
 (what ``planner serve`` runs on).
 
 What one crossing to a worker costs: pickling both ways, the job pipe, the worker's wake-up,
@@ -20,7 +20,7 @@ import time
 import uvloop
 from _machine import print_machine
 
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
 
 
 def _nothing(x: bytes) -> bytes:

@@ -24,7 +24,7 @@ from planner.wire import DesignModel
 from planner_api.exceptions import LimitExceededError
 from planner_api.logging import REQUEST_ID
 from planner_api.metrics import record_job, run_measured
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
 
 __all__ = [
     "check_obstacle_count",

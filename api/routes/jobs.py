@@ -26,6 +26,7 @@ from planner_api.deps import Pool, SettingsDep, Tenant, get_deadline, get_pool, 
 from planner_api.exceptions import PoolNotRunningError, ShuttingDownError
 from planner_api.job_store import LONG_JOBS, JobStore, Runner
 from planner_api.metrics import record_job
+from planner_api.pool import WorkerPool
 from planner_api.routes._common import run_job
 from planner_api.routes.plan import plan_job_of
 from planner_api.routes.scenes import resolve_scene
@@ -40,7 +41,6 @@ from planner_api.routes.worker_body import (
     worker_body,
 )
 from planner_api.settings import Settings
-from planner_api.workers import WorkerPool
 
 __all__ = [
     "cancel_job",

@@ -20,6 +20,7 @@ from planner.endpoints import plan as jobs
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
 from planner_api.deps import Deadline, Pool, SettingsDep, get_deadline, get_pool, watch_client
 from planner_api.exceptions import LimitExceededError
+from planner_api.pool import WorkerPool
 from planner_api.routes._common import (
     check_obstacle_count,
     json_response,
@@ -41,7 +42,6 @@ from planner_api.routes.worker_body import (
     validate_data,
     worker_body,
 )
-from planner_api.workers import WorkerPool
 
 __all__ = [
     "check_batch",

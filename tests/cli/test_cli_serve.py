@@ -1,5 +1,5 @@
 """``planner serve`` while its workers warm up: a progress line every
-:data:`planner_api.workers.WARMING_REPORT_S` seconds, so that the tens of seconds between
+:data:`planner_api.pool.pool.WARMING_REPORT_S` seconds, so that the tens of seconds between
 "Uvicorn running" and the first warm worker on a first start (numba compiling) are not
 silent; none once every worker is warm."""
 
@@ -11,15 +11,15 @@ import logging
 import re
 import time
 
-from planner_api import workers
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
+from planner_api.pool import pool as pool_module
 
 PROGRESS = re.compile(r"(\d+) of (\d+) workers warm after (\d+\.\d) s")
 
 
 def test_the_pool_says_how_far_warm_up_is_until_every_worker_is_warm(monkeypatch, caplog):
-    monkeypatch.setattr(workers, "WARMING_REPORT_S", 0.2)
-    caplog.set_level(logging.INFO, logger="planner_api.workers")
+    monkeypatch.setattr(pool_module, "WARMING_REPORT_S", 0.2)
+    caplog.set_level(logging.INFO, logger="planner_api.pool")
 
     async def scenario() -> None:
         pool = WorkerPool(1, 0, warm_up=functools.partial(time.sleep, 1.5))  # picklable
@@ -34,7 +34,7 @@ def test_the_pool_says_how_far_warm_up_is_until_every_worker_is_warm(monkeypatch
             pool.shutdown()
 
     asyncio.run(scenario())
-    messages = [r.getMessage() for r in caplog.records if r.name == "planner_api.workers"]
+    messages = [r.getMessage() for r in caplog.records if r.name == "planner_api.pool"]
     ready = next(i for i, m in enumerate(messages) if re.fullmatch(r"worker \d+ warm in .*", m))
     progress = [PROGRESS.fullmatch(m) for m in messages]
     before = [m for m in progress[:ready] if m]

@@ -1,6 +1,6 @@
 """The answer pipe's framing: what a worker writes with
-:func:`planner_api.worker_process.send_frame` comes out of
-:meth:`planner_api.worker_handle.Worker.take` message by message, whatever the chunks the
+:func:`planner_api.pool.process.send_frame` comes out of
+:meth:`planner_api.pool.handle.Worker.take` message by message, whatever the chunks the
 event loop happens to read (a large answer arrives over many reads of at most a pipe's
 64 KiB; several small ones can arrive in one)."""
 
@@ -15,8 +15,8 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from planner_api.worker_handle import Worker
-from planner_api.worker_process import resident_bytes, send_frame
+from planner_api.pool.handle import Worker
+from planner_api.pool.process import resident_bytes, send_frame
 
 
 def _worker() -> Worker:
@@ -92,16 +92,16 @@ def test_resident_bytes_reads_fresh_memory_each_time():
 def test_resident_bytes_survives_a_fork_and_a_closed_descriptor():
     """A forked child reads its own memory, not its parent's (the descriptor it inherited
     names the parent's file), and a descriptor closed under the reader is opened again."""
-    from planner_api import worker_process
+    from planner_api.pool import process
 
     assert resident_bytes() is not None
-    inherited = worker_process._STATM[1]  # type: ignore[index]
+    inherited = process._STATM[1]  # type: ignore[index]
     read_r, read_w = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: syscalls only, then out
         try:
             resident_bytes()
-            fd = worker_process._STATM[1]  # type: ignore[index]
+            fd = process._STATM[1]  # type: ignore[index]
             own = os.readlink(f"/proc/self/fd/{fd}") == f"/proc/{os.getpid()}/statm"
             try:  # the parent's descriptor is closed (or its number reused by the new one)
                 closed = fd == inherited or not os.fstat(inherited)
@@ -116,5 +116,5 @@ def test_resident_bytes_survives_a_fork_and_a_closed_descriptor():
     os.waitpid(pid, 0)
     os.close(read_r)
     assert answer == b"1"
-    os.close(worker_process._STATM[1])  # type: ignore[index]
+    os.close(process._STATM[1])  # type: ignore[index]
     assert resident_bytes() is not None

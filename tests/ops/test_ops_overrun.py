@@ -21,7 +21,7 @@ import httpx
 import pytest
 
 from planner_api.exceptions import DeadlineExceededError, JobCancelledError
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
 #: Slack on top of a bound, s: a kill, a pipe's end and the event loop on a loaded machine.
@@ -34,7 +34,7 @@ _HELD: list[bytearray] = []
 
 def _hold(mb: int) -> tuple[int, int]:
     """Keep ``mb`` MB alive in this worker (touched, so resident); (pid, RSS bytes)."""
-    from planner_api.worker_process import resident_bytes
+    from planner_api.pool.process import resident_bytes
 
     if mb:
         block = bytearray(mb * 1024 * 1024)

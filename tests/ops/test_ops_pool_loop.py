@@ -16,11 +16,11 @@ from multiprocessing.connection import Connection
 import pytest
 import uvloop
 
-from planner_api import workers as workers_module
 from planner_api.exceptions import DeadlineExceededError
-from planner_api.worker_handle import Worker
-from planner_api.worker_template import TemplateError
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
+from planner_api.pool import pool as pool_module
+from planner_api.pool.handle import Worker
+from planner_api.pool.template import TemplateError
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
 SLACK_S = 5.0
@@ -110,7 +110,7 @@ def test_a_pool_whose_loop_closes_after_a_spawn_stops_its_worker(monkeypatch):
     """The loop closes (without a shutdown) after the supervisor handed it a worker to
     attach: no callback of that loop will ever run, so the supervisor, at its next look,
     stops the pool and kills and reaps the worker, whose answers no one would read."""
-    monkeypatch.setattr(workers_module, "WARMING_REPORT_S", 0.2)
+    monkeypatch.setattr(pool_module, "WARMING_REPORT_S", 0.2)
 
     async def scenario() -> tuple[WorkerPool, Worker]:
         pool = WorkerPool(1, 0, warm_up=None)

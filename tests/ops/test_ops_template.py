@@ -1,4 +1,4 @@
-"""The warm template (:mod:`planner_api.worker_template`): the pool's warm-up runs once, in the
+"""The warm template (:mod:`planner_api.pool.template`): the pool's warm-up runs once, in the
 template, and every worker (the first ones and each replacement of a killed, crashed or
 recycled one) is a fork of it that carries the warm state without warming again; a template
 that dies leaves its workers serving and is replaced; one whose warm-up fails leaves the pool
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from planner_api.exceptions import JobCancelledError
-from planner_api.workers import WorkerPool
+from planner_api.pool import WorkerPool
 
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py
 
@@ -153,14 +153,14 @@ def test_without_a_template_each_worker_warms_up_itself(tmp_path):
 def test_a_runtime_that_refuses_pidfds_gets_spawned_workers(monkeypatch):
     """A container whose seccomp profile predates pidfds refuses ``pidfd_open`` at run time
     (EPERM): the pool must not fork workers it could neither signal nor watch, but spawn them."""
-    from planner_api import worker_template
+    from planner_api.pool import template
 
     def refused(_: int) -> int:
         raise PermissionError(1, "Operation not permitted")
 
-    assert worker_template.templates_work()
+    assert template.templates_work()
     monkeypatch.setattr(os, "pidfd_open", refused)
-    assert not worker_template.templates_work()
+    assert not template.templates_work()
 
     async def scenario() -> None:
         pool = WorkerPool(1, 0, warm_up=None)

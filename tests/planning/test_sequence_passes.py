@@ -109,7 +109,10 @@ def test_passing_a_corner_exactly_is_never_slower_than_stopping_there(method):
     """Issue 36: passing a sharp corner exactly (blend 0) makes the path run straight through
     it at speed, which can cost more than braking to it; the sequence then rests there (the
     quicker of the two), lists it in stopped_targets and says why, so blend 0 is never
-    slower than a stop. On gentle corners passing stays quicker and is kept."""
+    slower than a stop. Since issue 39 an exact pass may also be a via state on the corner's
+    own posture at a free velocity, which can beat the stop even on the sharp corner (toppra:
+    1.3238 s against 1.3249 s); either way it is exact or a listed rest. On gentle corners
+    passing stays quicker and is kept."""
     start = JointPosture([0.0, 2.0, 1.0])
     timing = TimingOptions(method=method)
     for sharp in (True, False):
@@ -127,10 +130,13 @@ def test_passing_a_corner_exactly_is_never_slower_than_stopping_there(method):
         stopping = solve_sequence(DESIGN, start, targets(True), cycle=True, timing=timing)
         assert passing.solved and stopping.solved
         assert passing.cycle_time <= stopping.cycle_time + 1e-9
-        if sharp:
-            assert passing.diagnostics.stopped_targets == (0,)
-            assert "quicker than passing exactly" in passing.message
-            assert passing.cycle_time == pytest.approx(stopping.cycle_time, rel=1e-12)
+        if sharp:  # at rest there (said so), or through it exactly as a via state
+            if passing.diagnostics.stopped_targets == (0,):
+                assert "quicker than passing exactly" in passing.message
+                assert passing.cycle_time == pytest.approx(stopping.cycle_time, rel=1e-12)
+            else:
+                assert passing.legs[0].pass_distance <= 1e-6
+                assert passing.legs[0].pass_speed > 0.0
         else:
             assert passing.diagnostics.stopped_targets == ()
             assert passing.cycle_time < stopping.cycle_time

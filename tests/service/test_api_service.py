@@ -16,9 +16,9 @@ from pydantic import ValidationError
 from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse
 from planner_api.exceptions import PoolSaturatedError
+from planner_api.pool import WorkerPool
 from planner_api.routes.plan import get_plan_function
 from planner_api.settings import Settings
-from planner_api.workers import WorkerPool
 
 START = {"q": [0.0, 1.0, 2.0], "assembly_mode": "+"}
 STARTUP_TIMEOUT_S = 180.0  # as tests/conftest.py: imports on a fresh, loaded machine

@@ -57,6 +57,8 @@ class TimingRequest:
     max_deviation : the corner allowance, rad, one number or one per waypoint.
     stop_at : waypoint indices where the trajectory comes to rest.
     via_at : waypoints passed as free via states within their allowance.
+    via_radius : each via's ball, rad, one per waypoint (None: its ``max_deviation``; 0: the
+        via passes the waypoint exactly, its moves within ``max_deviation`` of the path).
     check_resolution : the dense re-check's step, rad (None: the timing's default).
     fallback : methods tried, in order, when the asked method cannot time the path.
     """
@@ -67,6 +69,7 @@ class TimingRequest:
     max_deviation: float | np.ndarray
     stop_at: tuple[int, ...] = ()
     via_at: tuple[int, ...] = ()
+    via_radius: np.ndarray | None = None
     check_resolution: float | None = None
     fallback: tuple[str, ...] = ()
 
@@ -203,6 +206,7 @@ def _time_path(problem: MotionProblem, request: TimingRequest, method: str) -> T
             inertia=problem.inertia,
             gravity=problem.gravity,
             via_at=request.via_at,
+            via_radius=request.via_radius,
         )
     except InputError as exc:
         if exc.field is not None and exc.field_path[:1] != ("timing",):
@@ -217,13 +221,15 @@ def path_timing(
     max_deviation: float | np.ndarray | None = None,
     stop_at: Sequence[int] = (),
     via_at: Sequence[int] = (),
+    via_radius: np.ndarray | None = None,
 ) -> TimingRequest:
     """The timing of a planned path under its own rules per piece
     (:func:`planner.planning.path_state_checker`: each segment's working mode, serial rules off
     next to a transit, within the corner allowance of the path), coming to rest at the
     transits when ``options.stop_at_transits`` or ``timing.stop_at_transits`` asks, and at
     ``stop_at``; ``max_deviation`` (one per waypoint, rad) defaults to
-    ``timing.max_deviation`` everywhere; ``via_at`` as :class:`TimingRequest`'s."""
+    ``timing.max_deviation`` everywhere; ``via_at`` and ``via_radius`` as
+    :class:`TimingRequest`'s."""
     from planner.planning import path_state_checker
 
     timing = problem.timing
@@ -239,4 +245,5 @@ def path_timing(
         timing.max_deviation if max_deviation is None else max_deviation,
         tuple(rests),
         tuple(int(i) for i in via_at),
+        via_radius,
     )

@@ -13,12 +13,17 @@ import numpy as np
 
 from planner.planning import PlanPath, PlanResult, Segment, Transit
 
-__all__ = ["PASS_OFFSET", "join_legs", "smooth_pass_through", "turning_back"]
+__all__ = ["EXACT_CORRIDOR", "PASS_OFFSET", "join_legs", "smooth_pass_through", "turning_back"]
 
 #: An exact pass-through (blend 0) at a corner: the path runs straight through the target
 #: over this distance on either side (rad; at most a quarter of the adjacent segments), and
 #: the two new corners there are blended as any other.
 PASS_OFFSET = 0.05
+#: How far (rad) the moves of a via chain through an exact pass-through (blend 0) may leave
+#: the planned segments: the via posture is the target's own, its velocity free, and the
+#: moves between the vias run within this corridor of the plan (checked densely against the
+#: path's validity rules, as every trajectory is); the same scale as :data:`PASS_OFFSET`.
+EXACT_CORRIDOR = 0.05
 #: A corner turning by more than pi minus this (rad) cannot be passed at speed: the target
 #: is a stop (the timing could not blend it either).
 _REVERSAL = 1e-3

@@ -57,7 +57,7 @@ def leg_times(
         fine = np.linspace(max(lo, t_prev), hi, 201)
         qf = curve.evaluate(fine)[0]
         m = int(np.argmin(np.linalg.norm(qf - target, axis=1)))
-        t_k = float(fine[m])
+        t_k = _closest(curve, target, float(fine[max(m - 1, 0)]), float(fine[min(m + 1, 200)]))
         if stops[i]:
             r = rests[np.argmin(np.abs(rests - t_k))]
             if abs(r - t_k) <= max(hi - lo, 1e-9):
@@ -66,6 +66,23 @@ def leg_times(
         out.append((t_k, float(np.linalg.norm(qk[0] - target)), float(np.linalg.norm(qdk[0]))))
         t_prev = t_k
     return out
+
+
+def _closest(curve: Curve, target: np.ndarray, lo: float, hi: float) -> float:
+    """The instant in [lo, hi] where ``curve`` is closest to ``target`` (bounded Brent, to
+    1e-12 s): an exact pass-through (a via state on the target's posture) reads 0 there, not
+    the grid's spacing times the speed."""
+    from scipy.optimize import minimize_scalar
+
+    if hi <= lo:
+        return lo
+
+    def dist(x: float) -> float:
+        return float(np.linalg.norm(curve.evaluate(np.array([x]))[0][0] - target))
+
+    best = minimize_scalar(dist, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+    ends = [(dist(lo), lo), (dist(hi), hi), (float(best.fun), float(best.x))]
+    return min(ends)[1]
 
 
 def transit_times(curve: Curve, path: PlanPath, begin: float, end: float) -> tuple[float, ...]:

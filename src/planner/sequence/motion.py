@@ -19,7 +19,7 @@ import numpy as np
 from planner.motion import MotionProblem, Planned, Timed, path_timing, run
 from planner.planning import CartesianTarget, JointPosture, PlanPath, PlanResult, PlanStatus
 from planner.sequence.blends import AskedBlend, blend_uses, fit_blends, shrink_message
-from planner.sequence.joining import join_legs, smooth_pass_through, turning_back
+from planner.sequence.joining import EXACT_CORRIDOR, join_legs, smooth_pass_through, turning_back
 from planner.sequence.leg_times import SAMPLING_SLACK, leg_times, transit_times
 from planner.sequence.problem import (
     BlendUse,
@@ -31,7 +31,12 @@ from planner.sequence.problem import (
 from planner.solver import GoalMotion
 from planner.timing.options import TimingOptions
 
-__all__ = ["SequenceMotion", "leg_name", "solved_message"]
+__all__ = ["EXACT_PASS_TOL", "SequenceMotion", "leg_name", "solved_message"]
+
+#: How close (rad) a trajectory must come to an exact pass-through target's posture to have
+#: passed it exactly: the via states are the posture itself, and locating the instant of
+#: closest approach (:mod:`planner.sequence.leg_times`) reads it to about 1e-8.
+EXACT_PASS_TOL = 1e-6
 
 
 def leg_name(index: int, n_targets: int) -> str:
@@ -123,6 +128,7 @@ class SequenceMotion:
     extra: dict[str, Any] = field(default_factory=dict)
     compare_stops: bool = True
     blends_off: bool = False
+    exact_vias: bool = False
 
     def plan(self, problem: MotionProblem) -> Planned[_Joined]:
         """Steps 3-4: the legs planned and joined, the blends shrunk to fit their legs
@@ -155,15 +161,24 @@ class SequenceMotion:
         ]
         used = fit_blends(w, at, asked)
         exact = [not s and u == 0.0 for s, u in zip(stops, used, strict=True)]
-        joined, at = smooth_pass_through(joined, at, exact)
+        if not self.exact_vias:
+            joined, at = smooth_pass_through(joined, at, exact)
         deviation = np.full(len(joined.waypoints), problem.timing.max_deviation)
+        radius = deviation.copy()
         for i, k in enumerate(at):
             if not stops[i] and not exact[i]:
-                deviation[k] = used[i]
+                deviation[k] = radius[k] = used[i]
+            elif exact[i] and self.exact_vias:  # through the posture itself, at speed
+                deviation[k], radius[k] = EXACT_CORRIDOR, 0.0
         stop_at = [k for i, k in enumerate(at) if stops[i]]
-        via_at = [k for i, k in enumerate(at) if not stops[i] and not exact[i]]
+        via_at = [k for i, k in enumerate(at) if not stops[i] and (self.exact_vias or not exact[i])]
         timing = path_timing(
-            problem, joined, max_deviation=deviation, stop_at=stop_at, via_at=via_at
+            problem,
+            joined,
+            max_deviation=deviation,
+            stop_at=stop_at,
+            via_at=via_at,
+            via_radius=radius,
         )
         detail = _Joined(
             tuple(plans),
@@ -228,6 +243,8 @@ class SequenceMotion:
         exact_at = [i for i, e in enumerate(joined.exact) if e]
         if not exact_at:
             return result
+        if not self.exact_vias:
+            result = _quicker_through_vias(result, run(problem, replace(self, exact_vias=True)))
         stops = tuple(s or e for s, e in zip(joined.stops, joined.exact, strict=True))
         stopped = run(problem, replace(self, stops=stops, compare_stops=False))
         return _quicker_with_stops(result, stopped, exact_at)
@@ -267,8 +284,9 @@ class SequenceMotion:
             blends=uses,
             extra={"turning": tuple(turning)},
         )
+        shown = () if self.blends_off else uses  # off: not shrunk, set aside (the caller says)
         message = solved_message(
-            n, self.cycle, joined.modes, self.extra, trajectory.duration, by_timing, turning, uses
+            n, self.cycle, joined.modes, self.extra, trajectory.duration, by_timing, turning, shown
         )
         return SequenceResult(
             PlanStatus.SOLVED,
@@ -278,6 +296,21 @@ class SequenceMotion:
             trajectory,
             diagnostics=diagnostics,
         )
+
+
+def _quicker_through_vias(smooth: SequenceResult, vias: SequenceResult) -> SequenceResult:
+    """The quicker of a sequence passing its exact targets (blend 0) on the straight pieces
+    around them and the same one passing them as via states with the target's own posture
+    and a free velocity (the moves within :data:`EXACT_CORRIDOR` of the plan). The via
+    variant counts only where it did pass every such target exactly: where a chain was not
+    kept (slower, or dropped by the re-check), its blended path rounds the corner within
+    the corridor instead, which blend 0 does not allow."""
+    if not (vias.solved and vias.cycle_time < smooth.cycle_time):
+        return smooth
+    passes = [leg.pass_distance for leg in vias.legs if leg.pass_speed > 0.0]
+    if any(not d <= EXACT_PASS_TOL for d in passes):
+        return smooth
+    return vias
 
 
 def _quicker_exactly(

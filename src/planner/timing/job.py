@@ -73,18 +73,16 @@ def _stop_mask(stop_at: Iterable[int], n: int) -> np.ndarray:
     return mask
 
 
-def _deviation(value: object, n: int) -> np.ndarray:
+def _deviation(value: object, n: int, name: str = "max_deviation") -> np.ndarray:
     try:
         dev = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
     except (TypeError, ValueError) as exc:
         raise InputError(
-            f"max_deviation must be a number or {n} numbers (one per waypoint), got {value!r}",
-            field="max_deviation",
+            f"{name} must be a number or {n} numbers (one per waypoint), got {value!r}",
+            field=name,
         ) from exc
     if not np.all(np.isfinite(dev) & (dev >= 0)):
-        raise InputError(
-            f"max_deviation must be finite and >= 0, got {value!r}", field="max_deviation"
-        )
+        raise InputError(f"{name} must be finite and >= 0, got {value!r}", field=name)
     return dev
 
 
@@ -107,6 +105,7 @@ class TimingJob:
     max_samples: int
     torque: TorqueModel | None = None
     via: np.ndarray | None = None
+    via_radius: np.ndarray | None = None
 
     def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
         """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
@@ -138,6 +137,7 @@ def validate_inputs(
     inertia: Inertia | None = None,
     gravity: object = DEFAULT_GRAVITY,
     via_at: Iterable[int] = (),
+    via_radius: object = None,
 ) -> TimingJob:
     """Step 1 of :func:`planner.timing.time_path`: every argument checked, with a typed error
     naming the field and the rule (the parameters are ``time_path``'s)."""
@@ -165,6 +165,7 @@ def validate_inputs(
     stop = _stop_mask(stop_at, n)
     via = _stop_mask(via_at, n) if via_at else None
     dev_in = _deviation(max_deviation, n)
+    radius = None if via_radius is None else _deviation(via_radius, n, "via_radius")
     cap = MAX_OUTPUT_SAMPLES if max_samples is None else min(max_samples, MAX_OUTPUT_SAMPLES)
     torque = None
     if inertia is not None or limits.torque is not None:
@@ -194,4 +195,5 @@ def validate_inputs(
         cap,
         torque,
         via,
+        radius,
     )

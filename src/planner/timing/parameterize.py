@@ -269,6 +269,7 @@ def time_path(
     inertia: Inertia | None = None,
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
     via_at: Iterable[int] = (),
+    via_radius: float | np.ndarray | None = None,
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -323,6 +324,11 @@ def time_path(
     via_at : waypoints passed as free via states within their ``max_deviation``: a section
         whose interior waypoints all are may be a chain of moves through them
         (:mod:`planner.timing.vias`; kept when faster and when it passes the re-check).
+    via_radius : float or array (N,), rad, optional
+        Each via's ball, where its posture may lie (default: its ``max_deviation``); its
+        moves may still leave the planned segments by up to ``max_deviation``. 0 passes the
+        vertex exactly, at a free velocity: a chain through it is kept only where it
+        beats the blended path, which rounds the corner within ``max_deviation``.
 
     Returns
     -------
@@ -358,6 +364,7 @@ def time_path(
         inertia,
         gravity,
         via_at,
+        via_radius,
     )
     if job.limits.torque is None:
         return _timed(job, t_start)[0]
@@ -467,6 +474,7 @@ class _State:
     sections: SectionCache = field(default_factory=dict)
     moves: MoveCache = field(default_factory=MoveCache)
     via: np.ndarray | None = None
+    via_radius: np.ndarray | None = None
     via_chains: dict = field(default_factory=dict)
     via_off: set = field(default_factory=set)
 
@@ -478,6 +486,8 @@ def _build_blended_path(job: TimingJob) -> _State:
     path = BlendedPath.from_waypoints(job.waypoints, job.max_deviation, job.stop, min_radius)
     dev = np.minimum.reduceat(job.max_deviation, np.unique(path.index_map, return_index=True)[1])
     via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
+    first = np.unique(path.index_map, return_index=True)[1]
+    via_radius = None if job.via_radius is None else np.minimum.reduceat(job.via_radius, first)
     return _State(
         path=path,
         dev=dev,
@@ -485,6 +495,7 @@ def _build_blended_path(job: TimingJob) -> _State:
         floor=dev / _SHRINK**_SHRINK_STEPS,
         min_radius=min_radius,
         via=via,
+        via_radius=via_radius,
     )
 
 
@@ -556,8 +567,9 @@ def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) ->
         state.path,
         state.profile,
         state.via,
-        state.dev0,
+        state.dev0 if state.via_radius is None else state.via_radius,
         lim,
+        corridor=state.dev0,
         jerk=job.method == "ruckig",
         fit=lambda c: _fitted_chain(c, job),
         chains=state.via_chains,

@@ -161,6 +161,7 @@ def build_via_chain(
     limits: JointLimits,
     *,
     jerk: bool,
+    corridor: np.ndarray | None = None,
     iterations: int = VIA_ITERATIONS,
     deadline: float | None = None,
 ) -> tuple[RuckigCurve, int]:
@@ -172,7 +173,9 @@ def build_via_chain(
     path, profile : the blended path and its toppra profile (the starting via states: each
         via's arc middle, at toppra's velocity there).
     section : from :func:`via_sections`.
-    radius : shape (N,), rad -- each merged waypoint's ball (its requested allowance).
+    radius : shape (N,), rad -- each merged waypoint's ball (where a via's posture may lie).
+    corridor : shape (N,), rad -- how far a via's moves may stray from the segments they
+        stand for (default ``radius``: the requested allowance).
     limits : velocity and acceleration (and jerk with ``jerk``).
     jerk : jerk-limited moves (``ruckig``) or second-order ones (``toppra``).
     iterations : Nelder-Mead iterations per via.
@@ -185,7 +188,9 @@ def build_via_chain(
         which are toppra's, pulled inside the limits).
     """
     mover = _Mover(limits, jerk)
-    chain = _ViaChain(path, profile, section, radius, limits, mover)
+    chain = _ViaChain(
+        path, profile, section, radius, radius if corridor is None else corridor, limits, mover
+    )
     for i in [*range(1, len(section.vertices) - 1)] * SWEEPS:
         check_deadline(deadline, "while choosing via states")
         chain.choose(i, iterations)
@@ -204,6 +209,7 @@ class _ViaChain:
         profile: PathProfile,
         section: ViaSection,
         radius: np.ndarray,
+        corridor: np.ndarray,
         limits: JointLimits,
         mover: _Mover,
     ) -> None:
@@ -211,6 +217,7 @@ class _ViaChain:
         self.w = path.waypoints
         self.ks = ks = section.vertices
         self.radius = radius
+        self.corridor = corridor
         self.v_max = v_max = limits.velocity_array * _INSIDE
         self.vertex = [self.w[k] for k in ks]
         self.offset = [np.zeros(3) for _ in ks]
@@ -229,9 +236,9 @@ class _ViaChain:
         return (self.vertex[i] + _in_ball(o, float(self.radius[self.ks[i]]))).tolist(), v.tolist()
 
     def near_plan(self, i: int, z: np.ndarray) -> bool:
-        """The moves into and out of via i at ``z`` stay within the smaller allowance of
+        """The moves into and out of via i at ``z`` stay within the smaller corridor of
         their vias from the segments they stand for (at :data:`_DEVIATION_SAMPLES` points)."""
-        ks, radius, offset, vel = self.ks, self.radius, self.offset, self.vel
+        ks, corridor, offset, vel = self.ks, self.corridor, self.offset, self.vel
         here = self.state(i, z[:3], np.clip(z[3:], -self.v_max, self.v_max))
         ends = ((self.state(i - 1, offset[i - 1], vel[i - 1]), here, i - 1, i),
                 (here, self.state(i + 1, offset[i + 1], vel[i + 1]), i, i + 1))  # fmt: skip
@@ -242,7 +249,7 @@ class _ViaChain:
             tau = np.linspace(0.0, traj.duration, _DEVIATION_SAMPLES)
             q = np.array([traj.at_time(float(x))[0] for x in tau])
             inner = [j for j in (j0, j1) if 0 < j < len(ks) - 1]
-            allowed = min(float(radius[ks[j]]) for j in inner)
+            allowed = min(float(corridor[ks[j]]) for j in inner)
             seg = np.tile([ks[min(inner)] - 1, ks[max(inner)]], (q.shape[0], 1))
             if np.max(distance_to_polyline(self.w, q, seg)[0]) > allowed * _INSIDE:
                 return False
@@ -453,6 +460,7 @@ def splice_vias(
     *,
     jerk: bool,
     fit: Callable[[Curve], Curve],
+    corridor: np.ndarray | None = None,
     chains: dict,
     dropped: set,
     key: object = None,
@@ -461,7 +469,8 @@ def splice_vias(
     """``curve`` (the blended path's timing) with each section whose interior waypoints are
     all vias (``via``, per merged waypoint) replaced by its via chain
     (:func:`build_via_chain`, then ``fit``: the uniform slow-downs of the Cartesian speed
-    bound and the torque limits) where that is faster. ``chains``: chains built in earlier
+    bound and the torque limits) where that is faster, or where a via has radius 0 (only
+    the chain passes it exactly). ``chains``: chains built in earlier
     rounds, by (section, ``key``); ``dropped``: sections whose chain failed a re-check."""
     sections = [s for s in via_sections(path, via) if s.vertices not in dropped]
     if not sections:
@@ -474,12 +483,15 @@ def splice_vias(
         chain = chains.get((sec.vertices, key))
         if chain is None:
             built, _ = build_via_chain(
-                path, profile, sec, radius, limits, jerk=jerk, deadline=deadline
+                path, profile, sec, radius, limits, jerk=jerk, corridor=corridor, deadline=deadline
             )
             chain = chains[(sec.vertices, key)] = fit(built)
         i = int(np.searchsorted(path.stops, sec.s_start - 1e-12))
         b0, b1 = spans[i][1], spans[i + 1][0]
-        if chain.duration < (b1 - b0) * (1.0 - 1e-9):
+        # a via of radius 0 asks for the vertex itself, which the blended path's arc does
+        # not pass: the chain is the only timing that meets it, faster or not
+        exact = any(float(radius[k]) == 0.0 for k in sec.vertices[1:-1])
+        if exact or chain.duration < (b1 - b0) * (1.0 - 1e-9):
             parts.append((b0, b1, chain))
             keys.append(sec.vertices)
     return SplicedCurve(curve, tuple(parts), tuple(keys)) if parts else curve

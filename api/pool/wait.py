@@ -1,4 +1,4 @@
-"""How a request waits for its jobs in the worker pool (:class:`planner_api.workers.WorkerPool`):
+"""How a request waits for its jobs in the worker pool (:class:`planner_api.pool.WorkerPool`):
 the futures of its jobs, its deadline, its client's disconnect and the pool's drain, all at
 once, in the event loop that reads the workers' answers."""
 

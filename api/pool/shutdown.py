@@ -1,8 +1,8 @@
-"""The end of :class:`planner_api.workers.WorkerPool`: the drain (new jobs refused, the waits
+"""The end of :class:`planner_api.pool.WorkerPool`: the drain (new jobs refused, the waits
 still open ended after a grace) and the shutdown (the workers stopped, the jobs that finish in
 the grace delivered, the template last). One part of the pool, in a module of its own (its
-life cycle and jobs are :mod:`planner_api.workers`, its watchdog
-:mod:`planner_api.worker_watchdog`)."""
+life cycle and jobs are :mod:`planner_api.pool.pool`, its watchdog
+:mod:`planner_api.pool.watchdog`)."""
 
 from __future__ import annotations
 
@@ -16,16 +16,17 @@ import time
 from multiprocessing.connection import wait as wait_for_any
 from typing import Any
 
-from planner_api.worker_handle import Job, Worker
-from planner_api.worker_template import WarmTemplate
+from planner_api.pool.handle import Job, Worker
+from planner_api.pool.states import WorkerState
+from planner_api.pool.template import WarmTemplate
 
 __all__ = ["ShutdownMixin"]
 
-logger = logging.getLogger("planner_api.workers")
+logger = logging.getLogger("planner_api.pool")
 
 
 class ShutdownMixin:
-    """The drain and shutdown methods of :class:`planner_api.workers.WorkerPool` (its state is
+    """The drain and shutdown methods of :class:`planner_api.pool.WorkerPool` (its state is
     the pool's: these annotations name what they use)."""
 
     _closed: bool
@@ -90,7 +91,7 @@ class ShutdownMixin:
             self._closed = True
             self._wake.notify()
         for w in workers:
-            if w.state == "warming":
+            if w.state is WorkerState.STARTING:
                 w.process.terminate()  # nothing to lose: no job has reached it
             else:
                 try:
@@ -100,7 +101,7 @@ class ShutdownMixin:
         end = None if timeout_s is None else time.monotonic() + timeout_s
         self._serve_until_exit(workers, end)
         alive = [w for w in workers if w.process.is_alive()]
-        busy = [w for w in alive if w.state == "busy"]
+        busy = [w for w in alive if w.warmed and w.state is not WorkerState.WARM]
         if busy:
             logger.warning("terminating %d worker(s) still busy at shutdown", len(busy))
         elif alive:  # idle or warming, slow to exit: nothing is lost

@@ -9,20 +9,24 @@ Processes, because OMPL's ``solve()`` and most numpy work hold the GIL. Not
 *as a whole* and fails every job in flight: this pool is a small supervisor instead, one job
 per worker at a time, so a worker that dies fails only its own job
 (:class:`WorkerCrashedError`, HTTP 502 naming the exit) and is replaced. Every worker is a
-fork of one warm template (:mod:`planner_api.worker_template`, which runs ``warm_up``, the
-service's :func:`planner_api.warmup.warm_up_worker`, once), so a replacement is warm in
+fork of one warm template (:mod:`planner_api.pool.template`, which runs ``warm_up``, the
+service's :func:`planner_api.warmup.start_worker`, once), so a replacement is warm in
 milliseconds; where fork cannot be had each worker is ``spawn``-started and warms up itself
 before it takes jobs. The template (or each spawned worker) is started by one supervisor
 thread that lives as long as the pool (``PR_SET_PDEATHSIG`` fires when the thread that
 spawned the process ends).
 
 Two one-way pipes per worker. Jobs go down one, pickled; answers come back on the other in
-frames (:func:`planner_api.worker_process.send_frame`) that the event loop reads itself
+frames (:func:`planner_api.pool.process.send_frame`) that the event loop reads itself
 (``loop.add_reader``, non-blocking): no reader thread to wake, no hand-over of the GIL, no
 second wake-up of the loop per job. So the pool lives in one event loop (:meth:`WorkerPool.start`
 runs in it), which delivers its results: code in the loop awaits them (:meth:`WorkerPool.run`,
 :meth:`WorkerPool.map`, ``asyncio.wrap_future`` of :meth:`WorkerPool.submit`); only another
 thread may block on a submitted future.
+
+A worker's life is one table (:mod:`planner_api.pool.states`: starting, warm, busy, killing,
+gone): the pool moves a worker only through it, and a move it does not hold is an internal
+error, not a silent change.
 
 Bounds: at most ``workers + queue_size`` jobs in flight (beyond: :class:`PoolSaturatedError`,
 503 + Retry-After, never an unbounded queue). A caller past its deadline gets
@@ -59,21 +63,22 @@ from planner_api.exceptions import (
     ShuttingDownError,
     WorkerCrashedError,
 )
-from planner_api.worker_handle import Job, Worker, describe_exit
-from planner_api.worker_process import worker_main
-from planner_api.worker_shutdown import ShutdownMixin
-from planner_api.worker_template import (
+from planner_api.pool.handle import RECYCLED, Job, Worker, describe_exit
+from planner_api.pool.process import worker_main
+from planner_api.pool.shutdown import ShutdownMixin
+from planner_api.pool.states import WorkerEvent, WorkerState
+from planner_api.pool.template import (
     TemplateError,
     WarmTemplate,
     templates_work,
     widen_pipe,
 )
-from planner_api.worker_wait import wait_for_jobs
-from planner_api.worker_watchdog import WatchdogMixin, default_overrun_max
+from planner_api.pool.wait import wait_for_jobs
+from planner_api.pool.watchdog import WatchdogMixin, default_overrun_max
 
 __all__ = ["CLIENT_GONE", "PoolState", "WorkerPool", "default_overrun_max"]
 
-logger = logging.getLogger(__name__)
+logger = logging.getLogger("planner_api.pool")
 
 T = TypeVar("T")
 PoolState = Literal["starting", "ready", "recovering", "broken", "stopping"]
@@ -111,7 +116,8 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         How the workers log (:func:`planner_api.logging.configure_logging`); None: Python's default.
     warm_up : callable or None
         Run in each new worker before it takes jobs (module-level, picklable; the service
-        passes :func:`planner_api.warmup.warm_up_worker`). None: no warm-up.
+        passes :func:`planner_api.warmup.start_worker`: the caches sized, then the warm-up).
+        None: no warm-up.
     overrun_grace_s : float
         A job that has spent this much CPU time past its deadline and still runs has its
         worker killed (SIGKILL) and replaced (``PLANNER_OVERRUN_GRACE_S``): CPU time, so that a
@@ -128,7 +134,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         is started, and once it is warm the old worker stops (``PLANNER_WORKER_MAX_RSS_MB``;
         None: never).
     template : bool
-        Fork every worker from a warm template process (:mod:`planner_api.worker_template`),
+        Fork every worker from a warm template process (:mod:`planner_api.pool.template`),
         which runs ``warm_up`` once: a replacement is warm in milliseconds. False, or a
         platform without ``fork`` and pidfds: each worker is spawned and warms up itself.
     """
@@ -250,10 +256,10 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         is warm)."""
         template = self._template
         with self._lock:
-            warming = [w.started for w in self._workers if w.state == "warming"]
+            warming = [w.started for w in self._workers if w.state is WorkerState.STARTING]
             if template is not None and template.state == "warming":
                 warming.append(template.started)
-            warm = sum(w.state in ("idle", "busy") for w in self._workers)
+            warm = sum(w.warmed for w in self._workers)
             if warming and not self._stopping:
                 since = time.monotonic() - min(warming)
                 logger.info("%d of %d workers warm after %.1f s", warm, self.workers, since)
@@ -330,6 +336,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         if closed:  # shut down while it started: no one would stop it or close its pipes
             worker.process.kill()
             worker.process.join()
+            worker.change(WorkerEvent.EXIT)
             worker.close()
             return
         os.set_blocking(worker.answers.fileno(), False)
@@ -409,7 +416,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         return True
 
     def _handle(self, worker: Worker, message: bytes) -> None:
-        """One message of a worker (:mod:`planner_api.worker_process`)."""
+        """One message of a worker (:mod:`planner_api.pool.process`)."""
         try:
             kind, value = pickle.loads(message)
         except Exception as exc:  # e.g. an exception class the parent cannot import
@@ -426,13 +433,13 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
 
     def _on_ready(self, worker: Worker, seconds: float) -> None:
         with self._lock:
-            worker.state = "idle"
+            worker.change(WorkerEvent.READY)
             old, worker.replaces = worker.replaces, None
-            if old is not None and old.state == "idle":
+            if old is not None and old.state is WorkerState.WARM:
                 self._retire_locked(old)
-            elif old is not None and old.state == "busy":
+            elif old is not None and old.warmed:  # busy, or killed with its answer to come
                 old.retire_after_job = True
-            warm = sum(w.state in ("idle", "busy") for w in self._workers)
+            warm = sum(w.warmed for w in self._workers)
             if warm >= self.workers:
                 self._was_ready = True
                 self._failed = False
@@ -447,12 +454,11 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
 
     def _on_done(self, worker: Worker, kind: str, value: Any) -> None:
         with self._lock:
+            worker.change(WorkerEvent.DONE)  # a killed one stays killing: it takes no job
             job, worker.job = worker.job, None
             self._in_flight -= 1
             if worker.retire_after_job:
                 self._retire_locked(worker)
-            elif worker.state == "busy" and not worker.killed:  # a killed one takes no job
-                worker.state = "idle"
             self._dispatch_locked()
         if job is not None and not job.future.done():
             if kind == "ok":
@@ -466,7 +472,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         the replacement is warm)."""
         with self._lock:
             worker.rss = rss
-            if worker.retiring or worker.state not in ("idle", "busy"):
+            if worker.retiring or not worker.warmed:
                 return
             if self._stopping:
                 return
@@ -483,7 +489,8 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
 
     def _retire_locked(self, worker: Worker) -> None:
         """Tell a recycled worker to stop (the caller holds the lock; it holds no job)."""
-        worker.state = "retired"
+        worker.change(WorkerEvent.RETIRE)
+        worker.killed = RECYCLED
         try:
             worker.jobs.send_bytes(pickle.dumps(("stop",)))
         except OSError:  # it died meanwhile: the end of its answer pipe is its exit
@@ -498,15 +505,15 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         exit_text = describe_exit(worker.process.exitcode)
         with self._lock:
             job, worker.job = worker.job, None
-            was = worker.state
-            worker.state = "dead"
+            was = worker.change(WorkerEvent.EXIT)
             if worker in self._workers:
                 self._workers.remove(worker)
             if job is not None:
                 self._in_flight -= 1
             # a recycled worker was replaced already; one that was retiring has its
             # replacement warming, one that was killed is replaced now
-            replace = not self._stopping and was != "retired" and not worker.retiring
+            recycled = was is WorkerState.KILLING and worker.killed == RECYCLED
+            replace = not self._stopping and not recycled and not worker.retiring
             if replace and not worker.killed:
                 self.restarts += 1
             self._dispatch_locked()
@@ -514,17 +521,18 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         worker.close()
         if job is not None and not job.future.done():
             job.future.set_exception(self._exit_error(worker, exit_text))
-        if was == "retired":
+        if recycled:
             logger.info("worker %d recycled (%s)", worker.process.pid, exit_text)
         elif replace and not worker.killed:
             logger.error(
                 "worker %d died (%s) while %s; starting a replacement",
                 worker.process.pid,
                 exit_text,
-                "running a job" if job is not None else was,
+                "running a job" if job is not None else was.value,
             )
         if replace:
-            self._spawn_requests.put((RESPAWN_BACKOFF_S if was == "warming" else 0.0, None))
+            backoff = RESPAWN_BACKOFF_S if was is WorkerState.STARTING else 0.0
+            self._spawn_requests.put((backoff, None))
 
     @staticmethod
     def _exit_error(worker: Worker, exit_text: str) -> Exception:
@@ -541,7 +549,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
         """Hand waiting jobs to idle workers (the caller holds the lock). A job cancelled
         while it waited is dropped; one cancelled during the hand-over still runs, and its
         result is dropped."""
-        for worker in [w for w in self._workers if w.state == "idle"]:
+        for worker in [w for w in self._workers if w.state is WorkerState.WARM]:
             while self._pending:
                 job = self._pending.popleft()
                 if job.future.cancelled():
@@ -551,12 +559,13 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
                     worker.jobs.send_bytes(job.payload)
                 except OSError:  # the worker just died (its exit is seen): next one
                     self._pending.appendleft(job)
-                    worker.state = "dead"
+                    worker.change(WorkerEvent.LOST)
                     break
                 if not job.future.set_running_or_notify_cancel():
                     # cancelled during the hand-over: nobody waits for it, stop it now
                     job.kill_at, job.kill_reason = time.monotonic(), "cancelled"
-                worker.state, worker.job = "busy", job
+                worker.change(WorkerEvent.TAKE)
+                worker.job = job
                 if job.kill_at is not None and job.kill_at < self._watch_at:
                     self._wake.notify()  # due before the watchdog's next look
                 break
@@ -581,9 +590,9 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
 
     @property
     def warm_workers(self) -> int:
-        """Worker processes alive and warm (idle or busy; not one being killed)."""
+        """Worker processes alive and warm (warm or busy; not one being killed)."""
         with self._lock:
-            return sum(w.state in ("idle", "busy") and not w.killed for w in self._workers)
+            return sum(w.state in (WorkerState.WARM, WorkerState.BUSY) for w in self._workers)
 
     @property
     def pids(self) -> list[int]:
@@ -659,7 +668,7 @@ class WorkerPool(WatchdogMixin, ShutdownMixin):
             return
         with self._lock:
             for w in self._workers:
-                if w.job is not None and w.job.future is future and w.state == "busy":
+                if w.job is not None and w.job.future is future and w.state is WorkerState.BUSY:
                     w.job.kill_at, w.job.kill_reason = time.monotonic(), "cancelled"
                     self._wake.notify()
 

@@ -1,4 +1,4 @@
-"""The worker side of :mod:`planner_api.workers`: the loop of one worker process.
+"""The worker side of :mod:`planner_api.pool.pool`: the loop of one worker process.
 
 A worker warms up, says so, then runs one job at a time until told to stop (or until its pipe
 closes: the parent is gone). After each job it measures its resident memory (RSS, once the
@@ -9,7 +9,7 @@ it no longer uses is replaced. Under the bound it says nothing: one message per 
 Two one-way pipes. Parent to worker, :class:`multiprocessing.connection.Connection` messages
 (pickled tuples): ``("job", fn, arg)`` and ``("stop",)``. Worker to parent, frames of
 :func:`send_frame` (an 8-byte big-endian length, then a pickled tuple), which the parent's
-event loop reads without blocking (:mod:`planner_api.workers`): ``("ready", warm_up_s)``,
+event loop reads without blocking (:mod:`planner_api.pool.pool`): ``("ready", warm_up_s)``,
 ``("warm_failed", traceback)``, ``("ok", value)`` or ``("error", exception)`` (one per job),
 and ``("rss", bytes)`` after a job that left the worker over the bound.
 """
@@ -157,7 +157,7 @@ def set_up_child(
 
 
 def forked_main(jobs_fd: int, answers_fd: int, max_rss_bytes: int | None, nice: int) -> None:
-    """A worker forked from the warm template (:mod:`planner_api.worker_template`): it is warm
+    """A worker forked from the warm template (:mod:`planner_api.pool.template`): it is warm
     already (the template's memory is its own), so it says so at once and serves. It dies
     with the server, not with the template: a thread waits for the hang-up of the jobs pipe,
     whose only writer is the server (a template that dies leaves its workers serving)."""

@@ -1,4 +1,4 @@
-"""The warm template of :class:`planner_api.workers.WorkerPool`: one process that warms up once
+"""The warm template of :class:`planner_api.pool.WorkerPool`: one process that warms up once
 and forks every worker, so that a replacement worker is warm the moment it exists.
 
 Why: a worker is stopped by a kill (a cancelled job, a client gone, a job past its deadline,
@@ -26,7 +26,7 @@ seconds)`` or ``("warm_failed", traceback)`` once, ``("forked", token, pid)`` or
 forked has exited (it reaps them, woken by ``SIGCHLD``). A worker forked so is a grandchild
 of the server: :class:`ForkedProcess` gives the pool what it uses of a
 :class:`multiprocessing.Process` through a pidfd (Linux >= 5.3), and the worker dies with the
-server through its jobs pipe (:func:`planner_api.worker_process.forked_main`), not with the
+server through its jobs pipe (:func:`planner_api.pool.process.forked_main`), not with the
 template, so a template that dies leaves its workers serving (the pool starts a new one).
 Where ``os.pidfd_open`` or ``os.fork`` is missing, the pool spawns every worker as before.
 """
@@ -49,7 +49,7 @@ from collections.abc import Callable
 from multiprocessing.context import BaseContext
 from typing import Any, Literal
 
-from planner_api.worker_process import PARENT_WATCH_S, forked_main, set_up_child
+from planner_api.pool.process import PARENT_WATCH_S, forked_main, set_up_child
 
 __all__ = [
     "ForkedProcess",

@@ -1,8 +1,8 @@
-"""The watchdog of :class:`planner_api.workers.WorkerPool`: the thread that kills the worker of
+"""The watchdog of :class:`planner_api.pool.WorkerPool`: the thread that kills the worker of
 a cancelled job at once and of a job past its deadline once it has spent the overrun grace of
 CPU time (or the overrun maximum of wall time) there, so that no job outlives its deadline
 whatever it computes. One part of the pool, in a module of its own (the pool's life cycle and
-its jobs are :mod:`planner_api.workers`, its shutdown :mod:`planner_api.worker_shutdown`)."""
+its jobs are :mod:`planner_api.pool.pool`, its shutdown :mod:`planner_api.pool.shutdown`)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ import logging
 import threading
 import time
 
-from planner_api.worker_handle import Job, Worker, cpu_seconds
+from planner_api.pool.handle import Job, Worker, cpu_seconds
+from planner_api.pool.states import WorkerEvent, WorkerState
 
 __all__ = ["WatchdogMixin", "default_overrun_max"]
 
-logger = logging.getLogger("planner_api.workers")
+logger = logging.getLogger("planner_api.pool")
 
 #: Longest sleep of the watchdog thread between two looks at the busy workers, s (it wakes
 #: earlier for the next job's look time and whenever a job starts or is cancelled).
@@ -27,7 +28,7 @@ def default_overrun_max(grace_s: float) -> float:
 
 
 class WatchdogMixin:
-    """The watchdog's methods of :class:`planner_api.workers.WorkerPool` (its state is the
+    """The watchdog's methods of :class:`planner_api.pool.WorkerPool` (its state is the
     pool's: these annotations name what they use)."""
 
     kills: int
@@ -50,11 +51,11 @@ class WatchdogMixin:
                 wake_at = now + WATCHDOG_IDLE_S
                 for w in self._workers:
                     job = w.job
-                    if w.state != "busy" or job is None or job.kill_at is None or w.killed:
+                    if w.state is not WorkerState.BUSY or job is None or job.kill_at is None:
                         continue
                     if job.kill_at <= now:
                         self._look_locked(w, job, now)
-                    if job.kill_at is not None and not w.killed:
+                    if job.kill_at is not None and w.state is WorkerState.BUSY:
                         wake_at = min(wake_at, job.kill_at)
                 self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
@@ -83,6 +84,7 @@ class WatchdogMixin:
 
     def _kill_locked(self, worker: Worker, reason: str, late_s: float) -> None:
         """SIGKILL ``worker`` (the caller holds the lock); its exit is expected."""
+        worker.change(WorkerEvent.KILL)
         worker.killed = reason
         self.kills += 1
         try:

@@ -1,6 +1,6 @@
-"""The parent's record of one worker process of :class:`planner_api.workers.WorkerPool`:
+"""The parent's record of one worker process of :class:`planner_api.pool.WorkerPool`:
 the process, its two pipes, its state and the job it runs; and the answers' frames
-(:func:`planner_api.worker_process.send_frame`) cut out of the bytes its pipe delivers."""
+(:func:`planner_api.pool.process.send_frame`) cut out of the bytes its pipe delivers."""
 
 from __future__ import annotations
 
@@ -11,12 +11,17 @@ import time
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
-from typing import Any, Literal
+from typing import Any
 
-from planner_api.worker_process import FRAME_HEADER
-from planner_api.worker_template import ForkedProcess
+from planner_api.pool.process import FRAME_HEADER
+from planner_api.pool.states import WorkerEvent, WorkerState, next_state
+from planner_api.pool.template import ForkedProcess
 
-__all__ = ["Job", "Worker", "cpu_seconds", "describe_exit"]
+__all__ = ["RECYCLED", "Job", "Worker", "cpu_seconds", "describe_exit"]
+
+#: :attr:`Worker.killed` of a worker told to stop because its replacement is warm (recycled,
+#: over the memory bound); the other reasons are a job's ``kill_reason``.
+RECYCLED = "recycled"
 
 
 @dataclass(eq=False)
@@ -49,15 +54,17 @@ class Worker:
     jobs: Connection
     #: The pipe the worker answers on, read by the event loop (non-blocking).
     answers: Connection
-    #: "retired": told to stop (recycled), its exit is not a death to replace.
-    state: Literal["warming", "idle", "busy", "retired", "dead"] = "warming"
+    #: Where it is in its life; changed by :meth:`change` only (:mod:`planner_api.pool.states`).
+    state: WorkerState = WorkerState.STARTING
     job: Job | None = None
     started: float = field(default_factory=time.monotonic)
     #: Bytes read from ``answers`` and not yet a whole frame.
     inbox: bytearray = field(default_factory=bytearray, repr=False)
     #: The event loop reads ``answers`` (attached, its end not yet seen).
     reading: bool = False
-    #: Why the pool killed it ("" while it was not killed): its exit is then expected.
+    #: Why the pool is ending it ("" while it is not; set as it becomes ``killing``): its job
+    #: was "cancelled" or ran past its "deadline" (SIGKILL), or it was :data:`RECYCLED` (told
+    #: to stop, its exit not a death to replace).
     killed: str = ""
     #: Over the memory bound: serves on until its replacement is warm, then retires.
     retiring: bool = False
@@ -67,9 +74,24 @@ class Worker:
     replaces: Worker | None = field(default=None, repr=False)
     #: Resident memory after its last job when over the bound, bytes (None: never over).
     rss: int | None = None
-    #: Its exit is being handled (:meth:`planner_api.workers.WorkerPool._on_exit` runs once:
+    #: Its exit is being handled (:meth:`planner_api.pool.WorkerPool._on_exit` runs once:
     #: a second run would wait for the same process and close the same pipes twice).
     exit_claimed: bool = False
+
+    def change(self, event: WorkerEvent) -> WorkerState:
+        """Move to the state the table gives for ``event`` (the caller holds the pool's lock);
+        the state it was in. :class:`~planner_api.pool.states.IllegalTransitionError` when the
+        table holds no such move (the state is then left as it was)."""
+        was, self.state = self.state, next_state(self.state, event)
+        return was
+
+    @property
+    def warmed(self) -> bool:
+        """Warm and not told to stop: warm, busy, or killed with its exit not seen yet. What
+        the pool counts as warm while workers warm up, and what a replacement may retire."""
+        return self.state in (WorkerState.WARM, WorkerState.BUSY) or (
+            self.state is WorkerState.KILLING and self.killed != RECYCLED
+        )
 
     def close(self) -> None:
         """Close its pipes and, for a worker forked from the template, its pidfd (the
