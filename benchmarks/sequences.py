@@ -33,7 +33,7 @@ from planner import Design, SequenceTarget, solve_sequence
 from planner.exceptions import InputError
 from planner.geometry import Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import CartesianTarget
+from planner.planning import CartesianTarget, JointPosture
 from planner.sequence.adept import adept_targets, place_adept_cycle
 from planner.timing import JointLimits, TimingOptions
 
@@ -288,6 +288,8 @@ def main() -> None:
 
     print()
     other_cycles(timing)
+    print()
+    too_large_blends(timing)
 
 
 def corner_blends(result) -> list[float]:
@@ -360,6 +362,61 @@ def other_cycles(timing: TimingOptions, count: int = 3, seed: int = 39) -> None:
                 f"{'ok' if share >= goal else 'NOT':>5}"
             )
             head = " " * len(head)
+
+
+def too_large_blends(timing: TimingOptions, count: int = 200, seed: int = 3939) -> None:
+    """Seeded random cycles of examples/06's shape (lift 30-80 mm, across 150-300 mm) with the
+    two top corners' blends drawn up to 10 x their limit, half in rad (``blend``), half in m
+    (``blend_radius``): the refusals (goal 0), and how often ``objective="time"`` is slower
+    than the best of the 16 fixed assignments of the s_axis '+' modes (goal 0)."""
+    design = Design.default()
+    start = JointPosture([0.90975, 2.76741, 1.04726])
+    pick = np.array([0.35, -0.1, -0.45])
+    rng = np.random.default_rng(seed)
+    refused = slower = solved = 0
+    worst = 0.0
+    for k in range(count):
+        lift, across = float(rng.uniform(0.03, 0.08)), float(rng.uniform(0.15, 0.3))
+        if k % 2:
+            corner = {"stop": False, "blend": float(rng.uniform(0.0, 1.0))}
+        else:
+            corner = {"stop": False, "blend_radius": float(rng.uniform(0.0, 0.2))}
+        points = [pick + np.array(d) for d in ([0, 0, lift], [0, across, lift], [0, across, 0])]
+
+        def targets(modes, corner=corner, points=points):
+            return [
+                SequenceTarget(CartesianTarget(points[0], modes[0]), **corner),
+                SequenceTarget(CartesianTarget(points[1], modes[1]), **corner),
+                SequenceTarget(CartesianTarget(points[2], modes[2])),
+            ]
+
+        try:
+            best = solve_sequence(
+                design, start, targets(["any"] * 3), cycle=True, objective="time", timing=timing
+            )
+        except InputError:
+            refused += 1
+            continue
+        solved += best.solved
+        fixed = []
+        for modes in itertools.product(["+++", "++-", "+-+", "+--"], repeat=2):
+            r = solve_sequence(
+                design,
+                start,
+                targets([*modes, "+-+"]),
+                cycle=True,
+                objective="fixed",
+                timing=timing,
+            )
+            if r.solved:
+                fixed.append(r.cycle_time)
+        if fixed and best.cycle_time > min(fixed) * (1 + 1e-6):
+            slower += 1
+            worst = max(worst, best.cycle_time / min(fixed) - 1)
+    print(
+        f"too-large blends, {count} seeded cycles: {refused} refused (goal 0), {solved} solved, "
+        f"{slower} slower than the best fixed assignment (goal 0; worst by {100 * worst:.2f} %)"
+    )
 
 
 if __name__ == "__main__":
