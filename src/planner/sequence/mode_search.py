@@ -298,7 +298,11 @@ def choose_modes(
     )
     duration = result.cycle_time if result.trajectory is not None else None
     turning = result.diagnostics.extra.get("turning", ())
-    by_timing = [i for i in result.diagnostics.stopped_targets if i not in turning]
+    rested = result.diagnostics.extra.get("rested", ())
+    by_timing = [
+        i for i in result.diagnostics.stopped_targets if i not in turning and i not in rested
+    ]
     uses = result.diagnostics.blends
-    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning, uses)
+    notes = result.diagnostics.extra.get("notes", ())
+    message = solved_message(n, cycle, shown, extra, duration, by_timing, turning, uses, notes)
     return replace(result, message=message, diagnostics=diagnostics)

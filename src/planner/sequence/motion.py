@@ -237,14 +237,15 @@ class SequenceMotion:
         if not self.compare_stops:
             return result
         blended = [i for i, u in enumerate(joined.blends) if u > 0.0]
-        if blended:
+        if blended:  # every blend off (that answer compares its own exact passes)
             exactly = run(problem, replace(self, blends_off=True))
-            return _quicker_exactly(result, exactly, blended)
+            result = _quicker_exactly(result, exactly, blended)
         exact_at = [i for i, e in enumerate(joined.exact) if e]
         if not exact_at:
             return result
-        if not self.exact_vias:
-            result = _quicker_through_vias(result, run(problem, replace(self, exact_vias=True)))
+        if not self.exact_vias:  # the exact passes as via states, the blends kept
+            vias = run(problem, replace(self, exact_vias=True, compare_stops=False))
+            result = _quicker_through_vias(result, vias, exact_at)
         stops = tuple(s or e for s, e in zip(joined.stops, joined.exact, strict=True))
         stopped = run(problem, replace(self, stops=stops, compare_stops=False))
         return _quicker_with_stops(result, stopped, exact_at)
@@ -298,7 +299,21 @@ class SequenceMotion:
         )
 
 
-def _quicker_through_vias(smooth: SequenceResult, vias: SequenceResult) -> SequenceResult:
+def _with_note(result: SequenceResult, note: str, **diagnostics: Any) -> SequenceResult:
+    """``result`` with ``note`` added to its message and to ``diagnostics.extra["notes"]``
+    (which the mode search's message keeps), and ``diagnostics`` fields replaced."""
+    d = result.diagnostics
+    extra = {**d.extra, "notes": (*d.extra.get("notes", ()), note)}
+    return replace(
+        result,
+        message=f"{result.message}; {note}",
+        diagnostics=replace(d, extra=extra, **diagnostics),
+    )
+
+
+def _quicker_through_vias(
+    smooth: SequenceResult, vias: SequenceResult, exact_at: list[int]
+) -> SequenceResult:
     """The quicker of a sequence passing its exact targets (blend 0) on the straight pieces
     around them and the same one passing them as via states with the target's own posture
     and a free velocity (the moves within :data:`EXACT_CORRIDOR` of the plan). The via
@@ -307,7 +322,7 @@ def _quicker_through_vias(smooth: SequenceResult, vias: SequenceResult) -> Seque
     the corridor instead, which blend 0 does not allow."""
     if not (vias.solved and vias.cycle_time < smooth.cycle_time):
         return smooth
-    passes = [leg.pass_distance for leg in vias.legs if leg.pass_speed > 0.0]
+    passes = [vias.legs[i].pass_distance for i in exact_at]
     if any(not d <= EXACT_PASS_TOL for d in passes):
         return smooth
     return vias
@@ -326,14 +341,13 @@ def _quicker_exactly(
     if not (exactly.solved and exactly.cycle_time < blended.cycle_time):
         return blended
     uses = tuple(replace(u, used=0.0) for u in blended.diagnostics.blends)
-    diagnostics = replace(exactly.diagnostics, blends=uses)
-    message = (
-        f"{exactly.message}; blends not used at "
+    note = (
+        "blends not used at "
         + ", ".join(f"target {i}" for i in blended_at)
         + f" (passing exactly, or at rest, was quicker than within them: "
         f"{blended.cycle_time:.4g} s)"
     )
-    return replace(exactly, message=message, diagnostics=diagnostics)
+    return _with_note(exactly, note, blends=uses)
 
 
 def _quicker_with_stops(
@@ -347,13 +361,19 @@ def _quicker_with_stops(
     if not (stopped.solved and stopped.cycle_time < passing.cycle_time):
         return passing
     at_rest = sorted({*passing.diagnostics.stopped_targets, *exact_at})
-    diagnostics = replace(stopped.diagnostics, stopped_targets=tuple(at_rest))
-    message = (
-        f"{stopped.message}; at rest at pass-through "
+    note = (
+        "at rest at pass-through "
         + ", ".join(f"target {i}" for i in exact_at)
         + f" (quicker than passing exactly with blend 0: {passing.cycle_time:.4g} s)"
     )
-    return replace(stopped, message=message, diagnostics=diagnostics)
+    rested = (*stopped.diagnostics.extra.get("rested", ()), *exact_at)
+    stopped = replace(
+        stopped,
+        diagnostics=replace(
+            stopped.diagnostics, extra={**stopped.diagnostics.extra, "rested": rested}
+        ),
+    )
+    return _with_note(stopped, note, stopped_targets=tuple(at_rest))
 
 
 def solved_message(
@@ -365,10 +385,11 @@ def solved_message(
     stopped: Sequence[int] = (),
     turning: Sequence[int] = (),
     blends: Sequence[BlendUse] = (),
+    notes: Sequence[str] = (),
 ) -> str:
     """The message of a solved sequence: its legs, its cycle time, the modes chosen for
-    time and the runner-up, any pass-through target the timing had to stop at, and the
-    blends that shrank to fit."""
+    time and the runner-up, any pass-through target the timing had to stop at, the
+    blends that shrank to fit, and ``notes`` (what a comparison of variants chose)."""
     legs = n + cycle
     parts = [f"{legs} leg{'s' if legs != 1 else ''}" + (" (a cycle)" if cycle else "")]
     if duration is not None:
@@ -395,4 +416,5 @@ def solved_message(
     shrunk = shrink_message(blends)
     if shrunk:
         parts.append(shrunk)
+    parts.extend(notes)
     return "; ".join(parts)

@@ -327,8 +327,9 @@ def time_path(
     via_radius : float or array (N,), rad, optional
         Each via's ball, where its posture may lie (default: its ``max_deviation``); its
         moves may still leave the planned segments by up to ``max_deviation``. 0 passes the
-        vertex exactly, at a free velocity: a chain through it is kept only where it
-        beats the blended path, which rounds the corner within ``max_deviation``.
+        vertex exactly, at a free velocity: a section holding such a via always takes its
+        chain (the blended path's arc rounds the corner, it does not pass the vertex),
+        unless the re-check drops it; the caller checks the pass if it must be exact.
 
     Returns
     -------
