@@ -299,11 +299,19 @@ class SequenceMotion:
         )
 
 
-def _with_note(result: SequenceResult, note: str, **diagnostics: Any) -> SequenceResult:
+def _with_note(
+    result: SequenceResult, note: str, rested: Sequence[int] = (), **diagnostics: Any
+) -> SequenceResult:
     """``result`` with ``note`` added to its message and to ``diagnostics.extra["notes"]``
-    (which the mode search's message keeps), and ``diagnostics`` fields replaced."""
+    (which the mode search's message keeps), ``rested`` to ``extra["rested"]`` (targets at
+    rest because that was quicker, not because the timing had to), and ``diagnostics``
+    fields replaced."""
     d = result.diagnostics
-    extra = {**d.extra, "notes": (*d.extra.get("notes", ()), note)}
+    extra = {
+        **d.extra,
+        "notes": (*d.extra.get("notes", ()), note),
+        "rested": (*d.extra.get("rested", ()), *rested),
+    }
     return replace(
         result,
         message=f"{result.message}; {note}",
@@ -366,14 +374,7 @@ def _quicker_with_stops(
         + ", ".join(f"target {i}" for i in exact_at)
         + f" (quicker than passing exactly with blend 0: {passing.cycle_time:.4g} s)"
     )
-    rested = (*stopped.diagnostics.extra.get("rested", ()), *exact_at)
-    stopped = replace(
-        stopped,
-        diagnostics=replace(
-            stopped.diagnostics, extra={**stopped.diagnostics.extra, "rested": rested}
-        ),
-    )
-    return _with_note(stopped, note, stopped_targets=tuple(at_rest))
+    return _with_note(stopped, note, exact_at, stopped_targets=tuple(at_rest))
 
 
 def solved_message(
