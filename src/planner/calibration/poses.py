@@ -72,7 +72,7 @@ def suggest_poses(
     n: int,
     *,
     identify: Iterable[str] = IDENTIFY_DEFAULT,
-    candidates: int = 4000,
+    candidates: int = 2000,
     seed: int = 0,
 ) -> SuggestedPoses:
     """``n`` postures to measure for calibrating ``design`` (module docstring).
@@ -104,7 +104,7 @@ def suggest_poses(
     free = np.ones(m, dtype=bool)
     for _ in range(min(n, m)):
         inv = np.linalg.inv(info)
-        gain = np.linalg.det(np.eye(3) + np.einsum("nik,kl,njl->nij", blocks, inv, blocks))
+        gain = np.linalg.det(np.eye(3) + (blocks @ inv) @ blocks.transpose(0, 2, 1))
         gain[~free] = -np.inf
         best = int(np.argmax(gain))
         chosen.append(best)

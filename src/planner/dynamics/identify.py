@@ -235,7 +235,7 @@ def identify_inertia(
     phi = phi0.copy()
     phi[keep] = sol / scale
     sv = np.linalg.svd(sub / scale, compute_uv=False)
-    inertia, notes = _physical(design, phi, prior)
+    inertia, notes = _physical(design, _realise(design, phi, phi0, keep, held, ymat), prior)
     fr = (phi[13:16].copy(), phi[16:19].copy()) if friction else None
     model = inverse_dynamics(
         design, inertia, q, qd, qdd, assembly_mode=assembly_mode, gravity=gravity
@@ -265,34 +265,88 @@ def _select(ymat: np.ndarray, order: list[int]) -> list[int]:
     return taken
 
 
+def _constraints(design: Design, phi: np.ndarray) -> np.ndarray:
+    """The physical rules of standard parameters (13 first entries of ``phi``), each >= 0
+    when kept: per link m (above a microgram), X, m L - X, I_axial, J - I_axial / 2 and
+    ``m (J - I_axial / 2) - X^2`` (so that ``I_perp = J - X^2 / m >= I_axial / 2``); the
+    payload, base and rotors >= 0."""
+    out = []
+    for k, length in enumerate((design.L1, design.L2)):
+        m, x, j, ia = phi[4 * k : 4 * k + 4]
+        out += [m - 1e-6, x, m * length - x, ia, j - ia / 2, m * (j - ia / 2) - x * x]
+    return np.array([*out, *phi[8:13]])
+
+
+def _realise(
+    design: Design,
+    phi: np.ndarray,
+    phi0: np.ndarray,
+    keep: list[int],
+    held: list[int],
+    ymat: np.ndarray,
+) -> np.ndarray:
+    """The member of the data's family of parameters nearest the prior that is physical.
+
+    The held parameters whose columns lie in the span of the identified ones (an exact
+    dependency: the data cannot see them) are free; every choice ``z`` of them, with the
+    identified ones moved by ``-pinv(Y_id) Y_held (z - z0)``, gives the same torques. Among
+    them, the one nearest the prior (relative to each prior's size) within
+    :func:`_constraints` (SLSQP); ``phi`` itself when that fails or it is already physical."""
+    from scipy.optimize import minimize
+
+    if np.all(_constraints(design, phi) >= -1e-12):
+        return phi
+    sub, others = ymat[:, keep], ymat[:, held]
+    comp, *_ = np.linalg.lstsq(sub, -others, rcond=None)
+    miss = np.linalg.norm(sub @ comp + others, axis=0)
+    free = [
+        k
+        for k, j in enumerate(held)
+        if miss[k] <= 1e-6 * max(np.linalg.norm(others[:, k]), 1e-300)
+        or np.linalg.norm(others[:, k]) == 0
+    ]
+    if not free:
+        return phi
+    idx = np.array([held[k] for k in free])
+    scale = np.maximum(np.abs(phi0[idx]), 1e-6)
+
+    def member(u: np.ndarray) -> np.ndarray:
+        """The family's member with the free held parameters at ``phi0 + u scale``."""
+        out = phi.copy()
+        out[idx] = phi0[idx] + u * scale
+        out[keep] += comp[:, free] @ (u * scale)
+        return out
+
+    fit = minimize(
+        lambda u: float(u @ u),
+        np.zeros(len(idx)),
+        method="SLSQP",
+        constraints=[{"type": "ineq", "fun": lambda u: _constraints(design, member(u))}],
+        options={"maxiter": 500},
+    )
+    best = member(fit.x)
+    return best if fit.success else phi
+
+
 def _physical(design: Design, phi: np.ndarray, prior: Inertia) -> tuple[Inertia, list[str]]:
-    """An :class:`Inertia` of the standard parameters ``phi`` (module docstring)."""
+    """An :class:`Inertia` of the standard parameters ``phi`` (after :func:`_realise`):
+    ``com = X / (m L)``, ``I_perp = J - m (com L)^2``; a value outside the physical set by
+    more than the optimiser's tolerance (1e-6 relative) is clipped and said in the notes."""
     notes: list[str] = []
     links = []
     for k, (name, length) in enumerate((("proximal", design.L1), ("distal", design.L2))):
-        m, x, j, ia = phi[4 * k : 4 * k + 4]
-        if ia < 0:
-            notes.append(f"{name}.I_axial identified as {ia:.3g} < 0: set to 0")
-            ia = 0.0
-        if x < 0:
-            notes.append(f"{name}: first moment {x:.3g} < 0 (centre behind the pivot): com 0")
-            x = 0.0
-        room = j - ia / 2
-        if k == 0 and x > 0 and room > 0:
-            m = max(m, x / length, x * x / room)  # the proximal mass is free (unseen)
+        m, x, j, ia = (float(v) for v in phi[4 * k : 4 * k + 4])
         if m <= 0:
+            notes.append(f"{name}.mass identified as {m:.3g} <= 0: the prior's")
             m = getattr(prior, name).mass
-        com = x / (m * length)
-        if com > 1:
-            notes.append(f"{name}.com identified as {com:.3g} > 1: set to 1")
-            com = 1.0
-        perp = j - m * (com * length) ** 2
-        if perp < ia / 2:
-            notes.append(f"{name}.I_perp identified as {perp:.3g} < I_axial / 2: raised")
-            perp = ia / 2
-        links.append(LinkInertia(float(m), float(com), float(perp), float(ia), name))
-    rest = [_nonneg(phi[8], "payload.mass", notes), _nonneg(phi[9], "base.inertia", notes)]
-    rotor = tuple(_nonneg(phi[10 + j], f"rotor[{j}]", notes) for j in range(3))
+        ia = _clip(ia, 0.0, j, f"{name}.I_axial", notes)
+        com = _clip(x / (m * length), 1.0, 1.0, f"{name}.com", notes, upper=True)
+        com = _clip(com, 0.0, 1.0, f"{name}.com", notes)
+        perp = _clip(j - m * (com * length) ** 2, ia / 2, j, f"{name}.I_perp", notes)
+        links.append(LinkInertia(m, com, max(perp, ia / 2), ia, name))
+    rest = [_clip(float(phi[i]), 0.0, float(phi[i]), STANDARD_NAMES[i], notes) for i in (8, 9)]
+    size = float(np.max(np.abs(phi[9:13])))  # the rotors' and base's scale
+    rotor = [_clip(float(phi[10 + i]), 0.0, size, f"rotor[{i}]", notes) for i in range(3)]
     return (
         Inertia(
             proximal=links[0],
@@ -305,9 +359,15 @@ def _physical(design: Design, phi: np.ndarray, prior: Inertia) -> tuple[Inertia,
     )
 
 
-def _nonneg(value: float, label: str, notes: list[str]) -> float:
-    if value < 0:
-        notes.append(f"{label} identified as {value:.3g} < 0: set to 0")
-        return 0.0
-    return float(value)
-
+def _clip(
+    value: float, bound: float, size: float, label: str, notes: list[str], *, upper: bool = False
+) -> float:
+    """``value`` kept on the right side of ``bound`` (below it with ``upper``): silently
+    within 1e-6 of ``size`` (the optimiser's tolerance), else clipped with a note."""
+    beyond = value - bound if upper else bound - value
+    if beyond <= 0:
+        return value
+    if beyond > 1e-6 * max(abs(size), abs(bound), 1e-12):
+        side = "above" if upper else "below"
+        notes.append(f"{label} identified as {value:.4g}, {side} {bound:.4g}: clipped")
+    return bound
