@@ -37,11 +37,11 @@ __all__ = [
     "LEG_NAMES",
     "LENGTH_NAMES",
     "LoopState",
-    "rotation_matrix",
-    "right_jacobian",
     "loop_state",
     "measurement_jacobian",
     "residuals",
+    "right_jacobian",
+    "rotation_matrix",
 ]
 
 #: The full parameter vector, in this order: five lengths (m), three offsets (rad), the

@@ -52,9 +52,10 @@ def valid_sample(design: Design, candidates: int, seed: int) -> SuggestedPoses:
     for am in ("+", "-"):
         batch = forward_batch(design, q, am)
         signs = batch.working_mode_signs
+        clear = batch.ok & np.all(signs != 0, axis=1)
+        labels = np.array([mode_label(s) if c else "" for s, c in zip(signs, clear, strict=True)])
         for wm in WORKING_MODES:
-            mine = batch.ok & np.all(signs != 0, axis=1)
-            mine &= np.array([mode_label(s) == wm if m else False for s, m in zip(signs, mine)])
+            mine = labels == wm
             if not mine.any():
                 continue
             sub = q[mine]
@@ -85,7 +86,7 @@ def suggest_poses(
     if not 1 <= n <= MAX_SUGGESTED:
         raise InputError(f"n must lie in [1, {MAX_SUGGESTED}], got {n}", field="n")
     sample = valid_sample(design, max(candidates, 4 * n), seed)
-    names, tmap = _parameter_map(tuple(identify))
+    _, tmap = _parameter_map(tuple(identify))
     full = np.zeros(tmap.shape[0])
     full[:5] = (design.L0, design.L1, design.L1, design.L2, design.L2)
     branch = np.where(np.array(sample.assembly_mode) == "+", 1.0, -1.0)

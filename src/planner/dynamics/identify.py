@@ -231,10 +231,13 @@ def identify_inertia(
     rhs = t.ravel() - ymat[:, held] @ phi0[held]
     sub = ymat[:, keep]
     scale = np.linalg.norm(sub, axis=0)
-    sol, *_ = np.linalg.lstsq(sub / scale, rhs, rcond=None)
     phi = phi0.copy()
-    phi[keep] = sol / scale
-    sv = np.linalg.svd(sub / scale, compute_uv=False)
+    cond = 1.0
+    if keep:  # data that see nothing (no motion, no gravity) identify nothing
+        sol, *_ = np.linalg.lstsq(sub / scale, rhs, rcond=None)
+        phi[keep] = sol / scale
+        sv = np.linalg.svd(sub / scale, compute_uv=False)
+        cond = float(sv[0] / sv[-1])
     inertia, notes = _physical(design, _realise(design, phi, phi0, keep, held, ymat), prior)
     fr = (phi[13:16].copy(), phi[16:19].copy()) if friction else None
     model = inverse_dynamics(
@@ -248,7 +251,7 @@ def identify_inertia(
         base_parameters={names[j]: float(phi[j]) for j in sorted(keep)},
         residual_rms=float(np.sqrt(np.mean((model - t) ** 2))),
         unidentified=[names[j] for j in held],
-        condition_number=float(sv[0] / sv[-1]),
+        condition_number=cond,
         notes=notes,
     )
 
