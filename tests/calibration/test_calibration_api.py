@@ -43,23 +43,42 @@ def test_calibrate_endpoint_recovers_the_robot(api) -> None:
     assert out["condition_number"] > 1
 
 
-@pytest.mark.parametrize(
-    ("change", "loc"),
-    [
-        (lambda b: b["measurements"][3]["p"].__setitem__(1, float("nan")), ["body", "measurements", 3, "p", 1]),
-        (lambda b: b.update(measurements=b["measurements"][:3]), ["body", "measurements"]),
-        (lambda b: b.update(identify=["lengths", "colour"]), ["body", "identify", 1]),
-        (lambda b: b.update(design={"L0": 0.5, "L1": 0.2, "L2": 0.3}), ["body", "measurements", 0, "q"]),
-        (lambda b: b["measurements"][2].update(working_mode="+x+"), ["body", "measurements", 2, "working_mode"]),
-    ],
-    ids=["nan", "too-few", "identify", "unreachable", "mode"],
-)  # fmt: skip
+def _nan(body: dict) -> None:
+    body["measurements"][3]["p"][1] = float("nan")
+
+
+def _few(body: dict) -> None:
+    body["measurements"] = body["measurements"][:3]
+
+
+def _colour(body: dict) -> None:
+    body["identify"] = ["lengths", "colour"]
+
+
+def _short(body: dict) -> None:
+    """Distal links too short for measurement 0 (|CD| = 0.9 m > 2 L2)."""
+    body["design"] = {"L0": 0.5, "L1": 0.2, "L2": 0.3}
+    body["measurements"][0]["q"] = [0.0, 3.14159, 0.0]
+    for row in body["measurements"][1:]:
+        row["q"] = [0.0, 2.0, 1.0]
+
+
+def _mode(body: dict) -> None:
+    body["measurements"][2]["working_mode"] = "+x+"
+
+
+CASES = [
+    (_nan, ["body", "measurements", 3, "p", 1]),
+    (_few, ["body", "measurements"]),
+    (_colour, ["body", "identify", 1]),
+    (_short, ["body", "measurements", 0, "q"]),
+    (_mode, ["body", "measurements", 2, "working_mode"]),
+]
+
+
+@pytest.mark.parametrize(("change", "loc"), CASES, ids=[c.__name__ for c, _ in CASES])
 def test_calibrate_bad_input_is_a_422_naming_the_field(api, change, loc) -> None:
     body, _ = _body()
-    if loc[-2:] == [0, "q"]:  # make measurement 0 the one that cannot assemble with L2 0.3
-        body["measurements"][0]["q"] = [0.0, 3.14159, 0.0]
-        for row in body["measurements"][1:]:
-            row["q"] = [0.0, 2.0, 1.0]
     change(body)
     raw = json.dumps(body)  # NaN written as the bare token NaN, which JSON does not allow
     r = api.post("/v1/calibrate", content=raw, headers={"content-type": "application/json"})
@@ -85,7 +104,8 @@ def test_poses_and_identify_endpoints(api) -> None:
     )
     assert "proximal.mass" in out["unidentified"]
     # the answer's inertia is a design.inertia the dynamics endpoint accepts as it is
-    r2 = api.post("/v1/dynamics", json={"q": body["q"][:3], "qd": body["qd"][:3], "qdd": body["qdd"][:3], "design": {"inertia": out["inertia"]}})  # fmt: skip
+    three = {k: body[k][:3] for k in ("q", "qd", "qdd")}
+    r2 = api.post("/v1/dynamics", json={**three, "design": {"inertia": out["inertia"]}})
     assert r2.status_code == 200, r2.text
     np.testing.assert_allclose(r2.json()["tau"], tau[:3], atol=1e-8)
     bad = {**body, "tau": body["tau"][:-1]}

@@ -64,7 +64,8 @@ MAX_CALIBRATION_MEASUREMENTS = 10_000
 MAX_IDENTIFY_SAMPLES = 100_000
 
 IdentifyItem = Literal["lengths", "leg_lengths", "offsets", "frame"]
-_RotationVector = Annotated[list[Annotated[float, Field(allow_inf_nan=False, ge=-7, le=7)]], Field(min_length=3, max_length=3)]  # fmt: skip
+_RotationComponent = Annotated[float, Field(allow_inf_nan=False, ge=-7.0, le=7.0)]
+_RotationVector = Annotated[list[_RotationComponent], Field(min_length=3, max_length=3)]
 
 
 class MeasurementModel(_Request):
@@ -168,7 +169,9 @@ class CalibrationPosesResponse(_Response):
     postures: list[MeasurementPosture]
 
 
-_Row = Annotated[list[Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]], Field(min_length=3, max_length=3)]  # fmt: skip
+_Number = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
+#: One sample's three rates or torques (rad/s, rad/s^2 or N m).
+_Row = Annotated[list[_Number], Field(min_length=3, max_length=3)]
 
 
 class IdentifyRequest(_Request):
