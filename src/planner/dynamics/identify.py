@@ -295,19 +295,15 @@ def _realise(
     identified ones moved by ``-pinv(Y_id) Y_held (z - z0)``, gives the same torques. Among
     them, the one nearest the prior (relative to each prior's size) within
     :func:`_constraints` (SLSQP); ``phi`` itself when that fails or it is already physical."""
-    from scipy.optimize import minimize
+    from scipy.optimize import NonlinearConstraint, minimize
 
     if np.all(_constraints(design, phi) >= -1e-12):
         return phi
     sub, others = ymat[:, keep], ymat[:, held]
     comp, *_ = np.linalg.lstsq(sub, -others, rcond=None)
     miss = np.linalg.norm(sub @ comp + others, axis=0)
-    free = [
-        k
-        for k, j in enumerate(held)
-        if miss[k] <= 1e-6 * max(np.linalg.norm(others[:, k]), 1e-300)
-        or np.linalg.norm(others[:, k]) == 0
-    ]
+    norms = np.linalg.norm(others, axis=0)
+    free = [k for k in range(len(held)) if miss[k] <= 1e-6 * norms[k]]  # a zero column too
     if not free:
         return phi
     idx = np.array([held[k] for k in free])
@@ -320,12 +316,12 @@ def _realise(
         out[keep] += comp[:, free] @ (u * scale)
         return out
 
+    def size(u: np.ndarray) -> float:
+        return float(u @ u)
+
+    physical = NonlinearConstraint(lambda u: _constraints(design, member(u)), 0.0, np.inf)
     fit = minimize(
-        lambda u: float(u @ u),
-        np.zeros(len(idx)),
-        method="SLSQP",
-        constraints=[{"type": "ineq", "fun": lambda u: _constraints(design, member(u))}],
-        options={"maxiter": 500},
+        size, np.zeros(len(idx)), method="SLSQP", constraints=physical, options={"maxiter": 500}
     )
     best = member(fit.x)
     return best if fit.success else phi

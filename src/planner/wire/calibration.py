@@ -64,6 +64,13 @@ MAX_CALIBRATION_MEASUREMENTS = 10_000
 MAX_IDENTIFY_SAMPLES = 100_000
 
 IdentifyItem = Literal["lengths", "leg_lengths", "offsets", "frame"]
+
+
+def _default_identify() -> list[IdentifyItem]:
+    """``identify``'s default: the lengths, the offsets and the frame."""
+    return ["lengths", "offsets", "frame"]
+
+
 _RotationComponent = Annotated[float, Field(allow_inf_nan=False, ge=-7.0, le=7.0)]
 _RotationVector = Annotated[list[_RotationComponent], Field(min_length=3, max_length=3)]
 
@@ -97,7 +104,7 @@ class CalibrateRequest(_Request):
         list[MeasurementModel], Field(min_length=1, max_length=MAX_CALIBRATION_MEASUREMENTS)
     ]
     identify: Annotated[list[IdentifyItem], Field(min_length=1, max_length=4)] = Field(
-        default_factory=lambda: ["lengths", "offsets", "frame"],
+        default_factory=_default_identify,
         description="What to identify: 'lengths' (L0, L1, L2), 'leg_lengths' (L0 and each "
         "leg's two lengths apart), 'offsets' (actuator zeros), 'frame' (the tracker's).",
     )
@@ -150,7 +157,7 @@ class CalibrationPosesRequest(_Request):
     design: DesignModel = _DesignField
     n: Integer = Field(30, ge=1, le=1000, description="How many postures.")
     identify: Annotated[list[IdentifyItem], Field(min_length=1, max_length=4)] = Field(
-        default_factory=lambda: ["lengths", "offsets", "frame"]
+        default_factory=_default_identify
     )
     seed: Integer = Field(0, ge=0, le=2**32 - 1)
 
@@ -252,7 +259,7 @@ def calibrate_response(result: CalibrationResult, identify: list[str]) -> Calibr
         residual_rms_m=result.residual_rms,
         residual_max_m=result.residual_max,
         residuals_m=result.residuals.tolist(),
-        assembly_modes=result.assembly_modes,  # type: ignore[arg-type]
+        assembly_modes=result.assembly_modes,
         std=result.std,
         condition_number=result.condition_number,
         unidentified=result.unidentified,
