@@ -60,7 +60,9 @@ def run(robots: int, noise: float, sizes: list[int]) -> None:
     q_test, m_test = pool.q[test], [pool.assembly_mode[i] for i in test]
     print(f"noise {noise * 1e3:g} mm per coordinate, {robots} robots, 500 held-out postures")
     print()
-    print("| N | suggested: median / worst RMS (mm) | random: median / worst RMS (mm) | random / suggested | cond. suggested / random | fit time (ms) |")
+    print(
+        "| N | suggested: median / worst RMS (mm) | random: median / worst RMS (mm) | random / suggested | cond. suggested / random | fit time (ms) |"
+    )
     print("|---|---|---|---|---|---|")
     for n in sizes:
         poses = suggest_poses(NOMINAL, n, seed=1)
