@@ -154,3 +154,40 @@ def test_cli_calibrate_suggest_and_export(tmp_path) -> None:
     assert "identified by planner calibrate" in text and "20 measurements" in text
     mujoco = pytest.importorskip("mujoco")
     mujoco.MjModel.from_xml_string(text)  # the export loads
+
+
+def test_fourth_part_calibration_vocabulary() -> None:
+    """docs/conventions.md, "Wire, fourth part" (Calibration): the fixed names."""
+    from planner.wire import (
+        CalibrateRequest,
+        CalibrateResponse,
+        FrameModel,
+        IdentifyRequest,
+        IdentifyResponse,
+        MeasurementModel,
+    )
+
+    assert {"design", "measurements", "identify"} <= set(CalibrateRequest.model_fields)
+    assert set(MeasurementModel.model_fields) == {"q", "p", "working_mode", "assembly_mode"}
+    assert CalibrateRequest.model_fields["identify"].default_factory() == [
+        "lengths",
+        "offsets",
+        "frame",
+    ]
+    assert {
+        "design",
+        "offsets",
+        "frame",
+        "residual_rms_m",
+        "residual_max_m",
+        "std",
+        "condition_number",
+        "unidentified",
+    } <= set(CalibrateResponse.model_fields)
+    assert set(FrameModel.model_fields) == {"position", "rotation"}
+    assert {"design", "gravity", "assembly_mode", "q", "qd", "qdd", "tau", "friction"} == set(
+        IdentifyRequest.model_fields
+    )
+    assert {"inertia", "friction", "residual_rms", "unidentified"} <= set(
+        IdentifyResponse.model_fields
+    )
