@@ -140,3 +140,26 @@ def test_wrong_measured_mode_is_named() -> None:
     with pytest.raises(InputError) as err:
         calibrate(NOMINAL, Measurements(m.q, m.p, working_mode=wm))
     assert err.value.field_path == ("measurements", 5, "working_mode")
+
+
+def test_garbage_measurements_are_refused_by_name_never_crash() -> None:
+    """Random points for random postures of random designs: every answer is finite or an
+    InputError naming ``measurements`` (never another exception, never an unbounded
+    number)."""
+    rng = np.random.default_rng(0)
+    for k in range(20):
+        n = int(rng.integers(5, 30))
+        design = Design(
+            L0=float(rng.uniform(0, 0.6)),
+            L1=float(rng.uniform(0.1, 0.4)),
+            L2=float(rng.uniform(0.2, 0.7)),
+        )
+        m = Measurements(rng.uniform(-3, 3, (n, 3)), rng.uniform(-1, 1, (n, 3)))
+        identify = (["lengths", "offsets", "frame"], ["leg_lengths", "offsets", "frame"])[k % 2]
+        try:
+            result = calibrate(design, m, identify=identify)
+        except InputError as err:
+            assert err.field_path[0] == "measurements"
+            continue
+        values = [result.residual_rms, result.condition_number, *result.std.values()]
+        assert np.all(np.isfinite(values))

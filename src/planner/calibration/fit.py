@@ -39,7 +39,7 @@ from planner.calibration.model import (
     residuals,
     rotation_matrix,
 )
-from planner.design import Design
+from planner.design import MIN_LENGTH, Design
 from planner.exceptions import InputError
 
 __all__ = [
@@ -200,7 +200,7 @@ def _candidates(full: np.ndarray, m: Measurements) -> np.ndarray:
         if not any(ok):
             raise InputError(
                 f"measurements[{i}].q = {m.q[i].tolist()} does not assemble in the nominal "
-                "design (|CD| exceeds L2_A + L2_B): no posture of the design reaches it",
+                "design (|CD| exceeds 2 L2, or C = D): no posture of the design reaches it",
                 field=("measurements", i, "q"),
             )
         am, wm = m.assembly_mode[i], m.working_mode[i]
@@ -339,9 +339,47 @@ def calibrate(
 
     x = np.zeros(len(keep))
     if keep:
-        x = least_squares(fun, x, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        with np.errstate(all="ignore"):
+            try:
+                x = least_squares(
+                    fun, x, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15
+                ).x
+            except (ValueError, np.linalg.LinAlgError):
+                x = np.full(len(keep), np.nan)
     full = full0 + tk @ x
+    _check_fit(design, measurements, full, branch)
     return _result(design, measurements, full, branch, names, keep, jac(x) if keep else None)
+
+
+def _check_fit(design: Design, m: Measurements, full: np.ndarray, branch: np.ndarray) -> None:
+    """Refuse (422 at ``measurements``) a fit that left the sane set: non-finite parameters,
+    a length off by more than the design's reach, or a measured posture whose loop does not
+    close at the solution (data that fit no design near the nominal one: wrong units,
+    swapped fields, another robot); a length below the design's rules is such a fit too
+    (L0 may come out a little below 0 for a design with L0 = 0: the answer's design then has
+    L0 = 0, its ``parameters`` the value fitted)."""
+    reach = design.L1 + design.L2
+    lengths = full[:5]
+    if (
+        not np.all(np.isfinite(full))
+        or np.any(np.abs(lengths - _nominal(design, None)[:5]) > reach)
+        or np.any(lengths[1:] < MIN_LENGTH)
+        or lengths[0] < -1e-3 * reach
+    ):
+        raise InputError(
+            "the measurements fit no design near the nominal one (the least-squares fit "
+            "diverged): check their units (m, rad), the order of q and p, and the nominal "
+            "design",
+            field="measurements",
+        )
+    ok = loop_state(full, m.q, branch).ok
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
+        raise InputError(
+            f"the best fit of the measurements leaves measurements[{i}]'s loop open (q = "
+            f"{m.q[i].tolist()}): the measurements fit no design near the nominal one",
+            field=("measurements", i),
+        )
 
 
 def _result(
@@ -359,16 +397,24 @@ def _result(
     std: dict[str, float] = {}
     cond = 1.0
     if jac is not None:
-        sigma2 = float(np.sum(res**2)) / max(dof, 1)
-        scale = np.linalg.norm(jac, axis=0)
-        sv = np.linalg.svd(jac / scale, compute_uv=False)
-        cond = float(sv[0] / sv[-1])
-        cov = sigma2 * np.linalg.pinv(jac.T @ jac)
-        std = {names[j]: float(np.sqrt(max(cov[k, k], 0.0))) for k, j in enumerate(keep)}
+        with np.errstate(all="ignore"):
+            sigma2 = float(np.sum(res**2)) / max(dof, 1)
+            scale = np.linalg.norm(jac, axis=0)
+            sv = np.linalg.svd(jac / scale, compute_uv=False) if np.isfinite(jac).all() else [0]
+            cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+            if math.isfinite(cond):
+                cov = sigma2 * np.linalg.pinv(jac.T @ jac)
+                std = {names[j]: float(np.sqrt(max(cov[k, k], 0.0))) for k, j in enumerate(keep)}
+        if not (math.isfinite(cond) and all(map(math.isfinite, std.values()))):
+            raise InputError(
+                "the measurements' best fit is a singular point of the model (its Jacobian "
+                "lost rank there): they fit no design near the nominal one",
+                field="measurements",
+            )
     legs = "L1_A" in names
     l1, l2 = 0.5 * (full[1] + full[2]), 0.5 * (full[3] + full[4])
     identified = Design(
-        L0=float(full[0]),
+        L0=max(float(full[0]), 0.0),
         L1=float(l1),
         L2=float(l2),
         link_radius=design.link_radius,

@@ -167,8 +167,19 @@ def _p3_jacobian(full: np.ndarray, s: LoopState) -> np.ndarray:
     )  # (N, 2, 8)
     rhs[:, 0, 3] += l2a
     rhs[:, 1, 4] += l2b
-    mat = np.stack([pc, pd], axis=1)  # (N, 2, 2)
-    dp = np.linalg.solve(mat, rhs)  # (N, 2, 8): d(u, w)
+    # [pc; pd] dP = rhs, solved by Cramer's rule with the determinant kept off zero: a
+    # trial step of the fit may reach a posture where the loop does not close (h = 0, the
+    # matrix singular); its huge Jacobian then turns the step back instead of raising
+    det = pc[:, 0] * pd[:, 1] - pc[:, 1] * pd[:, 0]
+    floor = 1e-12 * l2a * l2b
+    det = np.where(np.abs(det) < floor, np.where(det < 0, -floor, floor), det)[:, None]
+    dp = np.stack(
+        [
+            (pd[:, 1, None] * rhs[:, 0] - pc[:, 1, None] * rhs[:, 1]) / det,
+            (pc[:, 0, None] * rhs[:, 1] - pd[:, 0, None] * rhs[:, 0]) / det,
+        ],
+        axis=1,
+    )  # (N, 2, 8): d(u, w)
     t1 = s.q[:, 0]
     ct, st = np.cos(t1), np.sin(t1)
     out = np.empty((n, 3, 8))
