@@ -28,7 +28,7 @@ from planner.kinematics import WORKING_MODES, forward_batch, mode_label
 __all__ = ["MAX_SUGGESTED", "SuggestedPoses", "suggest_poses", "valid_sample"]
 
 #: Most postures one suggestion returns.
-MAX_SUGGESTED = 1000
+MAX_SUGGESTED = 500
 
 
 @dataclass(frozen=True, eq=False)

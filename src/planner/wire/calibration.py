@@ -155,7 +155,7 @@ class CalibrationPosesRequest(_Request):
     """Body of ``POST /v1/calibrate/poses``: postures worth measuring."""
 
     design: DesignModel = _DesignField
-    n: Integer = Field(30, ge=1, le=1000, description="How many postures.")
+    n: Integer = Field(30, ge=1, le=500, description="How many postures.")
     identify: Annotated[list[IdentifyItem], Field(min_length=1, max_length=4)] = Field(
         default_factory=_default_identify
     )
