@@ -22,6 +22,7 @@ from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
 from planner_api.openapi import install_docs, install_openapi
 from planner_api.pool import WorkerPool
+from planner_api.routes import calibration as calibration_routes
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
@@ -150,6 +151,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         *watched,
         cartesian_routes.router,
         dynamics_routes.router,
+        calibration_routes.router,
         sequence_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)

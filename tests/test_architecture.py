@@ -42,6 +42,7 @@ CORE = (
     "planner.cartesian",
     "planner.timing",
     "planner.analysis",
+    "planner.calibration",
     "planner.exceptions",
     "planner.constants",
     "planner.caching",

@@ -62,6 +62,14 @@ from planner.wire import (
     WorkspaceRequest,
     WorkspaceResponse,
 )
+from planner.wire.calibration import (
+    CalibrateRequest,
+    CalibrateResponse,
+    CalibrationPosesRequest,
+    CalibrationPosesResponse,
+    IdentifyRequest,
+    IdentifyResponse,
+)
 
 __all__ = ["DesignLike", "MarginsLike", "Requests"]
 
@@ -451,6 +459,78 @@ class Requests:
         if gravity is not None:
             data["gravity"] = _floats(gravity)
         return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
+
+    def _calibrate(
+        self,
+        measurements: Sequence[Mapping[str, Any]],
+        *,
+        design: DesignLike = None,
+        identify: Sequence[str] | None = None,
+        frame: Mapping[str, Any] | None = None,
+    ) -> _Call[CalibrateResponse]:
+        """Kinematic calibration from ``measurements`` (each ``{"q": [3] rad, "p": [3] m in
+        the tracker's frame, "working_mode"?, "assembly_mode"?}``): the identified design,
+        offsets, tracker frame, residuals, standard deviations and unidentified parameters
+        (docs/calibration.md)."""
+        data: dict[str, Any] = {
+            "measurements": [
+                {k: (_floats(v) if k in ("q", "p") else v) for k, v in dict(m).items()}
+                for m in measurements
+            ],
+            "design": _design(design),
+        }
+        if identify is not None:
+            data["identify"] = list(identify)
+        if frame is not None:
+            data["frame"] = {k: _floats(v) for k, v in dict(frame).items()}
+        return _Call("POST", "/v1/calibrate", _validated(CalibrateRequest, data), CalibrateResponse)
+
+    def _calibration_poses(
+        self,
+        n: int = 30,
+        *,
+        design: DesignLike = None,
+        identify: Sequence[str] | None = None,
+        seed: int = 0,
+    ) -> _Call[CalibrationPosesResponse]:
+        """``n`` postures worth measuring for a calibration, each with its modes."""
+        data: dict[str, Any] = {"n": n, "design": _design(design), "seed": seed}
+        if identify is not None:
+            data["identify"] = list(identify)
+        return _Call(
+            "POST",
+            "/v1/calibrate/poses",
+            _validated(CalibrationPosesRequest, data),
+            CalibrationPosesResponse,
+        )
+
+    def _identify(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        tau: Any,
+        *,
+        design: DesignLike = None,
+        assembly_mode: str = "+",
+        gravity: Sequence[float] | None = None,
+        friction: bool = False,
+    ) -> _Call[IdentifyResponse]:
+        """Dynamic identification from measured motions and torques (N x 3 each): the
+        identified ``inertia`` (a design.inertia), friction when asked, the unidentified
+        parameters; ``design.inertia``, when given, is the prior."""
+        data: dict[str, Any] = {
+            "q": [_floats(r) for r in q],
+            "qd": [_floats(r) for r in qd],
+            "qdd": [_floats(r) for r in qdd],
+            "tau": [_floats(r) for r in tau],
+            "design": _design(design),
+            "assembly_mode": assembly_mode,
+            "friction": friction,
+        }
+        if gravity is not None:
+            data["gravity"] = _floats(gravity)
+        return _Call("POST", "/v1/identify", _validated(IdentifyRequest, data), IdentifyResponse)
 
     def _design_mjcf(
         self,

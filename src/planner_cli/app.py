@@ -22,6 +22,7 @@ import typer
 
 from planner_cli import (
     analysis,
+    calibration,
     dynamics,
     figures,
     jobs,
@@ -69,5 +70,7 @@ register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)
 register(dynamics.inertia_report, "inertia-report")
+register(calibration.calibrate)
+register(calibration.identify)
 app.add_typer(scenes.scene_app, name="scene")
 app.add_typer(jobs.job_app, name="job")
