@@ -49,6 +49,7 @@ CORE = (
     "planner.warmup",
     "planner.solver",
     "planner.sequence",
+    "planner.simulation",
 )
 #: What the core may never import (the wire, the client, the service, the CLI and their
 #: third-party libraries).
@@ -71,6 +72,7 @@ CONFINED = {
     "toppra": ("planner.timing",),
     "ruckig": ("planner.timing",),
     "matplotlib": ("planner.plotting",),
+    "mujoco": ("planner.simulation",),
 }
 
 
