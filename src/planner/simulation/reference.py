@@ -72,12 +72,13 @@ class Reference:
 
     def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, qd, qdd), each (K, 3), at ``times`` (K,), s: the samples' quintic interpolation
-        inside [start, end], the first sample before it, the last posture at rest after it."""
+        inside [start, end], the first sample before it, the last posture at rest after it
+        (at ``end`` itself: the last sample)."""
         times = np.atleast_1d(np.asarray(times, dtype=float))
         q = np.empty((times.size, 3))
         qd = np.zeros((times.size, 3))
         qdd = np.zeros((times.size, 3))
-        after = times >= self.end
+        after = times > self.end
         before = times <= self.start
         q[after] = self.q[-1]
         q[before & ~after], qd[before & ~after], qdd[before & ~after] = (

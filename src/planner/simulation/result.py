@@ -123,5 +123,6 @@ def settle_times(
         if stop.final and last - i + 1 < window:
             out.append(None)
             continue
-        out.append(max(0.0, float(t[i] - stop.arrive)))
+        wait = float(t[i] - stop.arrive)
+        out.append(wait if wait > 1e-9 else 0.0)  # the grid's rounding is no wait
     return out
