@@ -73,6 +73,8 @@ CONFINED = {
     "ruckig": ("planner.timing",),
     "matplotlib": ("planner.plotting",),
     "mujoco": ("planner.simulation",),
+    "mcap": ("planner.simulation",),
+    "mcap_ros2": ("planner.simulation",),
 }
 
 
