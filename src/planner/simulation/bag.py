@@ -29,8 +29,6 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from planner.simulation.result import Simulation
-
 __all__ = [
     "BAG_JOINT_NAMES",
     "TOPIC_JOINT_STATES",
@@ -38,6 +36,7 @@ __all__ = [
     "TOPIC_P_ERROR",
     "TOPIC_TRAJECTORY",
     "BagContents",
+    "RecordedRun",
     "SampledTrajectory",
     "read_bag",
     "write_bag",
@@ -83,6 +82,17 @@ class SampledTrajectory(Protocol):
     qdd: np.ndarray
 
 
+class RecordedRun(Protocol):
+    """What a bag takes of a simulated run: ``t`` (K,), s; ``q``, ``qd``, ``tau`` (K, 3);
+    ``p_error_mm`` (K,) (a :class:`~planner.simulation.Simulation` has them)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray
+    p_error_mm: np.ndarray
+
+
 def _stamp(ns: int) -> dict[str, int]:
     if ns < 0:
         raise ValueError(f"a bag's times must be >= 0 ns (raise start_ns), got {ns}")
@@ -97,7 +107,7 @@ def write_bag(
     target: str | os.PathLike[str] | IO[bytes],
     *,
     trajectory: SampledTrajectory | None = None,
-    simulation: Simulation | None = None,
+    simulation: RecordedRun | None = None,
     start_ns: int = 0,
     frame_id: str = "base",
 ) -> None:
@@ -115,7 +125,7 @@ def write_bag(
 def _write(
     stream: IO[bytes],
     trajectory: SampledTrajectory | None,
-    simulation: Simulation | None,
+    simulation: RecordedRun | None,
     start_ns: int,
     frame_id: str,
 ) -> None:

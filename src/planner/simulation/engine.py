@@ -112,8 +112,9 @@ def simulate(
     g = check_gravity(gravity)
     limits = _check_options(rate_hz, torque_limits, settle_tolerance_mm, hold_s)
     period = 1.0 / rate_hz
-    n_motion = int(np.floor((reference.end - reference.start) * rate_hz + 1e-9)) + 1
-    n_total = n_motion + int(np.ceil(hold_s * rate_hz - 1e-9))
+    # the first control instant at or after the end, then the hold
+    n_end = int(np.ceil((reference.end - reference.start) * rate_hz - 1e-9))
+    n_total = n_end + 1 + int(np.ceil(hold_s * rate_hz - 1e-9))
     bound = min(MAX_SIMULATION_SAMPLES, max_samples or MAX_SIMULATION_SAMPLES)
     if n_total > bound:
         raise InputError(
@@ -162,7 +163,7 @@ def simulate(
         clipped = np.clip(tau, -lim, lim)
         saturated += bool(np.any(clipped != tau))
         rec_tau[k] = clipped
-        if k >= n_motion - 1:
+        if k >= n_end:
             err_mm = 1e3 * np.linalg.norm(rec_p[k] - p_ref[k])
             settled_run = settled_run + 1 if err_mm <= settle_tolerance_mm else 0
             if settled_run >= window or k == n_total - 1:
@@ -174,9 +175,7 @@ def simulate(
     n = k + 1
     p_error_mm = 1e3 * np.linalg.norm(rec_p[:n] - p_ref[:n], axis=1)
     stops = find_stops(reference)
-    settles = settle_times(
-        stops, t[:n], p_error_mm, settle_tolerance_mm, min(window, n - n_motion + 1)
-    )
+    settles = settle_times(stops, t[:n], p_error_mm, settle_tolerance_mm, min(window, n - n_end))
     final = settles[-1]
     sign = _mode_sign(design, reference.q[0], assembly_mode)
     return Simulation(
