@@ -6,8 +6,9 @@
   ``tau = ID(q_r, qd_r, qdd_r) + M(q_r) (kp e + kd e_dot)``, ``e = q_r - q``. The gains are
   those of the error's own dynamics (``e_ddot + kd e_dot + kp e = 0`` with a perfect model):
   ``kp`` in 1/s^2, ``kd`` in 1/s; default a critically damped 50 rad/s (``kp`` 2500, ``kd``
-  100). The feed-forward is read at the middle of each control period (the torque is held
-  over it), the error at its start.
+  100). The feed-forward holds over each control period: the inverse dynamics at the
+  period's middle with its mean acceleration (:func:`planner.simulation.engine.simulate`);
+  the error is read at the period's start.
 - ``pd``: ``tau = kp e + kd e_dot`` alone, no model (``kp`` in N m/rad, ``kd`` in N m s/rad):
   gravity and inertia are the PD's to fight, so it lags and sags. Default: the gains that
   give the same 50 rad/s on the mass matrix's diagonal at the first posture,
