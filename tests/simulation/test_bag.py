@@ -70,9 +70,12 @@ def test_a_trajectory_with_torques_alone_to_a_stream() -> None:
     rng = np.random.default_rng(2)
     t = np.array([0.5, 0.75, 1.0])
     arrays = TrajectoryArrays(
-        t, rng.normal(size=(3, 3)), rng.normal(size=(3, 3)), rng.normal(size=(3, 3)),
+        t,
+        rng.normal(size=(3, 3)),
+        rng.normal(size=(3, 3)),
+        rng.normal(size=(3, 3)),
         tau=rng.normal(size=(3, 3)),
-    )  # fmt: skip
+    )
     buf = io.BytesIO()
     write_bag(buf, trajectory=arrays)
     back = read_bag(io.BytesIO(buf.getvalue()))

@@ -80,8 +80,9 @@ def test_realised_p_is_the_products_forward_kinematics_of_the_realised_q() -> No
         ("-", np.array([0.2, 2.4, 0.5]), np.array([0.0, 2.6, 0.7])),
     ):
         assert forward_batch(DESIGN, np.stack([q0, q1]), mode).ok.all()
-        sim = simulate(DESIGN, move_reference(q0=q0, q1=q1, duration=0.2), hold_s=0.0,
-                       assembly_mode=mode)  # fmt: skip
+        sim = simulate(
+            DESIGN, move_reference(q0=q0, q1=q1, duration=0.2), hold_s=0.0, assembly_mode=mode
+        )
         p = forward_batch(DESIGN, sim.q, mode).p
         np.testing.assert_allclose(sim.p, p, atol=2e-8)
         assert sim.assembly_kept and sim.tracking.p_max_mm < 1e-2
@@ -96,11 +97,13 @@ def test_a_static_posture_under_gravity_is_held_still() -> None:
     sim = simulate(DESIGN, ref, gravity=g, hold_s=0.2)
     assert np.max(np.abs(sim.q - Q0)) < 1e-7
     assert np.max(np.abs(sim.qd)) < 1e-5
-    tau_g = inverse_dynamics(DESIGN, Inertia.default(DESIGN), Q0, np.zeros(3), np.zeros(3),
-                             gravity=g).tau[0]  # fmt: skip
+    tau_g = inverse_dynamics(
+        DESIGN, Inertia.default(DESIGN), Q0, np.zeros(3), np.zeros(3), gravity=g
+    ).tau[0]
     np.testing.assert_allclose(sim.tau, np.tile(tau_g, (sim.t.size, 1)), atol=1e-4)
-    limp = simulate(DESIGN, ref, gravity=g, hold_s=0.2,
-                    controller=Controller("pd", kp=(0, 0, 0), kd=(0, 0, 0)))  # fmt: skip
+    limp = simulate(
+        DESIGN, ref, gravity=g, hold_s=0.2, controller=Controller("pd", kp=(0, 0, 0), kd=(0, 0, 0))
+    )
     assert np.max(np.abs(limp.q - Q0)) > 1e-2
 
 

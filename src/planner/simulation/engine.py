@@ -24,13 +24,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from planner.design import Design
 from planner.dynamics import DEFAULT_GRAVITY, Inertia, check_gravity, inverse_dynamics
-from planner.dynamics.mjcf import JOINT_NAMES, to_mjcf
+from planner.dynamics.mjcf import to_mjcf
 from planner.exceptions import InputError, check_deadline
 from planner.kinematics import forward_batch
 from planner.simulation.controller import Controller
@@ -131,7 +133,6 @@ def simulate(
     p_ref = forward_batch(design, q_ref, assembly_mode).p
     ff, mass = _feed_forward(design, inertia, reference, t, period, g, assembly_mode)
     kp, kd = controller.gains(np.diagonal(mass[0]))
-    computed = controller.kind == "computed_torque"
     n_sub = int(np.ceil(period / MAX_PHYSICS_STEP - 1e-9))
     xml = to_mjcf(
         design,
@@ -148,50 +149,25 @@ def simulate(
     act, pas, tips = _start(model, data, reference.qd[0])
     lim = np.asarray(limits) if limits is not None else np.full(3, np.inf)
 
-    rec_qpos, rec_qvel = np.empty((n_total, model.nq)), np.empty((n_total, model.nv))
-    rec_tips, rec_raw, rec_tau = (
-        np.empty((n_total, 2, 3)),
-        np.empty((n_total, 3)),
-        np.empty((n_total, 3)),
-    )
-    window = max(1, round(SETTLE_WINDOW_S * rate_hz))
-    tolerance_m = 1e-3 * settle_tolerance_mm
-    settled_run, k = 0, 0
-    started = time.process_time()
-    for k in range(n_total):
-        if k % _DEADLINE_EVERY == 0:
-            check_deadline(deadline, "simulating")
-        rec_qpos[k], rec_qvel[k], rec_tips[k] = data.qpos, data.qvel, data.site_xpos[tips]
-        q, qd = rec_qpos[k, act], rec_qvel[k, act]
-        v = kp * (q_ref[k] - q) + kd * (qd_ref[k] - qd)
-        tau = ff[k] + mass[k] @ v if computed else v
-        rec_raw[k] = tau
-        rec_tau[k] = clipped = np.minimum(np.maximum(tau, -lim), lim)
-        if k >= n_end:
-            p = 0.5 * (rec_tips[k, 0] + rec_tips[k, 1])
-            within = float(np.dot(p - p_ref[k], p - p_ref[k])) <= tolerance_m**2
-            settled_run = settled_run + 1 if within else 0
-            if settled_run >= window or k == n_total - 1:
-                break
-        data.ctrl[:] = clipped
-        mujoco.mj_step(model, data, nstep=n_sub)
-        mujoco.mj_kinematics(model, data)
-    cpu = time.process_time() - started
-    n = k + 1
-    rec_q, rec_qd = rec_qpos[:n][:, act], rec_qvel[:n][:, act]
-    rec_p = 0.5 * (rec_tips[:n, 0] + rec_tips[:n, 1])
-    theta4 = rec_qpos[:n, act[1]] + rec_qpos[:n, pas[0]]
-    theta5 = rec_qpos[:n, act[2]] + rec_qpos[:n, pas[1]]
+    law = _Law(ff, mass, kp, kd, controller.kind == "computed_torque", lim)
+    hold = _Hold(n_end, max(1, round(SETTLE_WINDOW_S * rate_hz)), 1e-3 * settle_tolerance_mm)
+    rec = _control_loop(model, data, law, hold, q_ref, qd_ref, p_ref, tips, n_sub, deadline)
+    n = rec.n
+    rec_q, rec_qd = rec.qpos[:, act], rec.qvel[:, act]
+    rec_p = 0.5 * (rec.tips[:, 0] + rec.tips[:, 1])
+    theta4 = rec.qpos[:, act[1]] + rec.qpos[:, pas[0]]
+    theta5 = rec.qpos[:, act[2]] + rec.qpos[:, pas[1]]
     p_error_mm = 1e3 * np.linalg.norm(rec_p - p_ref[:n], axis=1)
     stops = find_stops(reference)
-    settles = settle_times(stops, t[:n], p_error_mm, settle_tolerance_mm, min(window, n - n_end))
+    window = min(hold.window, n - n_end)
+    settles = settle_times(stops, t[:n], p_error_mm, settle_tolerance_mm, window)
     final = settles[-1]
     sign = _mode_sign(design, reference.q[0], assembly_mode)
     return Simulation(
         t=t[:n],
         q=rec_q,
         qd=rec_qd,
-        tau=rec_tau[:n],
+        tau=rec.tau,
         p=rec_p,
         q_ref=q_ref[:n],
         p_ref=p_ref[:n],
@@ -205,9 +181,94 @@ def simulate(
         controller=controller.kind,
         rate_hz=float(rate_hz),
         physics_timestep=float(model.opt.timestep),
-        saturated=int(np.sum(np.any(rec_raw[:n] != rec_tau[:n], axis=1))),
+        saturated=int(np.sum(np.any(rec.raw != rec.tau, axis=1))),
         assembly_kept=bool(np.all(np.sign(np.sin(theta5 - theta4)) == sign)),
-        computation_time_s=cpu,
+        computation_time_s=rec.cpu,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class _Law:
+    """The control law's data: feed-forward (K, 3), mass matrices (K, 3, 3), gains, the
+    kind, the torque limits (3,)."""
+
+    ff: np.ndarray
+    mass: np.ndarray
+    kp: np.ndarray
+    kd: np.ndarray
+    computed: bool
+    limits: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class _Hold:
+    """The hold after the motion: its first instant, the settled samples that end it, the
+    tolerance (m)."""
+
+    first: int
+    window: int
+    tolerance_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class _Record:
+    """The loop's record: n samples of MuJoCo's qpos, qvel, tip positions (n, 2, 3), the
+    torques before and after saturation; its CPU time."""
+
+    n: int
+    qpos: np.ndarray
+    qvel: np.ndarray
+    tips: np.ndarray
+    raw: np.ndarray
+    tau: np.ndarray
+    cpu: float
+
+
+def _control_loop(
+    model: Any,
+    data: Any,
+    law: _Law,
+    hold: _Hold,
+    q_ref: np.ndarray,
+    qd_ref: np.ndarray,
+    p_ref: np.ndarray,
+    tips: list[int],
+    n_sub: int,
+    deadline: float | None,
+) -> _Record:
+    """Run the controller at each instant of ``q_ref`` (K, 3) until the hold ends: record the
+    state, compute and clip the torque, step the physics over one control period
+    (``n_sub`` physics steps)."""
+    n_total = q_ref.shape[0]
+    act = _actuated(model)
+    qpos, qvel = np.empty((n_total, model.nq)), np.empty((n_total, model.nv))
+    tip_xyz, raw, tau_rec = (
+        np.empty((n_total, 2, 3)),
+        np.empty((n_total, 3)),
+        np.empty((n_total, 3)),
+    )
+    settled_run, k = 0, 0
+    started = time.process_time()
+    for k in range(n_total):
+        if k % _DEADLINE_EVERY == 0:
+            check_deadline(deadline, "simulating")
+        qpos[k], qvel[k], tip_xyz[k] = data.qpos, data.qvel, data.site_xpos[tips]
+        q, qd = qpos[k, act], qvel[k, act]
+        v = law.kp * (q_ref[k] - q) + law.kd * (qd_ref[k] - qd)
+        tau = law.ff[k] + law.mass[k] @ v if law.computed else v
+        raw[k] = tau
+        tau_rec[k] = clipped = np.minimum(np.maximum(tau, -law.limits), law.limits)
+        if k >= hold.first:
+            d = 0.5 * (tip_xyz[k, 0] + tip_xyz[k, 1]) - p_ref[k]
+            settled_run = settled_run + 1 if float(d @ d) <= hold.tolerance_m**2 else 0
+            if settled_run >= hold.window or k == n_total - 1:
+                break
+        data.ctrl[:] = clipped
+        mujoco.mj_step(model, data, nstep=n_sub)
+        mujoco.mj_kinematics(model, data)
+    n = k + 1
+    return _Record(
+        n, qpos[:n], qvel[:n], tip_xyz[:n], raw[:n], tau_rec[:n], time.process_time() - started
     )
 
 
@@ -291,12 +352,17 @@ def _feed_forward(
     return batch.tau, batch.mass_matrix
 
 
+def _actuated(model: Any) -> list[int]:
+    """MuJoCo's dof indices of theta1, theta2, theta3 (every joint a hinge: their qpos
+    indices too)."""
+    return [int(model.joint(name).dofadr[0]) for name in ("theta1", "theta2", "theta3")]
+
+
 def _start(model, data, qd0: np.ndarray) -> tuple[list[int], list[int], list[int]]:
     """Put the model at its keyframe (the loop closed at the first posture) with the
     reference's first velocities; the actuated and passive dof indices and the tip sites."""
-    dof = {name: int(model.joint(name).dofadr[0]) for name in JOINT_NAMES}
-    act = [dof["theta1"], dof["theta2"], dof["theta3"]]
-    pas = [dof["theta4_rel"], dof["theta5_rel"]]
+    act = _actuated(model)
+    pas = [int(model.joint(name).dofadr[0]) for name in ("theta4_rel", "theta5_rel")]
     tips = [int(model.site("tip_C").id), int(model.site("tip_D").id)]
     mujoco.mj_resetDataKeyframe(model, data, 0)
     mujoco.mj_kinematics(model, data)
