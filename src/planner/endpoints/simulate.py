@@ -66,7 +66,11 @@ def simulate(request: SimulateRequest, budget: JobBudget = UNBOUNDED) -> Simulat
         )
     except InputError as exc:
         field = exc.field_path[:1]
-        prefix = {("q",): where, ("torque",): ("body", "limits")}.get(field, ("body",))
+        prefixes: dict[tuple[str | int, ...], tuple[str | int, ...]] = {
+            ("q",): where,
+            ("torque",): ("body", "limits"),
+        }
+        prefix = prefixes.get(field, ("body",))
         with located(*prefix):
             raise
     return simulation_response(sim, planned)

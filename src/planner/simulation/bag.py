@@ -159,7 +159,9 @@ def _write(
                 "points": points,
             }
             writer.write_message(TOPIC_TRAJECTORY, schema, message, first, first)
-            _write_states(writer, states, TOPIC_PLANNED_STATES, t, *rows, effort, start_ns)
+            _write_states(
+                writer, states, TOPIC_PLANNED_STATES, t, rows[0], rows[1], effort, start_ns
+            )
         if simulation is not None:
             sim = simulation
             _write_states(

@@ -20,11 +20,11 @@ Either controller's torque is clipped to the actuators' limits before it is appl
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planner.exceptions import InputError
 
@@ -60,7 +60,7 @@ class Controller:
                 raise InputError(f"{name} must be 3 finite gains >= 0, got {value!r}", field=name)
             object.__setattr__(self, name, tuple(float(g) for g in gains))
 
-    def gains(self, mass_diagonal: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    def gains(self, mass_diagonal: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(kp, kd), each (3,), in the kind's units; ``mass_diagonal`` (3,), kg m^2: the mass
         matrix's diagonal at the first posture, which scales the defaults of ``pd``."""
         w = DEFAULT_BANDWIDTH

@@ -137,7 +137,7 @@ def simulate(
     xml = to_mjcf(
         design,
         inertia,
-        gravity=g,
+        gravity=gravity,
         home=reference.q[0],
         assembly_mode=assembly_mode,
         torque_limits=limits,
