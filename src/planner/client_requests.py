@@ -155,6 +155,30 @@ def _obstacle_data(obstacles: Sequence[Any]) -> list[Any]:
     return out
 
 
+def _simulate_body(
+    trajectory: Any,
+    request: Any,
+    controller: str | Mapping[str, Any],
+    design: DesignLike,
+    options: Mapping[str, Any],
+) -> SimulateRequest:
+    """The validated body of ``POST /v1/simulate`` (and ``/bag``) from the client's
+    arguments."""
+    data: dict[str, Any] = dict(options)
+    data["controller"] = {"kind": controller} if isinstance(controller, str) else dict(controller)
+    if design is not None:
+        data["design"] = _design(design)
+    if trajectory is not None:
+        data["trajectory"] = _trajectory_fields(trajectory)
+    if request is not None:
+        data["request"] = (
+            request.model_dump(exclude_unset=True)
+            if isinstance(request, BaseModel)
+            else dict(request)
+        )
+    return _validated(SimulateRequest, data)
+
+
 def _trajectory_fields(trajectory: Any) -> dict[str, Any]:
     """``t``, ``q``, ``qd``, ``qdd`` of a trajectory: a wire answer in either form, a
     mapping (a points mapping is read as one), or any object with those attributes (the
@@ -495,21 +519,22 @@ class Requests:
         ``assembly_mode``, ``settle_tolerance_mm``, ``hold_s``. The answer: the realised
         samples, the ``tracking`` error, ``settle_times``, the planned and realised
         durations."""
-        data: dict[str, Any] = dict(options)
-        data["controller"] = (
-            {"kind": controller} if isinstance(controller, str) else dict(controller)
-        )
-        if design is not None:
-            data["design"] = _design(design)
-        if trajectory is not None:
-            data["trajectory"] = _trajectory_fields(trajectory)
-        if request is not None:
-            data["request"] = (
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, BaseModel)
-                else dict(request)
-            )
-        return _Call("POST", "/v1/simulate", _validated(SimulateRequest, data), SimulateResponse)
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate", body, SimulateResponse)
+
+    def _simulate_bag(
+        self,
+        trajectory: Any = None,
+        *,
+        request: PlanRequest | SequenceRequest | Mapping[str, Any] | None = None,
+        controller: str | Mapping[str, Any] = "computed_torque",
+        design: DesignLike = None,
+        **options: Any,
+    ) -> _Call[bytes]:
+        """The same run as :meth:`simulate`, answered as a ROS 2 bag (``POST
+        /v1/simulate/bag``): the MCAP file's bytes (``docs/simulation.md``)."""
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate/bag", body, bytes)
 
     def _design_mjcf(
         self,

@@ -91,28 +91,11 @@ def simulate(
         out.write_text(response.model_dump_json(indent=2))
         typer.echo(f"full result: {out}")
     if bag is not None:
-        _write_bag(bag, model, response)
+        from planner.wire import simulation_bag
+
+        bag.write_bytes(simulation_bag(model, response))
         typer.echo(f"ROS 2 bag: {bag}")
     raise typer.Exit(EXIT_OK if response.realised_duration is not None else EXIT_NO_ANSWER)
-
-
-def _write_bag(path: Path, model: Any, response: Any) -> None:
-    """The run and the trajectory it followed as a ROS 2 bag."""
-    from types import SimpleNamespace
-
-    import numpy as np
-
-    from planner.simulation.bag import write_bag
-
-    source = response.trajectory if response.trajectory is not None else model.trajectory
-    trajectory = SimpleNamespace(
-        **{k: np.asarray(getattr(source, k), dtype=float) for k in ("t", "q", "qd", "qdd")}
-    )
-    run = SimpleNamespace(
-        **{k: np.asarray(getattr(response, k), dtype=float) for k in ("t", "q", "qd", "tau")},
-        p_error_mm=np.asarray(response.p_error_mm, dtype=float),
-    )
-    write_bag(path, trajectory=trajectory, simulation=run)
 
 
 def simulate_summary(response: Any) -> list[str]:

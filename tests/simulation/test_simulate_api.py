@@ -84,3 +84,45 @@ def test_bad_input_is_a_422_at_the_field(api, change, loc) -> None:
     r = api.post("/v1/simulate", json=body)
     assert r.status_code == 422, r.text
     assert r.json()["detail"][0]["loc"][: len(loc)] == loc, r.json()
+
+
+def test_the_bag_route_and_the_client_give_the_runs_bag(api) -> None:
+    """POST /v1/simulate/bag: the MCAP bytes of the same run (read back: the realised q of
+    POST /v1/simulate's answer, the followed trajectory's q); the client's simulate takes a
+    plan's answer trajectory (arrays form, with its extra fields) and simulate_bag the same
+    arguments, both through the service."""
+    import io
+
+    import httpx
+
+    from planner.client import PlannerClient
+    from planner.simulation.bag import read_bag
+
+    body = {"trajectory": _trajectory(0.1), "hold_s": 0.05}
+    answer = api.post("/v1/simulate", json=body).json()
+    r = api.post("/v1/simulate/bag", json=body)
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/octet-stream"
+    back = read_bag(io.BytesIO(r.content))
+    assert back.realised is not None and back.trajectory is not None
+    np.testing.assert_array_equal(back.realised["q"], answer["q"])
+    np.testing.assert_array_equal(back.trajectory["q"], body["trajectory"]["q"])
+    bad = api.post("/v1/simulate/bag", json={**body, "controller": {"kind": "lqr"}})
+    assert bad.status_code == 422
+    assert bad.json()["detail"][0]["loc"] == ["body", "controller", "kind"]
+
+    def forward(request: httpx.Request) -> httpx.Response:
+        out = api.request(
+            request.method,
+            request.url.path,
+            content=request.content,
+            headers={"content-type": "application/json"},
+        )
+        return httpx.Response(out.status_code, content=out.content, headers=out.headers)
+
+    plan_like = {**body["trajectory"], "duration": 0.1, "p": [[0, 0, 0]] * 101}
+    with PlannerClient("http://x", transport=httpx.MockTransport(forward)) as client:
+        sim = client.simulate(plan_like, hold_s=0.05)
+        bag = client.simulate_bag(plan_like, hold_s=0.05)
+    assert sim.q == answer["q"]
+    assert read_bag(io.BytesIO(bag)).realised["q"].tolist() == answer["q"]

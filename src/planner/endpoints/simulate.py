@@ -12,12 +12,13 @@ from planner.wire import (
     controller_to_core,
     located,
     reference_to_core,
+    simulation_bag,
     simulation_response,
     simulation_robot,
     trajectory_arrays,
 )
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "simulate_bag"]
 
 
 def simulate(request: SimulateRequest, budget: JobBudget = UNBOUNDED) -> SimulateResponse:
@@ -99,3 +100,9 @@ def _planned(request: SimulateRequest, budget: JobBudget) -> TrajectoryModel:
             )
     traj = answer.trajectory
     return trajectory_arrays(traj) if isinstance(traj, TrajectoryPointsModel) else traj
+
+
+def simulate_bag(request: SimulateRequest, budget: JobBudget = UNBOUNDED) -> bytes:
+    """``POST /v1/simulate/bag``: :func:`simulate`, answered as a ROS 2 bag (MCAP bytes:
+    :func:`planner.wire.simulation_bag`, ``docs/simulation.md``)."""
+    return simulation_bag(request, simulate(request, budget))

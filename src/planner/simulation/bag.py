@@ -37,6 +37,7 @@ __all__ = [
     "TOPIC_TRAJECTORY",
     "BagContents",
     "RecordedRun",
+    "RunArrays",
     "SampledTrajectory",
     "read_bag",
     "write_bag",
@@ -85,6 +86,19 @@ class SampledTrajectory(Protocol):
 class RecordedRun(Protocol):
     """What a bag takes of a simulated run: ``t`` (K,), s; ``q``, ``qd``, ``tau`` (K, 3);
     ``p_error_mm`` (K,) (a :class:`~planner.simulation.Simulation` has them)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray
+    p_error_mm: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RunArrays:
+    """A recorded run as plain arrays (a :class:`RecordedRun` for a run read from elsewhere,
+    e.g. a service's answer): ``t`` (K,), s; ``q``, ``qd``, ``tau`` (K, 3); ``p_error_mm``
+    (K,)."""
 
     t: np.ndarray
     q: np.ndarray

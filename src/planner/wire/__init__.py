@@ -209,6 +209,7 @@ from planner.wire.sequence import (
     sequence_response,
 )
 from planner.wire.simulation import (
+    BAG_MEDIA_TYPE,
     MAX_SIMULATE_TRAJECTORY_SAMPLES,
     ControllerModel,
     SimulatedTrajectory,
@@ -220,6 +221,7 @@ from planner.wire.simulation import (
     TrackingModel,
     controller_to_core,
     reference_to_core,
+    simulation_bag,
     simulation_response,
     simulation_robot,
 )
@@ -247,6 +249,7 @@ from planner.wire.timing import (
 )
 
 __all__ = [
+    "BAG_MEDIA_TYPE",
     "GRAVITY_FIELD",
     "JOB_KINDS",
     "MAX_BATCH_REQUESTS",
@@ -423,6 +426,7 @@ __all__ = [
     "scene_obstacles",
     "sequence_inputs",
     "sequence_response",
+    "simulation_bag",
     "simulation_response",
     "simulation_robot",
     "solution_response",

@@ -40,6 +40,7 @@ if TYPE_CHECKING:
     from planner.simulation import Controller, Reference, Simulation
 
 __all__ = [
+    "BAG_MEDIA_TYPE",
     "MAX_SIMULATE_TRAJECTORY_SAMPLES",
     "ControllerModel",
     "SimulateLimits",
@@ -51,9 +52,13 @@ __all__ = [
     "TrackingModel",
     "controller_to_core",
     "reference_to_core",
+    "simulation_bag",
     "simulation_response",
     "simulation_robot",
 ]
+
+#: Media type of a ROS 2 bag answer (MCAP has no registered type).
+BAG_MEDIA_TYPE = "application/octet-stream"
 
 #: Most samples of a trajectory sent to ``POST /v1/simulate``.
 MAX_SIMULATE_TRAJECTORY_SAMPLES = 100_000
@@ -291,3 +296,25 @@ def simulation_response(
         assembly_kept=sim.assembly_kept,
         trajectory=trajectory,
     )
+
+
+def simulation_bag(request: SimulateRequest, response: SimulateResponse) -> bytes:
+    """The ROS 2 bag (MCAP bytes, :func:`planner.simulation.bag.write_bag`) of a simulate
+    answer: the trajectory it followed (the request's, or with ``request`` the planned one)
+    and the realised run."""
+    import io
+
+    from planner.simulation.bag import RunArrays, write_bag
+    from planner.timing.export import TrajectoryArrays
+
+    source = response.trajectory if response.trajectory is not None else request.trajectory
+    if source is None:
+        raise InputError("a simulation answer without the trajectory it followed")
+    t, q, qd, qdd = (np.asarray(getattr(source, k), dtype=float) for k in ("t", "q", "qd", "qdd"))
+    run = RunArrays(
+        *(np.asarray(getattr(response, k), dtype=float) for k in ("t", "q", "qd", "tau")),
+        p_error_mm=np.asarray(response.p_error_mm, dtype=float),
+    )
+    buffer = io.BytesIO()
+    write_bag(buffer, trajectory=TrajectoryArrays(t, q, qd, qdd), simulation=run)
+    return buffer.getvalue()
