@@ -77,21 +77,30 @@ class SampledTrajectory(Protocol):
     :class:`~planner.timing.export.TrajectoryArrays`, a :class:`~planner.simulation.Reference`
     all have them; a missing ``tau`` counts as None)."""
 
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
+    @property
+    def t(self) -> np.ndarray: ...
+    @property
+    def q(self) -> np.ndarray: ...
+    @property
+    def qd(self) -> np.ndarray: ...
+    @property
+    def qdd(self) -> np.ndarray: ...
 
 
 class RecordedRun(Protocol):
     """What a bag takes of a simulated run: ``t`` (K,), s; ``q``, ``qd``, ``tau`` (K, 3);
     ``p_error_mm`` (K,) (a :class:`~planner.simulation.Simulation` has them)."""
 
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    tau: np.ndarray
-    p_error_mm: np.ndarray
+    @property
+    def t(self) -> np.ndarray: ...
+    @property
+    def q(self) -> np.ndarray: ...
+    @property
+    def qd(self) -> np.ndarray: ...
+    @property
+    def tau(self) -> np.ndarray: ...
+    @property
+    def p_error_mm(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True, eq=False)

@@ -312,7 +312,10 @@ def simulation_bag(request: SimulateRequest, response: SimulateResponse) -> byte
         raise InputError("a simulation answer without the trajectory it followed")
     t, q, qd, qdd = (np.asarray(getattr(source, k), dtype=float) for k in ("t", "q", "qd", "qdd"))
     run = RunArrays(
-        *(np.asarray(getattr(response, k), dtype=float) for k in ("t", "q", "qd", "tau")),
+        t=np.asarray(response.t, dtype=float),
+        q=np.asarray(response.q, dtype=float),
+        qd=np.asarray(response.qd, dtype=float),
+        tau=np.asarray(response.tau, dtype=float),
         p_error_mm=np.asarray(response.p_error_mm, dtype=float),
     )
     buffer = io.BytesIO()
