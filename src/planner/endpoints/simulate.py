@@ -63,7 +63,7 @@ def simulate(request: SimulateRequest, budget: JobBudget = UNBOUNDED) -> Simulat
             settle_tolerance_mm=request.settle_tolerance_mm,
             hold_s=request.hold_s,
             deadline=budget.deadline,
-            max_samples=budget.max_samples,
+            max_samples=_sample_bound(budget, planned is not None),
         )
     except InputError as exc:
         field = exc.field_path[:1]
@@ -75,6 +75,14 @@ def simulate(request: SimulateRequest, budget: JobBudget = UNBOUNDED) -> Simulat
         with located(*prefix):
             raise
     return simulation_response(sim, planned)
+
+
+def _sample_bound(budget: JobBudget, with_plan: bool) -> int | None:
+    """The most simulated samples the answer may carry: the budget's, halved when the answer
+    also carries the planned trajectory (about as many samples, at the control rate)."""
+    if budget.max_samples is None or not with_plan:
+        return budget.max_samples
+    return max(2, budget.max_samples // 2)
 
 
 def _planned(request: SimulateRequest, budget: JobBudget) -> TrajectoryModel:
