@@ -54,6 +54,23 @@ def test_a_plan_request_is_planned_then_simulated_with_saturation(api) -> None:
     assert body["controller"] == "pd" and body["tracking"]["p_max_mm"] > 0
 
 
+def test_a_sequence_request_is_simulated_with_a_settle_time_per_stop(api) -> None:
+    """A sequence with two stops and its return (cycle): the answer's stops are the
+    reference's rests, one settle time each, all settled with computed torque."""
+    goals = ([0.2, 2.1, 0.9], [0.0, 2.2, 1.1])
+    request = {
+        "start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+        "targets": [{"goal": {"q": q, "assembly_mode": "+"}} for q in goals],
+        "cycle": True,
+    }
+    r = api.post("/v1/simulate", json={"request": request, "hold_s": 0.1})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert len(body["stops"]) == 3 and len(body["settle_times"]) == 3
+    assert all(s is not None and s <= 2e-3 for s in body["settle_times"])
+    assert body["tracking"]["p_max_mm"] < 0.1
+
+
 @pytest.mark.parametrize(
     ("change", "loc"),
     [
