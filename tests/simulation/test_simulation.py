@@ -10,7 +10,7 @@ import dataclasses
 import mujoco
 import numpy as np
 import pytest
-from simulation_factories import Q0, Q1, move_reference, there_and_back
+from simulation_factories import Q0, Q1, move_reference, quintic_move, there_and_back
 
 from planner import Design, forward_batch
 from planner.dynamics import Inertia, inverse_dynamics
@@ -152,3 +152,16 @@ def test_bad_input_names_its_field(call, field) -> None:
     with pytest.raises(InputError) as info:
         call()
     assert info.value.field_path[0] == field, info.value
+
+
+def test_a_trajectory_on_another_clock_runs_the_same() -> None:
+    """A trajectory whose clock starts at 5 s (a replacement's starts at its ``at``): the
+    same run, its instants and stops shifted, its durations and measures unchanged."""
+    t, q, qd, qdd = quintic_move(duration=0.1)
+    zero = simulate(DESIGN, Reference(t, q, qd, qdd), hold_s=0.06)
+    late = simulate(DESIGN, Reference(t + 5.0, q, qd, qdd), hold_s=0.06)
+    np.testing.assert_allclose(late.t, zero.t + 5.0, atol=1e-12)
+    np.testing.assert_allclose(late.q, zero.q, atol=1e-12)
+    assert late.stops[-1].arrive == pytest.approx(5.1)
+    assert late.planned_duration == pytest.approx(zero.planned_duration)
+    assert late.realised_duration == pytest.approx(zero.realised_duration)

@@ -73,6 +73,8 @@ DEFAULT_SETTLE_TOLERANCE_MM = 0.1
 #: Most control samples one simulation records (the motion and the hold at ``rate_hz``):
 #: 200 s at 1 kHz, ~20 s of computation.
 MAX_SIMULATION_SAMPLES = 200_000
+#: The loop's tips at the first posture farther apart than this (m): it did not close.
+_CLOSED_LOOP_TOL = 1e-9
 #: Control steps between two looks at the deadline.
 _DEADLINE_EVERY = 1000
 
@@ -376,6 +378,12 @@ def _start(model, data, qd0: np.ndarray) -> tuple[list[int], list[int], list[int
     qvel[pas] = -np.linalg.pinv(j[:, pas]) @ (j[:, act] @ qd0)
     data.qvel[:] = qvel
     mujoco.mj_forward(model, data)
+    gap = float(np.linalg.norm(data.site_xpos[tips[0]] - data.site_xpos[tips[1]]))
+    if gap > _CLOSED_LOOP_TOL:
+        raise InputError(
+            f"the loop does not close at the first posture (its tips {gap:g} m apart)",
+            field=("q", 0),
+        )
     return act, pas, tips
 
 
