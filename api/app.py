@@ -28,6 +28,7 @@ from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import sequence as sequence_routes
+from planner_api.routes import simulate as simulate_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -153,6 +154,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         dynamics_routes.router,
         calibration_routes.router,
         sequence_routes.router,
+        simulate_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
     # the scenes come from the store: no worker to cancel

@@ -56,11 +56,16 @@ from planner.wire import (
     SceneRequest,
     SequenceRequest,
     SequenceResponse,
+    SimulateRequest,
+    SimulateResponse,
     TimingRequest,
     TimingResponse,
+    TrajectoryModel,
+    TrajectoryPointsModel,
     VersionInfo,
     WorkspaceRequest,
     WorkspaceResponse,
+    trajectory_arrays,
 )
 from planner.wire.calibration import (
     CalibrateRequest,
@@ -156,6 +161,50 @@ def _obstacle_data(obstacles: Sequence[Any]) -> list[Any]:
             ob = {**ob, "points": ob["points"].tolist()}
         out.append(ob)
     return out
+
+
+def _simulate_body(
+    trajectory: Any,
+    request: Any,
+    controller: str | Mapping[str, Any],
+    design: DesignLike,
+    options: Mapping[str, Any],
+) -> SimulateRequest:
+    """The validated body of ``POST /v1/simulate`` (and ``/bag``) from the client's
+    arguments."""
+    data: dict[str, Any] = dict(options)
+    data["controller"] = {"kind": controller} if isinstance(controller, str) else dict(controller)
+    if design is not None:
+        data["design"] = _design(design)
+    if trajectory is not None:
+        data["trajectory"] = _trajectory_fields(trajectory)
+    if request is not None:
+        data["request"] = (
+            request.model_dump(exclude_unset=True)
+            if isinstance(request, BaseModel)
+            else dict(request)
+        )
+    return _validated(SimulateRequest, data)
+
+
+def _trajectory_fields(trajectory: Any) -> dict[str, Any]:
+    """``t``, ``q``, ``qd``, ``qdd`` of a trajectory: a wire answer in either form, a
+    mapping (a points mapping is read as one), or any object with those attributes (the
+    library's trajectory)."""
+    if isinstance(trajectory, Mapping):
+        kind = TrajectoryPointsModel if "points" in trajectory else TrajectoryModel
+        if "points" in trajectory or "duration" in trajectory:
+            trajectory = kind.model_validate(trajectory)
+        else:
+            return {k: trajectory[k] for k in ("t", "q", "qd", "qdd") if k in trajectory}
+    if isinstance(trajectory, TrajectoryPointsModel):
+        trajectory = trajectory_arrays(trajectory)
+    return {
+        "t": _floats(trajectory.t),
+        "q": [_floats(r) for r in trajectory.q],
+        "qd": [_floats(r) for r in trajectory.qd],
+        "qdd": [_floats(r) for r in trajectory.qdd],
+    }
 
 
 def _describe_item(item: Any) -> str:
@@ -531,6 +580,40 @@ class Requests:
         if gravity is not None:
             data["gravity"] = _floats(gravity)
         return _Call("POST", "/v1/identify", _validated(IdentifyRequest, data), IdentifyResponse)
+    def _simulate(
+        self,
+        trajectory: Any = None,
+        *,
+        request: PlanRequest | SequenceRequest | Mapping[str, Any] | None = None,
+        controller: str | Mapping[str, Any] = "computed_torque",
+        design: DesignLike = None,
+        **options: Any,
+    ) -> _Call[SimulateResponse]:
+        """Run a trajectory on the simulated robot (``POST /v1/simulate``, MuJoCo on the
+        product's model): ``trajectory`` (a plan's answer trajectory in either form, a
+        library trajectory, or a mapping with ``t``, ``q``, ``qd``, ``qdd``) or ``request``
+        (a plan or sequence request, planned first; its robot is the simulated one).
+        ``controller``: ``"computed_torque"``, ``"pd"`` or ``{"kind", "kp", "kd"}``.
+        ``options``: ``rate_hz``, ``limits`` (``{"torque": [3]}``), ``gravity``,
+        ``assembly_mode``, ``settle_tolerance_mm``, ``hold_s``. The answer: the realised
+        samples, the ``tracking`` error, ``settle_times``, the planned and realised
+        durations."""
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate", body, SimulateResponse)
+
+    def _simulate_bag(
+        self,
+        trajectory: Any = None,
+        *,
+        request: PlanRequest | SequenceRequest | Mapping[str, Any] | None = None,
+        controller: str | Mapping[str, Any] = "computed_torque",
+        design: DesignLike = None,
+        **options: Any,
+    ) -> _Call[bytes]:
+        """The same run as :meth:`simulate`, answered as a ROS 2 bag (``POST
+        /v1/simulate/bag``): the MCAP file's bytes (``docs/simulation.md``)."""
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate/bag", body, bytes)
 
     def _design_mjcf(
         self,
