@@ -91,7 +91,7 @@ def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path
     from playwright.sync_api import expect
 
     page.locator("#example").select_option(
-        label="Sequence: pick and place, back to the start (cycle)"
+        label="Sequence: pick and place (cycle)"
     )
     expect(page.get_by_test_id("sequence-mode")).to_be_checked()
     with page.expect_request(lambda r: r.url.endswith("/v1/sequence")) as sent:
