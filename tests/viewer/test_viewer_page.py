@@ -40,8 +40,8 @@ CUT_START, CUT_GOAL = [0.3, 0.13890625, -2.4395703125], [0.3, 0.20921875, -1.792
 
 
 @pytest.fixture(scope="module")
-def page_(live_server) -> Iterator[object]:
-    with watched_page(live_server, viewport=WIDE, accept_downloads=True) as pg:
+def page_(browser, live_server) -> Iterator[object]:
+    with watched_page(live_server, browser, viewport=WIDE, accept_downloads=True) as pg:
         yield pg
 
 

@@ -20,8 +20,8 @@ TORQUE = [40.0, 30.0, 20.0]
 
 
 @pytest.fixture(scope="module")
-def page_(live_server) -> Iterator[object]:
-    with watched_page(live_server, viewport={"width": 1400, "height": 900}) as pg:
+def page_(browser, live_server) -> Iterator[object]:
+    with watched_page(live_server, browser, viewport={"width": 1400, "height": 900}) as pg:
         yield pg
 
 

@@ -118,9 +118,8 @@ function showTorque(t, tau, limits, onSeek) {
   }
   // symmetric about 0, the limits inside: a torque's sign reads at a glance
   const top = 1.08 * Math.max(1e-9, ...tau.flat().map(Math.abs).filter(Number.isFinite), ...lines.map((l) => Math.abs(l.value)));
-  const u = chart(el, 'actuator torques τ (N m) against the torque limits', series, data, { yLabel: 'N m', yRange: [-top, top] }, onSeek);
-  charts.push(u);
-  torque = { t, tau, lines, yTicks: yTicks(u.scales.y.min, u.scales.y.max), yRange: [u.scales.y.min, u.scales.y.max] };
+  charts.push(chart(el, 'actuator torques τ (N m) against the torque limits', series, data, { yLabel: 'N m', yRange: [-top, top] }, onSeek));
+  torque = { t, tau, lines, yTicks: yTicks(-top, top), yRange: [-top, top] };
   el.dataset.lines = String(lines.length);
   el.dataset.yTicks = String(torque.yTicks.length);
 }
