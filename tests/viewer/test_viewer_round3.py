@@ -338,3 +338,47 @@ def test_a_sequence_is_usable_at_800_px(page, tmp_path):
         assert box and box["width"] > 0 and box["x"] + box["width"] <= NARROW["width"], tid
     page.screenshot(path=shots_dir(tmp_path) / "sequence-800.png", full_page=True)
     page.watch.check()
+
+
+def distance_to_polyline(p: np.ndarray, u: np.ndarray, w: np.ndarray) -> float:
+    """The distance (m) from the point p (u, w) to a polyline with NaN between its pieces."""
+    a = np.column_stack([u[:-1], w[:-1]])
+    b = np.column_stack([u[1:], w[1:]])
+    keep = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(b), axis=1)
+    a, b = a[keep], b[keep]
+    d = b - a
+    s = np.clip(np.einsum("ij,ij->i", p - a, d) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + s[:, None] * d - p, axis=1)))
+
+
+def test_section_waypoints_stop_on_the_joint_limit_drawn(page, tmp_path):
+    """Finding 7: waypoints clicked on the section across theta2 = +-pi. The section draws
+    where theta2 and theta3 stand at their literal limits in the start's working mode, and the
+    straight path stops on that line; the message writes the limit with the digits of the
+    value (pi as 3.14159265, not 3.14159 beside a theta2 of 3.14159266)."""
+    page.get_by_test_id("cartesian-mode").check()
+    page.locator("#clear-waypoints").click()
+    walls = page.evaluate("async () => (await import('/viewer/section.js')).wallsData()")
+    assert walls and {w["joint"] for w in walls} <= {2, 3}
+    box = page.locator("#section .u-over").bounding_box()
+    for fx, fy in [(0.2, 0.3), (0.8, 0.7), (0.5, 0.9)]:
+        page.mouse.click(box["x"] + fx * box["width"], box["y"] + fy * box["height"])
+    assert len(page.locator("textarea[name=waypoints]").input_value().splitlines()) == 3
+    answer = plan(page, "/v1/cartesian")
+    stop = answer["stop"]
+    assert stop["rule"] == "joint_limits", answer["message"]
+    q0 = page.evaluate("async () => (await import('/viewer/form.js')).request().start.q[0]")
+    p = np.asarray(stop["p"])
+    uw = np.array([p[1], p[0] * np.cos(q0) - p[2] * np.sin(q0)])
+    near = min(
+        distance_to_polyline(uw, np.asarray(w["u"], float), np.asarray(w["w"], float))
+        for w in walls
+    )
+    assert near < 2e-3, near  # the stop is on a wall the section drew
+    m = re.search(r"theta(\d) = (-?[\d.]+) rad ([<>]) joint_(min|max)\[\d\] = (-?[\d.]+) rad", answer["message"])
+    assert m, answer["message"]
+    value, bound = m.group(2), m.group(5)
+    assert len(bound.lstrip("-")) >= len(value.lstrip("-")) - 1  # the same digits, or one less
+    assert (float(value) > float(bound)) == (m.group(3) == ">")  # the numbers say the rule
+    page.get_by_test_id("section").screenshot(path=shots_dir(tmp_path) / "section-walls.png")
+    page.watch.check()

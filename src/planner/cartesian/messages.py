@@ -69,9 +69,13 @@ def describe_stop(
         i = int(np.argmax(np.maximum(q_lo - q_bad, q_bad - q_hi)))
         bound = q_lo[i] if q_bad[i] < q_lo[i] else q_hi[i]
         rel = "<" if q_bad[i] < q_lo[i] else ">"
+        # the value and the bound with the same digits: a bound written with fewer would
+        # read as another number (pi as "3.14159" beside a theta2 of "3.14159266")
+        shown = _fmt_value(q_bad[i], bound)
+        digits = sum(c.isdigit() for c in shown.split("e")[0].lstrip("-0."))
         return float(q_bad[i]), (
-            f"joint_limits: theta{i + 1} = {_fmt_value(q_bad[i], bound)} rad {rel} "
-            f"joint_{'min' if rel == '<' else 'max'}[{i}] = {bound:.6g} rad"
+            f"joint_limits: theta{i + 1} = {shown} rad {rel} "
+            f"joint_{'min' if rel == '<' else 'max'}[{i}] = {bound:.{max(6, digits)}g} rad"
         )
     if rule == "kappa_max":
         k = float(rep.kappa_A[0])

@@ -3,7 +3,7 @@
 // scene, timeline, plots, the workspace section and the region map.
 import { ApiError, getBlob, getJSON, postJSON, setApiKey } from './api.js';
 import * as form from './form.js';
-import { along, fkCheck, posture, transitSamples } from './kin.js';
+import { along, fkCheck, limitWalls, posture, transitSamples } from './kin.js';
 import { Scene } from './scene.js';
 import * as plots from './plots.js';
 import * as section from './section.js';
@@ -536,10 +536,25 @@ window.addEventListener('resize', () => {
 });
 $('clear-waypoints').addEventListener('click', () => { form.setWaypoints([]); form.recheck(); followExport(); });
 
+/** In straight-path mode, the section draws where theta2 and theta3 stand at their literal
+ * limits in the start's working mode: a straight path (which keeps it) stops there. */
+let wallsKey = '';
+function showWalls() {
+  const d = currentDesign();
+  const start = form.request.plan().start;
+  const x = form.endpoint() === 'cartesian' && d && start.q.every((v) => typeof v === 'number')
+    ? posture(d, start.q, start.assembly_mode) : null;
+  const key = x ? JSON.stringify([d, x.workingMode, start.assembly_mode]) : '';
+  if (key === wallsKey) return;
+  wallsKey = key;
+  section.setWalls(x ? limitWalls(d, x.workingMode, start.assembly_mode) : null);
+}
+
 /** In straight-path mode, a click on the workspace section adds a waypoint there (in the
  * linkage plane of the start's theta1). */
 function pickMode() {
   const on = form.endpoint() === 'cartesian';
+  showWalls();
   section.setPick(on ? (u, w) => {
     const t1 = Number(form.request.plan().start.q[0]) || 0;
     form.addWaypoint([w * Math.cos(t1), u, -w * Math.sin(t1)]);
@@ -551,6 +566,7 @@ form.init({
     if (name.startsWith('design.') || name === 'goal-kind') dropPlan();  // it answered another request
     if (name.startsWith('design.') || name.startsWith('margins.')) designChanged(name.startsWith('margins.'));
     if (name === 'goal-kind') pickMode();
+    showWalls();
     preview();
     followExport();
   },
