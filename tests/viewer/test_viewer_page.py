@@ -311,9 +311,7 @@ def test_no_horizontal_overflow_and_the_whole_arm_in_view(page, live_server, vie
 # ---------------------------------------------------------------------------- straight paths
 def test_a_straight_tool_path_shows_its_fraction_and_the_rest(page, live_server, tmp_path):
     e = expect()
-    page.locator("#example").select_option(
-        label="Straight path: a square, then out of reach"
-    )
+    page.locator("#example").select_option(label="Straight path: a square, then out of reach")
     e(page.get_by_test_id("cartesian-mode")).to_be_checked()
     with page.expect_request(lambda r: r.url.endswith("/v1/cartesian")) as sent:
         answer = plan(page, "/v1/cartesian")
