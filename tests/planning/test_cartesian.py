@@ -296,7 +296,7 @@ def test_joint_limits_stop_the_line():
 
 
 def test_a_joint_limit_of_pi_is_written_with_the_values_digits():
-    """The viewer's report (issue 44): a straight path across theta2 = pi stopped with
+    """A new user's report: a straight path across theta2 = pi stopped with
     "theta2 = 3.14159266 rad > joint_max[1] = 3.14159 rad", a bound that reads as another
     number than pi. The bound has the value's digits, and the two numbers say the rule."""
     import re

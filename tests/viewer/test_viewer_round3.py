@@ -1,5 +1,5 @@
 """The viewer's third round in a real browser (helpers: ``viewer_browser.py``), one page for
-the module, each test taking the steps a new user took (issue 44) and asserting what the eye
+the module, each test taking the steps a new user took and asserting what the eye
 sees: a named scene's point cloud drawn (pixels), a leg's row seeking into that leg (the
 highlighted row), a header that follows the form (its text), the region map's labels clear
 of each other and of the start's marker, a torque plot with ticks to read and signed limits

@@ -25,7 +25,7 @@ def _fmt_value(value: float, bound: float) -> str:
 def _joint_limit_text(i: int, value: float, bound: float) -> str:
     """ "joint_limits: theta<i+1> = value rad > joint_max[i] = bound rad" (or < joint_min), the
     bound with the value's digits: a bound written with fewer reads as another number (pi as
-    "3.14159" beside a theta2 of "3.14159266", issue 44)."""
+    "3.14159" beside a theta2 of "3.14159266")."""
     rel = "<" if value < bound else ">"
     shown = _fmt_value(value, bound)
     digits = sum(c.isdigit() for c in shown.split("e")[0].lstrip("-0."))
