@@ -118,7 +118,7 @@ async function analyse(d) {
       + `well-conditioned (κ ≤ ${kappaMax}) ${fmt(100 * ws.well_conditioned_fraction.value, 0)} %; GCI ${fmt(ws.gci.value)}. `
       + 'Colour: the smallest κ(A) over the working modes reaching the cell, in the bands of the paper\'s isoconditioning figure; '
       + 'faded: not reached in the current working mode. Line: the path of P in the linkage plane (u, w), which does not depend on θ1; numbered dots: the transits'
-      + (form.endpoint() === 'cartesian' ? '. Click to add a waypoint (in the start\'s plane θ1).' : '.');
+      + (form.endpoint() === 'cartesian' ? '. Click to add a waypoint (in the start\'s plane θ1); dashed brown: where θ2 or θ3 is at its limit in the start\'s working mode, which a straight path cannot cross.' : '.');
   });
   const rmap = postJSON('/v1/design/regions', {
     design: d, margins: { kappa_max: kappaMax, serial_min: serialMin }, resolution: 128, cell_regions: true,
