@@ -14,7 +14,7 @@ from planner_cli.errors import EXIT_NO_ANSWER, fail
 if TYPE_CHECKING:
     from planner.design import Design
 
-__all__ = ["fk", "ik", "no_posture_reason"]
+__all__ = ["fk", "ik", "no_assembly_reason", "no_posture_reason"]
 
 
 def fk(
@@ -27,12 +27,37 @@ def fk(
 ) -> None:
     """Direct kinematics of q, computed locally.
 
-    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
+    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0
+
+    Exit status: 0 one posture or more; 1 none (the JSON's list is empty, and stderr says why:
+    the loop does not close, |CD| > 2 L2, or C = D leaves P undetermined); 2 an invalid input."""
     from planner.endpoints.kinematics import fk as job
     from planner.wire import FKRequest
 
     data = {"q": q, "assembly_mode": assembly_mode, "design": design_data(design, l0, l1, l2)}
-    typer.echo(job(FKRequest.model_validate(data)).model_dump_json(indent=2))
+    body = FKRequest.model_validate(data)
+    answer = job(body)
+    typer.echo(answer.model_dump_json(indent=2))
+    if not answer.postures:
+        fail([no_assembly_reason(body.design.to_design(), body.q, assembly_mode)], EXIT_NO_ANSWER)
+
+
+def no_assembly_reason(design: Design, q: list[float], assembly_mode: str | None) -> str:
+    """Why no posture of ``design`` has the actuated joints ``q``: the library's own
+    :class:`~planner.exceptions.AssemblyError` (|CD| against 2 L2, or C on D), which
+    :meth:`planner.kinematics.Manipulator.posture` raises for either assembly mode."""
+    import numpy as np
+
+    from planner.exceptions import AssemblyError
+    from planner.kinematics import Manipulator
+
+    at = "(" + ", ".join(f"{x:.6g}" for x in q) + ")"
+    mode = "in any assembly mode" if assembly_mode is None else f"in assembly mode {assembly_mode}"
+    try:
+        Manipulator(design).posture(np.array(q, dtype=float), assembly_mode or "+")
+    except AssemblyError as exc:
+        return f"no posture has q = {at} {mode}: {exc}"
+    return f"no posture has q = {at} {mode}"
 
 
 def ik(

@@ -58,6 +58,7 @@ from planner.plotting.paper import (
     figure_13,
     figure_14,
     figure_15,
+    check_formats,
     write_figures,
 )
 from planner.plotting.regions import (
@@ -78,6 +79,7 @@ __all__ = [
     "NONCONVEX",
     "PRINT_RESOLUTION",
     "SCREEN_RESOLUTION",
+    "check_formats",
     "draw_posture",
     "figure_04",
     "figure_05",
