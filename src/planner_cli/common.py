@@ -64,7 +64,9 @@ def with_inertia(design: dict, inertia: Path | None, payload_mass: float | None)
         try:
             data = json.loads(inertia.read_text())
         except (OSError, ValueError) as exc:
-            raise typer.BadParameter(f"cannot read JSON from {str(inertia)!r}: {exc}") from exc
+            raise typer.BadParameter(
+                f"cannot read JSON from {str(inertia)!r}: {exc}", param_hint="--inertia"
+            ) from exc
         if not isinstance(data, dict):
             raise typer.BadParameter(
                 "a JSON object: {proximal, distal, payload, base, rotor}", param_hint="--inertia"

@@ -3,7 +3,6 @@ JSON printed as the endpoints answer it; ``ik`` says why when no posture reaches
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -94,8 +93,7 @@ def no_posture_reason(design: Design, p: list[float], working_mode: str, reached
     """Why no posture of ``design`` in ``working_mode`` reaches P: the working modes that do
     reach it (``reached``, the labels of ``planner ik``'s postures in any mode; a '0' marks a
     posture on a serial singularity, where two modes meet), or, when none does, the leg that
-    cannot: without joint limits a leg reaches P exactly when its pivot's distance to P lies
-    between |L2 - L1| and L1 + L2 (A = (0, -L0/2, 0), B = (0, +L0/2, 0))."""
+    cannot (:func:`planner.kinematics.reach_reason`)."""
     at = "(" + ", ".join(f"{x:.6g}" for x in p) + ")"
     if reached:
         on_singularity = any("0" in mode for mode in reached)
@@ -108,13 +106,7 @@ def no_posture_reason(design: Design, p: list[float], working_mode: str, reached
                 else ""
             )
         )
-    outer, inner = design.L1 + design.L2, abs(design.L2 - design.L1)
-    legs = []
-    for leg, pivot_y in (("A", -design.L0 / 2), ("B", design.L0 / 2)):
-        r = math.dist(p, (0.0, pivot_y, 0.0))
-        if r > outer:
-            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m > L1 + L2 = {outer:.6g} m)")
-        elif r < inner:
-            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m < |L2 - L1| = {inner:.6g} m)")
-    why = f": P is out of reach {' and '.join(legs)}" if legs else ""
-    return f"no posture reaches P = {at} in any working mode{why}"
+    from planner.kinematics import reach_reason
+
+    why = reach_reason(design, p)
+    return f"no posture reaches P = {at} in any working mode" + (f": {why}" if why else "")

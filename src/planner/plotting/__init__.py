@@ -46,6 +46,7 @@ from planner.plotting.paper import (
     ISO_LEVELS,
     _cartesian_section_figure,
     _joint_section_figure,
+    check_formats,
     figure_04,
     figure_05,
     figure_06,
@@ -58,7 +59,6 @@ from planner.plotting.paper import (
     figure_13,
     figure_14,
     figure_15,
-    check_formats,
     write_figures,
 )
 from planner.plotting.regions import (

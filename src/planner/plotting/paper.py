@@ -475,7 +475,9 @@ def check_formats(formats: tuple[str, ...], allowed: tuple[str, ...] | None = No
 
     from planner.exceptions import InputError
 
-    known = tuple(sorted(FigureCanvasBase.get_supported_filetypes())) if allowed is None else allowed
+    known = (
+        tuple(sorted(FigureCanvasBase.get_supported_filetypes())) if allowed is None else allowed
+    )
     if not formats:
         raise InputError(f"no format given; one or more of {', '.join(known)}", field="formats")
     for fmt in formats:
