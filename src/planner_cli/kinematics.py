@@ -53,7 +53,7 @@ def no_assembly_reason(design: Design, q: list[float], assembly_mode: str | None
     at = "(" + ", ".join(f"{x:.6g}" for x in q) + ")"
     mode = "in any assembly mode" if assembly_mode is None else f"in assembly mode {assembly_mode}"
     try:
-        Manipulator(design).posture(np.array(q, dtype=float), assembly_mode or "+")
+        Manipulator(design).posture(np.array(q, dtype=float), "-" if assembly_mode == "-" else "+")
     except AssemblyError as exc:
         return f"no posture has q = {at} {mode}: {exc}"
     return f"no posture has q = {at} {mode}"
