@@ -67,8 +67,15 @@ def _served(app, method: str, path: str) -> bool:
     WebSocket route answers its path whatever the method word)."""
     concrete = re.sub(r"\{[^}]*\}", "x", path)
     for kind in ("http", "websocket"):
-        scope = {"type": kind, "path": concrete, "method": method, "root_path": "",
-                 "path_params": {}, "headers": [], "query_string": b""}  # fmt: skip
+        scope = {
+            "type": kind,
+            "path": concrete,
+            "method": method,
+            "root_path": "",
+            "path_params": {},
+            "headers": [],
+            "query_string": b"",
+        }
         if any(route.matches(scope)[0] is Match.FULL for route in app.router.routes):
             return True
     return False
@@ -103,8 +110,11 @@ def test_curl_examples_are_read_whole():
     """The reader's shell: a quoted body over several lines and backslash continuations make
     one statement, comments none."""
     block = "curl -s a \\\n  -d '{\"x\": [1,\n 2]}'\n# -> {...}\ncurl b  # why\ndocker run x\n"
-    assert shell_statements(block) == ["curl -s a \\\n  -d '{\"x\": [1,\n 2]}'", "curl b  # why",
-                                       "docker run x"]  # fmt: skip
+    assert shell_statements(block) == [
+        "curl -s a \\\n  -d '{\"x\": [1,\n 2]}'",
+        "curl b  # why",
+        "docker run x",
+    ]
 
 
 def test_every_curl_example_runs_and_every_route_has_one(live_server, tmp_path):
@@ -122,8 +132,9 @@ def test_every_curl_example_runs_and_every_route_has_one(live_server, tmp_path):
         cwd = tmp_path / f"block{i}"
         cwd.mkdir()
         script = CURL_WRAPPER + "\n".join(block.statements) + "\n"
-        run = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True,
-                             text=True, timeout=120)  # fmt: skip
+        run = subprocess.run(
+            ["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+        )
         if failed.exists():
             problems.append(f"{block.where}: {failed.read_text()}{run.stdout[-500:]}")
             failed.unlink()
@@ -157,8 +168,14 @@ def test_make_run_serves_on_the_port_the_readme_names():
     clean = {k: v for k, v in os.environ.items() if k not in ("PLANNER_PORT", "PLANNER_HOST")}
 
     def serve_line(*args: str, **env: str) -> str:
-        run = subprocess.run([make, "-n", "run", *args], cwd=ROOT, capture_output=True,
-                             text=True, env={**clean, **env}, check=True)  # fmt: skip
+        run = subprocess.run(
+            [make, "-n", "run", *args],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            env={**clean, **env},
+            check=True,
+        )
         return [ln for ln in run.stdout.splitlines() if "planner serve" in ln][-1]
 
     assert serve_line().endswith("--host 127.0.0.1 --port 8000")

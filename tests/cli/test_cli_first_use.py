@@ -54,8 +54,10 @@ def test_fk_without_a_posture_says_why_and_exits_1():
         f"error: no posture has q = (0, 0, 0) in any assembly mode: q does not assemble: "
         f"|CD| = {cd:.6g} m > 2 L2 = 0.2 m"
     )
-    r = runner.invoke(app, ["fk", "0", "0", "0", "--L0", "0.3", "--L1", "0.1", "--L2", "0.1",
-                            "--assembly-mode", "-"])  # fmt: skip
+    r = runner.invoke(
+        app,
+        ["fk", "0", "0", "0", "--L0", "0.3", "--L1", "0.1", "--L2", "0.1", "--assembly-mode", "-"],
+    )
     assert r.exit_code == 1 and "in assembly mode -:" in r.stderr
     help_text = " ".join(runner.invoke(app, ["fk", "--help"]).stdout.replace("│", " ").split())
     assert "Exit status: 0 one posture or more; 1 none" in help_text
@@ -90,8 +92,9 @@ def test_mjcf_and_dynamics_take_an_inertia_file_and_a_payload(tmp_path):
     assert 'mass="2.0"' in r.stdout and 'mass="2.0"' not in to_mjcf(design)
     r = runner.invoke(app, ["dynamics", "0", "2", "1", "--qdd", "1,0,0", *options])
     assert r.exit_code == 0, r.output
-    ref = inverse_dynamics(design, inertia, np.array([0, 2.0, 1.0]), np.zeros(3),
-                           np.array([1.0, 0, 0])).tau[0]  # fmt: skip
+    ref = inverse_dynamics(
+        design, inertia, np.array([0, 2.0, 1.0]), np.zeros(3), np.array([1.0, 0, 0])
+    ).tau[0]
     np.testing.assert_allclose(json.loads(r.stdout)["tau"][0], ref, rtol=1e-9, atol=1e-12)
     # a bad number in the file is named; an unreadable file names the option
     path.write_text(json.dumps({"proximal": {"mass": -1}}))

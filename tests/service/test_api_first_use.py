@@ -25,8 +25,9 @@ def test_dynamics_static_query_of_one_posture(api):
     zeros = {"q": [[0, 2, 1]], "qd": [[0, 0, 0]], "qdd": [[0, 0, 0]]}
     assert api.post("/v1/dynamics", json=zeros).json()["tau"] == body["tau"]
     design = Design.default()
-    ref = inverse_dynamics(design, Inertia.default(design), np.array([0, 2.0, 1.0]),
-                           np.zeros(3), np.zeros(3)).tau[0]  # fmt: skip
+    ref = inverse_dynamics(
+        design, Inertia.default(design), np.array([0, 2.0, 1.0]), np.zeros(3), np.zeros(3)
+    ).tau[0]
     np.testing.assert_allclose(body["tau"][0], ref, rtol=1e-12, atol=1e-12)
     # N postures without rates: one row each
     two = api.post("/v1/dynamics", json={"q": [[0, 2, 1], [0.4, 2.2, 1.1]]}).json()
@@ -44,11 +45,11 @@ def test_partial_inertia_takes_the_rest_from_the_defaults(api):
     radius = design.link_radius or DEFAULT_TUBE_RADIUS
     density = ALUMINIUM_DENSITY * 0.9 / default.proximal.mass
     proximal = tube_inertia(design.L1, radius, "proximal", density=density)
-    inertia = Inertia(proximal, default.distal, default.payload_mass, default.base_inertia,
-                      default.rotor)  # fmt: skip
+    inertia = Inertia(
+        proximal, default.distal, default.payload_mass, default.base_inertia, default.rotor
+    )
     q, qd, qdd = [0.3, 2.1, 0.9], [0.4, -0.3, 0.2], [1.0, -2.0, 0.5]
-    body = {"q": [q], "qd": [qd], "qdd": [qdd],
-            "design": {"inertia": {"proximal": {"mass": 0.9}}}}  # fmt: skip
+    body = {"q": [q], "qd": [qd], "qdd": [qdd], "design": {"inertia": {"proximal": {"mass": 0.9}}}}
     r = api.post("/v1/dynamics", json=body)
     assert r.status_code == 200, r.text
     ref = inverse_dynamics(design, inertia, np.array(q), np.array(qd), np.array(qdd)).tau[0]

@@ -29,8 +29,11 @@ def document(api) -> dict:
 
 
 def _operations(document: dict) -> list[tuple[str, str, dict]]:
-    return [(path, method, op) for path, item in document["paths"].items()
-            for method, op in item.items()]  # fmt: skip
+    return [
+        (path, method, op)
+        for path, item in document["paths"].items()
+        for method, op in item.items()
+    ]
 
 
 def test_every_operation_id_is_its_route_name_and_unique(api, document):
@@ -119,11 +122,13 @@ def test_a_generated_client_calls_three_endpoints(api, generated):
     assert isinstance(fk, models.FKResponse)
     assert [p.p for p in fk.postures] == [p["p"] for p in served["postures"]]
 
-    body = models.PlanRequest.from_dict({
-        "start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
-        "goal": {"q": [0.3, 2.1, 1.2], "assembly_mode": "+"},
-        "planner": {"seed": 1},
-    })  # fmt: skip
+    body = models.PlanRequest.from_dict(
+        {
+            "start": {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"},
+            "goal": {"q": [0.3, 2.1, 1.2], "assembly_mode": "+"},
+            "planner": {"seed": 1},
+        }
+    )
     plan = _method(pkg, "plan", "plan").sync(client=client, body=body)
     assert isinstance(plan, models.PlanResponse)
     assert plan.status == "solved" and plan.trajectory.duration > 0
@@ -133,8 +138,7 @@ def test_a_generated_client_calls_three_endpoints(api, generated):
     image = figure.sync(name, client=client, resolution=32, dpi=20)
     data = image.payload.read()
     assert data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) > 1000
-    svg = figure.sync(models.FigureFilename("cartesian_section.svg"), client=client,
-                      resolution=32)  # fmt: skip
+    svg = figure.sync(models.FigureFilename("cartesian_section.svg"), client=client, resolution=32)
     assert b"<svg" in svg.payload.read()
 
 

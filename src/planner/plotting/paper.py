@@ -53,6 +53,7 @@ __all__ = [
     "FIGURES",
     "ISO_LEVELS",
     "ISO_SAMPLES",
+    "check_formats",
     "figure_04",
     "figure_05",
     "figure_06",
