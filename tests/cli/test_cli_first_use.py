@@ -102,3 +102,51 @@ def test_mjcf_and_dynamics_take_an_inertia_file_and_a_payload(tmp_path):
     assert r.exit_code == 2 and "inertia.proximal.mass" in r.stderr
     r = runner.invoke(app, ["mjcf", "--inertia", str(tmp_path / "none.json")])
     assert r.exit_code == 2 and "--inertia" in r.output
+
+
+def test_scene_list_without_a_service_names_the_url_and_how_to_set_it(unused_port, monkeypatch):
+    monkeypatch.setenv("PLANNER_URL", f"http://127.0.0.1:{unused_port}")
+    r = runner.invoke(app, ["scene", "list"])
+    assert r.exit_code == 2
+    assert f"no planning service answers at http://127.0.0.1:{unused_port}" in r.stderr
+    assert "--url or PLANNER_URL" in r.stderr and "Traceback" not in r.output
+
+
+def test_job_wait_polls_until_done_and_writes_the_result(api, tmp_path, monkeypatch):
+    """``planner job submit`` then ``planner job wait --out``: the result is the endpoint's
+    answer to the same request (the CLI's client forwarded to the in-process service)."""
+    import httpx
+
+    from planner.client import PlannerClient
+    from planner_cli import service
+
+    def forward(r: httpx.Request) -> httpx.Response:
+        headers = {"content-type": "application/json"}
+        answer = api.request(r.method, r.url.path, content=r.content, headers=headers)
+        return httpx.Response(answer.status_code, content=answer.content)
+
+    transport = httpx.MockTransport(forward)
+    monkeypatch.setattr(
+        service, "make_client", lambda url, key: PlannerClient("http://x", transport=transport)
+    )
+    body = {"design": {"L0": 0.3, "L1": 0.3, "L2": 0.4}, "rel_se": 0.05}
+    request = tmp_path / "check.json"
+    request.write_text(json.dumps(body))
+    r = runner.invoke(app, ["job", "submit", "design_check", str(request)])
+    assert r.exit_code == 0, r.output
+    job_id = r.stdout.strip()
+    out = tmp_path / "result.json"
+    r = runner.invoke(app, ["job", "wait", job_id, "--out", str(out), "--interval", "0.05"])
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith(f"{job_id}\tdesign_check\tdone")
+    result = json.loads(out.read_text())
+    served = api.post("/v1/design/check", json=body).json()
+    # C=D as L0 <= 2 L1, CD stretched as 2 (L2 - L1) <= L0 (docs/analysis.md)
+    assert (
+        result["parallel_singularities"]
+        == served["parallel_singularities"]
+        == ["C=D", "CD_stretched"]
+    )
+    assert result["volume"] == served["volume"]
+    r = runner.invoke(app, ["job", "wait", "0" * 32])
+    assert r.exit_code == 1 and "no job" in r.output
