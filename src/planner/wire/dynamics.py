@@ -75,7 +75,12 @@ class DynamicsRequest(_Request):
     def _one_posture_as_a_row(cls, value: Any) -> Any:
         """A flat list of 3 numbers is one row (N = 1); anything else goes on to the checks
         of N x 3, which name the element that breaks them."""
-        if isinstance(value, list) and len(value) == 3 and all(_is_number(x) for x in value):
+        if isinstance(value, list) and value and all(_is_number(x) for x in value):
+            if len(value) != 3:
+                raise ValueError(
+                    f"one posture is 3 numbers (theta1, theta2, theta3), got {len(value)}; "
+                    "N postures are N rows of 3"
+                )
             return [value]
         return value
 
