@@ -20,7 +20,7 @@ from planner_api.job_store import JobStore
 from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
-from planner_api.openapi import install_docs, install_openapi
+from planner_api.openapi import install_docs, install_openapi, operation_id
 from planner_api.pool import WorkerPool
 from planner_api.routes import calibration as calibration_routes
 from planner_api.routes import cartesian as cartesian_routes
@@ -108,6 +108,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
         "manipulator (five-bar A-C-P-D-B turning about AB).",
         lifespan=lifespan,
+        generate_unique_id_function=operation_id,  # "plan", not "plan_v1_plan_post"
         docs_url=None,  # served from the package's own assets (planner_api.openapi.install_docs)
         redoc_url=None,
     )

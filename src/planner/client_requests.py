@@ -10,8 +10,10 @@ A new endpoint is one builder here plus one line in each client class.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
@@ -76,7 +78,7 @@ from planner.wire.calibration import (
     IdentifyResponse,
 )
 
-__all__ = ["DesignLike", "MarginsLike", "Requests"]
+__all__ = ["DesignLike", "MarginsLike", "Requests", "none_as_absent"]
 
 M = TypeVar("M", bound=BaseModel | bytes)
 #: A wire model class (what :func:`_validated` builds).
@@ -135,6 +137,16 @@ def _floats(values: Any) -> Any:
     """A numpy array or other sequence as a list of floats (anything else left to pydantic)."""
     try:
         return [float(x) for x in values]
+    except (TypeError, ValueError):
+        return values
+
+
+def _rows(values: Any) -> Any:
+    """N x 3 (or one row of 3) numbers, numpy or nested sequences, as lists of floats."""
+    if hasattr(values, "tolist"):
+        return values.tolist()
+    try:
+        return [_floats(r) if hasattr(r, "__len__") else float(r) for r in values]
     except (TypeError, ValueError):
         return values
 
@@ -205,6 +217,40 @@ def _trajectory_fields(trajectory: Any) -> dict[str, Any]:
         "qd": [_floats(r) for r in trajectory.qd],
         "qdd": [_floats(r) for r in trajectory.qdd],
     }
+def none_as_absent(build: Callable[..., _Call[M]]) -> Callable[..., _Call[M]]:
+    """``build`` with None meaning absent for every optional argument: an argument with a
+    default given as None takes that default, and a keyword of ``**fields``/``**options``
+    given as None is dropped (so ``client.plan(..., obstacles=None)`` sends no
+    ``obstacles``). Both clients make their methods through this (:mod:`planner.client`)."""
+    sig = inspect.signature(build)
+
+    @functools.wraps(build)
+    def call(*args: Any, **kwargs: Any) -> _Call[M]:
+        bound = sig.bind(*args, **kwargs)
+        for name, value in list(bound.arguments.items()):
+            param = sig.parameters[name]
+            if param.kind is param.VAR_KEYWORD:
+                bound.arguments[name] = {k: v for k, v in value.items() if v is not None}
+            elif value is None and param.default is not param.empty:
+                del bound.arguments[name]
+        return build(*bound.args, **bound.kwargs)
+
+    return call
+
+
+def _request_body(model: type[ModelT], request: Any, fields: Mapping[str, Any]) -> ModelT:
+    """The body of a plan-like endpoint (plan, cartesian, sequence): ``request`` (the model,
+    a mapping or None) with ``fields`` over it; a top-level None is absent, and a point
+    cloud's numpy ``points`` are lists (as :meth:`Requests._put_scene` takes them)."""
+    if isinstance(request, model) and not fields:
+        return request
+    data = dict(
+        request.model_dump(exclude_unset=True) if isinstance(request, model) else request or {}
+    )
+    merged = {k: v for k, v in {**data, **fields}.items() if v is not None}
+    if isinstance(merged.get("obstacles"), Sequence):
+        merged["obstacles"] = _obstacle_data(merged["obstacles"])
+    return _validated(model, merged)
 
 
 def _describe_item(item: Any) -> str:
@@ -314,16 +360,7 @@ class Requests:
     ) -> _Call[PlanResponse]:
         """Plan a motion: a :class:`PlanRequest` (or its dict), and/or its fields as keywords
         (``start=..., goal=..., obstacles=...``). A finished search returns its ``status``."""
-        if isinstance(request, PlanRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, PlanRequest)
-                else request or {}
-            )
-            body = _validated(PlanRequest, {**data, **fields})
-        return _Call("POST", "/v1/plan", body, PlanResponse)
+        return _Call("POST", "/v1/plan", _request_body(PlanRequest, request, fields), PlanResponse)
 
     def _cartesian(
         self, request: CartesianRequest | Mapping[str, Any] | None = None, **fields: Any
@@ -334,17 +371,9 @@ class Requests:
         (``start=..., waypoints=..., timing=..., limits=...``). The answer's ``status`` is
         ``solved`` exactly when ``fraction`` = 1; otherwise ``message`` and ``stop`` say which
         rule stopped it, the value measured and where."""
-        if isinstance(request, CartesianRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, CartesianRequest)
-                else request or {}
-            )
-            if "waypoints" in fields:
-                fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
-            body = _validated(CartesianRequest, {**data, **fields})
+        if fields.get("waypoints") is not None:
+            fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
+        body = _request_body(CartesianRequest, request, fields)
         return _Call("POST", "/v1/cartesian", body, CartesianResponse)
 
     def _sequence(
@@ -354,15 +383,7 @@ class Requests:
         ``{"goal", "stop", "blend"}``), back to the start with ``cycle=True``; a
         :class:`SequenceRequest` (or its dict), and/or its fields as keywords. The answer
         lists the ``legs`` with their time spans and the ``cycle_time``."""
-        if isinstance(request, SequenceRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, SequenceRequest)
-                else request or {}
-            )
-            body = _validated(SequenceRequest, {**data, **fields})
+        body = _request_body(SequenceRequest, request, fields)
         return _Call("POST", "/v1/sequence", body, SequenceResponse)
 
     def _put_scene(
@@ -488,23 +509,21 @@ class Requests:
     def _dynamics(
         self,
         q: Any,
-        qd: Any,
-        qdd: Any,
+        qd: Any = None,
+        qdd: Any = None,
         *,
         design: DesignLike = None,
         assembly_mode: str = "+",
         gravity: Sequence[float] | None = None,
     ) -> _Call[DynamicsResponse]:
-        """Inverse dynamics of N motions (q, qd, qdd: N x 3 each, rad, rad/s, rad/s^2): the
-        actuator torques ``tau`` (N m) and mass matrices ``M(q)``; ``design`` may carry
-        ``inertia``; ``gravity`` m/s^2 (default [0, 0, -9.81])."""
-        data: dict[str, Any] = {
-            "q": [_floats(r) for r in q],
-            "qd": [_floats(r) for r in qd],
-            "qdd": [_floats(r) for r in qdd],
-            "design": _design(design),
-            "assembly_mode": assembly_mode,
-        }
+        """Inverse dynamics of N motions (q, qd, qdd: N x 3 each, rad, rad/s, rad/s^2; ``q``
+        may be one posture, 3 numbers; ``qd``, ``qdd`` absent: zeros, a static query): the
+        actuator torques ``tau`` (N m, always N rows) and mass matrices ``M(q)``; ``design``
+        may carry ``inertia``; ``gravity`` m/s^2 (default [0, 0, -9.81])."""
+        data: dict[str, Any] = {"design": _design(design), "assembly_mode": assembly_mode}
+        for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
+            if value is not None:
+                data[name] = _rows(value)
         if gravity is not None:
             data["gravity"] = _floats(gravity)
         return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
