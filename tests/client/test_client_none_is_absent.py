@@ -17,6 +17,7 @@ from planner.wire import (
     DesignOptimizeRequest,
     PlanRequest,
     SequenceRequest,
+    SimulateRequest,
     TimingRequest,
     WorkspaceRequest,
 )
@@ -24,6 +25,12 @@ from planner.wire import (
 START = {"q": [0.0, 2.0, 1.0], "assembly_mode": "+"}
 GOAL = {"q": [0.3, 2.1, 1.2], "assembly_mode": "+"}
 PLAN = {"start": START, "goal": GOAL}
+TRAJECTORY = {
+    "t": [0.0, 0.1],
+    "q": [[0.0, 2.0, 1.0], [0.0, 2.0, 1.0]],
+    "qd": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+    "qdd": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+}
 
 #: The required arguments of each public method (positional, keyword).
 REQUIRED: dict[str, tuple[tuple[Any, ...], dict[str, Any]]] = {
@@ -54,6 +61,11 @@ REQUIRED: dict[str, tuple[tuple[Any, ...], dict[str, Any]]] = {
     "scene": (("cell",), {}),
     "delete_scene": (("cell",), {}),
     "scenes": ((), {}),
+    "calibrate": (([{"q": [0.0, 2.0, 1.0], "p": [0.665, 0.022, 0.0]}],), {}),
+    "calibration_poses": ((), {}),
+    "identify": (([[0.0, 2.0, 1.0]], [[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]], [[-6.7, 0.0, 0.0]]), {}),
+    "simulate": ((), {"trajectory": TRAJECTORY}),
+    "simulate_bag": ((), {"trajectory": TRAJECTORY}),
 }
 #: The request model whose optional fields a method takes as ``**keywords``.
 KEYWORD_MODELS = {
@@ -63,6 +75,8 @@ KEYWORD_MODELS = {
     "workspace": WorkspaceRequest,
     "timing": TimingRequest,
     "optimize_design": DesignOptimizeRequest,
+    "simulate": SimulateRequest,
+    "simulate_bag": SimulateRequest,
 }
 
 
