@@ -25,7 +25,7 @@ import numpy as np
 from planner.design import Design
 from planner.geometry import Obstacle
 from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
-from planner.planning import corridor, ompl_backend
+from planner.planning import compiled_rrt, corridor
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker, assembly_reason
@@ -300,7 +300,7 @@ def plan_in_region(
             elif stuck or guide:
                 searches += 1
                 first_try = min(budget, corridor.FIRST_TRY_S)
-                outcome = ompl_backend.search(checker, q_start, q_goal, options, first_try)
+                outcome = compiled_rrt.search(checker, q_start, q_goal, options, first_try)
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
@@ -318,7 +318,7 @@ def plan_in_region(
             budget = deadline - time.monotonic()
             if waypoints is None and budget > 0:
                 searches += 1
-                outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
+                outcome = compiled_rrt.search(checker, q_start, q_goal, options, budget)
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
@@ -431,7 +431,7 @@ def plan_to_goal_set(
         return _no_path(checker, options, "", t0, attempts, 0)
     if len(q_goals) > search_goals:
         q_goals = q_goals[np.linspace(0, len(q_goals) - 1, search_goals).round().astype(int)]
-    outcome = ompl_backend.search(checker, q_start, q_goals, options, budget)
+    outcome = compiled_rrt.search(checker, q_start, q_goals, options, budget)
     if outcome.waypoints is not None:
         waypoints = outcome.waypoints
         end = int(np.argmin(np.linalg.norm(q_goals - waypoints[-1], axis=1)))
