@@ -47,12 +47,16 @@ _WITH_RANGE = ("rrtconnect", "rrt", "rrtstar", "aorrtc", "lbkpiece")
 @dataclass(frozen=True, slots=True)
 class SearchOutcome:
     """``waypoints`` (N, 3) or None; ``exact``: OMPL found an exact solution; ``ompl_status``:
-    OMPL's status string; ``simplified``: the simplified path was kept."""
+    OMPL's status string; ``simplified``: the simplified path was kept; ``certified``: every
+    motion of ``waypoints`` passed the motion certificate on its way into the path (the
+    compiled search's paths, :mod:`planner.planning.compiled_rrt`; OMPL's are re-certified
+    by the planner, its simplifier's motions being its validator's)."""
 
     waypoints: np.ndarray | None
     exact: bool
     ompl_status: str
     simplified: bool
+    certified: bool = False
 
 
 def _seed(seed: int) -> None:

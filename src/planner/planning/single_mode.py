@@ -304,6 +304,7 @@ def plan_in_region(
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
+                    certified = outcome.certified
             if waypoints is None and stuck and when_stuck is not None:
                 answer, when_stuck = when_stuck(q_goals), None
                 if answer is not None:
@@ -322,6 +323,7 @@ def plan_in_region(
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
+                    certified = outcome.certified
         if waypoints is None:
             continue
         waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
@@ -342,7 +344,8 @@ def _certified(
 ) -> PlanResult | None:
     """The ``solved`` answer of a found path after its final re-certification, except of
     motions certified already (``certified``: the straight motion; a corridor path without
-    OMPL repairs, each motion by the motion test); None when it fails."""
+    OMPL repairs, each motion by the motion test; a compiled search's path,
+    :mod:`planner.planning.compiled_rrt`); None when it fails."""
     report = checker.check_path(waypoints, certify=not certified)
     if not report.valid:  # pragma: no cover - would be a validator bug
         logger.error(
