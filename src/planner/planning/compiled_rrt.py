@@ -1,5 +1,5 @@
 """RRT-Connect compiled on the product's own validity kernels: the default search of
-``PlanOptions.name = "rrtconnect"`` (issue 43).
+``PlanOptions.name = "rrtconnect"``.
 
 Why not OMPL's here: with OMPL's Python bindings every state check and every motion check is
 a call from C++ into Python and back (in clutter about 70 % of a slow query was those calls:
@@ -7,7 +7,7 @@ a call from C++ into Python and back (in clutter about 70 % of a slow query was 
 runs the same algorithm as OMPL's ``RRTConnect`` (two trees, the one that grew last tries to
 connect the other to its new node, extensions at most ``range`` long, Euclidean distance in
 joint space) inside one numba function that calls the certificate kernel
-(:func:`planner.validity._kernels.certify_motion`) directly: no Python between the
+(:func:`planner.validity.certify_motion`) directly: no Python between the
 samples. The tree is searched for nearest neighbours through a uniform grid of buckets over
 the joint box (a 3-D space: a linear scan of a bucket and its neighbours' shells).
 
@@ -39,8 +39,7 @@ from numba import njit
 from planner.planning import ompl_backend
 from planner.planning.ompl_backend import SearchOutcome
 from planner.planning.problem import PlanOptions
-from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker
-from planner.validity._kernels import certify_motion
+from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
 __all__ = ["CAPACITY", "CHUNK", "CLUTTER_ROWS", "rrt_connect", "scene_range", "search"]
 
@@ -330,7 +329,7 @@ def rrt_connect(
     _insert(1, np.array(q_goal, dtype=float), -1, nodes, parent, count, head, nxt, lo, inv)
     state = np.zeros(2, dtype=np.int64)
     ends = np.zeros(2, dtype=np.int64)
-    prm, packed, step = checker._prm, tuple(checker.packed), checker.coarse_step
+    prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
     _seed(options.seed)
     found = False
     while time.monotonic() < deadline:

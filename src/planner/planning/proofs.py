@@ -87,7 +87,7 @@ def disprove_with_map(
 #: Obstacle rows (a sphere, box or capsule is one, a cloud one per point) above which the
 #: 3-D proof is not asked: its flood tests every obstacle against every cell and cannot be
 #: stopped at a deadline; with the 1,000 small spheres of ``benchmarks/planning.py --fair``
-#: it took 2.7 s per level (a 1 s request answered after 2-6 s, issue 43). Many small
+#: it took 2.7 s per level (a 1 s request answered after 2-6 s). Many small
 #: obstacles rarely close every path the proof's bounds could show; the search decides there.
 OBSTACLE_PROOF_MAX_ROWS = 200
 

@@ -150,6 +150,12 @@ class ValidityChecker:
         )
 
     @property
+    def params(self) -> np.ndarray:
+        """The design, margins and modes packed for the compiled kernels (the ``prm``
+        argument of :func:`planner.validity.certify_motion`)."""
+        return self._prm
+
+    @property
     def packed(self) -> PackedObstacles:
         """The obstacles packed with their trees (:func:`planner.geometry.pack_obstacles`),
         built once and shared by every checker :meth:`with_mode` derives from this one."""
