@@ -94,6 +94,6 @@ def test_other_planners_and_goal_sets_go_to_ompl(blocked: ValidityChecker) -> No
     out = compiled_rrt.search(blocked, START, GOAL, PlanOptions(name="prmstar", seed=1), 0.2)
     assert out.exact and out.waypoints is not None
     assert blocked.check_path(out.waypoints).valid
-    goals = np.stack([GOAL, GOAL + [0.05, 0.0, 0.0]])
+    goals = np.stack([GOAL, GOAL + np.array([0.05, 0.0, 0.0])])
     out = compiled_rrt.search(blocked, START, goals, PlanOptions(seed=1), 1.0)
     assert out.exact and out.waypoints is not None
