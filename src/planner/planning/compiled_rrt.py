@@ -23,8 +23,10 @@ Soundness is the certificate's: a motion enters a tree only when
 :meth:`ValidityChecker.check_motion`'s compiled certificate accepts it (ends included), and
 the planner re-certifies the returned path as it does OMPL's.
 
-The search runs in chunks of :data:`CHUNK` iterations between which the deadline is checked
-(numba has no clock); its random numbers come from numba's generator seeded with
+The search runs in chunks of iterations between which the deadline is checked (numba has no
+clock): the first chunk has :data:`CHUNK` iterations, the next ones as many as the last chunk's
+pace fits in :data:`CHUNK_S` (where one certificate costs a millisecond, a fixed count would
+overrun a short budget); its random numbers come from numba's generator seeded with
 ``options.seed`` at the start of each search: results are reproducible.
 """
 
@@ -43,8 +45,10 @@ from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
 __all__ = ["CAPACITY", "CHUNK", "CLUTTER_ROWS", "rrt_connect", "scene_range", "search"]
 
-#: Iterations of the compiled loop between two looks at the deadline.
-CHUNK = 256
+#: Iterations of the compiled loop before the first look at the deadline.
+CHUNK = 32
+#: Seconds of compiled loop aimed at between two looks at the deadline.
+CHUNK_S = 0.002
 #: Nodes per tree; a search that fills it stops (the caller falls back to OMPL).
 CAPACITY = 1 << 15
 #: Buckets per axis of the nearest-neighbour grid.
@@ -332,7 +336,8 @@ def rrt_connect(
     prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
     _seed(options.seed)
     found = False
-    while time.monotonic() < deadline:
+    iters = CHUNK
+    while (now := time.monotonic()) < deadline:
         found = _run(
             nodes,
             parent,
@@ -346,10 +351,12 @@ def rrt_connect(
             prm,
             packed,
             step,
-            CHUNK,
+            iters,
             state,
             ends,
         )
+        spent = time.monotonic() - now
+        iters = max(1, min(4096, int(iters * CHUNK_S / max(spent, 1e-6))))
         if found or state[1]:
             break
     if not found:
