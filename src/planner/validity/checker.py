@@ -149,6 +149,19 @@ class ValidityChecker:
             _packed_from=self._packed,
         )
 
+    def with_margins(self, margins: Margins) -> ValidityChecker:
+        """The same checker with other margins, sharing this one's packed obstacle arrays."""
+        return ValidityChecker(
+            self.design,
+            margins,
+            self.obstacles,
+            self.assembly_mode,
+            self.working_mode,
+            self.coarse_step,
+            self.serial_rules,
+            _packed_from=self._packed,
+        )
+
     @property
     def params(self) -> np.ndarray:
         """The design, margins and modes packed for the compiled kernels (the ``prm``
