@@ -4,6 +4,18 @@ suite with a naive OMPL set-up in the same run.
     PYTHONPATH=src .venv/bin/python benchmarks/planning.py [--queries 100] [--budget 1.0]
         [--naive-queries 100] [--naive-resolution 0.01] [--planner rrtconnect] [--range R]
     PYTHONPATH=src .venv/bin/python benchmarks/planning.py --map [--queries 20]
+    PYTHONPATH=src .venv/bin/python benchmarks/planning.py --fair [--fair-queries 40]
+
+The fair baseline (``--fair``, and printed first, 10 queries per scene, by every run but
+``--map``): naive OMPL as a performance engineer would set it up (RRTConnect in OMPL's own
+``RealVectorStateSpace`` at its own range, OMPL's ``DiscreteMotionValidator`` calling the
+product's fastest single-posture check ``is_valid_one`` per state, ``simplifyMax``) at OMPL's
+default resolution (1 % of the space's extent) and at ``--naive-resolution`` (0.01 rad), the
+product, and the product with OMPL's RRTConnect as its search ("product OMPL", the product
+before its compiled search), interleaved query by query (the order rotating), on
+:data:`FAIR_SCENES`; every path found is re-checked every :data:`DENSE_STEP` rad and counted
+invalid when a sample breaks a rule. The yardstick of ``docs/planning.md`` ("What runs where,
+and the fair baseline"); the ``naive`` rows further down use the same per-state check.
 
 Scene types (default design ``Design.default()``; queries are pairs of valid postures in one
 random working mode, drawn with a fixed seed):
@@ -52,6 +64,7 @@ scenes (with and without spheres) on four designs (:data:`DESIGNS`).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 from dataclasses import replace
@@ -62,9 +75,9 @@ from _machine import print_machine
 from planner import Design, caching
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import JointPosture, PlanOptions, ompl_backend, plan
+from planner.planning import JointPosture, PlanOptions, compiled_rrt, ompl_backend, plan
 from planner.transits import sample_transits
-from planner.validity import Margins, ValidityChecker
+from planner.validity import Margins, ValidityChecker, densify
 
 SCENES = ("free", "spheres", "boxes", "narrow", "modes", "modes_spheres")
 MODE_SCENES = ("modes", "modes_spheres")
@@ -469,6 +482,130 @@ def map_rows(args, options: PlanOptions) -> None:
             )
 
 
+#: The scene classes of the fair baseline (``--fair``; issue 43): free space, 5 spheres, the
+#: 1,000 small spheres and the two point clouds of ``benchmarks/scenes.py``, the narrow window.
+FAIR_SCENES = ("free", "spheres", "1k_spheres", "cloud_10k", "cloud_100k", "narrow")
+#: Max-norm step (rad) of the dense re-check of every path of the fair table.
+DENSE_STEP = 1e-3
+
+
+def fair_scene(kind: str, n: int) -> tuple[Design, list, list]:
+    """(design, obstacles, n queries) of a scene class of :data:`FAIR_SCENES`; the obstacles
+    are built once (the same objects for every set-up: the product's packing caches see one
+    scene, as a named scene of the service does)."""
+    import scenes as S
+
+    if kind in ("free", "spheres", "narrow"):
+        design, obstacles, _ = build_scene(kind)
+        return design, obstacles, build_queries(kind, n)
+    obstacles = {
+        "1k_spheres": lambda: S.spheres(1000),
+        "cloud_10k": lambda: S.cloud(10_000),
+        "cloud_100k": lambda: S.cloud(100_000),
+    }[kind]()
+    design = Design.default()
+    return design, obstacles, S.build_queries(design, obstacles, n)[0]
+
+
+def _dense_ok(chk: ValidityChecker, waypoints: np.ndarray) -> bool:
+    """Every posture of the path valid at :data:`DENSE_STEP` (max-norm): the re-check of a
+    sampled (naive) path; a product path is certified and must pass it too."""
+    return bool(chk.is_valid(densify(waypoints, DENSE_STEP)).all())
+
+
+_search = compiled_rrt.search
+
+
+def _ompl_search(checker, q_start, q_goal, options, budget):
+    return ompl_backend.search(checker, q_start, q_goal, options, budget)
+
+
+def replace_args(args: argparse.Namespace, **changes) -> argparse.Namespace:
+    """A copy of parsed arguments with some changed."""
+    return argparse.Namespace(**{**vars(args), **changes})
+
+
+def fair_rows(args) -> None:
+    """The fair baseline (module docstring, ``--fair``): per scene, naive OMPL at its default
+    resolution and at ``--naive-resolution``, and the product, interleaved query by query
+    (the order of the three rotates with the query), p50 / p95, solved, invalid paths."""
+    budget = args.budget
+    setups = ("naive default", f"naive {args.naive_resolution:g}", "product OMPL", "product")
+    print(
+        f"\nfair baseline: naive = OMPL RRTConnect, RealVectorStateSpace, is_valid_one per "
+        f"state, OMPL's DiscreteMotionValidator, simplifyMax; budget {budget:g} s; every path "
+        f"re-checked every {DENSE_STEP:g} rad; load {os.getloadavg()[0]:.2f}"
+    )
+    head = (
+        f"{'scene':<11} {'set-up':<14} {'n':>3} {'solved':>6} {'invalid':>7} {'p50 ms':>8} "
+        f"{'p95 ms':>8} {'max ms':>8} {'len rad':>7} {'x p50':>7} {'x p95':>7}"
+    )
+    print(head)
+    print("-" * len(head))
+    for kind in args.scenes.split(","):
+        design, obstacles, queries = fair_scene(kind, args.fair_queries)
+        rec = {k: dict(times=[], solved=0, invalid=0, lengths=[]) for k in setups}
+        caching.clear("corridor")
+        for i, (start, goal) in enumerate(queries):
+            chk = ValidityChecker(
+                design, Margins(), obstacles, start.assembly_mode, _mode_of(design, start)
+            )
+            for k in range(len(setups)):
+                name = setups[(i + k) % len(setups)]
+                t0 = time.perf_counter()
+                if name.startswith("product"):
+                    # "product OMPL": the same pipeline with OMPL's RRTConnect as its search
+                    # (the product before the compiled search of issue 43)
+                    compiled_rrt.search = _ompl_search if name == "product OMPL" else _search
+                    res = plan(
+                        design,
+                        start,
+                        goal,
+                        obstacles=obstacles,
+                        margins=Margins(),
+                        options=PlanOptions(time_budget_s=budget),
+                    )
+                    path = res.path.waypoints if res.solved else None
+                else:
+                    out = ompl_backend.search(
+                        chk,
+                        start.q,
+                        goal.q,
+                        PlanOptions(time_budget_s=budget, range=None),
+                        budget,
+                        naive_resolution=0.0 if name == setups[0] else args.naive_resolution,
+                        naive_defaults=True,
+                    )
+                    path = out.waypoints
+                rec[name]["times"].append(time.perf_counter() - t0)
+                compiled_rrt.search = _search
+                if path is not None:
+                    rec[name]["solved"] += 1
+                    rec[name]["invalid"] += not _dense_ok(chk, path)
+                    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+                    rec[name]["lengths"].append(float(np.sum(steps)))
+        prod = np.asarray(rec["product"]["times"]) * 1e3
+        for name in setups:
+            r = rec[name]
+            t = np.asarray(r["times"]) * 1e3
+            ratio = ""
+            if name in setups[:2]:
+                ratio = (
+                    f"{np.percentile(t, 50) / np.percentile(prod, 50):>6.1f}x "
+                    f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x"
+                )
+            length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
+            print(
+                f"{kind:<11} {name:<14} {len(t):>3} {r['solved']:>6} {r['invalid']:>7} "
+                f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f} "
+                f"{length:>7.2f} {ratio}"
+            )
+    print(
+        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries); "
+        "product OMPL: the product with OMPL's RRTConnect as its search (before the compiled search)"
+    )
+
+
 def main() -> None:
     print_machine()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -480,6 +617,18 @@ def main() -> None:
     parser.add_argument("--range", type=float, default=None)
     parser.add_argument("--modes-budget", type=float, default=2.0)
     parser.add_argument("--scenes", default=",".join(SCENES))
+    parser.add_argument(
+        "--fair",
+        action="store_true",
+        help="only the fair baseline (issue 43): naive OMPL with is_valid_one per state "
+        "beside the product, interleaved, every path re-checked densely",
+    )
+    parser.add_argument(
+        "--fair-queries",
+        type=int,
+        default=None,
+        help="queries per scene of the fair table (40 with --fair, 10 before the other rows)",
+    )
     parser.add_argument(
         "--map",
         action="store_true",
@@ -496,9 +645,20 @@ def main() -> None:
     if args.map:
         map_rows(args, options)
         return
+    # the honest yardstick first (module docstring, ``--fair``): alone with --fair, else
+    # with 10 queries per scene before the other rows
+    fair = replace_args(args, fair_queries=args.fair_queries or (40 if args.fair else 10))
+    if args.scenes == ",".join(SCENES):
+        fair.scenes = ",".join(FAIR_SCENES)
+    else:
+        fair.scenes = ",".join(k for k in args.scenes.split(",") if k in FAIR_SCENES)
+    if fair.scenes:
+        fair_rows(fair)
+    if args.fair:
+        return
 
     print(
-        f"planner={args.planner} range={args.range or ompl_backend.DEFAULT_RANGE} "
+        f"planner={args.planner} range={args.range or 'from the scene (compiled_rrt.scene_range)'} "
         f"budget={args.budget}s naive_resolution={args.naive_resolution} rad"
     )
     header = f"{'scene / set-up':<21} {'n':>5} {'success%':>8} {'direct':>7} {'p50 ms':>9} {'p95 ms':>9} {'max ms':>9} {'len rad':>8} {'corridor':>8}"

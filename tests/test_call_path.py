@@ -10,7 +10,7 @@ import sys
 import golden_motions
 import pytest
 
-import planner.planning.ompl_backend as ompl_backend
+import planner.planning.compiled_rrt as compiled_rrt
 import planner.planning.single_mode as single_mode
 from planner.cartesian import plan as straight
 
@@ -32,16 +32,16 @@ def _library_stack() -> list[str]:
 
 @pytest.fixture
 def searches(monkeypatch):
-    """Every call path that reached the OMPL search during the test."""
+    """Every call path that reached the search (compiled RRT-Connect or OMPL) during the test."""
     seen: list[list[str]] = []
-    real = ompl_backend.search
+    real = compiled_rrt.search  # the planner's search: compiled RRT-Connect or OMPL
 
     def spy(*args, **kwargs):
         seen.append(_library_stack())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(ompl_backend, "search", spy)
-    monkeypatch.setattr(single_mode.ompl_backend, "search", spy)
+    monkeypatch.setattr(compiled_rrt, "search", spy)
+    monkeypatch.setattr(single_mode.compiled_rrt, "search", spy)
     return seen
 
 

@@ -112,6 +112,15 @@ def _plan_ompl(state: _State) -> None:
         options=PlanOptions(seed=1, time_budget_s=2.0),
     )
     state.plans.append((result, obstacles, margins))
+    # the compiled RRT-Connect (its search, vertex reduction and shortcuts) and OMPL's own
+    # search, each once: the plan above may have ended with the straight motion
+    from planner.planning import compiled_rrt, ompl_backend
+    from planner.validity import ValidityChecker
+
+    chk = ValidityChecker(state.design, margins, obstacles, "+", "++-")
+    start, goal = np.array(_START), np.array(_GOAL)
+    compiled_rrt.rrt_connect(chk, start, goal, PlanOptions(seed=1), 2.0)
+    ompl_backend.search(chk, start, goal, PlanOptions(seed=1), 0.05)
 
 
 def _plan_mode_change(state: _State) -> None:

@@ -111,19 +111,20 @@ WALL_GOAL = JointPosture([-1.0, 2.0, 1.0], "+")
 def test_wall_gives_no_path_within_budget(monkeypatch):
     """Without the region map the search runs its whole budget and says so.
 
-    Observed on OMPL's side (a spy on :func:`planner.planning.ompl_backend.search`, on the
+    Observed on the search's side (a spy on :func:`planner.planning.compiled_rrt.search`, on the
     library's own clock ``time.monotonic``): the searches run, each for all the time it was
     given, from the first start to the last end over at least half the budget, and together
     never given more than the budget. Only lower bounds on elapsed time, which a slow machine
     cannot break. Mutants caught: ``planner.solve(min(time_budget_s, 0.001))`` in
-    ``ompl_backend.search``, and ``min(budget, 0.001)`` handed to its calls in
+    ``ompl_backend.search`` (when it was the search), a deadline cut short in
+    ``compiled_rrt.rrt_connect``, and ``min(budget, 0.001)`` handed to its calls in
     ``single_mode.plan_in_region``; the old test (the message and an upper bound on the time)
     passed both.
     """
-    from planner.planning import ompl_backend
+    from planner.planning import compiled_rrt
 
-    searches = []  # (seconds given, start, end) of every OMPL search
-    search = ompl_backend.search
+    searches = []  # (seconds given, start, end) of every search (compiled or OMPL)
+    search = compiled_rrt.search
 
     def spy(checker, q_start, q_goal, options, time_budget_s, **kwargs):
         start = time.monotonic()
@@ -140,13 +141,13 @@ def test_wall_gives_no_path_within_budget(monkeypatch):
     # a first call in a process compiles the checker's kernels inside its budget (tens of
     # seconds with a cold numba cache, no time left to search): a short one pays that first
     plan_wall(0.05)
-    monkeypatch.setattr(ompl_backend, "search", spy)
+    monkeypatch.setattr(compiled_rrt, "search", spy)
     res = plan_wall(budget)
     assert res.status is PlanStatus.NO_PATH and res.path is None
     assert "no path" in res.message and not res.diagnostics.proven_infeasible
     assert f"within {budget} s" in res.message  # the search ran on the budget it was given
     assert searches and res.diagnostics.searches == len(searches)
-    for given, start, end in searches:  # OMPL ran out every budget it was handed
+    for given, start, end in searches:  # the search ran out every budget it was handed
         assert end - start >= 0.9 * given, (given, end - start)
     assert searches[-1][2] - searches[0][1] >= 0.5 * budget, searches
     assert sum(given for given, _, _ in searches) <= budget  # and never more than the budget

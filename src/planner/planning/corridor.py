@@ -43,7 +43,7 @@ from scipy import ndimage
 
 from planner.analysis.heap import heap_grow, heap_pop, heap_push
 from planner.caching import BoundedCache, bounded_cache
-from planner.planning import ompl_backend
+from planner.planning import compiled_rrt
 from planner.planning.problem import PlanOptions
 from planner.validity import ValidityChecker
 
@@ -401,7 +401,7 @@ def _shortcut(
             return None, repairs
         repairs += 1
         budget = min(REPAIR_BUDGET_S, deadline - time.monotonic())
-        fix = ompl_backend.search(checker, points[a], points[a + 1], options, budget)
+        fix = compiled_rrt.search(checker, points[a], points[a + 1], options, budget)
         if fix.waypoints is None:
             return None, repairs
         out.extend(fix.waypoints[1:-1])

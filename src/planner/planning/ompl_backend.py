@@ -47,12 +47,16 @@ _WITH_RANGE = ("rrtconnect", "rrt", "rrtstar", "aorrtc", "lbkpiece")
 @dataclass(frozen=True, slots=True)
 class SearchOutcome:
     """``waypoints`` (N, 3) or None; ``exact``: OMPL found an exact solution; ``ompl_status``:
-    OMPL's status string; ``simplified``: the simplified path was kept."""
+    OMPL's status string; ``simplified``: the simplified path was kept; ``certified``: every
+    motion of ``waypoints`` passed the motion certificate on its way into the path (the
+    compiled search's paths, :mod:`planner.planning.compiled_rrt`; OMPL's are re-certified
+    by the planner, its simplifier's motions being its validator's)."""
 
     waypoints: np.ndarray | None
     exact: bool
     ompl_status: str
     simplified: bool
+    certified: bool = False
 
 
 def _seed(seed: int) -> None:
@@ -97,8 +101,11 @@ def search(
     options : planner name, seed, simplification, range.
     time_budget_s : search budget, s (simplification runs after it, a few ms).
     naive_resolution : None for the product set-up. A value (rad) selects the *naive*
-        set-up used by ``benchmarks/planning.py`` for comparison: OMPL's default discrete
-        motion validator at that resolution calling a per-state Python checker.
+        set-up used by ``benchmarks/planning.py`` for comparison (the fair baseline): OMPL's
+        default discrete motion validator at that resolution (0: OMPL's own default, 1 % of
+        the state space's extent, 0.109 rad over [-pi, pi]^3) calling the product's fastest
+        single-posture check (:meth:`ValidityChecker.is_valid_one`) per state. Its paths are
+        sampled, not certified.
     naive_defaults : with ``naive_resolution``, also keep OMPL's defaults elsewhere: the
         planner's own range, and ``simplifyMax`` (what ``SimpleSetup.simplifySolution()``
         does) instead of our shortcut-and-reduce simplification.
@@ -121,10 +128,9 @@ def search(
         validator = _make_motion_validator(si, checker)
         si.setMotionValidator(validator)
     else:
-        si.setStateValidityChecker(
-            lambda s: bool(checker.is_valid(np.array([[s[0], s[1], s[2]]]))[0])
-        )
-        si.setStateValidityCheckingResolution(naive_resolution / space.getMaximumExtent())
+        si.setStateValidityChecker(lambda s: checker.is_valid_one(s[0], s[1], s[2]))
+        if naive_resolution > 0:
+            si.setStateValidityCheckingResolution(naive_resolution / space.getMaximumExtent())
     si.setup()
     _seed(options.seed)
     goals_q = np.asarray(q_goal, dtype=float).reshape(-1, 3)

@@ -64,9 +64,12 @@ class PlanOptions:
     ----------
     name : one of :data:`PLANNERS`, default 'rrtconnect'.
     time_budget_s : search budget, s (> 0), default 1.
-    seed : OMPL random seed (reproducible results); default 1. OMPL seeds must be > 0.
-    simplify : shorten the path with OMPL's PathSimplifier (re-certified afterwards).
-    range : longest motion the tree-growing planners add at once, rad; None: tuned default.
+    seed : random seed of the search (numba's generator for the compiled RRT-Connect, OMPL's
+        for the other planners; reproducible results); default 1. Must be > 0.
+    simplify : shorten the path (the compiled search's own shortcuts for 'rrtconnect',
+        OMPL's PathSimplifier for the others; every motion certified).
+    range : longest motion the tree-growing planners add at once, rad; None: from the scene
+        for 'rrtconnect' (:func:`planner.planning.compiled_rrt.scene_range`), 1.0 for OMPL's.
     try_direct : first try the straight joint-space motion start -> goal.
     stop_at_transits : the timed trajectory comes to rest at each working-mode transit
         (the planner ignores it; the service passes the transit indices to

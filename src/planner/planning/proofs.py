@@ -84,6 +84,16 @@ def disprove_with_map(
     return proven_no_path(_disproof_message(rmap, start, goals), t0)
 
 
+#: Obstacle objects (a sphere, box or capsule is one, a point cloud one as a whole) above
+#: which the 3-D proof is not asked: its flood tests every object against every cell and
+#: cannot be stopped at a deadline; with the 1,000 small spheres of ``benchmarks/planning.py
+#: --fair`` it took 2.7 s per level (a 1 s request answered after 2-6 s). Many small
+#: obstacles rarely close every path the proof's bounds could show; the search decides there.
+#: A cloud is one object: its points are proven against as a whole (a 10,000-point wall is
+#: proven, ``tests/scenes/test_cloud_proofs.py``).
+OBSTACLE_PROOF_MAX_OBJECTS = 200
+
+
 def disprove_with_obstacles(
     design: Design,
     margins: Margins,
@@ -98,9 +108,10 @@ def disprove_with_obstacles(
     path from the start to the goal candidates ``goals`` (K, 3) (every candidate the
     request allows), proven on the 3-D grid of
     :func:`planner.analysis.obstacle_regions.prove_disconnected_with_obstacles`; None
-    when it cannot. ``searched_s``: how long the search ran before (for the message);
+    when it cannot, and without trying for more than :data:`OBSTACLE_PROOF_MAX_OBJECTS`
+    obstacles. ``searched_s``: how long the search ran before (for the message);
     ``t0``: the request's start."""
-    if len(goals) == 0:
+    if len(goals) == 0 or len(obstacles) > OBSTACLE_PROOF_MAX_OBJECTS:
         return None
     asm = start.assembly_mode
     proof = obstacle_regions.prove_disconnected_with_obstacles(

@@ -31,7 +31,7 @@ from planner.kinematics import (
     mode_label,
     reach_reason,
 )
-from planner.planning import corridor, ompl_backend
+from planner.planning import compiled_rrt, corridor
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
 from planner.validity import Margins, ValidityChecker, assembly_reason
@@ -309,10 +309,11 @@ def plan_in_region(
             elif stuck or guide:
                 searches += 1
                 first_try = min(budget, corridor.FIRST_TRY_S)
-                outcome = ompl_backend.search(checker, q_start, q_goal, options, first_try)
+                outcome = compiled_rrt.search(checker, q_start, q_goal, options, first_try)
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
+                    certified = outcome.certified
             if waypoints is None and stuck and when_stuck is not None:
                 answer, when_stuck = when_stuck(q_goals), None
                 if answer is not None:
@@ -327,10 +328,11 @@ def plan_in_region(
             budget = deadline - time.monotonic()
             if waypoints is None and budget > 0:
                 searches += 1
-                outcome = ompl_backend.search(checker, q_start, q_goal, options, budget)
+                outcome = compiled_rrt.search(checker, q_start, q_goal, options, budget)
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
+                    certified = outcome.certified
         if waypoints is None:
             continue
         waypoints[0], waypoints[-1] = q_start, q_goal  # exact ends (OMPL copies them anyway)
@@ -351,7 +353,8 @@ def _certified(
 ) -> PlanResult | None:
     """The ``solved`` answer of a found path after its final re-certification, except of
     motions certified already (``certified``: the straight motion; a corridor path without
-    OMPL repairs, each motion by the motion test); None when it fails."""
+    OMPL repairs, each motion by the motion test; a compiled search's path,
+    :mod:`planner.planning.compiled_rrt`); None when it fails."""
     report = checker.check_path(waypoints, certify=not certified)
     if not report.valid:  # pragma: no cover - would be a validator bug
         logger.error(
@@ -440,7 +443,7 @@ def plan_to_goal_set(
         return _no_path(checker, options, "", t0, attempts, 0)
     if len(q_goals) > search_goals:
         q_goals = q_goals[np.linspace(0, len(q_goals) - 1, search_goals).round().astype(int)]
-    outcome = ompl_backend.search(checker, q_start, q_goals, options, budget)
+    outcome = compiled_rrt.search(checker, q_start, q_goals, options, budget)
     if outcome.waypoints is not None:
         waypoints = outcome.waypoints
         end = int(np.argmin(np.linalg.norm(q_goals - waypoints[-1], axis=1)))

@@ -21,7 +21,10 @@ The package has four modules, one job each: :mod:`planner.validity.margins` (``M
 and their defaults), :mod:`planner.validity.checker` (``ValidityChecker`` and its helpers:
 what callers use), :mod:`planner.validity.reports`
 (the records it returns) and :mod:`planner.validity._kernels` (the compiled kernels, private).
-Every public name is importable from ``planner.validity`` itself.
+Every public name is importable from ``planner.validity`` itself; one compiled kernel is
+public too, ``certify_motion`` (the certificate of :meth:`ValidityChecker.check_motion` over
+a checker's ``_prm`` and ``packed`` arrays), for compiled callers that run it in their own
+loops (:mod:`planner.planning.compiled_rrt`).
 
 Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C-P-D is
 ``gamma = |theta4 - theta5|`` (mod pi) and ``|CD| = 2 L2 sin(gamma / 2)``, so (corrected eq. 8)
@@ -30,7 +33,7 @@ Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C
 theta3 only and moves by at most ``L1 (|dtheta2| + |dtheta3|)``, a global bound.
 """
 
-from planner.validity._kernels import REASONS
+from planner.validity._kernels import REASONS, certify_motion
 from planner.validity.checker import (
     DEFAULT_COARSE_STEP,
     DIAGNOSTIC_STEP,
@@ -62,6 +65,7 @@ __all__ = [
     "StateReport",
     "ValidityChecker",
     "assembly_reason",
+    "certify_motion",
     "densify",
     "warm_up",
 ]

@@ -149,6 +149,25 @@ class ValidityChecker:
             _packed_from=self._packed,
         )
 
+    def with_margins(self, margins: Margins) -> ValidityChecker:
+        """The same checker with other margins, sharing this one's packed obstacle arrays."""
+        return ValidityChecker(
+            self.design,
+            margins,
+            self.obstacles,
+            self.assembly_mode,
+            self.working_mode,
+            self.coarse_step,
+            self.serial_rules,
+            _packed_from=self._packed,
+        )
+
+    @property
+    def params(self) -> np.ndarray:
+        """The design, margins and modes packed for the compiled kernels (the ``prm``
+        argument of :func:`planner.validity.certify_motion`)."""
+        return self._prm
+
     @property
     def packed(self) -> PackedObstacles:
         """The obstacles packed with their trees (:func:`planner.geometry.pack_obstacles`),

@@ -73,7 +73,9 @@ class PlannerOptions(_Request):
         description="Seed of the planner's random numbers, >= 1 (reproducible results); "
         "absent: the planner's default seed.",
     )
-    simplify: bool = Field(True, description="Shorten and smooth the path (OMPL simplifier).")
+    simplify: bool = Field(
+        True, description="Shorten the path (shortcuts; every motion certified)."
+    )
     stop_at_transits: bool = Field(
         False,
         description="Come to rest at each working-mode transit (the timed trajectory stops "

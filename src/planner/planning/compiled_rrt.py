@@ -1,0 +1,388 @@
+"""RRT-Connect compiled on the product's own validity kernels: the default search of
+``PlanOptions.name = "rrtconnect"``.
+
+Why not OMPL's here: with OMPL's Python bindings every state check and every motion check is
+a call from C++ into Python and back (in clutter about 70 % of a slow query was those calls:
+``checkMotion`` 48 %, the state lambda 22 %; the certificate kernel itself 25 %). This module
+runs the same algorithm as OMPL's ``RRTConnect`` (two trees, the one that grew last tries to
+connect the other to its new node, extensions at most ``range`` long, Euclidean distance in
+joint space) inside one numba function that calls the certificate kernel
+(:func:`planner.validity.certify_motion`) directly: no Python between the
+samples. The tree is searched for nearest neighbours through a uniform grid of buckets over
+the joint box (a 3-D space: a linear scan of a bucket and its neighbours' shells).
+
+What runs where (``docs/planning.md``, "What runs where"): the straight motion, this search,
+its simplification (greedy vertex reduction, random shortcuts, vertex reduction again, every
+accepted motion certified) and the final re-certification of the path run in compiled code
+called from :func:`planner.planning.single_mode.plan_in_region`; OMPL remains the planner of
+record for every other ``PlanOptions.name`` (rrt, rrtstar, prmstar, bitstar, aorrtc,
+lbkpiece) and for goal sets of several postures (:func:`plan_to_goal_set`, OMPL's
+``GoalStates``), and is the fallback when this search stops at its node capacity.
+
+Soundness is the certificate's: a motion enters a tree only when
+:meth:`ValidityChecker.check_motion`'s compiled certificate accepts it (ends included), and
+the planner re-certifies the returned path as it does OMPL's.
+
+The search runs in chunks of iterations between which the deadline is checked (numba has no
+clock): the first chunk has :data:`CHUNK` iterations, the next ones as many as the last chunk's
+pace fits in :data:`CHUNK_S` (where one certificate costs a millisecond, a fixed count would
+overrun a short budget); its random numbers come from numba's generator seeded with
+``options.seed`` at the start of each search: results are reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+from numba import njit
+
+from planner.planning import ompl_backend
+from planner.planning.ompl_backend import SearchOutcome
+from planner.planning.problem import PlanOptions
+from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
+
+__all__ = ["CAPACITY", "CHUNK", "CLUTTER_ROWS", "rrt_connect", "scene_range", "search"]
+
+#: Iterations of the compiled loop before the first look at the deadline.
+CHUNK = 32
+#: Seconds of compiled loop aimed at between two looks at the deadline.
+CHUNK_S = 0.002
+#: Nodes per tree; a search that fills it stops (the caller falls back to OMPL).
+CAPACITY = 1 << 15
+#: Random shortcut tries of the simplification: a * (vertices after the first reduction) + b.
+#: Measured in the narrow window (30 queries, mean): the shortcuts cost 7.3 ms at 4n + 16
+#: (every success certifies a motion that grazes the plate, in fine pieces), 3.7 ms at
+#: 2n + 8, for paths 4.00 and 4.16 rad long (median; 4.64 after the reduction alone).
+SHORTCUT_TRIES = (2, 8)
+#: Clearance (m) that the simplification's new motions keep beyond ``margins.clearance``:
+#: a shortcut may replace tree motions only where it stays this much clear of the margin, so
+#: that a timed trajectory rounding the path's corners (which cut towards the obstacle they
+#: turn around) is not pushed into the margin by a path that hugs it (the service's ruckig
+#: plan of ``tests/test_plan_checker.py`` came within 0.9 mm of the margin without it).
+SIMPLIFY_SLACK = 0.005
+#: Buckets per axis of the nearest-neighbour grid.
+_BUCKETS = 16
+#: Obstacle rows (spheres, points, capsules, boxes) from which :func:`scene_range` is short.
+CLUTTER_ROWS = 50
+#: Up to this many nodes a tree is scanned whole for a nearest neighbour.
+_SCAN = 48
+
+
+def scene_range(checker: ValidityChecker) -> float:
+    """The extension length (rad) chosen from the scene when ``options.range`` is None.
+
+    1.0 rad in free space and sparse scenes (tuned on ``benchmarks/planning.py``: long
+    extensions reach the goal in few steps), 0.25 rad from :data:`CLUTTER_ROWS` obstacle rows
+    (the 1,000 small spheres, point clouds: every point is a row). Measured on the fair
+    scenes (the compiled search alone, 30 queries each, AMD EPYC, load 3-7):
+
+    ========== ================ ================ ================
+    scene      range 0.25       range 0.5        range 1.0
+    ========== ================ ================ ================
+    1k spheres p50 0.42-0.54 ms  0.56 ms          3.82 ms
+               p95 12.5-15.2 ms 24.2 ms          49.7 ms
+    cloud 10k  p50 0.35-0.44 ms  0.38 ms          0.38 ms
+               p95 1.1-7.5 ms   1.01 ms          1.52 ms
+    narrow     p50 5.2-5.5 ms   3.61 ms          3.89 ms
+    ========== ================ ================ ================
+
+    In clutter, a long extension is mostly rejected deep inside (the certificate pays its
+    coarse samples up to the first invalid one) and the trees grow slowly; the narrow window
+    (three boxes) keeps 1.0."""
+    rows = checker.packed.count
+    return 1.0 if rows < CLUTTER_ROWS else 0.25
+
+
+@njit(cache=True)
+def _seed(seed):  # pragma: no cover - compiled
+    np.random.seed(seed)  # noqa: NPY002 (numba: the legacy API)
+
+
+@njit(cache=True, inline="always")
+def _bucket(q, lo, inv):  # pragma: no cover - compiled
+    b0 = min(_BUCKETS - 1, max(0, int((q[0] - lo[0]) * inv[0])))
+    b1 = min(_BUCKETS - 1, max(0, int((q[1] - lo[1]) * inv[1])))
+    b2 = min(_BUCKETS - 1, max(0, int((q[2] - lo[2]) * inv[2])))
+    return b0, b1, b2
+
+
+@njit(cache=True)
+def _insert(t, q, par, nodes, parent, count, head, nxt, lo, inv):  # pragma: no cover
+    """Add node q with parent ``par`` to tree t (its bucket list); returns its index."""
+    i = count[t]
+    nodes[t, i, 0], nodes[t, i, 1], nodes[t, i, 2] = q[0], q[1], q[2]
+    parent[t, i] = par
+    b0, b1, b2 = _bucket(q, lo, inv)
+    nxt[t, i] = head[t, b0, b1, b2]
+    head[t, b0, b1, b2] = i
+    count[t] = i + 1
+    return i
+
+
+@njit(cache=True)
+def _nearest(t, q, nodes, count, head, nxt, lo, inv, width):  # pragma: no cover - compiled
+    """Index of the node of tree t nearest to q (Euclidean): shells of buckets around q's
+    bucket, growing until the best distance found is within the shell's reach."""
+    best, bd = -1, np.inf
+    if count[t] <= _SCAN:  # a small tree: a plain scan is cheaper than the shells
+        for i in range(count[t]):
+            d = (
+                (nodes[t, i, 0] - q[0]) ** 2
+                + (nodes[t, i, 1] - q[1]) ** 2
+                + (nodes[t, i, 2] - q[2]) ** 2
+            )
+            if d < bd:
+                best, bd = i, d
+        return best
+    c0, c1, c2 = _bucket(q, lo, inv)
+    wmin = min(width[0], min(width[1], width[2]))
+    for r in range(_BUCKETS):
+        # nodes outside the shells 0..r-1 are at least (r - 1) * wmin away: stop when the
+        # best is nearer than the closest a node in shell r can be
+        if best >= 0 and bd <= ((r - 1) * wmin) ** 2 and r > 0:
+            break
+        for a in range(max(0, c0 - r), min(_BUCKETS, c0 + r + 1)):
+            for b in range(max(0, c1 - r), min(_BUCKETS, c1 + r + 1)):
+                for c in range(max(0, c2 - r), min(_BUCKETS, c2 + r + 1)):
+                    if max(abs(a - c0), max(abs(b - c1), abs(c - c2))) != r:
+                        continue
+                    i = head[t, a, b, c]
+                    while i >= 0:
+                        d = (
+                            (nodes[t, i, 0] - q[0]) ** 2
+                            + (nodes[t, i, 1] - q[1]) ** 2
+                            + (nodes[t, i, 2] - q[2]) ** 2
+                        )
+                        if d < bd:
+                            best, bd = i, d
+                        i = nxt[t, i]
+    return best
+
+
+@njit(cache=True)
+def _grow(t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step):
+    """OMPL's ``growTree``: extend tree t from its node nearest to ``target`` by at most
+    ``rng``; returns (status, new node): 0 trapped, 1 advanced, 2 reached."""  # pragma: no cover
+    near = _nearest(t, target, nodes, count, head, nxt, lo, inv, width)
+    qa = nodes[t, near]
+    d = math.sqrt((target[0] - qa[0]) ** 2 + (target[1] - qa[1]) ** 2 + (target[2] - qa[2]) ** 2)
+    reach = d <= rng
+    qb = target.copy() if reach else qa + (target - qa) * (rng / d)
+    if count[t] >= nodes.shape[1]:
+        return 0, -1
+    s, c, b, sn, cn, bn, sg = packed
+    r, _ = certify_motion(
+        qa.copy(), qb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP, False
+    )
+    if r != 0:
+        return 0, -1
+    i = _insert(t, qb, near, nodes, parent, count, head, nxt, lo, inv)
+    return (2 if reach else 1), i
+
+
+@njit(cache=True)
+def _run(
+    nodes, parent, count, head, nxt, lo, hi, width, rng, prm, packed, step, iters, state, out
+):  # pragma: no cover - compiled
+    """``iters`` iterations of RRT-Connect; ``state[0]`` the tree that grows next. Returns
+    True with ``out`` = (node in tree 0, node in tree 1) when the trees met; ``state[1]`` = 1
+    when a tree is full."""
+    inv = 1.0 / width
+    target = np.empty(3)
+    for _ in range(iters):
+        t = state[0]
+        o = 1 - t
+        state[0] = o
+        for k in range(3):
+            target[k] = lo[k] + np.random.random() * (hi[k] - lo[k])  # noqa: NPY002 (numba: the legacy API)
+        st, i = _grow(
+            t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step
+        )
+        if count[t] >= nodes.shape[1]:
+            state[1] = 1
+            return False
+        if st == 0:
+            continue
+        q_new = nodes[t, i].copy()
+        while True:
+            st2, j = _grow(
+                o, q_new, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step
+            )
+            if st2 != 1:
+                break
+        if st2 == 2:
+            if t == 0:
+                out[0], out[1] = i, j
+            else:
+                out[0], out[1] = j, i
+            return True
+        if count[o] >= nodes.shape[1]:
+            state[1] = 1
+            return False
+    return False
+
+
+@njit(cache=True)
+def _valid(qa, qb, prm, packed, step):  # pragma: no cover - compiled
+    s, c, b, sn, cn, bn, sg = packed
+    r, _ = certify_motion(qa, qb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP, False)
+    return r == 0
+
+
+@njit(cache=True)
+def _reduce(path, prm, packed, step):  # pragma: no cover - compiled
+    """Greedy vertex reduction: from each kept vertex, the farthest later vertex joined to it
+    by a certified motion (the next one always is: the path's own motion)."""
+    n = path.shape[0]
+    keep = np.zeros(n, dtype=np.bool_)
+    keep[0] = True
+    i = 0
+    while i < n - 1:
+        j = n - 1
+        while j > i + 1 and not _valid(path[i].copy(), path[j].copy(), prm, packed, step):
+            j -= 1
+        keep[j] = True
+        i = j
+    return path[keep]
+
+
+@njit(cache=True)
+def _shortcut(path, tries, prm, packed, step):  # pragma: no cover - compiled
+    """Random shortcuts between two points on two different motions of the path (OMPL's
+    ``shortcutPath`` idea): when the straight motion between them is certified, the path
+    between them is replaced by it."""
+    p = path.copy()
+    for _ in range(tries):
+        n = p.shape[0]
+        if n < 3:
+            break
+        a = np.random.randint(0, n - 1)  # noqa: NPY002 (numba: the legacy API)
+        b = np.random.randint(0, n - 1)  # noqa: NPY002 (numba: the legacy API)
+        if a == b:
+            continue
+        if a > b:
+            a, b = b, a
+        ta, tb = np.random.random(), np.random.random()  # noqa: NPY002 (numba: the legacy API)
+        qa = p[a] + ta * (p[a + 1] - p[a])
+        qb = p[b] + tb * (p[b + 1] - p[b])
+        old = np.sqrt(np.sum((p[a + 1] - qa) ** 2)) + np.sqrt(np.sum((qb - p[b]) ** 2))
+        for k in range(a + 1, b):
+            old += np.sqrt(np.sum((p[k + 1] - p[k]) ** 2))
+        if np.sqrt(np.sum((qb - qa) ** 2)) >= old - 1e-9:
+            continue
+        if not _valid(qa.copy(), qb.copy(), prm, packed, step):
+            continue
+        q = np.empty((a + 1 + 2 + (n - b - 1), 3))
+        q[: a + 1] = p[: a + 1]
+        q[a + 1] = qa
+        q[a + 2] = qb
+        q[a + 3 :] = p[b + 1 :]
+        p = q
+    return p
+
+
+def _path(nodes: np.ndarray, parent: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The waypoints root of tree 0 -> meeting node -> root of tree 1."""
+    out = []
+    for t in (0, 1):
+        i, part = int(ends[t]), []
+        while i >= 0:
+            part.append(nodes[t, i].copy())
+            i = int(parent[t, i])
+        out.append(part[::-1] if t == 0 else part)
+    assert np.array_equal(out[0][-1], out[1][0])  # the trees met on one posture
+    return np.array(out[0] + out[1][1:])
+
+
+def search(
+    checker: ValidityChecker,
+    q_start: np.ndarray,
+    q_goal: np.ndarray,
+    options: PlanOptions,
+    time_budget_s: float,
+) -> SearchOutcome:
+    """The product's search (what the planner calls): :func:`rrt_connect` for
+    ``options.name == "rrtconnect"`` and one goal posture, OMPL
+    (:func:`planner.planning.ompl_backend.search`) for every other planner, for a goal set
+    (K, 3) with K > 1, and for the rest of the budget when the compiled trees fill up."""
+    goals = np.asarray(q_goal, dtype=float).reshape(-1, 3)
+    t0 = time.monotonic()
+    if options.name == "rrtconnect" and len(goals) == 1:
+        out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
+        if out is not None:
+            return out
+    rest = time_budget_s - (time.monotonic() - t0)
+    return ompl_backend.search(checker, q_start, q_goal, options, max(rest, 1e-3))
+
+
+def rrt_connect(
+    checker: ValidityChecker,
+    q_start: np.ndarray,
+    q_goal: np.ndarray,
+    options: PlanOptions,
+    time_budget_s: float,
+) -> SearchOutcome | None:
+    """RRT-Connect from ``q_start`` to ``q_goal`` (3,) rad in the checker's region, compiled;
+    None when the trees filled their :data:`CAPACITY` (the caller then asks OMPL). The
+    outcome's ``ompl_status`` is OMPL's vocabulary ("Exact solution" / "Timeout") so that
+    messages read the same."""
+    deadline = time.monotonic() + time_budget_s
+    design = checker.design
+    lo = np.asarray(design.joint_min, dtype=float)
+    hi = np.asarray(design.joint_max, dtype=float)
+    width = (hi - lo) / _BUCKETS
+    rng = options.range if options.range is not None else scene_range(checker)
+    nodes = np.empty((2, CAPACITY, 3))
+    parent = np.empty((2, CAPACITY), dtype=np.int64)
+    nxt = np.empty((2, CAPACITY), dtype=np.int64)
+    head = np.full((2, _BUCKETS, _BUCKETS, _BUCKETS), -1, dtype=np.int64)
+    count = np.zeros(2, dtype=np.int64)
+    inv = 1.0 / width
+    _insert(0, np.array(q_start, dtype=float), -1, nodes, parent, count, head, nxt, lo, inv)
+    _insert(1, np.array(q_goal, dtype=float), -1, nodes, parent, count, head, nxt, lo, inv)
+    state = np.zeros(2, dtype=np.int64)
+    ends = np.zeros(2, dtype=np.int64)
+    prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
+    _seed(options.seed)
+    found = False
+    iters = CHUNK
+    while (now := time.monotonic()) < deadline:
+        found = _run(
+            nodes,
+            parent,
+            count,
+            head,
+            nxt,
+            lo,
+            hi,
+            width,
+            rng,
+            prm,
+            packed,
+            step,
+            iters,
+            state,
+            ends,
+        )
+        spent = time.monotonic() - now
+        iters = max(1, min(4096, int(iters * CHUNK_S / max(spent, 1e-6))))
+        if found or state[1]:
+            break
+    if not found:
+        return None if state[1] else SearchOutcome(None, False, "Timeout", False)
+    path = _path(nodes, parent, ends)
+    simplified = False
+    if options.simplify and len(path) > 2:
+        margins = replace(checker.margins, clearance=checker.margins.clearance + SIMPLIFY_SLACK)
+        slack = checker.with_margins(margins).params
+        path = _reduce(path, slack, packed, step)
+        tries = SHORTCUT_TRIES[0] * len(path) + SHORTCUT_TRIES[1]
+        path = _shortcut(path, tries, slack, packed, step)
+        path = _reduce(path, slack, packed, step)
+        simplified = True
+    # every motion of the path is certified: tree edges when they were grown (the meeting
+    # node is the same posture in both trees), and every motion the simplification kept
+    return SearchOutcome(path, True, "Exact solution", simplified, certified=True)
