@@ -1,0 +1,211 @@
+"""Where and when to meet a part on a belt, in one working mode: the interception search of
+:mod:`planner.sequence.moving`.
+
+The robot rests at ``q_s`` from sequence time ``t_s`` (the previous target, or a staging
+posture in the mode). Meeting the part at time t means: a time-optimal move from rest at
+``q_s`` into the tracking state at t (:class:`planner.timing.state_moves.StateMover`), after
+waiting at rest for whatever time is left; the tracking span [t, t + dwell]
+(:class:`planner.sequence.belt.TrackingCurve`); a time-optimal move from the state at
+t + dwell to rest at the landing posture (the next target, or anywhere for a last target). So
+with T_app(t) and T_dep(t) those moves' least durations:
+
+* t is feasible when the span is trackable (reached, valid, within the velocity and
+  acceleration limits at every scanned sample) and t_s + T_app(t) <= t;
+* ``objective="time"`` minimises the time at rest at the landing, c(t) = t + dwell + T_dep(t)
+  (waiting at rest is always allowed, so arriving earlier at a rest posture never delays
+  what follows); ``objective="fixed"`` meets as early as possible, c(t) = t.
+
+The search (:func:`intercept`): c and the feasibility on a grid of :data:`GRID` meeting
+times over the part's trackable window after t_s (each point two Ruckig solves, microseconds),
+then refined around the best grid point: the earliest feasible time by bisection when the
+point before it is infeasible (the optimum sits on that boundary whenever T_dep falls more
+slowly than time passes), and a bounded Brent search of c between the grid neighbours. The
+candidates are kept in order of cost, so that the caller can verify them by their real
+curves and dense re-checks in turn (:meth:`Interception.build`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from planner.design import Design
+from planner.sequence.belt import PartPath, TrackingCurve, ik_in_mode, shift_near
+from planner.sequence.problem import MovingTarget
+from planner.timing.checks import CheckReport, dense_check
+from planner.timing.limits import JointLimits
+from planner.timing.state_moves import StateMover
+from planner.timing.torque import TorqueModel
+from planner.validity import ValidityChecker
+
+__all__ = ["GRID", "Interception", "Meeting", "intercept"]
+
+#: Meeting times per mode on the search's coarse grid.
+GRID = 48
+#: Bisection steps of the earliest feasible meeting time (the grid step / 2^30).
+_BISECT = 30
+#: Joint-space resolution of the dense re-check of the moves and the span, rad (the timing's).
+CHECK_RESOLUTION = 0.01
+
+
+@dataclass(frozen=True, slots=True)
+class Meeting:
+    """One candidate meeting: time ``t`` (s, sequence time) and its cost (s)."""
+
+    t: float
+    cost: float
+
+
+@dataclass(frozen=True, eq=False)
+class BuiltPick:
+    """The verified curves of one meeting: a wait at rest (``hold`` s), the approach move,
+    the tracking span and the departure move; ``report`` the failing check, or None."""
+
+    meeting: Meeting
+    hold: float
+    approach: object
+    tracking: TrackingCurve
+    departure: object
+    report: CheckReport | None
+
+    @property
+    def ok(self) -> bool:
+        return self.report is None
+
+
+@dataclass(eq=False)
+class Interception:
+    """The search's context for one moving target in one working mode (module docstring)."""
+
+    design: Design
+    target: MovingTarget
+    dwell: float
+    checker: ValidityChecker
+    limits: JointLimits
+    mover: StateMover
+    path: PartPath
+    q_s: np.ndarray
+    t_s: float
+    landing: np.ndarray | None
+    objective: str = "time"
+    evaluations: int = 0
+
+    @property
+    def mode(self) -> str:
+        return self.checker.working_mode
+
+    def tracking(self, t: float) -> TrackingCurve:
+        """The tracking span from meeting time ``t``, whole turns as the scanned path's."""
+        p = self.path
+        ref = np.array([np.interp(t, p.t, p.q[:, j]) for j in range(3)])
+        q = ik_in_mode(self.design, self.target.at(t), self.mode, self.checker.assembly_mode)[0]
+        q_meet = shift_near(q[None], ref[None])[0]
+        speed = float(np.linalg.norm(self.limits.velocity_array))
+        return TrackingCurve(
+            self.design, self.target, self.mode, self.checker.assembly_mode, t, self.dwell,
+            q_meet, speed,
+        )  # fmt: skip
+
+    def _rest(self, q: np.ndarray) -> tuple:
+        return (q, np.zeros(3), np.zeros(3))
+
+    def cost(self, t: float) -> float:
+        """c(t) (module docstring), ``inf`` where t is not feasible."""
+        self.evaluations += 1
+        if not (t >= self.t_s and self.path.trackable(t, self.dwell)):
+            return math.inf
+        tr = self.tracking(t)
+        meet = tr.state(0.0)
+        if not np.all(np.isfinite(meet[0])):
+            return math.inf
+        t_app = self.mover.duration(self._rest(self.q_s), meet)
+        if self.t_s + t_app > t + 1e-12:
+            return math.inf
+        if self.objective == "fixed":
+            return t
+        leave = tr.state(self.dwell)
+        end = None if self.landing is None else self._rest(self.landing)
+        return t + self.dwell + self.mover.duration(leave, end)
+
+    def build(
+        self, meeting: Meeting, *, torque: TorqueModel | None, v_cart: float | None
+    ) -> BuiltPick | None:
+        """The real curves of ``meeting``, each re-checked densely (validity in the mode,
+        joint limits, assembly, the velocity, acceleration, jerk, tool-speed and torque
+        limits); None when Ruckig has no move."""
+        tr = self.tracking(meeting.t)
+        meet, leave = tr.state(0.0), tr.state(self.dwell)
+        approach = self.mover.curve(self._rest(self.q_s), meet)
+        end = None if self.landing is None else self._rest(self.landing)
+        departure = self.mover.curve(leave, end)
+        if approach is None or departure is None:
+            return None
+        hold = max(meeting.t - approach.duration - self.t_s, 0.0)
+        failed = None
+        for curve in (approach, tr, departure):
+            report = dense_check(
+                curve,
+                design=self.design,
+                assembly_mode=self.checker.assembly_mode,
+                waypoints=np.zeros((2, 3)),
+                limits=self.limits,
+                resolution=CHECK_RESOLUTION,
+                extra_times=np.array([0.0, curve.duration]),
+                check_states=self.checker.is_valid,
+                max_cartesian_speed=v_cart,
+                torque_model=torque,
+            )
+            if not report.ok:
+                failed = report
+                break
+        return BuiltPick(meeting, hold, approach, tr, departure, failed)
+
+
+def _earliest(ic: Interception, lo: float, hi: float) -> float:
+    """The earliest feasible meeting in (lo, hi] (``hi`` feasible, ``lo`` not), by
+    bisection."""
+    for _ in range(_BISECT):
+        mid = 0.5 * (lo + hi)
+        if math.isfinite(ic.cost(mid)):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def intercept(ic: Interception) -> list[Meeting]:
+    """The candidate meetings of ``ic`` in increasing cost (module docstring): the refined
+    best first, then the feasible grid points; empty when none is feasible."""
+    p = ic.path
+    lo, hi = max(ic.t_s, float(p.t[0])), float(p.t[-1]) - ic.dwell
+    if p.t.size == 0 or hi < lo:
+        return []
+    grid = np.linspace(lo, hi, GRID) if hi > lo else np.array([lo])
+    for a, b in p.windows():  # a window's start is where the earliest meetings lie
+        if lo <= a <= hi:
+            grid = np.append(grid, a)
+    grid = np.unique(grid)
+    costs = np.array([ic.cost(float(t)) for t in grid])
+    feasible = np.isfinite(costs)
+    if not np.any(feasible):
+        return []
+    j = int(np.argmin(costs))
+    found = [Meeting(float(grid[j]), float(costs[j]))]
+    if j > 0 and not feasible[j - 1]:
+        t = _earliest(ic, float(grid[j - 1]), float(grid[j]))
+        found.append(Meeting(t, ic.cost(t)))
+    a, b = float(grid[max(j - 1, 0)]), float(grid[min(j + 1, grid.size - 1)])
+    if b > a:
+        res = minimize_scalar(
+            lambda x: min(ic.cost(x), 1e9), bounds=(a, b), method="bounded",
+            options={"xatol": 1e-6},
+        )  # fmt: skip
+        if math.isfinite(ic.cost(float(res.x))):
+            found.append(Meeting(float(res.x), ic.cost(float(res.x))))
+    found += [Meeting(float(t), float(c)) for t, c in zip(grid, costs, strict=True) if c < math.inf]
+    found = [m for m in found if math.isfinite(m.cost)]
+    found.sort(key=lambda m: (m.cost, m.t))
+    return found

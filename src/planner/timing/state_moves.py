@@ -1,0 +1,92 @@
+"""Time-optimal moves between two joint states (position, velocity, acceleration): the moves
+into and out of a moving target's tracking span (:mod:`planner.sequence.moving`).
+
+A conveyor pick meets the part at speed: the tool arrives on the part's posture with the
+part's velocity (and, jerk-limited, its acceleration), and leaves it at speed. Those two ends
+are states, not rests, so the path timings (toppra on a blended path, Ruckig through a path's
+states) do not apply; each is one Ruckig move, time-optimal and synchronised over the three
+joints, as the via chains of :mod:`planner.timing.vias` are: second-order (acceleration-
+limited, jerk unbounded: the limits toppra times under) for ``toppra``, jerk-limited for
+``ruckig``. A move is a :class:`~planner.timing.ruckig_method.RuckigCurve` of one move, so it
+is evaluated, sampled and densely re-checked as any Ruckig trajectory.
+
+Ruckig lives here (the timing's room); the sequence asks only for durations and curves.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError
+from ruckig import Trajectory as RuckigTrajectory
+
+from planner.timing.limits import JointLimits
+from planner.timing.ruckig_method import RuckigCurve, _moves_from
+
+__all__ = ["StateMover"]
+
+#: A state a move cannot reach (Ruckig refuses it) costs this much, s.
+REFUSED = math.inf
+
+_State = tuple[Sequence[float], Sequence[float], Sequence[float]]
+
+
+class StateMover:
+    """Ruckig moves between joint states under ``limits``; ``jerk``: jerk-limited (the
+    ``ruckig`` method) or second-order (``toppra``: acceleration-limited, the target
+    acceleration then free and set to 0, where toppra's acceleration may jump as well).
+
+    The states are (q, qd, qdd), 3 numbers each (rad, rad/s, rad/s^2)."""
+
+    def __init__(self, limits: JointLimits, *, jerk: bool) -> None:
+        self.limits = limits
+        self.jerk = jerk and limits.jerk is not None
+        self.otg = Ruckig(3)
+        self.inp = InputParameter(3)
+        self.inp.max_velocity = limits.velocity_array.tolist()
+        self.inp.max_acceleration = limits.acceleration_array.tolist()
+        j = limits.jerk_array if self.jerk else None
+        self.inp.max_jerk = [math.inf] * 3 if j is None else j.tolist()
+        self.calls = 0
+
+    def _solve(self, a: _State, b: _State | None) -> RuckigTrajectory | None:
+        """The move from state ``a`` to state ``b`` (None: to rest anywhere, as fast as the
+        limits allow: Ruckig's velocity interface)."""
+        inp = self.inp
+        zero = [0.0, 0.0, 0.0]
+        inp.current_position = [float(x) for x in a[0]]
+        inp.current_velocity = [float(x) for x in a[1]]
+        inp.current_acceleration = [float(x) for x in a[2]] if self.jerk else zero
+        if b is None:
+            inp.control_interface = ControlInterface.Velocity
+            inp.target_position = list(inp.current_position)
+            inp.target_velocity, inp.target_acceleration = zero, zero
+        else:
+            inp.control_interface = ControlInterface.Position
+            inp.target_position = [float(x) for x in b[0]]
+            inp.target_velocity = [float(x) for x in b[1]]
+            inp.target_acceleration = [float(x) for x in b[2]] if self.jerk else zero
+        self.calls += 1
+        traj = RuckigTrajectory(3)
+        try:
+            result = self.otg.calculate(inp, traj)
+        except RuckigError:
+            return None
+        return traj if result in (Result.Working, Result.Finished) else None
+
+    def duration(self, a: _State, b: _State | None) -> float:
+        """The least time of a move from ``a`` to ``b`` (None: to rest), s; ``inf`` when
+        Ruckig has none (a state outside the limits)."""
+        traj = self._solve(a, b)
+        return REFUSED if traj is None else float(traj.duration)
+
+    def curve(self, a: _State, b: _State | None) -> RuckigCurve | None:
+        """The move as a curve on [0, its duration] (None when Ruckig has none)."""
+        traj = self._solve(a, b)
+        if traj is None:
+            return None
+        moves = _moves_from([traj], [()])
+        start = np.array([0.0, float(traj.duration)])
+        return RuckigCurve(moves, start, float(np.linalg.norm(self.limits.velocity_array)))
