@@ -12,6 +12,7 @@ time derivatives of that posture, taken by central differences in time of the ex
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -44,6 +45,8 @@ FD_STEP_S = 1e-4
 #: are then checked densely.
 SCAN_STEP_M = 0.002
 SCAN_STEP_S = 0.01
+#: Spacing of the tracking span's whole-turn reference, s.
+TURNS_STEP_S = 0.05
 #: A part that stands still (velocity 0) is scanned over this long, s.
 STILL_HORIZON_S = 60.0
 
@@ -153,6 +156,30 @@ def scan_part(
     return PartPath(mode, t, q_cont, ok)
 
 
+def track_states(
+    design: Design,
+    target: MovingTarget,
+    mode: str,
+    assembly_mode: str,
+    t: np.ndarray,
+    q_ref: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The tracking state at sequence times ``t`` (M,): q = IK_mode(P_part(t)) (whole turns
+    within pi of ``q_ref`` (M, 3)) and its first three time derivatives by fourth-order
+    central differences of step :data:`FD_STEP_S` (one inverse-kinematics call for all);
+    NaN where the mode does not reach the part."""
+    m, h = t.shape[0], FD_STEP_S
+    offsets = np.arange(-2, 3) * h
+    q = ik_in_mode(design, target.at((t[None, :] + offsets[:, None]).ravel()), mode, assembly_mode)
+    q = q.reshape(5, m, 3)
+    centre = shift_near(q[2], q_ref)
+    qm2, qm1, q0, qp1, qp2 = (shift_near(q[k], centre) for k in range(5))
+    qd = (qm2 - 8 * qm1 + 8 * qp1 - qp2) / (12 * h)
+    qdd = (-qm2 + 16 * qm1 - 30 * q0 + 16 * qp1 - qp2) / (12 * h * h)
+    jerk = (-qm2 + 2 * qm1 - 2 * qp1 + qp2) / (2 * h**3)
+    return q0, qd, qdd, jerk
+
+
 @dataclass(frozen=True, eq=False)
 class TrackingCurve:
     """The tool on the part for ``dwell`` s from sequence time ``t_meet``: q(tau) =
@@ -172,22 +199,28 @@ class TrackingCurve:
     def duration(self) -> float:
         return self.dwell
 
-    def _q(self, t: np.ndarray) -> np.ndarray:
-        """Postures at sequence times ``t`` (M,), continuous from ``q_meet``."""
-        q = ik_in_mode(self.design, self.target.at(t), self.mode, self.assembly_mode)
-        return shift_near(q, self.q_meet[None, :])
-
     def evaluate(
         self, t: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         tau = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.dwell)
-        s = self.t_meet + tau
-        h = FD_STEP_S
-        qm2, qm1, q0, qp1, qp2 = (self._q(s + k * h) for k in (-2, -1, 0, 1, 2))
-        qd = (qm2 - 8 * qm1 + 8 * qp1 - qp2) / (12 * h)
-        qdd = (-qm2 + 16 * qm1 - 30 * q0 + 16 * qp1 - qp2) / (12 * h * h)
-        jerk = (-qm2 + 2 * qm1 - 2 * qp1 + qp2) / (2 * h**3)
-        return q0, qd, qdd, jerk
+        grid, q_grid = self._turns
+        ref = np.stack([np.interp(tau, grid, q_grid[:, j]) for j in range(3)], axis=1)
+        return track_states(self.design, self.target, self.mode, self.assembly_mode,
+                            self.t_meet + tau, ref)  # fmt: skip
+
+    @functools.cached_property
+    def _turns(self) -> tuple[np.ndarray, np.ndarray]:
+        """The span's postures every :data:`TURNS_STEP_S` s, whole turns continued from
+        ``q_meet`` (a joint moves at most 0.1 rad between two of them under 2 rad/s), the
+        reference each evaluated posture takes its whole turns from."""
+        n = max(2, int(math.ceil(self.dwell / TURNS_STEP_S)) + 1)
+        grid = np.linspace(0.0, self.dwell, n)
+        q = ik_in_mode(self.design, self.target.at(self.t_meet + grid), self.mode,
+                       self.assembly_mode)  # fmt: skip
+        q[0] = shift_near(q[0][None], self.q_meet[None])[0]
+        for k in range(1, n):
+            q[k] = shift_near(q[k][None], q[k - 1][None])[0]
+        return grid, q
 
     def state(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, qd, qdd) at ``tau`` s into the span."""

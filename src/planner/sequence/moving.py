@@ -118,28 +118,32 @@ def _scan_all(problem: MotionProblem, target: MovingTarget, modes: Sequence[str]
     return out
 
 
-def _precheck(problem: MotionProblem, goals: Sequence[Goal]) -> SequenceResult | None:
+def _precheck(
+    problem: MotionProblem, goals: Sequence[Goal]
+) -> tuple[SequenceResult | None, dict[int, dict]]:
     """Before any planning: each moving target's path must be trackable somewhere after the
-    sequence starts (time 0) in one of its working modes; else ``unreachable``."""
+    sequence starts (time 0) in one of its working modes; else ``unreachable``. Returns the
+    scans too (per moving target, per mode: its checker and :class:`PartPath`)."""
+    all_scans = {}
     for i, g in enumerate(goals):
         if not isinstance(g, MovingTarget):
             continue
         modes = list(WORKING_MODES) if g.working_mode == "any" else [g.working_mode]
-        scans = _scan_all(problem, g, modes)
+        scans = all_scans[i] = _scan_all(problem, g, modes)
         windows = {m: s.windows() for m, (_, s) in scans.items() if s.windows()}
         if not windows:
             message = (
                 f"target {i}: the part's path never enters the reachable set (in working "
                 f"mode{'s' if len(modes) > 1 else ''} {', '.join(modes)})"
             )
-            return SequenceResult(PlanStatus.UNREACHABLE, message, ())
+            return SequenceResult(PlanStatus.UNREACHABLE, message, ()), all_scans
         if all(b < 0.0 for ws in windows.values() for _, b in ws):
             message = (
                 f"target {i}: the part is reachable only before the sequence starts "
                 f"({_windows_text(windows)}; sequence time)"
             )
-            return SequenceResult(PlanStatus.UNREACHABLE, message, ())
-    return None
+            return SequenceResult(PlanStatus.UNREACHABLE, message, ()), all_scans
+    return None, all_scans
 
 
 def _shifted(msg: str, offset: int, n: int) -> str:
@@ -242,19 +246,84 @@ def _staging(problem: MotionProblem, run: _Run, mode: str) -> tuple[SequenceResu
     return result, ""
 
 
+def _interception(
+    problem: MotionProblem,
+    q_s: np.ndarray,
+    t_s: float,
+    target: SequenceTarget,
+    next_goal: Goal | None,
+    scan: tuple,
+    objective: str,
+) -> tuple[Interception | None, bool, str]:
+    """The search's context from rest at ``q_s`` at time ``t_s`` in the scan's mode, whether
+    the departure lands on the next target itself, and why there is none."""
+    checker, path = scan
+    landing, consumed, why = _landing(problem, next_goal, checker, q_s)
+    if why:
+        return None, False, f"the next target in {checker.working_mode}: {why}"
+    goal = target.goal
+    assert isinstance(goal, MovingTarget)
+    mover = StateMover(problem.limits, jerk=problem.timing.method == "ruckig")
+    ic = Interception(
+        problem.design, goal, target.dwell, checker, problem.limits, mover, path, q_s, t_s,
+        landing, objective,
+    )  # fmt: skip
+    return ic, consumed, ""
+
+
+def _staged_bound(
+    problem: MotionProblem,
+    run: _Run,
+    target: SequenceTarget,
+    next_goal: Goal | None,
+    scan: tuple,
+    objective: str,
+) -> tuple[float, str]:
+    """A bound on a mode that needs a staging leg, before planning it: the search from the
+    staging posture (P where the robot rests, in the mode) as if the robot rested there at
+    the per-joint least time of the move (:func:`~planner.sequence.mode_search.
+    leg_lower_bound`: no staging leg is quicker), so the search only meets later for real."""
+    from planner.sequence.mode_search import leg_lower_bound
+
+    checker = scan[0]
+    point = forward_batch(problem.design, run.q, problem.start.assembly_mode).p[0]
+    cands, why = goal_candidates(
+        problem.design, CartesianTarget(point, checker.working_mode), checker, run.q
+    )
+    if not len(cands):
+        return math.inf, f"no staging posture in {checker.working_mode}: {why}"
+    t_s = run.t + leg_lower_bound(run.q, cands[0], problem.limits, stop_a=True, stop_b=True)
+    ic, _, why = _interception(problem, cands[0], t_s, target, next_goal, scan, objective)
+    if ic is None:
+        return math.inf, why
+    meetings = intercept(ic)
+    run.evaluated += ic.evaluations
+    if not meetings:
+        return math.inf, f"no meeting possible in {checker.working_mode} after {t_s:.3f} s"
+    return meetings[0].cost, ""
+
+
 def _option(
     problem: MotionProblem,
     run: _Run,
     target: SequenceTarget,
-    goal: MovingTarget,
     next_goal: Goal | None,
     scan: tuple,
     objective: str,
     torque: TorqueModel | None,
+    beat: float = math.inf,
 ) -> tuple[_Option | None, str]:
-    """The best verified interception in one working mode (the scan's), or why none."""
-    checker, path = scan
-    mode = checker.working_mode
+    """The best verified interception in one working mode (the scan's), or why none. A mode
+    that needs a staging leg is planned only when its bound (the search from where the robot
+    rests, the staging's time left out: it only delays) is below ``beat``."""
+    mode = scan[0].working_mode
+    here = posture_mode(problem.design, JointPosture(run.q, problem.start.assembly_mode))
+    if here != mode and math.isfinite(beat):
+        bound, why = _staged_bound(problem, run, target, next_goal, scan, objective)
+        if why:
+            return None, why
+        if bound >= beat:
+            return None, f"{mode} cannot beat {beat:.4g} s (its bound {bound:.4g} s)"
     staging, why = _staging(problem, run, mode)
     if why:
         return None, why
@@ -262,14 +331,9 @@ def _option(
     if staging is not None:
         q_s = np.asarray(staging.trajectory.q[-1], dtype=float)
         t_s += staging.cycle_time
-    landing, consumed, why = _landing(problem, next_goal, checker, q_s)
-    if why:
-        return None, f"the next target in {mode}: {why}"
-    mover = StateMover(problem.limits, jerk=problem.timing.method == "ruckig")
-    ic = Interception(
-        problem.design, goal, target.dwell, checker, problem.limits, mover, path, q_s, t_s,
-        landing, objective,
-    )  # fmt: skip
+    ic, consumed, why = _interception(problem, q_s, t_s, target, next_goal, scan, objective)
+    if ic is None:
+        return None, why
     meetings = intercept(ic)
     run.evaluated += ic.evaluations
     if not meetings:
@@ -309,6 +373,7 @@ def _moving(
     next_goal: Goal | None,
     objective: str,
     torque: TorqueModel | None,
+    scans: dict,
 ) -> tuple[SequenceResult | None, bool]:
     """Step 1-3 for moving target ``index``, appended to ``run``; (the failed answer, or
     None; whether the next target was reached by the departure)."""
@@ -321,12 +386,15 @@ def _moving(
         modes = [here, *(m for m in WORKING_MODES if m != here)]
     else:
         modes = list(WORKING_MODES)
-    scans = _scan_all(problem, goal, modes)
-    options, whys = [], []
+    # the modes the robot rests in first: no staging leg, and a bound for the others
+    modes.sort(key=lambda m: m != here)
+    options: list[_Option] = []
+    whys = []
     for m in modes:
         if not scans[m][1].windows():
             continue
-        opt, why = _option(problem, run, target, goal, next_goal, scans[m], objective, torque)
+        beat = min((o.pick.meeting.cost for o in options), default=math.inf)
+        opt, why = _option(problem, run, target, next_goal, scans[m], objective, torque, beat)
         if opt is not None:
             options.append(opt)
             if objective == "fixed":
@@ -385,7 +453,7 @@ def plan_moving_sequence(
     """A sequence holding moving targets (module docstring); ``goals`` has one entry per
     leg (the start again at the end with ``cycle``)."""
     _checked(goals, targets, problem)
-    early = _precheck(problem, goals)
+    early, scans = _precheck(problem, goals)
     if early is not None:
         return early
     n = len(targets)
@@ -409,7 +477,9 @@ def plan_moving_sequence(
         if k is None:
             break
         next_goal = goals[k + 1] if k + 1 < len(goals) else None
-        failed, consumed = _moving(problem, run, k, items[k][1], next_goal, objective, torque)
+        failed, consumed = _moving(
+            problem, run, k, items[k][1], next_goal, objective, torque, scans[k]
+        )
         if failed is not None:
             return failed
         i = k + 2 if consumed else k + 1
