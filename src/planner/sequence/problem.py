@@ -110,6 +110,18 @@ class SequenceTarget:
         d = self.dwell
         if isinstance(d, bool) or not isinstance(d, int | float) or not math.isfinite(d) or d < 0:
             raise InputError(f"dwell must be a finite number >= 0 s, got {d!r}", field="dwell")
+        if d != 0 and not isinstance(self.goal, MovingTarget):
+            raise InputError("dwell applies to a moving target (a goal with velocity)", field="dwell")
+        if isinstance(self.goal, MovingTarget):
+            if not self.stop:
+                raise InputError(
+                    "a moving target is met at the part's speed, not passed: stop does not "
+                    "apply (leave it true)",
+                    field="stop",
+                )
+            if self.blend != 0 or self.blend_radius is not None:
+                which = "blend" if self.blend != 0 else "blend_radius"
+                raise InputError("a moving target takes no blend: it is met exactly", field=which)
         b = self.blend
         if isinstance(b, bool) or not isinstance(b, int | float) or not math.isfinite(b):
             raise InputError(f"blend must be a finite number, got {b!r}", field="blend")
