@@ -129,7 +129,8 @@ def scan_part(
     t_from: float,
 ) -> PartPath:
     """The part's path from ``t_from`` in the checker's working mode (:class:`PartPath`):
-    reached and valid at each sample, and within the joint velocity and acceleration limits
+    reached and valid at each sample (its posture, whole turns continued in time, within
+    the design's joint limits and the checker's rules), and within the joint velocity and acceleration limits
     when tracked (the rates by differences over the samples)."""
     mode = checker.working_mode
     t = scan_times(design, target, t_from)
@@ -145,7 +146,9 @@ def scan_part(
         q_cont[reached] += shift_near(q_cont[first][None], q_ref[None])[0] - q_cont[first]
     ok = reached.copy()
     if np.any(ok):
-        ok[ok] = checker.is_valid(q_cont[ok])
+        lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+        inside = np.all((q_cont[ok] >= lo) & (q_cont[ok] <= hi), axis=1)
+        ok[ok] = inside & checker.is_valid(q_cont[ok])
     if t.size >= 3 and np.any(ok):
         qd = np.gradient(np.nan_to_num(q_cont), t, axis=0)
         qdd = np.gradient(qd, t, axis=0)
