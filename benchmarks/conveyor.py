@@ -105,13 +105,15 @@ def all_stops_rate(design, limits, speed, picked) -> float:
 
 def stream_table(n_parts: int) -> None:
     print(f"\n## A stream of parts ({n_parts} per row, dwell {DWELL} s, bin {BIN.tolist()} m)\n")
-    print("| design | limits | belt m/s | parts/min offered | picks/min (modes for time) | "
-          "missed | picks/min (modes fixed) | missed | all-stops picks/min | belt / all-stops |")  # fmt: skip
+    print(
+        "| design | limits | belt m/s | parts/min offered | picks/min (modes for time) | "
+        "missed | picks/min (modes fixed) | missed | all-stops picks/min | belt / all-stops |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for dname, design in DESIGNS.items():
         for lname, limits in LIMITS.items():
             for k, speed in enumerate(SPEEDS):
-                picks, missed, rate, picked = stream(design, limits, speed, n_parts, k)
+                _, missed, rate, picked = stream(design, limits, speed, n_parts, k)
                 _, missed_f, rate_f, _ = stream(design, limits, speed, n_parts, k, MODE)
                 stops = all_stops_rate(design, limits, speed, picked)
                 offered = 60.0 * (n_parts - 1) / float(arrivals(speed, n_parts, k)[-1])
@@ -138,9 +140,17 @@ def brute_force_table(cases: int) -> None:
         path = scan_part(design, part, checker, limits, np.asarray(start.q), -math.inf)
         landing = inverse_batch(design, BIN).q[0, WORKING_MODES.index(MODE)]
         ic = Interception(
-            design, part, dwell, checker, limits, StateMover(limits, jerk=False), path,
-            np.asarray(start.q), 0.0, landing,
-        )  # fmt: skip
+            design,
+            part,
+            dwell,
+            checker,
+            limits,
+            StateMover(limits, jerk=False),
+            path,
+            np.asarray(start.q),
+            0.0,
+            landing,
+        )
         grid = np.arange(0.0, float(path.t[-1]), 1e-3)
         best = float(np.min(ic.costs(grid))) if grid.size else math.inf
         if not math.isfinite(best):
@@ -182,10 +192,14 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=20)
     args = parser.parse_args()
     print_machine()
-    solve_sequence(Design.default(), bin_posture(Design.default()), [
-        SequenceTarget(MovingTarget(ENTRY, MODE, [0.5, 0, 0]), dwell=DWELL),
-        SequenceTarget(CartesianTarget(BIN)),
-    ])  # fmt: skip  (warm-up)
+    solve_sequence(
+        Design.default(),
+        bin_posture(Design.default()),
+        [
+            SequenceTarget(MovingTarget(ENTRY, MODE, [0.5, 0, 0]), dwell=DWELL),
+            SequenceTarget(CartesianTarget(BIN)),
+        ],
+    )  # warm-up
     pick_time_table(args.repeats)
     brute_force_table(args.cases)
     stream_table(args.parts)

@@ -78,10 +78,13 @@ def _rates(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     kinematics."""
     h, m = 1e-6, q.shape[0]
     e = np.eye(3) * h
-    pp = forward_batch(DESIGN, np.concatenate([q + e[j] for j in range(3)] +
-                                              [q - e[j] for j in range(3)]), "+").p
-    jac = np.stack([(pp[j * m : (j + 1) * m] - pp[(3 + j) * m : (4 + j) * m]) / (2 * h)
-                    for j in range(3)], axis=2)  # fmt: skip
+    pp = forward_batch(
+        DESIGN, np.concatenate([q + e[j] for j in range(3)] + [q - e[j] for j in range(3)]), "+"
+    ).p
+    jac = np.stack(
+        [(pp[j * m : (j + 1) * m] - pp[(3 + j) * m : (4 + j) * m]) / (2 * h) for j in range(3)],
+        axis=2,
+    )
     return np.linalg.solve(jac, np.broadcast_to(v, (m, 3))[..., None])[..., 0]
 
 

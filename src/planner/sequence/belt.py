@@ -33,7 +33,9 @@ __all__ = [
     "TrackingCurve",
     "ik_in_mode",
     "scan_part",
+    "scan_times",
     "shift_near",
+    "track_states",
 ]
 
 #: Step of the central differences in time of the tracking posture, s: the truncation error
@@ -117,7 +119,7 @@ def scan_times(design: Design, target: MovingTarget, t_from: float) -> np.ndarra
     if t_out <= lo:
         return np.empty(0)
     step = min(SCAN_STEP_M / speed, SCAN_STEP_S)
-    return np.linspace(lo, t_out, max(3, int(math.ceil((t_out - lo) / step)) + 1))
+    return np.linspace(lo, t_out, max(3, math.ceil((t_out - lo) / step) + 1))
 
 
 def scan_part(
@@ -202,24 +204,24 @@ class TrackingCurve:
     def duration(self) -> float:
         return self.dwell
 
-    def evaluate(
-        self, t: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         tau = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.dwell)
         grid, q_grid = self._turns
         ref = np.stack([np.interp(tau, grid, q_grid[:, j]) for j in range(3)], axis=1)
-        return track_states(self.design, self.target, self.mode, self.assembly_mode,
-                            self.t_meet + tau, ref)  # fmt: skip
+        return track_states(
+            self.design, self.target, self.mode, self.assembly_mode, self.t_meet + tau, ref
+        )
 
     @functools.cached_property
     def _turns(self) -> tuple[np.ndarray, np.ndarray]:
         """The span's postures every :data:`TURNS_STEP_S` s, whole turns continued from
         ``q_meet`` (a joint moves at most 0.1 rad between two of them under 2 rad/s), the
         reference each evaluated posture takes its whole turns from."""
-        n = max(2, int(math.ceil(self.dwell / TURNS_STEP_S)) + 1)
+        n = max(2, math.ceil(self.dwell / TURNS_STEP_S) + 1)
         grid = np.linspace(0.0, self.dwell, n)
-        q = ik_in_mode(self.design, self.target.at(self.t_meet + grid), self.mode,
-                       self.assembly_mode)  # fmt: skip
+        q = ik_in_mode(
+            self.design, self.target.at(self.t_meet + grid), self.mode, self.assembly_mode
+        )
         q[0] = shift_near(q[0][None], self.q_meet[None])[0]
         for k in range(1, n):
             q[k] = shift_near(q[k][None], q[k - 1][None])[0]
@@ -234,7 +236,7 @@ class TrackingCurve:
         return np.empty(0)
 
     def check_times(self, resolution: float) -> np.ndarray:
-        n = max(2, int(math.ceil(self.dwell * self.speed_bound / resolution)) + 1)
+        n = max(2, math.ceil(self.dwell * self.speed_bound / resolution) + 1)
         return np.linspace(0.0, self.dwell, n)
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:

@@ -37,11 +37,12 @@ from planner.sequence.belt import PartPath, TrackingCurve, ik_in_mode, shift_nea
 from planner.sequence.problem import MovingTarget
 from planner.timing.checks import CheckReport, dense_check
 from planner.timing.limits import JointLimits
+from planner.timing.ruckig_method import RuckigCurve
 from planner.timing.state_moves import StateMover
 from planner.timing.torque import TorqueModel
 from planner.validity import ValidityChecker
 
-__all__ = ["GRID", "Interception", "Meeting", "intercept"]
+__all__ = ["GRID", "BuiltPick", "Interception", "Meeting", "intercept"]
 
 #: Meeting times per mode on the search's coarse grid: at least this many, at most
 #: :data:`MAX_GRID_STEP_S` apart, and :data:`WINDOW_POINTS` in each trackable window (the
@@ -73,9 +74,9 @@ class BuiltPick:
 
     meeting: Meeting
     hold: float
-    approach: object
+    approach: RuckigCurve
     tracking: TrackingCurve
-    departure: object
+    departure: RuckigCurve
     report: CheckReport | None
 
     @property
@@ -112,9 +113,15 @@ class Interception:
         q_meet = shift_near(q[None], ref[None])[0]
         speed = float(np.linalg.norm(self.limits.velocity_array))
         return TrackingCurve(
-            self.design, self.target, self.mode, self.checker.assembly_mode, t, self.dwell,
-            q_meet, speed,
-        )  # fmt: skip
+            self.design,
+            self.target,
+            self.mode,
+            self.checker.assembly_mode,
+            t,
+            self.dwell,
+            q_meet,
+            speed,
+        )
 
     def _rest(self, q: np.ndarray) -> tuple:
         return (q, np.zeros(3), np.zeros(3))
@@ -232,7 +239,7 @@ def _grid(ic: Interception) -> np.ndarray:
     lo, hi = max(ic.t_s, float(p.t[0])), float(p.t[-1]) - ic.dwell
     if hi < lo:
         return np.empty(0)
-    n = max(GRID, int(math.ceil((hi - lo) / MAX_GRID_STEP_S)) + 1)
+    n = max(GRID, math.ceil((hi - lo) / MAX_GRID_STEP_S) + 1)
     grid = [np.linspace(lo, hi, n) if hi > lo else np.array([lo])]
     for a, b in p.windows():  # each window's own points: a narrow one is not stepped over
         a, b = max(a, lo), min(b - ic.dwell, hi)

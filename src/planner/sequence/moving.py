@@ -100,9 +100,7 @@ def _checked(goals: Sequence[Goal], targets: Sequence[SequenceTarget], problem: 
 
 
 def _windows_text(windows: dict[str, list[tuple[float, float]]]) -> str:
-    parts = [
-        f"{m} from {a:.3f} to {b:.3f} s" for m, ws in windows.items() for a, b in ws if b >= a
-    ]
+    parts = [f"{m} from {a:.3f} to {b:.3f} s" for m, ws in windows.items() for a, b in ws if b >= a]
     return "; ".join(parts)
 
 
@@ -113,8 +111,17 @@ def _scan_all(problem: MotionProblem, target: MovingTarget, modes: Sequence[str]
     out = {}
     for m in modes:
         checker = ValidityChecker(problem.design, problem.margins, problem.obstacles, asm, m)
-        out[m] = (checker, scan_part(problem.design, target, checker, problem.limits,
-                                     np.asarray(problem.start.q), -math.inf))  # fmt: skip
+        out[m] = (
+            checker,
+            scan_part(
+                problem.design,
+                target,
+                checker,
+                problem.limits,
+                np.asarray(problem.start.q),
+                -math.inf,
+            ),
+        )
     return out
 
 
@@ -265,9 +272,18 @@ def _interception(
     assert isinstance(goal, MovingTarget)
     mover = StateMover(problem.limits, jerk=problem.timing.method == "ruckig")
     ic = Interception(
-        problem.design, goal, target.dwell, checker, problem.limits, mover, path, q_s, t_s,
-        landing, objective,
-    )  # fmt: skip
+        problem.design,
+        goal,
+        target.dwell,
+        checker,
+        problem.limits,
+        mover,
+        path,
+        q_s,
+        t_s,
+        landing,
+        objective,
+    )
     return ic, consumed, ""
 
 
@@ -361,7 +377,17 @@ def _pick_leg(index: int, opt: _Option, t_start: float) -> Leg:
     point = tuple(float(x) for x in opt.ic.target.at(t_meet)[0])
     speed = float(np.linalg.norm(tr.state(0.0)[1]))
     return Leg(
-        index, plan, opt.mode, t_start, t_meet, 2, 0.0, speed, (), t_meet, point  # type: ignore[arg-type]
+        index,
+        plan,
+        opt.mode,
+        t_start,
+        t_meet,
+        2,
+        0.0,
+        speed,
+        (),
+        t_meet,
+        point,  # type: ignore[arg-type]
     )
 
 
@@ -457,9 +483,7 @@ def plan_moving_sequence(
     if early is not None:
         return early
     n = len(targets)
-    items = [
-        (i, targets[i] if i < n else SequenceTarget(goals[i])) for i in range(len(goals))
-    ]
+    items = [(i, targets[i] if i < n else SequenceTarget(goals[i])) for i in range(len(goals))]
     run = _Run(np.asarray(problem.start.q, dtype=float), 0.0)
     torque = None
     if problem.inertia is not None or problem.limits.torque is not None:
@@ -485,8 +509,7 @@ def plan_moving_sequence(
         i = k + 2 if consumed else k + 1
     trajectory = joined_trajectory(problem, run.pieces, run.static, torque, t0)
     modes = tuple(
-        run.modes.get(i, "") if not isinstance(g, JointPosture) else ""
-        for i, g in enumerate(goals)
+        run.modes.get(i, "") if not isinstance(g, JointPosture) else "" for i, g in enumerate(goals)
     )
     legs = len(goals)
     message = "; ".join(

@@ -17,9 +17,9 @@ from planner.planning.problem import CartesianTarget, JointPosture
 from planner.planning.result import PlanPath, PlanResult, PlanStatus
 
 __all__ = [
+    "MAX_BELT_SPEED",
     "MAX_SEQUENCE_TARGETS",
     "OBJECTIVES",
-    "MAX_BELT_SPEED",
     "BlendUse",
     "Leg",
     "MovingTarget",
@@ -111,7 +111,9 @@ class SequenceTarget:
         if isinstance(d, bool) or not isinstance(d, int | float) or not math.isfinite(d) or d < 0:
             raise InputError(f"dwell must be a finite number >= 0 s, got {d!r}", field="dwell")
         if d != 0 and not isinstance(self.goal, MovingTarget):
-            raise InputError("dwell applies to a moving target (a goal with velocity)", field="dwell")
+            raise InputError(
+                "dwell applies to a moving target (a goal with velocity)", field="dwell"
+            )
         if isinstance(self.goal, MovingTarget):
             if not self.stop:
                 raise InputError(

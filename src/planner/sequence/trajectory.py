@@ -39,7 +39,7 @@ def joined_trajectory(
     count: an :class:`~planner.exceptions.InputError` at ``timing.sample_rate_hz``)."""
     from planner.exceptions import InputError
 
-    started = time.perf_counter()
+    started = time.monotonic()
     curve = ChainCurve(tuple(c for c in pieces if c.duration > 0.0))  # type: ignore[attr-defined]
     rate = problem.timing.sample_rate_hz
     count = int(np.floor(curve.duration * rate)) + 1
@@ -59,8 +59,8 @@ def joined_trajectory(
     rest[0] = rest[-1] = True
     qd[rest] = 0.0
     qdd[rest] = 0.0
-    if jerk is not None and not np.all(np.isfinite(jerk)):
-        jerk = None
+    if problem.timing.method == "toppra" or (jerk is not None and not np.all(np.isfinite(jerk))):
+        jerk = None  # second-order moves and toppra: the acceleration jumps, no jerk
     asm = problem.start.assembly_mode
     p, v_p, _ = p_velocity(problem.design, q, qd, asm)
     tau = None if torque is None else torque.torques(q, qd, qdd)
@@ -82,8 +82,7 @@ def joined_trajectory(
         max_deviation_p=max((tr.max_deviation_p for tr in trajs), default=0.0),
         repairs=sum(tr.repairs for tr in trajs),
         checked_samples=sum(tr.checked_samples for tr in trajs),
-        computation_time_s=time.perf_counter() - started
-        + sum(tr.computation_time_s for tr in trajs),
+        computation_time_s=time.monotonic() - started + sum(tr.computation_time_s for tr in trajs),
         curve=curve,
         tau=tau,
         max_torque_ratio=ratio,

@@ -30,7 +30,10 @@ __all__ = ["StateMover"]
 #: A state a move cannot reach (Ruckig refuses it) costs this much, s.
 REFUSED = math.inf
 
-_State = tuple[Sequence[float], Sequence[float], Sequence[float]]
+#: A joint state (q, qd, qdd): 3 numbers each (rad, rad/s, rad/s^2), lists or arrays.
+_State = tuple[
+    Sequence[float] | np.ndarray, Sequence[float] | np.ndarray, Sequence[float] | np.ndarray
+]
 
 
 class StateMover:

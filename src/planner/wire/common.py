@@ -388,8 +388,7 @@ class CartesianTargetModel(_Request):
     )
     t0: Finite | None = Field(
         None,
-        description="With velocity: the sequence time at which the part is at p, s "
-        "(default 0).",
+        description="With velocity: the sequence time at which the part is at p, s (default 0).",
     )
     tolerance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_GOAL_TOLERANCE_M)] = (
         Field(
