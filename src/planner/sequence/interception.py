@@ -9,8 +9,10 @@ waiting at rest for whatever time is left; the tracking span [t, t + dwell]
 t + dwell to rest at the landing posture (the next target, or anywhere for a last target). So
 with T_app(t) and T_dep(t) those moves' least durations:
 
-* t is feasible when the span is trackable (reached, valid, within the velocity and
-  acceleration limits at every scanned sample) and t_s + T_app(t) <= t;
+* t is feasible when the span is trackable (reached, valid, within the joint, velocity and
+  acceleration limits at every scanned sample), t_s + T_app(t) <= t, and neither move
+  leaves the joint limits (a move that arrives or leaves at speed may overshoot its ends:
+  Ruckig's position extrema say by how much);
 * ``objective="time"`` minimises the time at rest at the landing, c(t) = t + dwell + T_dep(t)
   (waiting at rest is always allowed, so arriving earlier at a rest posture never delays
   what follows); ``objective="fixed"`` meets as early as possible, c(t) = t.
@@ -149,17 +151,18 @@ class Interception:
         m = t.shape[0]
         start = self._rest(self.q_s)
         end = None if self.landing is None else self._rest(self.landing)
+        bounds = (np.asarray(self.design.joint_min), np.asarray(self.design.joint_max))
         for k in np.flatnonzero(ok):
             if not np.all(np.isfinite(q[k])) or not np.all(np.isfinite(q[m + k])):
                 continue
-            t_app = self.mover.duration(start, (q[k], qd[k], qdd[k]))
+            t_app = self.mover.duration(start, (q[k], qd[k], qdd[k]), bounds)
             if self.t_s + t_app > t[k] + 1e-12:
                 continue
             if self.objective == "fixed":
                 out[k] = t[k]
                 continue
             leave = (q[m + k], qd[m + k], qdd[m + k])
-            out[k] = t[k] + self.dwell + self.mover.duration(leave, end)
+            out[k] = t[k] + self.dwell + self.mover.duration(leave, end, bounds)
         return out
 
     def cost(self, t: float) -> float:

@@ -23,9 +23,9 @@ from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.timing.limits import JointLimits
-from planner.timing.ruckig_method import RuckigCurve, _moves_from
+from planner.timing.ruckig_method import RuckigCurve, _moves_from, _phase_rows
 
-__all__ = ["StateMover"]
+__all__ = ["StateMover", "position_extrema"]
 
 #: A state a move cannot reach (Ruckig refuses it) costs this much, s.
 REFUSED = math.inf
@@ -34,6 +34,37 @@ REFUSED = math.inf
 _State = tuple[
     Sequence[float] | np.ndarray, Sequence[float] | np.ndarray, Sequence[float] | np.ndarray
 ]
+
+
+def position_extrema(traj: RuckigTrajectory) -> tuple[np.ndarray, np.ndarray] | None:
+    """The least and largest position of each joint over a solved move, rad, (3,) each:
+    from its phase table, the ends of every phase and wherever the velocity (a quadratic in
+    time within a constant-jerk phase) crosses zero inside one. Ruckig's own
+    ``position_extrema`` is wrong for second-order moves (unbounded jerk: it gave the start
+    as the largest position of a joint that overshot it by 0.09 rad). None for a move with a
+    brake phase (its table does not hold it)."""
+    rows, states, braking = _phase_rows(traj)
+    if braking:
+        return None
+    ph = np.array(rows, dtype=float).reshape(3, 2, 7)
+    st = np.array(states, dtype=float).reshape(3, 3, 8)
+    dt, jk = ph[:, 0], np.nan_to_num(ph[:, 1], posinf=0.0, neginf=0.0)
+    p, v, a = st[:, 0, :7], st[:, 1, :7], st[:, 2, :7]
+    found = [st[:, 0, :]]
+    quad, lin = jk / 2, a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = np.sqrt(np.maximum(lin**2 - 4 * quad * v, 0.0))
+        roots = [
+            np.where(quad != 0, (-lin + disc) / (2 * quad), -v / lin),
+            np.where(quad != 0, (-lin - disc) / (2 * quad), np.nan),
+        ]
+    for x in roots:
+        inside = np.isfinite(x) & (x > 0) & (x < dt)
+        x = np.where(inside, x, 0.0)
+        pos = p + x * (v + x * (a / 2 + x * jk / 6))
+        found.append(np.where(inside, pos, np.nan))
+    allp = np.concatenate(found, axis=1)
+    return np.nanmin(allp, axis=1), np.nanmax(allp, axis=1)
 
 
 class StateMover:
@@ -79,11 +110,23 @@ class StateMover:
             return None
         return traj if result in (Result.Working, Result.Finished) else None
 
-    def duration(self, a: _State, b: _State | None) -> float:
+    def duration(
+        self, a: _State, b: _State | None, bounds: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> float:
         """The least time of a move from ``a`` to ``b`` (None: to rest), s; ``inf`` when
-        Ruckig has none (a state outside the limits)."""
+        Ruckig has none (a state outside the limits) or, with ``bounds`` (lo, hi: rad per
+        joint), when the move leaves them (a move that arrives or leaves at speed may
+        overshoot its ends: :func:`position_extrema`)."""
         traj = self._solve(a, b)
-        return REFUSED if traj is None else float(traj.duration)
+        if traj is None:
+            return REFUSED
+        if bounds is not None:
+            ext = position_extrema(traj)
+            if ext is not None and (
+                np.any(ext[0] < bounds[0] - 1e-9) or np.any(ext[1] > bounds[1] + 1e-9)
+            ):
+                return REFUSED
+        return float(traj.duration)
 
     def curve(self, a: _State, b: _State | None) -> RuckigCurve | None:
         """The move as a curve on [0, its duration] (None when Ruckig has none)."""
