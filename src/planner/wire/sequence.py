@@ -38,7 +38,6 @@ if TYPE_CHECKING:
     from planner.sequence.problem import SequenceResult, SequenceTarget
 
 __all__ = [
-    "MAX_DWELL_S",
     "MAX_SEQUENCE_TARGETS",
     "BlendModel",
     "LegModel",
