@@ -46,25 +46,33 @@ def position_extrema(traj: RuckigTrajectory) -> tuple[np.ndarray, np.ndarray] | 
     rows, states, braking = _phase_rows(traj)
     if braking:
         return None
-    ph = np.array(rows, dtype=float).reshape(3, 2, 7)
-    st = np.array(states, dtype=float).reshape(3, 3, 8)
-    dt, jk = ph[:, 0], np.nan_to_num(ph[:, 1], posinf=0.0, neginf=0.0)
-    p, v, a = st[:, 0, :7], st[:, 1, :7], st[:, 2, :7]
-    found = [st[:, 0, :]]
-    quad, lin = jk / 2, a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        disc = np.sqrt(np.maximum(lin**2 - 4 * quad * v, 0.0))
-        roots = [
-            np.where(quad != 0, (-lin + disc) / (2 * quad), -v / lin),
-            np.where(quad != 0, (-lin - disc) / (2 * quad), np.nan),
-        ]
-    for x in roots:
-        inside = np.isfinite(x) & (x > 0) & (x < dt)
-        x = np.where(inside, x, 0.0)
-        pos = p + x * (v + x * (a / 2 + x * jk / 6))
-        found.append(np.where(inside, pos, np.nan))
-    allp = np.concatenate(found, axis=1)
-    return np.nanmin(allp, axis=1), np.nanmax(allp, axis=1)
+    lo, hi = np.empty(3), np.empty(3)
+    for j in range(3):  # plain floats: a move has 21 phases, numpy's overhead would dominate
+        (dts, jks), (ps, vs, accs) = rows[j], states[j]
+        low = high = float(ps[0])
+        for k in range(7):
+            dt, p, v, a = float(dts[k]), float(ps[k]), float(vs[k]), float(accs[k])
+            jk = float(jks[k]) if math.isfinite(jks[k]) else 0.0
+            low, high = min(low, float(ps[k + 1])), max(high, float(ps[k + 1]))
+            if dt <= 0.0:
+                continue
+            for x in _velocity_zeros(v, a, jk):
+                if 0.0 < x < dt:
+                    pos = p + x * (v + x * (a / 2 + x * jk / 6))
+                    low, high = min(low, pos), max(high, pos)
+        lo[j], hi[j] = low, high
+    return lo, hi
+
+
+def _velocity_zeros(v: float, a: float, jk: float) -> tuple[float, ...]:
+    """The times x where v + a x + jk x^2 / 2 = 0."""
+    if jk == 0.0:
+        return (-v / a,) if a != 0.0 else ()
+    disc = a * a - 2.0 * jk * v
+    if disc < 0.0:
+        return ()
+    r = math.sqrt(disc)
+    return ((-a + r) / jk, (-a - r) / jk)
 
 
 class StateMover:
