@@ -17,19 +17,19 @@ def test_position_extrema_match_the_sampled_move(jerk):
     rng = np.random.default_rng(3)
     mover = StateMover(JointLimits.default(), jerk=jerk)
     checked = 0
-    for _ in range(40):
+    for _ in range(20):
         a = (rng.uniform(-2, 2, 3), rng.uniform(-1.5, 1.5, 3), np.zeros(3))
         b = (rng.uniform(-2, 2, 3), rng.uniform(-1.5, 1.5, 3), np.zeros(3))
         traj = mover._solve(a, b)
         ext = position_extrema(traj)
         if ext is None:
             continue
-        t = np.linspace(0.0, traj.duration, 4000)
+        t = np.linspace(0.0, traj.duration, 1500)
         q = np.array([traj.at_time(float(x))[0] for x in t])
         assert np.allclose(q.min(axis=0), ext[0], atol=1e-5)
         assert np.allclose(q.max(axis=0), ext[1], atol=1e-5)
         checked += 1
-    assert checked >= 30
+    assert checked >= 15
 
 
 def test_a_move_ends_in_the_state_asked():
