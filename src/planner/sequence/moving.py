@@ -79,7 +79,8 @@ class _Run:
     modes: dict[int, str] = field(default_factory=dict)
     static: list[SequenceResult] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    evaluated: int = 0
+    evaluated: int = 0  # meeting times whose cost was computed
+    verified: int = 0  # modes whose best meeting was built and re-checked
 
 
 def _checked(goals: Sequence[Goal], targets: Sequence[SequenceTarget], problem: MotionProblem):
@@ -354,6 +355,7 @@ def _option(
     run.evaluated += ic.evaluations
     if not meetings:
         return None, f"no meeting possible in {mode} after {t_s:.3f} s"
+    run.verified += 1
     v_cart = problem.timing.max_cartesian_speed
     last = ""
     for meeting in meetings[:MAX_VERIFIED]:
@@ -523,8 +525,8 @@ def plan_moving_sequence(
         planning_time_s=time.monotonic() - t0 - trajectory.computation_time_s,
         timing_time_s=trajectory.computation_time_s,
         modes=modes,
-        estimates=run.evaluated,
-        extra={"notes": tuple(run.notes)},
+        estimates=run.verified,
+        extra={"notes": tuple(run.notes), "meeting_evaluations": run.evaluated},
     )
     return SequenceResult(
         PlanStatus.SOLVED,
