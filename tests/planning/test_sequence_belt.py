@@ -228,3 +228,17 @@ def test_two_moving_targets_in_a_row_and_no_timing_are_refused():
     with pytest.raises(InputError) as exc:
         pick(part, 0.1, timing=TimingOptions(method="none"))
     assert exc.value.field_path == ("timing", "method")
+
+
+def test_a_static_target_after_a_pick_keeps_its_index_in_the_message():
+    part = MovingTarget([-0.7, 0.0, -0.45], "any", [0.5, 0.0, 0.0], 0.0)
+    targets = [
+        SequenceTarget(part, dwell=0.1),
+        SequenceTarget(CartesianTarget(BIN)),
+        SequenceTarget(CartesianTarget([3.0, 3.0, 3.0])),
+    ]
+    r = solve_sequence(DESIGN, START, targets)
+    assert r.status is PlanStatus.UNREACHABLE
+    assert r.message.startswith("target 2:")
+    assert [leg.target_index for leg in r.legs] == [0, 1, 2]
+    assert r.legs[0].meet_time > 0 and r.legs[1].end_time > r.legs[0].meet_time
