@@ -4,7 +4,7 @@ Start a service first (``planner serve``), then::
 
     python examples/07_conveyor.py [SERVER_URL] [OUT_DIR]      # or set PLANNER_URL
 
-The belt runs along x at 0.5 m/s; ten parts enter at x = -0.75 m, 0.2 to 0.4 m apart. For
+The belt runs along x at 0.5 m/s; ten parts enter at x = -0.75 m, 0.6 to 1.2 m apart. For
 each part the robot, resting at the bin, asks ``POST /v1/sequence`` for one pick: a moving
 target (the part: ``p`` at time ``t0`` and its ``velocity``) held for a ``dwell`` of 0.1 s,
 then the bin (a stop). The service chooses where and when to meet the part (and in which
@@ -35,7 +35,7 @@ SPEED, DWELL = 0.5, 0.1  # m/s, s
 
 
 def main() -> None:
-    gaps = np.random.default_rng(7).uniform(0.2, 0.4, 10) / SPEED
+    gaps = np.random.default_rng(7).uniform(0.6, 1.2, 10) / SPEED
     arrivals = np.cumsum(gaps) - gaps[0]  # s: when each part is at ENTRY
     with PlannerClient(URL, timeout=120) as client:
         start, clock, picks, missed = HOME, 0.0, 0, 0
@@ -47,7 +47,7 @@ def main() -> None:
                 timing={"sample_rate_hz": 500},
             )
             if r.status != "solved":
-                print(f"part {k}: missed ({r.message})")
+                print(f"part {k}: missed ({r.status}: {r.message[:120]}...)")
                 missed += 1
                 continue
             leg = r.legs[0]
@@ -59,7 +59,7 @@ def main() -> None:
             print(
                 f"part {k}: met at {clock + leg.meet_time:.3f} s at "
                 f"{np.round(leg.meet_point, 3).tolist()} in {leg.working_mode}, "
-                f"at the bin {r.cycle_time:.3f} s later; P on the part within "
+                f"at rest at the bin at {clock + r.cycle_time:.3f} s; P on the part within "
                 f"{err * 1e3:.2g} mm"
             )
             picks += 1
