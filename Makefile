@@ -5,8 +5,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt
-HOST ?= 127.0.0.1
-PORT ?= 8000
+# `make run` serves on PLANNER_HOST:PLANNER_PORT, the variables `planner serve` reads (default
+# 127.0.0.1:8000): `PLANNER_PORT=8821 make run`; `make run PORT=8821` works too.
+HOST ?= $(or $(PLANNER_HOST),127.0.0.1)
+PORT ?= $(or $(PLANNER_PORT),8000)
 
 .PHONY: install install-test run test bench lint typecheck clean lock
 
@@ -21,8 +23,13 @@ $(VENV)/.installed-run: pyproject.toml constraints.txt | $(BIN)/python
 	$(PIP) -e .
 	@touch $@
 
+# openapi-python-client (tests/service/test_openapi_client.py generates a client with it) caps
+# typer below the version the CLI pins, for its own command line only; the test calls its
+# library, so it is installed without its dependencies (those it uses are in the test extra),
+# at the version constraints.txt pins.
 $(VENV)/.installed-test: pyproject.toml constraints.txt | $(BIN)/python
 	$(PIP) -e '.[test,ray]'
+	$(PIP) --no-deps openapi-python-client
 	@touch $@ $(VENV)/.installed-run
 
 install: $(VENV)/.installed-run

@@ -20,13 +20,15 @@ from planner_api.job_store import JobStore
 from planner_api.metrics import Metrics
 from planner_api.metrics import router as metrics_router
 from planner_api.middleware import RequestGate, RequestObserver
-from planner_api.openapi import install_docs, install_openapi
+from planner_api.openapi import install_docs, install_openapi, operation_id
 from planner_api.pool import WorkerPool
+from planner_api.routes import calibration as calibration_routes
 from planner_api.routes import cartesian as cartesian_routes
 from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import sequence as sequence_routes
+from planner_api.routes import simulate as simulate_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -106,6 +108,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
         "manipulator (five-bar A-C-P-D-B turning about AB).",
         lifespan=lifespan,
+        generate_unique_id_function=operation_id,  # "plan", not "plan_v1_plan_post"
         docs_url=None,  # served from the package's own assets (planner_api.openapi.install_docs)
         redoc_url=None,
     )
@@ -150,7 +153,9 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         *watched,
         cartesian_routes.router,
         dynamics_routes.router,
+        calibration_routes.router,
         sequence_routes.router,
+        simulate_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
     # the scenes come from the store: no worker to cancel

@@ -11,6 +11,14 @@ worker pool (502, 503, 504) happen around the routes, so :func:`install_openapi`
 - every operation that runs in a worker: 502, 503, 504; the others that can be refused
   while the service stops: 503.
 
+Each operation's id is its route function's name (:func:`operation_id`: ``plan``,
+``plan_batch``, ``sequence``, ...; FastAPI's default would be ``plan_v1_plan_post``), so a
+generated client has readable methods; a route added later is named the same way, and
+tests/service/test_openapi_client.py checks that every id is unique. A non-JSON answer
+declared by its media type alone (the figures' PNG and SVG, the MJCF model's XML) gets its
+schema (:func:`declare_media`): bytes for an image, a string for XML, so a
+generated client returns the image instead of dropping the answer.
+
 ``/docs`` (Swagger UI) and ``/redoc`` (ReDoc) load their scripts from ``/static/docs``,
 files shipped inside this package (``api/static/docs``, with their licences), never from a
 CDN: the docs render on a machine with no internet.
@@ -25,16 +33,19 @@ from fastapi import FastAPI
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
 from planner.viewer import script_hashes
 
 __all__ = [
     "STATIC_DOCS",
+    "declare_media",
     "document_errors",
     "install_docs",
     "install_openapi",
     "limit_obstacles",
+    "operation_id",
 ]
 
 #: The vendored Swagger UI and ReDoc files.
@@ -53,6 +64,30 @@ _DESCRIPTIONS = {
 }
 #: Operations answered in the event loop, without a worker job.
 _NO_JOB = frozenset({"/v1/health", "/v1/ready", "/v1/version", "/v1/designs"})
+
+
+def operation_id(route: APIRoute) -> str:
+    """The OpenAPI operation id of ``route``: its function's name (``plan``, ``plan_batch``,
+    ``get_job``), what a generated client calls the method. Given to the app as its
+    ``generate_unique_id_function``; route functions are named verb_noun and uniquely."""
+    return route.name
+
+
+def declare_media(schema: dict[str, Any]) -> dict[str, Any]:
+    """Give every non-JSON answer declared by its media type alone a schema (in place): an
+    image (``image/*``, SVG too: a file to save) or other binary type a binary string, text
+    and XML a string."""
+    for item in schema.get("paths", {}).values():
+        for operation in item.values():
+            for response in operation.get("responses", {}).values():
+                for media, body in response.get("content", {}).items():
+                    if media.endswith("json") or body.get("schema"):
+                        continue
+                    text = not media.startswith("image/") and (
+                        media.startswith("text/") or media.endswith("xml")
+                    )
+                    body["schema"] = {"type": "string"} | ({} if text else {"format": "binary"})
+    return schema
 
 
 def _add(operation: dict[str, Any], *codes: str) -> None:
@@ -116,7 +151,7 @@ def install_openapi(app: FastAPI, *, api_key: bool, max_obstacles: int | None = 
                 description=app.description,
                 routes=app.routes,
             )
-            schema = document_errors(schema, api_key=api_key)
+            schema = document_errors(declare_media(schema), api_key=api_key)
             if max_obstacles is not None:
                 schema = limit_obstacles(schema, max_obstacles)
             app.openapi_schema = schema

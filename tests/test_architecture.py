@@ -42,6 +42,7 @@ CORE = (
     "planner.cartesian",
     "planner.timing",
     "planner.analysis",
+    "planner.calibration",
     "planner.exceptions",
     "planner.constants",
     "planner.caching",
@@ -49,6 +50,7 @@ CORE = (
     "planner.warmup",
     "planner.solver",
     "planner.sequence",
+    "planner.simulation",
 )
 #: What the core may never import (the wire, the client, the service, the CLI and their
 #: third-party libraries).
@@ -71,6 +73,9 @@ CONFINED = {
     "toppra": ("planner.timing",),
     "ruckig": ("planner.timing",),
     "matplotlib": ("planner.plotting",),
+    "mujoco": ("planner.simulation",),
+    "mcap": ("planner.simulation",),
+    "mcap_ros2": ("planner.simulation",),
 }
 
 

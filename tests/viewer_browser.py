@@ -62,19 +62,19 @@ def launch() -> Iterator[object]:
 
 
 @contextmanager
-def watched_page(url: str, **context: object) -> Iterator[object]:
-    """One page on the service at ``url`` for a module's tests: a browser of its own, one
-    context with the ``context`` options (viewport, downloads), the suite's wait, and a
-    :class:`Watch` of its console and requests as ``page.watch``."""
-    with launch() as browser:
-        ctx = browser.new_context(**context)
-        pg = ctx.new_page()
-        pg.set_default_timeout(WAIT_MS)
-        pg.watch = Watch(pg, url)
-        try:
-            yield pg
-        finally:
-            ctx.close()
+def watched_page(url: str, browser, **context: object) -> Iterator[object]:
+    """One page on the service at ``url`` for a module's tests: on the session's ``browser``
+    (tests/viewer/conftest.py), one context with the ``context`` options (viewport,
+    downloads), the suite's wait, and a :class:`Watch` of its console and requests as
+    ``page.watch``."""
+    ctx = browser.new_context(**context)
+    pg = ctx.new_page()
+    pg.set_default_timeout(WAIT_MS)
+    pg.watch = Watch(pg, url)
+    try:
+        yield pg
+    finally:
+        ctx.close()
 
 
 class Watch:

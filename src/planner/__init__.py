@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from planner._lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from planner.calibration import Measurements, calibrate
     from planner.design import Design
     from planner.exceptions import (
         AssemblyError,
@@ -51,6 +52,8 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 #: Where each exported name lives (a submodule of the package), imported on first use.
 _HOMES = {
+    "Measurements": "calibration",
+    "calibrate": "calibration",
     "Design": "design",
     "AssemblyError": "exceptions",
     "DesignError": "exceptions",
@@ -86,6 +89,7 @@ __all__ = [
     "InputError",
     "KinematicsError",
     "Manipulator",
+    "Measurements",
     "PlannerError",
     "Posture",
     "PostureBatch",
@@ -94,6 +98,7 @@ __all__ = [
     "SingularPostureError",
     "Solution",
     "__version__",
+    "calibrate",
     "conditioning",
     "forward_batch",
     "inverse_batch",

@@ -55,7 +55,7 @@ from planner.client_errors import (
     ServiceUnavailableError,
     TransportError,
 )
-from planner.client_requests import M, Requests, _Call, _describe_item
+from planner.client_requests import M, Requests, _Call, _describe_item, none_as_absent
 from planner.wire import (
     TrajectoryModel,
     TrajectoryPointsModel,
@@ -272,8 +272,10 @@ def _adopt(method: Callable[..., Any], build: Callable[..., Any], owner: str) ->
 def _sync(
     build: Callable[Concatenate[_BaseClient, P], _Call[R]],
 ) -> Callable[Concatenate[PlannerClient, P], R]:
+    call = none_as_absent(build)
+
     def method(self: PlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
-        return self._execute(build(self, *args, **kwargs))
+        return self._execute(call(self, *args, **kwargs))
 
     _adopt(method, build, "PlannerClient")
     return method
@@ -282,8 +284,10 @@ def _sync(
 def _async(
     build: Callable[Concatenate[_BaseClient, P], _Call[R]],
 ) -> Callable[Concatenate[AsyncPlannerClient, P], Awaitable[R]]:
+    call = none_as_absent(build)
+
     async def method(self: AsyncPlannerClient, /, *args: P.args, **kwargs: P.kwargs) -> R:
-        return await self._execute(build(self, *args, **kwargs))
+        return await self._execute(call(self, *args, **kwargs))
 
     _adopt(method, build, "AsyncPlannerClient")
     return method
@@ -356,6 +360,11 @@ class PlannerClient(_BaseClient):
     figure = _sync(_BaseClient._figure)
     timing = _sync(_BaseClient._timing)
     dynamics = _sync(_BaseClient._dynamics)
+    calibrate = _sync(_BaseClient._calibrate)
+    calibration_poses = _sync(_BaseClient._calibration_poses)
+    identify = _sync(_BaseClient._identify)
+    simulate = _sync(_BaseClient._simulate)
+    simulate_bag = _sync(_BaseClient._simulate_bag)
     design_mjcf = _sync(_BaseClient._design_mjcf)
     optimize_design = _sync(_BaseClient._optimize_design)
     regions = _sync(_BaseClient._regions)
@@ -422,6 +431,11 @@ class AsyncPlannerClient(_BaseClient):
     figure = _async(_BaseClient._figure)
     timing = _async(_BaseClient._timing)
     dynamics = _async(_BaseClient._dynamics)
+    calibrate = _async(_BaseClient._calibrate)
+    calibration_poses = _async(_BaseClient._calibration_poses)
+    identify = _async(_BaseClient._identify)
+    simulate = _async(_BaseClient._simulate)
+    simulate_bag = _async(_BaseClient._simulate_bag)
     design_mjcf = _async(_BaseClient._design_mjcf)
     optimize_design = _async(_BaseClient._optimize_design)
     regions = _async(_BaseClient._regions)

@@ -10,8 +10,10 @@ A new endpoint is one builder here plus one line in each client class.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
@@ -56,14 +58,27 @@ from planner.wire import (
     SceneRequest,
     SequenceRequest,
     SequenceResponse,
+    SimulateRequest,
+    SimulateResponse,
     TimingRequest,
     TimingResponse,
+    TrajectoryModel,
+    TrajectoryPointsModel,
     VersionInfo,
     WorkspaceRequest,
     WorkspaceResponse,
+    trajectory_arrays,
+)
+from planner.wire.calibration import (
+    CalibrateRequest,
+    CalibrateResponse,
+    CalibrationPosesRequest,
+    CalibrationPosesResponse,
+    IdentifyRequest,
+    IdentifyResponse,
 )
 
-__all__ = ["DesignLike", "MarginsLike", "Requests"]
+__all__ = ["DesignLike", "MarginsLike", "Requests", "none_as_absent"]
 
 M = TypeVar("M", bound=BaseModel | bytes)
 #: A wire model class (what :func:`_validated` builds).
@@ -126,6 +141,16 @@ def _floats(values: Any) -> Any:
         return values
 
 
+def _rows(values: Any) -> Any:
+    """N x 3 (or one row of 3) numbers, numpy or nested sequences, as lists of floats."""
+    if hasattr(values, "tolist"):
+        return values.tolist()
+    try:
+        return [_floats(r) if hasattr(r, "__len__") else float(r) for r in values]
+    except (TypeError, ValueError):
+        return values
+
+
 def _scene_path(name: str) -> str:
     """``/v1/scenes/{name}``, the name checked first (a safe identifier, never a path)."""
     if not isinstance(name, str) or re.fullmatch(SCENE_NAME_PATTERN, name) is None:
@@ -148,6 +173,84 @@ def _obstacle_data(obstacles: Sequence[Any]) -> list[Any]:
             ob = {**ob, "points": ob["points"].tolist()}
         out.append(ob)
     return out
+
+
+def _simulate_body(
+    trajectory: Any,
+    request: Any,
+    controller: str | Mapping[str, Any],
+    design: DesignLike,
+    options: Mapping[str, Any],
+) -> SimulateRequest:
+    """The validated body of ``POST /v1/simulate`` (and ``/bag``) from the client's
+    arguments."""
+    data: dict[str, Any] = dict(options)
+    data["controller"] = {"kind": controller} if isinstance(controller, str) else dict(controller)
+    if design is not None:
+        data["design"] = _design(design)
+    if trajectory is not None:
+        data["trajectory"] = _trajectory_fields(trajectory)
+    if request is not None:
+        data["request"] = (
+            request.model_dump(exclude_unset=True)
+            if isinstance(request, BaseModel)
+            else dict(request)
+        )
+    return _validated(SimulateRequest, data)
+
+
+def _trajectory_fields(trajectory: Any) -> dict[str, Any]:
+    """``t``, ``q``, ``qd``, ``qdd`` of a trajectory: a wire answer in either form, a
+    mapping (a points mapping is read as one), or any object with those attributes (the
+    library's trajectory)."""
+    if isinstance(trajectory, Mapping):
+        kind = TrajectoryPointsModel if "points" in trajectory else TrajectoryModel
+        if "points" in trajectory or "duration" in trajectory:
+            trajectory = kind.model_validate(trajectory)
+        else:
+            return {k: trajectory[k] for k in ("t", "q", "qd", "qdd") if k in trajectory}
+    if isinstance(trajectory, TrajectoryPointsModel):
+        trajectory = trajectory_arrays(trajectory)
+    return {
+        "t": _floats(trajectory.t),
+        "q": [_floats(r) for r in trajectory.q],
+        "qd": [_floats(r) for r in trajectory.qd],
+        "qdd": [_floats(r) for r in trajectory.qdd],
+    }
+def none_as_absent(build: Callable[..., _Call[M]]) -> Callable[..., _Call[M]]:
+    """``build`` with None meaning absent for every optional argument: an argument with a
+    default given as None takes that default, and a keyword of ``**fields``/``**options``
+    given as None is dropped (so ``client.plan(..., obstacles=None)`` sends no
+    ``obstacles``). Both clients make their methods through this (:mod:`planner.client`)."""
+    sig = inspect.signature(build)
+
+    @functools.wraps(build)
+    def call(*args: Any, **kwargs: Any) -> _Call[M]:
+        bound = sig.bind(*args, **kwargs)
+        for name, value in list(bound.arguments.items()):
+            param = sig.parameters[name]
+            if param.kind is param.VAR_KEYWORD:
+                bound.arguments[name] = {k: v for k, v in value.items() if v is not None}
+            elif value is None and param.default is not param.empty:
+                del bound.arguments[name]
+        return build(*bound.args, **bound.kwargs)
+
+    return call
+
+
+def _request_body(model: type[ModelT], request: Any, fields: Mapping[str, Any]) -> ModelT:
+    """The body of a plan-like endpoint (plan, cartesian, sequence): ``request`` (the model,
+    a mapping or None) with ``fields`` over it; a top-level None is absent, and a point
+    cloud's numpy ``points`` are lists (as :meth:`Requests._put_scene` takes them)."""
+    if isinstance(request, model) and not fields:
+        return request
+    data = dict(
+        request.model_dump(exclude_unset=True) if isinstance(request, model) else request or {}
+    )
+    merged = {k: v for k, v in {**data, **fields}.items() if v is not None}
+    if isinstance(merged.get("obstacles"), Sequence):
+        merged["obstacles"] = _obstacle_data(merged["obstacles"])
+    return _validated(model, merged)
 
 
 def _describe_item(item: Any) -> str:
@@ -257,16 +360,7 @@ class Requests:
     ) -> _Call[PlanResponse]:
         """Plan a motion: a :class:`PlanRequest` (or its dict), and/or its fields as keywords
         (``start=..., goal=..., obstacles=...``). A finished search returns its ``status``."""
-        if isinstance(request, PlanRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, PlanRequest)
-                else request or {}
-            )
-            body = _validated(PlanRequest, {**data, **fields})
-        return _Call("POST", "/v1/plan", body, PlanResponse)
+        return _Call("POST", "/v1/plan", _request_body(PlanRequest, request, fields), PlanResponse)
 
     def _cartesian(
         self, request: CartesianRequest | Mapping[str, Any] | None = None, **fields: Any
@@ -277,17 +371,9 @@ class Requests:
         (``start=..., waypoints=..., timing=..., limits=...``). The answer's ``status`` is
         ``solved`` exactly when ``fraction`` = 1; otherwise ``message`` and ``stop`` say which
         rule stopped it, the value measured and where."""
-        if isinstance(request, CartesianRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, CartesianRequest)
-                else request or {}
-            )
-            if "waypoints" in fields:
-                fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
-            body = _validated(CartesianRequest, {**data, **fields})
+        if fields.get("waypoints") is not None:
+            fields["waypoints"] = [_floats(w) for w in fields["waypoints"]]
+        body = _request_body(CartesianRequest, request, fields)
         return _Call("POST", "/v1/cartesian", body, CartesianResponse)
 
     def _sequence(
@@ -297,15 +383,7 @@ class Requests:
         ``{"goal", "stop", "blend"}``), back to the start with ``cycle=True``; a
         :class:`SequenceRequest` (or its dict), and/or its fields as keywords. The answer
         lists the ``legs`` with their time spans and the ``cycle_time``."""
-        if isinstance(request, SequenceRequest) and not fields:
-            body = request
-        else:
-            data = dict(
-                request.model_dump(exclude_unset=True)
-                if isinstance(request, SequenceRequest)
-                else request or {}
-            )
-            body = _validated(SequenceRequest, {**data, **fields})
+        body = _request_body(SequenceRequest, request, fields)
         return _Call("POST", "/v1/sequence", body, SequenceResponse)
 
     def _put_scene(
@@ -431,26 +509,130 @@ class Requests:
     def _dynamics(
         self,
         q: Any,
-        qd: Any,
-        qdd: Any,
+        qd: Any = None,
+        qdd: Any = None,
         *,
         design: DesignLike = None,
         assembly_mode: str = "+",
         gravity: Sequence[float] | None = None,
     ) -> _Call[DynamicsResponse]:
-        """Inverse dynamics of N motions (q, qd, qdd: N x 3 each, rad, rad/s, rad/s^2): the
-        actuator torques ``tau`` (N m) and mass matrices ``M(q)``; ``design`` may carry
-        ``inertia``; ``gravity`` m/s^2 (default [0, 0, -9.81])."""
+        """Inverse dynamics of N motions (q, qd, qdd: N x 3 each, rad, rad/s, rad/s^2; ``q``
+        may be one posture, 3 numbers; ``qd``, ``qdd`` absent: zeros, a static query): the
+        actuator torques ``tau`` (N m, always N rows) and mass matrices ``M(q)``; ``design``
+        may carry ``inertia``; ``gravity`` m/s^2 (default [0, 0, -9.81])."""
+        data: dict[str, Any] = {"design": _design(design), "assembly_mode": assembly_mode}
+        for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
+            if value is not None:
+                data[name] = _rows(value)
+        if gravity is not None:
+            data["gravity"] = _floats(gravity)
+        return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
+
+    def _calibrate(
+        self,
+        measurements: Sequence[Mapping[str, Any]],
+        *,
+        design: DesignLike = None,
+        identify: Sequence[str] | None = None,
+        frame: Mapping[str, Any] | None = None,
+    ) -> _Call[CalibrateResponse]:
+        """Kinematic calibration from ``measurements`` (each ``{"q": [3] rad, "p": [3] m in
+        the tracker's frame, "working_mode"?, "assembly_mode"?}``): the identified design,
+        offsets, tracker frame, residuals, standard deviations and unidentified parameters
+        (docs/calibration.md)."""
+        data: dict[str, Any] = {
+            "measurements": [
+                {k: (_floats(v) if k in ("q", "p") else v) for k, v in dict(m).items()}
+                for m in measurements
+            ],
+            "design": _design(design),
+        }
+        if identify is not None:
+            data["identify"] = list(identify)
+        if frame is not None:
+            data["frame"] = {k: _floats(v) for k, v in dict(frame).items()}
+        return _Call("POST", "/v1/calibrate", _validated(CalibrateRequest, data), CalibrateResponse)
+
+    def _calibration_poses(
+        self,
+        n: int = 30,
+        *,
+        design: DesignLike = None,
+        identify: Sequence[str] | None = None,
+        seed: int = 0,
+    ) -> _Call[CalibrationPosesResponse]:
+        """``n`` postures worth measuring for a calibration, each with its modes."""
+        data: dict[str, Any] = {"n": n, "design": _design(design), "seed": seed}
+        if identify is not None:
+            data["identify"] = list(identify)
+        return _Call(
+            "POST",
+            "/v1/calibrate/poses",
+            _validated(CalibrationPosesRequest, data),
+            CalibrationPosesResponse,
+        )
+
+    def _identify(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        tau: Any,
+        *,
+        design: DesignLike = None,
+        assembly_mode: str = "+",
+        gravity: Sequence[float] | None = None,
+        friction: bool = False,
+    ) -> _Call[IdentifyResponse]:
+        """Dynamic identification from measured motions and torques (N x 3 each): the
+        identified ``inertia`` (a design.inertia), friction when asked, the unidentified
+        parameters; ``design.inertia``, when given, is the prior."""
         data: dict[str, Any] = {
             "q": [_floats(r) for r in q],
             "qd": [_floats(r) for r in qd],
             "qdd": [_floats(r) for r in qdd],
+            "tau": [_floats(r) for r in tau],
             "design": _design(design),
             "assembly_mode": assembly_mode,
+            "friction": friction,
         }
         if gravity is not None:
             data["gravity"] = _floats(gravity)
-        return _Call("POST", "/v1/dynamics", _validated(DynamicsRequest, data), DynamicsResponse)
+        return _Call("POST", "/v1/identify", _validated(IdentifyRequest, data), IdentifyResponse)
+    def _simulate(
+        self,
+        trajectory: Any = None,
+        *,
+        request: PlanRequest | SequenceRequest | Mapping[str, Any] | None = None,
+        controller: str | Mapping[str, Any] = "computed_torque",
+        design: DesignLike = None,
+        **options: Any,
+    ) -> _Call[SimulateResponse]:
+        """Run a trajectory on the simulated robot (``POST /v1/simulate``, MuJoCo on the
+        product's model): ``trajectory`` (a plan's answer trajectory in either form, a
+        library trajectory, or a mapping with ``t``, ``q``, ``qd``, ``qdd``) or ``request``
+        (a plan or sequence request, planned first; its robot is the simulated one).
+        ``controller``: ``"computed_torque"``, ``"pd"`` or ``{"kind", "kp", "kd"}``.
+        ``options``: ``rate_hz``, ``limits`` (``{"torque": [3]}``), ``gravity``,
+        ``assembly_mode``, ``settle_tolerance_mm``, ``hold_s``. The answer: the realised
+        samples, the ``tracking`` error, ``settle_times``, the planned and realised
+        durations."""
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate", body, SimulateResponse)
+
+    def _simulate_bag(
+        self,
+        trajectory: Any = None,
+        *,
+        request: PlanRequest | SequenceRequest | Mapping[str, Any] | None = None,
+        controller: str | Mapping[str, Any] = "computed_torque",
+        design: DesignLike = None,
+        **options: Any,
+    ) -> _Call[bytes]:
+        """The same run as :meth:`simulate`, answered as a ROS 2 bag (``POST
+        /v1/simulate/bag``): the MCAP file's bytes (``docs/simulation.md``)."""
+        body = _simulate_body(trajectory, request, controller, design, options)
+        return _Call("POST", "/v1/simulate/bag", body, bytes)
 
     def _design_mjcf(
         self,

@@ -27,7 +27,8 @@ literal); passive angles and inverse-kinematics solutions are wrapped into (-pi,
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from types import MappingProxyType
 from typing import Literal, overload
@@ -54,6 +55,7 @@ __all__ = [
     "link_points",
     "mode_label",
     "mode_signs",
+    "reach_reason",
     "wrap_angle",
 ]
 
@@ -70,6 +72,22 @@ _SIGN_CHAR = {1: "+", -1: "-", 0: "0"}
 _SLOT_INDEX = tuple(np.array([0 if m[j] == "+" else 1 for m in WORKING_MODES]) for j in range(3))
 
 AssemblyMode = Literal["+", "-"]
+
+
+def reach_reason(design: Design, p: Sequence[float] | np.ndarray) -> str | None:
+    """Why no posture of ``design`` reaches the point ``p`` (m) in any working mode, or None
+    when both legs reach it: without joint limits a leg reaches P exactly when its pivot's
+    distance to P lies between |L2 - L1| and L1 + L2 (A = (0, -L0/2, 0), B = (0, +L0/2, 0)).
+    The one wording of this reason (``planner ik``, the planner's ``unreachable``)."""
+    outer, inner = design.L1 + design.L2, abs(design.L2 - design.L1)
+    legs = []
+    for leg, pivot_y in (("A", -design.L0 / 2), ("B", design.L0 / 2)):
+        r = math.dist([float(x) for x in p], (0.0, pivot_y, 0.0))
+        if r > outer:
+            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m > L1 + L2 = {outer:.6g} m)")
+        elif r < inner:
+            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m < |L2 - L1| = {inner:.6g} m)")
+    return f"P is out of reach {' and '.join(legs)}" if legs else None
 
 
 @overload

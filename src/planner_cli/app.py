@@ -3,7 +3,7 @@
 The commands live in modules of one group each: :mod:`planner_cli.serve`,
 :mod:`planner_cli.kinematics` (fk, ik), :mod:`planner_cli.analysis` (check-design,
 optimize-design, regions), :mod:`planner_cli.figures`, :mod:`planner_cli.plan` (plan,
-cartesian), :mod:`planner_cli.sequence`, :mod:`planner_cli.tools` (version, warm-up, bench), and the
+cartesian), :mod:`planner_cli.sequence`, :mod:`planner_cli.simulate`, :mod:`planner_cli.tools` (version, warm-up, bench), and the
 groups that talk to a running service, :mod:`planner_cli.scenes` and :mod:`planner_cli.jobs`. Each is registered through
 :func:`planner_cli.errors.reported`, the one path from a bad input or a library error to an
 ``error: ...`` message and exit status 2.
@@ -22,6 +22,7 @@ import typer
 
 from planner_cli import (
     analysis,
+    calibration,
     dynamics,
     figures,
     jobs,
@@ -30,6 +31,7 @@ from planner_cli import (
     scenes,
     sequence,
     serve,
+    simulate,
     tools,
 )
 from planner_cli._support import Command, Group
@@ -69,5 +71,8 @@ register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)
 register(dynamics.inertia_report, "inertia-report")
+register(calibration.calibrate)
+register(calibration.identify)
+register(simulate.simulate)
 app.add_typer(scenes.scene_app, name="scene")
 app.add_typer(jobs.job_app, name="job")

@@ -10,7 +10,16 @@ from typing import Annotated
 
 import typer
 
-from planner_cli.common import DesignOption, L0Option, L1Option, L2Option, design_data
+from planner_cli.common import (
+    DesignOption,
+    InertiaOption,
+    L0Option,
+    L1Option,
+    L2Option,
+    PayloadOption,
+    design_data,
+    with_inertia,
+)
 from planner_cli.errors import fail
 
 __all__ = ["dynamics", "inertia_report", "mjcf"]
@@ -44,6 +53,8 @@ def dynamics(
     l0: L0Option = None,
     l1: L1Option = None,
     l2: L2Option = None,
+    inertia: InertiaOption = None,
+    payload_mass: PayloadOption = None,
 ) -> None:
     """Actuator torques and mass matrix of a motion, computed locally.
 
@@ -66,7 +77,7 @@ def dynamics(
             "qdd": [_triple("qdd", qdd)],
             "gravity": _triple("gravity", gravity),
             "assembly_mode": assembly_mode,
-            "design": design_data(design, l0, l1, l2),
+            "design": with_inertia(design_data(design, l0, l1, l2), inertia, payload_mass),
         }
     typer.echo(job(DynamicsRequest.model_validate(data)).model_dump_json(indent=2))
 
@@ -82,21 +93,34 @@ def mjcf(
     l0: L0Option = None,
     l1: L1Option = None,
     l2: L2Option = None,
+    inertia: InertiaOption = None,
+    payload_mass: PayloadOption = None,
 ) -> None:
     """The robot as an MJCF model for MuJoCo: two legs from the turning base, the loop closed
     at P by an equality connect, motors on theta1..theta3, rotor inertia as armature, a
-    keyframe 'home' assembled in the asked mode (default inertia: docs/dynamics.md)."""
-    from planner.dynamics.mjcf import to_mjcf
-    from planner.wire import DesignModel, located
+    keyframe 'home' assembled in the asked mode.
 
-    model = DesignModel.model_validate(design_data(design, l0, l1, l2))
-    with located("home"):
+    Inertia: the defaults of docs/dynamics.md, or --inertia FILE (a design.inertia object;
+    absent parts and fields default) and --payload-mass. Example: planner mjcf --inertia
+    arm.json --payload-mass 1.5 -o arm.xml"""
+    from planner.dynamics.mjcf import to_mjcf
+    from planner.exceptions import InputError
+    from planner.wire import DesignModel, inertia_to_core
+
+    data = with_inertia(design_data(design, l0, l1, l2), inertia, payload_mass)
+    model = DesignModel.model_validate(data)
+    try:
         text = to_mjcf(
             model.to_design(),
+            inertia_to_core(model, ("design", "inertia")),
             gravity=_triple("gravity", gravity),
             home=_triple("home", home),
             assembly_mode=assembly_mode,
         )
+    except InputError as exc:  # about an option of this command: name it as typed
+        if exc.field_path[:1] not in (("home",), ("gravity",)):
+            raise
+        fail([f"--{exc.field_path[0]}: {exc}"])
     if output is None:
         typer.echo(text, nl=False)
     else:

@@ -39,9 +39,14 @@ def figures(
     One file per figure and format; prints the path of each file written. With --named, the
     named figures of a design instead (NAME.FORMAT), e.g. planner figures out --named
     region_map,regions_convex_mode --design paper-optimum"""
-    from planner.plotting import FIGURES, write_figures
+    from planner.exceptions import InputError
+    from planner.plotting import FIGURE_FORMATS, FIGURES, check_formats, write_figures
 
     fmts = tuple(f.strip() for f in formats.split(",") if f.strip())
+    try:  # before any figure is drawn: a named figure is served as PNG or SVG only
+        check_formats(fmts, FIGURE_FORMATS if named else None)
+    except InputError as exc:
+        fail([f"--formats: {exc}"])
     if named:
         _write_named_figures(outdir, named, design_data(design, l0, l1, l2), n, fmts, dpi)
         return

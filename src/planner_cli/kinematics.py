@@ -3,7 +3,6 @@ JSON printed as the endpoints answer it; ``ik`` says why when no posture reaches
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -14,7 +13,7 @@ from planner_cli.errors import EXIT_NO_ANSWER, fail
 if TYPE_CHECKING:
     from planner.design import Design
 
-__all__ = ["fk", "ik", "no_posture_reason"]
+__all__ = ["fk", "ik", "no_assembly_reason", "no_posture_reason"]
 
 
 def fk(
@@ -27,12 +26,37 @@ def fk(
 ) -> None:
     """Direct kinematics of q, computed locally.
 
-    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0"""
+    Prints the JSON that POST /v1/fk answers. Example: planner fk 0.2 -1.0 2.0
+
+    Exit status: 0 one posture or more; 1 none (the JSON's list is empty, and stderr says why:
+    the loop does not close, |CD| > 2 L2, or C = D leaves P undetermined); 2 an invalid input."""
     from planner.endpoints.kinematics import fk as job
     from planner.wire import FKRequest
 
     data = {"q": q, "assembly_mode": assembly_mode, "design": design_data(design, l0, l1, l2)}
-    typer.echo(job(FKRequest.model_validate(data)).model_dump_json(indent=2))
+    body = FKRequest.model_validate(data)
+    answer = job(body)
+    typer.echo(answer.model_dump_json(indent=2))
+    if not answer.postures:
+        fail([no_assembly_reason(body.design.to_design(), body.q, assembly_mode)], EXIT_NO_ANSWER)
+
+
+def no_assembly_reason(design: Design, q: list[float], assembly_mode: str | None) -> str:
+    """Why no posture of ``design`` has the actuated joints ``q``: the library's own
+    :class:`~planner.exceptions.AssemblyError` (|CD| against 2 L2, or C on D), which
+    :meth:`planner.kinematics.Manipulator.posture` raises for either assembly mode."""
+    import numpy as np
+
+    from planner.exceptions import AssemblyError
+    from planner.kinematics import Manipulator
+
+    at = "(" + ", ".join(f"{x:.6g}" for x in q) + ")"
+    mode = "in any assembly mode" if assembly_mode is None else f"in assembly mode {assembly_mode}"
+    try:
+        Manipulator(design).posture(np.array(q, dtype=float), "-" if assembly_mode == "-" else "+")
+    except AssemblyError as exc:
+        return f"no posture has q = {at} {mode}: {exc}"
+    return f"no posture has q = {at} {mode}"
 
 
 def ik(
@@ -69,8 +93,7 @@ def no_posture_reason(design: Design, p: list[float], working_mode: str, reached
     """Why no posture of ``design`` in ``working_mode`` reaches P: the working modes that do
     reach it (``reached``, the labels of ``planner ik``'s postures in any mode; a '0' marks a
     posture on a serial singularity, where two modes meet), or, when none does, the leg that
-    cannot: without joint limits a leg reaches P exactly when its pivot's distance to P lies
-    between |L2 - L1| and L1 + L2 (A = (0, -L0/2, 0), B = (0, +L0/2, 0))."""
+    cannot (:func:`planner.kinematics.reach_reason`)."""
     at = "(" + ", ".join(f"{x:.6g}" for x in p) + ")"
     if reached:
         on_singularity = any("0" in mode for mode in reached)
@@ -83,13 +106,7 @@ def no_posture_reason(design: Design, p: list[float], working_mode: str, reached
                 else ""
             )
         )
-    outer, inner = design.L1 + design.L2, abs(design.L2 - design.L1)
-    legs = []
-    for leg, pivot_y in (("A", -design.L0 / 2), ("B", design.L0 / 2)):
-        r = math.dist(p, (0.0, pivot_y, 0.0))
-        if r > outer:
-            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m > L1 + L2 = {outer:.6g} m)")
-        elif r < inner:
-            legs.append(f"of leg {leg} (|{leg}P| = {r:.6g} m < |L2 - L1| = {inner:.6g} m)")
-    why = f": P is out of reach {' and '.join(legs)}" if legs else ""
-    return f"no posture reaches P = {at} in any working mode{why}"
+    from planner.kinematics import reach_reason
+
+    why = reach_reason(design, p)
+    return f"no posture reaches P = {at} in any working mode" + (f": {why}" if why else "")

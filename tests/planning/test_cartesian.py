@@ -295,6 +295,27 @@ def test_joint_limits_stop_the_line():
     assert np.all(res.path.waypoints[:, 0] >= -0.3)
 
 
+def test_a_joint_limit_of_pi_is_written_with_the_values_digits():
+    """A new user's report: a straight path across theta2 = pi stopped with
+    "theta2 = 3.14159266 rad > joint_max[1] = 3.14159 rad", a bound that reads as another
+    number than pi. The bound has the value's digits, and the two numbers say the rule."""
+    import re
+
+    from planner.cartesian.messages import _joint_limit_text
+
+    for value, bound in ((math.pi + 7e-9, math.pi), (-math.pi - 3e-9, -math.pi), (0.30001, 0.3)):
+        text = _joint_limit_text(1, value, bound)
+        m = re.fullmatch(
+            r"joint_limits: theta2 = (\S+) rad ([<>]) joint_(min|max)\[1\] = (\S+) rad", text
+        )
+        assert m, text
+        shown_value, rel, side, shown_bound = m.groups()
+        assert float(shown_value) != float(shown_bound)
+        assert (float(shown_value) > float(shown_bound)) == (rel == ">") == (side == "max")
+        assert float(shown_bound) == pytest.approx(bound, rel=1e-8)
+    assert _joint_limit_text(1, math.pi + 7e-9, math.pi).endswith("= 3.14159265 rad")
+
+
 def test_invalid_start_and_bad_arguments():
     from planner import InputError
 

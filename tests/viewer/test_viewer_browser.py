@@ -18,16 +18,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from viewer_browser import Watch, blue, launch, open_viewer, orange, pixels, plan
+from viewer_browser import Watch, blue, open_viewer, orange, pixels, plan
 
 VIEWPORT = {"width": 1600, "height": 1000}
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[object]:
-    """One headless chromium for the module."""
-    with launch() as b:
-        yield b
 
 
 @pytest.fixture(scope="module")

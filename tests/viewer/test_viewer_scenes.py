@@ -37,8 +37,8 @@ MODE_CHANGE_P = [-0.25, 0.07, -0.38]
 
 
 @pytest.fixture(scope="module")
-def page_(live_server) -> Iterator[object]:
-    with watched_page(live_server, viewport=WIDE) as pg:
+def page_(browser, live_server) -> Iterator[object]:
+    with watched_page(live_server, browser, viewport=WIDE) as pg:
         yield pg
 
 

@@ -28,6 +28,8 @@ TEST_IDS = (
     "regions-view",
     "torque-plot",
     "sequence-list",
+    "blend-list",
+    "blend-unit",
     "cloud-file",
     "cloud-radius",
     "scene-picker",

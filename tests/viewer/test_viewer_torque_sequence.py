@@ -20,8 +20,8 @@ TORQUE = [40.0, 30.0, 20.0]
 
 
 @pytest.fixture(scope="module")
-def page_(live_server) -> Iterator[object]:
-    with watched_page(live_server, viewport={"width": 1400, "height": 900}) as pg:
+def page_(browser, live_server) -> Iterator[object]:
+    with watched_page(live_server, browser, viewport={"width": 1400, "height": 900}) as pg:
         yield pg
 
 
@@ -90,9 +90,7 @@ def test_without_torque_limits_no_lines_and_no_ratio(page):
 def test_a_sequence_lists_its_legs_and_highlights_the_current_one(page, tmp_path):
     from playwright.sync_api import expect
 
-    page.locator("#example").select_option(
-        label="Sequence: pick and place, back to the start (cycle)"
-    )
+    page.locator("#example").select_option(label="Sequence: pick and place (cycle)")
     expect(page.get_by_test_id("sequence-mode")).to_be_checked()
     with page.expect_request(lambda r: r.url.endswith("/v1/sequence")) as sent:
         answer = plan(page, "/v1/sequence")

@@ -22,6 +22,19 @@ def _fmt_value(value: float, bound: float) -> str:
     return repr(value)
 
 
+def _joint_limit_text(i: int, value: float, bound: float) -> str:
+    """ "joint_limits: theta<i+1> = value rad > joint_max[i] = bound rad" (or < joint_min), the
+    bound with the value's digits: a bound written with fewer reads as another number (pi as
+    "3.14159" beside a theta2 of "3.14159266")."""
+    rel = "<" if value < bound else ">"
+    shown = _fmt_value(value, bound)
+    digits = sum(c.isdigit() for c in shown.split("e")[0].lstrip("-0."))
+    return (
+        f"joint_limits: theta{i + 1} = {shown} rad {rel} "
+        f"joint_{'min' if rel == '<' else 'max'}[{i}] = {bound:.{max(6, digits)}g} rad"
+    )
+
+
 def format_point(p: np.ndarray) -> str:
     """A point as "(x, y, z)" with 4 significant digits, m."""
     return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
@@ -68,11 +81,7 @@ def describe_stop(
         q_lo, q_hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
         i = int(np.argmax(np.maximum(q_lo - q_bad, q_bad - q_hi)))
         bound = q_lo[i] if q_bad[i] < q_lo[i] else q_hi[i]
-        rel = "<" if q_bad[i] < q_lo[i] else ">"
-        return float(q_bad[i]), (
-            f"joint_limits: theta{i + 1} = {_fmt_value(q_bad[i], bound)} rad {rel} "
-            f"joint_{'min' if rel == '<' else 'max'}[{i}] = {bound:.6g} rad"
-        )
+        return float(q_bad[i]), _joint_limit_text(i, float(q_bad[i]), float(bound))
     if rule == "kappa_max":
         k = float(rep.kappa_A[0])
         return k, f"kappa(A) = {_fmt_value(k, m.kappa_max)} > margins.kappa_max = {m.kappa_max:g}"

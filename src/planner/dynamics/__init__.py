@@ -2,7 +2,9 @@
 chain in actuated coordinates (``docs/dynamics.md``).
 
 Core: numpy and numba (no wire formats, no toppra); :mod:`planner.dynamics.mjcf` writes the
-MJCF export, :mod:`planner.dynamics.analysis` the design-side maps. The timing uses it
+MJCF export, :mod:`planner.dynamics.analysis` the design-side maps,
+:mod:`planner.dynamics.identify` the inertial parameters that measured torques determine
+(``docs/calibration.md``). The timing uses it
 through :mod:`planner.timing.torque` for torque limits.
 """
 

@@ -114,6 +114,7 @@ def to_mjcf(
     assembly_mode: str = "+",
     torque_limits: Sequence[float] | None = None,
     timestep: float = 1e-4,
+    loop_solref: float | None = None,
 ) -> str:
     """The MJCF text of ``design`` with ``inertia`` (default :meth:`Inertia.default`).
 
@@ -126,6 +127,9 @@ def to_mjcf(
     torque_limits : 3 N m, optional: the motors' ``ctrlrange``
     timestep : s; RK4 at 1e-4 s follows the product's trajectories to ~1e-8 rad over short
         horizons (``docs/dynamics.md``), with the loop's ``solref`` at 20 timesteps
+    loop_solref : s, the loop's ``solref`` time constant when given (MuJoCo wants at least
+        2 timesteps); the simulator (:mod:`planner.simulation`) keeps it at 2 ms whatever its
+        step
 
     Raises
     ------
@@ -181,7 +185,7 @@ def to_mjcf(
             lim = float(torque_limits[j])
             ctrl = f' ctrllimited="true" ctrlrange="{_vec(-lim, lim)}"'
         actuators.append(f'    <motor name="{name}" joint="{name}" gear="1"{ctrl}/>')
-    solref = _vec(20 * timestep, 1)
+    solref = _vec(20 * timestep if loop_solref is None else loop_solref, 1)
     lines = [
         '<mujoco model="hybrid-manipulator">',
         "  <!-- the 3-DOF hybrid manipulator (a five-bar A-C-P-D-B turning about AB), written",

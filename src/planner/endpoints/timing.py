@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from planner.endpoints import UNBOUNDED, JobBudget
 from planner.exceptions import AssemblyError, InputError
 from planner.kinematics import WORKING_MODES, forward_batch, mode_label
+
+if TYPE_CHECKING:
+    from planner.timing import Trajectory
+
 from planner.wire import (
     DiagnosticsModel,
     TimingErrorInfo,
@@ -152,4 +156,22 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
         timing_repairs=traj.repairs,
         max_torque_ratio=traj.max_torque_ratio,
     )
-    return TimingResponse(status="solved", trajectory=trajectory, diagnostics=diagnostics)
+    return TimingResponse(
+        status="solved",
+        message=_solved_message(request.method, len(q), traj),
+        trajectory=trajectory,
+        diagnostics=diagnostics,
+    )
+
+
+def _solved_message(method: str, waypoints: int, traj: Trajectory) -> str:
+    """What a solved timing did, in one line (as a solved plan says its mode and route)."""
+    message = (
+        f"timed with {method}: {waypoints} waypoints in {traj.duration:.6g} s, "
+        f"{len(traj.t)} samples"
+    )
+    if traj.repairs:
+        message += f", {traj.repairs} repair round(s) after the dense re-check"
+    if traj.max_torque_ratio is not None:
+        message += f", max |tau|/limit {traj.max_torque_ratio:.4g}"
+    return message

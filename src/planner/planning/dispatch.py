@@ -410,9 +410,7 @@ def _plan_to_point_in_any_mode(request: _Search, goal: CartesianTarget) -> PlanR
         if first.solved or first.status is not PlanStatus.UNREACHABLE:
             return first
         return request.finish(
-            PlanStatus.UNREACHABLE,
-            "the goal point is unreachable in every working mode: "
-            + "; ".join(_in_mode(m, w) for m, w in {start_mode: first.message, **whys}.items()),
+            PlanStatus.UNREACHABLE, _unreachable_everywhere({start_mode: first.message, **whys})
         )
     if first.solved:
         return _shorter_through_transits(request, first, start_mode, targets)
@@ -431,6 +429,21 @@ def _plan_to_point_in_any_mode(request: _Search, goal: CartesianTarget) -> PlanR
 def _ids(ids: set[int]) -> str:
     """Region ids for a message: '25' or '25 or 27'."""
     return " or ".join(str(i) for i in sorted(ids))
+
+
+def _unreachable_everywhere(whys: dict[str, str]) -> str:
+    """The message of a Cartesian goal no working mode reaches: each distinct reason once,
+    with the modes it holds in (a point out of a leg's reach is one reason for all eight)."""
+    modes: dict[str, list[str]] = {}
+    for mode, why in whys.items():
+        modes.setdefault(why, []).append(mode)
+    if len(modes) == 1 and "every working mode" in next(iter(modes)):
+        return next(iter(modes))
+    parts = [
+        _in_mode(ms[0], why) if len(ms) == 1 else f"in working modes {', '.join(ms)} {why}"
+        for why, ms in modes.items()
+    ]
+    return "the goal point is unreachable in every working mode: " + "; ".join(parts)
 
 
 def _in_mode(mode: str, why: str) -> str:

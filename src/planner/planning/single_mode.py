@@ -24,7 +24,13 @@ import numpy as np
 
 from planner.design import Design
 from planner.geometry import Obstacle
-from planner.kinematics import WORKING_MODES, forward_batch, inverse_batch, mode_label
+from planner.kinematics import (
+    WORKING_MODES,
+    forward_batch,
+    inverse_batch,
+    mode_label,
+    reach_reason,
+)
 from planner.planning import corridor, ompl_backend
 from planner.planning.problem import CartesianTarget, JointPosture, PlanOptions
 from planner.planning.result import Diagnostics, PlanPath, PlanResult, PlanStatus, Segment
@@ -90,6 +96,9 @@ def goal_candidates(
         return np.empty((0, 3)), "the goal point is degenerate (P on a pivot with L1 = L2)"
     slot = WORKING_MODES.index(mode)
     if not ik.ok[0, slot]:
+        why = reach_reason(design, target.p) if not ik.ok[0].any() else None
+        if why is not None:  # the same reason in every mode: said without one
+            return np.empty((0, 3)), f"the goal point is unreachable in every working mode: {why}"
         return np.empty((0, 3)), f"the goal point is out of reach in working mode {mode}"
     q = ik.q[0, slot]
     asm = int(ik.assembly_mode_signs[0, slot])

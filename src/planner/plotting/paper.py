@@ -53,6 +53,7 @@ __all__ = [
     "FIGURES",
     "ISO_LEVELS",
     "ISO_SAMPLES",
+    "check_formats",
     "figure_04",
     "figure_05",
     "figure_06",
@@ -466,6 +467,25 @@ FIGURES: dict[int, tuple[str, Callable[[int], Figure]]] = {
 }
 
 
+def check_formats(formats: tuple[str, ...], allowed: tuple[str, ...] | None = None) -> None:
+    """Refuse, before any figure is drawn, a format that matplotlib cannot write (or, with
+    ``allowed``, one outside it): :class:`~planner.exceptions.InputError` at ``formats``
+    naming the format and the ones there are.
+    """
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    from planner.exceptions import InputError
+
+    known = (
+        tuple(sorted(FigureCanvasBase.get_supported_filetypes())) if allowed is None else allowed
+    )
+    if not formats:
+        raise InputError(f"no format given; one or more of {', '.join(known)}", field="formats")
+    for fmt in formats:
+        if fmt not in known:
+            raise InputError(f"no format {fmt!r}; one of {', '.join(known)}", field="formats")
+
+
 def write_figures(
     outdir: str | Path,
     *,
@@ -494,6 +514,7 @@ def write_figures(
     list of Path
         The files written.
     """
+    check_formats(formats)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     written = []

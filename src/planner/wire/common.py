@@ -33,7 +33,7 @@ from planner.exceptions import DesignError, InputError, PlannerError
 
 if TYPE_CHECKING:
     from planner import geometry
-    from planner.dynamics import Inertia
+    from planner.dynamics import Inertia, LinkInertia
     from planner.validity import Margins
 
 __all__ = [
@@ -165,24 +165,38 @@ Moment = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1e6)]
 
 class LinkInertiaModel(_Request):
     """One link as a rigid body: inertia tensor ``I_perp (Id - e e^T) + I_axial e e^T`` about
-    its centre of mass, e the link's direction."""
+    its centre of mass, e the link's direction.
 
-    mass: Mass = Field(description="kg, >= 0.")
-    com: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] = Field(
+    Every field is optional; an absent one comes from the design's default link
+    (:meth:`planner.dynamics.Inertia.default`, a uniform aluminium tube): ``com`` as it is,
+    ``I_perp`` and ``I_axial`` scaled by ``mass / default mass`` when ``mass`` is given (the
+    same tube made of a material that weighs ``mass``), else as they are; ``mass`` absent: the
+    default's. So ``{"mass": 0.3}`` alone is a consistent rigid body.
+    """
+
+    mass: Mass | None = Field(None, description="kg, >= 0 (absent: the default link's).")
+    com: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)] | None = Field(
+        None,
         description="Centre of mass as a fraction of the link's length from its proximal "
-        "pivot (A or B for a proximal link, C or D for a distal one), in [0, 1]."
+        "pivot (A or B for a proximal link, C or D for a distal one), in [0, 1] (absent: the "
+        "default link's, 0.5).",
     )
-    I_perp: Moment = Field(description="kg m^2 about an axis normal to the link, >= 0.")
-    I_axial: Moment = Field(
+    I_perp: Moment | None = Field(
+        None,
+        description="kg m^2 about an axis normal to the link, >= 0 (absent: the default "
+        "link's, scaled by mass / its mass when mass is given).",
+    )
+    I_axial: Moment | None = Field(
+        None,
         description="kg m^2 about the link's own line, >= 0 and <= 2 I_perp (the triangle "
-        "inequality of a rod's inertia tensor)."
+        "inequality of a rod's inertia tensor; absent: as I_perp).",
     )
 
     @field_validator("I_axial")
     @classmethod
-    def _triangle(cls, value: float, info: ValidationInfo) -> float:
+    def _triangle(cls, value: float | None, info: ValidationInfo) -> float | None:
         perp = info.data.get("I_perp")
-        if perp is not None and value > 2 * perp * (1 + 1e-12):
+        if value is not None and perp is not None and value > 2 * perp * (1 + 1e-12):
             raise ValueError(
                 f"I_axial must be <= 2 I_perp (the triangle inequality of a rod's inertia "
                 f"tensor), got I_axial = {value:g} > 2 x {perp:g}"
@@ -689,6 +703,22 @@ def design_to_core(model: DesignModel, loc: tuple[str | int, ...] = ("body", "de
         return model.to_design()
 
 
+def _completed_link(part: LinkInertiaModel, base: LinkInertia, name: str) -> LinkInertia:
+    """A wire link with its absent fields from the design's default link ``base``
+    (:class:`LinkInertiaModel`: a given mass scales the default's moments)."""
+    from planner.dynamics import LinkInertia
+
+    mass = base.mass if part.mass is None else part.mass
+    scale = mass / base.mass if part.mass is not None and base.mass > 0 else 1.0
+    return LinkInertia(
+        mass,
+        base.com if part.com is None else part.com,
+        base.I_perp * scale if part.I_perp is None else part.I_perp,
+        base.I_axial * scale if part.I_axial is None else part.I_axial,
+        name,
+    )
+
+
 def inertia_to_core(
     model: DesignModel, loc: tuple[str | int, ...] = ("body", "design", "inertia")
 ) -> Inertia | None:
@@ -697,16 +727,17 @@ def inertia_to_core(
     the request gives no inertia (the caller decides whether defaults apply)."""
     if model.inertia is None:
         return None
-    from planner.dynamics import Inertia, LinkInertia
+    from planner.dynamics import Inertia
 
     default = Inertia.default(model.to_design())
     wire = model.inertia
     with located(*loc):
 
         def link(part: LinkInertiaModel | None, name: str) -> LinkInertia:
+            base: LinkInertia = getattr(default, name)
             if part is None:
-                return getattr(default, name)
-            return LinkInertia(part.mass, part.com, part.I_perp, part.I_axial, name)
+                return base
+            return _completed_link(part, base, name)
 
         return Inertia(
             proximal=link(wire.proximal, "proximal"),

@@ -49,31 +49,55 @@ _Rates = Annotated[list[_Rate], Field(min_length=3, max_length=3)]
 
 class DynamicsRequest(_Request):
     """Body of ``POST /v1/dynamics``: N motions (q, qd, qdd) of one robot in one assembly
-    mode. ``design.inertia`` absent: the documented defaults (docs/dynamics.md)."""
+    mode. ``design.inertia`` absent: the documented defaults (docs/dynamics.md).
+
+    ``q`` is N x 3, or one posture ``[theta1, theta2, theta3]`` (read as N = 1: the answer is
+    always N rows). ``qd`` and ``qdd`` absent: zeros (a static query: ``tau`` is then the
+    torque that holds the posture against gravity); given, one row per posture of ``q`` (a
+    single row may be written flat too).
+    """
 
     design: DesignModel = _DesignField
     gravity: Gravity = GRAVITY_FIELD
     assembly_mode: AssemblyModeLabel = Field("+", description="'+' or '-'.")
     q: Annotated[list[Angles3], Field(min_length=1, max_length=MAX_DYNAMICS_POSTURES)] = Field(
-        description="N x 3 actuated joints, rad."
+        description="N x 3 actuated joints, rad (or one posture, 3 numbers: N = 1)."
     )
-    qd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] = Field(
-        description="N x 3 joint velocities, rad/s."
+    qd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] | None = Field(
+        None, description="N x 3 joint velocities, rad/s (absent: zeros)."
     )
-    qdd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] = Field(
-        description="N x 3 joint accelerations, rad/s^2."
+    qdd: Annotated[list[_Rates], Field(max_length=MAX_DYNAMICS_POSTURES)] | None = Field(
+        None, description="N x 3 joint accelerations, rad/s^2 (absent: zeros)."
     )
+
+    @field_validator("q", "qd", "qdd", mode="before")
+    @classmethod
+    def _one_posture_as_a_row(cls, value: Any) -> Any:
+        """A flat list of 3 numbers is one row (N = 1); anything else goes on to the checks
+        of N x 3, which name the element that breaks them."""
+        if isinstance(value, list) and value and all(_is_number(x) for x in value):
+            if len(value) != 3:
+                raise ValueError(
+                    f"one posture is 3 numbers (theta1, theta2, theta3), got {len(value)}; "
+                    "N postures are N rows of 3"
+                )
+            return [value]
+        return value
 
     @field_validator("qd", "qdd")
     @classmethod
-    def _one_row_per_posture(cls, value: list, info: ValidationInfo) -> list:
+    def _one_row_per_posture(cls, value: list | None, info: ValidationInfo) -> list | None:
         q = info.data.get("q")
-        if q is not None and len(value) != len(q):
+        if value is not None and q is not None and len(value) != len(q):
             raise ValueError(
                 f"{info.field_name} must have one row per posture of q: {len(q)} rows, got "
                 f"{len(value)}"
             )
         return value
+
+
+def _is_number(x: object) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
 
 
 class DynamicsResponse(_Response):
@@ -98,12 +122,13 @@ def dynamics_answer(request: DynamicsRequest) -> DynamicsResponse:
     inertia = inertia_to_core(request.design)
     inertia = inertia if inertia is not None else Inertia.default(design)
     q = np.asarray(request.q, dtype=float)
+    zeros = np.zeros_like(q)
     batch = inverse_dynamics(
         design,
         inertia,
         q,
-        np.asarray(request.qd, dtype=float),
-        np.asarray(request.qdd, dtype=float),
+        zeros if request.qd is None else np.asarray(request.qd, dtype=float),
+        zeros if request.qdd is None else np.asarray(request.qdd, dtype=float),
         assembly_mode=request.assembly_mode,
         gravity=request.gravity,
         with_mass_matrix=True,

@@ -3,13 +3,14 @@
 // scene, timeline, plots, the workspace section and the region map.
 import { ApiError, getBlob, getJSON, postJSON, setApiKey } from './api.js';
 import * as form from './form.js';
-import { along, fkCheck, posture, transitSamples } from './kin.js';
+import { along, fkCheck, limitWalls, posture, transitSamples } from './kin.js';
 import { Scene } from './scene.js';
 import * as plots from './plots.js';
 import * as section from './section.js';
 import * as exporter from './export.js';
 import * as regions from './regions.js';
 import * as scenes from './scenes.js';
+import * as sequenceView from './sequence.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -27,6 +28,10 @@ let lastFrame = null;
 let designKey = '';
 let analysisSeq = 0;
 let exportKind = null;  // 'curl' | 'python' once the export box is shown: it follows the form
+/** The views of an answer beside the scene and the plots: each module has show(request,
+ * response, endpoint, {t, seek}), clear() and setTime(t) (see sequence.js). A new view is
+ * one more entry here. */
+const VIEWS = [sequenceView];
 
 // ------------------------------------------------------------------ status and messages
 function setStatus(text, kind, message = '') {
@@ -113,7 +118,7 @@ async function analyse(d) {
       + `well-conditioned (κ ≤ ${kappaMax}) ${fmt(100 * ws.well_conditioned_fraction.value, 0)} %; GCI ${fmt(ws.gci.value)}. `
       + 'Colour: the smallest κ(A) over the working modes reaching the cell, in the bands of the paper\'s isoconditioning figure; '
       + 'faded: not reached in the current working mode. Line: the path of P in the linkage plane (u, w), which does not depend on θ1; numbered dots: the transits'
-      + (form.endpoint() === 'cartesian' ? '. Click to add a waypoint (in the start\'s plane θ1).' : '.');
+      + (form.endpoint() === 'cartesian' ? '. Click to add a waypoint (in the start\'s plane θ1); dashed brown: where θ2 or θ3 is at its limit in the start\'s working mode, which a straight path cannot cross.' : '.');
   });
   const rmap = postJSON('/v1/design/regions', {
     design: d, margins: { kappa_max: kappaMax, serial_min: serialMin }, resolution: 128, cell_regions: true,
@@ -146,6 +151,8 @@ function figure(d, seq) {
     if (seq !== analysisSeq) return;
     if (img.src.startsWith('blob:')) URL.revokeObjectURL(img.src);
     img.src = URL.createObjectURL(blob);
+    $('iso-open').href = img.src;
+    $('iso-open').hidden = false;
     img.alt = `isoconditioning figure of L0 = ${d.L0}, L1 = ${d.L1}, L2 = ${d.L2} (the service's figure)`;
     setState('iso-box', 'loaded');
   });
@@ -186,7 +193,7 @@ async function loadPresets() {
 
 /** An example: the service's default design, then its start, goal and obstacles. */
 function exampleChosen(ex) {
-  if (shown) clearPlan();
+  dropPlan();
   form.setExample(ex, presets[0]?.design);
   designChanged();
   preview();
@@ -196,7 +203,7 @@ function exampleChosen(ex) {
 $('preset').addEventListener('change', () => {
   const p = presets.find((x) => x.name === $('preset').value);
   if (!p) return;
-  if (shown) clearPlan();
+  dropPlan();
   form.setDesign(p.design);
   designChanged();
   preview();
@@ -250,43 +257,6 @@ function showCycle(endpoint, response) {
   $('cycle-wrap').hidden = endpoint !== 'sequence';
   $('cycle-time').textContent = typeof c === 'number' ? c.toFixed(3) : '—';
   $('cycle-time').dataset.value = typeof c === 'number' ? String(c) : '';
-}
-
-/** The sequence's targets and legs (index, target, stop, working mode, time span); a click on
- * a leg seeks to its start. Empty (hidden) for any other answer. */
-function renderLegs(request, response) {
-  const table = $('sequence-list');
-  const legs = response?.legs || [];
-  table.hidden = !response?.legs;
-  const span = (l) => (typeof l.start_time === 'number' ? `${l.start_time.toFixed(2)}–${l.end_time.toFixed(2)}` : '—');
-  const targetText = (i) => {
-    const g = i < request.targets.length ? request.targets[i].goal : request.start;
-    return i < request.targets.length ? (g.q ? `q ${g.q.join(' ')}` : g.p.join(' ')) : 'the start (cycle)';
-  };
-  table.tBodies[0].replaceChildren(...legs.map((l, k) => {
-    const tr = document.createElement('tr');
-    tr.dataset.leg = String(k);
-    tr.dataset.start = String(l.start_time ?? '');
-    tr.dataset.end = String(l.end_time ?? '');
-    const stopCell = l.target_index < request.targets.length ? (request.targets[l.target_index].stop === false ? 'pass' : 'stop') : 'stop';
-    for (const text of [String(k), `${l.target_index}: ${targetText(l.target_index)}`, stopCell, l.working_mode || '—', span(l)]) {
-      const td = document.createElement('td');
-      td.textContent = text;
-      tr.appendChild(td);
-    }
-    tr.title = `${l.status}${typeof l.pass_distance === 'number' ? `; passed within ${fmt(l.pass_distance, 4)} rad` : ''}`;
-    tr.addEventListener('click', () => { stop(); if (typeof l.start_time === 'number') seek(l.start_time); });
-    return tr;
-  }));
-}
-
-/** Highlight the leg whose time span holds t (the later one at a shared instant but the last). */
-function highlightLeg(t) {
-  const rows = [...$('sequence-list').tBodies[0].rows];
-  const k = rows.findIndex((r) => r.dataset.start !== '' && t >= Number(r.dataset.start) && t < Number(r.dataset.end));
-  const current = k >= 0 ? k : rows.length && t >= Number(rows.at(-1).dataset.end) ? rows.length - 1 : -1;
-  rows.forEach((r, i) => r.classList.toggle('current', i === current));
-  $('sequence-list').dataset.current = String(current);
 }
 
 /** A straight path's answer: the share achieved and, when it stopped short, why. */
@@ -352,11 +322,20 @@ function clearPlan() {
   $('time').textContent = '0.00';
   $('duration').textContent = '0.00';
   renderTransits([], []);
-  renderLegs(null, null);
+  for (const v of VIEWS) v.clear();
   plots.clear();
   section.setPath(null);
   section.setRest(null);
   regions.setTrace(null);
+}
+
+/** The form changed so that the plan on screen no longer answers it (another design,
+ * preset, example or goal kind): the plan goes, and with it what the header says of it (its
+ * status, message, path achieved, torque ratio, cycle time). */
+function dropPlan() {
+  clearPlan();
+  for (const id of ['fraction-wrap', 'torque-ratio-wrap', 'cycle-wrap']) $(id).hidden = true;
+  if ($('status').textContent !== 'not planned') setStatus('not planned', '');
 }
 
 function showPlan(request, response, endpoint = 'plan') {
@@ -370,7 +349,8 @@ function showPlan(request, response, endpoint = 'plan') {
     start: request.start.q, goal: goalQ || qs.at(-1) || null, goalAssembly: request.goal?.assembly_mode,
     proof: Boolean(response.diagnostics?.proven_infeasible),
   });
-  renderLegs(request, endpoint === 'sequence' ? response : null);
+  const seekStopped = (t) => { stop(); seek(t); };
+  for (const v of VIEWS) v.show(request, response, endpoint, { t: response.trajectory?.t || [], seek: seekStopped });
   const path = response.path || (response.legs && response.trajectory ? sequencePath(response) : null);
   if (!path) {
     preview();
@@ -461,7 +441,7 @@ function showSample(i) {
   showReadouts(x, modes[segmentOf[i]]);
   plots.setTime(traj.t[i]);
   section.setIndex(i);
-  highlightLeg(traj.t[i]);
+  for (const v of VIEWS) v.setTime(traj.t[i]);
 }
 
 function sampleAt(t) {
@@ -556,10 +536,25 @@ window.addEventListener('resize', () => {
 });
 $('clear-waypoints').addEventListener('click', () => { form.setWaypoints([]); form.recheck(); followExport(); });
 
+/** In straight-path mode, the section draws where theta2 and theta3 stand at their literal
+ * limits in the start's working mode: a straight path (which keeps it) stops there. */
+let wallsKey = '';
+function showWalls() {
+  const d = currentDesign();
+  const start = form.request.plan().start;
+  const x = form.endpoint() === 'cartesian' && d && start.q.every((v) => typeof v === 'number')
+    ? posture(d, start.q, start.assembly_mode) : null;
+  const key = x ? JSON.stringify([d, x.workingMode, start.assembly_mode]) : '';
+  if (key === wallsKey) return;
+  wallsKey = key;
+  section.setWalls(x ? limitWalls(d, x.workingMode, start.assembly_mode) : null);
+}
+
 /** In straight-path mode, a click on the workspace section adds a waypoint there (in the
  * linkage plane of the start's theta1). */
 function pickMode() {
   const on = form.endpoint() === 'cartesian';
+  showWalls();
   section.setPick(on ? (u, w) => {
     const t1 = Number(form.request.plan().start.q[0]) || 0;
     form.addWaypoint([w * Math.cos(t1), u, -w * Math.sin(t1)]);
@@ -568,9 +563,10 @@ function pickMode() {
 
 form.init({
   changed: (name = '') => {
-    if (name.startsWith('design.') && shown) clearPlan();  // the plan was for another design
+    if (name.startsWith('design.') || name === 'goal-kind') dropPlan();  // it answered another request
     if (name.startsWith('design.') || name.startsWith('margins.')) designChanged(name.startsWith('margins.'));
     if (name === 'goal-kind') pickMode();
+    showWalls();
     preview();
     followExport();
   },
@@ -596,12 +592,8 @@ function startOver() {
   form.clearErrors();
   exportKind = null;
   $('export-text').hidden = true;
-  $('fraction-wrap').hidden = true;
-  $('torque-ratio-wrap').hidden = true;
-  $('cycle-wrap').hidden = true;
   $('example').value = '0';
   scenes.chosen();
-  setStatus('not planned', '');
   exampleChosen(form.EXAMPLES[0]);
   pickMode();
 }

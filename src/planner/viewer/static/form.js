@@ -32,13 +32,13 @@ export const EXAMPLES = [
     obstacles: [{ type: 'box', center: [0.0, -0.45, 0.45], size: [0.1, 0.1, 0.1], quaternion: [1, 0, 0, 0] }],
   },
   {
-    name: 'Straight tool path: a square in the plane, then out of reach',
+    name: 'Straight path: a square, then out of reach',
     start: { q: [0.0, 2.0, 1.0], assembly_mode: '+' },
     waypoints: [[0.5, 0.1, 0.0], [0.5, 0.1, -0.1], [0.5, 0.0, -0.1], [1.5, 0.0, -0.1]],
     obstacles: [],
   },
   {
-    name: 'Sequence: pick and place, back to the start (cycle)',
+    name: 'Sequence: pick and place (cycle)',
     start: { q: [0.90975, 2.76741, 1.04726], assembly_mode: '+' },
     targets: ['0.35 -0.1 -0.4 pass', '0.35 0.2 -0.4 pass', '0.35 0.2 -0.45'],
     blend: 0.04,
@@ -95,19 +95,31 @@ export const endpoint = () => ({ path: 'cartesian', seq: 'sequence' }[goalKind()
 
 /** The sequence's targets as typed, one a line: "x y z" (a Cartesian target, working mode
  * any) or "q t1 t2 t3" (a joint posture in the start's assembly mode), "pass" at the end for
- * a target passed at speed (with the form's blend). */
+ * a target passed at speed, with the form's blend or the number after "pass" (in the form's
+ * unit: rad goes out as `blend`, mm as `blend_radius` in m). */
 export function targets() {
   const asm = input('start.assembly_mode').value;
-  const blend = read('blend');
+  const mm = input('blend-unit').value === 'mm';
+  const blendOf = (x) => {
+    if (x === undefined || typeof x !== 'number') return x;
+    return mm ? x / 1000 : x;
+  };
+  const given = read('blend');
   return input('targets').value.split('\n').map((l) => l.trim()).filter((l) => l).map((line) => {
     const words = line.split(/[\s,;]+/);
+    let own;
+    if (words.length >= 2 && words.at(-2).toLowerCase() === 'pass') {
+      const x = words.pop();
+      own = Number.isFinite(Number(x)) ? Number(x) : x;
+    }
     const pass = words.at(-1).toLowerCase() === 'pass';
     if (pass || words.at(-1).toLowerCase() === 'stop') words.pop();
-    const joint = words[0].toLowerCase() === 'q';
+    const joint = words[0]?.toLowerCase() === 'q';
     if (joint) words.shift();
     const xs = words.map((x) => (Number.isFinite(Number(x)) ? Number(x) : x));
     const goal = joint ? { q: xs, assembly_mode: asm } : { p: xs, working_mode: 'any' };
-    return drop({ goal, stop: !pass, blend: pass ? blend : undefined });
+    const blend = pass ? blendOf(own ?? given) : undefined;
+    return drop({ goal, stop: !pass, [mm ? 'blend_radius' : 'blend']: blend });
   });
 }
 
@@ -218,6 +230,7 @@ export function setExample(ex, d) {
   setValue('path_tolerance', '');
   input('targets').value = ex.targets ? ex.targets.join('\n') : p ? p.map((v) => +v.toFixed(6)).join(' ') : '';
   setValue('blend', ex.blend ?? '');
+  setValue('blend-unit', ex.blendUnit || 'rad');
   input('cycle').checked = Boolean(ex.cycle);
   showGoalKind();
   obstacles = ex.obstacles.map((o) => structuredClone(o));
@@ -438,6 +451,10 @@ function targetsMessage() {
       const m = checks.check('sequence', `targets.${i}.goal.${field}.${k}`, x, { hint: (p) => (p.endsWith('.goal') ? field : null) });
       if (m) return `line ${i + 1}: ${m}`;
     }
+    for (const key of ['blend', 'blend_radius']) {
+      const m = key in t ? checks.check('sequence', `targets.${i}.${key}`, t[key]) : '';
+      if (m) return `line ${i + 1}: ${key} ${m}`;
+    }
   }
   return '';
 }
@@ -479,6 +496,7 @@ export function init({ changed, exampleChosen }) {
   form.querySelectorAll('input[name=goal-kind]').forEach((r) => r.addEventListener('change', () => { showGoalKind(); recheck(); changed('goal-kind'); }));
   form.addEventListener('input', (ev) => {
     typed(ev.target);
+    if (ev.target.name === 'blend' || ev.target.name === 'blend-unit') typed(input('targets'));  // the targets' blends
     if (!ev.target.dataset.key) changed(ev.target.name || '');
   });
   form.addEventListener('change', (ev) => { if (ev.target.tagName === 'SELECT') changed(ev.target.name || ''); });

@@ -77,3 +77,50 @@ export function transitSamples(qs, transits, ts = null) {
     return best;
   });
 }
+
+/** Where theta2 or theta3 stands at one of its literal limits, for the postures of working
+ * mode `mode` in assembly mode `asm`: pieces of circles in the plane (u, w), for the
+ * workspace section. A straight tool path keeps its working mode, so it stops there (a
+ * joint cannot pass its limit, and with limits of -pi and pi the joint would have to turn
+ * through the one posture both name), while the section's cells either side are reached.
+ * theta2 = a puts C at A + L1 (cos a, sin a) and P on the circle of radius L2 about C; the
+ * other leg's elbow D is then where the circles (B, L1) and (P, L2) meet. Returns
+ * [{joint: 2 | 3, values: [rad], u: [], w: []}], NaN between pieces. */
+export function limitWalls(design, mode, asm, n = 1440) {
+  const { L0, L1, L2 } = design;
+  const walls = [];
+  for (const j of [1, 2]) {
+    const lo = design.joint_min[j], hi = design.joint_max[j];
+    // a range of a whole turn: its two ends are one posture, drawn once
+    const values = Math.abs(hi - lo - 2 * Math.PI) < 1e-9 ? [hi] : [lo, hi];
+    for (const a of values) {
+      const here = [j === 1 ? -L0 / 2 : L0 / 2, 0], there = [j === 1 ? L0 / 2 : -L0 / 2, 0];
+      const c = [here[0] + L1 * Math.cos(a), L1 * Math.sin(a)];
+      const u = [], w = [];
+      for (let k = 0; k <= n; k++) {
+        const phi = (2 * Math.PI * k) / n;
+        const p = [c[0] + L2 * Math.cos(phi), c[1] + L2 * Math.sin(phi)];
+        const on = otherAngles(there, p, L1, L2).some((b) => {
+          const q = j === 1 ? [0, a, b] : [0, b, a];
+          const lo2 = design.joint_min[3 - j], hi2 = design.joint_max[3 - j];
+          if (!(b >= lo2 - 1e-12 && b <= hi2 + 1e-12)) return false;
+          const x = posture(design, q, asm);
+          return x && Math.hypot(x.u - p[0], x.w - p[1]) < 1e-9 && x.workingMode === mode && x.assemblyMode === asm;
+        });
+        u.push(on ? p[0] : NaN);
+        w.push(on ? p[1] : NaN);
+      }
+      if (u.some(Number.isFinite)) walls.push({ joint: j + 1, values: values.length === 1 ? [lo, hi] : [a], u, w });
+    }
+  }
+  return walls;
+}
+
+/** The angles b (in [-pi, pi]) of the elbow E = pivot + L1 (cos b, sin b) with |P - E| = L2. */
+function otherAngles(pivot, p, L1, L2) {
+  const du = p[0] - pivot[0], dw = p[1] - pivot[1], d = Math.hypot(du, dw);
+  if (d === 0 || d > L1 + L2 || d < Math.abs(L1 - L2)) return [];
+  const base = Math.atan2(dw, du), cos = (L1 * L1 + d * d - L2 * L2) / (2 * L1 * d);
+  const off = Math.acos(Math.max(-1, Math.min(1, cos)));
+  return [base + off, base - off].map((b) => Math.atan2(Math.sin(b), Math.cos(b)));
+}

@@ -34,16 +34,34 @@ function overlay(u) {
   ctx.restore();
 }
 
+/** Ticks for a y axis from min to max: steps of 1, 2, 2.5 or 5 times a power of ten, the
+ * largest such step that leaves at least three intervals (so at least four ticks, at most
+ * seven), whatever the range (uPlot's own choice can leave a short axis one tick). */
+export function yTicks(min, max) {
+  const span = max - min;
+  if (!(span > 0) || !Number.isFinite(span)) return [min];
+  const raw = span / 3;
+  const p = 10 ** Math.floor(Math.log10(raw));
+  const step = [5, 2.5, 2, 1].map((m) => m * p).find((s) => s <= raw * (1 + 1e-9));
+  const ticks = [];
+  for (let v = Math.ceil(min / step - 1e-9) * step; v <= max + step * 1e-9; v += step) ticks.push(Math.abs(v) < step * 1e-9 ? 0 : +v.toPrecision(12));
+  return ticks;
+}
+
+const HEIGHT = 170;
+
 function chart(el, title, series, data, { yRange, yLabel } = {}, onSeek) {
   const box = document.createElement('div');
   el.appendChild(box);
   const width = Math.max(200, el.clientWidth - 12);
   const u = new uPlot({
-    title, width, height: 150,
+    title, width, height: HEIGHT,
     legend: { show: true, live: false },
     cursor: { drag: { x: false, y: false }, points: { show: false } },
     scales: { x: { time: false }, y: yRange ? { range: yRange } : { auto: true } },
-    axes: [{ label: 't (s)', labelSize: 16, size: 30 }, { label: yLabel, labelSize: 18, size: 50 }],
+    axes: [{ label: 't (s)', labelSize: 16, size: 30 }, {
+      label: yLabel, labelSize: 18, size: 56, splits: (self, i, min, max) => yTicks(min, max),
+    }],
     series: [{ label: 't' }, ...series],
     hooks: { draw: [overlay] },
   }, data, box);
@@ -92,15 +110,18 @@ function showTorque(t, tau, limits, onSeek) {
   for (let k = 0; k < 3; k++) {
     const lim = limits?.[k];
     if (typeof lim !== 'number') continue;
-    for (const sign of [1, -1]) {
-      series.push({ label: `${sign > 0 ? '+' : '−'}limit ${k + 1} = ${lim}`, stroke: JOINT_COLORS[k], dash: [6, 4], width: 1 });
+    for (const sign of [1, -1]) {  // the line's own value, signed: "limit τ1 = -12"
+      series.push({ label: `limit τ${k + 1} = ${sign * lim}`, stroke: JOINT_COLORS[k], dash: [6, 4], width: 1 });
       data.push(t.map(() => sign * lim));
       lines.push({ joint: k, value: sign * lim });
     }
   }
-  torque = { t, tau, lines };
+  // symmetric about 0, the limits inside: a torque's sign reads at a glance
+  const top = 1.08 * Math.max(1e-9, ...tau.flat().map(Math.abs).filter(Number.isFinite), ...lines.map((l) => Math.abs(l.value)));
+  charts.push(chart(el, 'actuator torques τ (N m) against the torque limits', series, data, { yLabel: 'N m', yRange: [-top, top] }, onSeek));
+  torque = { t, tau, lines, yTicks: yTicks(-top, top), yRange: [-top, top] };
   el.dataset.lines = String(lines.length);
-  charts.push(chart(el, 'actuator torques τ (N m) against the torque limits', series, data, { yLabel: 'N m' }, onSeek));
+  el.dataset.yTicks = String(torque.yTicks.length);
 }
 
 /** What the torque chart plots ({t, tau, lines: [{joint, value}]}), or null without one. */
@@ -113,6 +134,7 @@ export function clear() {
   torque = null;
   for (const id of ['kappa-plot', 'joint-plot', 'torque-plot']) document.getElementById(id).replaceChildren();
   delete document.getElementById('torque-plot').dataset.lines;
+  delete document.getElementById('torque-plot').dataset.yTicks;
 }
 
 /** Move the current-time line. */
@@ -125,6 +147,6 @@ export function setTime(t) {
 export function resize() {
   for (const c of charts) {
     const w = Math.max(200, c.root.parentElement.parentElement.clientWidth - 12);
-    if (Math.abs(c.width - w) > 2) c.setSize({ width: w, height: 150 });
+    if (Math.abs(c.width - w) > 2) c.setSize({ width: w, height: HEIGHT });
   }
 }

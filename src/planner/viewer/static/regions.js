@@ -102,34 +102,53 @@ export function draw() {
   ctx.drawImage(img, MARGIN.left, MARGIN.top, plot, plot);
   ctx.strokeStyle = '#999';
   ctx.strokeRect(MARGIN.left, MARGIN.top, plot, plot);
+  drawn = [];
+  delete canvas.dataset.markers;
   axes(ctx, plot);
   drawTrace(ctx, plot, ai);
+  canvas.dataset.labels = JSON.stringify(drawn);
   lists(asm, mode, highlight);
 }
 
 const toX = (q2, plot) => MARGIN.left + ((q2 - design.joint_min[1]) / (design.joint_max[1] - design.joint_min[1])) * plot;
 const toY = (q3, plot) => MARGIN.top + (1 - (q3 - design.joint_min[2]) / (design.joint_max[2] - design.joint_min[2])) * plot;
 
+/** The boxes of the text drawn on the map ({text, x, y, w, h}, CSS px), kept on the canvas
+ * as data-labels (tick labels, the start's and goal's labels) and data-markers (the start's
+ * and goal's centres): what the tests check is on the canvas and clear of the rest. */
+let drawn = [];
+
+/** Write `text` at (x, y) with the context's alignment, and keep its box. */
+function text(ctx, t, x, y) {
+  const w = ctx.measureText(t).width, h = 12;
+  const left = ctx.textAlign === 'center' ? x - w / 2 : ctx.textAlign === 'right' ? x - w : x;
+  const top = ctx.textBaseline === 'top' ? y : ctx.textBaseline === 'bottom' ? y - h : y - h / 2;
+  ctx.fillText(t, x, y);
+  drawn.push({ text: t, x: left, y: top, w, h });
+}
+
 function axes(ctx, plot) {
   ctx.fillStyle = '#1d2430';
   ctx.font = '12px system-ui, sans-serif';
-  ctx.textAlign = 'center';
   ctx.textBaseline = 'top';
-  for (let i = 0; i <= 4; i++) {
+  for (let i = 0; i <= 4; i++) {  // the end ticks aligned inward: clear of the other axis's
     const q = design.joint_min[1] + (i / 4) * (design.joint_max[1] - design.joint_min[1]);
-    ctx.fillText(q.toFixed(2), toX(q, plot), MARGIN.top + plot + 3);
+    ctx.textAlign = i === 0 ? 'left' : i === 4 ? 'right' : 'center';
+    text(ctx, q.toFixed(2), toX(q, plot), MARGIN.top + plot + 3);
   }
-  ctx.fillText('θ2 (rad)', MARGIN.left + plot / 2, MARGIN.top + plot + 18);
+  ctx.textAlign = 'center';
+  text(ctx, 'θ2 (rad)', MARGIN.left + plot / 2, MARGIN.top + plot + 18);
   ctx.textAlign = 'right';
-  ctx.textBaseline = 'middle';
   for (let i = 0; i <= 4; i++) {
     const q = design.joint_min[2] + (i / 4) * (design.joint_max[2] - design.joint_min[2]);
-    ctx.fillText(q.toFixed(2), MARGIN.left - 4, toY(q, plot));
+    ctx.textBaseline = i === 0 ? 'bottom' : i === 4 ? 'top' : 'middle';
+    text(ctx, q.toFixed(2), MARGIN.left - 4, toY(q, plot));
   }
   ctx.save();
   ctx.translate(11, MARGIN.top + plot / 2);
   ctx.rotate(-Math.PI / 2);
   ctx.textAlign = 'center';
+  ctx.textBaseline = 'middle';
   ctx.fillText('θ3 (rad)', 0, 0);
   ctx.restore();
 }
@@ -148,20 +167,46 @@ function drawTrace(ctx, plot, ai) {
     if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
   });
   ctx.stroke();
-  for (const [q, colour, name] of [[trace.start, '#2e7d32', 'start'], [trace.goal, '#c62828', 'goal']]) {
-    if (!q) continue;
-    const x = toX(q[1], plot), y = toY(q[2], plot);
-    ctx.fillStyle = colour;
+  const at = (q) => (q ? { x: toX(q[1], plot), y: toY(q[2], plot) } : null);
+  const start = at(trace.start), goal = at(trace.goal);
+  // the goal a ring, the start a dot drawn over it: both show where they meet (a cycle)
+  if (goal) {
+    ctx.lineWidth = 3;
+    ctx.strokeStyle = '#fff';
+    ctx.beginPath(); ctx.arc(goal.x, goal.y, 8, 0, 2 * Math.PI); ctx.stroke();
+    ctx.lineWidth = 2.5;
+    ctx.strokeStyle = '#c62828';
+    ctx.beginPath(); ctx.arc(goal.x, goal.y, 8, 0, 2 * Math.PI); ctx.stroke();
+  }
+  if (start) {
+    ctx.fillStyle = '#2e7d32';
     ctx.strokeStyle = '#fff';  // ringed: it may lie on a region of its own colour
-    ctx.lineWidth = 2;
-    ctx.beginPath(); ctx.arc(x, y, 5, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
-    ctx.font = '600 12px system-ui, sans-serif';
-    ctx.textAlign = 'left';
-    ctx.strokeText(name, x + 7, y - 7);
-    ctx.fillStyle = '#111';
-    ctx.fillText(name, x + 7, y - 7);
+    ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(start.x, start.y, 4.5, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
   }
   ctx.restore();
+  const near = start && goal && Math.hypot(start.x - goal.x, start.y - goal.y) < 18;
+  const labels = near ? [[start, 'start = goal']] : [[start, 'start'], [goal, 'goal']].filter(([p]) => p);
+  for (const [p, name] of labels) label(ctx, p, name, plot);
+  canvas.dataset.markers = JSON.stringify({ start, goal });
+}
+
+/** A marker's name beside it, on whichever side keeps it inside the plot and clear of the
+ * labels already written. */
+function label(ctx, p, name, plot) {
+  ctx.font = '600 12px system-ui, sans-serif';
+  const w = ctx.measureText(name).width, h = 12, gap = 10;
+  const sides = [[p.x + gap, p.y - gap - h], [p.x - gap - w, p.y - gap - h], [p.x + gap, p.y + gap], [p.x - gap - w, p.y + gap]];
+  const inside = ([x, y]) => x >= MARGIN.left && x + w <= MARGIN.left + plot && y >= MARGIN.top && y + h <= MARGIN.top + plot;
+  const clear = ([x, y]) => drawn.every((b) => x + w <= b.x || b.x + b.w <= x || y + h <= b.y || b.y + b.h <= y);
+  const [x, y] = sides.find((s) => inside(s) && clear(s)) || sides.find(inside) || sides[0];
+  ctx.textAlign = 'left';
+  ctx.textBaseline = 'top';
+  ctx.lineWidth = 3;
+  ctx.strokeStyle = '#fff';
+  ctx.strokeText(name, x, y);
+  ctx.fillStyle = '#111';
+  text(ctx, name, x, y);
 }
 
 /** For a proved-infeasible answer: the components of the start's and the goal's regions. */

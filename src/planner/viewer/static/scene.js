@@ -49,6 +49,11 @@ function dot() {
   ctx.arc(16, 16, 15, 0, 2 * Math.PI);
   ctx.fill();
   dotTexture = new THREE.CanvasTexture(canvas);
+  // no mipmaps: a point a pixel or two wide would sample the smallest level, whose alpha (the
+  // disc's mean cover, 0.69) times a faint opacity falls under the alpha test and the whole
+  // cloud vanishes; the full-size disc keeps its centre opaque at any size
+  dotTexture.generateMipmaps = false;
+  dotTexture.minFilter = THREE.LinearFilter;
   return dotTexture;
 }
 
@@ -260,9 +265,11 @@ export class Scene {
     const geometry = new THREE.BufferGeometry();
     geometry.setAttribute('position', new THREE.BufferAttribute(n === o.points.length ? xyz : xyz.slice(0, 3 * n), 3));
     geometry.computeBoundingSphere();
+    // opaque sprites (the alpha test cuts the disc out); a fainter cloud (a named scene's) is
+    // paler, not translucent, so no opacity can push its points under the alpha test
+    const color = new THREE.Color(COLORS.obstacle).lerp(new THREE.Color(0xffffff), opacity < 0.4 ? 0.45 : 0);
     const material = new THREE.PointsMaterial({
-      color: COLORS.obstacle, size: 2 * o.radius, sizeAttenuation: true, map: dot(), alphaTest: 0.5,
-      transparent: opacity < 0.4, opacity: opacity < 0.4 ? 0.7 : 1,
+      color, size: 2 * o.radius, sizeAttenuation: true, map: dot(), alphaTest: 0.5,
     });
     const pts = new THREE.Points(geometry, material);
     pts.userData = { radius: o.radius, opacity, count: n };

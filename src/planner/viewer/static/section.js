@@ -16,6 +16,7 @@ let index = 0;
 let kappaMax = 10;
 let rest = null;        // {u, w}: the part of a straight path not achieved
 let onPick = null;
+let walls = null;       // [{joint, values, u, w}]: where a joint is at its literal limit (kin.limitWalls)
 
 /** The levels of figure 15 (planner.plotting.ISO_LEVELS) and one colour per band between
  * them (pale to dark blue-green; beyond the last: the pink of near-parallel-singular). */
@@ -92,6 +93,7 @@ function draw(u) {
   ctx.clip();  // a waypoint out of reach may lie beyond the axes
   ctx.imageSmoothingEnabled = false;
   ctx.drawImage(image, x0, y0, x1 - x0, y1 - y0);
+  drawWalls(u, ctx);
   if (rest && rest.u.length >= 2) {
     ctx.strokeStyle = '#555';
     ctx.setLineDash([5 * devicePixelRatio, 4 * devicePixelRatio]);
@@ -122,6 +124,38 @@ function draw(u) {
   }
   ctx.restore();
 }
+
+/** The joint-limit walls of the start's working mode: dashed, each named once. */
+function drawWalls(u, ctx) {
+  if (!walls) return;
+  ctx.save();
+  ctx.strokeStyle = '#6d4c41';
+  ctx.fillStyle = '#4e342e';
+  ctx.lineWidth = 2 * devicePixelRatio;
+  ctx.setLineDash([3 * devicePixelRatio, 3 * devicePixelRatio]);
+  ctx.font = `${11 * devicePixelRatio}px system-ui, sans-serif`;
+  for (const wall of walls) {
+    ctx.beginPath();
+    let open = false, named = null;
+    wall.u.forEach((uu, i) => {
+      if (!Number.isFinite(uu)) { open = false; return; }
+      const x = u.valToPos(uu, 'x', true), y = u.valToPos(wall.w[i], 'y', true);
+      if (open) ctx.lineTo(x, y); else ctx.moveTo(x, y);
+      open = true;
+      named ||= [x, y];
+    });
+    ctx.stroke();
+    const text = `θ${wall.joint} = ${wall.values.map((v) => v.toFixed(4)).join(' | ')}`;
+    if (named) ctx.fillText(text, named[0] + 4 * devicePixelRatio, named[1] - 4 * devicePixelRatio);
+  }
+  ctx.restore();
+}
+
+/** The joint-limit walls to draw (straight-path mode), or null. */
+export function setWalls(list) { walls = list; chart?.redraw(false, false); }
+
+/** What the section draws as joint-limit walls (for the tests). */
+export const wallsData = () => walls;
 
 /** Show the section of a /v1/workspace answer. */
 export function setSection(section, kappa_max) {
