@@ -21,6 +21,11 @@ EXPECTED = {
     "04_design_study.py": ["paper-optimum", "C=D, CD_stretched", "figure:", "design study: ok"],
     "05_cartesian.py": ["status: solved", "check: P within", "status: no_path", "cartesian: ok"],
     "06_pick_and_place.py": ["status: solved", "check: passing the corners", "pick and place: ok"],
+    "07_conveyor.py": [
+        "check: P on the part over every dwell",
+        "picks per minute:",
+        "conveyor: ok",
+    ],
 }
 
 

@@ -12,10 +12,12 @@ working-mode search of ``objective="time"`` is :mod:`planner.sequence.mode_searc
 
 from planner.sequence.motion import SequenceMotion
 from planner.sequence.problem import (
+    MAX_BELT_SPEED,
     MAX_SEQUENCE_TARGETS,
     OBJECTIVES,
     BlendUse,
     Leg,
+    MovingTarget,
     SequenceDiagnostics,
     SequenceResult,
     SequenceTarget,
@@ -23,10 +25,12 @@ from planner.sequence.problem import (
 from planner.sequence.solve import plan_sequence, solve_sequence
 
 __all__ = [
+    "MAX_BELT_SPEED",
     "MAX_SEQUENCE_TARGETS",
     "OBJECTIVES",
     "BlendUse",
     "Leg",
+    "MovingTarget",
     "SequenceDiagnostics",
     "SequenceMotion",
     "SequenceResult",

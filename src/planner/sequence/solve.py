@@ -45,6 +45,7 @@ from planner.sequence.motion import SequenceMotion
 from planner.sequence.problem import (
     MAX_SEQUENCE_TARGETS,
     OBJECTIVES,
+    MovingTarget,
     SequenceResult,
     SequenceTarget,
 )
@@ -159,16 +160,21 @@ def plan_sequence(
             f"objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}",
             field="objective",
         )
-    goals: list[JointPosture | CartesianTarget] = [t.goal for t in targets]
+    goals: list[JointPosture | CartesianTarget | MovingTarget] = [t.goal for t in targets]
     if cycle:
         goals.append(JointPosture(np.asarray(problem.start.q), problem.start.assembly_mode))
     # the end of the trajectory is at rest: the last target without a cycle, the start with one
     stops = [t.stop for t in targets] + ([True] if cycle else [])
     stops[-1] = True
+    if any(isinstance(g, MovingTarget) for g in goals):  # a belt: planned piece by piece
+        from planner.sequence.moving import plan_moving_sequence
+
+        return plan_moving_sequence(problem, targets, goals, cycle, objective, t0)
     if objective == "time" and any(
         isinstance(g, CartesianTarget) and g.working_mode == "any" for g in goals
     ):
         from planner.sequence.mode_search import choose_modes
 
-        return choose_modes(problem, targets, goals, stops, cycle, t0)
-    return run(problem, SequenceMotion(tuple(targets), tuple(goals), tuple(stops), cycle, t0))
+        return choose_modes(problem, targets, goals, stops, cycle, t0)  # type: ignore[arg-type]
+    motion = SequenceMotion(tuple(targets), tuple(goals), tuple(stops), cycle, t0)  # type: ignore[arg-type]
+    return run(problem, motion)

@@ -393,6 +393,17 @@ class CartesianTargetModel(_Request):
         "or 'best_conditioned' (the reachable working mode whose path keeps the largest "
         "kappa(A) lowest: the most precise motion, the paper's section 3.3).",
     )
+    velocity: Annotated[list[Finite], Field(min_length=3, max_length=3)] | None = Field(
+        None,
+        description="A part on a belt, in a sequence's targets only (elsewhere a 422): its "
+        "constant velocity, m/s, |velocity| at most 2 m/s; p is where it is at time t0. The "
+        "tool meets it (P and its velocity equal the part's) and moves with it for the "
+        "target's dwell.",
+    )
+    t0: Finite | None = Field(
+        None,
+        description="With velocity: the sequence time at which the part is at p, s (default 0).",
+    )
     tolerance: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_GOAL_TOLERANCE_M)] = (
         Field(
             0.0,

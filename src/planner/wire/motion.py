@@ -134,6 +134,15 @@ def goal_to_core(
 
     if isinstance(model, JointPostureModel):
         return posture_to_core(model, loc)
+    for name in ("velocity", "t0"):
+        if getattr(model, name, None) is not None:
+            from planner.exceptions import InputError
+
+            with located(*loc, name):
+                raise InputError(
+                    "a moving target (velocity, t0) is accepted only among a sequence's "
+                    "targets (/v1/sequence)"
+                )
     with located(*loc):
         return CartesianTarget(np.array(model.p), model.working_mode)
 

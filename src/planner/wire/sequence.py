@@ -51,6 +51,8 @@ __all__ = [
     "sequence_response",
 ]
 
+#: Longest ``dwell`` on a moving target, s (a part tracked longer leaves the workspace).
+MAX_DWELL_S = 60.0
 #: ``"time"`` (default): each Cartesian "any" target's working mode chosen for the shortest
 #: cycle; ``"fixed"``: each as given ("any" = the single plan's rule).
 Objective = Literal["time", "fixed"]
@@ -72,6 +74,11 @@ class SequenceTargetModel(_Request):
         description="When passing through: the largest distance (m) of the tool point P from "
         "the target's point (MoveIt Pilz's blend_radius); instead of blend, not with it. "
         "Shrinks to fit as blend does.",
+    )
+    dwell: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=MAX_DWELL_S)] = Field(
+        0.0,
+        description="A moving target's (goal with velocity): how long the tool moves with the "
+        "part once it has met it, s (the gripper closes); 0 for any other target.",
     )
 
 
@@ -115,6 +122,12 @@ class LegModel(_Response):
         default_factory=list,
         description="When the trajectory crosses each working-mode transit of the leg "
         "(path.transits, in order; /v1/plan's shape), s; empty when not timed.",
+    )
+    meet_time: float | None = Field(
+        None, description="A moving target's: when the tool meets the part, s (else null)."
+    )
+    meet_point: list[float] | None = Field(
+        None, description="A moving target's: where the tool meets the part, m (else null)."
     )
 
 
@@ -200,15 +213,31 @@ def sequence_inputs(
             _refuse((*loc, "tolerance"), "a sequence target takes no tolerance (0)")
         if getattr(g, "prefer", "shortest") != "shortest":
             _refuse((*loc, "prefer"), "a sequence chooses the modes by its objective")
-        goal = goal_to_core(g, loc)
+        goal = _moving_goal(g, loc) if getattr(g, "velocity", None) is not None else None
+        if goal is None:
+            goal = goal_to_core(g, loc)
         with located("body", "targets", i):
             if t.blend_radius is not None and "blend" in t.model_fields_set:
                 _refuse(
                     ("body", "targets", i, "blend_radius"),
                     "give blend (rad) or blend_radius (m), not both",
                 )
-            targets.append(SequenceTarget(goal, t.stop, t.blend, t.blend_radius))
+            targets.append(SequenceTarget(goal, t.stop, t.blend, t.blend_radius, t.dwell))
     return SequenceInputs(problem, targets, request.cycle, request.objective)
+
+
+def _moving_goal(model: Any, loc: tuple) -> Any:
+    """A goal with a ``velocity``: the library's :class:`~planner.sequence.problem.
+    MovingTarget` (a belt faster than its bound: 422 at ``goal.velocity``)."""
+    from planner.sequence.problem import MovingTarget
+
+    with located(*loc):
+        return MovingTarget(
+            np.array(model.p),
+            model.working_mode,
+            np.array(model.velocity),
+            0.0 if model.t0 is None else model.t0,
+        )
 
 
 def _refuse(loc: tuple, message: str) -> None:
@@ -241,6 +270,8 @@ def sequence_response(
             pass_distance=finite(leg.pass_distance),
             pass_speed=finite(leg.pass_speed),
             transit_times=[float(t) for t in leg.transit_times],
+            meet_time=finite(leg.meet_time),
+            meet_point=None if leg.meet_point is None else [float(x) for x in leg.meet_point],
         )
         for leg in result.legs
     ]
