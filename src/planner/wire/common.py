@@ -74,6 +74,7 @@ __all__ = [
     "Preference",
     "Rates3",
     "SphereObstacle",
+    "StartPostureModel",
     "TimingErrorInfo",
     "Vec3",
     "WorkingModeLabel",
@@ -344,6 +345,25 @@ class JointPostureModel(_Request):
 
     q: Angles3 = Field(description="(theta1, theta2, theta3), rad.")
     assembly_mode: AssemblyModeLabel = Field(description="'+' or '-'.")
+
+
+#: Joint rates of a start state: finite numbers (the limits bound them: a 422 at the field).
+Rate3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
+
+
+class StartPostureModel(JointPostureModel):
+    """A motion's start: a joint posture, and the state it is moving in (default: at rest)."""
+
+    qd: Rate3 = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="Joint velocity at the start, rad/s (default zeros). Within "
+        "limits.velocity; the trajectory begins in exactly this state (docs/execution.md).",
+    )
+    qdd: Rate3 = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="Joint acceleration at the start, rad/s^2 (default zeros). Within "
+        "limits.acceleration (and, with ruckig, reachable under limits.jerk).",
+    )
 
 
 #: Largest ``goal.tolerance`` of a Cartesian target, m, and of a joint goal, rad.

@@ -27,6 +27,7 @@ from planner.wire.common import (
     JointPostureModel,
     MarginsModel,
     Obstacle,
+    StartPostureModel,
     _DesignField,
     _Request,
     design_to_core,
@@ -90,7 +91,7 @@ class MotionRequest(_Request):
     """The fields of every motion request (a plan, a sequence, a straight path)."""
 
     design: DesignModel = _DesignField
-    start: JointPostureModel
+    start: StartPostureModel
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
     scene: SceneName | None = Field(
         None,
@@ -170,6 +171,8 @@ def motion_problem(
             inertia_to_core(request.design),
             triple_to_core(request.gravity),
             Budget(deadline),
+            triple_to_core(request.start.qd),
+            triple_to_core(request.start.qdd),
         )
 
 
