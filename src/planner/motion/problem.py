@@ -231,5 +231,12 @@ class MotionProblem:
         )
 
     def with_(self, **changes: Any) -> MotionProblem:
-        """A copy with ``changes`` (e.g. another start, or timing options), checked again."""
+        """A copy with ``changes`` (e.g. another start, or timing options), checked again.
+        A new ``start`` or ``timing`` starts at rest unless ``start_qd``/``start_qdd`` are
+        given too (a sequence plans its legs from rest, untimed; the joined path is timed
+        from the moving start)."""
+        if ("start" in changes or "timing" in changes) and not (
+            {"start_qd", "start_qdd"} & changes.keys()
+        ):
+            changes = {**changes, "start_qd": (0.0, 0.0, 0.0), "start_qdd": (0.0, 0.0, 0.0)}
         return replace(self, **changes)

@@ -272,7 +272,7 @@ def _first_failure(
     ):
         if x is None or lim is None:
             continue
-        ratio = np.nanmax(np.abs(x) / lim)
+        ratio = float(np.max(np.where(np.isnan(x), 0.0, np.abs(x)) / lim))
         if ratio > tol:
             return f"the {name} limit exceeded by a factor {ratio:.6f}"
     return None

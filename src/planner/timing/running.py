@@ -78,8 +78,8 @@ class RunningTrajectory:
         if np.any(steps <= 0.0):
             i = int(np.argmax(steps <= 0.0))
             raise InputError(
-                f"{prefix}.t must increase strictly: t[{i + 1}] = {tt[i + 1]!r} <= t[{i}] = "
-                f"{tt[i]!r}",
+                f"{prefix}.t must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} <= "
+                f"t[{i}] = {float(tt[i])!r}",
                 field=f"{prefix}.t",
             )
         return cls(tt, *arrays)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from planner.wire.common import (
@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from planner.planning.result import PlanPath, PlanResult
     from planner.solver import Solution
     from planner.timing.trajectory import Trajectory
+from planner.wire.execution import ReplaceModel, fill_start_from_replace
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.timing import (
     AnyTrajectory,
@@ -64,6 +65,16 @@ class PlanRequest(MotionRequest):
     goal: Goal
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
+    replace: ReplaceModel | None = Field(
+        None,
+        description="Replace a running trajectory mid-motion: the answer starts from its state "
+        "at `at` (then `start` may be omitted) and its times are on its clock (docs/execution.md).",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _start_from_replace(cls, data: Any) -> Any:
+        return fill_start_from_replace(data)
 
 
 PlanStatus = Literal["solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout"]
