@@ -27,6 +27,7 @@ from planner_api.routes import design, kinematics, meta, plan, scenes
 from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import sequence as sequence_routes
+from planner_api.routes import stop as stop_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -151,6 +152,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         cartesian_routes.router,
         dynamics_routes.router,
         sequence_routes.router,
+        stop_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
     # the scenes come from the store: no worker to cancel

@@ -23,6 +23,7 @@ import typer
 from planner_cli import (
     analysis,
     dynamics,
+    execution,
     figures,
     jobs,
     kinematics,
@@ -65,6 +66,7 @@ register(analysis.regions)
 register(plan.plan)
 register(plan.cartesian)
 register(sequence.sequence)
+register(execution.stop)
 register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)

@@ -41,6 +41,7 @@ The start state must be within the limits (:func:`check_start_rates`): ``|qd| <=
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -181,13 +182,18 @@ class MoveChain:
     moves: tuple[RuckigTrajectory, ...]
     jerk_limited: bool
 
-    @property
+    @functools.cached_property
     def starts(self) -> np.ndarray:
         return np.concatenate([[0.0], np.cumsum([m.duration for m in self.moves])])
 
-    @property
+    @functools.cached_property
     def duration(self) -> float:
         return float(self.starts[-1])
+
+    @functools.cached_property
+    def _tables(self) -> list:
+        """The jerk-limited moves' phase tables, read once."""
+        return _moves_from(list(self.moves), [()] * len(self.moves)) if self.jerk_limited else []
 
     def evaluate(self, t: np.ndarray) -> Evaluation:
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -201,7 +207,7 @@ class MoveChain:
                 continue
             tau = np.clip(t[sel] - starts[i], 0.0, move.duration)
             if self.jerk_limited:
-                got = _moves_from([move], [()])[0].evaluate(tau)
+                got = self._tables[i].evaluate(tau)
             else:
                 got = _evaluate_with_ruckig(move, tau)
             q[sel], qd[sel], qdd[sel], jerk[sel] = got
@@ -249,9 +255,12 @@ def _first_failure(
     limits: JointLimits,
     check_states: StateChecker | None,
     resolution: float,
+    inherited: StartState | None = None,
 ) -> str | None:
     """Why ``chain`` is not acceptable (joint limits, assembly, validity, rate limits at
-    postures ``resolution`` apart), naming the rule, the time and the posture; None: it is."""
+    postures ``resolution`` apart), naming the rule, the time and the posture; None: it is.
+    ``inherited``: a start state whose velocity or acceleration already exceeds a limit (a
+    running trajectory read between its samples), which the chain may keep up to."""
     t = chain.check_times(resolution, _speed(limits))
     q, qd, qdd, jerk = chain.evaluate(t)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
@@ -265,9 +274,13 @@ def _first_failure(
         i = int(np.argmax(bad))
         return f"{rule} at t = {t[i]:.4f} s, q = {np.round(q[i], 6).tolist()}"
     tol = 1.0 + LIMIT_RTOL
+    v_max, a_max = limits.velocity_array, limits.acceleration_array
+    if inherited is not None:
+        v_max = np.maximum(v_max, np.abs(inherited.qd))
+        a_max = np.maximum(a_max, np.abs(inherited.qdd))
     for name, x, lim in (
-        ("velocity", qd, limits.velocity_array),
-        ("acceleration", qdd, limits.acceleration_array),
+        ("velocity", qd, v_max),
+        ("acceleration", qdd, a_max),
         ("jerk", jerk, limits.jerk_array),
     ):
         if x is None or lim is None:

@@ -123,19 +123,40 @@ class RunningTrajectory:
         time, that sample exactly (jerk: the later interval's)."""
         tt = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), self.start, self.end)
         k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, self.t.shape[0] - 2)
-        _, c = self._coefficients(k)
+        lo = int(k.min())  # the intervals spanned, each interval's quintic computed once
+        _, c = self._coefficients(np.arange(lo, int(k.max()) + 1))
+        c = c[k - lo]
         x = (tt - self.t[k])[:, None]
         q = c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * (c[:, 3] + x * (c[:, 4] + x * c[:, 5]))))
         qd = c[:, 1] + x * (2 * c[:, 2] + x * (3 * c[:, 3] + x * (4 * c[:, 4] + x * 5 * c[:, 5])))
         qdd = 2 * c[:, 2] + x * (6 * c[:, 3] + x * (12 * c[:, 4] + x * 20 * c[:, 5]))
         jerk = 6 * c[:, 3] + x * (24 * c[:, 4] + x * 60 * c[:, 5])
-        exact = np.isin(tt, self.t)  # a sample time: that sample, bit for bit
-        if np.any(exact):
-            i = np.searchsorted(self.t, tt[exact])
-            q[exact], qd[exact], qdd[exact] = self.q[i], self.qd[i], self.qdd[i]
+        # at a sample time x = 0, and the polynomial gives that sample bit for bit (c0, c1 and
+        # 2 * (a0 / 2) are exact); only the last sample lies at the end of its interval
+        last = tt >= self.end
+        if np.any(last):
+            q[last], qd[last], qdd[last] = self.q[-1], self.qd[-1], self.qdd[-1]
         return q, qd, qdd, jerk
 
     def state_at(self, at: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """q, qd, qdd (each (3,)) at time ``at`` (inside [start, end])."""
-        q, qd, qdd, _ = self.evaluate(np.array([at]))
-        return q[0], qd[0], qdd[0]
+        """q, qd, qdd (each (3,)) at time ``at`` (inside [start, end]): :meth:`evaluate` at
+        one time, without its array overhead (a stop reads one state per call)."""
+        t = self.t
+        k = int(np.searchsorted(t, at, side="right")) - 1
+        if k >= t.shape[0] - 1 or at >= t[-1]:
+            return self.q[-1].copy(), self.qd[-1].copy(), self.qdd[-1].copy()
+        k = max(k, 0)
+        x = float(at) - float(t[k])
+        if x <= 0.0:
+            return self.q[k].copy(), self.qd[k].copy(), self.qdd[k].copy()
+        h = float(t[k + 1] - t[k])
+        p0, v0, a0 = self.q[k], self.qd[k], self.qdd[k]
+        p1, v1, a1 = self.q[k + 1], self.qd[k + 1], self.qdd[k + 1]
+        dp = p1 - p0
+        c3 = (20 * dp - (8 * v1 + 12 * v0) * h - (3 * a0 - a1) * h**2) / (2 * h**3)
+        c4 = (-30 * dp + (14 * v1 + 16 * v0) * h + (3 * a0 - 2 * a1) * h**2) / (2 * h**4)
+        c5 = (12 * dp - 6 * (v1 + v0) * h - (a0 - a1) * h**2) / (2 * h**5)
+        q = p0 + x * (v0 + x * (a0 / 2 + x * (c3 + x * (c4 + x * c5))))
+        qd = v0 + x * (a0 + x * (3 * c3 + x * (4 * c4 + x * 5 * c5)))
+        qdd = a0 + x * (6 * c3 + x * (12 * c4 + x * 20 * c5))
+        return q, qd, qdd

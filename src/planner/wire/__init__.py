@@ -130,6 +130,13 @@ from planner.wire.dynamics import (
     dynamics_answer,
     mjcf_answer,
 )
+from planner.wire.execution import (
+    ReplaceModel,
+    RunningTrajectoryModel,
+    StopRequest,
+    StopResponse,
+    running_model,
+)
 from planner.wire.jobs import (
     JOB_KINDS,
     JobError,
@@ -335,6 +342,8 @@ __all__ = [
     "RegionTransitModel",
     "RegionsRequest",
     "RegionsResponse",
+    "ReplaceModel",
+    "RunningTrajectoryModel",
     "SampledValue",
     "Scaling",
     "Scene",
@@ -353,6 +362,8 @@ __all__ = [
     "SerialMargins",
     "SphereObstacle",
     "StartPostureModel",
+    "StopRequest",
+    "StopResponse",
     "TimingErrorInfo",
     "TimingOptionsModel",
     "TimingRequest",
@@ -394,6 +405,7 @@ __all__ = [
     "posture_model",
     "posture_to_core",
     "regions_model",
+    "running_model",
     "sampled_value",
     "scene_hash",
     "scene_obstacles",

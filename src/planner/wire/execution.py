@@ -44,6 +44,7 @@ __all__ = [
     "fill_start_from_replace",
     "on_running_clock",
     "replace_start",
+    "running_model",
     "running_trajectory",
     "shifted",
 ]
@@ -79,6 +80,20 @@ class ReplaceModel(_Request):
         description="Assembly mode of the running trajectory, when `start` is omitted "
         "(given, `start.assembly_mode` is used).",
     )
+
+
+def running_model(trajectory: Any) -> RunningTrajectoryModel:
+    """The running trajectory of an answer's ``trajectory`` (arrays or points form, a model
+    or its dict: a client passes back what it was given)."""
+    from planner.wire.timing import TrajectoryModel, TrajectoryPointsModel, trajectory_arrays
+
+    if isinstance(trajectory, RunningTrajectoryModel):
+        return trajectory
+    if isinstance(trajectory, dict) and "points" in trajectory:
+        trajectory = TrajectoryPointsModel.model_validate(trajectory)
+    if isinstance(trajectory, TrajectoryModel | TrajectoryPointsModel):
+        trajectory = trajectory_arrays(trajectory).model_dump(include={"t", "q", "qd", "qdd"})
+    return RunningTrajectoryModel.model_validate(trajectory)
 
 
 def running_trajectory(
@@ -198,6 +213,14 @@ class StopRequest(_Request):
     )
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
     format: TrajectoryFormat = Field("arrays", description="'arrays' or 'points'.")
+    method: Literal["ruckig", "toppra"] = Field(
+        "ruckig",
+        description="'ruckig' (default): the stop keeps limits.jerk, q, qd and qdd continuous; "
+        "'toppra': second order, the acceleration may jump (as the running trajectory's).",
+    )
+    sample_rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = Field(
+        100.0, description="Rate of the answer's samples, Hz (from `at`, the end included)."
+    )
 
 
 StopStatus = Literal["solved", "invalid_start"]
