@@ -77,6 +77,8 @@ CANDIDATES = 24
 TRIES = 6
 #: Times scanned for the part of the trajectory along the first planned segment.
 SCAN = 200
+#: A join state this close (rad, rad/s, rad/s^2) to the first segment's line lies on it.
+ON_LINE = 1e-9
 
 Evaluation = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
 
@@ -175,11 +177,61 @@ def _solve(inp: InputParameter, start: tuple, target: tuple | None) -> RuckigTra
 
 
 @dataclass(frozen=True, eq=False)
+class LineMove:
+    """A move along the straight line ``origin + s u`` (u a unit joint direction): one Ruckig
+    move of the path coordinate s (rad), under the joint limits projected onto the line
+    (``min_j limit_j / |u_j|``). Every posture lies on the line exactly (a 3-joint move
+    between collinear states need not: Ruckig synchronises their phases only when it can)."""
+
+    source: RuckigTrajectory
+    origin: np.ndarray
+    u: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        return float(self.source.duration)
+
+    def evaluate(self, tau: np.ndarray) -> Evaluation:
+        rows = [self.source.at_time(float(x)) for x in tau]
+        s, sd, sdd = (np.array([r[i][0] for r in rows]) for i in range(3))
+        u = self.u[None, :]
+        return self.origin + s[:, None] * u, sd[:, None] * u, sdd[:, None] * u, None
+
+
+def _line_move(
+    segment: np.ndarray, start: tuple, target: tuple, limits: JointLimits, jerk_limited: bool
+) -> LineMove | str:
+    """The move between two states on the line of ``segment`` ((2, 3)), in its coordinate."""
+    a, b = segment
+    u = (b - a) / np.linalg.norm(b - a)
+    inp = InputParameter(1)
+    scale = np.where(np.abs(u) > 0, 1.0 / np.maximum(np.abs(u), 1e-300), np.inf)
+    inp.max_velocity = [float(np.min(limits.velocity_array * scale))]
+    inp.max_acceleration = [float(np.min(limits.acceleration_array * scale))]
+    jerk = limits.jerk_array
+    inp.max_jerk = [float(np.min(jerk * scale)) if jerk_limited and jerk is not None else math.inf]
+    inp.current_position, inp.current_velocity, inp.current_acceleration = (
+        [float((np.asarray(x) - base) @ u)] for x, base in zip(start, (a, 0.0, 0.0), strict=True)
+    )
+    inp.target_position, inp.target_velocity, inp.target_acceleration = (
+        [float((np.asarray(x) - base) @ u)] for x, base in zip(target, (a, 0.0, 0.0), strict=True)
+    )
+    traj = RuckigTrajectory(1)
+    try:
+        result = Ruckig(1).calculate(inp, traj)
+    except RuckigError as exc:
+        return f"ruckig rejected the move: {str(exc).strip()}"
+    if result not in (Result.Working, Result.Finished):
+        return f"ruckig found no move: {result}"
+    return LineMove(traj, a, u)
+
+
+@dataclass(frozen=True, eq=False)
 class MoveChain:
     """Ruckig moves one after the other from t = 0 (jerk-limited ones read from their phase
     tables, with their jerk; second-order ones by Ruckig's ``at_time``)."""
 
-    moves: tuple[RuckigTrajectory, ...]
+    moves: tuple[RuckigTrajectory | LineMove, ...]
     jerk_limited: bool
 
     @functools.cached_property
@@ -192,8 +244,10 @@ class MoveChain:
 
     @functools.cached_property
     def _tables(self) -> list:
-        """The jerk-limited moves' phase tables, read once."""
-        return _moves_from(list(self.moves), [()] * len(self.moves)) if self.jerk_limited else []
+        """The jerk-limited moves' phase tables, read once (None for a line move)."""
+        if not self.jerk_limited:
+            return []
+        return [None if isinstance(m, LineMove) else _moves_from([m], [()])[0] for m in self.moves]
 
     def evaluate(self, t: np.ndarray) -> Evaluation:
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -206,12 +260,16 @@ class MoveChain:
             if not np.any(sel):
                 continue
             tau = np.clip(t[sel] - starts[i], 0.0, move.duration)
-            if self.jerk_limited:
+            if isinstance(move, LineMove):
+                got = move.evaluate(tau)
+            elif self.jerk_limited:
                 got = self._tables[i].evaluate(tau)
             else:
                 got = _evaluate_with_ruckig(move, tau)
-            q[sel], qd[sel], qdd[sel], jerk[sel] = got
-        return q, qd, qdd, (jerk if self.jerk_limited else None)
+            q[sel], qd[sel], qdd[sel] = got[0], got[1], got[2]
+            if got[3] is not None:
+                jerk[sel] = got[3]
+        return q, qd, qdd, (jerk if self.jerk_limited and not np.all(np.isnan(jerk)) else None)
 
     def rest_times(self) -> np.ndarray:
         """The ends of inner moves that end at rest (a brake before a return)."""
@@ -397,6 +455,27 @@ def _join_times(rest: Curve, first_segment: np.ndarray | None, near: float) -> n
     return grid[pick]
 
 
+def _onto_segment(
+    segment: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Join states that lie on the segment's line (within ``ON_LINE``: position, velocity and
+    acceleration) made exactly collinear with it, and which of them do (M,) bool."""
+    a, b = segment
+    length = float(np.linalg.norm(b - a))
+    if length == 0.0:
+        return q, qd, qdd, np.zeros(q.shape[0], bool)
+    u = (b - a) / length
+    out = []
+    for x, base in ((q, a), (qd, 0.0), (qdd, 0.0)):
+        along = (x - base) @ u
+        out.append(
+            (base + along[:, None] * u, np.linalg.norm(x - base - along[:, None] * u, axis=1))
+        )
+    on = (out[0][1] <= ON_LINE) & (out[1][1] <= ON_LINE) & (out[2][1] <= ON_LINE)
+    fixed = [np.where(on[:, None], proj, x) for (proj, _), x in zip(out, (q, qd, qdd), strict=True)]
+    return fixed[0], fixed[1], fixed[2], on
+
+
 def _join_candidates(
     state: StartState,
     rest: Curve,
@@ -404,16 +483,29 @@ def _join_candidates(
     jerk_limited: bool,
     first_segment: np.ndarray | None,
     near: float,
-) -> list[tuple[float, float, RuckigTrajectory]]:
-    """(total duration, join time, move) of every candidate lead-in, quickest first."""
+) -> list[tuple[float, float, RuckigTrajectory | LineMove]]:
+    """(total duration, join time, move) of every candidate lead-in, quickest first: a move
+    along the first segment's line where the start and the join both lie on it, else a
+    3-joint move."""
     taus = _join_times(rest, first_segment, near)
     q, qd, qdd, _ = rest.evaluate(taus)
+    on_line = np.zeros(taus.shape[0], bool)
+    segment = None if first_segment is None else np.asarray(first_segment, dtype=float)
+    if segment is not None and np.linalg.norm(segment[1] - segment[0]) > 0.0:
+        start = _onto_segment(segment, state.q[None], state.qd[None], state.qdd[None])[3]
+        q, qd, qdd, on_line = _onto_segment(segment, q, qd, qdd)
+        on_line &= bool(start[0])
     inp = _input(limits, jerk_limited)
     found = []
     for k, tau in enumerate(taus):
         if tau == rest.duration:
             qd[k] = qdd[k] = 0.0
-        got = _solve(inp, (state.q, state.qd, state.qdd), (q[k], qd[k], qdd[k]))
+        begin, end = (state.q, state.qd, state.qdd), (q[k], qd[k], qdd[k])
+        got: RuckigTrajectory | LineMove | str
+        if on_line[k] and segment is not None:
+            got = _line_move(segment, begin, end, limits, jerk_limited)
+        else:
+            got = _solve(inp, begin, end)
         if not isinstance(got, str):
             found.append((got.duration + rest.duration - float(tau), float(tau), got))
     found.sort(key=lambda x: x[0])
@@ -435,7 +527,7 @@ def _lead_in(
     """The quickest acceptable lead-in onto ``rest``, or the fallback (module docstring)."""
     failures = []
     candidates = _join_candidates(state, rest, limits, jerk_limited, first_segment, near)
-    for _, tau, move in candidates[:TRIES]:
+    for _, tau, move in candidates[:TRIES]:  # (a line move: on the path by construction)
         chain = MoveChain((move,), jerk_limited)
         why = _first_failure(chain, design, assembly_mode, limits, check_states, resolution)
         if why is None:

@@ -21,6 +21,7 @@ from planner.wire.common import (
     WorkingModeLabel,
     _Request,
     _Response,
+    lead_in_model,
 )
 
 if TYPE_CHECKING:
@@ -217,6 +218,7 @@ def plan_response(
         timing["timing_time_s"] = trajectory.computation_time_s
         timing["timing_repairs"] = trajectory.repairs
         timing["max_torque_ratio"] = getattr(trajectory, "max_torque_ratio", None)
+        timing["lead_in"] = lead_in_model(trajectory)
     diagnostics = DiagnosticsModel(
         planning_time_s=d.planning_time_s,
         path_length=finite(d.path_length),

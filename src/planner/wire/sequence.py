@@ -17,6 +17,7 @@ from planner.wire.common import (
     Goal,
     _Request,
     _Response,
+    lead_in_model,
     located,
 )
 from planner.wire.execution import ReplaceModel, fill_start_from_replace
@@ -268,6 +269,7 @@ def sequence_response(
         extra["timing_time_s"] = d.timing_time_s
         extra["timing_repairs"] = traj.repairs
         extra["max_torque_ratio"] = getattr(traj, "max_torque_ratio", None)
+        extra["lead_in"] = lead_in_model(traj)
     runner = d.runner_up
     diagnostics = SequenceDiagnosticsModel(
         planning_time_s=d.planning_time_s,
