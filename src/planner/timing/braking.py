@@ -117,6 +117,11 @@ def _along_path(
     if d.size == 0:
         return None
     x = np.linspace(0.0, 1.0, GRID)
+    # the longest first: its scaling is the mildest, and where even it breaks a limit the
+    # running trajectory is itself at that limit near at (a time-optimal one mostly is), and
+    # no shorter one keeps it either (then the brake, without the other chunks' cost)
+    if _fitting(running, at, x, d[-1:], limits, jerk_limited) is None:
+        return None
     for first in range(0, d.size, CHUNK):  # the shortest first: most stops end in the first
         found = _fitting(running, at, x, d[first : first + CHUNK], limits, jerk_limited)
         if found is not None:
@@ -267,7 +272,7 @@ def _braked(
         why = _first_failure(chain, design, assembly_mode, limits, rules, resolution, state) or ""
         if not why:
             t = sample_times(chain.duration, rate)
-            q, qd, qdd, _ = chain.evaluate(t)
+            q, qd, qdd, _ = chain.evaluate(t, jerk=False)
             q[0], qd[0], qdd[0] = state.q, state.qd, state.qdd
             qd[-1] = qdd[-1] = 0.0
             message = f"braked off the running path ({why_path})"

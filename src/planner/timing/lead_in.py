@@ -249,12 +249,15 @@ class MoveChain:
             return []
         return [None if isinstance(m, LineMove) else _moves_from([m], [()])[0] for m in self.moves]
 
-    def evaluate(self, t: np.ndarray) -> Evaluation:
+    def evaluate(self, t: np.ndarray, *, jerk: bool = True) -> Evaluation:
+        """q, qd, qdd and (``jerk``, jerk-limited moves) the jerk at times t (M,), (M, 3)
+        each; without the jerk, Ruckig's own ``at_time`` (cheaper for a few hundred
+        samples than the phase tables)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         starts = self.starts
         k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.moves) - 1)
         q, qd, qdd = (np.zeros((t.shape[0], 3)) for _ in range(3))
-        jerk = np.full((t.shape[0], 3), np.nan)
+        j = np.full((t.shape[0], 3), np.nan)
         for i, move in enumerate(self.moves):
             sel = k == i
             if not np.any(sel):
@@ -262,14 +265,14 @@ class MoveChain:
             tau = np.clip(t[sel] - starts[i], 0.0, move.duration)
             if isinstance(move, LineMove):
                 got = move.evaluate(tau)
-            elif self.jerk_limited:
+            elif self.jerk_limited and jerk:
                 got = self._tables[i].evaluate(tau)
             else:
                 got = _evaluate_with_ruckig(move, tau)
             q[sel], qd[sel], qdd[sel] = got[0], got[1], got[2]
             if got[3] is not None:
-                jerk[sel] = got[3]
-        return q, qd, qdd, (jerk if self.jerk_limited and not np.all(np.isnan(jerk)) else None)
+                j[sel] = got[3]
+        return q, qd, qdd, (j if self.jerk_limited and not np.all(np.isnan(j)) else None)
 
     def rest_times(self) -> np.ndarray:
         """The ends of inner moves that end at rest (a brake before a return)."""
@@ -320,7 +323,13 @@ def _first_failure(
     ``inherited``: a start state whose velocity or acceleration already exceeds a limit (a
     running trajectory read between its samples), which the chain may keep up to."""
     t = chain.check_times(resolution, _speed(limits))
-    q, qd, qdd, jerk = chain.evaluate(t)
+    q, qd, qdd, _ = chain.evaluate(t, jerk=False)
+    # the jerk by differences of qdd (what a controller sees; the moves keep it exactly)
+    jerk = (
+        np.diff(qdd, axis=0) / np.maximum(np.diff(t), 1e-300)[:, None]
+        if chain.jerk_limited
+        else None
+    )
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     bad = np.any((q < lo) | (q > hi), axis=1)
     rule = "joint_limits"

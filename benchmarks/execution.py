@@ -1,0 +1,218 @@
+"""Execution: replacement mid-motion and stops, on random running trajectories.
+
+    .venv/bin/python benchmarks/execution.py [--splices 1000] [--stops 1000] [--seed 1]
+
+* **Splices.** ``--splices`` random replacements (half toppra, half ruckig): a random running
+  trajectory (a free-space plan between random postures near the default design's centre,
+  timed at 250 Hz), a random sample time ``at`` on it, a random free-space goal; the request
+  ``{"replace": {"trajectory", "at"}, "goal", "timing"}`` answered in this process
+  (:func:`planner.endpoints.plan.plan`: wire conversion, planning, timing, lead-in, response).
+  Each answer is checked: the splice (q, qd, qdd of the first sample against the running
+  state, 1e-9), the limits by finite differences of the samples (velocity, acceleration,
+  and jerk for ruckig), and the independent plan checker (tests/plan_checker.py: validity
+  of every sample and the chords between them, limits, the path). Counted: discontinuities,
+  limit violations, checker failures, answers not solved. Latency: wall and CPU time of the
+  call, p50 and p95 (goal, issue 40: p50 <= 10 ms for a free-space goal).
+* **Stops.** ``--stops`` random (running trajectory, ``at``): the core's
+  :func:`planner.timing.braking.stop_trajectory` (checkers built once per running
+  trajectory, as a controller's session would) and the whole endpoint
+  :func:`planner.endpoints.stop.stop` (conversion and checker construction included):
+  latency p50 / p95, share kept along the running path, and the same splice and
+  finite-difference checks (goal: <= 1 ms in-process).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from _machine import print_machine
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from plan_checker import check_plan
+
+from planner import Design
+from planner.endpoints.plan import plan
+from planner.endpoints.stop import stop as stop_endpoint
+from planner.timing import JointLimits
+from planner.timing.braking import stop_trajectory
+from planner.timing.running import RunningTrajectory
+from planner.validity import Margins, ValidityChecker
+from planner.wire import PlanRequest, StopRequest
+
+CENTRE = np.array([0.0, 2.0, 1.0])
+SPREAD = 0.35
+RATE = 250.0
+V, A, J = 2.0, 8.0, 200.0
+
+
+def posture(q) -> dict:
+    return {"q": [float(x) for x in q], "assembly_mode": "+"}
+
+
+def solved(body: dict) -> dict | None:
+    answer = plan(PlanRequest.model_validate(body)).model_dump(mode="json")
+    return answer if answer["status"] == "solved" else None
+
+
+def running_pool(rng: np.random.Generator, method: str, n: int) -> list[dict]:
+    """``n`` running trajectories: free-space plans between random postures."""
+    pool: list[dict] = []
+    while len(pool) < n:
+        a, b = CENTRE + rng.uniform(-SPREAD, SPREAD, (2, 3))
+        body = {"start": posture(a), "goal": posture(b), "planner": {"seed": 1},
+                "timing": {"method": method, "sample_rate_hz": RATE}}  # fmt: skip
+        answer = solved(body)
+        if answer is not None:
+            pool.append(answer["trajectory"])
+    return pool
+
+
+def fd_violations(traj: dict, jerk: bool) -> int:
+    """Samples whose finite differences exceed a limit (mean value theorem)."""
+    t = np.asarray(traj["t"])
+    q, qd, qdd = (np.asarray(traj[k]) for k in ("q", "qd", "qdd"))
+    dt = np.diff(t)[:, None]
+    slack = 1 + 1e-6
+    bad = np.abs(np.diff(q, axis=0)) > V * dt * slack + 1e-12
+    bad |= np.abs(np.diff(qd, axis=0)) > A * dt * slack + 1e-12
+    if jerk:
+        bad |= np.abs(np.diff(qdd, axis=0)) > J * dt * slack + 1e-9
+    return int(np.any(bad, axis=1).sum())
+
+
+def splice_gap(traj: dict, running: dict, k: int) -> float:
+    return max(
+        float(np.max(np.abs(np.asarray(traj[key][0]) - np.asarray(running[key][k]))))
+        for key in ("q", "qd", "qdd")
+    )
+
+
+def splices(rng: np.random.Generator, count: int) -> None:
+    pools = {m: running_pool(rng, m, 10) for m in ("toppra", "ruckig")}
+    wall: list[float] = []
+    cpu: list[float] = []
+    counts = dict.fromkeys(("discontinuities", "limits", "checker", "not solved"), 0)
+    for i in range(count):
+        method = "toppra" if i % 2 == 0 else "ruckig"
+        running = pools[method][int(rng.integers(len(pools[method])))]
+        k = int(rng.integers(0, len(running["t"])))
+        goal = CENTRE + rng.uniform(-SPREAD, SPREAD, 3)
+        body = {"replace": {"trajectory": running, "at": running["t"][k]}, "goal": posture(goal),
+                "planner": {"seed": 1}, "timing": {"method": method, "sample_rate_hz": RATE}}  # fmt: skip
+        w0, c0 = time.perf_counter(), time.process_time()
+        answer = solved(body)
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+        if answer is None:
+            counts["not solved"] += 1
+            continue
+        traj = answer["trajectory"]
+        counts["discontinuities"] += int(
+            splice_gap(traj, running, k) > 1e-9 or traj["t"][0] != running["t"][k]
+        )
+        counts["limits"] += int(fd_violations(traj, method == "ruckig") > 0)
+        state = {key: running[key][k] for key in ("q", "qd", "qdd")}
+        lead = answer["diagnostics"]["lead_in"]
+        report = check_plan(
+            {**body, "start": {**posture(state["q"]), **state}},
+            answer,
+            start_state=state,
+            lead_in_s=0.0 if lead is None else lead["duration"],
+        )
+        counts["checker"] += int(not report.ok)
+    ms = [x * 1e3 for x in wall]
+    cpu_ms = [x * 1e3 for x in cpu]
+    print(f"\n## Replacement: {count} random splices (half toppra, half ruckig, {RATE:g} Hz)\n")
+    print("| | p50 | p95 |\n|---|---|---|")
+    print(
+        f"| latency, wall (plan endpoint in-process) | {pct(ms, 50):.2f} ms | {pct(ms, 95):.2f} ms |"
+    )
+    print(f"| latency, CPU | {pct(cpu_ms, 50):.2f} ms | {pct(cpu_ms, 95):.2f} ms |")
+    print("\n| discontinuities | limit violations (FD) | plan checker failures | not solved |")
+    print("|---|---|---|---|")
+    print(
+        f"| {counts['discontinuities']} | {counts['limits']} | {counts['checker']} | {counts['not solved']} |"
+    )
+
+
+def pct(values: list[float], p: float) -> float:
+    return float(np.percentile(values, p)) if values else float("nan")
+
+
+def stops(rng: np.random.Generator, count: int) -> None:
+    design = Design.default()
+    limits = JointLimits(velocity=(V,) * 3, acceleration=(A,) * 3, jerk=(J,) * 3)
+    free = ValidityChecker(design, Margins(), [], "+", "+++", serial_rules=False)
+    pools = {m: running_pool(rng, m, 10) for m in ("toppra", "ruckig")}
+    core: list[float] = []
+    core_cpu: list[float] = []
+    whole: list[float] = []
+    along = bad = gaps = 0
+    for i in range(count):
+        method = "toppra" if i % 2 == 0 else "ruckig"
+        running = pools[method][int(rng.integers(len(pools[method])))]
+        reading = RunningTrajectory.of(running["t"], running["q"], running["qd"], running["qdd"])
+        at = float(rng.uniform(reading.start, reading.end))
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = stop_trajectory(
+            reading, at, design=design, assembly_mode="+", limits=limits,
+            path_rules=free.is_valid, brake_rules=free.is_valid,
+            jerk_limited=method == "ruckig", sample_rate_hz=RATE,
+        )  # fmt: skip
+        core.append(time.perf_counter() - t0)
+        core_cpu.append(time.process_time() - c0)
+        request = StopRequest.model_validate(
+            {"trajectory": running, "at": at, "method": method, "sample_rate_hz": RATE}
+        )
+        t0 = time.perf_counter()
+        answer = stop_endpoint(request)
+        whole.append(time.perf_counter() - t0)
+        if result.status != "solved":
+            bad += 1
+            continue
+        along += int(result.along_path)
+        arrays = {"t": result.t, "q": result.q, "qd": result.qd, "qdd": result.qdd}
+        bad += int(fd_violations(arrays, method == "ruckig") > 0)
+        state = reading.state_at(at)
+        gaps += int(
+            max(
+                float(np.max(np.abs(a[0] - b)))
+                for a, b in zip((result.q, result.qd, result.qdd), state, strict=True)
+            )
+            > 1e-9
+        )
+        assert answer.status == result.status
+    core_ms = [x * 1e3 for x in core]
+    whole_ms = [x * 1e3 for x in whole]
+    print(f"\n## Stops: {count} random states on random running trajectories\n")
+    print("| | p50 | p95 |\n|---|---|---|")
+    print(
+        f"| stop, core (stop_trajectory) | {pct(core_ms, 50):.3f} ms | {pct(core_ms, 95):.3f} ms |"
+    )
+    print(
+        f"| stop, endpoint (conversion, checkers) | {pct(whole_ms, 50):.3f} ms | {pct(whole_ms, 95):.3f} ms |"
+    )
+    print(f"\nalong the running path: {along} of {count}; discontinuities: {gaps}; "
+          f"limit violations (FD) or no stop: {bad}")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--splices", type=int, default=1000)
+    parser.add_argument("--stops", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    print_machine()
+    print(f"# Execution (seed {args.seed})")
+    rng = np.random.default_rng(args.seed)
+    solved({"start": posture(CENTRE), "goal": posture(CENTRE + 0.1)})  # first-call costs
+    splices(rng, args.splices)
+    stops(rng, args.stops)
+
+
+if __name__ == "__main__":
+    main()
