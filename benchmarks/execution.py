@@ -63,8 +63,12 @@ def running_pool(rng: np.random.Generator, method: str, n: int) -> list[dict]:
     pool: list[dict] = []
     while len(pool) < n:
         a, b = CENTRE + rng.uniform(-SPREAD, SPREAD, (2, 3))
-        body = {"start": posture(a), "goal": posture(b), "planner": {"seed": 1},
-                "timing": {"method": method, "sample_rate_hz": RATE}}  # fmt: skip
+        body = {
+            "start": posture(a),
+            "goal": posture(b),
+            "planner": {"seed": 1},
+            "timing": {"method": method, "sample_rate_hz": RATE},
+        }
         answer = solved(body)
         if answer is not None:
             pool.append(answer["trajectory"])
@@ -101,8 +105,12 @@ def splices(rng: np.random.Generator, count: int) -> None:
         running = pools[method][int(rng.integers(len(pools[method])))]
         k = int(rng.integers(0, len(running["t"])))
         goal = CENTRE + rng.uniform(-SPREAD, SPREAD, 3)
-        body = {"replace": {"trajectory": running, "at": running["t"][k]}, "goal": posture(goal),
-                "planner": {"seed": 1}, "timing": {"method": method, "sample_rate_hz": RATE}}  # fmt: skip
+        body = {
+            "replace": {"trajectory": running, "at": running["t"][k]},
+            "goal": posture(goal),
+            "planner": {"seed": 1},
+            "timing": {"method": method, "sample_rate_hz": RATE},
+        }
         w0, c0 = time.perf_counter(), time.process_time()
         answer = solved(body)
         wall.append(time.perf_counter() - w0)
@@ -159,10 +167,16 @@ def stops(rng: np.random.Generator, count: int) -> None:
         at = float(rng.uniform(reading.start, reading.end))
         t0, c0 = time.perf_counter(), time.process_time()
         result = stop_trajectory(
-            reading, at, design=design, assembly_mode="+", limits=limits,
-            path_rules=free.is_valid, brake_rules=free.is_valid,
-            jerk_limited=method == "ruckig", sample_rate_hz=RATE,
-        )  # fmt: skip
+            reading,
+            at,
+            design=design,
+            assembly_mode="+",
+            limits=limits,
+            path_rules=free.is_valid,
+            brake_rules=free.is_valid,
+            jerk_limited=method == "ruckig",
+            sample_rate_hz=RATE,
+        )
         core.append(time.perf_counter() - t0)
         core_cpu.append(time.process_time() - c0)
         request = StopRequest.model_validate(
@@ -196,8 +210,10 @@ def stops(rng: np.random.Generator, count: int) -> None:
     print(
         f"| stop, endpoint (conversion, checkers) | {pct(whole_ms, 50):.3f} ms | {pct(whole_ms, 95):.3f} ms |"
     )
-    print(f"\nalong the running path: {along} of {count}; discontinuities: {gaps}; "
-          f"limit violations (FD) or no stop: {bad}")  # fmt: skip
+    print(
+        f"\nalong the running path: {along} of {count}; discontinuities: {gaps}; "
+        f"limit violations (FD) or no stop: {bad}"
+    )
 
 
 def main() -> None:

@@ -48,9 +48,13 @@ def test_random_splices_are_continuous_valid_and_within_the_limits(method):
     for _ in range(3):
         first = CENTRE + rng.uniform(-0.3, 0.3, 3)
         running = _solved(
-            {"start": _posture(CENTRE), "goal": _posture(first), "timing": timing,
-             "planner": {"seed": 1}}
-        )["trajectory"]  # fmt: skip
+            {
+                "start": _posture(CENTRE),
+                "goal": _posture(first),
+                "timing": timing,
+                "planner": {"seed": 1},
+            }
+        )["trajectory"]
         k = int(rng.integers(1, len(running["t"]) - 1))
         at = running["t"][k]
         request = {

@@ -138,9 +138,16 @@ def test_a_start_along_the_path_stays_on_the_planned_segment():
     rest = time_path(DESIGN, straight, LIMITS, method="ruckig", sample_rate_hz=500)
     state = StartState.of(straight[0], (straight[1] - straight[0]) * 2.0)
     traj = with_moving_start(
-        rest, state, design=DESIGN, assembly_mode="+", limits=LIMITS, check_states=None,
-        resolution=0.01, sample_rate_hz=500, first_segment=straight,
-    )  # fmt: skip
+        rest,
+        state,
+        design=DESIGN,
+        assembly_mode="+",
+        limits=LIMITS,
+        check_states=None,
+        resolution=0.01,
+        sample_rate_hz=500,
+        first_segment=straight,
+    )
     assert _off_segment(traj.q, *straight) < 1e-9
     assert traj.duration < rest.duration  # it started moving: sooner than from rest
 
@@ -151,9 +158,12 @@ def test_a_start_beyond_the_limits_is_refused_at_its_field():
     assert err.value.field == "start.qd"
     with pytest.raises(LimitsError) as err:  # jerk-limited: 1.9 + 8^2 / 400 > 2
         MotionProblem.of(
-            DESIGN, JointPosture(PATH[0]), timing=TimingOptions(method="ruckig"),
-            start_qd=(1.9, 0, 0), start_qdd=(8.0, 0, 0),
-        )  # fmt: skip
+            DESIGN,
+            JointPosture(PATH[0]),
+            timing=TimingOptions(method="ruckig"),
+            start_qd=(1.9, 0, 0),
+            start_qdd=(8.0, 0, 0),
+        )
     assert err.value.field == "start.qdd"
     with pytest.raises(InputError, match="timed answer"):
         MotionProblem.of(
@@ -195,10 +205,16 @@ def test_a_stop_starts_in_the_running_state_and_comes_to_rest_within_the_limits(
     along = 0
     for at in np.linspace(0.05, running.end - 0.05, 7):
         stop = stop_trajectory(
-            running, float(at), design=DESIGN, assembly_mode="+", limits=LIMITS,
-            path_rules=None, brake_rules=None, jerk_limited=method == "ruckig",
+            running,
+            float(at),
+            design=DESIGN,
+            assembly_mode="+",
+            limits=LIMITS,
+            path_rules=None,
+            brake_rules=None,
+            jerk_limited=method == "ruckig",
             sample_rate_hz=1000,
-        )  # fmt: skip
+        )
         assert stop.status == "solved", stop.message
         q0, qd0, qdd0 = running.state_at(float(at))
         assert stop.t[0] == at
@@ -222,7 +238,12 @@ def test_a_stop_that_no_braking_keeps_valid_is_invalid_start():
     q0 = running.state_at(at)[0]
     wall = box_checker(q0 - 1e-3, q0 + 1e-3)  # valid only within a hair of the posture
     stop = stop_trajectory(
-        running, at, design=DESIGN, assembly_mode="+", limits=LIMITS,
-        path_rules=wall, brake_rules=wall,
-    )  # fmt: skip
+        running,
+        at,
+        design=DESIGN,
+        assembly_mode="+",
+        limits=LIMITS,
+        path_rules=wall,
+        brake_rules=wall,
+    )
     assert stop.status == "invalid_start" and "validity" in stop.message

@@ -206,9 +206,16 @@ def stop_trajectory(
     if not (np.any(qd0 != 0.0) or np.any(qdd0 != 0.0)):
         z = np.zeros((1, 3))
         return StopResult(
-            "solved", "at rest", np.array([at]), q0[None], z, z.copy(), True, 0.0,
+            "solved",
+            "at rest",
+            np.array([at]),
+            q0[None],
+            z,
+            z.copy(),
+            True,
+            0.0,
             time.perf_counter() - t0,
-        )  # fmt: skip
+        )
     d = _along_path(running, at, qd0, limits, jerk_limited)
     why_path = "no time scaling of the running path keeps the limits"
     if d is not None:
@@ -220,13 +227,31 @@ def stop_trajectory(
             q[0], qd[0], qdd[0] = q0, qd0, qdd0
             qd[-1] = qdd[-1] = 0.0
             return StopResult(
-                "solved", "along the running path", at + t, q, qd, qdd, True, float(t[-1]),
+                "solved",
+                "along the running path",
+                at + t,
+                q,
+                qd,
+                qdd,
+                True,
+                float(t[-1]),
                 time.perf_counter() - t0,
-            )  # fmt: skip
+            )
         why_path = f"the running path fails {bad}" if bad else why_path
     state = StartState(q0, qd0, qdd0)
-    return _braked(state, at, design, assembly_mode, limits, brake_rules, jerk_limited,
-                   sample_rate_hz, resolution, why_path, t0)  # fmt: skip
+    return _braked(
+        state,
+        at,
+        design,
+        assembly_mode,
+        limits,
+        brake_rules,
+        jerk_limited,
+        sample_rate_hz,
+        resolution,
+        why_path,
+        t0,
+    )
 
 
 def _bad_postures(
@@ -277,11 +302,24 @@ def _braked(
             qd[-1] = qdd[-1] = 0.0
             message = f"braked off the running path ({why_path})"
             return StopResult(
-                "solved", message, at + t, q, qd, qdd, False, chain.duration,
+                "solved",
+                message,
+                at + t,
+                q,
+                qd,
+                qdd,
+                False,
+                chain.duration,
                 time.perf_counter() - t0,
-            )  # fmt: skip
+            )
     return StopResult(
         "invalid_start",
         f"no stop keeps the motion valid: {why_path}; braking off it fails {why}",
-        np.array([at]), empty, empty, empty, False, 0.0, time.perf_counter() - t0,
-    )  # fmt: skip
+        np.array([at]),
+        empty,
+        empty,
+        empty,
+        False,
+        0.0,
+        time.perf_counter() - t0,
+    )

@@ -63,6 +63,7 @@ __all__ = [
     "TRIES",
     "LeadIn",
     "LeadInCurve",
+    "LineMove",
     "MoveChain",
     "StartState",
     "brake_move",

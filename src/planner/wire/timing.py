@@ -53,6 +53,7 @@ __all__ = [
     "AnyTrajectory",
     "Limits",
     "Scaling",
+    "StartRatesModel",
     "TimingOptionsModel",
     "TimingRequest",
     "TimingResponse",
