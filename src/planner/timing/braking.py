@@ -42,7 +42,7 @@ import numpy as np
 from planner.design import Design
 from planner.exceptions import TimingInfeasibleError
 from planner.timing.checks import LIMIT_RTOL, StateChecker
-from planner.timing.lead_in import StartState, _first_failure, brake_move
+from planner.timing.lead_in import StartState, _first_failure, _speed, brake_move
 from planner.timing.limits import JointLimits
 from planner.timing.running import RunningTrajectory
 from planner.timing.trajectory import sample_times
@@ -294,7 +294,9 @@ def _braked(
     except TimingInfeasibleError as exc:
         why = f"no braking move: {exc}"
     else:
-        why = _first_failure(chain, design, assembly_mode, limits, rules, resolution, state) or ""
+        speed = _speed(limits, state)
+        why = _first_failure(chain, design, assembly_mode, limits, rules, resolution, state, speed)
+        why = why or ""
         if not why:
             t = sample_times(chain.duration, rate)
             q, qd, qdd, _ = chain.evaluate(t, jerk=False)

@@ -305,9 +305,17 @@ def brake_move(state: StartState, limits: JointLimits, *, jerk_limited: bool) ->
     return MoveChain((got,), jerk_limited)
 
 
-def _speed(limits: JointLimits) -> float:
-    """A bound of |qd| (joint-space norm, rad/s) of any move within ``limits``."""
-    return float(np.linalg.norm(limits.velocity_array)) * (1.0 + LIMIT_RTOL)
+def _speed(limits: JointLimits, brake_from: StartState | None = None) -> float:
+    """A bound of |qd| (joint-space norm, rad/s) of any move within ``limits``; of a brake
+    from ``brake_from``, per joint the speed reached before its acceleration is zero,
+    ``|qd| + qdd^2 / (2 jerk)`` (a brake only slows down after that; second order: ``|qd|``),
+    if lower."""
+    bound = float(np.linalg.norm(limits.velocity_array))
+    if brake_from is not None:
+        jerk = limits.jerk_array
+        rise = 0.0 if jerk is None else brake_from.qdd**2 / (2.0 * jerk)
+        bound = min(bound, float(np.linalg.norm(np.abs(brake_from.qd) + rise)))
+    return max(bound, 1e-9) * (1.0 + LIMIT_RTOL)
 
 
 def _first_failure(
@@ -318,12 +326,15 @@ def _first_failure(
     check_states: StateChecker | None,
     resolution: float,
     inherited: StartState | None = None,
+    speed: float | None = None,
 ) -> str | None:
     """Why ``chain`` is not acceptable (joint limits, assembly, validity, rate limits at
     postures ``resolution`` apart), naming the rule, the time and the posture; None: it is.
     ``inherited``: a start state whose velocity or acceleration already exceeds a limit (a
-    running trajectory read between its samples), which the chain may keep up to."""
-    t = chain.check_times(resolution, _speed(limits))
+    running trajectory read between its samples), which the chain may keep up to. ``speed``:
+    a bound of the chain's joint speed (rad/s; default :func:`_speed` of the limits), which
+    spaces the checked postures."""
+    t = chain.check_times(resolution, _speed(limits) if speed is None else speed)
     q, qd, qdd, _ = chain.evaluate(t, jerk=False)
     # the jerk by differences of qdd (what a controller sees; the moves keep it exactly)
     jerk = (
@@ -376,7 +387,10 @@ def braking_failure(
         chain = brake_move(state, limits, jerk_limited=jerk_limited)
     except TimingInfeasibleError as exc:
         return f"no braking move from the start state: {exc}"
-    why = _first_failure(chain, design, assembly_mode, limits, check_states, resolution)
+    speed = _speed(limits, state)
+    why = _first_failure(
+        chain, design, assembly_mode, limits, check_states, resolution, None, speed
+    )
     if why is None:
         return None
     return (

@@ -123,9 +123,9 @@ class RunningTrajectory:
         time, that sample exactly (jerk: the later interval's)."""
         tt = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), self.start, self.end)
         k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, self.t.shape[0] - 2)
-        lo = int(k.min())  # the intervals spanned, each interval's quintic computed once
-        _, c = self._coefficients(np.arange(lo, int(k.max()) + 1))
-        c = c[k - lo]
+        used, which = np.unique(k, return_inverse=True)  # each interval's quintic once
+        _, c = self._coefficients(used)
+        c = c[which]
         x = (tt - self.t[k])[:, None]
         q = c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * (c[:, 3] + x * (c[:, 4] + x * c[:, 5]))))
         qd = c[:, 1] + x * (2 * c[:, 2] + x * (3 * c[:, 3] + x * (4 * c[:, 4] + x * 5 * c[:, 5])))
