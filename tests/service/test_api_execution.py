@@ -156,3 +156,56 @@ def test_stop_brakes_to_rest_from_the_running_state(api):
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "at"]
     r = api.post("/v1/stop", json={"trajectory": {**running, "q": running["q"][:-1]}, "at": 0.1})
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "trajectory", "q"]
+
+
+def test_timing_and_cartesian_take_a_moving_start(api):
+    start = {"qd": [0.6, 0.3, 0.15], "qdd": [0.0, 0.0, 0.0]}  # along the first segment
+    step = np.array([0.4, 0.2, 0.1])
+    body = {"waypoints": [CENTRE.tolist(), (CENTRE + step).tolist()], "start": start}
+    answer = api.post("/v1/timing", json=body).json()
+    assert answer["status"] == "solved", answer["message"]
+    traj = answer["trajectory"]
+    np.testing.assert_allclose(traj["qd"][0], start["qd"], atol=1e-9, rtol=0)
+    _fd_limits(traj, jerk=False)
+    r = api.post("/v1/timing", json={**body, "start": {"qd": [0.0, 9.0, 0.0]}})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "start", "qd"]
+    fk = api.post("/v1/fk", json={"q": list(CENTRE), "assembly_mode": "+"}).json()
+    p = np.asarray(fk["postures"][0]["p"])
+    cart = {
+        "start": {**_posture(CENTRE), "qd": [0.0, 0.0, 0.0], "qdd": [0.0, 0.0, 0.0]},
+        "waypoints": [(p + np.array([0.0, 0.02, 0.0])).tolist()],
+    }
+    assert api.post("/v1/cartesian", json=cart).json()["status"] == "solved"
+    cart["start"]["qd"] = [3.0, 0.0, 0.0]
+    r = api.post("/v1/cartesian", json=cart)
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "start", "qd"]
+
+
+def test_the_client_and_the_cli_stop(tmp_path):
+    import json
+
+    import httpx
+    from typer.testing import CliRunner
+
+    from planner.client import PlannerClient
+    from planner_cli import app
+
+    running = _running()
+    seen: list[dict] = []
+
+    def answer(request: httpx.Request) -> httpx.Response:
+        seen.append(json.loads(request.content))
+        return httpx.Response(200, json={"status": "solved", "along_path": False})
+
+    with PlannerClient("http://x", transport=httpx.MockTransport(answer)) as client:
+        got = client.stop(running, at=running["t"][5], limits={"velocity": [1.5] * 3})
+    assert got.status == "solved"
+    assert seen[0]["trajectory"]["t"] == running["t"] and seen[0]["at"] == running["t"][5]
+    assert seen[0]["limits"]["velocity"] == [1.5] * 3 and "duration" not in seen[0]["trajectory"]
+    request = tmp_path / "stop.json"
+    request.write_text(json.dumps({"trajectory": running, "at": running["t"][5]}))
+    r = CliRunner().invoke(app, ["stop", str(request)])
+    assert r.exit_code == 0 and r.stdout.splitlines()[0] == "status: solved"
+    request.write_text(json.dumps({"trajectory": running, "at": 99.0}))
+    r = CliRunner().invoke(app, ["stop", str(request)])
+    assert r.exit_code == 2 and "at" in r.output
