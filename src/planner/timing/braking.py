@@ -295,8 +295,10 @@ def _braked(
         why = f"no braking move: {exc}"
     else:
         speed = _speed(limits, state)
-        why = _first_failure(chain, design, assembly_mode, limits, rules, resolution, state, speed)
-        why = why or ""
+        failed = _first_failure(
+            chain, design, assembly_mode, limits, rules, resolution, state, speed
+        )
+        why = failed or ""
         if not why:
             t = sample_times(chain.duration, rate)
             q, qd, qdd, _ = chain.evaluate(t, jerk=False)

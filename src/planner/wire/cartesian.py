@@ -19,6 +19,7 @@ from planner.wire.common import (
     WorkingModeLabel,
     _Request,
     _Response,
+    lead_in_model,
     located,
 )
 from planner.wire.motion import MotionRequest, finite, motion_problem
@@ -203,6 +204,7 @@ def cartesian_response(
         chord_bound=finite(d.chord_bound),
         blend_deviation_bound=finite(d.blend_deviation_bound),
         cartesian_length=finite(d.cartesian_length),
+        lead_in=lead_in_model(result.trajectory),
     )
     stop = result.stop
     return CartesianResponse(
