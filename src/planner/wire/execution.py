@@ -41,6 +41,11 @@ __all__ = [
     "RunningTrajectoryModel",
     "StopRequest",
     "StopResponse",
+    "StreamAck",
+    "StreamMessage",
+    "StreamReplace",
+    "StreamStart",
+    "StreamStop",
     "fill_start_from_replace",
     "on_running_clock",
     "replace_start",
@@ -239,3 +244,42 @@ class StopResponse(_Response):
     along_path: bool = False
     stop_time: float | None = Field(None, description="Time from `at` to rest, s.")
     computation_time_s: float = 0.0
+
+
+# ---------------------------------------------------------------------------- stream
+class StreamStart(_Request):
+    """The first message of ``/v1/stream``: a plan or sequence request to stream."""
+
+    type: Literal["plan", "sequence"]
+    request: dict[str, Any] = Field(description="A plan or sequence request body.")
+    rate_hz: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] = Field(
+        1000.0, description="Setpoints per second."
+    )
+    lookahead_s: Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10.0)] = Field(
+        0.05, description="How far ahead of the acknowledged time the service sends, s."
+    )
+
+
+class StreamAck(_Request):
+    """The client's clock on the trajectory, s."""
+
+    type: Literal["ack"]
+    t: Finite
+
+
+class StreamReplace(_Request):
+    """A new goal (a plan or sequence request of the stream's kind), spliced at the next
+    chunk boundary."""
+
+    type: Literal["replace"]
+    request: dict[str, Any]
+
+
+class StreamStop(_Request):
+    """Brake to rest from the next chunk boundary."""
+
+    type: Literal["stop"]
+
+
+#: A client message after the first.
+StreamMessage = Annotated[StreamAck | StreamReplace | StreamStop, Field(discriminator="type")]
