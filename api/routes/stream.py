@@ -15,15 +15,14 @@ from __future__ import annotations
 import asyncio
 import json
 import time
+from functools import partial
 from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import TypeAdapter, ValidationError
 
-from planner.endpoints import answer_sample_limit
-from planner.endpoints import plan as plan_jobs
-from planner.endpoints import sequence as sequence_jobs
-from planner.endpoints import stop as stop_jobs
+from planner.endpoints import Job, JobBudget, answer_sample_limit
+from planner.endpoints import stream as jobs
 from planner.endpoints.stream import StreamSession
 from planner.exceptions import PlannerError
 from planner.wire import PlanRequest, SequenceRequest, StopRequest, StreamMessage, StreamStart
@@ -31,7 +30,7 @@ from planner_api.metrics import run_measured
 from planner_api.routes._common import obstacles_within_limit, with_design_defaults
 from planner_api.tenants import tenant_of
 
-__all__ = ["router", "stream"]
+__all__ = ["StreamError", "router", "stream"]
 
 router = APIRouter(tags=["execution"])
 
@@ -64,19 +63,16 @@ async def _compute(websocket: WebSocket, kind: str, body: dict[str, Any], loc: l
     data; a library error or a non-solved status is a :class:`StreamError`."""
     app = websocket.app
     settings = app.state.settings
-    model, job = {
-        "plan": (PlanRequest, plan_jobs.plan),
-        "sequence": (SequenceRequest, sequence_jobs.sequence),
-        "stop": (StopRequest, stop_jobs.stop),
-    }[kind]
+    kinds: dict[str, tuple[Any, Job]] = {
+        "plan": (PlanRequest, jobs.plan),
+        "sequence": (SequenceRequest, jobs.sequence),
+        "stop": (StopRequest, jobs.stop),
+    }
+    model, job = kinds[kind]
     request = obstacles_within_limit(_validated(model, body, loc), settings)
     request = with_design_defaults(request, settings.design_defaults)
     deadline = time.monotonic() + settings.request_timeout_s
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
-    from functools import partial
-
-    from planner.endpoints import JobBudget
-
     try:
         content, _ = await app.state.pool.run(
             partial(run_measured, job, budget=JobBudget(deadline, samples)),

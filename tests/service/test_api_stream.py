@@ -115,3 +115,41 @@ def test_a_keyed_service_refuses_a_stream_without_its_key(api):
             assert ws.receive_json()["type"] == "setpoints"
     finally:
         api.app.state.settings = saved
+
+
+def test_the_clients_and_the_cli_stream_from_a_live_service(live_server, tmp_path):
+    import asyncio
+    import json
+
+    from typer.testing import CliRunner
+
+    from planner.client import AsyncPlannerClient, InvalidRequestError, PlannerClient
+    from planner_cli import app
+
+    request = {"start": START, "goal": GOAL, "timing": TIMING}
+    with PlannerClient(live_server, timeout=30) as client:
+        with client.stream(request, rate_hz=200) as session:
+            messages = list(session)
+        with pytest.raises(InvalidRequestError) as err, client.stream({"goal": GOAL}) as bad:
+            list(bad)
+        assert err.value.detail[0]["loc"][:2] == ["request", "start"]
+    assert messages[-1]["type"] == "done"
+    t, q, qd = _grid(messages)
+    _continuous(t, q, qd, 1 / 200)
+    np.testing.assert_allclose(q[-1], GOAL["q"], atol=1e-9)
+
+    async def stream_async() -> list[dict]:
+        async with AsyncPlannerClient(live_server, timeout=30) as client:
+            async with client.stream(request, rate_hz=200) as session:
+                return [m async for m in session]
+
+    again = asyncio.run(stream_async())
+    assert _grid(again)[1].tolist() == q.tolist()  # the same answer, the same setpoints
+    path = tmp_path / "request.json"
+    path.write_text(json.dumps(request))
+    out = tmp_path / "stream.jsonl"
+    args = ["stream", str(path), "--url", live_server, "--rate", "200", "--out", str(out)]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0, r.output
+    assert r.stdout.splitlines()[-1].startswith("done at")
+    assert [json.loads(x) for x in out.read_text().splitlines()] == messages

@@ -28,9 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from planner.endpoints import UNBOUNDED, JobBudget
 from planner.timing.running import RunningTrajectory
 
-__all__ = ["CHUNK_S", "StreamSession"]
+__all__ = ["CHUNK_S", "StreamSession", "plan", "sequence", "stop"]
 
 #: Time covered by one chunk of setpoints, s (10 setpoints at 1 kHz).
 CHUNK_S = 0.01
@@ -146,3 +147,25 @@ class StreamSession:
             "method": "ruckig" if method == "ruckig" else "toppra",
             "sample_rate_hz": self.rate_hz,
         }
+
+
+# the jobs a stream runs in the worker pool (module-level: they cross to a worker)
+def plan(request: Any, budget: JobBudget = UNBOUNDED) -> Any:
+    """A streamed plan (and its replacements): :func:`planner.endpoints.plan.plan`."""
+    from planner.endpoints.plan import plan as job
+
+    return job(request, budget)
+
+
+def sequence(request: Any, budget: JobBudget = UNBOUNDED) -> Any:
+    """A streamed sequence: :func:`planner.endpoints.sequence.sequence`."""
+    from planner.endpoints.sequence import sequence as job
+
+    return job(request, budget)
+
+
+def stop(request: Any, budget: JobBudget = UNBOUNDED) -> Any:
+    """A stream's stop: :func:`planner.endpoints.stop.stop`."""
+    from planner.endpoints.stop import stop as job
+
+    return job(request, budget)
