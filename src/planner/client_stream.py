@@ -96,9 +96,23 @@ class StreamSession:
                 except ConnectionClosedOK:  # the last chunk: the service closed; "done" follows
                     continue
 
+    def receive(self, timeout: float | None = None) -> dict[str, Any] | None:
+        """The next message, or None when none came within ``timeout`` s (a real-time
+        consumer's loop: acknowledge its clock between messages); an ``error`` raises."""
+        try:
+            return _checked(self._ws.recv(timeout=timeout))
+        except TimeoutError:
+            return None
+
     def ack(self, t: float) -> None:
-        """The client's clock on the trajectory reached ``t`` (s)."""
-        self._ws.send(json.dumps({"type": "ack", "t": float(t)}))
+        """The client's clock on the trajectory reached ``t`` (s); nothing once the service
+        has finished and closed the stream."""
+        from websockets.exceptions import ConnectionClosedOK
+
+        try:
+            self._ws.send(json.dumps({"type": "ack", "t": float(t)}))
+        except ConnectionClosedOK:
+            return
 
     def replace(self, request: Any) -> None:
         """A new goal (a request of the stream's kind, ``start`` omitted), spliced at the next
