@@ -19,9 +19,9 @@ from planner.wire.common import (
     WorkingModeLabel,
     _Request,
     _Response,
-    lead_in_model,
     located,
 )
+from planner.wire.execution import lead_in_model
 from planner.wire.motion import MotionRequest, finite, motion_problem
 from planner.wire.plan import PathModel, PlanStatus, path_model
 from planner.wire.timing import (

@@ -75,14 +75,12 @@ __all__ = [
     "Preference",
     "Rates3",
     "SphereObstacle",
-    "StartPostureModel",
     "TimingErrorInfo",
     "Vec3",
     "WorkingModeLabel",
     "WorkingModeOrAny",
     "design_to_core",
     "inertia_to_core",
-    "lead_in_model",
     "located",
     "margins_to_core",
     "obstacle_from_dict",
@@ -349,25 +347,6 @@ class JointPostureModel(_Request):
     assembly_mode: AssemblyModeLabel = Field(description="'+' or '-'.")
 
 
-#: Joint rates of a start state: finite numbers (the limits bound them: a 422 at the field).
-Rate3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
-
-
-class StartPostureModel(JointPostureModel):
-    """A motion's start: a joint posture, and the state it is moving in (default: at rest)."""
-
-    qd: Rate3 = Field(
-        default_factory=lambda: [0.0, 0.0, 0.0],
-        description="Joint velocity at the start, rad/s (default zeros). Within "
-        "limits.velocity; the trajectory begins in exactly this state (docs/execution.md).",
-    )
-    qdd: Rate3 = Field(
-        default_factory=lambda: [0.0, 0.0, 0.0],
-        description="Joint acceleration at the start, rad/s^2 (default zeros). Within "
-        "limits.acceleration (and, with ruckig, reachable under limits.jerk).",
-    )
-
-
 #: Largest ``goal.tolerance`` of a Cartesian target, m, and of a joint goal, rad.
 MAX_GOAL_TOLERANCE_M = 1.0
 MAX_GOAL_TOLERANCE_RAD = math.pi
@@ -559,14 +538,6 @@ class LeadInModel(_Response):
     duration: float
     joins_at: float
     kind: str
-
-
-def lead_in_model(trajectory: Any) -> LeadInModel | None:
-    """The :class:`LeadInModel` of a timed trajectory with a moving start (None: at rest)."""
-    lead = getattr(getattr(trajectory, "curve", None), "lead_in", None)
-    if lead is None:
-        return None
-    return LeadInModel(duration=lead.duration, joins_at=lead.joins_at, kind=lead.kind)
 
 
 class DiagnosticsModel(_Response):

@@ -22,6 +22,8 @@ from planner.wire.common import (
     AssemblyModeLabel,
     DesignModel,
     Finite,
+    JointPostureModel,
+    LeadInModel,
     MarginsModel,
     Obstacle,
     Vec3,
@@ -39,6 +41,7 @@ __all__ = [
     "START_MATCH_TOL",
     "ReplaceModel",
     "RunningTrajectoryModel",
+    "StartPostureModel",
     "StopRequest",
     "StopResponse",
     "StreamAck",
@@ -47,6 +50,7 @@ __all__ = [
     "StreamStart",
     "StreamStop",
     "fill_start_from_replace",
+    "lead_in_model",
     "on_running_clock",
     "replace_start",
     "running_model",
@@ -59,6 +63,33 @@ __all__ = [
 START_MATCH_TOL = 1e-9
 
 _Samples = Annotated[list[Vec3], Field(max_length=_MAX_SAMPLES)]
+
+
+#: Joint rates of a start state: finite numbers (the limits bound them: a 422 at the field).
+Rate3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
+
+
+class StartPostureModel(JointPostureModel):
+    """A motion's start: a joint posture, and the state it is moving in (default: at rest)."""
+
+    qd: Rate3 = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="Joint velocity at the start, rad/s (default zeros). Within "
+        "limits.velocity; the trajectory begins in exactly this state (docs/execution.md).",
+    )
+    qdd: Rate3 = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="Joint acceleration at the start, rad/s^2 (default zeros). Within "
+        "limits.acceleration (and, with ruckig, reachable under limits.jerk).",
+    )
+
+
+def lead_in_model(trajectory: Any) -> LeadInModel | None:
+    """The :class:`LeadInModel` of a timed trajectory with a moving start (None: at rest)."""
+    lead = getattr(getattr(trajectory, "curve", None), "lead_in", None)
+    if lead is None:
+        return None
+    return LeadInModel(duration=lead.duration, joins_at=lead.joins_at, kind=lead.kind)
 
 
 class RunningTrajectoryModel(_Request):

@@ -27,7 +27,6 @@ from planner.wire.common import (
     JointPostureModel,
     MarginsModel,
     Obstacle,
-    StartPostureModel,
     _DesignField,
     _Request,
     design_to_core,
@@ -36,6 +35,7 @@ from planner.wire.common import (
     margins_to_core,
     triple_to_core,
 )
+from planner.wire.execution import StartPostureModel
 from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import Limits, joint_limits_to_core, timing_to_core
 

@@ -21,8 +21,8 @@ from planner.wire.common import (
     WorkingModeLabel,
     _Request,
     _Response,
-    lead_in_model,
 )
+from planner.wire.execution import lead_in_model
 
 if TYPE_CHECKING:
     from planner.exceptions import TimingError

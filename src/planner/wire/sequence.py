@@ -17,10 +17,9 @@ from planner.wire.common import (
     Goal,
     _Request,
     _Response,
-    lead_in_model,
     located,
 )
-from planner.wire.execution import ReplaceModel, fill_start_from_replace
+from planner.wire.execution import ReplaceModel, fill_start_from_replace, lead_in_model
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.plan import (
     PathModel,
