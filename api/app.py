@@ -29,6 +29,8 @@ from planner_api.routes import dynamics as dynamics_routes
 from planner_api.routes import jobs as jobs_routes
 from planner_api.routes import sequence as sequence_routes
 from planner_api.routes import simulate as simulate_routes
+from planner_api.routes import stop as stop_routes
+from planner_api.routes import stream as stream_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
 from planner_api.routes.viewer import install_viewer
@@ -156,8 +158,11 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         calibration_routes.router,
         sequence_routes.router,
         simulate_routes.router,
+        stop_routes.router,
     ):
         app.include_router(router, dependencies=[ApiKey, WatchClient], responses=_ERRORS)
+    # the setpoint stream: a WebSocket, its API key checked by the route (the gate sees HTTP)
+    app.include_router(stream_routes.router)
     # the scenes come from the store: no worker to cancel
     app.include_router(scenes.router, dependencies=[ApiKey], responses=_ERRORS)
     # long jobs outlive the request that submits them: no client watch

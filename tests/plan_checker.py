@@ -325,13 +325,26 @@ class PlanCheck:
 
 
 # ------------------------------------------------------------------------- the check
-def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float = STEP):
+def check_plan(
+    request: dict[str, Any],
+    response: dict[str, Any],
+    *,
+    step: float = STEP,
+    start_state: dict[str, Any] | None = None,
+    lead_in_s: float = 0.0,
+):
     """Re-check a /v1/plan ``response`` against its ``request`` (both wire JSON dicts).
 
     Absent request fields take the library's defaults (:data:`DEFAULT_DESIGN`,
     :data:`DEFAULT_MARGINS`, :data:`DEFAULT_LIMITS`). Returns a :class:`PlanCheck`; an
     answer whose status is not "solved" is returned unchecked (``checked`` False) unless it
-    carries a path anyway, which is a failure."""
+    carries a path anyway, which is a failure.
+
+    A moving start (``start_state``: ``{"q", "qd", "qdd"}``, the state the trajectory must
+    begin in, instead of rest; its time axis may start at any ``t[0]``, a replacement's
+    ``at``): the first sample must be that state to 1e-9, and the trajectory's first
+    ``lead_in_s`` seconds (its lead-in onto the path) are held to every validity rule and
+    limit but not to the path's corner allowance."""
     report = PlanCheck()
     if response.get("status") != "solved":
         if response.get("path") or response.get("trajectory"):
@@ -478,6 +491,8 @@ def check_plan(request: dict[str, Any], response: dict[str, Any], *, step: float
             branch,
             step,
             worst,
+            start_state,
+            lead_in_s,
         )
     report.worst = worst
     return report
@@ -523,6 +538,8 @@ def _check_trajectory(
     branch,
     step,
     worst,
+    start_state=None,
+    lead_in_s=0.0,
 ):
     """The timed trajectory: time axis, ends at rest, rate limits and finite differences,
     then every sample (and the chords between them, densified) against the validity rules
@@ -537,13 +554,22 @@ def _check_trajectory(
         )
         return
     dt = np.diff(t)
+    t0 = float(t[0]) if start_state is not None else 0.0  # a replacement: the running clock
+    t = t - t0
     if abs(t[0]) > 1e-12 or np.any(dt <= 0) or abs(t[-1] - float(traj["duration"])) > 1e-9:
         report.fail("trajectory time axis does not increase from 0 to duration")
         return
     if np.max(np.abs(q[0] - w[0])) > JOINT_TOL or np.max(np.abs(q[-1] - w[-1])) > JOINT_TOL:
         report.fail("trajectory does not begin at the start and end at the path's end")
-    if np.max(np.abs(qd[0])) > 1e-9 or np.max(np.abs(qd[-1])) > 1e-9:
-        report.fail("trajectory does not begin and end at rest")
+    first = np.zeros((2, 3)) if start_state is None else None
+    if start_state is not None:
+        first = np.array([start_state.get("qd", [0.0] * 3), start_state.get("qdd", [0.0] * 3)])
+        if np.max(np.abs(q[0] - np.asarray(start_state["q"], float))) > 1e-9:
+            report.fail("trajectory does not begin in the start state's posture")
+        if np.max(np.abs(qdd[0] - first[1])) > 1e-9:
+            report.fail("trajectory does not begin with the start state's acceleration")
+    if np.max(np.abs(qd[0] - first[0])) > 1e-9 or np.max(np.abs(qd[-1])) > 1e-9:
+        report.fail("trajectory does not begin in the start state and end at rest")
     vmax, amax = np.asarray(limits["velocity"], float), np.asarray(limits["acceleration"], float)
     if np.any(np.abs(qd) > vmax * (1 + LIMIT_RTOL)):
         report.fail(f"velocity reaches {np.max(np.abs(qd) / vmax):.6g} of its limit")
@@ -593,6 +619,10 @@ def _check_trajectory(
     near = timing.get("max_deviation")
     near = DEFAULT_MAX_DEVIATION if near is None else float(near)
     piece, dist = _distance_to_pieces(dense, w)
+    if lead_in_s > 0.0:  # the lead-in of a moving start: not held to the corner allowance
+        after = int(np.searchsorted(t, lead_in_s, side="right"))
+        held = _dense_polyline(q[max(after - 1, 0) :], step)
+        _, dist = _distance_to_pieces(held, w)
     if float(dist.max()) > near + 1e-6:
         report.fail(f"trajectory strays {float(dist.max()):.4g} rad from the path (allowed {near})")
     seg_of = np.zeros(len(w) - 1, dtype=int)

@@ -56,6 +56,7 @@ from planner.client_errors import (
     TransportError,
 )
 from planner.client_requests import M, Requests, _Call, _describe_item, none_as_absent
+from planner.client_stream import AsyncStreamSession, StreamSession, first_message
 from planner.wire import (
     TrajectoryModel,
     TrajectoryPointsModel,
@@ -322,6 +323,23 @@ class PlannerClient(_BaseClient):
         super().__init__(base_url, **options)
         self._http = httpx.Client(transport=transport, **self._client_options())
 
+    def stream(
+        self,
+        request: Any,
+        *,
+        kind: str = "plan",
+        rate_hz: float = 1000.0,
+        lookahead_s: float = 0.05,
+        auto_ack: bool = True,
+    ) -> StreamSession:
+        """Stream the answer of a plan (or ``kind="sequence"``) request as setpoints over
+        ``/v1/stream`` (a WebSocket): a :class:`planner.client_stream.StreamSession` to
+        iterate (``setpoints``, ``switched``, ``done`` messages), with ``ack(t)``,
+        ``replace(request)`` and ``stop()``; an ``error`` message raises
+        :class:`InvalidRequestError` naming the field."""
+        first = first_message(kind, request, rate_hz, lookahead_s)
+        return StreamSession(self.base_url, self._headers, first, auto_ack=auto_ack)
+
     def _execute(self, call: _Call[M]) -> M:
         for attempt in itertools.count():
             try:
@@ -359,6 +377,7 @@ class PlannerClient(_BaseClient):
     workspace = _sync(_BaseClient._workspace)
     figure = _sync(_BaseClient._figure)
     timing = _sync(_BaseClient._timing)
+    stop = _sync(_BaseClient._stop)
     dynamics = _sync(_BaseClient._dynamics)
     calibrate = _sync(_BaseClient._calibrate)
     calibration_poses = _sync(_BaseClient._calibration_poses)
@@ -392,6 +411,20 @@ class AsyncPlannerClient(_BaseClient):
     ) -> None:
         super().__init__(base_url, **options)
         self._http = httpx.AsyncClient(transport=transport, **self._client_options())
+
+    def stream(
+        self,
+        request: Any,
+        *,
+        kind: str = "plan",
+        rate_hz: float = 1000.0,
+        lookahead_s: float = 0.05,
+        auto_ack: bool = True,
+    ) -> AsyncStreamSession:
+        """:meth:`PlannerClient.stream` for asyncio: ``async with client.stream(...) as s``,
+        ``async for message in s``, ``await s.ack(t)``."""
+        first = first_message(kind, request, rate_hz, lookahead_s)
+        return AsyncStreamSession(self.base_url, self._headers, first, auto_ack=auto_ack)
 
     async def _execute(self, call: _Call[M]) -> M:
         for attempt in itertools.count():
@@ -430,6 +463,7 @@ class AsyncPlannerClient(_BaseClient):
     workspace = _async(_BaseClient._workspace)
     figure = _async(_BaseClient._figure)
     timing = _async(_BaseClient._timing)
+    stop = _async(_BaseClient._stop)
     dynamics = _async(_BaseClient._dynamics)
     calibrate = _async(_BaseClient._calibrate)
     calibration_poses = _async(_BaseClient._calibration_poses)

@@ -60,6 +60,8 @@ from planner.wire import (
     SequenceResponse,
     SimulateRequest,
     SimulateResponse,
+    StopRequest,
+    StopResponse,
     TimingRequest,
     TimingResponse,
     TrajectoryModel,
@@ -67,6 +69,7 @@ from planner.wire import (
     VersionInfo,
     WorkspaceRequest,
     WorkspaceResponse,
+    running_model,
     trajectory_arrays,
 )
 from planner.wire.calibration import (
@@ -507,6 +510,30 @@ class Requests:
                 k: (_floats(v) if k != "cartesian_speed" else v) for k, v in dict(limits).items()
             }
         return _Call("POST", "/v1/timing", _validated(TimingRequest, data), TimingResponse)
+
+    def _stop(
+        self,
+        trajectory: Any,
+        at: float,
+        *,
+        design: DesignLike = None,
+        limits: Mapping[str, Any] | None = None,
+        **options: Any,
+    ) -> _Call[StopResponse]:
+        """The braking trajectory to rest from the running ``trajectory``'s state at ``at``
+        (s, on its clock): ``trajectory`` is an answer's trajectory (arrays or points form,
+        model or dict) or ``{"t", "q", "qd", "qdd"}``. ``options``: ``assembly_mode``,
+        ``margins``, ``obstacles``, ``method``, ``sample_rate_hz``, ``format``. The answer's
+        ``trajectory`` starts at ``at`` in exactly the running state and ends at rest."""
+        data: dict[str, Any] = {
+            "trajectory": running_model(trajectory).model_dump(),
+            "at": at,
+            "design": _design(design),
+            **options,
+        }
+        if limits is not None:
+            data["limits"] = {k: _floats(v) for k, v in dict(limits).items()}
+        return _Call("POST", "/v1/stop", _validated(StopRequest, data), StopResponse)
 
     def _dynamics(
         self,

@@ -24,6 +24,7 @@ from planner_cli import (
     analysis,
     calibration,
     dynamics,
+    execution,
     figures,
     jobs,
     kinematics,
@@ -67,6 +68,8 @@ register(analysis.regions)
 register(plan.plan)
 register(plan.cartesian)
 register(sequence.sequence)
+register(execution.stop)
+register(execution.stream)
 register(tools.bench)
 register(dynamics.dynamics)
 register(dynamics.mjcf)

@@ -278,7 +278,12 @@ def test_sync_and_async_clients_have_the_same_endpoint_methods():
         "plan_batch",
         "check_design",
     } <= public
-    for name in public - {"base_url", "timeout", "max_retries", "backoff_s", "max_backoff_s"}:
+    # ``stream`` opens a session (``with`` / ``async with``), not one call: both have it
+    assert (
+        {"stream"} <= public and PlannerClient.stream.__doc__ and AsyncPlannerClient.stream.__doc__
+    )
+    calls = public - {"base_url", "timeout", "max_retries", "backoff_s", "max_backoff_s", "stream"}
+    for name in calls:
         sync_m, async_m = getattr(PlannerClient, name), getattr(AsyncPlannerClient, name)
         assert inspect.signature(sync_m) == inspect.signature(async_m), name
         assert inspect.iscoroutinefunction(async_m) and not inspect.iscoroutinefunction(sync_m)

@@ -37,6 +37,7 @@ def test_plan_request_fields_and_required():
         "timing",
         "limits",
         "gravity",
+        "replace",  # a running trajectory to replace mid-motion (docs/execution.md)
     }
     required = {n for n, f in PlanRequest.model_fields.items() if f.is_required()}
     assert required == {"start", "goal"}

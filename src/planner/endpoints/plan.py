@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import PlanRequest, PlanResponse, plan_inputs, solution_response
+from planner.wire.execution import on_running_clock
 
 __all__ = ["plan"]
 
@@ -20,11 +21,13 @@ def plan(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     under ``timing.``). Timing outcomes: the request's deadline passing gives status
     ``timeout``; a path the timing cannot turn into a checked trajectory (no profile, or the
     dense re-check fails after the repairs) gives ``no_path`` with the reason, the path kept
-    and ``diagnostics.timing_error`` naming the failed rule.
+    and ``diagnostics.timing_error`` naming the failed rule. With ``replace``, the answer
+    starts from the running state at ``replace.at`` and its times are on the running clock
+    (:mod:`planner.wire.execution`).
     """
     from planner.motion import run
     from planner.solver import GoalMotion
 
     inputs = plan_inputs(request, deadline=budget.deadline, max_samples=budget.max_samples)
     solution = run(inputs.problem, GoalMotion(inputs.goal, inputs.prefer, inputs.tolerance))
-    return solution_response(solution, format=request.timing.format)
+    return on_running_clock(solution_response(solution, format=request.timing.format), request)

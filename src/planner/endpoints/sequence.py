@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from planner.endpoints import UNBOUNDED, JobBudget
 from planner.wire import SequenceRequest, SequenceResponse, sequence_inputs, sequence_response
+from planner.wire.execution import on_running_clock
 
 __all__ = ["sequence"]
 
@@ -16,11 +17,12 @@ def sequence(request: SequenceRequest, budget: JobBudget = UNBOUNDED) -> Sequenc
 
     A library error is a 422 naming its field (a blend larger than half its shorter leg at
     ``targets.i.blend``); a leg that fails gives the sequence its status, the leg's index in
-    ``message``; the request's deadline passing gives ``timeout``."""
+    ``message``; the request's deadline passing gives ``timeout``. With ``replace``: from the
+    running state at ``replace.at``, times on the running clock (:mod:`planner.wire.execution`)."""
     from planner.sequence import plan_sequence
 
     inputs = sequence_inputs(request, deadline=budget.deadline, max_samples=budget.max_samples)
     result = plan_sequence(
         inputs.problem, inputs.targets, cycle=inputs.cycle, objective=inputs.objective
     )
-    return sequence_response(result, format=request.timing.format)
+    return on_running_clock(sequence_response(result, format=request.timing.format), request)

@@ -86,6 +86,71 @@ def _validity_check(request: TimingRequest, design: Any, q0: np.ndarray) -> Any:
     return check
 
 
+def _start_state(request: TimingRequest, q0: np.ndarray, limits: Any) -> Any:
+    """The moving start of the request (None: at rest), its rules checked (a 422 at
+    ``start.qd`` / ``start.qdd``: beyond the limits, or with limits the lead-in does not
+    bound)."""
+    from planner.timing.lead_in import StartState, check_start_rates
+
+    state = StartState.of(q0, request.start.qd, request.start.qdd)
+    if not state.moving:
+        return None
+    with located("body"):
+        if request.limits.torque is not None or request.limits.cartesian_speed is not None:
+            raise InputError(
+                "a moving start needs no limits.torque and no limits.cartesian_speed (the "
+                "lead-in bounds neither)",
+                field="start.qd",
+            )
+        check_start_rates(state, limits, jerk_limited=request.method == "ruckig")
+    return state
+
+
+def _with_moving_start(
+    request: TimingRequest, traj: Any, state: Any, design: Any, limits: Any, check: Any
+) -> Any:
+    """``traj`` beginning in the moving ``state``: a lead-in onto it
+    (:func:`planner.timing.lead_in.with_moving_start`); unchanged at rest."""
+    from planner.timing import DEFAULT_CHECK_RESOLUTION, DEFAULT_MAX_DEVIATION
+    from planner.timing.lead_in import with_moving_start
+
+    if state is None:
+        return traj
+    q = np.asarray(request.waypoints, dtype=float)
+    near = DEFAULT_MAX_DEVIATION if request.max_deviation is None else request.max_deviation
+    return with_moving_start(
+        traj,
+        state,
+        design=design,
+        assembly_mode=request.assembly_mode,
+        limits=limits,
+        check_states=check,
+        resolution=DEFAULT_CHECK_RESOLUTION,
+        sample_rate_hz=request.sample_rate_hz,
+        first_segment=q[:2],
+        near=near,
+    )
+
+
+def _unkept(request: TimingRequest, state: Any, design: Any, limits: Any, check: Any) -> str:
+    """Why a moving start cannot be kept valid ("" when it can, or at rest)."""
+    from planner.timing import DEFAULT_CHECK_RESOLUTION
+    from planner.timing.lead_in import braking_failure
+
+    if state is None:
+        return ""
+    why = braking_failure(
+        design,
+        state,
+        request.assembly_mode,
+        limits,
+        check,
+        DEFAULT_CHECK_RESOLUTION,
+        jerk_limited=request.method == "ruckig",
+    )
+    return why or ""
+
+
 def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingResponse:
     """``POST /v1/timing``: :func:`planner.timing.time_path` on the client's joint path,
     checked densely (joint limits, assembly, and the planner's rules when asked).
@@ -120,6 +185,10 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
                 diagnostics=diagnostics,
             )
     limits = joint_limits_to_core(request.limits)
+    state = _start_state(request, q[0], limits)
+    unkept = _unkept(request, state, design, limits, check)
+    if unkept:
+        return TimingResponse(status="invalid_start", message=unkept)
     options: dict[str, Any] = {}
     if request.max_deviation is not None:
         options["max_deviation"] = request.max_deviation
@@ -141,6 +210,7 @@ def timing(request: TimingRequest, budget: JobBudget = UNBOUNDED) -> TimingRespo
                 gravity=triple_to_core(request.gravity),
                 **options,
             )
+            traj = _with_moving_start(request, traj, state, design, limits, check)
     except TimingDeadlineError as exc:
         return TimingResponse(status="timeout", message=f"timing ran out of time: {exc}")
     except TimingInfeasibleError as exc:

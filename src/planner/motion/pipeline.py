@@ -6,7 +6,9 @@ the rest the same way for all of them:
 
 1. **validate** what no planning step can mend: a start where gravity alone needs more than a
    joint's torque limit (with ``limits.torque`` and timing asked) is ``invalid_start``, naming
-   the joint and the torque, before any search;
+   the joint and the torque, before any search; so is a moving start (``start_qd``,
+   ``start_qdd``) whose quickest braking already leaves the valid set of the start's working
+   mode (:func:`planner.timing.lead_in.braking_failure`: no trajectory can keep it valid);
 2. **plan**: ``motion.plan(problem)`` under the problem's :class:`~planner.motion.Budget` (the
    searches until its search deadline); a step that runs past the deadline itself (a straight
    path's certification checks it between rounds) ends as ``timeout``;
@@ -18,7 +20,9 @@ the rest the same way for all of them:
    re-check of the trajectory against the plan's own rules is the timing's last step. When
    Ruckig cannot time a path whose rules leave it no room (its moves between through-states
    stray farther than a tight allowance), the request may name TOPPRA as a fallback
-   (``TimingRequest.fallback``) and the answer says so;
+   (``TimingRequest.fallback``) and the answer says so. A moving start then gets its lead-in
+   onto the timed trajectory (:func:`planner.timing.lead_in.with_moving_start`, checked
+   densely against the same rules);
 4. **result**: ``motion.answer(problem, planned, timed)``. One timeout answer: a deadline
    passing during the timing (or a planning step past the deadline) is status ``timeout`` for
    every kind, the path kept where there is one.
@@ -128,7 +132,7 @@ class Motion(Protocol[R]):
 def run(problem: MotionProblem, motion: Motion[R]) -> R:
     """The answer of ``motion`` under ``problem``: validate, plan, time and check densely,
     answer (see the module docstring)."""
-    held = _held_by_gravity(problem)
+    held = _held_by_gravity(problem) or _unkept_start(problem)
     if held is not None:
         return motion.answer(problem, Planned(PlanStatus.INVALID_START, held), Timed())
     try:
@@ -154,6 +158,38 @@ def _held_by_gravity(problem: MotionProblem) -> str | None:
         problem.limits,
         problem.inertia,
         problem.gravity,
+    )
+
+
+def _unkept_start(problem: MotionProblem) -> str | None:
+    """The ``invalid_start`` message of a moving start that cannot be kept valid (its
+    quickest braking leaves the valid set of the start's working mode); None when it can, or
+    when the start posture itself breaks a rule (the planning step names that rule)."""
+    if not problem.moving_start:
+        return None
+    from planner.kinematics import forward_batch, mode_label
+    from planner.timing import DEFAULT_CHECK_RESOLUTION
+    from planner.timing.lead_in import braking_failure
+    from planner.validity import ValidityChecker
+
+    start = problem.start
+    fb = forward_batch(problem.design, start.q[None], start.assembly_mode)
+    if not fb.ok[0]:
+        return None
+    mode = mode_label(fb.working_mode_signs[0])
+    checker = ValidityChecker(
+        problem.design, problem.margins, problem.obstacles, start.assembly_mode, mode
+    )
+    if not checker.is_valid(start.q[None])[0]:
+        return None
+    return braking_failure(
+        problem.design,
+        problem.start_state,
+        start.assembly_mode,
+        problem.limits,
+        checker.is_valid,
+        DEFAULT_CHECK_RESOLUTION,
+        jerk_limited=problem.timing.method == "ruckig",
     )
 
 
@@ -185,6 +221,36 @@ def time_planned(problem: MotionProblem, request: TimingRequest) -> Timed:
 
 
 def _time_path(problem: MotionProblem, request: TimingRequest, method: str) -> Trajectory:
+    """The trajectory of ``request`` by ``method``, with its lead-in from a moving start."""
+    trajectory = _rest_to_rest(problem, request, method)
+    if not problem.moving_start:
+        return trajectory
+    from planner.timing import DEFAULT_CHECK_RESOLUTION
+    from planner.timing.lead_in import with_moving_start
+    from planner.timing.torque import TorqueModel
+
+    torques = None
+    if trajectory.tau is not None:
+        model = TorqueModel(problem.design, problem.inertia, problem.gravity, request.assembly_mode)
+        torques = model.torques
+    waypoints = np.asarray(request.waypoints, dtype=float)
+    corner = np.broadcast_to(np.asarray(request.max_deviation, dtype=float), (len(waypoints),))
+    return with_moving_start(
+        trajectory,
+        problem.start_state,
+        design=problem.design,
+        assembly_mode=request.assembly_mode,
+        limits=problem.limits,
+        check_states=request.check_states,
+        resolution=request.check_resolution or DEFAULT_CHECK_RESOLUTION,
+        sample_rate_hz=problem.timing.sample_rate_hz,
+        first_segment=waypoints[:2] if len(waypoints) > 1 else None,
+        near=float(corner[1]) if len(waypoints) > 1 else 0.0,
+        torques=torques,
+    )
+
+
+def _rest_to_rest(problem: MotionProblem, request: TimingRequest, method: str) -> Trajectory:
     from planner.timing import DEFAULT_CHECK_RESOLUTION, time_path
 
     timing = problem.timing

@@ -110,6 +110,13 @@ class MotionProblem:
         used where torques are asked (``limits.torque``).
     gravity : m/s^2 in the base frame, 3 finite numbers.
     budget : the answer's :class:`Budget`.
+    start_qd, start_qdd : the start's joint velocity (rad/s) and acceleration (rad/s^2), 3
+        numbers each, default zeros (at rest). A moving start (:mod:`planner.timing.lead_in`):
+        the trajectory begins in exactly that state, through a lead-in onto the planned
+        path; it must lie within ``limits`` (a :class:`~planner.exceptions.LimitsError` at
+        ``start.qd`` / ``start.qdd``), needs a timed answer, and is refused (at
+        ``start.qd``) with ``limits.torque`` or ``timing.max_cartesian_speed``, which the
+        lead-in does not bound.
     """
 
     design: Design
@@ -122,6 +129,8 @@ class MotionProblem:
     inertia: Inertia | None = None
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY
     budget: Budget = UNBOUNDED
+    start_qd: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start_qdd: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         checks: tuple[tuple[str, Any, type | tuple[type, ...]], ...] = (
@@ -148,7 +157,45 @@ class MotionProblem:
         object.__setattr__(self, "gravity", (float(g[0]), float(g[1]), float(g[2])))
         obstacles = tuple(self.obstacles)
         object.__setattr__(self, "obstacles", obstacles)
+        self._check_moving_start()
         _packed(obstacles)  # packed once, here: every later checker finds it in the cache
+
+    def _check_moving_start(self) -> None:
+        """``start_qd``, ``start_qdd`` as float triples, and a moving start's rules."""
+        from planner.timing.lead_in import StartState, check_start_rates
+
+        state = StartState.of(self.start.q, self.start_qd, self.start_qdd)
+        object.__setattr__(self, "start_qd", tuple(float(x) for x in state.qd))
+        object.__setattr__(self, "start_qdd", tuple(float(x) for x in state.qdd))
+        if not state.moving:
+            return
+        refused = (
+            (self.timing.method == "none", "a timed answer (timing.method toppra or ruckig)"),
+            (
+                self.limits.torque is not None,
+                "no limits.torque (the lead-in is not torque-limited)",
+            ),
+            (
+                self.timing.max_cartesian_speed is not None,
+                "no timing.max_cartesian_speed (the lead-in does not bound the speed of P)",
+            ),
+        )
+        for refuse, needs in refused:
+            if refuse:
+                raise InputError(f"a moving start needs {needs}", field="start.qd")
+        check_start_rates(state, self.limits, jerk_limited=self.timing.method == "ruckig")
+
+    @property
+    def start_state(self) -> Any:
+        """The start as a :class:`planner.timing.lead_in.StartState` (q, qd, qdd)."""
+        from planner.timing.lead_in import StartState
+
+        return StartState.of(self.start.q, self.start_qd, self.start_qdd)
+
+    @property
+    def moving_start(self) -> bool:
+        """The start is not at rest (``start_qd`` or ``start_qdd`` is not zero)."""
+        return any(x != 0.0 for x in (*self.start_qd, *self.start_qdd))
 
     @classmethod
     def of(
@@ -164,6 +211,8 @@ class MotionProblem:
         inertia: Inertia | None = None,
         gravity: Any = DEFAULT_GRAVITY,
         deadline: float | None = None,
+        start_qd: Any = (0.0, 0.0, 0.0),
+        start_qdd: Any = (0.0, 0.0, 0.0),
     ) -> MotionProblem:
         """The problem of the library's keyword calls (None: a field's default)."""
         return cls(
@@ -177,8 +226,17 @@ class MotionProblem:
             inertia,
             gravity,
             Budget(deadline),
+            start_qd,
+            start_qdd,
         )
 
     def with_(self, **changes: Any) -> MotionProblem:
-        """A copy with ``changes`` (e.g. another start, or timing options), checked again."""
+        """A copy with ``changes`` (e.g. another start, or timing options), checked again.
+        A new ``start`` or ``timing`` starts at rest unless ``start_qd``/``start_qdd`` are
+        given too (a sequence plans its legs from rest, untimed; the joined path is timed
+        from the moving start)."""
+        if ("start" in changes or "timing" in changes) and not (
+            {"start_qd", "start_qdd"} & changes.keys()
+        ):
+            changes = {**changes, "start_qd": (0.0, 0.0, 0.0), "start_qdd": (0.0, 0.0, 0.0)}
         return replace(self, **changes)

@@ -21,6 +21,7 @@ from planner.wire.common import (
     _Response,
     located,
 )
+from planner.wire.execution import lead_in_model
 from planner.wire.motion import MotionRequest, finite, motion_problem
 from planner.wire.plan import PathModel, PlanStatus, path_model
 from planner.wire.timing import (
@@ -203,6 +204,7 @@ def cartesian_response(
         chord_bound=finite(d.chord_bound),
         blend_deviation_bound=finite(d.blend_deviation_bound),
         cartesian_length=finite(d.cartesian_length),
+        lead_in=lead_in_model(result.trajectory),
     )
     stop = result.stop
     return CartesianResponse(

@@ -61,6 +61,7 @@ __all__ = [
     "Integer",
     "JointGoal",
     "JointPostureModel",
+    "LeadInModel",
     "Length",
     "LinkInertiaModel",
     "LinkLength",
@@ -554,6 +555,16 @@ class TimingErrorInfo(_Response):
     index: int | None = Field(None, ge=0, description="The failing waypoint (POST /v1/timing).")
 
 
+class LeadInModel(_Response):
+    """How a moving start joined its trajectory (docs/execution.md): the lead-in's
+    ``duration`` (s, from the start), the time ``joins_at`` of the rest-to-rest timing where
+    it joins it (s), and ``kind``: "direct" (one move onto the path) or "brake_and_return"."""
+
+    duration: float
+    joins_at: float
+    kind: str
+
+
 class DiagnosticsModel(_Response):
     """Timings and margins met, every field declared (an unknown one, from a newer server, is
     ignored like any response field). A quantity that does not apply is ``null``."""
@@ -592,6 +603,9 @@ class DiagnosticsModel(_Response):
         None,
         description="Largest |tau_j| / limits.torque[j] over the checked samples (<= 1 when "
         "the torque limits hold); null without limits.torque.",
+    )
+    lead_in: LeadInModel | None = Field(
+        None, description="A moving start's lead-in onto the path (null: started at rest)."
     )
 
 

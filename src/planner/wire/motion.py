@@ -35,6 +35,7 @@ from planner.wire.common import (
     margins_to_core,
     triple_to_core,
 )
+from planner.wire.execution import StartPostureModel
 from planner.wire.scenes import SceneName, scene_obstacles
 from planner.wire.timing import Limits, joint_limits_to_core, timing_to_core
 
@@ -92,7 +93,7 @@ class MotionRequest(_Request):
     """The fields of every motion request (a plan, a sequence, a straight path)."""
 
     design: DesignModel = _DesignField
-    start: JointPostureModel
+    start: StartPostureModel
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=MAX_OBSTACLES)
     scene: SceneName | None = Field(
         None,
@@ -156,15 +157,24 @@ def motion_problem(
     """The request's :class:`~planner.motion.MotionProblem`, converted once: design, start,
     the scene's and the request's obstacles, margins, the search options of its ``planner``
     (where it has one), its ``timing`` with ``limits.cartesian_speed`` and the answer's
-    sample bound ``max_samples``, the limits, the inertia of its design, gravity, and the
-    budget ending at ``deadline`` (a :func:`time.monotonic` value)."""
+    sample bound ``max_samples``, the limits, the inertia of its design, gravity, the
+    budget ending at ``deadline`` (a :func:`time.monotonic` value), and the start's
+    velocity and acceleration; with ``replace``, the start is the running state at
+    ``replace.at`` exactly (:func:`planner.wire.execution.replace_start`)."""
     from dataclasses import replace
 
     from planner.motion.problem import Budget, MotionProblem
-    from planner.planning.problem import PlanOptions
+    from planner.planning.problem import JointPosture, PlanOptions
+    from planner.wire.execution import replace_start
 
     design = design_to_core(request.design)
     start = posture_to_core(request.start, ("body", "start"))
+    qd, qdd = triple_to_core(request.start.qd), triple_to_core(request.start.qdd)
+    running = replace_start(request)
+    if running is not None:  # the running state at replace.at, exactly
+        _, q, qd_at, qdd_at = running
+        start = JointPosture(q, request.start.assembly_mode)
+        qd, qdd = triple_to_core(qd_at), triple_to_core(qdd_at)
     obstacles = tuple(scene_obstacles(request))
     planner = getattr(request, "planner", None)
     options = PlanOptions() if planner is None else planner_options_to_core(planner)
@@ -181,6 +191,8 @@ def motion_problem(
             inertia_to_core(request.design),
             triple_to_core(request.gravity),
             Budget(deadline),
+            qd,
+            qdd,
         )
 
 

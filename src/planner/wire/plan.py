@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from planner.wire.common import (
@@ -22,6 +22,7 @@ from planner.wire.common import (
     _Request,
     _Response,
 )
+from planner.wire.execution import lead_in_model
 
 if TYPE_CHECKING:
     from planner.exceptions import TimingError
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
     from planner.planning.result import PlanPath, PlanResult
     from planner.solver import Solution
     from planner.timing.trajectory import Trajectory
+from planner.wire.execution import ReplaceModel, fill_start_from_replace
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.timing import (
     AnyTrajectory,
@@ -64,6 +66,16 @@ class PlanRequest(MotionRequest):
     goal: Goal
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
+    replace: ReplaceModel | None = Field(
+        None,
+        description="Replace a running trajectory mid-motion: the answer starts from its state "
+        "at `at` (then `start` may be omitted) and its times are on its clock (docs/execution.md).",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _start_from_replace(cls, data: Any) -> Any:
+        return fill_start_from_replace(data)
 
 
 PlanStatus = Literal["solved", "no_path", "unreachable", "invalid_start", "invalid_goal", "timeout"]
@@ -206,6 +218,7 @@ def plan_response(
         timing["timing_time_s"] = trajectory.computation_time_s
         timing["timing_repairs"] = trajectory.repairs
         timing["max_torque_ratio"] = getattr(trajectory, "max_torque_ratio", None)
+        timing["lead_in"] = lead_in_model(trajectory)
     diagnostics = DiagnosticsModel(
         planning_time_s=d.planning_time_s,
         path_length=finite(d.path_length),

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from planner.constants import MAX_SEQUENCE_TARGETS
 from planner.wire.common import (
@@ -19,6 +19,7 @@ from planner.wire.common import (
     _Response,
     located,
 )
+from planner.wire.execution import ReplaceModel, fill_start_from_replace, lead_in_model
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.plan import (
     PathModel,
@@ -101,6 +102,16 @@ class SequenceRequest(MotionRequest):
         default_factory=PlannerOptions, description="Search options of every leg."
     )
     timing: TimingOptionsModel = Field(default_factory=TimingOptionsModel)
+    replace: ReplaceModel | None = Field(
+        None,
+        description="Replace a running trajectory mid-motion: the answer starts from its state "
+        "at `at` (then `start` may be omitted) and its times are on its clock (docs/execution.md).",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _start_from_replace(cls, data: Any) -> Any:
+        return fill_start_from_replace(data)
 
 
 class LegModel(_Response):
@@ -288,6 +299,7 @@ def sequence_response(
         extra["timing_time_s"] = d.timing_time_s
         extra["timing_repairs"] = traj.repairs
         extra["max_torque_ratio"] = getattr(traj, "max_torque_ratio", None)
+        extra["lead_in"] = lead_in_model(traj)
     runner = d.runner_up
     diagnostics = SequenceDiagnosticsModel(
         planning_time_s=d.planning_time_s,

@@ -53,6 +53,7 @@ __all__ = [
     "AnyTrajectory",
     "Limits",
     "Scaling",
+    "StartRatesModel",
     "TimingOptionsModel",
     "TimingRequest",
     "TimingResponse",
@@ -193,6 +194,17 @@ AnyTrajectory = Annotated[
 MAX_TIMING_WAYPOINTS = 10_000
 
 
+class StartRatesModel(_Request):
+    """The state a timed path starts in (its posture is the first waypoint)."""
+
+    qd: Annotated[
+        list[Annotated[float, Field(allow_inf_nan=False)]], Field(min_length=3, max_length=3)
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="Joint velocity, rad/s.")
+    qdd: Annotated[
+        list[Annotated[float, Field(allow_inf_nan=False)]], Field(min_length=3, max_length=3)
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="Joint acceleration, rad/s^2.")
+
+
 class TimingRequest(_Request):
     """Body of ``POST /v1/timing``: time-parameterise a joint path (N x 3 waypoints, rad,
     joined by straight joint-space segments, literal values) from rest to rest, checked
@@ -226,6 +238,11 @@ class TimingRequest(_Request):
         description="Working mode the validity rules hold the path to (absent: that of the "
         "first waypoint); used with margins or obstacles.",
     )
+    start: StartRatesModel = Field(
+        default_factory=StartRatesModel,
+        description="A moving start at the first waypoint: `qd`, `qdd` (default zeros). The "
+        "trajectory begins in exactly that state through a lead-in (docs/execution.md).",
+    )
 
     @field_validator("stop_at")
     @classmethod
@@ -240,13 +257,14 @@ class TimingRequest(_Request):
         return value
 
 
-TimingStatus = Literal["solved", "invalid_path", "infeasible", "timeout"]
+TimingStatus = Literal["solved", "invalid_path", "invalid_start", "infeasible", "timeout"]
 
 
 class TimingResponse(_Response):
     """Answer of ``POST /v1/timing``. ``solved``: ``trajectory`` passed the dense re-check;
     ``invalid_path``: the path itself breaks a rule between its waypoints, or no repair kept
     the trajectory valid (``diagnostics.timing_error`` names the rule, time and posture);
+    ``invalid_start``: a moving start whose quickest braking already breaks a rule;
     ``infeasible``: the solver found no profile; ``timeout``: the request's deadline passed."""
 
     status: TimingStatus
