@@ -57,6 +57,7 @@ from planner.timing.checks import (
     dense_check,
     torque_check_times,
 )
+from planner.timing.jerk_filter import JerkFilteredCurve, jerk_limited
 from planner.timing.job import MAX_OUTPUT_SAMPLES, TimingJob, validate_inputs
 from planner.timing.limits import JointLimits
 from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ
@@ -228,7 +229,7 @@ def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | N
         if np.any(corners < 0):
             return None
         return {int(c) for c in corners}
-    if isinstance(curve, RuckigCurve):
+    if isinstance(curve, (RuckigCurve, JerkFilteredCurve)):
         found: set[int] = set()
         for at in curve.corners_at(t_bad):
             if not at:
@@ -544,8 +545,9 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
         state.profile = best if best is not None else profile
     elif state.slow_down < 1.0:
         state.profile = state.profile.time_scaled(state.slow_down)
-    if job.method == "toppra":
-        return _with_vias(job, state, ToppraCurve(path, state.profile), lim)
+    if job.method == "toppra":  # with an asked jerk: each section moving-averaged
+        base = jerk_limited(ToppraCurve(path, state.profile), job.limits)
+        return _with_vias(job, state, base, lim)
     curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline, cache=state.moves)
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
@@ -571,7 +573,7 @@ def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) ->
         state.dev0 if state.via_radius is None else state.via_radius,
         lim,
         corridor=state.dev0,
-        jerk=job.method == "ruckig",
+        jerk=lim.jerk is not None,  # ruckig, or toppra with an asked jerk
         fit=lambda c: _fitted_chain(c, job),
         chains=state.via_chains,
         dropped=state.via_off,
