@@ -15,7 +15,8 @@ frequency-domain specifications", Control Eng. Practice 2012)::
 so that ``F' = (B(u) - B(u-T)) / T``, ``F'' = (B'(u) - B'(u-T)) / T`` and
 ``F''' = (B''(u) - B''(u-T)) / T``: every derivative of F is an exact function of B's,
 evaluated here in closed form (only F itself needs B's integral: a cumulative Hermite
-quadrature, exact for cubics, on a grid of ``T / 64``). Why this filter and not a re-timing
+quadrature, exact for cubics, on a grid of ``T / 64`` that holds every grid time of
+toppra's profile, so that no acceleration jump lies inside a quadrature step). Why this filter and not a re-timing
 by a jerk-limited state-to-state chain (that is ``method="ruckig"``):
 
 * velocity and acceleration: each is an average of B's over the window, and a per-joint box
@@ -247,8 +248,8 @@ def filter_jerk(base: ToppraCurve, limits: JointLimits) -> JerkFilteredCurve:
         knots = _knots(base.profile.time, (float(b0), length))
         window = _window(base, float(b0), length, jerk, a_over_j, knots)
         n = max(2, int(np.ceil(length * _Q_STEPS / window)) + 1)
-        check_sample_count(n)
-        grid = np.linspace(0.0, length, n)
+        check_sample_count(n + knots.shape[0])
+        grid = np.union1d(np.linspace(0.0, length, n), knots)  # no acceleration jump inside
         q, qd, _, _ = base.evaluate(b0 + grid)
         h = np.diff(grid)[:, None]
         steps = h / 2 * (q[1:] + q[:-1]) + h**2 / 12 * (qd[:-1] - qd[1:])
