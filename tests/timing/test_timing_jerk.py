@@ -29,7 +29,8 @@ RTOL = 1e-6
 
 def walk(seed: int, n: int = 7) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    return np.clip(np.cumsum(rng.uniform(-0.5, 0.5, size=(n, 3)), axis=0) + [0, 0.5, 1], -2, 2)
+    steps = np.cumsum(rng.uniform(-0.5, 0.5, size=(n, 3)), axis=0)
+    return np.clip(steps + np.array([0.0, 0.5, 1.0]), -2, 2)
 
 
 def fd_jerk(t: np.ndarray, qdd: np.ndarray) -> np.ndarray:
@@ -96,9 +97,7 @@ def test_via_chains_and_a_straight_path_hold_the_jerk():
     """A section timed as a chain through via states (second-order Ruckig moves without a
     jerk) is built jerk-limited instead; a straight tool path too."""
     w = np.array([[0.0, 0.5, 1.0], [0.4, 0.9, 1.2], [0.8, 0.6, 1.5], [1.0, 0.9, 1.3]])
-    traj = time_path(
-        DESIGN, w, LIMITS, sample_rate_hz=1000.0, via_at=[1, 2], max_deviation=0.05
-    )
+    traj = time_path(DESIGN, w, LIMITS, sample_rate_hz=1000.0, via_at=[1, 2], max_deviation=0.05)
     assert_jerk_limited(traj)
     start = JointPosture([0.0, 2.0, 1.0])
     res = plan_cartesian(

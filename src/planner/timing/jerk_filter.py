@@ -41,6 +41,7 @@ torques, validity) are re-checked densely on F; the repair slows toppra's profil
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,9 +115,7 @@ class JerkFilteredCurve:
         held = (x - xc)[:, None] * q_x  # before 0 (negative) or after the end: at rest
         return sec.cum_q[i] + local + held
 
-    def evaluate(
-        self, t: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         k, u = self._split(t)
         out = [np.zeros((u.shape[0], 3)) for _ in range(4)]
         for j, sec in enumerate(self.sections):
@@ -195,7 +194,9 @@ class JerkFilteredCurve:
         """For each time, the blends its window covers (empty: on a planned segment)."""
         first, last = self._corner_range(t)
         corners = np.unique(self.base.path.corner[self.base.path.corner >= 0])
-        return [tuple(int(c) for c in corners if a <= c <= b) for a, b in zip(first, last)]
+        return [
+            tuple(int(c) for c in corners if a <= c <= b) for a, b in zip(first, last, strict=True)
+        ]
 
 
 def _knots(times: np.ndarray, sec: _Section | tuple[float, float]) -> np.ndarray:
@@ -207,8 +208,14 @@ def _knots(times: np.ndarray, sec: _Section | tuple[float, float]) -> np.ndarray
     return np.unique(np.concatenate([x, (x[1:] + x[:-1]) / 2]))
 
 
-def _window(base: ToppraCurve, b0: float, length: float, jerk: np.ndarray, a_over_j: float,
-            knots: np.ndarray) -> float:  # fmt: skip
+def _window(
+    base: ToppraCurve,
+    b0: float,
+    length: float,
+    jerk: np.ndarray,
+    a_over_j: float,
+    knots: np.ndarray,
+) -> float:
     """The smallest window of :data:`WINDOW_FACTORS` under which the filtered section's
     jerk holds (measured on the knots, the knots shifted by the window and their
     midpoints), or the largest scaled by the excess measured under it."""
@@ -243,7 +250,7 @@ def filter_jerk(base: ToppraCurve, limits: JointLimits) -> JerkFilteredCurve:
     a_over_j = float(np.max(limits.acceleration_array / jerk))
     ends = np.concatenate([[0.0], base.rest_times(), [base.duration]])
     sections, start = [], 0.0
-    for b0, b1 in zip(ends[:-1], ends[1:], strict=True):
+    for b0, b1 in itertools.pairwise(ends):
         length = float(b1 - b0)
         knots = _knots(base.profile.time, (float(b0), length))
         window = _window(base, float(b0), length, jerk, a_over_j, knots)

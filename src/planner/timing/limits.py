@@ -111,7 +111,9 @@ class JointLimits:
         (what ``method="ruckig"`` is timed under)."""
         if self.jerk is not None:
             return self
-        return JointLimits(self.velocity, self.acceleration, (RUCKIG_DEFAULT_JERK,) * 3, self.torque)
+        return JointLimits(
+            self.velocity, self.acceleration, (RUCKIG_DEFAULT_JERK,) * 3, self.torque
+        )
 
     def scaled(
         self, velocity_scaling: float, acceleration_scaling: float | None = None
