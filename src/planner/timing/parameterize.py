@@ -85,6 +85,7 @@ from planner.timing.trajectory import (
     p_velocity,
     sample_times,
 )
+from planner.timing.via_retime import quicker_retimed
 from planner.timing.vias import SplicedCurve, drop_failed_vias, splice_vias
 
 __all__ = [
@@ -574,7 +575,14 @@ def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) ->
         lim,
         corridor=state.dev0,
         jerk=lim.jerk is not None,  # ruckig, or toppra with an asked jerk
-        fit=lambda c: _fitted_chain(c, job),
+        fit=lambda c: quicker_retimed(  # with torque limits: re-timed along its path too
+            c,
+            _fitted_chain(c, job),
+            lim,
+            job.torque,
+            job.resolution,
+            lambda r: _fitted_chain(r, job),
+        ),
         chains=state.via_chains,
         dropped=state.via_off,
         key=state.scale,
