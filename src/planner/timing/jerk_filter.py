@@ -52,7 +52,7 @@ from planner.timing.trajectory import Curve, ToppraCurve, check_sample_count
 __all__ = ["WINDOW_FACTORS", "JerkFilteredCurve", "filter_jerk", "jerk_limited"]
 
 #: Candidate windows, in units of ``max_j a_j / j_j``: the smallest that holds is taken.
-WINDOW_FACTORS = (1.0, 1.25, 1.5, 1.75, 2.0)
+WINDOW_FACTORS = (0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0)
 #: The window's jerk bound aims this far inside the limit (relative).
 _JERK_MARGIN = 1e-3
 #: Quadrature grid of F's position, per window.
