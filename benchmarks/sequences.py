@@ -321,7 +321,7 @@ def jerk_cycles(design: Design, start, cycle: tuple, blends: list[float], timing
             traj = r.trajectory
             fd = np.abs(np.diff(traj.qdd, axis=0) / np.diff(traj.t)[:, None]).max()
             ratio = max(ratio, fd / (jerk if jerk is not None else np.inf))
-        label = "none (toppra)" if jerk is None and timing.method == "toppra" else str(jerk)
+        label = f"{jerk:g}" if jerk is not None else "none asked"
         shown = "-" if jerk is None else f"{ratio:.4f}"
         print(f"{label:<16} {row[0]:>10.4f} {row[1]:>11.4f} {shown:>22}")
     print("goal: the ratio <= 1 (the limit holds between samples too; tests check it)")

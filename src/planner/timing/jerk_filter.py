@@ -22,7 +22,7 @@ by a jerk-limited state-to-state chain (that is ``method="ruckig"``):
 * velocity and acceleration: each is an average of B's over the window, and a per-joint box
   is convex, so F keeps B's limits exactly (no re-check slack is spent on them);
 * jerk: ``|F'''_j| <= max |B''_j(u) - B''_j(u-T)| / T``, at most ``2 a_j / T``; ``T`` is the
-  smallest of ``a/j x (1, 1.25, 1.5, 1.75, 2)`` whose measured bound holds (a trapezoid's
+  smallest of ``a/j x (0.5, 0.75, ..., 2)`` whose measured bound holds (a trapezoid's
   jumps are ``a``: ``T = a/j``, the ramp time of the jerk-limited optimum), else ``2 a/j``
   scaled by any excess measured;
 * time: each section takes exactly ``T`` longer than toppra's time-optimal one (on the
