@@ -31,8 +31,10 @@ def test_torque_limits_hold_and_bind(method: str) -> None:
     the check grid) stay within the limits to 1e-6 relative (LIMIT_RTOL; off the checked
     times, between samples 1/4000 of the motion apart, 1e-3), the limits bind (some joint
     reaches 90 % of its own) and the motion is slower than without them."""
-    free = time_path(DESIGN, PATH, JointLimits(**FAST), method=method)
-    limited = time_path(DESIGN, PATH, JointLimits(**FAST, torque=TORQUE), method=method)
+    # toppra honours a jerk given (its sections moving-averaged): this test is about torques
+    fast = FAST if method == "ruckig" else {k: v for k, v in FAST.items() if k != "jerk"}
+    free = time_path(DESIGN, PATH, JointLimits(**fast), method=method)
+    limited = time_path(DESIGN, PATH, JointLimits(**fast, torque=TORQUE), method=method)
     inertia = Inertia.default(DESIGN)
     ratio = np.max(np.abs(_fine_torques(limited, inertia)) / TORQUE, axis=0)
     assert np.max(ratio) <= 1.0 + 1e-3

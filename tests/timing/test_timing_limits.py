@@ -46,10 +46,20 @@ def test_bad_limits_are_rejected_naming_the_field(field, value, rule):
     assert isinstance(err.value, InputError) and isinstance(err.value, ValueError)
 
 
-def test_ruckig_needs_jerk():
+def test_ruckig_without_a_jerk_takes_its_default():
+    """No jerk asked: Ruckig (which needs one) is timed under RUCKIG_DEFAULT_JERK, exactly
+    as if that jerk had been given; toppra is not jerk-limited (its jerk undefined)."""
+    from planner.timing.limits import RUCKIG_DEFAULT_JERK
+
     w = np.array([[0.0, 0.5, 1.0], [0.3, 0.7, 1.2]])
-    with pytest.raises(LimitsError, match=r"limits\.jerk is required"):
-        time_path(Design.default(), w, JointLimits(GOOD, GOOD), method="ruckig")
+    free = time_path(Design.default(), w, JointLimits(GOOD, GOOD), method="ruckig")
+    given = JointLimits(GOOD, GOOD, (RUCKIG_DEFAULT_JERK,) * 3)
+    same = time_path(Design.default(), w, given, method="ruckig")
+    assert free.duration == pytest.approx(same.duration, rel=1e-12)
+    assert np.max(np.abs(free.jerk)) <= RUCKIG_DEFAULT_JERK * (1 + 1e-6)
+    assert np.max(np.abs(free.jerk)) >= 0.99 * RUCKIG_DEFAULT_JERK  # it binds: no other jerk
+    toppra = time_path(Design.default(), w, JointLimits(GOOD, GOOD), method="toppra")
+    assert toppra.jerk is None
 
 
 def test_scaled_keeps_jerk_and_rejects_bad_factor():

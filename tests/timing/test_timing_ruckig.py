@@ -180,7 +180,7 @@ def test_short_segment_between_blends_becomes_one_middle_state():
     exit and an entry there, Ruckig needed 0.50 s for it and the whole path took 1.24x
     toppra's duration; with one state at its middle, within 1.2x (and every limit and the
     deviation allowance hold, as the dense re-check of time_path guarantees)."""
-    limits = JointLimits.default()
+    limits = JointLimits.default().with_ruckig_jerk()
     w = _benchmark_walks(80)[79]
     path = BlendedPath.from_waypoints(
         w, np.full(20, 0.05), np.zeros(20, bool), min_blend_radius(limits)

@@ -12,7 +12,7 @@ from planner.timing import LIMIT_RTOL, JointLimits, time_path
 from planner.timing.trajectory import p_velocity
 
 DESIGN = Design.default()
-LIMITS = JointLimits(velocity=(2.0, 1.5, 2.5), acceleration=(8.0, 6.0, 10.0), jerk=(200.0,) * 3)
+LIMITS = JointLimits(velocity=(2.0, 1.5, 2.5), acceleration=(8.0, 6.0, 10.0))  # no jerk asked
 TOL = 1 + LIMIT_RTOL
 
 

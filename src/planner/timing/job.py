@@ -145,10 +145,8 @@ def validate_inputs(
         raise LimitsError(f"limits must be a JointLimits, got {type(limits).__name__}")
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}", field="method")
-    if method == "ruckig" and limits.jerk is None:
-        raise LimitsError(
-            "limits.jerk is required for method='ruckig' (3 positive numbers)", field="limits.jerk"
-        )
+    if method == "ruckig":  # Ruckig needs a jerk: the default when none is asked
+        limits = limits.with_ruckig_jerk()
     if assembly_mode not in ASSEMBLY_MODES:
         raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
     w = _waypoints(design, waypoints)

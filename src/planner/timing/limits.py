@@ -14,13 +14,17 @@ import numpy as np
 
 from planner.exceptions import LimitsError
 
-__all__ = ["MAX_RATE", "MIN_RATE", "JointLimits"]
+__all__ = ["MAX_RATE", "MIN_RATE", "RUCKIG_DEFAULT_JERK", "JointLimits"]
 
 #: Smallest limit accepted (rad/s, rad/s^2 or rad/s^3): below it a move would take ages and
 #: squares of the profile underflow; a robot that slow is not being timed.
 MIN_RATE = 1e-6
 #: Largest limit accepted: far above any actuator, and safe to square and cube.
 MAX_RATE = 1e6
+#: The jerk Ruckig is given per joint (rad/s^3) when none is asked: Ruckig cannot work
+#: without one (the acceleration ramps up in 40 ms at 8 rad/s^2). toppra takes no jerk unless
+#: one is asked (``limits.jerk``), and then honours it (:mod:`planner.timing.jerk_filter`).
+RUCKIG_DEFAULT_JERK = 200.0
 
 
 def _positive_triple(name: str, value: object) -> tuple[float, float, float]:
@@ -65,9 +69,11 @@ class JointLimits:
     ----------
     velocity : 3 floats, rad/s, each > 0 and finite
     acceleration : 3 floats, rad/s^2, each > 0 and finite
-    jerk : 3 floats, rad/s^3, each > 0 and finite, or None
-        Needed by the jerk-limited method (``ruckig``); toppra ignores it (its acceleration is
-        piecewise constant, so its jerk is not defined).
+    jerk : 3 floats, rad/s^3, each > 0 and finite, or None (not asked)
+        Honoured by both methods when given: ``ruckig`` is jerk-limited by construction
+        (without one it takes :data:`RUCKIG_DEFAULT_JERK`); ``toppra``'s time-optimal profile
+        is moving-averaged per rest-to-rest section (:mod:`planner.timing.jerk_filter`).
+        None: toppra's acceleration is piecewise constant (its jerk undefined).
     torque : 3 floats, N m, each > 0 and finite, or None
         ``|tau_j| <= torque[j]`` for the actuator torques of the inverse dynamics
         (:mod:`planner.timing.torque`); both methods meet it.
@@ -96,9 +102,18 @@ class JointLimits:
 
     @classmethod
     def default(cls) -> JointLimits:
-        """Moderate limits for the reference designs: 2 rad/s, 8 rad/s^2, 200 rad/s^3 per joint
-        (the acceleration ramps up in 40 ms)."""
-        return cls(velocity=(2.0,) * 3, acceleration=(8.0,) * 3, jerk=(200.0,) * 3)
+        """Moderate limits for the reference designs: 2 rad/s, 8 rad/s^2 per joint, no jerk
+        asked (ruckig then takes :data:`RUCKIG_DEFAULT_JERK`)."""
+        return cls(velocity=(2.0,) * 3, acceleration=(8.0,) * 3)
+
+    def with_ruckig_jerk(self) -> JointLimits:
+        """These limits, with :data:`RUCKIG_DEFAULT_JERK` per joint where no jerk is asked
+        (what ``method="ruckig"`` is timed under)."""
+        if self.jerk is not None:
+            return self
+        return JointLimits(
+            self.velocity, self.acceleration, (RUCKIG_DEFAULT_JERK,) * 3, self.torque
+        )
 
     def scaled(
         self, velocity_scaling: float, acceleration_scaling: float | None = None

@@ -57,6 +57,7 @@ from planner.timing.checks import (
     dense_check,
     torque_check_times,
 )
+from planner.timing.jerk_filter import JerkFilteredCurve, jerk_limited
 from planner.timing.job import MAX_OUTPUT_SAMPLES, TimingJob, validate_inputs
 from planner.timing.limits import JointLimits
 from planner.timing.options import DEFAULT_MAX_DEVIATION, DEFAULT_SAMPLE_RATE_HZ
@@ -84,6 +85,7 @@ from planner.timing.trajectory import (
     p_velocity,
     sample_times,
 )
+from planner.timing.via_retime import quicker_retimed
 from planner.timing.vias import SplicedCurve, drop_failed_vias, splice_vias
 
 __all__ = [
@@ -228,7 +230,7 @@ def _blame(curve: Curve, path: BlendedPath, report: CheckReport) -> set[int] | N
         if np.any(corners < 0):
             return None
         return {int(c) for c in corners}
-    if isinstance(curve, RuckigCurve):
+    if isinstance(curve, (RuckigCurve, JerkFilteredCurve)):
         found: set[int] = set()
         for at in curve.corners_at(t_bad):
             if not at:
@@ -544,8 +546,9 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
         state.profile = best if best is not None else profile
     elif state.slow_down < 1.0:
         state.profile = state.profile.time_scaled(state.slow_down)
-    if job.method == "toppra":
-        return _with_vias(job, state, ToppraCurve(path, state.profile), lim)
+    if job.method == "toppra":  # with an asked jerk: each section moving-averaged
+        base = jerk_limited(ToppraCurve(path, state.profile), job.limits)
+        return _with_vias(job, state, base, lim)
     curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline, cache=state.moves)
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
@@ -571,8 +574,15 @@ def _with_vias(job: TimingJob, state: _State, curve: Curve, lim: JointLimits) ->
         state.dev0 if state.via_radius is None else state.via_radius,
         lim,
         corridor=state.dev0,
-        jerk=job.method == "ruckig",
-        fit=lambda c: _fitted_chain(c, job),
+        jerk=lim.jerk is not None,  # ruckig, or toppra with an asked jerk
+        fit=lambda c: quicker_retimed(  # with torque limits: re-timed along its path too
+            c,
+            _fitted_chain(c, job),
+            lim,
+            job.torque,
+            job.resolution,
+            lambda r: _fitted_chain(r, job),
+        ),
         chains=state.via_chains,
         dropped=state.via_off,
         key=state.scale,

@@ -98,12 +98,19 @@ class TimingOptionsModel(_Request):
 
 
 class Limits(_Request):
-    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent field takes the timing default
-    (:meth:`planner.timing.JointLimits.default`: 2 rad/s, 8 rad/s^2, 200 rad/s^3)."""
+    """Per-joint limits (rad/s, rad/s^2, rad/s^3); an absent velocity or acceleration takes
+    the timing default (:meth:`planner.timing.JointLimits.default`: 2 rad/s, 8 rad/s^2). An
+    absent ``jerk`` is not asked: ``toppra`` is then not jerk-limited and ``ruckig`` takes its
+    default, 200 rad/s^3; a given one is honoured by both methods."""
 
     velocity: Rates3 | None = None
     acceleration: Rates3 | None = None
-    jerk: Rates3 | None = None
+    jerk: Rates3 | None = Field(
+        None,
+        description="Jerk limits, rad/s^3 (optional): honoured by toppra (its profile "
+        "moving-averaged per rest-to-rest section) and ruckig; absent: toppra is not "
+        "jerk-limited, ruckig takes 200 rad/s^3.",
+    )
     cartesian_speed: Annotated[float, Field(allow_inf_nan=False, ge=1e-6, le=1e3)] | None = Field(
         None, description="Bound on the speed of P, m/s (optional)."
     )
@@ -284,7 +291,7 @@ def joint_limits_to_core(
     from planner.timing import JointLimits
 
     default = JointLimits.default()
-    jerk = model.jerk or default.jerk
+    jerk = model.jerk  # absent: not asked (ruckig takes its default, toppra none)
     with located(*loc):
         limits = JointLimits(
             velocity=triple_to_core(model.velocity or default.velocity),
