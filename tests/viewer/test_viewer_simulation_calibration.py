@@ -104,8 +104,8 @@ def check_simulation(page, request: dict, answer: dict, body: dict, sim: dict, t
     expect()(plot.locator("canvas")).to_have_count(2)
     assert plot.get_attribute("data-samples") == str(len(sim["t"]))
     plot.scroll_into_view_if_needed()
-    p_chart = rgb_of(page, "[data-testid=sim-plot] .uplot:nth-child(1) canvas")
-    e_chart = rgb_of(page, "[data-testid=sim-plot] .uplot:nth-child(1) ~ div canvas")
+    p_chart = rgb_of(page, "[data-testid=sim-plot] > div:nth-child(1) canvas")
+    e_chart = rgb_of(page, "[data-testid=sim-plot] > div:nth-child(2) canvas")
     for k in range(3):  # each coordinate's planned band and realised line
         assert near(p_chart, PLANNED[k]) > 150, ("planned", k)
         assert near(p_chart, REALISED[k]) > 80, ("realised", k)
@@ -211,7 +211,7 @@ def test_a_measurements_file_is_calibrated_with_one_bar_per_measurement(
     top = max(mm for mm, _ in bars)
     for mm, w in bars:  # each bar's length is its residual on the largest's scale
         assert w == pytest.approx(widest * mm / top, abs=1.5)
-    assert widest > 0.3 * (width / 2 if width > 900 else width) * 0.5
+    assert widest > 100  # on the largest's scale, across most of the panel
     rms = math.sqrt(np.mean(np.square(answer["residuals_m"])))
     assert answer["residual_rms_m"] == pytest.approx(rms, rel=1e-9)
     assert float(res.get_attribute("data-rms-mm")) == 1000 * answer["residual_rms_m"]
