@@ -65,6 +65,8 @@ export function chart(el, title, series, data, { yRange, yLabel, draw = overlay 
     scales: { x: { time: false }, y: yRange ? { range: yRange } : { auto: true } },
     axes: [{ label: 't (s)', labelSize: 16, size: 30 }, {
       label: yLabel, labelSize: 18, size: 56, splits: (self, i, min, max) => yTicks(min, max),
+      // each tick as its value (uPlot's own labels round to the step it would have chosen)
+      values: (self, ticks) => ticks.map((v) => String(v)),
     }],
     series: [{ label: 't' }, ...series],
     hooks: { draw: [draw] },

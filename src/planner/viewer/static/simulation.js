@@ -89,8 +89,8 @@ function marks(u) {
     ctx.setLineDash([4 * px, 3 * px]);
     ctx.lineWidth = px;
     ctx.beginPath(); ctx.moveTo(x, top); ctx.lineTo(x, top + height); ctx.stroke();
-    ctx.textAlign = k ? 'left' : 'right';  // the planned end's name left of its line, the realised one's right
-    ctx.fillText(m.label, x + (k ? 3 : -3) * px, top + (11 + 12 * k) * px);
+    ctx.textAlign = 'right';  // left of its line, the realised end's a row lower (the two are close)
+    ctx.fillText(m.label, x - 3 * px, top + (11 + 12 * k) * px);
   }
   const x = u.valToPos(now, 'x', true);
   ctx.setLineDash([]);
