@@ -228,7 +228,8 @@ def test_a_measurements_file_is_calibrated_with_one_bar_per_measurement(
 def test_a_pasted_body_names_the_unidentified_and_bad_input_is_said(page):
     """Pasted with the frame free (the default identify): theta1's zero is named
     unidentified and marked; a body that is not JSON, and one the service refuses, are said
-    next to the box, with the field."""
+    next to the box, with the field; "use this design" puts the identified lengths into the
+    form."""
     box = page.get_by_test_id("calibration-body")
     box.fill("{measurements: ")
     page.get_by_test_id("calibration-run").click()
@@ -251,4 +252,8 @@ def test_a_pasted_body_names_the_unidentified_and_bad_input_is_said(page):
     expect()(row).to_have_class("unidentified")
     expect()(row).to_contain_text("unidentified")
     assert len(residual_bars(page)) == len(MEASUREMENTS)
+    page.get_by_test_id("calibration-use").click()  # the identified lengths into the form
+    for k in ("L0", "L1", "L2"):
+        assert float(page.locator(f"input[name='design.{k}']").input_value()) == answer["design"][k]
+    expect()(page.locator("#preset")).to_have_value("")  # no preset's: a design of its own
     page.watch.check(allowed_errors=re.compile(r"status of 422"))  # chromium logs a 422

@@ -203,14 +203,18 @@ function exampleChosen(ex) {
   followExport();
 }
 
-$('preset').addEventListener('change', () => {
-  const p = presets.find((x) => x.name === $('preset').value);
-  if (!p) return;
+/** Another design into the form (a preset's, a calibration's): the plan on screen goes. */
+function useDesign(d) {
   dropPlan();
-  form.setDesign(p.design);
+  form.setDesign(d);
   designChanged();
   preview();
   followExport();
+}
+
+$('preset').addEventListener('change', () => {
+  const p = presets.find((x) => x.name === $('preset').value);
+  if (p) useDesign(p.design);
 });
 
 // ------------------------------------------------------------------ plan
@@ -579,7 +583,7 @@ form.init({
   exampleChosen,
 });
 scenes.init({ drawn: (list) => scene.setSceneObstacles(list) });
-calibration.init();
+calibration.init({ use: useDesign });
 pickMode();
 legendInit();
 designChanged();

@@ -5,13 +5,16 @@
 // the identified parameters (each with its standard deviation, or held: not asked, or named
 // unidentified), the design, the offsets, the tracker's frame, the condition number, and the
 // residual of each measurement as a bar in mm against the RMS and the maximum
-// (`calibration-residuals`).
+// (`calibration-residuals`). **Use this design** puts the identified lengths into the form's
+// design (as a preset does); the offsets and the frame are the controller's and the
+// tracker's business, not the design's, and stay in the panel.
 
 import { ApiError, postJSON } from './api.js';
 
 const $ = (id) => document.getElementById(id);
 let shown = null;  // {body, answer}: what the panel shows (read by the tests)
 let asked = 0;
+let useDesign = () => {};
 
 /** The identified model, one row per parameter: [name, value, unit]. */
 function parameters(answer) {
@@ -156,7 +159,10 @@ export function clear() {
   say('');
 }
 
-export function init() {
+/** `use(design)`: put a design into the form (app.js, as a preset). */
+export function init({ use }) {
+  useDesign = use;
+  $('calibration-use').addEventListener('click', () => { if (shown) useDesign(shown.answer.design); });
   $('calibration-run').addEventListener('click', calibrate);
   $('calibration-file').addEventListener('change', (ev) => load(ev.target.files[0]));
 }

@@ -90,7 +90,12 @@ function marks(u) {
     ctx.lineWidth = px;
     ctx.beginPath(); ctx.moveTo(x, top); ctx.lineTo(x, top + height); ctx.stroke();
     ctx.textAlign = 'right';  // left of its line, the realised end's a row lower (the two are close)
-    ctx.fillText(m.label, x - 3 * px, top + (11 + 12 * k) * px);
+    const y = top + (11 + 12 * k) * px;
+    const w = ctx.measureText(m.label).width;
+    ctx.fillStyle = 'rgba(255, 255, 255, 0.85)';  // readable over the curves
+    ctx.fillRect(x - 5 * px - w, y - 10 * px, w + 4 * px, 12 * px);
+    ctx.fillStyle = MARK;
+    ctx.fillText(m.label, x - 3 * px, y);
   }
   const x = u.valToPos(now, 'x', true);
   ctx.setLineDash([]);
