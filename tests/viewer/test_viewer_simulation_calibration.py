@@ -130,8 +130,10 @@ def test_a_plan_is_simulated_under_computed_torque(page, tmp_path):
     assert sim["tracking"]["p_max_mm"] < 0.5  # docs/simulation.md's goal for computed torque
     assert sim["realised_duration"] is not None
     check_simulation(page, request, answer, body, sim, tmp_path, "simulated-plan")
-    assert page.get_by_test_id("sim-realised").inner_text().startswith(
-        f"{sim['realised_duration']:.4f} s"
+    assert (
+        page.get_by_test_id("sim-realised")
+        .inner_text()
+        .startswith(f"{sim['realised_duration']:.4f} s")
     )
     plan(page)  # another answer: its simulation is not this one's
     expect()(page.get_by_test_id("sim-plot")).to_be_hidden()
@@ -171,9 +173,7 @@ def residual_bars(page) -> list[tuple[float, float]]:
 
 
 @pytest.mark.parametrize("viewport", [NARROW, WIDE], ids=["800", "1440"])
-def test_a_measurements_file_is_calibrated_with_one_bar_per_measurement(
-    page, tmp_path, viewport
-):
+def test_a_measurements_file_is_calibrated_with_one_bar_per_measurement(page, tmp_path, viewport):
     """Load the docs' measurements from a file, Calibrate: the identified lengths and offsets
     are the answer's; one residual bar per measurement, its length its residual."""
     page.set_viewport_size(viewport)
