@@ -234,7 +234,7 @@ FITS = """() => {
   const img = document.getElementById('iso-figure');
   const shown = img.getBoundingClientRect().width > 0;  // not when its box is closed
   if (shown && !inside(img, img.closest('.analysis'))) out.push('figure wider than its column');
-  for (const el of document.querySelectorAll('.figure-box, .analysis, form, .view, .regions')) {
+  for (const el of document.querySelectorAll('.figure-box, .analysis, form, .view, .regions, .calibration')) {
     if (el.scrollWidth > el.clientWidth + 1) out.push(`${el.className || el.tagName} scrolls`);
   }
   for (const el of document.querySelectorAll('input[name^="design.joint_"]')) {

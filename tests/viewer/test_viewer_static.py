@@ -36,6 +36,8 @@ TEST_IDS = (
     "scene-name",
     "scene-save",
     "scene-delete",
+    "sim-plot",
+    "calibration-residuals",
 )
 #: The page's own code (not the vendored libraries).
 OWN_FILES = sorted(p for p in STATIC_DIR.iterdir() if p.is_file())

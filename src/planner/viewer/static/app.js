@@ -1,6 +1,7 @@
 // The viewer's wiring: form -> POST /v1/plan (or /v1/cartesian for a straight tool path,
 // /v1/sequence for a sequence of targets) ->
-// scene, timeline, plots, the workspace section and the region map.
+// scene, timeline, plots, the views (the sequence's legs and blends, the simulated robot),
+// the workspace section and the region map; the calibration panel asks on its own.
 import { ApiError, getBlob, getJSON, postJSON, setApiKey } from './api.js';
 import * as form from './form.js';
 import { along, fkCheck, limitWalls, posture, transitSamples } from './kin.js';
@@ -11,6 +12,8 @@ import * as exporter from './export.js';
 import * as regions from './regions.js';
 import * as scenes from './scenes.js';
 import * as sequenceView from './sequence.js';
+import * as simulationView from './simulation.js';
+import * as calibration from './calibration.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -29,9 +32,9 @@ let designKey = '';
 let analysisSeq = 0;
 let exportKind = null;  // 'curl' | 'python' once the export box is shown: it follows the form
 /** The views of an answer beside the scene and the plots: each module has show(request,
- * response, endpoint, {t, seek}), clear() and setTime(t) (see sequence.js). A new view is
- * one more entry here. */
-const VIEWS = [sequenceView];
+ * response, endpoint, {t, seek}), clear() and setTime(t) (see sequence.js), and resize()
+ * when it draws to its width. A new view is one more entry here. */
+const VIEWS = [sequenceView, simulationView];
 
 // ------------------------------------------------------------------ status and messages
 function setStatus(text, kind, message = '') {
@@ -200,14 +203,18 @@ function exampleChosen(ex) {
   followExport();
 }
 
-$('preset').addEventListener('change', () => {
-  const p = presets.find((x) => x.name === $('preset').value);
-  if (!p) return;
+/** Another design into the form (a preset's, a calibration's): the plan on screen goes. */
+function useDesign(d) {
   dropPlan();
-  form.setDesign(p.design);
+  form.setDesign(d);
   designChanged();
   preview();
   followExport();
+}
+
+$('preset').addEventListener('change', () => {
+  const p = presets.find((x) => x.name === $('preset').value);
+  if (p) useDesign(p.design);
 });
 
 // ------------------------------------------------------------------ plan
@@ -532,7 +539,10 @@ $('request-form').addEventListener('submit', plan);
 let resizeTimer = null;
 window.addEventListener('resize', () => {
   clearTimeout(resizeTimer);
-  resizeTimer = setTimeout(() => { plots.resize(); section.resize(); regions.draw(); }, 100);
+  resizeTimer = setTimeout(() => {
+    plots.resize(); section.resize(); regions.draw();
+    for (const v of VIEWS) v.resize?.();
+  }, 100);
 });
 $('clear-waypoints').addEventListener('click', () => { form.setWaypoints([]); form.recheck(); followExport(); });
 
@@ -573,6 +583,7 @@ form.init({
   exampleChosen,
 });
 scenes.init({ drawn: (list) => scene.setSceneObstacles(list) });
+calibration.init({ use: useDesign });
 pickMode();
 legendInit();
 designChanged();
@@ -594,6 +605,7 @@ function startOver() {
   $('export-text').hidden = true;
   $('example').value = '0';
   scenes.chosen();
+  calibration.clear();
   exampleChosen(form.EXAMPLES[0]);
   pickMode();
 }

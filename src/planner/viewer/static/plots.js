@@ -50,7 +50,11 @@ export function yTicks(min, max) {
 
 const HEIGHT = 170;
 
-function chart(el, title, series, data, { yRange, yLabel } = {}, onSeek) {
+/** One uPlot chart against time appended to `el`, fitted to its width: `series` after the
+ * time axis, `data` [t, ...ys], the y axis `yRange` (else automatic) with its `yLabel`;
+ * `draw` (default: the transits and the current time) draws over the plot; a click calls
+ * onSeek(t). Shared by every view that plots against time (simulation.js too). */
+export function chart(el, title, series, data, { yRange, yLabel, draw = overlay } = {}, onSeek) {
   const box = document.createElement('div');
   el.appendChild(box);
   const width = Math.max(200, el.clientWidth - 12);
@@ -61,9 +65,11 @@ function chart(el, title, series, data, { yRange, yLabel } = {}, onSeek) {
     scales: { x: { time: false }, y: yRange ? { range: yRange } : { auto: true } },
     axes: [{ label: 't (s)', labelSize: 16, size: 30 }, {
       label: yLabel, labelSize: 18, size: 56, splits: (self, i, min, max) => yTicks(min, max),
+      // each tick as its value (uPlot's own labels round to the step it would have chosen)
+      values: (self, ticks) => ticks.map((v) => String(v)),
     }],
     series: [{ label: 't' }, ...series],
-    hooks: { draw: [overlay] },
+    hooks: { draw: [draw] },
   }, data, box);
   u.over.addEventListener('click', () => {
     if (u.cursor.left >= 0) onSeek(u.posToVal(u.cursor.left, 'x'));
@@ -143,10 +149,13 @@ export function setTime(t) {
   for (const c of charts) c.redraw(false, false);
 }
 
+/** Fit a chart made by chart() to its container's width. */
+export function fit(c) {
+  const w = Math.max(200, c.root.parentElement.parentElement.clientWidth - 12);
+  if (Math.abs(c.width - w) > 2) c.setSize({ width: w, height: HEIGHT });
+}
+
 /** Fit the plots to their containers' width. */
 export function resize() {
-  for (const c of charts) {
-    const w = Math.max(200, c.root.parentElement.parentElement.clientWidth - 12);
-    if (Math.abs(c.width - w) > 2) c.setSize({ width: w, height: HEIGHT });
-  }
+  for (const c of charts) fit(c);
 }
