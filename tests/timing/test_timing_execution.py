@@ -40,7 +40,8 @@ def fd_within(t, q, qd, qdd, limits: JointLimits, *, jerk: bool) -> None:
     assert np.all(np.abs(qd) <= limits.velocity_array * slack)
     assert np.all(np.abs(qdd) <= limits.acceleration_array * slack)
     if jerk:
-        assert np.all(np.abs(np.diff(qdd, axis=0)) <= limits.jerk_array * dt * slack + 1e-9)
+        jerk_max = limits.with_ruckig_jerk().jerk_array  # ruckig's jerk: asked or its default
+        assert np.all(np.abs(np.diff(qdd, axis=0)) <= jerk_max * dt * slack + 1e-9)
 
 
 # ---------------------------------------------------------------------------- the reading
@@ -193,7 +194,8 @@ def _running(method: str, scaling: float = 1.0) -> RunningTrajectory:
     limits = JointLimits(
         velocity=tuple(LIMITS.velocity_array * scaling),
         acceleration=tuple(LIMITS.acceleration_array * scaling),
-        jerk=tuple(LIMITS.jerk_array * scaling),
+        # ruckig runs under its jerk (asked, or the default); toppra's has none asked
+        jerk=tuple(LIMITS.with_ruckig_jerk().jerk_array * scaling) if method == "ruckig" else None,
     )
     traj = time_path(DESIGN, PATH, limits, method=method, sample_rate_hz=1000)
     return RunningTrajectory.of(traj.t, traj.q, traj.qd, traj.qdd)

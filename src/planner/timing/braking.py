@@ -200,6 +200,8 @@ def stop_trajectory(
     brake_rules : validity of postures off it (a Ruckig brake).
     sample_rate_hz, resolution : output rate (Hz) and the dense check's step (rad).
     """
+    if jerk_limited:  # ruckig's moves: the asked jerk, else RUCKIG_DEFAULT_JERK (as time_path)
+        limits = limits.with_ruckig_jerk()
     t0 = time.perf_counter()
     at = running.check_time(at)
     q0, qd0, qdd0 = running.state_at(at)

@@ -117,6 +117,8 @@ class StartState:
 def check_start_rates(state: StartState, limits: JointLimits, *, jerk_limited: bool) -> None:
     """:class:`~planner.exceptions.LimitsError` at ``start.qd`` or ``start.qdd`` when the
     start state is beyond the limits (module docstring), with the joint and the values."""
+    if jerk_limited:  # ruckig's moves: the asked jerk, else RUCKIG_DEFAULT_JERK (as time_path)
+        limits = limits.with_ruckig_jerk()
     v, a = limits.velocity_array, limits.acceleration_array
     tol = 1.0 + LIMIT_RTOL
     for name, x, lim, what in (
@@ -299,6 +301,8 @@ def brake_move(state: StartState, limits: JointLimits, *, jerk_limited: bool) ->
     TimingInfeasibleError
         Ruckig has no braking move (a state beyond the limits).
     """
+    if jerk_limited:  # ruckig's moves: the asked jerk, else RUCKIG_DEFAULT_JERK (as time_path)
+        limits = limits.with_ruckig_jerk()
     got = _solve(_input(limits, jerk_limited), (state.q, state.qd, state.qdd), None)
     if isinstance(got, str):
         raise TimingInfeasibleError(got)
@@ -383,6 +387,8 @@ def braking_failure(
     """Why ``state`` cannot be kept valid: its quickest braking (:func:`brake_move`)
     already leaves the valid set (the rule, time and posture); None when the braking stays
     valid."""
+    if jerk_limited:  # ruckig's moves: the asked jerk, else RUCKIG_DEFAULT_JERK (as time_path)
+        limits = limits.with_ruckig_jerk()
     try:
         chain = brake_move(state, limits, jerk_limited=jerk_limited)
     except TimingInfeasibleError as exc:
@@ -606,6 +612,8 @@ def with_moving_start(
     if not state.moving:
         return trajectory
     jerk_limited = trajectory.method == "ruckig"
+    if jerk_limited:  # ruckig's moves: the asked jerk, else RUCKIG_DEFAULT_JERK (as time_path)
+        limits = limits.with_ruckig_jerk()
     check_start_rates(state, limits, jerk_limited=jerk_limited)
     curve = _lead_in(
         state,

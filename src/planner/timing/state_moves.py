@@ -83,8 +83,11 @@ class StateMover:
     The states are (q, qd, qdd), 3 numbers each (rad, rad/s, rad/s^2)."""
 
     def __init__(self, limits: JointLimits, *, jerk: bool) -> None:
-        self.limits = limits
-        self.jerk = jerk and limits.jerk is not None
+        # ruckig's moves are jerk-limited: by the asked jerk, else RUCKIG_DEFAULT_JERK (as
+        # time_path's ruckig method); toppra's are second order
+        self.limits = limits.with_ruckig_jerk() if jerk else limits
+        self.jerk = jerk
+        limits = self.limits
         self.otg = Ruckig(3)
         self.inp = InputParameter(3)
         self.inp.max_velocity = limits.velocity_array.tolist()
