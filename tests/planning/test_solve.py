@@ -64,7 +64,10 @@ def test_one_call_plans_and_times_and_the_checker_agrees(method):
         limits=limits,
     )
     assert s.solved and s.timing_error is None, s.message
-    assert s.plan.diagnostics.searches >= 1  # a real search, not the straight motion
+    # a real search, not the straight motion: a sampling search, or the corridor's A* when an
+    # earlier plan of this process cached its grid (its path then needs no sampling search)
+    assert s.plan.diagnostics.planner != "direct" and len(s.path.waypoints) > 2
+    assert s.plan.diagnostics.searches >= 1 or s.plan.diagnostics.planner == "corridor"
     traj = s.trajectory
     assert np.allclose(traj.q[0], START.q) and np.allclose(traj.q[-1], GOAL.q)
     assert np.all(np.abs(traj.qd) <= np.asarray(limits.velocity) * (1 + 1e-6))
