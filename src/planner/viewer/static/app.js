@@ -11,6 +11,7 @@ import * as exporter from './export.js';
 import * as regions from './regions.js';
 import * as scenes from './scenes.js';
 import * as sequenceView from './sequence.js';
+import * as beltView from './belt.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -29,9 +30,10 @@ let designKey = '';
 let analysisSeq = 0;
 let exportKind = null;  // 'curl' | 'python' once the export box is shown: it follows the form
 /** The views of an answer beside the scene and the plots: each module has show(request,
- * response, endpoint, {t, seek}), clear() and setTime(t) (see sequence.js). A new view is
- * one more entry here. */
-const VIEWS = [sequenceView];
+ * response, endpoint, {t, seek, scene}), clear() and setTime(t) (see sequence.js; `scene`:
+ * the 3-D scene, for a view that also draws there, as belt.js). A new view is one more
+ * entry here. */
+const VIEWS = [sequenceView, beltView];
 
 // ------------------------------------------------------------------ status and messages
 function setStatus(text, kind, message = '') {
@@ -350,7 +352,7 @@ function showPlan(request, response, endpoint = 'plan') {
     proof: Boolean(response.diagnostics?.proven_infeasible),
   });
   const seekStopped = (t) => { stop(); seek(t); };
-  for (const v of VIEWS) v.show(request, response, endpoint, { t: response.trajectory?.t || [], seek: seekStopped });
+  for (const v of VIEWS) v.show(request, response, endpoint, { t: response.trajectory?.t || [], seek: seekStopped, scene });
   const path = response.path || (response.legs && response.trajectory ? sequencePath(response) : null);
   if (!path) {
     preview();
