@@ -112,9 +112,12 @@ def test_the_belt_the_part_and_the_meeting_are_drawn(page_, live_server, viewpor
     assert magenta(*corner), corner
     assert pixels(page, canvas, amber) > 400  # the belt's band (10 px wide, ~180 px long)
     assert pixels(page, canvas, magenta) > 60  # the part's square less the dot over it
-    page.wait_for_timeout(50)
-    assert pixels(page, "[data-testid=scene]", amber) > 50  # the belt in the 3-D scene
-    assert pixels(page, "[data-testid=scene]", magenta) > 20  # the part's cube
+    page.screenshot(path=shots_dir(tmp_path) / f"belt-{viewport['width']}-meet.png", full_page=True)
+    # in the 3-D scene, on its way to the meeting: the belt (a tube) and the part (a cube)
+    shown_at(page, k_meet // 2)
+    page.wait_for_timeout(50)  # the frame after the seek
+    assert pixels(page, "[data-testid=scene]", amber) > 50
+    assert pixels(page, "[data-testid=scene]", magenta) > 20
     page.screenshot(path=shots_dir(tmp_path) / f"belt-{viewport['width']}.png", full_page=True)
     assert page.evaluate("document.documentElement.scrollWidth") <= viewport["width"]
     box = view.bounding_box()

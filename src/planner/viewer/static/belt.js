@@ -248,7 +248,7 @@ function draw3d() {
       m.position.set(...b.leg.meet_point);
       group.add(m);
     }
-    const cube = new THREE.Mesh(new THREE.BoxGeometry(0.03, 0.03, 0.03), basic(COLORS.part));
+    const cube = new THREE.Mesh(new THREE.BoxGeometry(0.05, 0.05, 0.05), basic(COLORS.part));
     group.add(cube);
     return cube;
   });
