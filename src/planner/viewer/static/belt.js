@@ -160,11 +160,16 @@ function draw2d(parts, tool) {
   c.setTransform(dpr, 0, 0, dpr, 0, 0);
   c.clearRect(0, 0, w, h);
   const { keep: [ka, kb], drop } = state.proj;
-  // the frame: the ball of reach and every belt's stretch, equal scales on both axes
-  const pts = state.belts.flatMap((b) => [b.stretch.a, b.stretch.b]);
-  const lo = [0, 1].map((i) => Math.min(-state.R, ...pts.map((p) => p[[ka, kb][i]])));
-  const hi = [0, 1].map((i) => Math.max(state.R, ...pts.map((p) => p[[ka, kb][i]])));
-  const pad = 16;
+  // the frame: every belt's stretch (within the ball of reach) and the tool's path, equal
+  // scales on both axes, at least 0.4 m across
+  const pts = [...state.belts.flatMap((b) => [b.stretch.a, b.stretch.b]), ...(state.tool?.p || [])];
+  const lo = [0, 1].map((i) => Math.min(...pts.map((p) => p[[ka, kb][i]])));
+  const hi = [0, 1].map((i) => Math.max(...pts.map((p) => p[[ka, kb][i]])));
+  for (const i of [0, 1]) {
+    const grow = Math.max(0, 0.4 - (hi[i] - lo[i])) / 2;
+    lo[i] -= grow; hi[i] += grow;
+  }
+  const pad = 22;
   const s = Math.min((w - 2 * pad) / (hi[0] - lo[0]), (h - 2 * pad) / (hi[1] - lo[1]));
   const ox = w / 2 - (s * (lo[0] + hi[0])) / 2, oy = h / 2 + (s * (lo[1] + hi[1])) / 2;
   const at = (p) => [ox + s * p[ka], oy - s * p[kb]];
@@ -208,7 +213,8 @@ function draw2d(parts, tool) {
     c.lineWidth = 2;
     c.beginPath(); c.arc(x, y, 10, 0, 2 * Math.PI); c.stroke();
     c.fillStyle = COLORS.meet;
-    c.fillText(`meet ${fmt(b.leg.meet_time, 2)} s`, x + 13, y - 12);
+    const text = `meet ${fmt(b.leg.meet_time, 2)} s`;
+    c.fillText(text, Math.min(x + 13, w - c.measureText(text).width - 4), Math.max(y - 14, 12));
   }
   // the parts (squares) and the tool (a disc) on top
   const partPx = parts.map((p) => {
