@@ -10,6 +10,7 @@ logged no console error, that no request failed and that none left the service's
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 
 import numpy as np
@@ -62,6 +63,7 @@ def test_the_belt_the_part_and_the_meeting_are_drawn(page_, live_server, viewpor
     page.watch.reset()
     open_viewer(page, live_server)
     page.locator("#example").select_option(label=BELT)
+    expect()(page.get_by_test_id("field-error")).to_have_count(0)  # the belt line as typed is good
     with page.expect_request(lambda r: r.url.endswith("/v1/sequence")) as sent:
         answer = plan(page, "/v1/sequence")
     assert answer["status"] == "solved", answer["message"]
@@ -123,3 +125,27 @@ def test_the_belt_the_part_and_the_meeting_are_drawn(page_, live_server, viewpor
     box = view.bounding_box()
     assert box["x"] >= 0 and box["x"] + box["width"] <= viewport["width"]
     page.watch.check()
+
+
+def test_a_belt_typed_badly_is_said_next_to_the_targets(page_, live_server):
+    """A belt line with a word for a number: the typed check says so; a belt faster than the
+    service's bound: its 422 (at targets.0.goal.velocity) next to the targets."""
+    page = page_
+    page.set_viewport_size(WIDE)
+    page.watch.reset()
+    open_viewer(page, live_server)
+    page.locator("#example").select_option(label=BELT)
+    targets = page.locator("textarea[name=targets]")
+    errors = page.locator("[data-loc=targets] .field-error")
+    targets.fill("-0.75 0 -0.45 belt 0.5 fast 0 dwell 0.1\n-0.2 0.25 -0.45")
+    expect()(errors).to_have_text(["targets: line 1: belt vx vy vz: three numbers (m/s)"])
+    targets.fill("-0.75 0 -0.45 belt 3 0 0 dwell 0.1\n-0.2 0.25 -0.45")
+    expect()(errors).to_have_count(0)
+    with page.expect_request(lambda r: r.url.endswith("/v1/sequence")) as sent:
+        plan(page, "/v1/sequence")
+    assert json.loads(sent.value.post_data)["targets"][0]["goal"]["velocity"] == [3, 0, 0]
+    expect()(page.get_by_test_id("status")).to_have_text("invalid request")
+    expect()(errors).to_have_count(1)
+    assert errors.inner_text().startswith("targets.0.goal.velocity: ")
+    expect()(page.get_by_test_id("belt-view")).to_be_hidden()
+    page.watch.check(allowed_errors=re.compile("422"))
