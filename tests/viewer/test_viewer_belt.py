@@ -148,4 +148,4 @@ def test_a_belt_typed_badly_is_said_next_to_the_targets(page_, live_server):
     expect()(errors).to_have_count(1)
     assert errors.inner_text().startswith("targets.0.goal.velocity: ")
     expect()(page.get_by_test_id("belt-view")).to_be_hidden()
-    page.watch.check(allowed_errors=re.compile("422"))
+    page.watch.check(allowed_errors=re.compile(r"status of 422"))
