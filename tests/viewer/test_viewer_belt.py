@@ -4,7 +4,8 @@ from a belt" planned, then what the eye sees. The belt and the part are on the v
 (pixels of their colours) and in the 3-D scene; the part's drawn position moves with the
 playback along the belt, at p + velocity (t - t0) (the request's own numbers, not the page's);
 at the meeting time it is on the tool, at the answer's ``meet_point`` (within 1 mm) and on the
-same pixel as P; nothing sticks out of an 800 px window. Every test checks that the page
+same pixel as P; after its dwell it is held at P, then at rest at the bin; nothing sticks out
+of an 800 px window. Every test checks that the page
 logged no console error, that no request failed and that none left the service's origin."""
 
 from __future__ import annotations
@@ -115,6 +116,14 @@ def test_the_belt_the_part_and_the_meeting_are_drawn(page_, live_server, viewpor
     assert pixels(page, canvas, amber) > 400  # the belt's band (10 px wide, ~180 px long)
     assert pixels(page, canvas, magenta) > 60  # the part's square less the dot over it
     page.screenshot(path=shots_dir(tmp_path) / f"belt-{viewport['width']}-meet.png", full_page=True)
+    # after the dwell the part is in the gripper (at P), then at rest at the bin with the tool
+    picked, placed = meet_t + part["dwell"], answer["legs"][1]["end_time"]
+    k_held = int(np.searchsorted(t, (picked + placed) / 2))
+    for i, where in ((k_held, "held"), (len(t) - 1, "placed")):
+        (drawn,) = shown_at(page, i)["parts"]
+        assert drawn["where"] == where
+        np.testing.assert_allclose(drawn["p"], p[i], atol=1e-12)
+    np.testing.assert_allclose(p[-1], request["targets"][1]["goal"]["p"], atol=1e-6)
     # in the 3-D scene, on its way to the meeting: the belt (a tube) and the part (a cube)
     shown_at(page, k_meet // 2)
     page.wait_for_timeout(50)  # the frame after the seek
