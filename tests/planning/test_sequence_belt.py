@@ -72,6 +72,25 @@ def test_the_tool_tracks_the_part_within_0_1_mm_over_the_dwell():
     assert "met the part" in r.message
 
 
+def test_the_meeting_and_the_end_of_the_dwell_are_samples():
+    """At 100 Hz (the samples 5 mm of belt apart) the trajectory still has a sample at
+    meet_time, where P (the forward kinematics of that sample's q) is meet_point, and one at
+    the end of the dwell, on the part."""
+    part = MovingTarget([-0.75, 0.0, -0.45], "any", [0.5, 0.0, 0.0], 0.0)
+    dwell = 0.1
+    r = pick(part, dwell, timing=TimingOptions(sample_rate_hz=100))
+    assert r.solved, r.message
+    tr, leg = r.trajectory, r.legs[0]
+    assert np.all(np.diff(tr.t) > 1e-9)
+    for when in (leg.meet_time, leg.meet_time + dwell):
+        k = int(np.argmin(np.abs(tr.t - when)))
+        assert abs(tr.t[k] - when) <= 1e-9
+        p = forward_batch(DESIGN, tr.q[k], "+").p[0]
+        assert np.linalg.norm(p - part.at(when)[0]) < 1e-6
+    k = int(np.argmin(np.abs(tr.t - leg.meet_time)))
+    assert np.linalg.norm(forward_batch(DESIGN, tr.q[k], "+").p[0] - leg.meet_point) < 1e-6
+
+
 # ---------------------------------------------------------------------------- brute force
 def _rates(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """qd = J^-1 v at postures q (M, 3), J = dP/dq by central differences of the forward

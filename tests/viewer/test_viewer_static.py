@@ -30,6 +30,7 @@ TEST_IDS = (
     "sequence-list",
     "blend-list",
     "blend-unit",
+    "belt-view",
     "cloud-file",
     "cloud-radius",
     "scene-picker",

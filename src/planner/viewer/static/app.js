@@ -14,6 +14,7 @@ import * as scenes from './scenes.js';
 import * as sequenceView from './sequence.js';
 import * as simulationView from './simulation.js';
 import * as calibration from './calibration.js';
+import * as beltView from './belt.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -32,9 +33,10 @@ let designKey = '';
 let analysisSeq = 0;
 let exportKind = null;  // 'curl' | 'python' once the export box is shown: it follows the form
 /** The views of an answer beside the scene and the plots: each module has show(request,
- * response, endpoint, {t, seek}), clear() and setTime(t) (see sequence.js), and resize()
- * when it draws to its width. A new view is one more entry here. */
-const VIEWS = [sequenceView, simulationView];
+ * response, endpoint, {t, seek, scene}), clear() and setTime(t) (see sequence.js; `scene`:
+ * the 3-D scene, for a view that also draws there, as belt.js), and resize() when it
+ * draws to its width. A new view is one more entry here. */
+const VIEWS = [sequenceView, simulationView, beltView];
 
 // ------------------------------------------------------------------ status and messages
 function setStatus(text, kind, message = '') {
@@ -357,7 +359,7 @@ function showPlan(request, response, endpoint = 'plan') {
     proof: Boolean(response.diagnostics?.proven_infeasible),
   });
   const seekStopped = (t) => { stop(); seek(t); };
-  for (const v of VIEWS) v.show(request, response, endpoint, { t: response.trajectory?.t || [], seek: seekStopped });
+  for (const v of VIEWS) v.show(request, response, endpoint, { t: response.trajectory?.t || [], seek: seekStopped, scene });
   const path = response.path || (response.legs && response.trajectory ? sequencePath(response) : null);
   if (!path) {
     preview();

@@ -45,6 +45,13 @@ export const EXAMPLES = [
     cycle: true,
     obstacles: [],
   },
+  {
+    // examples/07_conveyor.py's first part: the belt along x at 0.5 m/s, the bin a stop
+    name: 'Pick from a belt (0.5 m/s), place at a bin',
+    start: { q: [1.98902066, 1.68682059, -0.4043776], assembly_mode: '+' },  // P at the bin
+    targets: ['-0.75 0 -0.45 belt 0.5 0 0 t0 0 dwell 0.1', '-0.2 0.25 -0.45'],
+    obstacles: [],
+  },
 ];
 
 /** The working mode labels a Cartesian target accepts. */
@@ -93,10 +100,27 @@ function showGoalKind() {
  * or 'sequence' (/v1/sequence). */
 export const endpoint = () => ({ path: 'cartesian', seq: 'sequence' }[goalKind()] || 'plan');
 
+/** A part on a belt in a target's words: "belt vx vy vz" (m/s), "t0 s" (when the part is
+ * at x y z), "dwell s", taken out of `words`; {velocity, t0, dwell}, each undefined when
+ * absent (numbers, or the text typed). */
+function beltWords(words) {
+  const num = (x) => (x === undefined ? '' : Number.isFinite(Number(x)) ? Number(x) : x);
+  const out = {};
+  for (const [key, n] of [['belt', 3], ['t0', 1], ['dwell', 1]]) {
+    const k = words.findIndex((w) => w.toLowerCase() === key);
+    if (k < 0) continue;
+    const values = words.splice(k, n + 1).slice(1);
+    while (values.length < n) values.push(undefined);
+    out[key] = n === 3 ? values.map(num) : num(values[0]);
+  }
+  return { velocity: out.belt, t0: out.t0, dwell: out.dwell };
+}
+
 /** The sequence's targets as typed, one a line: "x y z" (a Cartesian target, working mode
  * any) or "q t1 t2 t3" (a joint posture in the start's assembly mode), "pass" at the end for
  * a target passed at speed, with the form's blend or the number after "pass" (in the form's
- * unit: rad goes out as `blend`, mm as `blend_radius` in m). */
+ * unit: rad goes out as `blend`, mm as `blend_radius` in m); "x y z belt vx vy vz t0 s
+ * dwell s" a part on a belt (goal.velocity, goal.t0, dwell: docs/conveyor.md). */
 export function targets() {
   const asm = input('start.assembly_mode').value;
   const mm = input('blend-unit').value === 'mm';
@@ -107,6 +131,7 @@ export function targets() {
   const given = read('blend');
   return input('targets').value.split('\n').map((l) => l.trim()).filter((l) => l).map((line) => {
     const words = line.split(/[\s,;]+/);
+    const { velocity, t0, dwell } = beltWords(words);
     let own;
     if (words.length >= 2 && words.at(-2).toLowerCase() === 'pass') {
       const x = words.pop();
@@ -117,9 +142,9 @@ export function targets() {
     const joint = words[0]?.toLowerCase() === 'q';
     if (joint) words.shift();
     const xs = words.map((x) => (Number.isFinite(Number(x)) ? Number(x) : x));
-    const goal = joint ? { q: xs, assembly_mode: asm } : { p: xs, working_mode: 'any' };
+    const goal = drop({ ...(joint ? { q: xs, assembly_mode: asm } : { p: xs, working_mode: 'any' }), velocity, t0 });
     const blend = pass ? blendOf(own ?? given) : undefined;
-    return drop({ goal, stop: !pass, [mm ? 'blend_radius' : 'blend']: blend });
+    return drop({ goal, stop: !pass, [mm ? 'blend_radius' : 'blend']: blend, dwell });
   });
 }
 
@@ -451,7 +476,10 @@ function targetsMessage() {
       const m = checks.check('sequence', `targets.${i}.goal.${field}.${k}`, x, { hint: (p) => (p.endsWith('.goal') ? field : null) });
       if (m) return `line ${i + 1}: ${m}`;
     }
-    for (const key of ['blend', 'blend_radius']) {
+    const v = t.goal.velocity;
+    if (v && (v.length !== 3 || v.some((x) => typeof x !== 'number'))) return `line ${i + 1}: belt vx vy vz: three numbers (m/s)`;
+    if ('t0' in t.goal && typeof t.goal.t0 !== 'number') return `line ${i + 1}: t0: a number (s)`;
+    for (const key of ['blend', 'blend_radius', 'dwell']) {
       const m = key in t ? checks.check('sequence', `targets.${i}.${key}`, t[key]) : '';
       if (m) return `line ${i + 1}: ${key} ${m}`;
     }
