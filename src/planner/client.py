@@ -327,10 +327,10 @@ class PlannerClient(_BaseClient):
         self,
         request: Any,
         *,
-        kind: str = "plan",
-        rate_hz: float = 1000.0,
-        lookahead_s: float = 0.05,
-        auto_ack: bool = True,
+        kind: str | None = "plan",
+        rate_hz: float | None = 1000.0,
+        lookahead_s: float | None = 0.05,
+        auto_ack: bool | None = True,
     ) -> StreamSession:
         """Stream the answer of a plan (or ``kind="sequence"``) request as setpoints over
         ``/v1/stream`` (a WebSocket): a :class:`planner.client_stream.StreamSession` to
@@ -338,7 +338,7 @@ class PlannerClient(_BaseClient):
         ``replace(request)`` and ``stop()``; an ``error`` message raises
         :class:`InvalidRequestError` naming the field."""
         first = first_message(kind, request, rate_hz, lookahead_s)
-        return StreamSession(self.base_url, self._headers, first, auto_ack=auto_ack)
+        return StreamSession(self.base_url, self._headers, first, auto_ack=auto_ack is not False)
 
     def _execute(self, call: _Call[M]) -> M:
         for attempt in itertools.count():
@@ -416,15 +416,17 @@ class AsyncPlannerClient(_BaseClient):
         self,
         request: Any,
         *,
-        kind: str = "plan",
-        rate_hz: float = 1000.0,
-        lookahead_s: float = 0.05,
-        auto_ack: bool = True,
+        kind: str | None = "plan",
+        rate_hz: float | None = 1000.0,
+        lookahead_s: float | None = 0.05,
+        auto_ack: bool | None = True,
     ) -> AsyncStreamSession:
         """:meth:`PlannerClient.stream` for asyncio: ``async with client.stream(...) as s``,
         ``async for message in s``, ``await s.ack(t)``."""
         first = first_message(kind, request, rate_hz, lookahead_s)
-        return AsyncStreamSession(self.base_url, self._headers, first, auto_ack=auto_ack)
+        return AsyncStreamSession(
+            self.base_url, self._headers, first, auto_ack=auto_ack is not False
+        )
 
     async def _execute(self, call: _Call[M]) -> M:
         for attempt in itertools.count():

@@ -173,8 +173,15 @@ class AsyncStreamSession:
         await self._ws.send(json.dumps({"type": "stop"}))
 
 
-def first_message(kind: str, request: Any, rate_hz: float, lookahead_s: float) -> str:
-    """The opening message of a stream (``{"type", "request", "rate_hz", "lookahead_s"}``)."""
+def first_message(
+    kind: str | None, request: Any, rate_hz: float | None, lookahead_s: float | None
+) -> str:
+    """The opening message of a stream (``{"type", "request", "rate_hz", "lookahead_s"}``);
+    None means absent, as everywhere in the client: the defaults ``"plan"``, 1000 Hz and
+    0.05 s."""
+    kind = "plan" if kind is None else kind
+    rate_hz = 1000.0 if rate_hz is None else rate_hz
+    lookahead_s = 0.05 if lookahead_s is None else lookahead_s
     if kind not in ("plan", "sequence"):
         raise InvalidRequestError(
             f"stream: kind must be 'plan' or 'sequence', got {kind!r}", status_code=None

@@ -2,8 +2,8 @@
 conversions between wire models and the library's objects, done once each way.
 
 Shared by the service, the client and the CLI, and importable without FastAPI. Split by
-endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins,
-diagnostics), :mod:`~planner.wire.motion` (the fields every motion request shares and their
+endpoint family: :mod:`~planner.wire.common` (design, postures, obstacles, margins),
+:mod:`~planner.wire.diagnostics` (the diagnostics of a motion's answer), :mod:`~planner.wire.motion` (the fields every motion request shares and their
 one conversion into a :class:`planner.motion.MotionProblem`), :mod:`~planner.wire.plan`,
 :mod:`~planner.wire.sequence` (task sequences), :mod:`~planner.wire.cartesian` (straight tool
 paths), :mod:`~planner.wire.timing`, :mod:`~planner.wire.kinematics`,
@@ -90,7 +90,6 @@ from planner.wire.common import (
     CartesianTargetModel,
     Coordinate,
     DesignModel,
-    DiagnosticsModel,
     Finite,
     Goal,
     Gravity,
@@ -98,7 +97,6 @@ from planner.wire.common import (
     Integer,
     JointGoal,
     JointPostureModel,
-    LeadInModel,
     Length,
     LinkInertiaModel,
     LinkLength,
@@ -112,7 +110,6 @@ from planner.wire.common import (
     Preference,
     Rates3,
     SphereObstacle,
-    TimingErrorInfo,
     Vec3,
     WorkingModeLabel,
     WorkingModeOrAny,
@@ -142,6 +139,7 @@ from planner.wire.design import (
     regions_model,
     sampled_value,
 )
+from planner.wire.diagnostics import DiagnosticsModel, LeadInModel, TimingErrorInfo
 from planner.wire.dynamics import (
     MAX_DYNAMICS_POSTURES,
     MJCF_MEDIA_TYPE,

@@ -13,7 +13,6 @@ import numpy as np
 from pydantic import Field
 
 from planner.wire.common import (
-    DiagnosticsModel,
     Point3,
     Vec3,
     WorkingModeLabel,
@@ -21,6 +20,7 @@ from planner.wire.common import (
     _Response,
     located,
 )
+from planner.wire.diagnostics import DiagnosticsModel
 from planner.wire.execution import lead_in_model
 from planner.wire.motion import MotionRequest, finite, motion_problem
 from planner.wire.plan import PathModel, PlanStatus, path_model

@@ -23,7 +23,6 @@ from planner.wire.common import (
     DesignModel,
     Finite,
     JointPostureModel,
-    LeadInModel,
     MarginsModel,
     Obstacle,
     Vec3,
@@ -32,6 +31,7 @@ from planner.wire.common import (
     _Response,
     located,
 )
+from planner.wire.diagnostics import LeadInModel
 from planner.wire.timing import AnyTrajectory, Limits, TrajectoryFormat
 
 if TYPE_CHECKING:

@@ -15,13 +15,13 @@ from planner.wire.common import (
     _MAX_SAMPLES,
     MAX_BATCH_REQUESTS,
     AssemblyModeLabel,
-    DiagnosticsModel,
     Goal,
     Vec3,
     WorkingModeLabel,
     _Request,
     _Response,
 )
+from planner.wire.diagnostics import DiagnosticsModel
 from planner.wire.execution import lead_in_model
 
 if TYPE_CHECKING:

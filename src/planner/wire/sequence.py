@@ -13,12 +13,12 @@ from pydantic import Field, model_validator
 
 from planner.constants import MAX_SEQUENCE_TARGETS
 from planner.wire.common import (
-    DiagnosticsModel,
     Goal,
     _Request,
     _Response,
     located,
 )
+from planner.wire.diagnostics import DiagnosticsModel
 from planner.wire.execution import ReplaceModel, fill_start_from_replace, lead_in_model
 from planner.wire.motion import MotionRequest, PlannerOptions, finite, goal_to_core, motion_problem
 from planner.wire.plan import (

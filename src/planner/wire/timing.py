@@ -26,13 +26,11 @@ from planner.wire.common import (
     Angles3,
     AssemblyModeLabel,
     DesignModel,
-    DiagnosticsModel,
     Gravity,
     Integer,
     MarginsModel,
     Obstacle,
     Rates3,
-    TimingErrorInfo,
     Vec3,
     WorkingModeLabel,
     _DesignField,
@@ -41,6 +39,7 @@ from planner.wire.common import (
     located,
     triple_to_core,
 )
+from planner.wire.diagnostics import DiagnosticsModel, TimingErrorInfo
 
 if TYPE_CHECKING:
     from planner.timing.limits import JointLimits
