@@ -337,3 +337,15 @@ def postgres_factory() -> Callable[[], AbstractContextManager[PostgresServer]]:
             server.remove()
 
     return start
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    """One headless chromium for every viewer test of the session (a launch costs a second
+    or two); each module opens its own context and page on it (``viewer_browser.py``). Here,
+    not in a ``tests/viewer/conftest.py``: a second module named ``conftest`` would shadow
+    this one for the tests that import its helpers."""
+    from viewer_browser import launch
+
+    with launch() as b:
+        yield b

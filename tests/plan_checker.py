@@ -64,7 +64,8 @@ DEFAULT_DESIGN: dict[str, Any] = {
 }
 #: Margins of a request without ``margins`` (``planner.validity.Margins()`` of the library).
 DEFAULT_MARGINS: dict[str, float] = {"kappa_max": 10.0, "serial_min": 0.05, "clearance": 0.01}
-#: Joint rate limits of a request without ``limits`` (``JointLimits.default()``).
+#: Joint rate limits of a request without ``limits`` (``JointLimits.default()``; its jerk, asked by
+#: none, is what a trajectory that reports a jerk keeps: ruckig's ``RUCKIG_DEFAULT_JERK``).
 DEFAULT_LIMITS: dict[str, list[float]] = {
     "velocity": [2.0] * 3,
     "acceleration": [8.0] * 3,

@@ -105,10 +105,12 @@ def test_defaults_are_the_librarys():
         "clearance": m.clearance,
     }
     lim = JointLimits.default()
+    assert lim.jerk is None  # no jerk asked by default: toppra is not jerk-limited
     assert DEFAULT_LIMITS == {
         "velocity": list(lim.velocity),
         "acceleration": list(lim.acceleration),
-        "jerk": list(lim.jerk),
+        # the jerk a trajectory that reports one (ruckig's) keeps when none is asked
+        "jerk": list(lim.with_ruckig_jerk().jerk),
     }
     assert DEFAULT_MAX_DEVIATION == LIBRARY_MAX_DEVIATION
 

@@ -64,7 +64,7 @@ def launch() -> Iterator[object]:
 @contextmanager
 def watched_page(url: str, browser, **context: object) -> Iterator[object]:
     """One page on the service at ``url`` for a module's tests: on the session's ``browser``
-    (tests/viewer/conftest.py), one context with the ``context`` options (viewport,
+    (the session fixture ``browser`` of tests/conftest.py), one context with the ``context`` options (viewport,
     downloads), the suite's wait, and a :class:`Watch` of its console and requests as
     ``page.watch``."""
     ctx = browser.new_context(**context)
