@@ -270,6 +270,7 @@ def time_path(
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
     via_at: Iterable[int] = (),
     via_radius: float | np.ndarray | None = None,
+    grid_refine: float | None = None,
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -330,6 +331,9 @@ def time_path(
         vertex exactly, at a free velocity: a section holding such a via always takes its
         chain (the blended path's arc rounds the corner, it does not pass the vertex),
         unless the re-check drops it; the caller checks the pass if it must be exact.
+    grid_refine : float, optional
+        toppra's grid refinement, lines and blends alike (default ``TOPPRA_REFINE`` and
+        ``TOPPRA_ARC_REFINE``); the re-check and the time-scale fit hold the limits either way.
 
     Returns
     -------
@@ -366,6 +370,7 @@ def time_path(
         gravity,
         via_at,
         via_radius,
+        grid_refine,
     )
     if job.limits.torque is None:
         return _timed(job, t_start)[0]
@@ -516,8 +521,10 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
     gain = job.speed_gain(path)
     if state.profile is None:
         own = job.method == "toppra"
-        refine = state.refine * (TOPPRA_REFINE if own else SEED_REFINE)
-        arc_refine = TOPPRA_ARC_REFINE if own else 1.0
+        base, arc_refine = (TOPPRA_REFINE, TOPPRA_ARC_REFINE) if own else (SEED_REFINE, 1.0)
+        if own and job.grid_refine is not None:
+            base, arc_refine = job.grid_refine, 1.0
+        refine = state.refine * base
         best: PathProfile | None = None
         for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
             profile = solve_toppra(
