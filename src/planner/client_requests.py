@@ -217,8 +217,6 @@ def _trajectory_fields(trajectory: Any) -> dict[str, Any]:
         "qd": [_floats(r) for r in trajectory.qd],
         "qdd": [_floats(r) for r in trajectory.qdd],
     }
-
-
 def none_as_absent(build: Callable[..., _Call[M]]) -> Callable[..., _Call[M]]:
     """``build`` with None meaning absent for every optional argument: an argument with a
     default given as None takes that default, and a keyword of ``**fields``/``**options``
@@ -601,7 +599,6 @@ class Requests:
         if gravity is not None:
             data["gravity"] = _floats(gravity)
         return _Call("POST", "/v1/identify", _validated(IdentifyRequest, data), IdentifyResponse)
-
     def _simulate(
         self,
         trajectory: Any = None,
