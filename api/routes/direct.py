@@ -31,7 +31,9 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import Any
 
+import fastapi.routing
 from fastapi import FastAPI, Request, Response
+from fastapi.routing import APIRoute
 from pydantic import BaseModel
 from starlette.routing import Match, Router
 from starlette.types import Receive, Scope, Send
@@ -80,8 +82,11 @@ class DirectRoute(WorkerBodyRoute):
     def get_route_handler(self) -> Callable[[Request], Any]:
         fallback = super().get_route_handler()
         spec: DirectSpec | None = getattr(self.endpoint, "__direct__", None)
-        found = {d.dependency for d in self.dependencies}
-        if spec is None or not found <= _KNOWN:
+        dependencies = _included_dependencies(self)
+        if spec is None or dependencies is None:
+            return fallback
+        found = {d.dependency for d in dependencies}
+        if not found <= _KNOWN:
             return fallback
         keyed, watched = require_api_key in found, watch_client in found
 
@@ -105,44 +110,64 @@ class DirectRoute(WorkerBodyRoute):
         return handler
 
 
+def _included_dependencies(route: APIRoute) -> list[Any] | None:
+    """The dependencies of ``route`` as included in the application (its router's
+    ``include_router(dependencies=...)`` with its own), or None when the handler being built
+    is not an included route's. FastAPI (0.165) builds an included route's handler once per
+    inclusion, the inclusion's context in a context variable that its own
+    ``APIRoute.get_route_handler`` reads; the route's own ``dependencies`` lack the
+    router's. None (FastAPI's path kept) if a FastAPI version has no such variable."""
+    var = getattr(fastapi.routing, "_effective_route_context_var", None)
+    context = var.get() if var is not None else None
+    if context is None or getattr(context, "original_route", None) is not route:
+        return None
+    return list(context.dependencies)
+
+
 def index_routes(app: FastAPI) -> None:
     """Route ``app``'s requests through a table of the routes already matched (the module
     docstring). Call once, after every route is included."""
     router: Router = app.router
     scan = router.middleware_stack
-    table: dict[tuple[str, str], Any] = {}
+    table: dict[tuple[str, str], int] = {}
+    routes = router.routes
 
     async def routed(scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await scan(scope, receive, send)
             return
         key = (scope["method"], scope["path"])
-        route = table.get(key)
-        if route is not None:
+        at = table.get(key)
+        if at is not None and at < len(routes):
+            route = routes[at]
             match, child = route.matches(scope)
-            if match is Match.FULL:
+            if match is Match.FULL:  # as Starlette's router hands a full match over
                 scope.setdefault("router", router)
                 scope["route"] = route
                 scope.update(child)
                 await route.handle(scope, receive, send)
                 return
+        if at is None:
+            found = _first_full_match(routes, scope)
+            if found is not None:
+                if len(table) >= _INDEX_SIZE:
+                    table.pop(next(iter(table)))
+                table[key] = found
         await scan(scope, receive, send)
-        found = scope.get("route")
-        if route is None and found is not None and _indexable(found, scope, key):
-            if len(table) >= _INDEX_SIZE:
-                table.pop(next(iter(table)))
-            table[key] = found
 
     router.middleware_stack = routed
 
 
-def _indexable(route: Any, scope: Scope, key: tuple[str, str]) -> bool:
-    """Whether the route the scan chose for ``key`` is the one to remember: a full match of
-    a route without path parameters (a partial one, a 405, may be beaten by a later route)."""
-    if getattr(route, "param_convertors", None):
-        return False
-    matches = getattr(route, "matches", None)
-    if matches is None:
-        return False
-    probe = {**scope, "method": key[0], "path": key[1]}
-    return matches(probe)[0] is Match.FULL
+def _first_full_match(routes: list[Any], scope: Scope) -> int | None:
+    """The position of the router's entry that the ordered scan hands ``scope`` to, when
+    that is a full match of a path without parameters (a partial one, a 405, may be beaten
+    by a later entry; a path with parameters would churn the table); else None."""
+    probe = dict(scope)
+    for i, route in enumerate(routes):
+        match, child = route.matches(probe)
+        if match is Match.FULL:
+            inner = child.get("route", route)
+            if getattr(inner, "param_convertors", None) or child.get("path_params"):
+                return None
+            return i
+    return None
