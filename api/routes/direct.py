@@ -39,7 +39,7 @@ from starlette.routing import Match, Router
 from starlette.types import Receive, Scope, Send
 
 from planner_api.deps import require_api_key, watch_client
-from planner_api.routes.worker_body import BodyInvalidError, WorkerBodyRoute, parse_body
+from planner_api.routes.worker_body import BodyInvalidError, WorkerBodyRoute, validate_data
 
 __all__ = ["DirectRoute", "DirectSpec", "answered_directly", "index_routes"]
 
@@ -98,9 +98,9 @@ class DirectRoute(WorkerBodyRoute):
                 return await fallback(request)
             if keyed:
                 await require_api_key(request, settings)
-            try:
-                body = parse_body(spec.model, raw)
-            except BodyInvalidError:
+            try:  # read as FastAPI reads it (Starlette's request.json(), kept by the request)
+                body = validate_data(spec.model, await request.json())
+            except (BodyInvalidError, ValueError, RecursionError):
                 return await fallback(request)  # FastAPI's own 422
             if not watched:
                 return await spec.answer(request, body)
