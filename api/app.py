@@ -33,10 +33,11 @@ from planner_api.routes import stop as stop_routes
 from planner_api.routes import stream as stream_routes
 from planner_api.routes import timing as timing_routes
 from planner_api.routes import workspace as workspace_routes
+from planner_api.routes.direct import index_routes
 from planner_api.routes.viewer import install_viewer
 from planner_api.settings import Settings, get_settings
 from planner_api.store_access import StoreAccess
-from planner_api.warmup import start_worker, warm_up_inline
+from planner_api.warmup import start_worker, warm_up_loop
 
 __all__ = ["create_app"]
 
@@ -81,8 +82,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         )
         await pool.start()
         app.state.pool = pool
-        if warm_up:  # the event loop's own jobs (fk, ik, analyze): /v1/ready waits for them
-            app.state.warming = asyncio.create_task(asyncio.to_thread(warm_up_inline))
+        if warm_up:  # the event loop's own first calls (planner_api.warmup): /v1/ready waits
+            app.state.warming = asyncio.create_task(warm_up_loop(app))
             app.state.warming.add_done_callback(_log_failure)
         app.state.jobs = jobs = JobStore(
             app.state.scene_access,
@@ -97,6 +98,8 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
         try:
             yield
         finally:
+            if app.state.warming is not None:
+                app.state.warming.cancel()  # a service stopped while still warming up
             # this replica's unfinished jobs are marked lost in the store, their tasks stopped
             await jobs.close()
             # after a drain (planner_api.server) the grace is spent: stop the workers at once
@@ -169,6 +172,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.include_router(jobs_routes.router, dependencies=[ApiKey], responses=_ERRORS)
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
+    index_routes(app)  # a request's route found by its (method, path), not by a scan
     keyed = settings.tenant_keys is not None
     install_openapi(app, api_key=keyed, max_obstacles=settings.max_obstacles)
     return app

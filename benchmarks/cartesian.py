@@ -14,20 +14,31 @@ deviation of P from the polyline measured over the timed trajectory, and the mea
 joint waypoints. Goal (issue 16): p50 <= 10 ms for a 0.3 m line with toppra timing on the
 default design (reported, not asserted): the last row states it, with the wall-clock p50 and
 the CPU p50 of this process (other load on a shared machine does not count in the latter).
+
+``--lines`` (issue 43): lines of 0.1, 0.3 and 0.6 m from the same starts in the same
+directions (seeded cases whose 0.6 m line is solved whole), the product's call (1 mm
+certificate, toppra at 0.25 m/s) against a baseline without a certificate: the IK of the
+start's working mode sampled every 5 mm along the line, then raw toppra (a cubic spline
+through the samples, joint velocity and acceleration limits, toppra's own grid), case by case
+interleaved; p50 wall and CPU. Goal: 0.6 m in <= 5 ms.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 
 import numpy as np
+import toppra
 from _machine import print_machine
 
-from planner import Design, forward_batch
+from planner import Design, forward_batch, inverse_batch
 from planner.cartesian.plan import plan_cartesian
+from planner.kinematics import WORKING_MODES
 from planner.planning import JointPosture, posture_mode
+from planner.timing import JointLimits
 from planner.validity import Margins, ValidityChecker
 
 
@@ -83,13 +94,80 @@ def run(
     return row, statistics.median(times), statistics.median(cpu)
 
 
+def line_cases(design: Design, n: int, seed: int) -> list[tuple[JointPosture, np.ndarray]]:
+    """Starts and unit directions whose 0.6 m line is solved whole (planning only)."""
+    rng = np.random.default_rng(seed)
+    out: list[tuple[JointPosture, np.ndarray]] = []
+    while len(out) < n:
+        for start in starts(design, rng, 50):
+            u = unit(rng)
+            p0 = forward_batch(design, start.q, "+").p[0]
+            if plan_cartesian(design, start, [p0 + 0.6 * u], timing="none").solved:
+                out.append((start, u))
+    return out[:n]
+
+
+def sampled_ik_toppra(design: Design, start: JointPosture, goal: np.ndarray) -> float:
+    """The baseline: IK of the start's working mode every 5 mm, raw toppra; its duration."""
+    p0 = forward_batch(design, start.q, "+").p[0]
+    m = max(2, int(np.ceil(np.linalg.norm(goal - p0) / 0.005)) + 1)
+    pts = p0 + np.linspace(0.0, 1.0, m)[:, None] * (goal - p0)
+    slot = WORKING_MODES.index(posture_mode(design, start))
+    q = inverse_batch(design, pts).q[:, slot]
+    q = np.asarray(start.q) + np.unwrap(q - q[0], axis=0)  # continuous from the start
+    lim = JointLimits.default()
+    v, a = lim.velocity_array, lim.acceleration_array
+    path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, m), q)
+    cons = [
+        toppra.constraint.JointVelocityConstraint(np.stack([-v, v], axis=1)),
+        toppra.constraint.JointAccelerationConstraint(np.stack([-a, a], axis=1)),
+    ]
+    algo = toppra.algorithm.TOPPRA(cons, path, solver_wrapper="seidel")
+    return float(algo.compute_trajectory(0, 0).duration)
+
+
+def lines(design: Design, n: int, seed: int, reps: int = 3) -> None:
+    """The ``--lines`` table (module docstring)."""
+    cases = line_cases(design, n, seed)
+    s0, u0 = cases[0]
+    p0 = forward_batch(design, s0.q, "+").p[0]
+    plan_cartesian(design, s0, [p0 + 0.1 * u0], cartesian_speed=0.25)  # warm
+    sampled_ik_toppra(design, s0, p0 + 0.1 * u0)
+    print(f"{len(cases)} lines x {reps}, default design; load {os.getloadavg()[0]:.1f}")
+    print(f"{'length':>7} {'product p50 ms':>15} {'cpu':>7} {'baseline p50 ms':>16} {'cpu':>7}")
+    for length in (0.1, 0.3, 0.6):
+        prod, prod_cpu, base, base_cpu = [], [], [], []
+        for _ in range(reps):
+            for start, u in cases:
+                goal = forward_batch(design, start.q, "+").p[0] + length * u
+                t0, c0 = time.perf_counter(), time.process_time()
+                res = plan_cartesian(design, start, [goal], cartesian_speed=0.25)
+                prod.append(time.perf_counter() - t0)
+                prod_cpu.append(time.process_time() - c0)
+                assert res.solved, res.message
+                t0, c0 = time.perf_counter(), time.process_time()
+                sampled_ik_toppra(design, start, goal)
+                base.append(time.perf_counter() - t0)
+                base_cpu.append(time.process_time() - c0)
+        print(
+            f"{length:>6.1f}m {1e3 * statistics.median(prod):>15.2f} "
+            f"{1e3 * statistics.median(prod_cpu):>7.2f} {1e3 * statistics.median(base):>16.2f} "
+            f"{1e3 * statistics.median(base_cpu):>7.2f}"
+        )
+    print(f"load at the end {os.getloadavg()[0]:.1f}; goal: 0.6 m product p50 <= 5 ms")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--method", default="toppra", choices=["toppra", "ruckig"])
+    ap.add_argument("--lines", action="store_true", help="only the 0.1/0.3/0.6 m table")
     args = ap.parse_args()
     print_machine()
+    if args.lines:
+        lines(Design.default(), min(args.cases, 20), args.seed)
+        return
     designs = [("default", Design.default()), ("L0=.6 L1=.25 L2=.45", Design(0.6, 0.25, 0.45))]
     # warm the kernels and solvers outside the figures
     plan_cartesian(

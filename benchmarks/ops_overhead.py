@@ -7,7 +7,11 @@ Both are timed in-process, with and without the layer, in the same run, on the s
 
 - middleware: one ASGI request through a trivial endpoint app, bare vs wrapped by the
   observer (access log at INFO to a discarded stream, as in production);
-- job wrapper: the fk job serialised by ``as_json`` vs by ``run_measured``.
+- job wrapper: the fk job serialised by ``as_json`` vs by ``run_measured``;
+- the whole application (issue 43): one ``POST /v1/fk`` through the service's ASGI app (its
+  middleware, routing, body validation, the fk job, the answer) against a bare FastAPI app
+  echoing the same body into a pydantic model, in the same process, CPU time of the calling
+  thread (what the event loop spends per request, without the HTTP server's parsing).
 
     PYTHONPATH=src:. python benchmarks/ops_overhead.py [--n 20000]
 """
@@ -23,6 +27,8 @@ import time
 from collections.abc import Awaitable, Callable
 
 from _machine import print_machine
+from fastapi import FastAPI
+from pydantic import BaseModel
 
 from planner.endpoints import as_json
 from planner.endpoints import kinematics as jobs
@@ -70,6 +76,80 @@ def _time_asgi(app: Callable[..., Awaitable[None]], n: int, batch: int = 500) ->
     return statistics.median(asyncio.run(run()))
 
 
+_BODY = b'{"q": [0.2, 1.0, 2.0]}'
+
+
+def _fk_scope(path: str) -> dict:
+    return {
+        "type": "http",
+        "asgi": {"version": "3.0"},
+        "http_version": "1.1",
+        "method": "POST",
+        "scheme": "http",
+        "path": path,
+        "raw_path": path.encode(),
+        "root_path": "",
+        "query_string": b"",
+        "headers": [
+            (b"host", b"localhost"),
+            (b"content-type", b"application/json"),
+            (b"content-length", str(len(_BODY)).encode()),
+        ],
+        "client": ("127.0.0.1", 1),
+        "server": ("127.0.0.1", 80),
+    }
+
+
+def _cpu_per_request(app: Callable[..., Awaitable[None]], path: str, n: int) -> float:
+    """Median thread CPU seconds per ``POST path`` of the fk body through ``app``, in
+    batches of 100 (the first batches, its warm-up, dropped); every answer must be 200."""
+    statuses: list[int] = []
+
+    async def receive() -> dict:
+        return {"type": "http.request", "body": _BODY, "more_body": False}
+
+    async def send(message: dict) -> None:
+        if message["type"] == "http.response.start":
+            statuses.append(message["status"])
+
+    async def run() -> list[float]:
+        per_call = []
+        for k in range(n // 100 + 3):
+            c0 = time.thread_time()
+            for _ in range(100):
+                await app(_fk_scope(path), receive, send)
+            if k >= 3:
+                per_call.append((time.thread_time() - c0) / 100)
+        return per_call
+
+    result = statistics.median(asyncio.run(run()))
+    assert set(statuses) == {200}, set(statuses)
+    return result
+
+
+class _Body(BaseModel):
+    q: list[float]
+
+
+def _bare_app() -> Callable[..., Awaitable[None]]:
+    """The floor: a bare FastAPI app validating the body into a model and echoing it."""
+    bare = FastAPI()
+
+    @bare.post("/echo")
+    async def echo(body: _Body) -> dict:
+        return {"q": body.q}
+
+    return bare
+
+
+def _service_app() -> Callable[..., Awaitable[None]]:
+    """The service's app (no lifespan: fk runs in the event loop and needs no pool)."""
+    from planner_api.app import create_app
+    from planner_api.settings import Settings
+
+    return create_app(Settings(workers=1), warm_up=False)
+
+
 def _time_pair(
     a: Callable[[], object], b: Callable[[], object], n: int, batch: int = 200
 ) -> tuple[float, float]:
@@ -109,10 +189,14 @@ def main() -> None:
         args.n // 10,
     )
 
+    bare_cpu = _cpu_per_request(_bare_app(), "/echo", args.n // 4)
+    app_cpu = _cpu_per_request(_service_app(), "/v1/fk", args.n // 4)
+
     print(f"{'layer':<34} {'without us':>11} {'with us':>9} {'added us':>9} {'ratio':>6}")
     for name, a, b in [
         ("RequestObserver (ASGI, per req)", bare, wrapped),
         ("run_measured vs as_json (fk job)", plain_job, measured_job),
+        ("service POST /v1/fk vs bare (CPU)", bare_cpu, app_cpu),
     ]:
         print(f"{name:<34} {a * 1e6:>11.2f} {b * 1e6:>9.2f} {(b - a) * 1e6:>9.2f} {b / a:>6.2f}")
 

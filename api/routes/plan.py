@@ -29,13 +29,13 @@ from planner_api.routes._common import (
     run_jobs,
     with_design_defaults,
 )
+from planner_api.routes.direct import DirectRoute, DirectSpec, answered_directly
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
     BodyInvalidError,
     BodySpec,
     Limits,
     RouteLimits,
-    WorkerBodyRoute,
     answer_of_worker_body,
     load_json,
     parsed_in_worker,
@@ -55,7 +55,7 @@ __all__ = [
     "router",
 ]
 
-router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
+router = APIRouter(prefix="/v1", tags=["plan"], route_class=DirectRoute)
 
 PlanFunction = Callable[[PlanRequest, JobBudget], PlanResponse]
 
@@ -91,8 +91,29 @@ def plan_job_of(request: Request) -> PlanFunction:
     return override() if override is not None else jobs.plan
 
 
+async def _plan(
+    request: Request, body: PlanRequest, pool: WorkerPool, deadline: float, job: PlanFunction
+) -> Response:
+    """The plan route's work on a parsed body, its dependencies resolved."""
+    settings = request.app.state.settings
+    body = prepare_plan(body, settings)
+    body = await resolve_scene(request, body)
+    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
+    return await run_job(
+        pool, job, body, deadline, design_defaults=settings.design_defaults, max_samples=samples
+    )
+
+
+async def _plan_direct(request: Request, body: PlanRequest) -> Response:
+    """:func:`plan` without FastAPI's dependency solving (:mod:`planner_api.routes.direct`:
+    never with ``dependency_overrides``, so the job is the library's)."""
+    pool, deadline = await get_pool(request), await get_deadline(request)
+    return await _plan(request, body, pool, deadline, jobs.plan)
+
+
 @router.post("/plan", response_model=PlanResponse)
 @parsed_in_worker(BodySpec(PlanRequest, prepare_plan, plan_job_of, resolve_scene))
+@answered_directly(DirectSpec(PlanRequest, _plan_direct))
 async def plan(
     body: PlanRequest,
     pool: Pool,
@@ -102,12 +123,7 @@ async def plan(
     request: Request,
 ) -> Response:
     """Plan (and time) a motion from ``start`` to ``goal`` (in the named ``scene``, if any)."""
-    body = prepare_plan(body, settings)
-    body = await resolve_scene(request, body)
-    samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
-    return await run_job(
-        pool, job, body, deadline, design_defaults=settings.design_defaults, max_samples=samples
-    )
+    return await _plan(request, body, pool, deadline, job)
 
 
 def prepare_batch(body: PlanBatchRequest, limits: RouteLimits) -> PlanBatchRequest:

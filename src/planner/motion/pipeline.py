@@ -65,6 +65,8 @@ class TimingRequest:
         via passes the waypoint exactly, its moves within ``max_deviation`` of the path).
     check_resolution : the dense re-check's step, rad (None: the timing's default).
     fallback : methods tried, in order, when the asked method cannot time the path.
+    grid_refine : toppra's grid refinement (None: the timing's default; see
+        :func:`planner.timing.time_path`).
     """
 
     waypoints: np.ndarray
@@ -76,6 +78,7 @@ class TimingRequest:
     via_radius: np.ndarray | None = None
     check_resolution: float | None = None
     fallback: tuple[str, ...] = ()
+    grid_refine: float | None = None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -273,6 +276,7 @@ def _rest_to_rest(problem: MotionProblem, request: TimingRequest, method: str) -
             gravity=problem.gravity,
             via_at=request.via_at,
             via_radius=request.via_radius,
+            grid_refine=request.grid_refine,
         )
     except InputError as exc:
         if exc.field is not None and exc.field_path[:1] != ("timing",):

@@ -106,6 +106,7 @@ class TimingJob:
     torque: TorqueModel | None = None
     via: np.ndarray | None = None
     via_radius: np.ndarray | None = None
+    grid_refine: float | None = None
 
     def speed_gain(self, path: BlendedPath) -> Callable[[np.ndarray], np.ndarray] | None:
         """|dP/ds| along ``path`` (m/rad) for the Cartesian speed bound, None without one."""
@@ -138,6 +139,7 @@ def validate_inputs(
     gravity: object = DEFAULT_GRAVITY,
     via_at: Iterable[int] = (),
     via_radius: object = None,
+    grid_refine: object = None,
 ) -> TimingJob:
     """Step 1 of :func:`planner.timing.time_path`: every argument checked, with a typed error
     naming the field and the rule (the parameters are ``time_path``'s)."""
@@ -194,4 +196,5 @@ def validate_inputs(
         torque,
         via,
         radius,
+        None if grid_refine is None else _positive("grid_refine", grid_refine),
     )

@@ -272,6 +272,7 @@ def time_path(
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY,
     via_at: Iterable[int] = (),
     via_radius: float | np.ndarray | None = None,
+    grid_refine: float | None = None,
 ) -> Trajectory:
     """Turn a planned joint path into a checked, timed trajectory from rest to rest.
 
@@ -332,6 +333,7 @@ def time_path(
         vertex exactly, at a free velocity: a section holding such a via always takes its
         chain (the blended path's arc rounds the corner, it does not pass the vertex),
         unless the re-check drops it; the caller checks the pass if it must be exact.
+    grid_refine : float, optional -- toppra's grid refinement (:func:`_time_by_method`).
 
     Returns
     -------
@@ -368,16 +370,18 @@ def time_path(
         gravity,
         via_at,
         via_radius,
+        grid_refine,
     )
-    if job.limits.torque is None:
-        return _timed(job, t_start)[0]
     return _quicker_under_torques(job, t_start)
 
 
 def _quicker_under_torques(job: TimingJob, t_start: float) -> Trajectory:
-    """Step 7, with torque limits: the torque-limited timing, or the velocity-only one
-    slowed down uniformly until the torques hold, whichever is quicker; the torque-limited
-    timing's error when neither exists."""
+    """Steps 2 to 7: without torque limits, the timing of :func:`_timed`; with them (step 7),
+    the torque-limited timing, or the velocity-only one slowed down uniformly until the
+    torques hold, whichever is quicker; the torque-limited timing's error when neither
+    exists."""
+    if job.limits.torque is None:
+        return _timed(job, t_start)[0]
     limited: Trajectory | None = None
     error: TimingError | None = None
     try:
@@ -505,7 +509,9 @@ def _build_blended_path(job: TimingJob) -> _State:
 def _time_by_method(job: TimingJob, state: _State) -> Curve:
     """Step 3: the timed curve of the current path. toppra: its time-optimal profile, slowed
     uniformly just enough that the limits hold between its grid points too (or by a pending
-    repair's factor). ruckig: a chain of jerk-limited moves through states taken from a
+    repair's factor), on a grid refined ``TOPPRA_REFINE`` times on lines and
+    ``TOPPRA_ARC_REFINE`` more on blends, or ``job.grid_refine`` times on both when given
+    (the re-check and the time-scale fit hold the limits either way). ruckig: a chain of jerk-limited moves through states taken from a
     toppra profile (solved on a coarser grid, see :data:`SEED_REFINE`), slowed uniformly if
     the Cartesian speed bound needs it; a chain slowed by a repair is used as is."""
     if state.rescaled is not None:
@@ -518,8 +524,10 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
     gain = job.speed_gain(path)
     if state.profile is None:
         own = job.method == "toppra"
-        refine = state.refine * (TOPPRA_REFINE if own else SEED_REFINE)
-        arc_refine = TOPPRA_ARC_REFINE if own else 1.0
+        base, arc_refine = (TOPPRA_REFINE, TOPPRA_ARC_REFINE) if own else (SEED_REFINE, 1.0)
+        if own and job.grid_refine is not None:
+            base, arc_refine = job.grid_refine, 1.0
+        refine = state.refine * base
         best: PathProfile | None = None
         for _ in range(1 + (_TORQUE_REFINES if lim.torque is not None else 0)):
             profile = solve_toppra(

@@ -1,0 +1,173 @@
+"""Routes answered without FastAPI's per-request dependency solving, and the routing index.
+
+Why: on the cheapest requests (fk, ik, a small plan) the event loop's own CPU was 4-5x a bare
+FastAPI app's, and the largest parts were FastAPI's ``solve_dependencies`` (24-32 %: it walks
+the route's dependency tree, settings, pool, deadline, API key, client watch, job function,
+body, on every request) and Starlette's routing (8-13 %: one regular expression per route,
+in order, until one matches). Both answers are the same for every request of a route:
+
+- :class:`DirectRoute` works out once, when the route is built, which of its dependencies
+  it has (the API key, the client watch; anything else and the route keeps FastAPI's path),
+  and answers a request by reading its body, validating it into the route's model, checking
+  the key, watching the client and calling the endpoint's :class:`DirectSpec` ``answer``
+  with the request and the body, which reads the settings, the pool and the deadline itself.
+  The rules are FastAPI's: the same JSON reading and model validation (Python mode), the key
+  checked before the body (FastAPI resolves dependencies before the body). Any case that is
+  not the plain one takes FastAPI's path unchanged, so its answer is FastAPI's to the byte: a
+  body that does not validate (its 422 is FastAPI's own), an empty body, a body larger than
+  ``PLANNER_INLINE_PARSE_BYTES`` (parsed in a worker: :mod:`planner_api.routes.worker_body`),
+  and any application with ``dependency_overrides`` (tests replace a job that way).
+- :func:`index_routes` puts a table in front of the router: the route a (method, path) pair
+  matched is remembered (for the routes without path parameters, in a bounded table), and the
+  next request with that pair tries that one route's pattern instead of every route's in
+  order. The route found is the one the ordered scan found, so nothing changes but the cost;
+  a miss, a path with parameters or a partial match (405) takes Starlette's scan.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import fastapi.routing
+from fastapi import FastAPI, Request, Response
+from fastapi.routing import APIRoute
+from pydantic import BaseModel
+from starlette.routing import Match, Router
+from starlette.types import Receive, Scope, Send
+
+from planner_api.deps import require_api_key, watch_client
+from planner_api.routes.worker_body import BodyInvalidError, WorkerBodyRoute, validate_data
+
+__all__ = ["DirectRoute", "DirectSpec", "answered_directly", "index_routes"]
+
+#: The dependencies :class:`DirectRoute` resolves itself; a route with any other one keeps
+#: FastAPI's path.
+_KNOWN = frozenset({require_api_key, watch_client})
+#: How many (method, path) pairs :func:`index_routes` remembers (paths with parameters, a
+#: scene's or a job's name, are never remembered: they would churn the table).
+_INDEX_SIZE = 256
+
+
+@dataclass(frozen=True, slots=True)
+class DirectSpec:
+    """How :class:`DirectRoute` answers a route: ``model`` is its body's model,
+    ``await answer(request, body)`` its work on the validated body (what the endpoint does
+    with its dependencies, which it reads from ``request.app.state`` itself)."""
+
+    model: type[BaseModel]
+    answer: Callable[[Request, Any], Awaitable[Response]]
+
+
+def answered_directly(spec: DirectSpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Mark a route's endpoint: :class:`DirectRoute` answers its plain requests with
+    ``spec`` (the endpoint itself stays FastAPI's path and its OpenAPI document). Apply it
+    below ``@router.post`` (and below :func:`~planner_api.routes.worker_body.parsed_in_worker`
+    when both apply)."""
+
+    def mark(endpoint: Callable[..., Any]) -> Callable[..., Any]:
+        endpoint.__direct__ = spec  # type: ignore[attr-defined]
+        return endpoint
+
+    return mark
+
+
+class DirectRoute(WorkerBodyRoute):
+    """A :class:`~planner_api.routes.worker_body.WorkerBodyRoute` whose endpoint, if marked
+    with :func:`answered_directly`, answers its plain requests without FastAPI's dependency
+    solving (the module docstring)."""
+
+    def get_route_handler(self) -> Callable[[Request], Any]:
+        fallback = super().get_route_handler()
+        spec: DirectSpec | None = getattr(self.endpoint, "__direct__", None)
+        dependencies = _included_dependencies(self)
+        if spec is None or dependencies is None:
+            return fallback
+        found = {d.dependency for d in dependencies}
+        if not found <= _KNOWN:
+            return fallback
+        keyed, watched = require_api_key in found, watch_client in found
+
+        async def handler(request: Request) -> Response:
+            app = request.app
+            settings = app.state.settings
+            raw = await request.body()  # kept by the request: the fallback reads it again
+            if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+                return await fallback(request)
+            if keyed:
+                await require_api_key(request, settings)
+            try:  # read as FastAPI reads it (Starlette's request.json(), kept by the request)
+                body = validate_data(spec.model, await request.json())
+            except (BodyInvalidError, ValueError, RecursionError):
+                return await fallback(request)  # FastAPI's own 422
+            if not watched:
+                return await spec.answer(request, body)
+            async with asynccontextmanager(watch_client)(request):
+                return await spec.answer(request, body)
+
+        return handler
+
+
+def _included_dependencies(route: APIRoute) -> list[Any] | None:
+    """The dependencies of ``route`` as included in the application (its router's
+    ``include_router(dependencies=...)`` with its own), or None when the handler being built
+    is not an included route's. FastAPI (0.165) builds an included route's handler once per
+    inclusion, the inclusion's context in a context variable that its own
+    ``APIRoute.get_route_handler`` reads; the route's own ``dependencies`` lack the
+    router's. None (FastAPI's path kept) if a FastAPI version has no such variable."""
+    var = getattr(fastapi.routing, "_effective_route_context_var", None)
+    context = var.get() if var is not None else None
+    if context is None or getattr(context, "original_route", None) is not route:
+        return None
+    return list(context.dependencies)
+
+
+def index_routes(app: FastAPI) -> None:
+    """Route ``app``'s requests through a table of the routes already matched (the module
+    docstring). Call once, after every route is included."""
+    router: Router = app.router
+    scan = router.middleware_stack
+    table: dict[tuple[str, str], int] = {}
+    routes = router.routes
+
+    async def routed(scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await scan(scope, receive, send)
+            return
+        key = (scope["method"], scope["path"])
+        at = table.get(key)
+        if at is not None and at < len(routes):
+            route = routes[at]
+            match, child = route.matches(scope)
+            if match is Match.FULL:  # as Starlette's router hands a full match over
+                scope.setdefault("router", router)
+                scope["route"] = route
+                scope.update(child)
+                await route.handle(scope, receive, send)
+                return
+        if at is None:
+            found = _first_full_match(routes, scope)
+            if found is not None:
+                if len(table) >= _INDEX_SIZE:
+                    table.pop(next(iter(table)))
+                table[key] = found
+        await scan(scope, receive, send)
+
+    router.middleware_stack = routed
+
+
+def _first_full_match(routes: list[Any], scope: Scope) -> int | None:
+    """The position of the router's entry that the ordered scan hands ``scope`` to, when
+    that is a full match of a path without parameters (a partial one, a 405, may be beaten
+    by a later entry; a path with parameters would churn the table); else None."""
+    probe = dict(scope)
+    for i, route in enumerate(routes):
+        match, child = route.matches(probe)
+        if match is Match.FULL:
+            inner = child.get("route", route)
+            if getattr(inner, "param_convertors", None) or child.get("path_params"):
+                return None
+            return i
+    return None
