@@ -144,6 +144,16 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     app.add_middleware(
         RequestObserver, metrics=app.state.metrics, stopping=lambda: app.state.stopping
     )  # outermost: sees all
+    _include_routes(app, settings)
+    keyed = settings.tenant_keys is not None
+    install_openapi(app, api_key=keyed, max_obstacles=settings.max_obstacles)
+    return app
+
+
+def _include_routes(app: FastAPI, settings: Settings) -> None:
+    """The routes in the order routing tries them, each router with its dependencies (the
+    API key; the client watch where a job waits on a worker), then the viewer's and the
+    docs' pages, and the table that finds a request's route without a scan."""
     app.include_router(meta.router)
     if settings.metrics:
         app.include_router(metrics_router)
@@ -173,6 +183,3 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     index_routes(app)  # a request's route found by its (method, path), not by a scan
-    keyed = settings.tenant_keys is not None
-    install_openapi(app, api_key=keyed, max_obstacles=settings.max_obstacles)
-    return app
