@@ -1,5 +1,6 @@
 """WebSocket /v1/stream: a plan or sequence answer streamed as chunks of setpoints, paced by
-the client's acknowledgements, with replacements and stops spliced at chunk boundaries.
+the client's acknowledgements, with replacements and stops computed while the stream goes on
+and spliced at a chunk boundary ahead of it (the rules: :mod:`planner.endpoints.stream`).
 
 The rules live in :class:`planner.endpoints.stream.StreamSession`; this route does the I/O:
 the API key and the service's limits as on the HTTP routes (the request gate of

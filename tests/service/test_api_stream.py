@@ -8,6 +8,8 @@ q moves by at most velocity x dt, qd by at most acceleration x dt) and by the en
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from starlette.websockets import WebSocketDisconnect
@@ -18,17 +20,20 @@ TIMING = {"method": "ruckig"}
 
 
 def _collect(ws, action_after: float | None = None, action: dict | None = None):
-    """Receive until done, acknowledging each chunk's end (less 40 ms: a client behind the
-    stream); ``action`` sent once the stream passes ``action_after``."""
-    messages, sent = [], False
+    """Receive until done, acknowledging each chunk's end less 40 ms (a client behind the
+    stream) once its clock, which runs in real time from the first chunk, gets there;
+    ``action`` sent once the stream passes ``action_after``."""
+    messages, sent, w0 = [], False, None
     while True:
         m = ws.receive_json()
         messages.append(m)
         if m["type"] == "setpoints":
+            w0 = time.monotonic() - m["t0"] if w0 is None else w0
             end = m["t0"] + m["dt"] * (len(m["q"]) - 1)
             if action is not None and not sent and end > action_after:
                 ws.send_json(action)
                 sent = True
+            time.sleep(max(0.0, end - 0.04 - (time.monotonic() - w0)))
             ws.send_json({"type": "ack", "t": end - 0.04})
         elif m["type"] in ("done", "error"):
             return messages
@@ -109,7 +114,7 @@ def test_a_stop_brings_the_stream_to_rest(api):
     with api.websocket_connect("/v1/stream") as ws:
         request = {"start": START, "goal": GOAL, "timing": TIMING}
         ws.send_json({"type": "plan", "request": request, "rate_hz": 1000})
-        messages = _collect(ws, 0.15, {"type": "stop"})
+        messages = _collect(ws, 0.05, {"type": "stop"})
     t, q, qd = _grid(messages)
     _continuous(t, q, qd, 1 / 1000)
     assert not np.any(qd[-1]) and np.max(np.abs(q[-1] - GOAL["q"])) > 1e-3  # stopped short

@@ -68,6 +68,9 @@ class StreamSession:
     finished: bool = False
     plan_s: float = 0.0  # wall time of this session's last plan, s (sets the splice margin)
     holding: bool = False  # a replacement is pending: hold the rest state past the end
+    # the trajectory switched from, still streamed before ``switch_at``
+    previous: RunningTrajectory | None = None
+    switch_at: float = -math.inf
 
     def __post_init__(self) -> None:
         self._load(self.trajectory)
@@ -138,6 +141,10 @@ class StreamSession:
     def _chunk(self, n: int) -> dict[str, Any]:
         t = self.t0 + (self.sent + np.arange(n)) * self.dt
         q, qd, qdd, _ = self.running.evaluate(np.minimum(t, self.end))
+        before = t < self.switch_at - 1e-9  # not yet at the splice: the old trajectory
+        if self.previous is not None and np.any(before):
+            old = self.previous.evaluate(np.minimum(t[before], self.previous.end))
+            q[before], qd[before], qdd[before] = old[0], old[1], old[2]
         chunk = {
             "type": "setpoints",
             "t0": float(t[0]),
@@ -153,7 +160,7 @@ class StreamSession:
         """Where a replacement or stop starts: the first chunk boundary at or after the send
         horizon (or what was sent, if more) plus ``margin_s``, on the stream's grid."""
         chunk = self.chunk_len * self.dt
-        target = max(self.boundary, self.horizon) + margin_s
+        target = max(self.boundary, self.horizon, self.switch_at) + margin_s
         return self.boundary + max(0, math.ceil((target - self.boundary) / chunk - 1e-9)) * chunk
 
     def too_late(self, at: float) -> bool:
@@ -172,7 +179,12 @@ class StreamSession:
 
     def switch(self, trajectory: dict[str, Any], at: float) -> dict[str, Any]:
         """Continue with ``trajectory`` (starting at ``at`` on the stream's clock): the
-        ``switched`` message. The grid goes on where it was (``at`` is a grid time)."""
+        ``switched`` message. The grid goes on where it was (``at`` is a grid time): the
+        setpoints before ``at`` still come from the current trajectory."""
+        if len(trajectory["t"]) < 2:  # a stop from rest (past the end): that state, held
+            held = {k: [trajectory[k][0]] * 2 for k in ("q", "qd", "qdd")}
+            trajectory = {**trajectory, **held, "t": [at, at + self.dt]}
+        self.previous, self.switch_at = self.running, at
         self._load(trajectory)
         self.finished = self.holding = False
         return {"type": "switched", "at": at}
