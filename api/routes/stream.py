@@ -206,5 +206,11 @@ async def _serve(websocket: WebSocket) -> None:
                     queued.append(incoming)
     finally:
         reading.cancel()
-        if splice is not None:
-            splice.task.cancel()
+        if splice is not None:  # let its job finish (cancelling would kill the worker)
+            splice.task.add_done_callback(_discard)
+
+
+def _discard(task: asyncio.Future) -> None:
+    """Retrieve an abandoned computation's outcome (so asyncio does not log it)."""
+    if not task.cancelled():
+        task.exception()
