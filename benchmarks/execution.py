@@ -239,6 +239,7 @@ def stream_lateness(seconds: float, rate: float) -> None:
     proc, url = start_service({"PLANNER_WORKERS": "1"}, quiet=True)
     late: dict[bool, list[float]] = {False: [], True: []}  # without / with a replacement
     switch_ms: list[float] = []
+    splice_ms: list[float] = []
     rng = np.random.default_rng(2)
     try:
         with PlannerClient(url, timeout=30) as client:
@@ -251,7 +252,9 @@ def stream_lateness(seconds: float, rate: float) -> None:
                     "goal": posture(goal),
                     "timing": {"method": "ruckig"},
                 }
-                late[replace] += _one_stream(client, body, rate, switch_ms if replace else None)
+                late[replace] += _one_stream(
+                    client, body, rate, switch_ms if replace else None, splice_ms
+                )
                 replace = not replace
     finally:
         proc.terminate()
@@ -265,13 +268,18 @@ def stream_lateness(seconds: float, rate: float) -> None:
         row = f"{pct(ms, 50):.3f} ms | {pct(ms, 99):.3f} ms | {max(ms):.3f} ms"
         print(f"| {name} | {len(ms)} | {row} |")
     print(
-        f"\nreplace -> switched: p50 {pct(switch_ms, 50):.1f} ms over {len(switch_ms)} replacements"
+        f"\nreplace -> switched: p50 {pct(switch_ms, 50):.1f} ms, p99 {pct(switch_ms, 99):.1f} ms "
+        f"over {len(switch_ms)} replacements; splice time - client's clock at the replace: "
+        f"p50 {pct(splice_ms, 50):.1f} ms, max {max(splice_ms):.1f} ms"
     )
 
 
-def _one_stream(client, body: dict, rate: float, switch_ms: list[float] | None) -> list[float]:
+def _one_stream(
+    client, body: dict, rate: float, switch_ms: list[float] | None, splice_ms: list[float]
+) -> list[float]:
     """One plan streamed in real time (with ``switch_ms``, a replacement after 0.3 s, its
-    latency appended): each setpoint's lateness, s."""
+    latency appended, and to ``splice_ms`` its splice time less the client's clock when it was
+    sent): each setpoint's lateness, s."""
     late: list[float] = []
     with client.stream(body, rate_hz=rate, lookahead_s=0.05, auto_ack=False) as session:
         w0 = None  # the client's clock: on time with the first setpoint
@@ -293,6 +301,7 @@ def _one_stream(client, body: dict, rate: float, switch_ms: list[float] | None) 
                     replaced_at = now
             elif message["type"] == "switched" and switch_ms is not None:
                 switch_ms.append((now - replaced_at) * 1e3)
+                splice_ms.append((message["at"] - (replaced_at - w0)) * 1e3)
             elif message["type"] == "done":
                 return late
 

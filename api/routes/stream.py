@@ -1,5 +1,6 @@
 """WebSocket /v1/stream: a plan or sequence answer streamed as chunks of setpoints, paced by
-the client's acknowledgements, with replacements and stops spliced at chunk boundaries.
+the client's acknowledgements, with replacements and stops computed while the stream goes on
+and spliced at a chunk boundary ahead of it (the rules: :mod:`planner.endpoints.stream`).
 
 The rules live in :class:`planner.endpoints.stream.StreamSession`; this route does the I/O:
 the API key and the service's limits as on the HTTP routes (the request gate of
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import time
 from functools import partial
 from typing import Any
@@ -111,40 +113,104 @@ async def stream(websocket: WebSocket) -> None:
         return
 
 
-async def _receive(websocket: WebSocket, timeout: float) -> Any:
-    try:
-        text = await asyncio.wait_for(websocket.receive_text(), timeout)
-    except TimeoutError as exc:
-        raise StreamError([], f"no message for {timeout:g} s: the stream is closed") from exc
+async def _receive(websocket: WebSocket) -> Any:
+    text = await websocket.receive_text()
     try:
         return json.loads(text)
     except ValueError as exc:
         raise StreamError([], f"a message must be JSON: {exc}") from exc
 
 
+async def _timed(compute: Any) -> tuple[dict, float]:
+    """The answer of ``compute`` (an awaitable) and its wall time, s."""
+    began = time.monotonic()
+    answer = await compute
+    return answer, time.monotonic() - began
+
+
+class _Splice:
+    """A replacement or stop being computed while the stream goes on: its message, its
+    splice time, the tries so far and the task computing it."""
+
+    def __init__(
+        self, websocket: WebSocket, session: StreamSession, incoming: Any, kind: str, request: dict
+    ) -> None:
+        self.websocket, self.session, self.incoming = websocket, session, incoming
+        self.kind, self.request = kind, request  # the stream's kind, its current request
+        self.tries = 0
+        self.launch()
+
+    def launch(self) -> None:
+        """Plan from a splice time ahead of the horizon (see the endpoint's docstring); the
+        last try holds the stream at it."""
+        session, incoming = self.session, self.incoming
+        self.tries += 1
+        self.at = session.splice_time(session.margin())
+        self.until = self.at if self.tries >= jobs.REPLANS else math.inf
+        session.holding = True
+        if incoming.type == "replace":
+            body = session.replace_request(incoming.request, self.at)
+            kind, loc = self.kind, ["request"]
+        else:
+            kind, body, loc = "stop", session.stop_request(self.request, self.at), []
+        self.task = asyncio.ensure_future(_timed(_compute(self.websocket, kind, body, loc)))
+
+
 async def _serve(websocket: WebSocket) -> None:
     idle = websocket.app.state.settings.request_timeout_s
-    start = _validated(StreamStart, await _receive(websocket, idle), [])
+    try:
+        first = await asyncio.wait_for(_receive(websocket), idle)
+    except TimeoutError as exc:
+        raise StreamError([], f"no message for {idle:g} s: the stream is closed") from exc
+    start = _validated(StreamStart, first, [])
     request = {**start.request}
     request["timing"] = {**request.get("timing", {}), "sample_rate_hz": start.rate_hz}
-    answer = await _compute(websocket, start.type, request, ["request"])
+    answer, seconds = await _timed(_compute(websocket, start.type, request, ["request"]))
     session = StreamSession(answer["trajectory"], start.rate_hz, start.lookahead_s)
-    while True:
-        for message in session.pending():
-            await websocket.send_json(message)
-        if session.finished:
-            await websocket.close()
-            return
-        incoming = _validated(_MESSAGE, await _receive(websocket, idle), [])
-        if incoming.type == "ack":
-            session.acknowledge(incoming.t)
-            continue
-        at = session.splice_time()
-        if incoming.type == "replace":
-            body = session.replace_request(incoming.request, at)
-            got = await _compute(websocket, start.type, body, ["request"])
-            request = incoming.request
-        else:
-            body = session.stop_request(request, at)
-            got = await _compute(websocket, "stop", body, [])
-        await websocket.send_json(session.switch(got["trajectory"], at))
+    session.plan_s = seconds
+    reading = asyncio.ensure_future(_receive(websocket))
+    splice: _Splice | None = None
+    queued: list[Any] = []  # replaces and stops waiting for the one being computed
+    try:
+        while True:
+            for message in session.pending(splice.until if splice else math.inf):
+                await websocket.send_json(message)
+            if session.finished:
+                await websocket.close()
+                return
+            waits = {reading} if splice is None else {reading, splice.task}
+            done, _ = await asyncio.wait(waits, timeout=idle, return_when=asyncio.FIRST_COMPLETED)
+            if not done:
+                raise StreamError([], f"no message for {idle:g} s: the stream is closed")
+            if splice is not None and splice.task in done:
+                got, session.plan_s = splice.task.result()
+                if session.too_late(splice.at):
+                    splice.launch()  # its splice time was streamed: plan from a later one
+                else:
+                    if splice.incoming.type == "replace":
+                        request = splice.incoming.request
+                    await websocket.send_json(session.switch(got["trajectory"], splice.at))
+                    splice = (
+                        _Splice(websocket, session, queued.pop(0), start.type, request)
+                        if queued
+                        else None
+                    )
+            if reading in done:
+                incoming = _validated(_MESSAGE, reading.result(), [])
+                reading = asyncio.ensure_future(_receive(websocket))
+                if incoming.type == "ack":
+                    session.acknowledge(incoming.t)
+                elif splice is None:
+                    splice = _Splice(websocket, session, incoming, start.type, request)
+                else:
+                    queued.append(incoming)
+    finally:
+        reading.cancel()
+        if splice is not None:  # let its job finish (cancelling would kill the worker)
+            splice.task.add_done_callback(_discard)
+
+
+def _discard(task: asyncio.Future) -> None:
+    """Retrieve an abandoned computation's outcome (so asyncio does not log it)."""
+    if not task.cancelled():
+        task.exception()

@@ -8,6 +8,8 @@ q moves by at most velocity x dt, qd by at most acceleration x dt) and by the en
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from starlette.websockets import WebSocketDisconnect
@@ -18,17 +20,20 @@ TIMING = {"method": "ruckig"}
 
 
 def _collect(ws, action_after: float | None = None, action: dict | None = None):
-    """Receive until done, acknowledging each chunk's end (less 40 ms: a client behind the
-    stream); ``action`` sent once the stream passes ``action_after``."""
-    messages, sent = [], False
+    """Receive until done, acknowledging each chunk's end less 40 ms (a client behind the
+    stream) once its clock, which runs in real time from the first chunk, gets there;
+    ``action`` sent once the stream passes ``action_after``."""
+    messages, sent, w0 = [], False, None
     while True:
         m = ws.receive_json()
         messages.append(m)
         if m["type"] == "setpoints":
+            w0 = time.monotonic() - m["t0"] if w0 is None else w0
             end = m["t0"] + m["dt"] * (len(m["q"]) - 1)
             if action is not None and not sent and end > action_after:
                 ws.send_json(action)
                 sent = True
+            time.sleep(max(0.0, end - 0.04 - (time.monotonic() - w0)))
             ws.send_json({"type": "ack", "t": end - 0.04})
         elif m["type"] in ("done", "error"):
             return messages
@@ -62,16 +67,54 @@ def test_a_stream_with_a_replacement_is_continuous_and_ends_at_the_new_goal(api)
     _continuous(t, q, qd, 1 / 500)
     np.testing.assert_allclose(q[-1], new_goal["q"], atol=1e-9)
     assert not np.any(qd[-1])
-    i = messages.index(switched[0])  # the switch came within one chunk of the replace
+    i = messages.index(switched[0])  # the new trajectory's setpoints come after the switch
+    assert all(m["t0"] < at - 1e-9 for m in messages[:i] if m["type"] == "setpoints")
     later = [m["t0"] for m in messages[i + 1 :] if m["type"] == "setpoints"]
-    assert later and abs(later[0] - at) < 1e-9
+    assert any(abs(t0 - at) < 1e-9 for t0 in later)
+
+
+def test_the_stream_goes_on_while_a_replacement_is_planned(api):
+    # the client keeps acknowledging its clock after the replace; the service must keep
+    # sending the running trajectory while the replacement is planned (a stream that waits
+    # for the plan sends nothing between the replace and its `switched`), then splice at a
+    # chunk boundary at or after the client's clock when it sent the replace
+    new_goal = {"q": [0.0, 1.9, 1.0], "assembly_mode": "+"}
+    replace = {"type": "replace", "request": {"goal": new_goal, "timing": TIMING}}
+    with api.websocket_connect("/v1/stream") as ws:
+        request = {"start": START, "goal": GOAL, "timing": TIMING}
+        ws.send_json({"type": "plan", "request": request, "rate_hz": 1000, "lookahead_s": 0.05})
+        messages, clock, sent_at, during, switched = [], 0.0, None, 0, None
+        while True:
+            m = ws.receive_json()
+            messages.append(m)
+            if m["type"] == "setpoints":
+                during += sent_at is not None and switched is None
+                if sent_at is None and m["t0"] > 0.1:
+                    ws.send_json(replace)
+                    sent_at = clock
+                clock = m["t0"] + m["dt"] * (len(m["q"]) - 1) - 0.04
+                ws.send_json({"type": "ack", "t": clock})
+            elif m["type"] == "switched":
+                switched = m
+            else:
+                assert m["type"] == "done", m
+                break
+    assert switched is not None and during >= 1  # chunks kept coming while it was planned
+    t, q, qd = _grid(messages)
+    _continuous(t, q, qd, 1 / 1000)  # no gap in setpoint time, continuous at the splice
+    at = switched["at"]
+    t0s = [m["t0"] for m in messages if m["type"] == "setpoints"]
+    assert at >= sent_at and np.any(np.isclose(t0s, at, atol=1e-9))  # a chunk boundary
+    i = messages.index(switched)
+    assert all(m["t0"] < at - 1e-9 for m in messages[:i] if m["type"] == "setpoints")
+    np.testing.assert_allclose(q[-1], new_goal["q"], atol=1e-9)
 
 
 def test_a_stop_brings_the_stream_to_rest(api):
     with api.websocket_connect("/v1/stream") as ws:
         request = {"start": START, "goal": GOAL, "timing": TIMING}
         ws.send_json({"type": "plan", "request": request, "rate_hz": 1000})
-        messages = _collect(ws, 0.15, {"type": "stop"})
+        messages = _collect(ws, 0.05, {"type": "stop"})
     t, q, qd = _grid(messages)
     _continuous(t, q, qd, 1 / 1000)
     assert not np.any(qd[-1]) and np.max(np.abs(q[-1] - GOAL["q"])) > 1e-3  # stopped short
