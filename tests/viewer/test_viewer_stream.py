@@ -38,21 +38,30 @@ def _live(page) -> dict:
 
 
 def _past(page, t: float) -> None:
-    """Wait until the readout shows a time past ``t``."""
-    page.wait_for_function(
-        "(t) => Number(document.getElementById('stream-live').dataset.t) > t", arg=t
-    )
+    """Wait (polling: the page's policy forbids a string predicate) until the readout shows
+    a time past ``t``."""
+    box = page.get_by_test_id("stream-live")
+    for _ in range(400):
+        shown = box.get_attribute("data-t")
+        if shown is not None and float(shown) > t:
+            return
+        page.wait_for_timeout(25)
+    raise AssertionError(f"the readout never passed t = {t}: {shown}")
 
 
 def _start(page, live_server) -> list[dict]:
     """Press Stream; the messages the page sent (the start, then acks), as they come."""
     sent: list[dict] = []
-    with page.expect_websocket() as opened:
-        page.get_by_test_id("stream-run").click()
-    ws = opened.value
-    assert ws.url == live_server.replace("http://", "ws://") + "/v1/stream"
-    ws.on("framesent", lambda payload: sent.append(json.loads(payload)))
-    page.wait_for_function("document.getElementById('stream-live').dataset.t !== undefined")
+    urls: list[str] = []
+
+    def opened(ws) -> None:  # on the socket's creation, so its first frame is seen too
+        urls.append(ws.url)
+        ws.on("framesent", lambda payload: sent.append(json.loads(payload)))
+
+    page.once("websocket", opened)
+    page.get_by_test_id("stream-run").click()
+    _past(page, -1.0)
+    assert urls == [live_server.replace("http://", "ws://") + "/v1/stream"]
     return sent
 
 

@@ -42,8 +42,12 @@ export function clear() {
   if (ws) ws.close();
   ws = null;
   run = null;
-  $('stream-live').hidden = true;
-  $('stream-live').dataset.state = '';
+  const box = $('stream-live');
+  box.hidden = true;
+  for (const k of ['t', 'q', 'qd', 'chunks', 'lateness', 'switched', 'loc']) delete box.dataset[k];
+  box.dataset.state = '';
+  $('stream-text').textContent = '';
+  $('stream-note').textContent = '';
   $('stream-stop').disabled = true;
   $('stream-run').disabled = false;
 }
