@@ -93,7 +93,7 @@ function received(m) {
       run.clock0 = m.t0;
       run.wall0 = performance.now();
       $('stream-stop').disabled = false;
-      $('stream-live').dataset.state = 'streaming';
+      say('streaming', `streaming at ${RATE_HZ} Hz, ${1000 * LOOKAHEAD_S} ms ahead`);
     }
     run.chunks++;
     run.late = clock() - m.t0;
@@ -105,6 +105,7 @@ function received(m) {
   } else if (m.type === 'switched') {
     run.switched = m.at;
     $('stream-live').dataset.switched = String(m.at);
+    say('streaming', `switched at t = ${m.at.toFixed(3)} s: stopping`);
   } else if (m.type === 'done') {
     run.end = m.t;
   } else if (m.type === 'error') {
