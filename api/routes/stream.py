@@ -9,11 +9,18 @@ or stop computed in the worker pool, errors sent as ``{"type": "error", "loc", "
 socket closed with 1008 (policy violation). A client that stops acknowledging gets nothing
 more and is closed after ``PLANNER_REQUEST_TIMEOUT_S`` without a message (1008 too), so a
 slow reader never makes the service queue data.
+
+A browser cannot set a WebSocket's headers, so the key may also come as a subprotocol (as
+Kubernetes does for its bearer tokens): the client offers ``planner.stream`` and
+``planner.key.<the key in base64url, unpadded>``; the route accepts ``planner.stream`` (it never
+echoes the key). The key is not taken from the query string, which access logs record.
 """
 
 from __future__ import annotations
 
 import asyncio
+import base64
+import binascii
 import json
 import math
 import time
@@ -37,6 +44,8 @@ __all__ = ["StreamError", "router", "stream"]
 router = APIRouter(tags=["execution"])
 
 POLICY_VIOLATION = 1008
+PROTOCOL = "planner.stream"
+KEY_PROTOCOL = "planner.key."
 _MESSAGE = TypeAdapter(StreamMessage)
 
 
@@ -95,13 +104,23 @@ def _authorised(websocket: WebSocket) -> bool:
     if keys is None:
         return True
     headers = {k.lower(): v for k, v in websocket.headers.items()}
+    if "x-api-key" not in headers:
+        for offered in websocket.scope.get("subprotocols", []):
+            if offered.startswith(KEY_PROTOCOL):
+                encoded = offered[len(KEY_PROTOCOL) :]
+                try:
+                    key = base64.urlsafe_b64decode(encoded + "=" * (-len(encoded) % 4))
+                    headers["x-api-key"] = key.decode()
+                except (binascii.Error, UnicodeDecodeError):
+                    pass  # not a key: refused below like a missing one
     return tenant_of(headers, keys) is not None
 
 
 @router.websocket("/v1/stream")
 async def stream(websocket: WebSocket) -> None:
     """Stream setpoints (see the module docstring and docs/execution.md)."""
-    await websocket.accept()
+    chosen = PROTOCOL if PROTOCOL in websocket.scope.get("subprotocols", []) else None
+    await websocket.accept(subprotocol=chosen)
     try:
         if not _authorised(websocket):
             raise StreamError(["header", "x-api-key"], "a valid API key is required")

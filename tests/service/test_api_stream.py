@@ -8,6 +8,7 @@ q moves by at most velocity x dt, qd by at most acceleration x dt) and by the en
 
 from __future__ import annotations
 
+import base64
 import time
 
 import numpy as np
@@ -156,6 +157,15 @@ def test_a_keyed_service_refuses_a_stream_without_its_key(api):
             body = {"start": START, "goal": GOAL}
             ws.send_json({"type": "plan", "request": body, "rate_hz": 100})
             assert ws.receive_json()["type"] == "setpoints"
+        # a browser's way (it cannot set headers): the key as a subprotocol, base64url
+        for key, first in [("k1", "setpoints"), ("k2", "error")]:
+            encoded = base64.urlsafe_b64encode(key.encode()).decode().rstrip("=")
+            offered = ["planner.stream", f"planner.key.{encoded}"]
+            with api.websocket_connect("/v1/stream", subprotocols=offered) as ws:
+                assert ws.accepted_subprotocol == "planner.stream"
+                if first == "setpoints":
+                    ws.send_json({"type": "plan", "request": body, "rate_hz": 100})
+                assert ws.receive_json()["type"] == first
     finally:
         api.app.state.settings = saved
 

@@ -12,6 +12,8 @@ export class ApiError extends Error {
 
 let apiKey = '';
 export const setApiKey = (key) => { apiKey = key.trim(); };
+/** The key typed in ('' when none), for what cannot take headers (stream.js's WebSocket). */
+export const apiKeyValue = () => apiKey;
 
 function headers(json) {
   const h = {};

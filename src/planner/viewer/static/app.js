@@ -15,6 +15,7 @@ import * as sequenceView from './sequence.js';
 import * as simulationView from './simulation.js';
 import * as calibration from './calibration.js';
 import * as beltView from './belt.js';
+import * as streamView from './stream.js';
 
 const $ = (id) => document.getElementById(id);
 let presetsAsked = getJSON('/v1/designs');  // asked first: the rest of the start waits on it
@@ -586,6 +587,11 @@ form.init({
 });
 scenes.init({ drawn: (list) => scene.setSceneObstacles(list) });
 calibration.init({ use: useDesign });
+streamView.init({
+  scene,
+  request: () => ({ endpoint: form.endpoint(), request: form.request() }),
+  before: stop,  // the playback gives the scene's robot to the stream
+});
 pickMode();
 legendInit();
 designChanged();
@@ -608,6 +614,7 @@ function startOver() {
   $('example').value = '0';
   scenes.chosen();
   calibration.clear();
+  streamView.clear();
   exampleChosen(form.EXAMPLES[0]);
   pickMode();
 }
