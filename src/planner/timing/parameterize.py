@@ -555,8 +555,8 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
     elif state.slow_down < 1.0:
         state.profile = state.profile.time_scaled(state.slow_down)
     if job.method == "toppra":  # with an asked jerk: each section moving-averaged
-        base = jerk_limited(ToppraCurve(path, state.profile), job.limits)
-        return _with_vias(job, state, base, lim)
+        smoothed = jerk_limited(ToppraCurve(path, state.profile), job.limits)
+        return _with_vias(job, state, smoothed, lim)
     curve = build_ruckig_curve(path, state.profile, lim, deadline=job.deadline, cache=state.moves)
     return _with_vias(job, state, _fitted_chain(curve, job), lim)
 
