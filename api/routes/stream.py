@@ -164,7 +164,7 @@ class _Splice:
         last try holds the stream at it."""
         session, incoming = self.session, self.incoming
         self.tries += 1
-        self.at = session.splice_time(session.margin())
+        self.at = session.splice_time(session.margin(incoming.type))
         self.until = self.at if self.tries >= jobs.REPLANS else math.inf
         session.holding = True
         if incoming.type == "replace":
@@ -202,7 +202,11 @@ async def _serve(websocket: WebSocket) -> None:
             if not done:
                 raise StreamError([], f"no message for {idle:g} s: the stream is closed")
             if splice is not None and splice.task in done:
-                got, session.plan_s = splice.task.result()
+                got, seconds = splice.task.result()
+                if splice.incoming.type == "stop":
+                    session.stop_s = seconds
+                else:
+                    session.plan_s = seconds
                 if session.too_late(splice.at):
                     splice.launch()  # its splice time was streamed: plan from a later one
                 else:

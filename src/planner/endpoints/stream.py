@@ -19,7 +19,8 @@ socket:
   ahead of what will have been sent when its answer is ready: :meth:`StreamSession.splice_time`,
   the first chunk boundary at or after the send horizon (``ack + lookahead_s``, or what was
   already sent if more) plus a margin (:meth:`StreamSession.margin`: twice this session's last
-  planning time, at least :data:`MIN_MARGIN_S`). The new trajectory starts from the current
+  computing time of the same kind, a plan for a replacement, a brake for a stop, at least
+  :data:`MIN_MARGIN_S`). The new trajectory starts from the current
   one's state there (``replace.at`` of a plan or sequence request, or ``at`` of a stop), so
   the setpoints stay continuous in q, qd and qdd; it takes over at that boundary. If the
   answer comes back after its splice time has been sent (planning slower than the margin),
@@ -66,7 +67,8 @@ class StreamSession:
     t0: float = 0.0
     ack: float = -math.inf
     finished: bool = False
-    plan_s: float = 0.0  # wall time of this session's last plan, s (sets the splice margin)
+    plan_s: float = 0.0  # wall time of this session's last plan, s (a replacement's margin)
+    stop_s: float = 0.0  # wall time of this session's last stop, s (a stop's margin)
     holding: bool = False  # a replacement is pending: hold the rest state past the end
     # the trajectory switched from, still streamed before ``switch_at``
     previous: RunningTrajectory | None = None
@@ -106,9 +108,13 @@ class StreamSession:
         """How far the stream sends: the client's clock plus the lookahead, s."""
         return max(self.ack, self.t0) + self.lookahead_s
 
-    def margin(self) -> float:
-        """The splice time's margin over the send horizon: twice the last planning time."""
-        return max(MIN_MARGIN_S, 2.0 * self.plan_s)
+    def margin(self, kind: str = "replace") -> float:
+        """The splice time's margin over the send horizon: twice the last computing time of
+        the same kind (a ``"stop"``'s brake takes about a millisecond, a replacement a plan:
+        a stop is never delayed by how long the plans took; the first stop has the least
+        margin, :data:`MIN_MARGIN_S`, and is re-planned later if it comes back too late)."""
+        seconds = self.stop_s if kind == "stop" else self.plan_s
+        return max(MIN_MARGIN_S, 2.0 * seconds)
 
     def acknowledge(self, t: float) -> None:
         """The client's clock on the trajectory reached ``t`` (s)."""
