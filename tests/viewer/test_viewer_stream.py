@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 
+import httpx
 import numpy as np
 import pytest
 from viewer_browser import open_viewer, watched_page
@@ -106,7 +107,14 @@ def test_stop_mid_stream_is_acknowledged_and_ends_at_rest(page_, live_server):
     switched = float(box.get_attribute("data-switched"))
     end = _live(page)
     assert end["t"] >= switched and end["qd"] == [0, 0, 0]
-    assert np.max(np.abs(np.subtract(end["q"], GOAL))) > 1e-3  # stopped short of the goal
+    # stopped short of the goal, unless the stop was spliced at the motion's end: a stop takes
+    # effect a lookahead and a margin after it is sent, and a browser on a loaded machine can
+    # send it late (the service's own test, test_api_stream.py, times the stop exactly)
+    planned = httpx.post(f"{live_server}/v1/plan", json=sent[0]["request"], timeout=60).json()
+    if switched < planned["trajectory"]["duration"] - 0.05:
+        assert np.max(np.abs(np.subtract(end["q"], GOAL))) > 1e-3
+    else:
+        assert np.max(np.abs(np.subtract(end["q"], GOAL))) <= 1e-6
     note = page.get_by_test_id("stream-note").inner_text()
     assert "at rest" in note and "switched" in note
     assert {"type": "stop"} in sent
