@@ -16,6 +16,8 @@ import pytest
 from planner_api.routes.workspace import FIGURE_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]
+#: The message of CPython 3.11's compiler race between threads (gh-106905).
+CPYTHON_AST_RACE = "AST constructor recursion depth mismatch"
 
 
 def test_every_operation_documents_what_it_can_answer(api):
@@ -131,5 +133,11 @@ def test_schemathesis_finds_no_failure_on_any_operation(live_server, tmp_path):
     ]
     out = subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=tmp_path)
     report = out.stdout[-6000:] + out.stderr[-2000:]
+    if out.returncode != 0 and CPYTHON_AST_RACE in report:
+        # CPython 3.11's compiler races between threads (gh-106905: schemathesis's two workers
+        # compile its generated code at once) and schemathesis reports a "Runtime Error" of its
+        # own, not a finding about the service: run again, once; any finding still fails
+        out = subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=tmp_path)
+        report = out.stdout[-6000:] + out.stderr[-2000:]
     assert out.returncode == 0, report
     assert "No issues found" in out.stdout or " passed" in out.stdout, report

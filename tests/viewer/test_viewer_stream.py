@@ -111,7 +111,7 @@ def test_stop_mid_stream_is_acknowledged_and_ends_at_rest(page_, live_server):
     # effect a lookahead and a margin after it is sent, and a browser on a loaded machine can
     # send it late (the service's own test, test_api_stream.py, times the stop exactly)
     planned = httpx.post(f"{live_server}/v1/plan", json=sent[0]["request"], timeout=60).json()
-    if switched < planned["trajectory"]["duration"] - 0.05:
+    if switched < planned["trajectory"]["duration"] - 0.3:  # time left to stop well short
         assert np.max(np.abs(np.subtract(end["q"], GOAL))) > 1e-3
     else:
         assert np.max(np.abs(np.subtract(end["q"], GOAL))) <= 1e-6
