@@ -48,6 +48,9 @@ __all__ = [
     "standard_parameters",
 ]
 
+#: How far below zero a physical-set constraint may end in the optimisers' answer.
+_FEASIBLE_TOL = 1e-7
+
 #: The standard parameters, the regressor's columns in this order (kg, kg m, kg m^2).
 STANDARD_NAMES: tuple[str, ...] = (
     "proximal.mass",
@@ -324,7 +327,16 @@ def _realise(
         size, np.zeros(len(idx)), method="SLSQP", constraints=physical, options={"maxiter": 500}
     )
     best = member(fit.x)
-    return best if fit.success else phi
+    if fit.success:
+        return best
+    # SLSQP's line search can stop short on rounding alone (seen with BLAS summing in another
+    # order on one core): the same problem by the interior-point method, from where it stopped
+    fit = minimize(
+        size, fit.x, method="trust-constr", constraints=physical, options={"maxiter": 2000}
+    )
+    best = member(fit.x)
+    # feasible to the optimisers' own tolerance (SLSQP's successful answers end within ~4e-8)
+    return best if np.all(_constraints(design, best) >= -_FEASIBLE_TOL) else phi
 
 
 def _physical(design: Design, phi: np.ndarray, prior: Inertia) -> tuple[Inertia, list[str]]:
