@@ -223,6 +223,34 @@ def _time_plans(state: _State, method: Literal["toppra", "ruckig"]) -> None:
         GoalMotion(JointPosture(result.path.waypoints[-1])).answer(problem, planned, timed)
 
 
+def _stop(state: _State) -> None:
+    """A stop mid-motion (:func:`planner.timing.braking.stop_trajectory`) of a timed line,
+    along its path and by a Ruckig brake: a stream's or ``/v1/stop``'s first brake then takes
+    its millisecond, not the imports and first dispatches (a stream's stop margin is twice
+    its last brake's time)."""
+    from planner.timing import JointLimits, time_path
+    from planner.timing.braking import stop_trajectory
+    from planner.timing.running import RunningTrajectory
+    from planner.validity import ValidityChecker
+
+    timed = time_path(state.design, np.array([_START, _GOAL]), JointLimits.default())
+    t = np.linspace(0.0, timed.duration, 50)
+    q, qd, qdd, _ = timed.at(t)
+    running = RunningTrajectory.of(t, q, qd, qdd)
+    rules = ValidityChecker(state.design, assembly_mode="+", serial_rules=False).is_valid
+    for jerk_limited in (False, True):
+        stop_trajectory(
+            running,
+            0.5 * timed.duration,
+            design=state.design,
+            assembly_mode="+",
+            limits=JointLimits.default(),
+            path_rules=rules,
+            brake_rules=rules,
+            jerk_limited=jerk_limited,
+        )
+
+
 def _analysis(state: _State) -> None:
     """The workspace analysis (sampled volumes, sections, loci) and scipy's optimiser."""
     from planner.analysis.optimize import optimize_design
@@ -266,6 +294,7 @@ STEPS: tuple[Step, ...] = (
     Step("OMPL: a working-mode change", _plan_mode_change),
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),
     Step("ruckig: timing the plans", lambda state: _time_plans(state, "ruckig")),
+    Step("a stop mid-motion: along the path and by a brake", _stop),
     Step("analysis: workspace, sections, optimiser", _analysis),
     Step("matplotlib: a PNG and an SVG figure", _figures),
 )

@@ -51,6 +51,18 @@ solved = [solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2
                 obstacles=obstacles, options=PlanOptions(seed=1), timing=TimingOptions(method=m))
           for m in ("toppra", "ruckig")]
 res = solved[0].plan
+# a stop mid-motion of the Ruckig answer (a stream's or /v1/stop's brake), other limits
+from planner.timing import JointLimits
+from planner.timing.braking import stop_trajectory
+from planner.timing.running import RunningTrajectory
+from planner.validity import ValidityChecker
+tr = solved[1].trajectory
+ts = np.linspace(0.0, tr.duration, 80)
+qs, qds, qdds, _ = tr.at(ts)
+rules = ValidityChecker(design, obstacles=obstacles, serial_rules=False).is_valid
+braked = stop_trajectory(RunningTrajectory.of(ts, qs, qds, qdds), 0.4 * tr.duration,
+                         design=design, assembly_mode="+", limits=JointLimits((1.5,) * 3, (6.0,) * 3, (150.0,) * 3),
+                         path_rules=rules, brake_rules=rules)
 durations = [s.trajectory.duration for s in solved]
 png = render_figure("joint_section", Design.paper_optimum(), n=24, fmt="png")
 print(json.dumps({
@@ -60,6 +72,7 @@ print(json.dumps({
     "signatures": [signatures_before, compiled()],
     "new_modules": sorted(set(sys.modules) - modules_before),
     "status": res.status, "durations": durations, "png": png[:8].hex(),
+    "stop": braked.status,
 }))
 """
 
@@ -75,9 +88,11 @@ def test_after_warm_up_a_first_request_imports_and_compiles_nothing():
     """In a new interpreter, after warm_up(): OMPL, toppra, ruckig and matplotlib (Agg) are
     loaded and numba holds compiled kernels; a plan among a sphere, a box and a capsule,
     timed with both methods, and a figure of another design then load no module and add no
-    compiled signature to any numba kernel: nothing is imported or compiled in a request."""
+    compiled signature to any numba kernel, nor does a stop mid-motion of the Ruckig answer:
+    nothing is imported or compiled in a request."""
     got = _run_workload()
     assert got["status"] == "solved" and all(d > 0 for d in got["durations"])
+    assert got["stop"] == "solved"
     assert got["png"].startswith("89504e47")  # a PNG came out
     assert got["loaded"] == ["ompl", "toppra", "ruckig", "matplotlib", "scipy.optimize"]
     assert got["backend"] == "agg"

@@ -20,22 +20,32 @@ GOAL = {"q": [0.3, 2.1, 1.1], "assembly_mode": "+"}
 TIMING = {"method": "ruckig"}
 
 
-def _collect(ws, action_after: float | None = None, action: dict | None = None):
+def _collect(
+    ws, action_after: float | None = None, action: dict | None = None, hold: bool = False
+):
     """Receive until done, acknowledging each chunk's end less 40 ms (a client behind the
     stream) once its clock, which runs in real time from the first chunk, gets there;
-    ``action`` sent once the stream passes ``action_after``."""
-    messages, sent, w0 = [], False, None
+    ``action`` sent once the stream passes ``action_after``. With ``hold`` the client's clock
+    stands still from the action until the service's ``switched`` (a controller that holds
+    its clock while it waits): the send horizon cannot pass the splice time however slow the
+    machine, so where the splice lands does not depend on the machine's speed."""
+    messages, sent, w0, waiting = [], False, None, False
     while True:
         m = ws.receive_json()
         messages.append(m)
         if m["type"] == "setpoints":
-            w0 = time.monotonic() - m["t0"] if w0 is None else w0
             end = m["t0"] + m["dt"] * (len(m["q"]) - 1)
             if action is not None and not sent and end > action_after:
                 ws.send_json(action)
-                sent = True
+                sent, waiting = True, hold
+            if waiting:
+                continue
+            w0 = time.monotonic() - m["t0"] if w0 is None else w0
             time.sleep(max(0.0, end - 0.04 - (time.monotonic() - w0)))
             ws.send_json({"type": "ack", "t": end - 0.04})
+        elif m["type"] == "switched" and waiting:
+            waiting, w0 = False, time.monotonic() - m["at"]  # the clock goes on from there
+            ws.send_json({"type": "ack", "t": m["at"]})
         elif m["type"] in ("done", "error"):
             return messages
 
@@ -115,9 +125,11 @@ def test_a_stop_brings_the_stream_to_rest(api):
     with api.websocket_connect("/v1/stream") as ws:
         request = {"start": START, "goal": GOAL, "timing": TIMING}
         ws.send_json({"type": "plan", "request": request, "rate_hz": 1000})
-        messages = _collect(ws, 0.05, {"type": "stop"})
+        messages = _collect(ws, 0.05, {"type": "stop"}, hold=True)
     t, q, qd = _grid(messages)
     _continuous(t, q, qd, 1 / 1000)
+    switched = [m for m in messages if m["type"] == "switched"]
+    assert len(switched) == 1 and switched[0]["at"] < 0.3  # the 0.43 s motion stopped early
     assert not np.any(qd[-1]) and np.max(np.abs(q[-1] - GOAL["q"])) > 1e-3  # stopped short
 
 
