@@ -20,9 +20,7 @@ GOAL = {"q": [0.3, 2.1, 1.1], "assembly_mode": "+"}
 TIMING = {"method": "ruckig"}
 
 
-def _collect(
-    ws, action_after: float | None = None, action: dict | None = None, hold: bool = False
-):
+def _collect(ws, action_after: float | None = None, action: dict | None = None, hold: bool = False):
     """Receive until done, acknowledging each chunk's end less 40 ms (a client behind the
     stream) once its clock, which runs in real time from the first chunk, gets there;
     ``action`` sent once the stream passes ``action_after``. With ``hold`` the client's clock
