@@ -73,6 +73,7 @@ __all__ = [
     "metrics",
     "record_job",
     "router",
+    "run_here",
     "run_measured",
 ]
 
@@ -133,8 +134,6 @@ def run_measured(
     ``request_id`` is set for the job so that its log lines carry it. Exceptions of the job
     propagate unchanged (the parent maps them to HTTP answers).
     """
-    from planner.wire import PlanResponse
-
     models: list[BaseModel] = []
 
     def keep(r: Any, b: JobBudget) -> BaseModel:
@@ -149,11 +148,44 @@ def run_measured(
     finally:
         REQUEST_ID.reset(token)
     seconds = time.perf_counter() - start
+    return content, _sample(
+        job, seconds, models[0] if models else None, os.getpid(), cache_report()
+    )
+
+
+def run_here(job: Job, request: Any, *, budget: JobBudget = UNBOUNDED) -> bytes:
+    """In the serving process (the event loop's cheap jobs,
+    :func:`planner_api.routes._common.run_inline`): :func:`planner.endpoints.as_json` of
+    ``job(request, budget)``, its :class:`JobSample` recorded at once (:func:`record_job`).
+    Without the cache report a worker sends: this process's caches are read live at scrape
+    time (:class:`_CacheCollector`), so building one per request would be thrown away; and
+    the request id is already the request's (the loop serves it)."""
+    models: list[BaseModel] = []
+
+    def keep(r: Any, b: JobBudget) -> BaseModel:
+        model = job(r, b)
+        models.append(model)
+        return model
+
+    start = time.perf_counter()
+    content = as_json(keep, request, budget)
+    record_job(_sample(job, time.perf_counter() - start, models[0] if models else None))
+    return content
+
+
+def _sample(
+    job: Job,
+    seconds: float,
+    model: BaseModel | None,
+    pid: int | None = None,
+    caches: tuple[tuple[str, int, int, int, int, int], ...] | None = None,
+) -> JobSample:
+    """The :class:`JobSample` of one job's answer ``model`` (a plan's status and durations)."""
+    from planner.wire import PlanResponse
+
     name = getattr(job, "__name__", type(job).__name__)
-    model = models[0] if models else None
-    pid, caches = os.getpid(), cache_report()
     if isinstance(model, PlanResponse):
-        sample = JobSample(
+        return JobSample(
             name,
             seconds,
             str(model.status),
@@ -162,9 +194,7 @@ def run_measured(
             pid=pid,
             caches=caches,
         )
-    else:
-        sample = JobSample(name, seconds, pid=pid, caches=caches)
-    return content, sample
+    return JobSample(name, seconds, pid=pid, caches=caches)
 
 
 class _PoolCollector:
@@ -329,13 +359,20 @@ class Metrics:
         Gauge("planner_build_info", "Service version.", ["version"], registry=r).labels(
             version
         ).set(1)
+        # each label set's child, found once: prometheus_client's ``labels()`` checks and
+        # locks on every call (as many entries as the label sets exported, so bounded alike)
+        self._request_children: dict[tuple[str, str, int], tuple[Any, Any]] = {}
+        self._job_children: dict[str, Any] = {}
         r.register(_PoolCollector(get_pool))
         self._caches = _CacheCollector(get_pool)
         r.register(self._caches)
 
     def record_job(self, sample: JobSample) -> None:
         """Record one job's :class:`JobSample` (in the process that serves /metrics)."""
-        self.job_seconds.labels(sample.job).observe(sample.seconds)
+        child = self._job_children.get(sample.job)
+        if child is None:
+            child = self._job_children[sample.job] = self.job_seconds.labels(sample.job)
+        child.observe(sample.seconds)
         self._caches.record(sample)
         if sample.status is not None:
             self.plan_outcomes.labels(sample.status).inc()
@@ -346,8 +383,15 @@ class Metrics:
 
     def record_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Record one answered HTTP request."""
-        self.requests.labels(method, route, str(status)).inc()
-        self.latency.labels(method, route).observe(seconds)
+        children = self._request_children.get((method, route, status))
+        if children is None:
+            children = (
+                self.requests.labels(method, route, str(status)),
+                self.latency.labels(method, route),
+            )
+            self._request_children[method, route, status] = children
+        children[0].inc()
+        children[1].observe(seconds)
 
     def exposition(self) -> bytes:
         """The registry in Prometheus' text format."""

@@ -24,7 +24,9 @@ the headers are complete. So the bound lives in the protocol:
   never what looks like the end of an answer.
 
 :func:`guarded_protocol` makes the class uvicorn is given: the timers of :class:`_Guard` mixed
-into uvicorn's httptools protocol (the default of ``uvicorn[standard]``) or its h11 one.
+into uvicorn's httptools protocol (the default of ``uvicorn[standard]``) or its h11 one; on
+the httptools one, an answer's head is also written with its body in one write
+(:class:`_HeadWithBody`).
 """
 
 from __future__ import annotations
@@ -144,6 +146,78 @@ class _Guard:
         super().resume_writing()  # type: ignore[misc]
 
 
+#: The bytes uvicorn writes to ask for a body (``Expect: 100-continue``): never held.
+_CONTINUE = b"HTTP/1.1 100 Continue\r\n\r\n"
+#: A body up to this size is joined to its held head (one copy); a larger one follows it.
+_JOIN_MAX = 1 << 16
+
+
+class _HeadWithBody:
+    """A request cycle's transport that holds the answer's status line and headers until
+    its first body bytes and writes both at once.
+
+    uvicorn writes an answer's head and its body with one ``transport.write`` each, and each
+    is a ``send()`` to the client, which on loopback or a LAN wakes the client twice for one
+    answer (it reads the head, then waits for the body): two system calls and two wake-ups
+    where one does. The head is held only while the task that wrote it runs: the body of a
+    plain answer follows in the same step, and a streamed answer whose first chunk is late
+    gets its head sent on the loop's next turn (``call_soon``). Everything else (the 100
+    Continue, ``close``, ``is_closing``) is the transport's own."""
+
+    __slots__ = ("_done", "_held", "_loop", "_transport")
+
+    def __init__(self, transport: asyncio.Transport, loop: asyncio.AbstractEventLoop) -> None:
+        self._transport = transport
+        self._loop = loop
+        self._held: bytes | None = None
+        self._done = False  # the head is out: every write is the transport's
+
+    def write(self, data: bytes) -> None:
+        if self._done or data == _CONTINUE:
+            self._transport.write(data)
+        elif self._held is None:
+            self._held = data
+            self._loop.call_soon(self._flush)
+        else:
+            held, self._held, self._done = self._held, None, True
+            if len(data) <= _JOIN_MAX:
+                self._transport.write(held + data)
+            else:
+                self._transport.write(held)
+                self._transport.write(data)
+
+    def _flush(self) -> None:
+        if self._held is not None:
+            held, self._held, self._done = self._held, None, True
+            if not self._transport.is_closing():
+                self._transport.write(held)
+
+    def close(self) -> None:
+        self._flush()
+        self._transport.close()
+
+    def is_closing(self) -> bool:
+        return self._transport.is_closing()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._transport, name)
+
+
+class _OneWrite:
+    """Mixed into uvicorn's httptools protocol: each request's cycle writes through a
+    :class:`_HeadWithBody`."""
+
+    transport: asyncio.Transport
+    loop: asyncio.AbstractEventLoop
+    cycle: Any
+
+    def on_headers_complete(self) -> None:
+        super().on_headers_complete()  # type: ignore[misc]
+        cycle = self.cycle
+        if cycle is not None and cycle.transport is self.transport:
+            cycle.transport = _HeadWithBody(self.transport, self.loop)
+
+
 def _reset(transport: asyncio.Transport) -> None:
     """Abort ``transport`` with a TCP reset: ``abort()`` drops the bytes the transport still
     buffers, but the kernel would send the ones already in its socket buffer (megabytes)
@@ -180,8 +254,11 @@ def guarded_protocol(
     ``base`` (default: its httptools one when httptools is installed, as uvicorn's ``auto``
     picks, else its h11 one) with the two timers and these timeouts, s."""
     base = base or _DEFAULT
+    # the head written with the body where the protocol makes a cycle per request's headers
+    # (httptools'; h11's writes through its own connection object)
+    mixins = (_Guard, _OneWrite) if hasattr(base, "on_headers_complete") else (_Guard,)
     return type(
         f"Guarded{base.__name__}",
-        (_Guard, base),
+        (*mixins, base),
         {"header_timeout_s": header_timeout_s, "send_timeout_s": send_timeout_s},
     )

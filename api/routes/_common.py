@@ -23,7 +23,7 @@ from planner.endpoints import Job, JobBudget
 from planner.wire import DesignModel
 from planner_api.exceptions import LimitExceededError
 from planner_api.logging import REQUEST_ID
-from planner_api.metrics import record_job, run_measured
+from planner_api.metrics import record_job, run_here, run_measured
 from planner_api.pool import WorkerPool
 
 __all__ = [
@@ -107,11 +107,7 @@ def run_inline(
     ``design_defaults``, the answer's bytes as the job serialises them, its duration recorded
     in the metrics, its errors raised to the exception handlers."""
     body = with_design_defaults(body, design_defaults)
-    content, sample = run_measured(
-        job, body, budget=JobBudget(deadline), request_id=REQUEST_ID.get()
-    )
-    record_job(sample)
-    return json_response(content)
+    return json_response(run_here(job, body, budget=JobBudget(deadline)))
 
 
 async def run_job(

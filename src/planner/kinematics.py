@@ -422,22 +422,71 @@ class Posture:
 
 
 def _postures(batch: PostureBatch) -> list[Posture]:
-    """The ``ok`` entries of a flat batch as Posture objects."""
+    """The ``ok`` entries of a flat batch as Posture objects.
+
+    The few postures of one call (/v1/fk, /v1/ik, one posture's analysis) are built in plain
+    floats from one ``np.sin`` and one ``np.cos`` over every angle they need: each numpy call
+    on such tiny arrays costs a microsecond or more, and the vectorised form
+    (:attr:`PostureBatch.working_mode_signs`, :func:`link_points`) made some forty of them,
+    most of a single-posture answer's time. The arithmetic is theirs, operation for
+    operation (the same IEEE double operations on the same ``np.sin`` / ``np.cos`` values),
+    so the postures are the same (``tests/core/test_kinematics.py`` checks them against the
+    vectorised form)."""
     flat = batch.ok.reshape(-1)
     q = batch.q.reshape(-1, 3)[flat]
     passive = batch.passive.reshape(-1, 2)[flat]
     p = batch.p.reshape(-1, 3)[flat]
-    wm = batch.working_mode_signs.reshape(-1, 3)[flat]
-    am = batch.assembly_mode_signs.reshape(-1)[flat]
-    pts = link_points(batch.design, q, passive)
+    w = batch.w.reshape(-1)[flat].tolist()
+    # per posture: sin of t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4; cos of t1, t2, t3, t4
+    angles = np.empty((len(q), 7))
+    angles[:, :3] = q
+    angles[:, 3] = passive[:, 0]
+    angles[:, 4] = passive[:, 0] - q[:, 1]
+    angles[:, 5] = passive[:, 1] - q[:, 2]
+    angles[:, 6] = passive[:, 1] - passive[:, 0]
+    sines = np.sin(angles).tolist()
+    cosines = np.cos(angles[:, :4]).tolist()
+    d = batch.design
+    half, reach = d.L0 / 2, d.reach
+    rows = []
+    labels = []
+    for (s1, s2, s3, s4, s42, s53, s54), (c1, c2, c3, c4), wi in zip(
+        sines, cosines, w, strict=True
+    ):
+        cu, cw = -half + d.L1 * c2, d.L1 * s2
+        du, dw = half + d.L1 * c3, d.L1 * s3
+        pu, pw = cu + d.L2 * c4, cw + d.L2 * s4
+        rows.append(
+            [
+                (0.0, -half, 0.0),
+                (0.0, half, 0.0),
+                (cw * c1, cu, -cw * s1),
+                (dw * c1, du, -dw * s1),
+                (pw * c1, pu, -pw * s1),
+            ]
+        )
+        working = "".join(_sign_char(x) for x in (wi / reach, s42, s53))
+        labels.append((working, _sign_char(s54)))
+    pts = np.array(rows, dtype=float).reshape(len(q), 5, 3)
     # Boolean indexing made fresh arrays: frozen once, each posture holds read-only row views.
     for a in (q, passive, p, pts):
         a.flags.writeable = False
-    out = []
-    for i in range(len(q)):
-        points = MappingProxyType(dict(zip("ABCDP", pts[i], strict=True)))
-        out.append(Posture(q[i], passive[i], p[i], points, mode_label(wm[i]), mode_label(am[i])))
-    return out
+    return [
+        Posture(
+            q[i],
+            passive[i],
+            p[i],
+            MappingProxyType(dict(zip("ABCDP", pts[i], strict=True))),
+            *labels[i],
+        )
+        for i in range(len(q))
+    ]
+
+
+def _sign_char(x: float) -> str:
+    """The mode character of one measure: :func:`_sign` and :func:`mode_label` in one step
+    (|x| <= SIGN_TOL, and NaN, is '0')."""
+    return "+" if x > SIGN_TOL else "-" if x < -SIGN_TOL else "0"
 
 
 class Manipulator:
