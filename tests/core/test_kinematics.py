@@ -489,3 +489,39 @@ def test_mode_signs_inverts_mode_label():
     for label in [*WORKING_MODES, "0+-", "000", "+", "-"]:
         assert mode_label(mode_signs(label)) == label
     np.testing.assert_array_equal(mode_signs("+-0"), [1, -1, 0])
+
+
+def test_single_postures_are_the_vectorised_forms_bit_for_bit() -> None:
+    """``Manipulator.forward`` / ``inverse`` build their few postures in plain floats
+    (kinematics._postures): every point, mode and the assembly mode equal, to the bit, what
+    the vectorised functions give for the same joints (link_points, the batch's signs)."""
+    from planner.kinematics import mode_label
+
+    rng = np.random.default_rng(7)
+    checked = 0
+    for design in (Design.default(), Design.singularity_free()):
+        m = Manipulator(design)
+        for _ in range(300):
+            q = rng.uniform(-3.2, 3.2, 3)
+            p = rng.uniform(-0.7, 0.7, 3)
+            forward = forward_batch(design, np.stack([q, q]), np.array([1.0, -1.0]))
+            inverse = inverse_batch(design, p)
+            for batch, found in ((forward, m.forward(q)), (inverse, m.inverse(p))):
+                ok = batch.ok.reshape(-1)
+                q_ok = batch.q.reshape(-1, 3)[ok]
+                passive = batch.passive.reshape(-1, 2)[ok]
+                points = link_points(design, q_ok, passive)
+                working = batch.working_mode_signs.reshape(-1, 3)[ok]
+                assembly = batch.assembly_mode_signs.reshape(-1)[ok]
+                if batch is forward and len(found) == 1 and ok.sum() == 2:
+                    ok_rows = [0]  # both assembly modes met: forward keeps the first
+                else:
+                    ok_rows = list(range(len(found)))
+                    assert len(found) == int(ok.sum())
+                for i, post in zip(ok_rows, found, strict=True):
+                    assert np.array_equal(np.stack([post.points[k] for k in "ABCDP"]), points[i])
+                    assert post.working_mode == mode_label(working[i])
+                    assert post.assembly_mode == mode_label(assembly[i])
+                    assert np.array_equal(post.q, q_ok[i])
+                    checked += 1
+    assert checked > 500
