@@ -336,6 +336,26 @@ def relative_location(location: bytes, host: bytes | None) -> bytes:
     return b"/" + tail.lstrip(b"/")
 
 
+def _access_line(
+    level: int, method: str, path: str, route: str, status: int, seconds: float, scope: Scope
+) -> None:
+    """One access-log line (the caller checked that ``level`` is logged). The record is made
+    and handled directly: ``Logger.log`` would also look up the calling frame (a stack walk
+    per request) for a file name and line number that neither log format writes."""
+    extra = {
+        "method": method,
+        "path": path,
+        "route": route,
+        "status": status,
+        "duration_ms": round(seconds * 1000.0, 3),
+        "client": (scope.get("client") or ("", 0))[0],
+    }
+    record = access_logger.makeRecord(
+        access_logger.name, level, "", 0, "%s %s %d", (method, path, status), None, extra=extra
+    )
+    access_logger.handle(record)
+
+
 class RequestObserver:
     """The outermost middleware: gives the request its id (the client's ``X-Request-ID`` when
     sane, else a new one; echoed in the answer and set in :data:`planner_api.logging.REQUEST_ID` for
@@ -400,23 +420,10 @@ class RequestObserver:
             method = scope.get("method", "")
             self.metrics.record_request(method, route, status, seconds)
             path = scope.get("path", "")
-            access_logger.log(
-                # probes every few seconds, also their 503s while the workers warm up
-                logging.DEBUG
-                if path in _QUIET_PATHS and (status < 400 or status == 503)
-                else logging.INFO,
-                "%s %s %d",
-                method,
-                path,
-                status,
-                extra={
-                    "method": method,
-                    "path": path,
-                    "route": route,
-                    "status": status,
-                    "duration_ms": round(seconds * 1000.0, 3),
-                    "client": (scope.get("client") or ("", 0))[0],
-                },
-            )
+            # probes every few seconds, also their 503s while the workers warm up
+            quiet = path in _QUIET_PATHS and (status < 400 or status == 503)
+            level = logging.DEBUG if quiet else logging.INFO
+            if access_logger.isEnabledFor(level):
+                _access_line(level, method, path, route, status, seconds, scope)
             CURRENT.reset(metrics_token)
             REQUEST_ID.reset(id_token)
