@@ -438,14 +438,12 @@ def _postures(batch: PostureBatch) -> list[Posture]:
     p = batch.p.reshape(-1, 3)[flat]
     w = batch.w.reshape(-1)[flat].tolist()
     # per posture: sin of t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4; cos of t1, t2, t3, t4
-    angles = np.empty((len(q), 7))
-    angles[:, :3] = q
-    angles[:, 3] = passive[:, 0]
-    angles[:, 4] = passive[:, 0] - q[:, 1]
-    angles[:, 5] = passive[:, 1] - q[:, 2]
-    angles[:, 6] = passive[:, 1] - passive[:, 0]
-    sines = np.sin(angles).tolist()
-    cosines = np.cos(angles[:, :4]).tolist()
+    angles = [
+        [t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4]
+        for (t1, t2, t3), (t4, t5) in zip(q.tolist(), passive.tolist(), strict=True)
+    ]
+    sines = np.sin(np.array(angles, dtype=float).reshape(-1, 7)).tolist()
+    cosines = np.cos(np.array([a[:4] for a in angles], dtype=float).reshape(-1, 4)).tolist()
     d = batch.design
     half, reach = d.L0 / 2, d.reach
     rows = []
@@ -563,7 +561,13 @@ class Manipulator:
     def within_limits(self, q: np.ndarray) -> bool:
         """Whether the literal joint values lie inside the design's joint limits."""
         q = np.asarray(q, dtype=float)
-        return bool((q >= self._design.joint_min).all() and (q <= self._design.joint_max).all())
+        d = self._design
+        if q.shape == (3,):  # one posture (every answer's): plain floats, no array temporaries
+            return all(
+                lo <= x <= hi
+                for x, lo, hi in zip(q.tolist(), d.joint_min, d.joint_max, strict=True)
+            )
+        return bool((q >= d.joint_min).all() and (q <= d.joint_max).all())
 
     # -- velocity
     def jacobians(self, posture: Posture) -> tuple[np.ndarray, np.ndarray]:

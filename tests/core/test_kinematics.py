@@ -525,3 +525,27 @@ def test_single_postures_are_the_vectorised_forms_bit_for_bit() -> None:
                     assert np.array_equal(post.q, q_ok[i])
                     checked += 1
     assert checked > 500
+
+
+def test_within_limits_of_one_posture_is_the_array_rule() -> None:
+    """One posture's limit check (plain floats) answers as the array rule, on the boundary
+    and with NaN too."""
+    design = Design(
+        L0=0.5,
+        L1=0.2,
+        L2=0.6,
+        link_radius=0.02,
+        joint_min=(-1.0, 0.0, 0.5),
+        joint_max=(1.0, 2.0, 3.0),
+    )
+    m = Manipulator(design)
+    rng = np.random.default_rng(3)
+    qs = [*rng.uniform(-3.5, 3.5, (2000, 3)), np.array([-1.0, 0.0, 3.0]), np.array([1.0, 2.0, 0.5])]
+    qs.append(np.array([0.0, np.nan, 1.0]))
+    answers = set()
+    for q in qs:
+        expected = bool((q >= design.joint_min).all() and (q <= design.joint_max).all())
+        assert m.within_limits(q) == expected
+        assert m.within_limits(q.tolist()) == expected
+        answers.add(expected)
+    assert answers == {True, False}
