@@ -293,14 +293,16 @@ def _shortcut(path, tries, prm, packed, step):  # pragma: no cover - compiled
     return p
 
 
-def simplify(path: np.ndarray, slack: ValidityChecker, tries: tuple[int, int]) -> np.ndarray:
-    """The simplification of a found path (N, 3) rad, every new motion certified by
-    ``slack`` (the checker with :data:`SIMPLIFY_SLACK` more clearance): greedy vertex
-    reduction, then ``tries[0] * n + tries[1]`` random shortcuts (n the vertices left; none
-    when both are 0) and the reduction again."""
+def simplify(
+    path: np.ndarray, checker: ValidityChecker, slack: np.ndarray, tries: tuple[int, int]
+) -> np.ndarray:
+    """The simplification of a found path (N, 3) rad, every new motion certified with the
+    kernels' parameters ``slack`` (the checker's with :data:`SIMPLIFY_SLACK` more
+    clearance): greedy vertex reduction, then ``tries[0] * n + tries[1]`` random shortcuts
+    (n the vertices left; none when both are 0) and the reduction again."""
     if len(path) <= 2:
         return path
-    prm, packed, step = slack.params, tuple(slack.packed), slack.coarse_step
+    prm, packed, step = slack, tuple(checker.packed), checker.coarse_step
     path = _reduce(path, prm, packed, step)
     count = tries[0] * len(path) + tries[1]
     if count > 0:
@@ -345,7 +347,7 @@ def search(
         if remembered is not None:
             path, slack = remembered
             _seed(options.seed)
-            path = simplify(path, slack, RECALL_SHORTCUT_TRIES)
+            path = simplify(path, checker, slack, RECALL_SHORTCUT_TRIES)
             return SearchOutcome(path, True, "Exact solution", True, certified=True)
         out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
         if out is not None:
@@ -421,7 +423,7 @@ def rrt_connect(
     simplified = False
     if options.simplify and len(path) > 2:
         margins = replace(checker.margins, clearance=checker.margins.clearance + SIMPLIFY_SLACK)
-        path = simplify(path, checker.with_margins(margins), SHORTCUT_TRIES)
+        path = simplify(path, checker, checker.with_margins(margins).params, SHORTCUT_TRIES)
         simplified = True
     # every motion of the path is certified: tree edges when they were grown (the meeting
     # node is the same posture in both trees), and every motion the simplification kept

@@ -29,12 +29,13 @@ uses or fills it.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from planner.caching import BoundedCache, bounded_cache
-from planner.validity import ValidityChecker
+from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
 __all__ = ["MAX_PATHS", "MAX_TESTS", "MIN_NODES", "recall", "remember"]
 
@@ -48,17 +49,14 @@ MAX_TESTS = 24
 
 @dataclass(frozen=True, slots=True, eq=False)
 class _Scene:
-    """What is remembered of one scene: the packed arrays it was made with (identity), the
-    checker with the simplification's slack (the joins'), and the paths (each (M, 3) rad)."""
+    """What is remembered of one scene: weak references to the packed obstacle arrays it
+    was made with (their identity; the arrays are the obstacle cache's, not weighed here),
+    the kernels' parameters with the simplification's slack (the joins'), and the paths
+    (each (M, 3) rad)."""
 
-    packed: tuple
-    slack: ValidityChecker
+    packed: tuple[weakref.ref, ...]
+    slack: np.ndarray
     paths: tuple[np.ndarray, ...]
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes of the remembered paths (the arrays they share are the obstacle cache's)."""
-        return int(sum(p.nbytes for p in self.paths))
 
 
 _CACHE: BoundedCache[_Scene] = bounded_cache("experience.paths")
@@ -77,7 +75,7 @@ def _key(checker: ValidityChecker) -> tuple:
 
 def _scene(checker: ValidityChecker) -> _Scene | None:
     hit = _CACHE.get(_key(checker))
-    if hit is None or any(a is not b for a, b in zip(hit.packed, checker.packed, strict=True)):
+    if hit is None or any(r() is not a for r, a in zip(hit.packed, checker.packed, strict=True)):
         return None
     return hit
 
@@ -94,7 +92,8 @@ def remember(checker: ValidityChecker, path: np.ndarray, slack: float, *, nodes:
         return
     if old is None:
         margins = replace(checker.margins, clearance=checker.margins.clearance + slack)
-        old = _Scene(tuple(checker.packed), checker.with_margins(margins), ())
+        refs = tuple(weakref.ref(a) for a in checker.packed)
+        old = _Scene(refs, checker.with_margins(margins).params, ())
     kept = np.array(path, dtype=float)
     kept.flags.writeable = False
     _CACHE.put(_key(checker), replace(old, paths=(*old.paths, kept)[-MAX_PATHS:]))
@@ -102,11 +101,11 @@ def remember(checker: ValidityChecker, path: np.ndarray, slack: float, *, nodes:
 
 def recall(
     checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray
-) -> tuple[np.ndarray, ValidityChecker] | None:
+) -> tuple[np.ndarray, np.ndarray] | None:
     """A path ``q_start`` -> ``q_goal`` (N, 3) rad along a remembered path of the checker's
-    scene, every motion certified, with the checker of the joins (the slack's, for the
-    caller's simplification); or None (nothing remembered, or no join certified within
-    :data:`MAX_TESTS` motions).
+    scene, every motion certified, with the kernels' parameters of the joins (the checker's
+    with the slack, for the caller's simplification); or None (nothing remembered, or no
+    join certified within :data:`MAX_TESTS` motions).
 
     The candidates are (path, entry vertex i, exit vertex j), walked forwards (i <= j) or
     backwards, by the length start -> P[i] -> along P -> P[j] -> goal; they are tried
@@ -127,7 +126,11 @@ def recall(
         rows.append(np.stack([cost.ravel(), np.full(cost.size, p), i.ravel(), j.ravel()], 1))
     order = np.concatenate(rows)
     order = order[np.argsort(order[:, 0], kind="stable")]
-    test = scene.slack.motion_test()
+    prm, packed, step = scene.slack, checker.packed, checker.coarse_step
+
+    def test(q_a: np.ndarray, q_b: np.ndarray) -> bool:
+        return certify_motion(q_a, q_b, prm, *packed, step, MIN_CERTIFIED_STEP, False)[0] == 0
+
     joins: dict[tuple[int, int, int], bool] = {}  # (end 0 start / 1 goal, path, vertex)
     tests = 0
     for _, p, i, j in order:
