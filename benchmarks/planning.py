@@ -563,13 +563,14 @@ def fair_rows(args) -> None:
     )
     head = (
         f"{'scene':<11} {'set-up':<14} {'n':>3} {'solved':>6} {'invalid':>7} {'p50 ms':>8} "
-        f"{'p95 ms':>8} {'max ms':>8} {'len rad':>7} {'x p50':>7} {'x p95':>7}"
+        f"{'p95 ms':>8} {'max ms':>8} {'cpu p50':>7} {'len rad':>7} {'x p50':>7} {'x p95':>7} "
+        f"{'x cpu':>6}"
     )
     print(head)
     print("-" * len(head))
     for kind in args.scenes.split(","):
         design, obstacles, queries = fair_scene(kind, args.fair_queries)
-        rec = {k: dict(times=[], solved=0, invalid=0, lengths=[]) for k in setups}
+        rec = {k: dict(times=[], cpu=[], solved=0, invalid=0, lengths=[]) for k in setups}
         caching.clear("corridor", "experience")
         for i, (start, goal) in enumerate(queries):
             chk = ValidityChecker(
@@ -577,7 +578,7 @@ def fair_rows(args) -> None:
             )
             for k in range(len(setups)):
                 name = setups[(i + k) % len(setups)]
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 if name.startswith("product"):
                     # "product OMPL": the same pipeline with OMPL's RRTConnect as its search
                     # (the product before the compiled search of issue 43)
@@ -608,6 +609,7 @@ def fair_rows(args) -> None:
                     )
                     path = out.waypoints
                 rec[name]["times"].append(time.perf_counter() - t0)
+                rec[name]["cpu"].append(time.process_time() - c0)
                 compiled_rrt.search = _search
                 experience.recall, experience.remember = _memory
                 if path is not None:
@@ -616,23 +618,27 @@ def fair_rows(args) -> None:
                     steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
                     rec[name]["lengths"].append(float(np.sum(steps)))
         prod = np.asarray(rec["product"]["times"]) * 1e3
+        prod_cpu = np.median(rec["product"]["cpu"]) * 1e3
         for name in setups:
             r = rec[name]
             t = np.asarray(r["times"]) * 1e3
+            cpu = np.median(r["cpu"]) * 1e3
             ratio = ""
             if name in setups[:2]:
                 ratio = (
                     f"{np.percentile(t, 50) / np.percentile(prod, 50):>6.1f}x "
-                    f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x"
+                    f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x "
+                    f"{cpu / prod_cpu:>5.1f}x"
                 )
             length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
             print(
                 f"{kind:<11} {name:<14} {len(t):>3} {r['solved']:>6} {r['invalid']:>7} "
                 f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f} "
-                f"{length:>7.2f} {ratio}"
+                f"{cpu:>7.2f} {length:>7.2f} {ratio}"
             )
     print(
-        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries); "
+        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries; x cpu: "
+        "of the CPU-time medians, the process's own time, less moved by the machine's load); "
         "product OMPL: the product with OMPL's RRTConnect as its search (before the compiled "
         "search); product no mem: without the paths remembered per scene (planner.planning."
         "experience: each query searches)"
