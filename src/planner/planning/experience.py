@@ -37,12 +37,19 @@ import numpy as np
 from planner.caching import BoundedCache, bounded_cache
 from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
-__all__ = ["MAX_PATHS", "MAX_TESTS", "MIN_NODES", "recall", "remember"]
+__all__ = ["MAX_DETOUR", "MAX_PATHS", "MAX_TESTS", "MIN_NODES", "recall", "remember"]
 
 #: Tree nodes (both trees) from which a search's path is remembered.
 MIN_NODES = 64
 #: Remembered paths per scene (the oldest out first).
 MAX_PATHS = 16
+#: Longest walk tried, as a multiple of the straight distance start -> goal (joint space):
+#: a remembered path far from the query is not worth its joins' certificates (in clutter,
+#: where a start's join often holds and a goal's does not, those cost more than a search).
+#: Measured (40 queries, CPU time of the whole plan, load 4-5): in the narrow window 2.0
+#: walked 9 remembered paths (p50 2.3 ms), 3.0 16 (p50 1.4 ms; none: 18, 1.5 ms); among
+#: the 1,000 spheres, where no walk holds, p50 0.6-0.75 ms with or without memory.
+MAX_DETOUR = 3.0
 #: Most join motions certified per recall (a recall that needs more gives up: the search).
 MAX_TESTS = 24
 
@@ -125,6 +132,7 @@ def recall(
         i, j = np.indices(cost.shape)
         rows.append(np.stack([cost.ravel(), np.full(cost.size, p), i.ravel(), j.ravel()], 1))
     order = np.concatenate(rows)
+    order = order[order[:, 0] <= MAX_DETOUR * float(np.linalg.norm(q_goal - q_start))]
     order = order[np.argsort(order[:, 0], kind="stable")]
     prm, packed, step = scene.slack, checker.packed, checker.coarse_step
 
