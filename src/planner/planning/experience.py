@@ -41,8 +41,13 @@ __all__ = ["MAX_DETOUR", "MAX_PATHS", "MAX_TESTS", "MIN_NODES", "recall", "remem
 
 #: Tree nodes (both trees) from which a search's path is remembered.
 MIN_NODES = 64
-#: Remembered paths per scene (the oldest out first).
-MAX_PATHS = 16
+#: Remembered paths per scene (the oldest out first). Few: each adds its vertices to the
+#: candidates, and the joins to the nearest of many paths mostly fail, spending the recall's
+#: :data:`MAX_TESTS` (narrow window, 40 queries run four times in one process, CPU p50 per
+#: round: 16 paths with every path of a hard scene kept: 1.5, 4.4, 4.7, 4.5 ms, walks
+#: 16, 3, 1, 1 of 37; 4 paths of hard searches: 1.5, 1.9, 2.2, 2.2 ms, walks 16, 14, 13, 12;
+#: no memory: 4.3, 3.9, 3.5, 3.2 ms).
+MAX_PATHS = 4
 #: Longest walk tried, as a multiple of the straight distance start -> goal (joint space):
 #: a remembered path far from the query is not worth its joins' certificates (in clutter,
 #: where a start's join often holds and a goal's does not, those cost more than a search).
@@ -89,14 +94,13 @@ def _scene(checker: ValidityChecker) -> _Scene | None:
 
 def remember(checker: ValidityChecker, path: np.ndarray, slack: float, *, nodes: int) -> None:
     """Keep ``path`` (M, 3) rad, every motion certified for ``checker``, for the checker's
-    scene when its search grew ``nodes`` >= :data:`MIN_NODES` tree nodes or the scene has
-    remembered paths already (it was hard before); ``slack`` (m): the extra clearance the
-    joins of later recalls keep."""
+    scene when its search grew ``nodes`` >= :data:`MIN_NODES` tree nodes; ``slack`` (m): the
+    extra clearance the joins of later recalls keep."""
     if not checker.obstacles or len(path) < 2:
         return
-    old = _scene(checker)
-    if old is None and nodes < MIN_NODES:
+    if nodes < MIN_NODES:
         return
+    old = _scene(checker)
     if old is None:
         margins = replace(checker.margins, clearance=checker.margins.clearance + slack)
         refs = tuple(weakref.ref(a) for a in checker.packed)
