@@ -21,10 +21,13 @@ very arrays it was made with). Kept through :mod:`planner.caching` (``experience
 Soundness: every motion of a remembered path was certified when it was found; the two joins
 are certified now, with the simplification's slack (:data:`compiled_rrt.SIMPLIFY_SLACK`:
 they are new motions that may graze what the path turns around). So the answer is
-certified as a search's is. Determinism: a process answers a query from its own history
-(what it remembered), like the corridor grid's cache; a fresh process answers the same
-sequence of queries the same way. ``PlanOptions.simplify=False`` (the raw search) never
-uses or fills it.
+certified as a search's is; :func:`planner.planning.compiled_rrt.search` simplifies the walk
+(:data:`planner.planning.compiled_rrt.RECALL_SHORTCUT_TRIES`), seeded by ``options.seed``.
+Determinism: a process answers a query from its own history (what it remembered), like the
+corridor grid's cache; a fresh process answers the same sequence of queries the same way (as
+far as the rest of the planner does: the corridor's first try is timed, so under another load
+another query of a sequence may be the one that searches, and what is remembered differs).
+``PlanOptions.simplify=False`` (the raw search) never uses or fills it.
 """
 
 from __future__ import annotations
