@@ -208,15 +208,21 @@ class BlendedPath:
             return q, np.zeros_like(q), np.zeros_like(q)
         idx = self.piece_index(s, lo, hi, side)
         ds = (s - self.s0[idx])[:, None]
-        o, d, nrm, r = self.origin[idx], self.direction[idx], self.normal[idx], self.radius[idx]
-        arc = (self.kind[idx] == ARC)[:, None]
-        r_safe = np.where(arc[:, 0], r, 1.0)[:, None]
-        phi = np.where(arc, ds / r_safe, 0.0)
-        c, si = np.cos(phi), np.sin(phi)
-        radial = d * c + nrm * si  # unit vector from the centre (arcs)
-        q = np.where(arc, o + r_safe * radial, o + d * ds)
-        d1 = np.where(arc, nrm * c - d * si, d)
-        d2 = np.where(arc, -radial / r_safe, 0.0)
+        o, d = self.origin[idx], self.direction[idx]
+        q = o + d * ds  # lines; the arcs' rows are replaced below
+        d1, d2 = d, np.zeros_like(d)
+        on_arc = np.flatnonzero(self.kind[idx] == ARC)
+        if on_arc.shape[0]:  # the trigonometry on the arcs' rows only (most rows are lines)
+            k = idx[on_arc]
+            r = self.radius[k][:, None]
+            da, nrm = d[on_arc], self.normal[k]
+            phi = ds[on_arc] / r
+            c, si = np.cos(phi), np.sin(phi)
+            radial = da * c + nrm * si  # unit vector from the centre
+            q[on_arc] = o[on_arc] + r * radial
+            d1 = d.copy()
+            d1[on_arc] = nrm * c - da * si
+            d2[on_arc] = -radial / r
         return q, d1, d2
 
     def kept_stops(self) -> np.ndarray:
