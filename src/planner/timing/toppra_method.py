@@ -252,32 +252,29 @@ def section_grid(
     by up to 37 % on the benchmark paths (the joint limits, bounded per |q''|, do not suffer
     it the same way). A short interval (``JUNCTION_INTERVAL`` of each arc) on both sides
     of such a junction puts a grid point on each arc next to it, so both sides are bounded."""
-    parts = []
-    for k in range(lo, hi + 1):
-        a, b = path.s0[k], path.s0[k + 1]
-        if path.kind[k] == ARC:
-            turn = (b - a) / path.radius[k]
-            n = max(2, int(np.ceil(turn * refine * arc_refine / ARC_STEP)))
-            pts = np.linspace(a, b, n + 1)[:-1]
-            parts.append(_beside_arcs(path, k, lo, hi, pts) if arc_junctions else pts)
-            continue
-        n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
-        parts.append(_beside_arcs(path, k, lo, hi, np.linspace(a, b, n + 1)[:-1]))
-    parts.append(path.s0[hi + 1 : hi + 2])
-    return np.concatenate(parts)
-
-
-def _beside_arcs(path, k: int, lo: int, hi: int, pts: np.ndarray) -> np.ndarray:
-    """``pts`` of piece ``k`` (of pieces ``lo..hi``) with a grid point ``JUNCTION_INTERVAL`` of
-    the piece inside each end that meets an arc, so the arc's side of the junction is bounded."""
+    k = np.arange(lo, hi + 1)
     a, b = path.s0[k], path.s0[k + 1]
+    arc = path.kind[k] == ARC
+    with np.errstate(divide="ignore", invalid="ignore"):
+        turn = np.where(arc, (b - a) / np.where(arc, path.radius[k], 1.0), 0.0)
+    n = np.where(
+        arc,
+        np.maximum(2, np.ceil(turn * refine * arc_refine / ARC_STEP)),
+        np.maximum(int(LINE_MIN_INTERVALS * refine), np.ceil((b - a) * refine / LINE_STEP)),
+    ).astype(int)
+    # every piece's np.linspace(a, b, n + 1)[:-1], as linspace computes it: a + i (b - a) / n
+    piece = np.repeat(np.arange(k.shape[0]), n)
+    i = np.arange(piece.shape[0]) - np.repeat(np.cumsum(n) - n, n)
+    pts = i * ((b - a) / n)[piece] + a[piece]
+    # a point JUNCTION_INTERVAL of the piece inside each end that meets an arc of the section
+    # (lines; arcs too with arc_junctions), so the arc's side of the junction is bounded
+    beside = ~arc | arc_junctions
+    before = beside & (k > lo) & (path.kind[np.maximum(k - 1, 0)] == ARC)
+    after = beside & (k < hi) & (path.kind[np.minimum(k + 1, path.kind.shape[0] - 1)] == ARC)
     eps = JUNCTION_INTERVAL * (b - a)
-    extra = []
-    if k > lo and path.kind[k - 1] == ARC:
-        extra.append(a + eps)
-    if k < hi and path.kind[k + 1] == ARC:
-        extra.append(b - eps)
-    return np.sort(np.concatenate([pts, extra])) if extra else pts
+    extra = np.concatenate([(a + eps)[before], (b - eps)[after]])
+    grid = np.sort(np.concatenate([pts, extra])) if extra.shape[0] else pts
+    return np.concatenate([grid, path.s0[hi + 1 : hi + 2]])
 
 
 def check_deadline(deadline: float | None, what: str) -> None:
