@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numba import njit
 
 from planner.exceptions import InputError
 
@@ -202,27 +203,25 @@ class BlendedPath:
         self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: Side = "right"
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, q', q'') at ``s`` in one pass, each shape (M, 3) (see :meth:`evaluate`)."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
+        s = np.ascontiguousarray(np.atleast_1d(np.asarray(s, dtype=float)))
         if self.n_pieces == 0:
             q = np.broadcast_to(self.waypoints[0], (s.shape[0], 3)).copy()
             return q, np.zeros_like(q), np.zeros_like(q)
         idx = self.piece_index(s, lo, hi, side)
-        ds = (s - self.s0[idx])[:, None]
-        o, d = self.origin[idx], self.direction[idx]
-        q = o + d * ds  # lines; the arcs' rows are replaced below
-        d1, d2 = d, np.zeros_like(d)
-        on_arc = np.flatnonzero(self.kind[idx] == ARC)
-        if on_arc.shape[0]:  # the trigonometry on the arcs' rows only (most rows are lines)
-            k = idx[on_arc]
-            r = self.radius[k][:, None]
-            da, nrm = d[on_arc], self.normal[k]
-            phi = ds[on_arc] / r
-            c, si = np.cos(phi), np.sin(phi)
-            radial = da * c + nrm * si  # unit vector from the centre
-            q[on_arc] = o[on_arc] + r * radial
-            d1 = d.copy()
-            d1[on_arc] = nrm * c - da * si
-            d2[on_arc] = -radial / r
+        q, d1, d2 = np.empty((s.shape[0], 3)), np.empty((s.shape[0], 3)), np.empty((s.shape[0], 3))
+        _evaluate_pieces(
+            s,
+            idx,
+            self.s0,
+            self.kind,
+            self.origin,
+            self.direction,
+            self.normal,
+            self.radius,
+            q,
+            d1,
+            d2,
+        )
         return q, d1, d2
 
     def kept_stops(self) -> np.ndarray:
@@ -240,6 +239,33 @@ class BlendedPath:
         if self.n_pieces == 0:
             return np.full(np.shape(s), -1)
         return self.corner[self.piece_index(np.asarray(s, dtype=float))]
+
+
+@njit(cache=True)
+def _evaluate_pieces(
+    s, idx, s0, kind, origin, direction, normal, radius, q, d1, d2
+):  # pragma: no cover
+    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2: a line
+    ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``, its tangent
+    ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``. One pass
+    of compiled code per position (a check evaluates thousands, several times a timing)."""
+    for m in range(s.shape[0]):
+        k = idx[m]
+        ds = s[m] - s0[k]
+        if kind[k] == ARC:
+            r = radius[k]
+            phi = ds / r
+            c, si = np.cos(phi), np.sin(phi)
+            for j in range(3):
+                radial = direction[k, j] * c + normal[k, j] * si
+                q[m, j] = origin[k, j] + r * radial
+                d1[m, j] = normal[k, j] * c - direction[k, j] * si
+                d2[m, j] = -radial / r
+        else:
+            for j in range(3):
+                q[m, j] = origin[k, j] + direction[k, j] * ds
+                d1[m, j] = direction[k, j]
+                d2[m, j] = 0.0
 
 
 def _merge_duplicates(
