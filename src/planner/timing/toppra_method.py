@@ -489,14 +489,14 @@ def solve_toppra(
         grid = section_grid(
             path, lo, hi, refine=refine, arc_junctions=torque is not None, arc_refine=arc_refine
         )
-        sd = (
+        compiled = (
             None
             if torque is not None
             else _compiled_profile(section, grid, v, a, v_cart, speed_gain)
         )
-        if sd is None:
-            sd = _toppra_profile(section, grid, joint_constraints, v_cart, speed_gain, torque)
-        sd = sd / c
+        if compiled is None:
+            compiled = _toppra_profile(section, grid, joint_constraints, v_cart, speed_gain, torque)
+        sd = compiled / c
         sd[0] = sd[-1] = 0.0
         if cache is not None and key is not None:
             cache[key] = (grid - float(s_start), sd)
