@@ -489,14 +489,16 @@ def solve_toppra(
         grid = section_grid(
             path, lo, hi, refine=refine, arc_junctions=torque is not None, arc_refine=arc_refine
         )
-        compiled = (
+        section_sd = (
             None
             if torque is not None
             else _compiled_profile(section, grid, v, a, v_cart, speed_gain)
         )
-        if compiled is None:
-            compiled = _toppra_profile(section, grid, joint_constraints, v_cart, speed_gain, torque)
-        sd = compiled / c
+        if section_sd is None:
+            section_sd = _toppra_profile(
+                section, grid, joint_constraints, v_cart, speed_gain, torque
+            )
+        sd = section_sd / c
         sd[0] = sd[-1] = 0.0
         if cache is not None and key is not None:
             cache[key] = (grid - float(s_start), sd)
