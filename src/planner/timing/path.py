@@ -358,54 +358,103 @@ def _pieces(
     along ``s``, as the fields of :class:`BlendedPath` (``kind``, ``s0``, ``origin``,
     ``direction``, ``normal``, ``radius``, ``corner``, ``blend_deviation``, ``vertex_s``)."""
     n = w.shape[0]
-    kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
-    vertex_s = np.zeros(n)
-    blend_dev = np.zeros(n)
+    kind = np.empty(2 * n, np.int8)
+    s_len, radius = np.empty(2 * n), np.empty(2 * n)
+    origin, direction, normal = np.empty((2 * n, 3)), np.empty((2 * n, 3)), np.empty((2 * n, 3))
+    corner = np.empty(2 * n, np.int64)
+    vertex_s, blend_dev = np.zeros(n), np.zeros(n)
+    count = _pieces_kernel(
+        np.ascontiguousarray(w, dtype=float),
+        np.ascontiguousarray(seg_len, dtype=float),
+        np.ascontiguousarray(seg_dir, dtype=float),
+        np.ascontiguousarray(alpha, dtype=float),
+        np.ascontiguousarray(tangent, dtype=float),
+        _PIECE_TOL,
+        kind,
+        s_len,
+        origin,
+        direction,
+        normal,
+        radius,
+        corner,
+        vertex_s,
+        blend_dev,
+    )
+    return {
+        "kind": kind[:count].copy(),
+        "s0": np.concatenate([[0.0], np.cumsum(s_len[:count])]),
+        "origin": origin[:count].copy(),
+        "direction": direction[:count].copy(),
+        "normal": normal[:count].copy(),
+        "radius": radius[:count].copy(),
+        "corner": corner[:count].astype(int),
+        "blend_deviation": blend_dev,
+        "vertex_s": vertex_s,
+    }
+
+
+@njit(cache=True)
+def _pieces_kernel(
+    w,
+    seg_len,
+    seg_dir,
+    alpha,
+    tangent,
+    piece_tol,
+    kind,
+    s_len,
+    origin,
+    direction,
+    normal,
+    radius,
+    corner,
+    vertex_s,
+    blend_dev,
+):  # pragma: no cover
+    """The loop of :func:`_pieces`, compiled: each segment's line (what its blends leave of
+    it, unless only rounding is left) and the arc of its end vertex, into the arrays
+    (2 N rows at most); returns the piece count."""
+    n = w.shape[0]
+    count = 0
     s = 0.0
     for i in range(n - 1):
-        start = w[i] + tangent[i] * seg_dir[i]
         length = seg_len[i] - tangent[i] - tangent[i + 1]
         if i == 0 or tangent[i] == 0.0:
             vertex_s[i] = s
-        if length > _PIECE_TOL:  # not the rounding left between two blends
-            kinds.append(LINE)
-            s_len.append(length)
-            origins.append(start)
-            dirs.append(seg_dir[i])
-            normals.append(np.zeros(3))
-            radii.append(np.inf)
-            corners.append(-1)
+        if length > piece_tol:  # not the rounding left between two blends
+            kind[count] = LINE
+            s_len[count] = length
+            for j in range(3):
+                origin[count, j] = w[i, j] + tangent[i] * seg_dir[i, j]
+                direction[count, j] = seg_dir[i, j]
+                normal[count, j] = 0.0
+            radius[count] = np.inf
+            corner[count] = -1
+            count += 1
             s += length
         k = i + 1
         if tangent[k] > 0.0:
             half = alpha[k] / 2
             r = tangent[k] / np.tan(half)
             bis = seg_dir[k] - seg_dir[k - 1]
-            bis /= np.linalg.norm(bis)
+            bis = bis / np.sqrt(bis[0] * bis[0] + bis[1] * bis[1] + bis[2] * bis[2])
             centre = w[k] + bis * (r / np.cos(half))
             x = (w[k] - tangent[k] * seg_dir[k - 1] - centre) / r
-            kinds.append(ARC)
-            s_len.append(r * alpha[k])
-            origins.append(centre)
-            dirs.append(x / np.linalg.norm(x))
-            normals.append(seg_dir[k - 1])
-            radii.append(r)
-            corners.append(k)
+            x_norm = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+            kind[count] = ARC
+            s_len[count] = r * alpha[k]
+            for j in range(3):
+                origin[count, j] = centre[j]
+                direction[count, j] = x[j] / x_norm
+                normal[count, j] = seg_dir[k - 1, j]
+            radius[count] = r
+            corner[count] = k
+            count += 1
             blend_dev[k] = r * (1.0 / np.cos(half) - 1.0)
             vertex_s[k] = s + r * alpha[k] / 2
             s += r * alpha[k]
     vertex_s[n - 1] = s
-    return {
-        "kind": np.asarray(kinds, np.int8),
-        "s0": np.concatenate([[0.0], np.cumsum(s_len)]),
-        "origin": np.asarray(origins),
-        "direction": np.asarray(dirs),
-        "normal": np.asarray(normals),
-        "radius": np.asarray(radii),
-        "corner": np.asarray(corners, int),
-        "blend_deviation": blend_dev,
-        "vertex_s": vertex_s,
-    }
+    return count
 
 
 def distance_to_polyline(
