@@ -489,3 +489,34 @@ def test_mode_signs_inverts_mode_label():
     for label in [*WORKING_MODES, "0+-", "000", "+", "-"]:
         assert mode_label(mode_signs(label)) == label
     np.testing.assert_array_equal(mode_signs("+-0"), [1, -1, 0])
+
+
+@pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
+def test_inverse_in_mode_is_one_slot_of_inverse_batch(design):
+    """inverse_in_mode(p, slot) gives slot ``slot`` of inverse_batch exactly (q, passive,
+    w, ok, degenerate, assembly signs), also on the axis and at a pivot; and where ok, its
+    posture's forward kinematics is P again, in that working mode."""
+    from planner.kinematics import inverse_in_mode, mode_signs
+
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-1.0, 1.0, (3000, 3))
+    p[:20, 0] = p[:20, 2] = 0.0  # on the axis AB
+    p[20:30] = [0.0, -design.L0 / 2, 0.0]  # at A
+    ib = inverse_batch(design, p)
+    for slot, mode in enumerate(WORKING_MODES):
+        q, passive, w, ok, degenerate, signs = inverse_in_mode(design, p, slot)
+        np.testing.assert_array_equal(q, ib.q[:, slot])
+        np.testing.assert_array_equal(passive, ib.passive[:, slot])
+        np.testing.assert_array_equal(w, ib.w[:, slot])
+        np.testing.assert_array_equal(ok, ib.ok[:, slot])
+        np.testing.assert_array_equal(degenerate, ib.degenerate)
+        np.testing.assert_array_equal(signs, ib.assembly_mode_signs[:, slot])
+        good = ok & ~degenerate
+        assert good.sum() > 100
+        for asm in ("+", "-"):
+            sel = good & (signs == (1 if asm == "+" else -1))
+            fb = forward_batch(design, q[sel], asm)
+            np.testing.assert_allclose(fb.p, p[sel], atol=1e-9)
+            sg = fb.working_mode_signs
+            off_singular = np.all(sg != 0, axis=1)
+            assert np.all(sg[off_singular] == mode_signs(mode))

@@ -20,7 +20,7 @@ import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import inverse_batch
+from planner.kinematics import inverse_in_mode
 
 __all__ = [
     "BISECT_TOL",
@@ -111,12 +111,10 @@ def distance_to_polyline_3d(vertices: np.ndarray, points: np.ndarray) -> np.ndar
 def branch_ik(design: Design, pts: np.ndarray, slot: int, asm_sign: int):
     """IK of points (M, 3) in one working-mode slot: q wrapped (M, 3), ok (M,), w (M,),
     flipped (M,) (the branch exists but in the other assembly mode)."""
-    ib = inverse_batch(design, pts)
-    q = ib.q[:, slot]
-    ok = ib.ok[:, slot] & ~ib.degenerate
-    asm = ib.assembly_mode_signs[:, slot]
+    q, _, w, ok, degenerate, asm = inverse_in_mode(design, pts, slot)
+    ok = ok & ~degenerate
     flipped = ok & (asm != asm_sign)
-    return q, ok & ~flipped, ib.w[:, slot], flipped
+    return q, ok & ~flipped, w, flipped
 
 
 def unwrap_to(q: np.ndarray, ref: np.ndarray) -> np.ndarray:
