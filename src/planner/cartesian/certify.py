@@ -216,6 +216,9 @@ class Refinement:
         self._report_q: np.ndarray | None = None  # the postures self.report certified
         self.backoff = 0.0
         self.bound = np.zeros(max(len(s) - 1, 0))
+        # chord bounds of the pieces from ``certified`` on that the last round of
+        # split_chords left whole (NaN: a new piece), for its next round; None: none known
+        self._known: np.ndarray | None = None
 
     def run(self, budget: Budget) -> Refinement:
         """Refine until done or :data:`MAX_REFINEMENTS` passes (then the certified part is the
@@ -286,15 +289,19 @@ class Refinement:
         is cut into parts (or, too short to cut, the path stops before it). True when the
         round changed the path."""
         s, q, w, certified, tol_chord = self.s, self.q, self.w, self.certified, self.tol_chord
-        tail = slice(certified, len(s) - 1)
-        b_tail = chord_deviation_bound(
+        known, self._known = self._known, None
+        if known is None or known.shape[0] != len(s) - 1 - certified:
+            known = np.full(len(s) - 1 - certified, np.nan)
+        new = certified + np.flatnonzero(np.isnan(known))  # pieces not bounded yet
+        b_tail = known.copy()
+        b_tail[new - certified] = chord_deviation_bound(
             self.design,
-            q[tail],
-            q[certified + 1 :],
-            w[tail],
-            w[certified + 1 :],
-            self.poly.at(s[tail]),
-            self.poly.at(s[certified + 1 :]),
+            q[new],
+            q[new + 1],
+            w[new],
+            w[new + 1],
+            self.poly.at(s[new]),
+            self.poly.at(s[new + 1]),
             self.asm,
         )
         self.bound = np.concatenate([self.bound[:certified], b_tail])
@@ -342,6 +349,14 @@ class Refinement:
             )
             keep = idx < k
             idx, s_mid, qm, wm = idx[keep], s_mid[keep], qm[keep], wm[keep]
+        if np.all(valid_m):
+            # the bounds of the pieces left whole carry over to the next round (a piece's
+            # bound depends on its two ends only); the parts of the split ones are new
+            parts = np.ones(len(b_tail), dtype=int)
+            parts[pieces - certified] = n_parts
+            carried = np.repeat(b_tail, parts)
+            carried[np.repeat(split, parts)] = np.nan
+            self._known = carried
         self.s = np.insert(self.s, idx + 1, s_mid)
         self.q = np.insert(self.q, idx + 1, qm, axis=0)
         self.w = np.insert(self.w, idx + 1, wm)
