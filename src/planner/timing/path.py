@@ -486,17 +486,33 @@ def distance_to_polyline(
     lo = np.clip(segments[:, 0], 0, n_seg - 1)
     hi = np.clip(segments[:, 1], lo, n_seg - 1)
     best_d2 = np.full(m, np.inf)
-    nearest = np.empty_like(q)
-    for j in range(int(np.max(hi - lo, initial=0)) + 1):  # M-vectors per offset, no M x N x 3
-        seg = np.minimum(lo + j, hi)
-        a = w[seg]
-        ab = w[seg + 1] - a
-        rel = q - a
-        denom = np.sum(ab * ab, axis=1)
-        t = np.where(denom > 0, np.sum(rel * ab, axis=1) / np.maximum(denom, 1e-300), 0.0)
-        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-        d2 = np.sum((q - foot) ** 2, axis=1)
-        better = d2 < best_d2
-        best_d2[better] = d2[better]
-        nearest[better] = foot[better]
+    nearest = np.empty((m, 3))
+    _nearest_on_segments(np.ascontiguousarray(w), np.ascontiguousarray(q), lo, hi, best_d2, nearest)
     return np.sqrt(best_d2), nearest
+
+
+@njit(cache=True)
+def _nearest_on_segments(w, q, lo, hi, best_d2, nearest):  # pragma: no cover
+    """For each posture q[i], the least squared distance to the segments lo[i]..hi[i] of the
+    polyline w (into best_d2, inf on entry) and the foot of the perpendicular (into nearest):
+    the foot's parameter clipped to [0, 1] (0 on a segment of zero length); the first of
+    equally near segments is kept."""
+    foot = np.empty(3)
+    for i in range(q.shape[0]):
+        for seg in range(lo[i], hi[i] + 1):
+            denom = 0.0
+            dot = 0.0
+            for j in range(3):
+                ab = w[seg + 1, j] - w[seg, j]
+                denom += ab * ab
+                dot += (q[i, j] - w[seg, j]) * ab
+            t = dot / max(denom, 1e-300) if denom > 0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            d2 = 0.0
+            for j in range(3):
+                foot[j] = w[seg, j] + t * (w[seg + 1, j] - w[seg, j])
+                d2 += (q[i, j] - foot[j]) ** 2
+            if d2 < best_d2[i]:
+                best_d2[i] = d2
+                for j in range(3):
+                    nearest[i, j] = foot[j]
