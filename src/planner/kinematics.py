@@ -51,6 +51,7 @@ __all__ = [
     "PostureBatch",
     "conditioning",
     "forward_batch",
+    "forward_velocity",
     "inverse_batch",
     "inverse_in_mode",
     "link_points",
@@ -229,6 +230,26 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
     )
     np.arctan2(passive, dx, out=passive)
     return PostureBatch(design, q2, passive, p, w, ok)
+
+
+def forward_velocity(
+    design: Design, q: np.ndarray, qd: np.ndarray, assembly_mode: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """P (N, 3), m, and its velocity dP/dt = J(q) qd (N, 3), m/s, of postures q (N, 3), rad,
+    moving at qd (N, 3), rad/s, in one compiled pass (the loop closure differentiated, see
+    :func:`planner._kernels.forward_velocity_kernel`); ``ok`` (N,) is False where the loop
+    does not close (P and v NaN) or CD is stretched (v NaN: the velocity is unbounded
+    there). P is :func:`forward_batch`'s exactly."""
+    q2 = np.ascontiguousarray(np.atleast_2d(_finite_array("q", q, 3)))
+    qd2 = np.ascontiguousarray(np.atleast_2d(_finite_array("qd", qd, 3)))
+    if qd2.shape != q2.shape:
+        raise InputError(f"qd must have the shape of q {q2.shape}, got {qd2.shape}")
+    n = q2.shape[0]
+    p, v, ok = np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=np.bool_)
+    _kernels.forward_velocity_kernel(
+        design.L0, design.L1, design.L2, q2, qd2, _branch(assembly_mode, n), ASSEMBLY_TOL, p, v, ok
+    )
+    return p, v, ok
 
 
 @dataclass(frozen=True, slots=True)
