@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from planner._kernels import read_only
 from planner.caching import BoundedCache, bounded_cache
 from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
@@ -731,5 +732,5 @@ def segment_obstacle_distance(
         raise InputError(f"a and b must both have shape (N, 3), got {a.shape} and {b.shape}")
     packed = obstacles if isinstance(obstacles, PackedObstacles) else pack_obstacles(obstacles)
     out = np.empty(a.shape[0])
-    _segments_distance(a, b, *packed, out)
+    _segments_distance(read_only(a), read_only(b), *packed, out)  # packed: read-only too
     return out

@@ -375,9 +375,9 @@ def conditioning(
     _kernels.conditioning_kernel(
         design.L1,
         design.L2,
-        np.ascontiguousarray(q.reshape(-1, 3)),
-        np.ascontiguousarray(np.asarray(passive, dtype=float).reshape(-1, 2)),
-        np.ascontiguousarray(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
+        _kernels.read_only(q.reshape(-1, 3)),
+        _kernels.read_only(np.asarray(passive, dtype=float).reshape(-1, 2)),
+        _kernels.read_only(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
         out,
     )
     cols = out.T.reshape((6, *shape))

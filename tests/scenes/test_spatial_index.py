@@ -16,7 +16,6 @@ from planner.geometry import (
     Sphere,
     pack_obstacles,
     segment_box_distance,
-    segment_convex_distance,
     segment_obstacle_distance,
 )
 from planner.spatial_index import LEAF, node_lower_bound
@@ -73,14 +72,21 @@ def _leaf_ranges(n_rows: int, nodes: np.ndarray) -> list[tuple[int, int]]:
 
 def _row_distances(kind: int, rows: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """True signed distance of segment a-b to each packed row (spheres: numpy's closed form;
-    capsules and boxes: the per-obstacle routines, tested against sampling in
-    tests/test_geometry.py)."""
+    capsules: segment_obstacle_distance of that one capsule, and boxes: the box routine, as
+    the library calls them, both tested against sampling in tests/core/test_geometry.py)."""
     if kind == 0:
         return _point_segment(rows[:, :3], a, b) - rows[:, 3]
-    f = (lambda r: segment_convex_distance(1, *a, *b, r)) if kind == 1 else None
-    if kind == 2:
-        f = lambda r: segment_box_distance(*a, *b, r)  # noqa: E731
-    return np.array([f(r) for r in rows])
+    if kind == 1:
+        a2, b2 = a[None], b[None]
+        return np.array(
+            [segment_obstacle_distance(a2, b2, [Capsule(r[:3], r[3:6], r[6])])[0] for r in rows]
+        )
+    return np.array([segment_box_distance(*a, *b, r) for r in rows])
+
+
+#: The bound's own source run by Python: the product calls it only from compiled code (the
+#: tree walk), so a call from Python would compile a signature nothing else uses.
+_node_lower_bound = node_lower_bound.py_func
 
 
 def _check_bounds(packed, a: np.ndarray, b: np.ndarray) -> int:
@@ -97,7 +103,7 @@ def _check_bounds(packed, a: np.ndarray, b: np.ndarray) -> int:
         true = _row_distances(kind, rows, a, b)
         for i, (r0, r1) in enumerate(_leaf_ranges(len(rows), nodes)):
             # best = +inf: the exact bound, never the early coarse answer
-            lb = node_lower_bound(nodes[i], *a, *b, *lo, *hi, np.inf)
+            lb = _node_lower_bound(nodes[i], *a, *b, *lo, *hi, np.inf)
             if r0 == r1:
                 assert lb == np.inf
                 continue

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner._kernels import read_only
 from planner.constants import KAPPA_SOLVABLE
 from planner.design import Design
 from planner.dynamics import _kernels
@@ -108,16 +109,25 @@ def _forces(
     _kernels.inverse_kernel(
         design.L1,
         design.L2,
-        _params(inertia),
-        kin.q,
-        kin.passive,
-        kin.ok,
-        np.ascontiguousarray(qd, dtype=float),
-        np.ascontiguousarray(qdd, dtype=float),
-        np.asarray(gravity, dtype=float),
+        *_inputs(_params(inertia), kin, qd, qdd, gravity),
         out,
     )
     return out
+
+
+def _inputs(params, kin: _Kin, qd, qdd, gravity) -> tuple[np.ndarray, ...]:
+    """The input arrays of :func:`_kernels.inverse_kernel`, each read-only and C-contiguous
+    (:func:`planner._kernels.read_only`: one compiled signature for every caller, the
+    warm-up's included, whether its rates or gravity came frozen or not)."""
+    return (
+        read_only(params),
+        read_only(kin.q),
+        read_only(kin.passive),
+        read_only(kin.ok, np.bool_),
+        read_only(qd),
+        read_only(qdd),
+        read_only(gravity),
+    )
 
 
 @dataclass(frozen=True, eq=False)
