@@ -27,7 +27,7 @@ def read_only(a: object, dtype: type = float) -> np.ndarray:
     Passing every input array through this makes one signature serve every caller; outputs
     stay fresh writable arrays. (The validity kernels, which compiled planners call with
     writable postures, take writable postures instead: ``ValidityChecker`` copies them.)"""
-    view = np.ascontiguousarray(a, dtype=dtype).view()
+    view: np.ndarray = np.ascontiguousarray(a, dtype=dtype).view()
     view.flags.writeable = False
     return view
 

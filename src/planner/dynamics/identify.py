@@ -111,7 +111,8 @@ def standard_parameters(design: Design, inertia: Inertia) -> np.ndarray:
 
 def _probe(design: Design, kin, qd, qdd, g, params: np.ndarray) -> np.ndarray:
     out = np.empty_like(kin.q)
-    _kernels.inverse_kernel(design.L1, design.L2, *_inputs(params, kin, qd, qdd, g), out)
+    prm, q, passive, ok, qd1, qdd1, g1 = _inputs(params, kin, qd, qdd, g)
+    _kernels.inverse_kernel(design.L1, design.L2, prm, q, passive, ok, qd1, qdd1, g1, out)
     return out
 
 

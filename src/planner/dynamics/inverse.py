@@ -106,12 +106,8 @@ def _forces(
     """Generalised forces (N, 3) of the motion (q, qd, qdd) under ``gravity`` (the compiled
     loop of :mod:`planner.dynamics._kernels`; NaN where the posture is not ``ok``)."""
     out = np.empty_like(kin.q)
-    _kernels.inverse_kernel(
-        design.L1,
-        design.L2,
-        *_inputs(_params(inertia), kin, qd, qdd, gravity),
-        out,
-    )
+    prm, q, passive, ok, qd1, qdd1, g = _inputs(_params(inertia), kin, qd, qdd, gravity)
+    _kernels.inverse_kernel(design.L1, design.L2, prm, q, passive, ok, qd1, qdd1, g, out)
     return out
 
 
