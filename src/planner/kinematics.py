@@ -217,7 +217,7 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         design.L0,
         design.L1,
         design.L2,
-        q2,
+        _kernels.read_only(q2),  # one compiled signature, frozen q or not
         _branch(assembly_mode, n),
         ASSEMBLY_TOL,
         p,
@@ -265,7 +265,7 @@ def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0)
         design.L0,
         design.L1,
         design.L2,
-        p2,
+        _kernels.read_only(p2),  # one compiled signature, frozen p or not
         REACH_TOL,
         SIGN_TOL,
         AXIS_TOL,

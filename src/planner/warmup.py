@@ -9,8 +9,9 @@ on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's t
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
 entry points (the paths the service's jobs take: :func:`planner.planning.plan`,
-:func:`planner.motion.time_planned` (the pipeline's timing step) with TOPPRA and with Ruckig, the workspace analysis,
-:func:`planner.plotting.render_figure`), so that afterwards the first job of each kind costs
+:func:`planner.motion.time_planned` (the pipeline's timing step) with TOPPRA and with Ruckig, the workspace analysis
+and the design check, :func:`planner.plotting.render_figure`; a plan among a point cloud, whose
+tree only large scenes build), so that afterwards the first job of each kind costs
 what the second one does. The service's workers call it when they start (``/v1/ready`` waits
 for them); ``make run`` / ``make test`` and the Docker build call ``planner warm-up`` so that
 the kernels are in numba's cache before any worker starts (the first compile, about 30 s on
