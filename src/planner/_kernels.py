@@ -16,6 +16,22 @@ import numpy as np
 from numba import njit
 
 
+def read_only(a: object, dtype: type = float) -> np.ndarray:
+    """``a`` as a kernel takes an input array: C-contiguous, of ``dtype``, read-only (a view:
+    no copy when ``a`` already is a C-contiguous array of that type).
+
+    numba compiles one machine code per combination of argument types, and an array's
+    writability is part of its type: a kernel fed a writable array by one caller and a
+    read-only one (a frozen or cached array, a ``broadcast_to`` view) by another compiles
+    twice (2-10 s each, and ``planner warm-up`` covers only the combination it passed).
+    Passing every input array through this makes one signature serve every caller; outputs
+    stay fresh writable arrays. (The validity kernels, which compiled planners call with
+    writable postures, take writable postures instead: ``ValidityChecker`` copies them.)"""
+    view: np.ndarray = np.ascontiguousarray(a, dtype=dtype).view()
+    view.flags.writeable = False
+    return view
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def close_loop(L0, L1, L2, theta2, theta3, branch, assembly_tol):  # pragma: no cover - compiled
     """The five-bar loop closure of one posture, in the loop's plane (u along AB, w along

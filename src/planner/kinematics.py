@@ -219,7 +219,7 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         design.L0,
         design.L1,
         design.L2,
-        q2,
+        _kernels.read_only(q2),  # one compiled signature, frozen q or not
         _branch(assembly_mode, n),
         ASSEMBLY_TOL,
         p,
@@ -346,7 +346,7 @@ def _inverse_legs(design: Design, p: np.ndarray, theta1_on_axis: float) -> tuple
         design.L0,
         design.L1,
         design.L2,
-        p2,
+        _kernels.read_only(p2),  # one compiled signature, frozen p or not
         REACH_TOL,
         SIGN_TOL,
         AXIS_TOL,
@@ -441,9 +441,9 @@ def conditioning(
     _kernels.conditioning_kernel(
         design.L1,
         design.L2,
-        np.ascontiguousarray(q.reshape(-1, 3)),
-        np.ascontiguousarray(np.asarray(passive, dtype=float).reshape(-1, 2)),
-        np.ascontiguousarray(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
+        _kernels.read_only(q.reshape(-1, 3)),
+        _kernels.read_only(np.asarray(passive, dtype=float).reshape(-1, 2)),
+        _kernels.read_only(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
         out,
     )
     cols = out.T.reshape((6, *shape))
