@@ -11,8 +11,10 @@ The fair baseline (``--fair``, and printed first, 10 queries per scene, by every
 ``RealVectorStateSpace`` at its own range, OMPL's ``DiscreteMotionValidator`` calling the
 product's fastest single-posture check ``is_valid_one`` per state, ``simplifyMax``) at OMPL's
 default resolution (1 % of the space's extent) and at ``--naive-resolution`` (0.01 rad), the
-product, and the product with OMPL's RRTConnect as its search ("product OMPL", the product
-before its compiled search), interleaved query by query (the order rotating), on
+product, the product with OMPL's RRTConnect as its search ("product OMPL", the product
+before its compiled search) and the product without the paths it remembers per scene
+("product no mem", :mod:`planner.planning.experience`: every query searches, as the first
+hard query of a scene does), interleaved query by query (the order rotating), on
 :data:`FAIR_SCENES`; every path found is re-checked every :data:`DENSE_STEP` rad and counted
 invalid when a sample breaks a rule. The yardstick of ``docs/planning.md`` ("What runs where,
 and the fair baseline"); the ``naive`` rows further down use the same per-state check.
@@ -75,7 +77,14 @@ from _machine import print_machine
 from planner import Design, caching
 from planner.geometry import Box, Sphere
 from planner.kinematics import WORKING_MODES
-from planner.planning import JointPosture, PlanOptions, compiled_rrt, ompl_backend, plan
+from planner.planning import (
+    JointPosture,
+    PlanOptions,
+    compiled_rrt,
+    experience,
+    ompl_backend,
+    plan,
+)
 from planner.transits import sample_transits
 from planner.validity import Margins, ValidityChecker, densify
 
@@ -287,17 +296,18 @@ def run_product(
     *,
     cold: bool = False,
 ) -> dict:
-    """The product set-up on ``queries``; the corridor grids are forgotten before the scene
-    (warm: later queries of a mode reuse the grid an earlier one built) or, with ``cold``,
-    before every query (each pays its build)."""
+    """The product set-up on ``queries``; the corridor grids and the remembered paths
+    (:mod:`planner.planning.experience`) are forgotten before the scene (warm: later
+    queries of a mode reuse the grid an earlier one built, and walk the paths of earlier
+    hard searches) or, with ``cold``, before every query (each pays its build)."""
     scene_design, obstacles, _ = build_scene(kind)
     design = scene_design if design is None else design
     times, lengths, solved, direct, transits, proven = [], [], 0, 0, [], 0
     guided = 0
-    caching.clear("corridor")
+    caching.clear("corridor", "experience")
     for start, goal in queries:
         if cold:
-            caching.clear("corridor")
+            caching.clear("corridor", "experience")
         t0 = time.perf_counter()
         res = plan(design, start, goal, obstacles=obstacles, margins=Margins(), options=options)
         times.append(time.perf_counter() - t0)
@@ -514,6 +524,15 @@ def _dense_ok(chk: ValidityChecker, waypoints: np.ndarray) -> bool:
 
 
 _search = compiled_rrt.search
+_memory = (experience.recall, experience.remember)
+
+
+def _no_recall(*_args):
+    return None
+
+
+def _no_remember(*_args, **_kwargs):
+    return None
 
 
 def _ompl_search(checker, q_start, q_goal, options, budget):
@@ -530,7 +549,13 @@ def fair_rows(args) -> None:
     resolution and at ``--naive-resolution``, and the product, interleaved query by query
     (the order of the three rotates with the query), p50 / p95, solved, invalid paths."""
     budget = args.budget
-    setups = ("naive default", f"naive {args.naive_resolution:g}", "product OMPL", "product")
+    setups = (
+        "naive default",
+        f"naive {args.naive_resolution:g}",
+        "product OMPL",
+        "product",
+        "product no mem",
+    )
     print(
         f"\nfair baseline: naive = OMPL RRTConnect, RealVectorStateSpace, is_valid_one per "
         f"state, OMPL's DiscreteMotionValidator, simplifyMax; budget {budget:g} s; every path "
@@ -538,25 +563,31 @@ def fair_rows(args) -> None:
     )
     head = (
         f"{'scene':<11} {'set-up':<14} {'n':>3} {'solved':>6} {'invalid':>7} {'p50 ms':>8} "
-        f"{'p95 ms':>8} {'max ms':>8} {'len rad':>7} {'x p50':>7} {'x p95':>7}"
+        f"{'p95 ms':>8} {'max ms':>8} {'cpu p50':>7} {'len rad':>7} {'x p50':>7} {'x p95':>7} "
+        f"{'x cpu':>6}"
     )
     print(head)
     print("-" * len(head))
     for kind in args.scenes.split(","):
         design, obstacles, queries = fair_scene(kind, args.fair_queries)
-        rec = {k: dict(times=[], solved=0, invalid=0, lengths=[]) for k in setups}
-        caching.clear("corridor")
+        rec = {k: dict(times=[], cpu=[], solved=0, invalid=0, lengths=[]) for k in setups}
+        caching.clear("corridor", "experience")
         for i, (start, goal) in enumerate(queries):
             chk = ValidityChecker(
                 design, Margins(), obstacles, start.assembly_mode, _mode_of(design, start)
             )
             for k in range(len(setups)):
                 name = setups[(i + k) % len(setups)]
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 if name.startswith("product"):
                     # "product OMPL": the same pipeline with OMPL's RRTConnect as its search
                     # (the product before the compiled search of issue 43)
                     compiled_rrt.search = _ompl_search if name == "product OMPL" else _search
+                    # "product no mem": the product without remembered paths (each query
+                    # searches, as a scene's first hard query does)
+                    experience.recall, experience.remember = (
+                        (_no_recall, _no_remember) if name == "product no mem" else _memory
+                    )
                     res = plan(
                         design,
                         start,
@@ -578,31 +609,39 @@ def fair_rows(args) -> None:
                     )
                     path = out.waypoints
                 rec[name]["times"].append(time.perf_counter() - t0)
+                rec[name]["cpu"].append(time.process_time() - c0)
                 compiled_rrt.search = _search
+                experience.recall, experience.remember = _memory
                 if path is not None:
                     rec[name]["solved"] += 1
                     rec[name]["invalid"] += not _dense_ok(chk, path)
                     steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
                     rec[name]["lengths"].append(float(np.sum(steps)))
         prod = np.asarray(rec["product"]["times"]) * 1e3
+        prod_cpu = np.median(rec["product"]["cpu"]) * 1e3
         for name in setups:
             r = rec[name]
             t = np.asarray(r["times"]) * 1e3
+            cpu = np.median(r["cpu"]) * 1e3
             ratio = ""
             if name in setups[:2]:
                 ratio = (
                     f"{np.percentile(t, 50) / np.percentile(prod, 50):>6.1f}x "
-                    f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x"
+                    f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x "
+                    f"{cpu / prod_cpu:>5.1f}x"
                 )
             length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
             print(
                 f"{kind:<11} {name:<14} {len(t):>3} {r['solved']:>6} {r['invalid']:>7} "
                 f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f} "
-                f"{length:>7.2f} {ratio}"
+                f"{cpu:>7.2f} {length:>7.2f} {ratio}"
             )
     print(
-        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries); "
-        "product OMPL: the product with OMPL's RRTConnect as its search (before the compiled search)"
+        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries; x cpu: "
+        "of the CPU-time medians, the process's own time, less moved by the machine's load); "
+        "product OMPL: the product with OMPL's RRTConnect as its search (before the compiled "
+        "search); product no mem: without the paths remembered per scene (planner.planning."
+        "experience: each query searches)"
     )
 
 

@@ -281,7 +281,10 @@ class PostgresServer:
         if os.geteuid() == 0:
             self.as_user = ["runuser", "-u", "postgres", "--"]
             shutil.chown(self.root, "postgres")
-        self._pg("initdb", "-D", str(self.data), "-U", "planner", "--auth=trust", "-E", "UTF8")
+        # --no-sync: a throwaway cluster need not wait for its files to reach the disk (4 s
+        # of initdb's 5 here; the server runs with fsync=off for the same reason)
+        command = ["-D", str(self.data), "-U", "planner", "--auth=trust", "-E", "UTF8"]
+        self._pg("initdb", *command, "--no-sync")
 
     def _pg(self, tool: str, *args: str, check: bool = True) -> None:
         subprocess.run(

@@ -425,9 +425,13 @@ class WarmTemplate:
             child.exited(None)
 
     def stop(self, timeout_s: float = 5.0) -> None:
-        """Stop the template (its workers are the pool's to stop)."""
+        """Stop the template (its workers are the pool's to stop). One still warming up
+        reads no message until its warm-up ends and has nothing to lose: killed at once (a
+        service stopped while it starts stops at once, not after ``timeout_s``)."""
         sock, process = self._sock, self._process
-        if sock is not None:
+        if process is not None and self.state == "warming":
+            process.kill()
+        elif sock is not None:
             try:
                 sock.sendmsg([pickle.dumps(("stop",))])
             except OSError:

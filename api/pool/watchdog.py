@@ -44,9 +44,12 @@ class WatchdogMixin:
         deadline plus the overrun grace, or now once the job is cancelled), so that no job
         outlives its deadline by more than the grace whatever it computes (a native loop, a
         search without deadline checks). The event loop then sees the exit and the
-        supervisor starts a replacement (warmed before it takes jobs)."""
+        supervisor starts a replacement (warmed before it takes jobs). The pool's close
+        gets one last look: a job cancelled just before a shutdown (a stopping service's
+        long jobs, cancelled by its job store) has its worker killed then, where the shutdown
+        would otherwise wait its whole grace for a job nobody waits for."""
         with self._wake:
-            while not self._closed:
+            while True:
                 now = time.monotonic()
                 wake_at = now + WATCHDOG_IDLE_S
                 for w in self._workers:
@@ -57,6 +60,8 @@ class WatchdogMixin:
                         self._look_locked(w, job, now)
                     if job.kill_at is not None and w.state is WorkerState.BUSY:
                         wake_at = min(wake_at, job.kill_at)
+                if self._closed:
+                    return
                 self._watch_at = wake_at
                 self._wake.wait(max(wake_at - time.monotonic(), 0.001))
 

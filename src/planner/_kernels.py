@@ -16,6 +16,22 @@ import numpy as np
 from numba import njit
 
 
+def read_only(a: object, dtype: type = float) -> np.ndarray:
+    """``a`` as a kernel takes an input array: C-contiguous, of ``dtype``, read-only (a view:
+    no copy when ``a`` already is a C-contiguous array of that type).
+
+    numba compiles one machine code per combination of argument types, and an array's
+    writability is part of its type: a kernel fed a writable array by one caller and a
+    read-only one (a frozen or cached array, a ``broadcast_to`` view) by another compiles
+    twice (2-10 s each, and ``planner warm-up`` covers only the combination it passed).
+    Passing every input array through this makes one signature serve every caller; outputs
+    stay fresh writable arrays. (The validity kernels, which compiled planners call with
+    writable postures, take writable postures instead: ``ValidityChecker`` copies them.)"""
+    view: np.ndarray = np.ascontiguousarray(a, dtype=dtype).view()
+    view.flags.writeable = False
+    return view
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def close_loop(L0, L1, L2, theta2, theta3, branch, assembly_tol):  # pragma: no cover - compiled
     """The five-bar loop closure of one posture, in the loop's plane (u along AB, w along
@@ -189,3 +205,49 @@ def conditioning_kernel(L1, L2, q, passive, w, out):  # pragma: no cover - compi
         out[i, 4] = sb
         folded = delta % math.pi
         out[i, 5] = min(folded, math.pi - folded)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def forward_velocity_kernel(
+    L0, L1, L2, q, qd, branch, assembly_tol, p, v, ok
+):  # pragma: no cover - compiled
+    """P (N, 3) and its velocity dP/dt (N, 3) for postures q (N, 3) moving at qd (N, 3), by
+    differentiating :func:`close_loop`: with C' = L1 e'(theta2) theta2', D' likewise,
+    e = D - C, d2 = |e|^2 and s = branch sqrt(L2^2 / d2 - 1/4) (so 2 s s' = -L2^2 d2' / d2^2,
+    d2' = 2 e.e'), P_plane' = (C' + D') / 2 + s' R e + s R e' (R the quarter turn
+    (u, w) -> (-w, u)); in 3-D, P = (w cos theta1, u, -w sin theta1). ``ok`` is False where
+    the loop does not close (P and v NaN) or CD is stretched (s = 0: v NaN, the velocity is
+    unbounded there)."""
+    for i in range(q.shape[0]):
+        t1, t2, t3 = q[i, 0], q[i, 1], q[i, 2]
+        closes, cu, cw, du, dw, pu, pw, d2 = close_loop(L0, L1, L2, t2, t3, branch[i], assembly_tol)
+        if not closes:
+            ok[i] = False
+            for j in range(3):
+                p[i, j] = np.nan
+                v[i, j] = np.nan
+            continue
+        c1, s1 = math.cos(t1), math.sin(t1)
+        p[i, 0] = pw * c1
+        p[i, 1] = pu
+        p[i, 2] = -pw * s1
+        eu, ew = du - cu, dw - cw
+        h2 = L2 * L2 - 0.25 * d2
+        s = branch[i] * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
+        if s == 0.0:  # CD stretched: P is there, its velocity unbounded
+            ok[i] = False
+            v[i, 0] = v[i, 1] = v[i, 2] = np.nan
+            continue
+        cu_d = -L1 * math.sin(t2) * qd[i, 1]
+        cw_d = L1 * math.cos(t2) * qd[i, 1]
+        du_d = -L1 * math.sin(t3) * qd[i, 2]
+        dw_d = L1 * math.cos(t3) * qd[i, 2]
+        eu_d, ew_d = du_d - cu_d, dw_d - cw_d
+        d2_d = 2.0 * (eu * eu_d + ew * ew_d)
+        s_d = -L2 * L2 * d2_d / (2.0 * s * d2 * d2)
+        pu_d = 0.5 * (cu_d + du_d) - s_d * ew - s * ew_d
+        pw_d = 0.5 * (cw_d + dw_d) + s_d * eu + s * eu_d
+        v[i, 0] = pw_d * c1 - pw * s1 * qd[i, 0]
+        v[i, 1] = pu_d
+        v[i, 2] = -pw_d * s1 - pw * c1 * qd[i, 0]
+        ok[i] = True

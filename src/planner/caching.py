@@ -87,6 +87,7 @@ _TABLE = {
     "geometry.by_identity": (0.18, 8, "packed obstacle lists of 16+ objects or a cloud, by identity"),
     "corridor.grids": (0.06, 32, "corridor grids of (design, margins, obstacles, modes, shape)"),
     "corridor.too_costly": (0.0001, 32, "projected times (s) of corridor builds stopped"),
+    "experience.paths": (0.005, 64, "remembered certified paths of (design, margins, modes, obstacles)"),
     "regions.maps": (0.25, 16, "region maps of (design, margins, n, refine)"),
     "region_walks.transits": (0.01, 512, "transit postures of a region map and flip"),
     "plotting.sections": (0.04, 16, "workspace sections of (kind, design, n)"),

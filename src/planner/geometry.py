@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from planner._kernels import read_only
 from planner.caching import BoundedCache, bounded_cache
 from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
@@ -685,8 +686,10 @@ def segment_min_distance(
 
 @njit(cache=True)
 def _segments_distance(
-    a, b, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, out
+    a, b, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, q, out
 ):  # pragma: no cover - compiled
+    """``out[i]``: :func:`segment_min_distance` of segment ``a[i]``-``b[i]`` with ``q`` =
+    (best, threshold, relax) (the exact distance: ``(inf, 0, 0)``)."""
     for i in range(a.shape[0]):
         out[i] = segment_min_distance(
             a[i, 0],
@@ -702,9 +705,9 @@ def _segments_distance(
             capsule_nodes,
             box_nodes,
             sphere_grid,
-            np.inf,
-            0.0,
-            0.0,
+            q[0],
+            q[1],
+            q[2],
         )
 
 
@@ -731,5 +734,6 @@ def segment_obstacle_distance(
         raise InputError(f"a and b must both have shape (N, 3), got {a.shape} and {b.shape}")
     packed = obstacles if isinstance(obstacles, PackedObstacles) else pack_obstacles(obstacles)
     out = np.empty(a.shape[0])
-    _segments_distance(a, b, *packed, out)
+    exact = read_only([np.inf, 0.0, 0.0])  # packed: read-only too
+    _segments_distance(read_only(a), read_only(b), *packed, exact, out)
     return out

@@ -51,7 +51,9 @@ __all__ = [
     "PostureBatch",
     "conditioning",
     "forward_batch",
+    "forward_velocity",
     "inverse_batch",
+    "inverse_in_mode",
     "link_points",
     "mode_label",
     "mode_signs",
@@ -217,7 +219,7 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         design.L0,
         design.L1,
         design.L2,
-        q2,
+        _kernels.read_only(q2),  # one compiled signature, frozen q or not
         _branch(assembly_mode, n),
         ASSEMBLY_TOL,
         p,
@@ -228,6 +230,26 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
     )
     np.arctan2(passive, dx, out=passive)
     return PostureBatch(design, q2, passive, p, w, ok)
+
+
+def forward_velocity(
+    design: Design, q: np.ndarray, qd: np.ndarray, assembly_mode: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """P (N, 3), m, and its velocity dP/dt = J(q) qd (N, 3), m/s, of postures q (N, 3), rad,
+    moving at qd (N, 3), rad/s, in one compiled pass (the loop closure differentiated, see
+    :func:`planner._kernels.forward_velocity_kernel`); ``ok`` (N,) is False where the loop
+    does not close (P and v NaN) or CD is stretched (v NaN: the velocity is unbounded
+    there). P is :func:`forward_batch`'s exactly."""
+    q2 = np.ascontiguousarray(np.atleast_2d(_finite_array("q", q, 3)))
+    qd2 = np.ascontiguousarray(np.atleast_2d(_finite_array("qd", qd, 3)))
+    if qd2.shape != q2.shape:
+        raise InputError(f"qd must have the shape of q {q2.shape}, got {qd2.shape}")
+    n = q2.shape[0]
+    p, v, ok = np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=np.bool_)
+    _kernels.forward_velocity_kernel(
+        design.L0, design.L1, design.L2, q2, qd2, _branch(assembly_mode, n), ASSEMBLY_TOL, p, v, ok
+    )
+    return p, v, ok
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,31 +277,11 @@ def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0)
         duplicate: on a serial singularity two modes meet, and only the slot with '+' in the
         vanishing sign is kept (its mode then has a '0' there). Joint limits are not applied.
     """
-    p2 = np.ascontiguousarray(np.atleast_2d(_finite_array("p", p, 3)))
+    p2, ys, xs, leg_ok, degenerate, on_axis, t1 = _inverse_legs(design, p, theta1_on_axis)
     n = p2.shape[0]
-    ys = np.empty((n, 2, 2, 2, 2))
-    xs = np.empty((n, 2, 2, 2, 2))
-    leg_ok = np.empty((n, 2, 2, 2), dtype=np.bool_)
-    degenerate = np.empty(n, dtype=np.bool_)
-    _kernels.inverse_kernel(
-        design.L0,
-        design.L1,
-        design.L2,
-        p2,
-        REACH_TOL,
-        SIGN_TOL,
-        AXIS_TOL,
-        ys,
-        xs,
-        leg_ok,
-        degenerate,
-    )
     angles = np.arctan2(ys, xs, out=ys)
     ax, sa, sb = _SLOT_INDEX
     q = np.empty((n, 8, 3))
-    on_axis = np.hypot(p2[:, 0], p2[:, 2]) <= AXIS_TOL * design.reach
-    t1 = np.stack([np.arctan2(-p2[:, 2], p2[:, 0]), np.arctan2(p2[:, 2], -p2[:, 0])], axis=1)
-    t1[on_axis] = float(theta1_on_axis)
     q[..., 0] = t1[:, ax]
     q[..., 1] = angles[:, ax, 0, sa, 0]
     q[..., 2] = angles[:, ax, 1, sb, 0]
@@ -293,6 +295,70 @@ def inverse_batch(design: Design, p: np.ndarray, *, theta1_on_axis: float = 0.0)
     w = np.where(nan, np.nan, w)
     p_rep = np.broadcast_to(p2[:, None, :], (n, 8, 3))
     return InverseBatch(design, q, passive, p_rep, w, ok, degenerate)
+
+
+def inverse_in_mode(
+    design: Design, p: np.ndarray, slot: int, *, theta1_on_axis: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse kinematics of N points P in one working mode (``WORKING_MODES[slot]``): the
+    values of slot ``slot`` of :func:`inverse_batch`, without the other seven (a walk along
+    one branch needs one; the angles of the others are most of inverse_batch's time).
+
+    Returns
+    -------
+    q : (N, 3), rad, wrapped; passive : (N, 2), rad; w : (N,), m (NaN where not ok);
+    ok : (N,) bool, as ``InverseBatch.ok[:, slot]``; degenerate : (N,) bool;
+    assembly_signs : (N,) int8, as ``InverseBatch.assembly_mode_signs[:, slot]``.
+    """
+    p2, ys, xs, leg_ok, degenerate, on_axis, t1 = _inverse_legs(design, p, theta1_on_axis)
+    n = p2.shape[0]
+    ax, sa, sb = (int(index[slot]) for index in _SLOT_INDEX)
+    leg_a = np.arctan2(ys[:, ax, 0, sa], xs[:, ax, 0, sa])  # (N, 2): theta2, theta4
+    leg_b = np.arctan2(ys[:, ax, 1, sb], xs[:, ax, 1, sb])  # (N, 2): theta3, theta5
+    q = np.empty((n, 3))
+    q[:, 0] = t1[:, ax]
+    q[:, 1] = leg_a[:, 0]
+    q[:, 2] = leg_b[:, 0]
+    q = wrap_angle(q)
+    passive = np.stack([leg_a[:, 1], leg_b[:, 1]], axis=-1)
+    ok = leg_ok[:, ax, 0, sa] & leg_ok[:, ax, 1, sb]
+    w = (1.0 if ax == 0 else -1.0) * np.where(on_axis, 0.0, np.hypot(p2[:, 0], p2[:, 2]))
+    nan = ~ok
+    q[nan] = np.nan
+    passive[nan] = np.nan
+    w = np.where(nan, np.nan, w)
+    signs = _sign(np.sin(passive[:, 1] - passive[:, 0]))
+    return q, passive, w, ok, degenerate, signs
+
+
+def _inverse_legs(design: Design, p: np.ndarray, theta1_on_axis: float) -> tuple[np.ndarray, ...]:
+    """The kernel step of :func:`inverse_batch` and :func:`inverse_in_mode`: the points as
+    (N, 3), each leg's (y, x) of its joint angles per axis choice and elbow sign (N, 2, 2, 2,
+    2), which legs reach (N, 2, 2, 2), the degenerate points, the points on the axis and
+    theta1 per axis choice (N, 2)."""
+    p2 = np.ascontiguousarray(np.atleast_2d(_finite_array("p", p, 3)))
+    n = p2.shape[0]
+    ys = np.empty((n, 2, 2, 2, 2))
+    xs = np.empty((n, 2, 2, 2, 2))
+    leg_ok = np.empty((n, 2, 2, 2), dtype=np.bool_)
+    degenerate = np.empty(n, dtype=np.bool_)
+    _kernels.inverse_kernel(
+        design.L0,
+        design.L1,
+        design.L2,
+        _kernels.read_only(p2),  # one compiled signature, frozen p or not
+        REACH_TOL,
+        SIGN_TOL,
+        AXIS_TOL,
+        ys,
+        xs,
+        leg_ok,
+        degenerate,
+    )
+    on_axis = np.hypot(p2[:, 0], p2[:, 2]) <= AXIS_TOL * design.reach
+    t1 = np.stack([np.arctan2(-p2[:, 2], p2[:, 0]), np.arctan2(p2[:, 2], -p2[:, 0])], axis=1)
+    t1[on_axis] = float(theta1_on_axis)
+    return p2, ys, xs, leg_ok, degenerate, on_axis, t1
 
 
 def link_points(design: Design, q: np.ndarray, passive: np.ndarray) -> np.ndarray:
@@ -375,9 +441,9 @@ def conditioning(
     _kernels.conditioning_kernel(
         design.L1,
         design.L2,
-        np.ascontiguousarray(q.reshape(-1, 3)),
-        np.ascontiguousarray(np.asarray(passive, dtype=float).reshape(-1, 2)),
-        np.ascontiguousarray(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
+        _kernels.read_only(q.reshape(-1, 3)),
+        _kernels.read_only(np.asarray(passive, dtype=float).reshape(-1, 2)),
+        _kernels.read_only(np.broadcast_to(np.asarray(w, dtype=float), shape).reshape(-1)),
         out,
     )
     cols = out.T.reshape((6, *shape))

@@ -9,8 +9,9 @@ on a 2-core machine that is 3-5 s against 15 ms warm, which spends a request's t
 
 :func:`warm_up` runs :data:`STEPS` in order, each a tiny real job through the library's own
 entry points (the paths the service's jobs take: :func:`planner.planning.plan`,
-:func:`planner.motion.time_planned` (the pipeline's timing step) with TOPPRA and with Ruckig, the workspace analysis,
-:func:`planner.plotting.render_figure`), so that afterwards the first job of each kind costs
+:func:`planner.motion.time_planned` (the pipeline's timing step) with TOPPRA and with Ruckig, the workspace analysis
+and the design check, :func:`planner.plotting.render_figure`; a plan among a point cloud, whose
+tree only large scenes build), so that afterwards the first job of each kind costs
 what the second one does. The service's workers call it when they start (``/v1/ready`` waits
 for them); ``make run`` / ``make test`` and the Docker build call ``planner warm-up`` so that
 the kernels are in numba's cache before any worker starts (the first compile, about 30 s on
@@ -68,8 +69,9 @@ def _dynamics(state: _State) -> None:
 
 
 def _validity(state: _State) -> None:
-    """The validity rules and the clearance kernels of every obstacle type."""
-    from planner.geometry import Box, Capsule, Obstacle, Sphere
+    """The validity rules and the clearance kernels of every obstacle type (and the
+    library's segment distance query, :func:`planner.geometry.segment_obstacle_distance`)."""
+    from planner.geometry import Box, Capsule, Obstacle, Sphere, segment_obstacle_distance
     from planner.validity import Margins, ValidityChecker
     from planner.validity import warm_up as warm_validity
 
@@ -84,6 +86,7 @@ def _validity(state: _State) -> None:
     checker.check_states(q)
     checker.check_motion(q[0], q[1])
     checker.check_path(q)
+    segment_obstacle_distance(q[:, :3], q[::-1, :3], obstacles)
 
 
 #: The posture the warm-up plans start from (default design, assembly mode '+', working mode
@@ -123,6 +126,31 @@ def _plan_ompl(state: _State) -> None:
     ompl_backend.search(chk, start, goal, PlanOptions(seed=1), 0.05)
 
 
+#: A point cloud of :data:`_CLOUD_SIDE` ^ 2 points 2 cm apart (above
+#: :data:`planner.spatial_index.TREE_FROM`: packed with a tree and a grid), on the plane
+#: z = -0.8 m below the arm, each a ball of 1.5 cm (a depth camera's floor).
+_CLOUD_SIDE = 33
+
+
+def _plan_cloud(state: _State) -> None:
+    """A plan among a point cloud (and a sphere): its tree built (its kernel compiled), its
+    tree and grid walked by the validity kernels."""
+    from planner.geometry import Points, Sphere
+    from planner.planning import JointPosture, PlanOptions, plan
+
+    g = 0.02 * (np.arange(_CLOUD_SIDE) - _CLOUD_SIDE // 2)
+    x, y = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    cloud = Points(np.column_stack([x, y, np.full(x.size, -0.8)]), 0.015)
+    centre, radius = _SPHERE
+    plan(
+        state.design,
+        JointPosture(np.array(_START), "+"),
+        JointPosture(np.array(_GOAL), "+"),
+        obstacles=[Sphere(np.array(centre), radius), cloud],
+        options=PlanOptions(seed=1, time_budget_s=2.0),
+    )
+
+
 def _plan_mode_change(state: _State) -> None:
     """The mode-change search: a Cartesian goal in another working mode, through a transit."""
     from planner.planning import CartesianTarget, JointPosture, PlanOptions, plan
@@ -151,8 +179,13 @@ def _region_map(state: _State) -> None:
 def _obstacle_proof(state: _State) -> None:
     """The proof with obstacles (:mod:`planner.analysis.obstacle_regions`) on a plate the arm
     cannot pass, both grid levels: its kernels compiled and the default design's coarser
-    maps cached, so that the first stuck search among obstacles pays only the proof."""
-    from planner.analysis.obstacle_regions import LEVELS, prove_disconnected_with_obstacles
+    maps cached, so that the first stuck search among obstacles pays only the proof; and
+    :func:`~planner.analysis.obstacle_regions.cell_states` of that grid (its own kernel)."""
+    from planner.analysis.obstacle_regions import (
+        LEVELS,
+        cell_states,
+        prove_disconnected_with_obstacles,
+    )
     from planner.geometry import Box, Capsule, Obstacle, Sphere
     from planner.validity import Margins
 
@@ -161,12 +194,15 @@ def _obstacle_proof(state: _State) -> None:
         Sphere(np.array([0.0, 0.0, 2.0]), 0.1),
         Capsule(np.array([0.0, 2.0, 2.0]), np.array([0.0, 2.2, 2.0]), 0.05),
     ]
+    start = np.array([1.0, 2.0, 1.0])
+    # every cell's state at the coarser level (figures and tests read the proof's grid so)
+    cell_states(state.design, Margins(), scene, start, "+", *LEVELS[0])
     for level in LEVELS:
         prove_disconnected_with_obstacles(
             state.design,
             Margins(),
             scene,
-            np.array([1.0, 2.0, 1.0]),
+            start,
             np.array([-1.0, 2.0, 1.0]),
             "+",
             levels=(level,),
@@ -252,13 +288,13 @@ def _stop(state: _State) -> None:
 
 
 def _analysis(state: _State) -> None:
-    """The workspace analysis (sampled volumes, sections, loci) and scipy's optimiser."""
+    """The workspace analysis (the design check: closed-form and sampled volumes, the
+    conditioning; sections, loci) and scipy's optimiser."""
+    from planner.analysis.design_check import check_design
     from planner.analysis.optimize import optimize_design
     from planner.analysis.sections import cartesian_section, joint_section
-    from planner.analysis.workspace import closed_form_volume, sample_workspace
 
-    closed_form_volume(state.design)
-    sample_workspace(state.design, rel_se=0.1, kappa_max=10.0, seed=0)
+    check_design(state.design, rel_se=0.1, kappa_max=10.0, seed=0)
     cartesian_section(state.design, 16)
     joint_section(state.design, 16)
     optimize_design("volume", reach=0.8)
@@ -292,6 +328,7 @@ STEPS: tuple[Step, ...] = (
     Step("corridor: a grid and a path on it", _corridor),
     Step("OMPL: a plan around an obstacle", _plan_ompl),
     Step("OMPL: a working-mode change", _plan_mode_change),
+    Step("OMPL: a plan among a point cloud", _plan_cloud),
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),
     Step("ruckig: timing the plans", lambda state: _time_plans(state, "ruckig")),
     Step("a stop mid-motion: along the path and by a brake", _stop),

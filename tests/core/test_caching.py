@@ -19,6 +19,7 @@ from planner.caching import CACHES, BoundedCache, cached, nbytes_of
 MAKERS = (
     "planner.geometry",
     "planner.planning.corridor",
+    "planner.planning.experience",
     "planner.analysis.regions",
     "planner.planning.region_walks",
     "planner.plotting",

@@ -491,6 +491,78 @@ def test_mode_signs_inverts_mode_label():
     np.testing.assert_array_equal(mode_signs("+-0"), [1, -1, 0])
 
 
+@pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
+def test_inverse_in_mode_is_one_slot_of_inverse_batch(design):
+    """inverse_in_mode(p, slot) gives slot ``slot`` of inverse_batch exactly (q, passive,
+    w, ok, degenerate, assembly signs), also on the axis and at a pivot; and where ok, its
+    posture's forward kinematics is P again, in that working mode."""
+    from planner.kinematics import inverse_in_mode, mode_signs
+
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-1.0, 1.0, (3000, 3))
+    p[:20, 0] = p[:20, 2] = 0.0  # on the axis AB
+    p[20:30] = [0.0, -design.L0 / 2, 0.0]  # at A
+    ib = inverse_batch(design, p)
+    for slot, mode in enumerate(WORKING_MODES):
+        q, passive, w, ok, degenerate, signs = inverse_in_mode(design, p, slot)
+        np.testing.assert_array_equal(q, ib.q[:, slot])
+        np.testing.assert_array_equal(passive, ib.passive[:, slot])
+        np.testing.assert_array_equal(w, ib.w[:, slot])
+        np.testing.assert_array_equal(ok, ib.ok[:, slot])
+        np.testing.assert_array_equal(degenerate, ib.degenerate)
+        np.testing.assert_array_equal(signs, ib.assembly_mode_signs[:, slot])
+        good = ok & ~degenerate
+        assert good.sum() > 100
+        for asm in ("+", "-"):
+            sel = good & (signs == (1 if asm == "+" else -1))
+            fb = forward_batch(design, q[sel], asm)
+            np.testing.assert_allclose(fb.p, p[sel], atol=1e-9)
+            sg = fb.working_mode_signs
+            off_singular = np.all(sg != 0, axis=1)
+            assert np.all(sg[off_singular] == mode_signs(mode))
+
+
+@pytest.mark.parametrize("design", DESIGNS[:4], ids=lambda d: f"L0={d.L0},L1={d.L1},L2={d.L2}")
+def test_forward_velocity_matches_the_jacobians_and_finite_differences(design):
+    """forward_velocity (the loop closure differentiated, batched) against two routes: the
+    Jacobians' A v = B qd of Manipulator.cartesian_velocity, and central differences of
+    forward_batch; P itself is forward_batch's bitwise."""
+    from planner.kinematics import forward_velocity
+
+    rng = np.random.default_rng(4)
+    m = Manipulator(design)
+    q_all, qd_all, asm_all, ref = [], [], [], []
+    for q in random_q(rng, 200):
+        for post in m.forward(q):
+            c = m.conditioning(post)
+            if c.kappa_A > 1e3:
+                continue
+            qd = rng.normal(size=3)
+            q_all.append(post.q)
+            qd_all.append(qd)
+            asm_all.append(1 if post.assembly_mode == "+" else -1)
+            ref.append(m.cartesian_velocity(post, qd))
+    q, qd, asm = np.array(q_all), np.array(qd_all), np.array(asm_all)
+    assert len(q) > 50
+    p, v, ok = forward_velocity(design, q, qd, asm)
+    assert ok.all()
+    np.testing.assert_array_equal(p, forward_batch(design, q, asm).p)
+    scale = np.linalg.norm(np.array(ref), axis=1, keepdims=True) + design.reach
+    np.testing.assert_allclose(v / scale, np.array(ref) / scale, atol=1e-9)
+    h = 1e-6
+    fd = (forward_batch(design, q + h * qd, asm).p - forward_batch(design, q - h * qd, asm).p) / (
+        2 * h
+    )
+    np.testing.assert_allclose(v / scale, fd / scale, atol=1e-6)
+    # at rest the velocity is zero; postures that do not close are refused as forward_batch
+    # refuses them
+    _, v0, _ = forward_velocity(design, q[:3], np.zeros((3, 3)), asm[:3])
+    assert np.all(v0 == 0.0)
+    qr = np.array(list(random_q(rng, 500)))
+    closes = forward_batch(design, qr, "+").ok
+    np.testing.assert_array_equal(forward_velocity(design, qr, np.ones_like(qr), "+")[2], closes)
+
+
 def test_single_postures_are_the_vectorised_forms_bit_for_bit() -> None:
     """``Manipulator.forward`` / ``inverse`` build their few postures in plain floats
     (kinematics._postures): every point, mode and the assembly mode equal, to the bit, what

@@ -64,6 +64,21 @@ braked = stop_trajectory(RunningTrajectory.of(ts, qs, qds, qdds), 0.4 * tr.durat
                          design=design, assembly_mode="+", limits=JointLimits((1.5,) * 3, (6.0,) * 3, (150.0,) * 3),
                          path_rules=rules, brake_rules=rules)
 durations = [s.trajectory.duration for s in solved]
+# a plan among a point cloud (packed with its tree) and a sphere; a torque-limited plan (the
+# inverse dynamics in the timing); a design check of another design (the conditioning)
+from planner.analysis.design_check import check_design
+from planner.geometry import Points
+g = 0.03 * (np.arange(36) - 18.0)
+gx, gy = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+cloud = Points(np.column_stack([gx, gy, np.full(gx.size, -0.7)]), 0.02)
+clouded = solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([1.2, 2.3, 1.3], "+"),
+                obstacles=[obstacles[0], cloud], options=PlanOptions(seed=1))
+torqued = solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([0.8, 2.3, 1.2], "+"),
+                options=PlanOptions(seed=1),
+                limits=JointLimits((3.0,) * 3, (30.0,) * 3, torque=(9.0, 2.0, 2.0)))
+checked = check_design(Design(0.0, 0.4, 0.4), rel_se=0.05)
+more = [clouded.plan.status, torqued.plan.status, torqued.trajectory.duration > 0,
+        checked.singularity_free]
 png = render_figure("joint_section", Design.paper_optimum(), n=24, fmt="png")
 print(json.dumps({
     "calls": calls, "steps": [s.name for s in STEPS], "backend": backend,
@@ -72,7 +87,7 @@ print(json.dumps({
     "signatures": [signatures_before, compiled()],
     "new_modules": sorted(set(sys.modules) - modules_before),
     "status": res.status, "durations": durations, "png": png[:8].hex(),
-    "stop": braked.status,
+    "stop": braked.status, "more": more,
 }))
 """
 
@@ -88,11 +103,13 @@ def test_after_warm_up_a_first_request_imports_and_compiles_nothing():
     """In a new interpreter, after warm_up(): OMPL, toppra, ruckig and matplotlib (Agg) are
     loaded and numba holds compiled kernels; a plan among a sphere, a box and a capsule,
     timed with both methods, and a figure of another design then load no module and add no
-    compiled signature to any numba kernel, nor does a stop mid-motion of the Ruckig answer:
-    nothing is imported or compiled in a request."""
+    compiled signature to any numba kernel, nor does a stop mid-motion of the Ruckig answer,
+    a plan among a point cloud, a torque-limited plan or a design check: nothing is imported
+    or compiled in a request."""
     got = _run_workload()
     assert got["status"] == "solved" and all(d > 0 for d in got["durations"])
     assert got["stop"] == "solved"
+    assert got["more"] == ["solved", "solved", True, False]
     assert got["png"].startswith("89504e47")  # a PNG came out
     assert got["loaded"] == ["ompl", "toppra", "ruckig", "matplotlib", "scipy.optimize"]
     assert got["backend"] == "agg"

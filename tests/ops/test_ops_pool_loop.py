@@ -90,6 +90,32 @@ def test_a_shutdown_delivers_the_jobs_that_finish_in_its_grace(loop, size):
     _run(loop, scenario)
 
 
+@pytest.mark.parametrize("loop", LOOPS)
+def test_a_job_cancelled_just_before_a_shutdown_has_its_worker_killed_not_awaited(loop):
+    """A stopping service's job store cancels its long jobs, then the pool shuts down with
+    a long grace: the cancelled job's worker is killed (the watchdog's last look), not left
+    running for the grace (a race the shutdown used to win: it waited the whole grace)."""
+    from planner_api.exceptions import JobCancelledError
+
+    async def scenario() -> None:
+        pool = WorkerPool(1, 1, warm_up=None)
+        await pool.start()
+        await _ready(pool)
+        future = pool.submit(_answer_after, (120.0, 10))
+        while not future.running():
+            await asyncio.sleep(0.01)
+        t0 = time.monotonic()
+        pool.cancel(future)
+        pool.shutdown(timeout_s=120.0)
+        took = time.monotonic() - t0
+        assert pool.kills == 1 and pool.pids == []
+        with pytest.raises(JobCancelledError):
+            future.result(timeout=0)
+        assert took < 60.0, took  # a hang guard: it did not wait for the 120 s job
+
+    _run(loop, scenario)
+
+
 def test_a_pool_whose_loop_is_gone_replaces_no_worker():
     """The loop ends (without a shutdown) before the first worker is spawned: the pool
     stops, it does not spawn and kill a replacement every few seconds."""

@@ -1,6 +1,6 @@
 """Slow clients against a real service process (uvicorn with :mod:`planner_api.protocol`): a
 thousand connections that never finish their headers are all closed after
-``PLANNER_HEADER_TIMEOUT_S`` while normal requests are served meanwhile, and ten clients that
+``PLANNER_HEADER_TIMEOUT_S`` while normal requests are served meanwhile, and four clients that
 never read a ~4.6 MB answer have their connections aborted after ``PLANNER_SEND_TIMEOUT_S``,
 the server's sockets (and the answers buffered on them) given back.
 
@@ -22,6 +22,9 @@ import pytest
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs /proc")
 
+#: Clients that send a request and never read its ~4.6 MB answer, at once (more than the one
+#: worker: their jobs run in turn while the first answers wait unread).
+NEVER_READ = 4
 PARTIAL = b"POST /v1/plan HTTP/1.1\r\nHost: x\r\nContent-Ty"
 #: A /v1/timing request whose answer is ~4.6 MB (about 11,500 samples at 7.5 kHz).
 BIG_TIMING = {
@@ -96,7 +99,7 @@ def test_clients_that_never_read_are_cut_and_their_answers_dropped(server_factor
         workers="1",
         queue_size="16",
         send_timeout_s=str(send_timeout_s),
-        request_timeout_s="300",  # ten ~4.6 MB answers in turn on a loaded machine
+        request_timeout_s="300",  # the ~4.6 MB answers in turn on a loaded machine
     )
     address = _address(url)
     with httpx.Client(base_url=url, timeout=60) as client:  # the worker's first timing job
@@ -113,15 +116,15 @@ def test_clients_that_never_read_are_cut_and_their_answers_dropped(server_factor
     )
     clients = []
     try:
-        for _ in range(10):
+        for _ in range(NEVER_READ):
             s = socket.socket()
             s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
             s.connect(address)
             s.sendall(request)
             clients.append(s)
         time.sleep(0.5)
-        assert _open_sockets(process.pid) >= before + 10
-        end = time.monotonic() + send_timeout_s + 240  # ten jobs in turn, then the timeout
+        assert _open_sockets(process.pid) >= before + NEVER_READ
+        end = time.monotonic() + send_timeout_s + 240  # the jobs in turn, then the timeout
         while _open_sockets(process.pid) > before:
             assert time.monotonic() < end, "the server still holds the unread answers"
             time.sleep(0.2)

@@ -173,3 +173,22 @@ def test_a_runtime_that_refuses_pidfds_gets_spawned_workers(monkeypatch):
             pool.shutdown(timeout_s=5)
 
     asyncio.run(scenario())
+
+
+def test_a_template_stopped_while_it_warms_up_is_killed_at_once():
+    """A template still in its warm-up (a service stopped while it starts) reads no message
+    until it is warm: it is killed at once, not waited for (a 60 s warm-up, a 30 s stop
+    timeout: the stop returns long before either)."""
+    import multiprocessing
+
+    from planner_api.pool.template import WarmTemplate
+
+    template = WarmTemplate(
+        multiprocessing.get_context("spawn"), None, functools.partial(time.sleep, 60.0), None, 0
+    )
+    template.start()
+    assert template.wait_warm(0.2) is False  # warming
+    t0 = time.monotonic()
+    template.stop(timeout_s=30.0)
+    assert not template._process.is_alive()  # type: ignore[union-attr]
+    assert time.monotonic() - t0 < 20.0  # a hang guard: not the 30 s join

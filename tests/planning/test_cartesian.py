@@ -415,3 +415,50 @@ def test_rounds_running_out_stop_at_the_certified_part(monkeypatch):
     # P stops on the line at the reported fraction
     p_end = own_fk(LONG, res.path.waypoints[-1], "+")[0][0]
     assert np.linalg.norm(p_end - (p0 + res.fraction * (end - p0))) < 1e-6
+
+
+def test_measures_reuse_the_certificate_and_equal_one_pass(monkeypatch):
+    """The answer's measures (min clearance, max kappa(A), min serial margin, joint path
+    length) come from the last certificate's own samples plus the waypoints before it
+    (``Refinement.path_report``): equal to one fresh pass of ``check_path`` over the whole
+    joint path, also where certificates failed and split the path (the head sampled apart),
+    and the deviation measured on the timed trajectory equals the one measured through
+    its check times."""
+    from planner.cartesian import certify
+    from planner.cartesian.walk import distance_to_polyline_3d
+    from planner.kinematics import forward_batch
+    from planner.validity import ValidityChecker
+
+    heads = []
+    original = certify.Refinement.path_report
+
+    def spy(self):
+        tail = self._report_q
+        heads.append(0 if tail is None else len(self.q) - len(tail))
+        return original(self)
+
+    monkeypatch.setattr(certify.Refinement, "path_report", spy)
+    start = JointPosture([0.0, 2.0, 1.0], "+")
+    p0 = forward_batch(DEFAULT, np.asarray(start.q), "+").p[0]
+    balls = [Sphere(center=p0 + np.array([0.02, 0.1, 0.05]), radius=0.04)]
+    rng = np.random.default_rng(7)
+    for _ in range(6):
+        goal = p0 + 0.25 * rng.normal(size=3) / math.sqrt(3)
+        res = plan_cartesian(DEFAULT, start, goal[None], obstacles=balls, cartesian_speed=0.25)
+        if res.path is None:
+            continue
+        q = res.path.waypoints
+        mode = res.working_mode
+        ref = ValidityChecker(DEFAULT, Margins(), balls, "+", mode).check_path(q, certify=False)
+        dg = res.diagnostics
+        assert dg.min_clearance == pytest.approx(ref.min_clearance, rel=1e-12)
+        assert dg.max_kappa_A == pytest.approx(ref.max_kappa_A, rel=1e-12)
+        assert dg.min_serial_margin == pytest.approx(ref.min_serial_margin, rel=1e-12)
+        assert dg.path_length == pytest.approx(ref.length, rel=1e-12)
+        if res.trajectory is not None:
+            curve = res.trajectory.curve
+            pt = forward_batch(DEFAULT, curve.evaluate(curve.check_times(1e-3))[0], "+").p
+            dev = float(np.max(distance_to_polyline_3d(res.polyline, pt)))
+            assert dg.max_path_deviation == pytest.approx(dev, rel=1e-9)
+    assert any(h > 0 for h in heads), heads  # a certificate failed and the head was sampled
+    assert any(h == 0 for h in heads), heads  # and one covered the whole path

@@ -93,6 +93,9 @@ def test_weighted_astar_is_within_its_factor_of_dijkstra():
     shape = (7, 9, 8)
     valid = rng.random(shape) < 0.7
     weight = 1.0 + rng.random(valid.size) * 3
+    # read-only, as a grid's arrays are (corridor_path passes them so): the kernel's one
+    # compiled signature, the warm-up's, not a second one for writable arrays
+    valid.flags.writeable = weight.flags.writeable = False
     step = np.array([0.3, 0.2, 0.25])
     flat = np.flatnonzero(valid.ravel())
     idx = np.stack(np.unravel_index(np.arange(valid.size), shape), axis=1)

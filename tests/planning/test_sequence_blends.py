@@ -144,7 +144,7 @@ def test_random_too_large_blends_are_never_refused_and_time_beats_every_fixed_as
     rng = np.random.default_rng(39)
     refused = 0
     compared = 0
-    for k in range(40):
+    for k in range(24):
         lift, across = float(rng.uniform(0.03, 0.08)), float(rng.uniform(0.15, 0.3))
         corner = (
             {"stop": False, "blend": float(rng.uniform(0.0, 1.0))}
@@ -172,7 +172,7 @@ def test_random_too_large_blends_are_never_refused_and_time_beats_every_fixed_as
             if r.solved:
                 assert best.cycle_time <= r.cycle_time * (1 + 1e-6), (modes, corner)
     assert refused == 0
-    assert compared == 5
+    assert compared == 3
     assert not math.isnan(best.cycle_time)
 
 

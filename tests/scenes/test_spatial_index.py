@@ -16,7 +16,6 @@ from planner.geometry import (
     Sphere,
     pack_obstacles,
     segment_box_distance,
-    segment_convex_distance,
     segment_obstacle_distance,
 )
 from planner.spatial_index import LEAF, node_lower_bound
@@ -73,14 +72,21 @@ def _leaf_ranges(n_rows: int, nodes: np.ndarray) -> list[tuple[int, int]]:
 
 def _row_distances(kind: int, rows: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """True signed distance of segment a-b to each packed row (spheres: numpy's closed form;
-    capsules and boxes: the per-obstacle routines, tested against sampling in
-    tests/test_geometry.py)."""
+    capsules: segment_obstacle_distance of that one capsule, and boxes: the box routine, as
+    the library calls them, both tested against sampling in tests/core/test_geometry.py)."""
     if kind == 0:
         return _point_segment(rows[:, :3], a, b) - rows[:, 3]
-    f = (lambda r: segment_convex_distance(1, *a, *b, r)) if kind == 1 else None
-    if kind == 2:
-        f = lambda r: segment_box_distance(*a, *b, r)  # noqa: E731
-    return np.array([f(r) for r in rows])
+    if kind == 1:
+        a2, b2 = a[None], b[None]
+        return np.array(
+            [segment_obstacle_distance(a2, b2, [Capsule(r[:3], r[3:6], r[6])])[0] for r in rows]
+        )
+    return np.array([segment_box_distance(*a, *b, r) for r in rows])
+
+
+#: The bound's own source run by Python: the product calls it only from compiled code (the
+#: tree walk), so a call from Python would compile a signature nothing else uses.
+_node_lower_bound = node_lower_bound.py_func
 
 
 def _check_bounds(packed, a: np.ndarray, b: np.ndarray) -> int:
@@ -97,7 +103,7 @@ def _check_bounds(packed, a: np.ndarray, b: np.ndarray) -> int:
         true = _row_distances(kind, rows, a, b)
         for i, (r0, r1) in enumerate(_leaf_ranges(len(rows), nodes)):
             # best = +inf: the exact bound, never the early coarse answer
-            lb = node_lower_bound(nodes[i], *a, *b, *lo, *hi, np.inf)
+            lb = _node_lower_bound(nodes[i], *a, *b, *lo, *hi, np.inf)
             if r0 == r1:
                 assert lb == np.inf
                 continue
@@ -190,13 +196,26 @@ def test_bad_clouds_name_the_field(points, radius, field, words):
     assert err.value.field == field
 
 
+def _min_distance(ax, ay, az, bx, by, bz, *args) -> float:
+    """:func:`planner.geometry.segment_min_distance` of one segment, packed obstacles and
+    (best, threshold, relax), through the compiled loop that
+    :func:`~planner.geometry.segment_obstacle_distance` calls, with its argument types (the
+    inner function is compiled code's only; called from Python it would compile alone)."""
+    from planner._kernels import read_only
+    from planner.geometry import _segments_distance
+
+    *packed, best, t, relax = args
+    out = np.empty(1)
+    a, b = read_only([[ax, ay, az]]), read_only([[bx, by, bz]])
+    _segments_distance(a, b, *packed, read_only([best, t, relax]), out)
+    return float(out[0])
+
+
 @pytest.mark.parametrize("seed", range(2))
 def test_the_relaxed_walk_keeps_its_guarantees(seed):
     """segment_min_distance relaxed (relax 0.5 from a threshold t): the rule D >= t decided
     exactly (L < t exactly when D < t; below t, L is the distance to some obstacle, so
     D <= L), and above t a lower bound of D that keeps half the margin: L - t >= (D - t) / 2."""
-    from planner.geometry import segment_min_distance
-
     rng = np.random.default_rng(300 + seed)
     cloud = Points(rng.uniform(-0.6, 0.6, (6000, 3)), 0.004)
     packed = pack_obstacles([cloud, *_random_set(rng, 1200, 0, 0)])
@@ -204,9 +223,9 @@ def test_the_relaxed_walk_keeps_its_guarantees(seed):
     for _ in range(300):
         a = rng.uniform(-0.8, 0.8, 3)
         b = a + rng.normal(0, 0.3, 3)
-        exact = segment_min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
+        exact = _min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
         for t in (exact - 0.01, exact + 0.01, 0.02, 0.1):
-            got = segment_min_distance(*a, *b, *packed, np.inf, t, 0.5)
+            got = _min_distance(*a, *b, *packed, np.inf, t, 0.5)
             if exact < t:
                 assert exact <= got < t
                 below += 1
@@ -221,7 +240,6 @@ def test_the_grid_query_equals_numpy_over_strewn_spheres(seed):
     """1,000 small balls in a shell round the robot (benchmarks/scenes.py): the sphere rows
     get a grid, and the query through it equals numpy's closed form, exact (segments long
     and short, and points: the proofs' queries), and relaxed it keeps its guarantees."""
-    from planner.geometry import segment_min_distance
     from planner.spatial_index import GRID_TO
 
     rng = np.random.default_rng(400 + seed)
@@ -235,10 +253,10 @@ def test_the_grid_query_equals_numpy_over_strewn_spheres(seed):
         a = rng.uniform(-0.8, 0.8, 3)
         b = a if k % 5 == 0 else a + rng.normal(0, (0.02, 0.3)[k % 2], 3)
         ref = np.min(_point_segment(c, a, b) - r)
-        exact = segment_min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
+        exact = _min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
         assert abs(exact - ref) < 1e-12
         t = 0.03
-        got = segment_min_distance(*a, *b, *packed, t + 0.25, t, 0.5)
+        got = _min_distance(*a, *b, *packed, t + 0.25, t, 0.5)
         if ref < t:
             assert ref - 1e-12 <= got < t
             below += 1

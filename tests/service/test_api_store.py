@@ -33,9 +33,11 @@ def _unavailable(r) -> str:
 
 
 @pytest.fixture
-def locked_store(client_factory, tmp_path):
+def locked_store(client_factory, tmp_path, request):
     """A service with a SQLite store holding one scene, and a function that holds the
-    file's write lock from another connection (released at the end)."""
+    file's write lock from another connection (released at the end). Its store timeout is
+    the test's indirect parameter, s (1 s when none: each write refused costs that)."""
+    timeout = getattr(request, "param", 1)
     path = str(tmp_path / "scenes.db")
     holders: list[sqlite3.Connection] = []
 
@@ -44,7 +46,9 @@ def locked_store(client_factory, tmp_path):
         con.execute("BEGIN IMMEDIATE")
         holders.append(con)
 
-    with client_factory(scene_store=path, store_timeout_s=3, store_threads=2, warm=False) as c:
+    with client_factory(
+        scene_store=path, store_timeout_s=timeout, store_threads=2, warm=False
+    ) as c:
         assert c.put("/v1/scenes/kept", json={"obstacles": [SPHERE]}).status_code == 200
         try:
             yield c, hold
@@ -67,11 +71,13 @@ def test_a_held_write_lock_leaves_reads_and_fails_writes_with_503(locked_store):
     )
     assert plan.status_code == 200, plan.text
     msg = _unavailable(c.put("/v1/scenes/new", json={"obstacles": []}))
-    assert "3 s (PLANNER_STORE_TIMEOUT_S)" in msg and "nothing was changed" in msg
+    assert "1 s (PLANNER_STORE_TIMEOUT_S)" in msg and "nothing was changed" in msg
     _unavailable(c.delete("/v1/scenes/kept"))
     assert c.get("/v1/ready").json()["store"] == "ok"  # reads answer: the store is up
 
 
+# a 3 s store timeout: the PUTs still wait while the other routes answer
+@pytest.mark.parametrize("locked_store", [3], indirect=True)
 def test_other_routes_answer_while_puts_wait_on_the_lock(locked_store):
     """12 PUTs wait on the held lock (2 write threads + 8 waiting, the rest refused at
     once): meanwhile a job poll, the health and readiness probes and a scene's GET answer;

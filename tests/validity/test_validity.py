@@ -194,6 +194,24 @@ def test_check_path_diagnostics():
     assert rep.length == pytest.approx(np.linalg.norm(np.diff(w, axis=0), axis=1).sum())
 
 
+def test_check_path_clearance_is_the_least_over_its_samples_among_many_obstacles():
+    """The diagnostics visit their samples coarse ones first (planner.validity._kernels
+    path_extremes): the least clearance is still the least of the same samples, each
+    measured alone by the per-posture report, exactly."""
+    d = Design.default()
+    rng = np.random.default_rng(4)
+    centres = rng.uniform(-0.9, 0.9, (400, 3))
+    centres = centres[np.linalg.norm(centres, axis=1) > 0.75]
+    spheres = [Sphere(c, 0.01) for c in centres]
+    chk = ValidityChecker(d, Margins(), spheres, "+", "+-+")
+    w = np.array([[-1.0, 2.0, 1.0], [0.4, 2.3, 1.2], [1.5, 2.1, 0.9]])
+    rep = chk.check_path(w)
+    assert rep.valid
+    states = chk.check_states(densify(w, 0.02))
+    assert rep.min_clearance == pytest.approx(float(states.clearance.min()), rel=1e-12)
+    assert rep.max_kappa_A == pytest.approx(float(states.kappa_A.max()), rel=1e-12)
+
+
 def test_serial_rules_off_keeps_the_other_rules():
     """A motion onto a serial singularity (leg A stretched) is certified for kappa and
     clearance with the serial rules off, and refused with them on."""

@@ -14,7 +14,7 @@ The deadline is checked between chunks of probes and in every round.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -213,8 +213,12 @@ class Refinement:
         self.s, self.q, self.w = s, q, w
         self.certified = 0  # pieces [0, certified) are certified (chord and motion)
         self.report: PathReport | None = None
+        self._report_q: np.ndarray | None = None  # the postures self.report certified
         self.backoff = 0.0
         self.bound = np.zeros(max(len(s) - 1, 0))
+        # chord bounds of the pieces from ``certified`` on that the last round of
+        # split_chords left whole (NaN: a new piece), for its next round; None: none known
+        self._known: np.ndarray | None = None
 
     def run(self, budget: Budget) -> Refinement:
         """Refine until done or :data:`MAX_REFINEMENTS` passes (then the certified part is the
@@ -226,7 +230,7 @@ class Refinement:
             if self.split_chords():
                 continue
             # every chord is within the tolerance: certify the motions
-            rep = self.report = self.checker.check_path(self.q[self.certified :], certify=True)
+            rep = self._certify_tail()
             if rep.valid:
                 self.certified = len(self.s) - 1
                 break
@@ -239,6 +243,43 @@ class Refinement:
         self.bound = self.bound[: len(self.s) - 1]
         return self
 
+    def _certify_tail(self) -> PathReport:
+        """Certify the motions from the first uncertified waypoint on (its report kept, with
+        the postures it covers, for :meth:`path_report`)."""
+        self._report_q = self.q[self.certified :].copy()
+        self.report = self.checker.check_path(self._report_q, certify=True)
+        return self.report
+
+    def path_report(self) -> PathReport:
+        """The measures of the final path, as ``check_path(q, certify=False)`` gives them
+        (extremes over the waypoints and samples every ``DIAGNOSTIC_STEP`` rad), without
+        sampling twice: the last certificate measured its own postures (the path's tail when
+        it was valid), so only the waypoints before that tail are sampled again. The samples
+        of each motion depend on its two ends only, so the extremes of the two parts, joined,
+        are those of one pass (NaN-aware: NaN only where no sample of either closes the loop)."""
+        q, rep, tail = self.q, self.report, self._report_q
+        reuse = (
+            rep is not None
+            and rep.valid
+            and tail is not None
+            and 1 < len(tail) <= len(q)
+            and np.array_equal(q[len(q) - len(tail) :], tail)
+        )
+        if not reuse:
+            return self.checker.check_path(q, certify=False)
+        assert rep is not None and tail is not None
+        head_n = len(q) - len(tail) + 1
+        if head_n == 1:
+            return rep
+        head = self.checker.check_path(q[:head_n], certify=False)
+        return replace(
+            rep,
+            min_clearance=float(np.fmin(head.min_clearance, rep.min_clearance)),
+            max_kappa_A=float(np.fmax(head.max_kappa_A, rep.max_kappa_A)),
+            min_serial_margin=float(np.fmin(head.min_serial_margin, rep.min_serial_margin)),
+            length=head.length + rep.length,
+        )
+
     def _cut(self, last: int) -> None:
         """Keep the waypoints up to ``last``."""
         self.s, self.q, self.w = self.s[: last + 1], self.q[: last + 1], self.w[: last + 1]
@@ -248,15 +289,19 @@ class Refinement:
         is cut into parts (or, too short to cut, the path stops before it). True when the
         round changed the path."""
         s, q, w, certified, tol_chord = self.s, self.q, self.w, self.certified, self.tol_chord
-        tail = slice(certified, len(s) - 1)
-        b_tail = chord_deviation_bound(
+        known, self._known = self._known, None
+        if known is None or known.shape[0] != len(s) - 1 - certified:
+            known = np.full(len(s) - 1 - certified, np.nan)
+        new = certified + np.flatnonzero(np.isnan(known))  # pieces not bounded yet
+        b_tail = known.copy()
+        b_tail[new - certified] = chord_deviation_bound(
             self.design,
-            q[tail],
-            q[certified + 1 :],
-            w[tail],
-            w[certified + 1 :],
-            self.poly.at(s[tail]),
-            self.poly.at(s[certified + 1 :]),
+            q[new],
+            q[new + 1],
+            w[new],
+            w[new + 1],
+            self.poly.at(s[new]),
+            self.poly.at(s[new + 1]),
             self.asm,
         )
         self.bound = np.concatenate([self.bound[:certified], b_tail])
@@ -304,6 +349,14 @@ class Refinement:
             )
             keep = idx < k
             idx, s_mid, qm, wm = idx[keep], s_mid[keep], qm[keep], wm[keep]
+        if np.all(valid_m):
+            # the bounds of the pieces left whole carry over to the next round (a piece's
+            # bound depends on its two ends only); the parts of the split ones are new
+            parts = np.ones(len(b_tail), dtype=int)
+            parts[pieces - certified] = n_parts
+            carried = np.repeat(b_tail, parts)
+            carried[np.repeat(split, parts)] = np.nan
+            self._known = carried
         self.s = np.insert(self.s, idx + 1, s_mid)
         self.q = np.insert(self.q, idx + 1, qm, axis=0)
         self.w = np.insert(self.w, idx + 1, wm)
@@ -339,8 +392,7 @@ class Refinement:
                 return False
             self.s[-1], self.q[-1], self.w[-1] = s_try[j], qm[j], wm[j]
             self.end_s = float(s_try[j])
-            self.report = self.checker.check_path(self.q[self.certified :], certify=True)
-            if self.report.valid:
+            if self._certify_tail().valid:
                 self.bound = self.bound[: self.certified]
                 return True
         self.backoff = float(4.0 * steps[n_try - 1])  # the next step is too large

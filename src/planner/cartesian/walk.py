@@ -14,13 +14,12 @@ for the plan and for :func:`planner.cartesian.inspection.inspect_cartesian`.
 
 from __future__ import annotations
 
-from itertools import pairwise
-
 import numpy as np
 
 from planner.design import Design
 from planner.exceptions import InputError
-from planner.kinematics import inverse_batch
+from planner.kinematics import inverse_in_mode
+from planner.timing.path import distance_to_polyline
 
 __all__ = [
     "BISECT_TOL",
@@ -93,30 +92,21 @@ def distance_to_polyline_3d(vertices: np.ndarray, points: np.ndarray) -> np.ndar
     """Distance of each point (M, 3) to the polyline through ``vertices`` (K, 3), m.
 
     Exact: the least point-segment distance over the segments (a single vertex: the distance
-    to it).
+    to it); :func:`planner.timing.path.distance_to_polyline`'s compiled pass, which measures
+    any 3-vectors (there, joint postures).
     """
     v = np.asarray(vertices, dtype=float)
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    if v.shape[0] == 1:
-        return np.linalg.norm(pts - v[0], axis=1)
-    best = np.full(pts.shape[0], np.inf)
-    for a, b in pairwise(v):
-        ab = b - a
-        den = float(ab @ ab)
-        t = np.clip((pts - a) @ ab / den, 0.0, 1.0) if den > 0 else np.zeros(pts.shape[0])
-        best = np.minimum(best, np.linalg.norm(a + t[:, None] * ab - pts, axis=1))
-    return best
+    return distance_to_polyline(v, pts)[0]
 
 
 def branch_ik(design: Design, pts: np.ndarray, slot: int, asm_sign: int):
     """IK of points (M, 3) in one working-mode slot: q wrapped (M, 3), ok (M,), w (M,),
     flipped (M,) (the branch exists but in the other assembly mode)."""
-    ib = inverse_batch(design, pts)
-    q = ib.q[:, slot]
-    ok = ib.ok[:, slot] & ~ib.degenerate
-    asm = ib.assembly_mode_signs[:, slot]
+    q, _, w, ok, degenerate, asm = inverse_in_mode(design, pts, slot)
+    ok = ok & ~degenerate
     flipped = ok & (asm != asm_sign)
-    return q, ok & ~flipped, ib.w[:, slot], flipped
+    return q, ok & ~flipped, w, flipped
 
 
 def unwrap_to(q: np.ndarray, ref: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ import numpy as np
 from planner.design import Design
 from planner.dynamics import _kernels
 from planner.dynamics.inertia import Inertia, LinkInertia, check_gravity
-from planner.dynamics.inverse import _kinematics, _rates, inverse_dynamics
+from planner.dynamics.inverse import _inputs, _kinematics, _rates, inverse_dynamics
 from planner.exceptions import InputError
 
 __all__ = [
@@ -111,9 +111,8 @@ def standard_parameters(design: Design, inertia: Inertia) -> np.ndarray:
 
 def _probe(design: Design, kin, qd, qdd, g, params: np.ndarray) -> np.ndarray:
     out = np.empty_like(kin.q)
-    _kernels.inverse_kernel(
-        design.L1, design.L2, params, kin.q, kin.passive, kin.ok, qd, qdd, g, out
-    )
+    prm, q, passive, ok, qd1, qdd1, g1 = _inputs(params, kin, qd, qdd, g)
+    _kernels.inverse_kernel(design.L1, design.L2, prm, q, passive, ok, qd1, qdd1, g1, out)
     return out
 
 

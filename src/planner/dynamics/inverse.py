@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner._kernels import read_only
 from planner.constants import KAPPA_SOLVABLE
 from planner.design import Design
 from planner.dynamics import _kernels
@@ -105,19 +106,24 @@ def _forces(
     """Generalised forces (N, 3) of the motion (q, qd, qdd) under ``gravity`` (the compiled
     loop of :mod:`planner.dynamics._kernels`; NaN where the posture is not ``ok``)."""
     out = np.empty_like(kin.q)
-    _kernels.inverse_kernel(
-        design.L1,
-        design.L2,
-        _params(inertia),
-        kin.q,
-        kin.passive,
-        kin.ok,
-        np.ascontiguousarray(qd, dtype=float),
-        np.ascontiguousarray(qdd, dtype=float),
-        np.asarray(gravity, dtype=float),
-        out,
-    )
+    prm, q, passive, ok, qd1, qdd1, g = _inputs(_params(inertia), kin, qd, qdd, gravity)
+    _kernels.inverse_kernel(design.L1, design.L2, prm, q, passive, ok, qd1, qdd1, g, out)
     return out
+
+
+def _inputs(params, kin: _Kin, qd, qdd, gravity) -> tuple[np.ndarray, ...]:
+    """The input arrays of :func:`_kernels.inverse_kernel`, each read-only and C-contiguous
+    (:func:`planner._kernels.read_only`: one compiled signature for every caller, the
+    warm-up's included, whether its rates or gravity came frozen or not)."""
+    return (
+        read_only(params),
+        read_only(kin.q),
+        read_only(kin.passive),
+        read_only(kin.ok, np.bool_),
+        read_only(qd),
+        read_only(qdd),
+        read_only(gravity),
+    )
 
 
 @dataclass(frozen=True, eq=False)

@@ -50,13 +50,15 @@ class SearchOutcome:
     OMPL's status string; ``simplified``: the simplified path was kept; ``certified``: every
     motion of ``waypoints`` passed the motion certificate on its way into the path (the
     compiled search's paths, :mod:`planner.planning.compiled_rrt`; OMPL's are re-certified
-    by the planner, its simplifier's motions being its validator's)."""
+    by the planner, its simplifier's motions being its validator's); ``nodes``: the compiled
+    search's tree nodes (0 for OMPL's and for a remembered path)."""
 
     waypoints: np.ndarray | None
     exact: bool
     ompl_status: str
     simplified: bool
     certified: bool = False
+    nodes: int = 0
 
 
 def _seed(seed: int) -> None:

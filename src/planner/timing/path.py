@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numba import njit
 
 from planner.exceptions import InputError
 
@@ -202,21 +203,25 @@ class BlendedPath:
         self, s: np.ndarray, lo: int = 0, hi: int | None = None, side: Side = "right"
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, q', q'') at ``s`` in one pass, each shape (M, 3) (see :meth:`evaluate`)."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
+        s = np.ascontiguousarray(np.atleast_1d(np.asarray(s, dtype=float)))
         if self.n_pieces == 0:
             q = np.broadcast_to(self.waypoints[0], (s.shape[0], 3)).copy()
             return q, np.zeros_like(q), np.zeros_like(q)
         idx = self.piece_index(s, lo, hi, side)
-        ds = (s - self.s0[idx])[:, None]
-        o, d, nrm, r = self.origin[idx], self.direction[idx], self.normal[idx], self.radius[idx]
-        arc = (self.kind[idx] == ARC)[:, None]
-        r_safe = np.where(arc[:, 0], r, 1.0)[:, None]
-        phi = np.where(arc, ds / r_safe, 0.0)
-        c, si = np.cos(phi), np.sin(phi)
-        radial = d * c + nrm * si  # unit vector from the centre (arcs)
-        q = np.where(arc, o + r_safe * radial, o + d * ds)
-        d1 = np.where(arc, nrm * c - d * si, d)
-        d2 = np.where(arc, -radial / r_safe, 0.0)
+        q, d1, d2 = np.empty((s.shape[0], 3)), np.empty((s.shape[0], 3)), np.empty((s.shape[0], 3))
+        _evaluate_pieces(
+            s,
+            idx,
+            self.s0,
+            self.kind,
+            self.origin,
+            self.direction,
+            self.normal,
+            self.radius,
+            q,
+            d1,
+            d2,
+        )
         return q, d1, d2
 
     def kept_stops(self) -> np.ndarray:
@@ -234,6 +239,33 @@ class BlendedPath:
         if self.n_pieces == 0:
             return np.full(np.shape(s), -1)
         return self.corner[self.piece_index(np.asarray(s, dtype=float))]
+
+
+@njit(cache=True)
+def _evaluate_pieces(
+    s, idx, s0, kind, origin, direction, normal, radius, q, d1, d2
+):  # pragma: no cover
+    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2: a line
+    ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``, its tangent
+    ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``. One pass
+    of compiled code per position (a check evaluates thousands, several times a timing)."""
+    for m in range(s.shape[0]):
+        k = idx[m]
+        ds = s[m] - s0[k]
+        if kind[k] == ARC:
+            r = radius[k]
+            phi = ds / r
+            c, si = np.cos(phi), np.sin(phi)
+            for j in range(3):
+                radial = direction[k, j] * c + normal[k, j] * si
+                q[m, j] = origin[k, j] + r * radial
+                d1[m, j] = normal[k, j] * c - direction[k, j] * si
+                d2[m, j] = -radial / r
+        else:
+            for j in range(3):
+                q[m, j] = origin[k, j] + direction[k, j] * ds
+                d1[m, j] = direction[k, j]
+                d2[m, j] = 0.0
 
 
 def _merge_duplicates(
@@ -326,54 +358,103 @@ def _pieces(
     along ``s``, as the fields of :class:`BlendedPath` (``kind``, ``s0``, ``origin``,
     ``direction``, ``normal``, ``radius``, ``corner``, ``blend_deviation``, ``vertex_s``)."""
     n = w.shape[0]
-    kinds, s_len, origins, dirs, normals, radii, corners = [], [], [], [], [], [], []
-    vertex_s = np.zeros(n)
-    blend_dev = np.zeros(n)
+    kind = np.empty(2 * n, np.int8)
+    s_len, radius = np.empty(2 * n), np.empty(2 * n)
+    origin, direction, normal = np.empty((2 * n, 3)), np.empty((2 * n, 3)), np.empty((2 * n, 3))
+    corner = np.empty(2 * n, np.int64)
+    vertex_s, blend_dev = np.zeros(n), np.zeros(n)
+    count = _pieces_kernel(
+        np.ascontiguousarray(w, dtype=float),
+        np.ascontiguousarray(seg_len, dtype=float),
+        np.ascontiguousarray(seg_dir, dtype=float),
+        np.ascontiguousarray(alpha, dtype=float),
+        np.ascontiguousarray(tangent, dtype=float),
+        _PIECE_TOL,
+        kind,
+        s_len,
+        origin,
+        direction,
+        normal,
+        radius,
+        corner,
+        vertex_s,
+        blend_dev,
+    )
+    return {
+        "kind": kind[:count].copy(),
+        "s0": np.concatenate([[0.0], np.cumsum(s_len[:count])]),
+        "origin": origin[:count].copy(),
+        "direction": direction[:count].copy(),
+        "normal": normal[:count].copy(),
+        "radius": radius[:count].copy(),
+        "corner": corner[:count].astype(int),
+        "blend_deviation": blend_dev,
+        "vertex_s": vertex_s,
+    }
+
+
+@njit(cache=True)
+def _pieces_kernel(
+    w,
+    seg_len,
+    seg_dir,
+    alpha,
+    tangent,
+    piece_tol,
+    kind,
+    s_len,
+    origin,
+    direction,
+    normal,
+    radius,
+    corner,
+    vertex_s,
+    blend_dev,
+):  # pragma: no cover
+    """The loop of :func:`_pieces`, compiled: each segment's line (what its blends leave of
+    it, unless only rounding is left) and the arc of its end vertex, into the arrays
+    (2 N rows at most); returns the piece count."""
+    n = w.shape[0]
+    count = 0
     s = 0.0
     for i in range(n - 1):
-        start = w[i] + tangent[i] * seg_dir[i]
         length = seg_len[i] - tangent[i] - tangent[i + 1]
         if i == 0 or tangent[i] == 0.0:
             vertex_s[i] = s
-        if length > _PIECE_TOL:  # not the rounding left between two blends
-            kinds.append(LINE)
-            s_len.append(length)
-            origins.append(start)
-            dirs.append(seg_dir[i])
-            normals.append(np.zeros(3))
-            radii.append(np.inf)
-            corners.append(-1)
+        if length > piece_tol:  # not the rounding left between two blends
+            kind[count] = LINE
+            s_len[count] = length
+            for j in range(3):
+                origin[count, j] = w[i, j] + tangent[i] * seg_dir[i, j]
+                direction[count, j] = seg_dir[i, j]
+                normal[count, j] = 0.0
+            radius[count] = np.inf
+            corner[count] = -1
+            count += 1
             s += length
         k = i + 1
         if tangent[k] > 0.0:
             half = alpha[k] / 2
             r = tangent[k] / np.tan(half)
             bis = seg_dir[k] - seg_dir[k - 1]
-            bis /= np.linalg.norm(bis)
+            bis = bis / np.sqrt(bis[0] * bis[0] + bis[1] * bis[1] + bis[2] * bis[2])
             centre = w[k] + bis * (r / np.cos(half))
             x = (w[k] - tangent[k] * seg_dir[k - 1] - centre) / r
-            kinds.append(ARC)
-            s_len.append(r * alpha[k])
-            origins.append(centre)
-            dirs.append(x / np.linalg.norm(x))
-            normals.append(seg_dir[k - 1])
-            radii.append(r)
-            corners.append(k)
+            x_norm = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+            kind[count] = ARC
+            s_len[count] = r * alpha[k]
+            for j in range(3):
+                origin[count, j] = centre[j]
+                direction[count, j] = x[j] / x_norm
+                normal[count, j] = seg_dir[k - 1, j]
+            radius[count] = r
+            corner[count] = k
+            count += 1
             blend_dev[k] = r * (1.0 / np.cos(half) - 1.0)
             vertex_s[k] = s + r * alpha[k] / 2
             s += r * alpha[k]
     vertex_s[n - 1] = s
-    return {
-        "kind": np.asarray(kinds, np.int8),
-        "s0": np.concatenate([[0.0], np.cumsum(s_len)]),
-        "origin": np.asarray(origins),
-        "direction": np.asarray(dirs),
-        "normal": np.asarray(normals),
-        "radius": np.asarray(radii),
-        "corner": np.asarray(corners, int),
-        "blend_deviation": blend_dev,
-        "vertex_s": vertex_s,
-    }
+    return count
 
 
 def distance_to_polyline(
@@ -405,17 +486,33 @@ def distance_to_polyline(
     lo = np.clip(segments[:, 0], 0, n_seg - 1)
     hi = np.clip(segments[:, 1], lo, n_seg - 1)
     best_d2 = np.full(m, np.inf)
-    nearest = np.empty_like(q)
-    for j in range(int(np.max(hi - lo, initial=0)) + 1):  # M-vectors per offset, no M x N x 3
-        seg = np.minimum(lo + j, hi)
-        a = w[seg]
-        ab = w[seg + 1] - a
-        rel = q - a
-        denom = np.sum(ab * ab, axis=1)
-        t = np.where(denom > 0, np.sum(rel * ab, axis=1) / np.maximum(denom, 1e-300), 0.0)
-        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-        d2 = np.sum((q - foot) ** 2, axis=1)
-        better = d2 < best_d2
-        best_d2[better] = d2[better]
-        nearest[better] = foot[better]
+    nearest = np.empty((m, 3))
+    _nearest_on_segments(np.ascontiguousarray(w), np.ascontiguousarray(q), lo, hi, best_d2, nearest)
     return np.sqrt(best_d2), nearest
+
+
+@njit(cache=True)
+def _nearest_on_segments(w, q, lo, hi, best_d2, nearest):  # pragma: no cover
+    """For each posture q[i], the least squared distance to the segments lo[i]..hi[i] of the
+    polyline w (into best_d2, inf on entry) and the foot of the perpendicular (into nearest):
+    the foot's parameter clipped to [0, 1] (0 on a segment of zero length); the first of
+    equally near segments is kept."""
+    foot = np.empty(3)
+    for i in range(q.shape[0]):
+        for seg in range(lo[i], hi[i] + 1):
+            denom = 0.0
+            dot = 0.0
+            for j in range(3):
+                ab = w[seg + 1, j] - w[seg, j]
+                denom += ab * ab
+                dot += (q[i, j] - w[seg, j]) * ab
+            t = dot / max(denom, 1e-300) if denom > 0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            d2 = 0.0
+            for j in range(3):
+                foot[j] = w[seg, j] + t * (w[seg + 1, j] - w[seg, j])
+                d2 += (q[i, j] - foot[j]) ** 2
+            if d2 < best_d2[i]:
+                best_d2[i] = d2
+                for j in range(3):
+                    nearest[i, j] = foot[j]

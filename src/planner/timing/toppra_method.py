@@ -23,6 +23,7 @@ import numpy as np
 import toppra
 import toppra.algorithm
 import toppra.constraint
+from toppra._CythonUtils import _create_velocity_constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from toppra.interpolator import AbstractGeometricPath
 
@@ -30,6 +31,7 @@ from planner.caching import cached
 from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
 from planner.timing.path import ARC, BlendedPath
+from planner.timing.topp_compiled import topp_profile
 from planner.timing.torque import TorqueModel
 
 __all__ = [
@@ -106,10 +108,15 @@ class _SpeedAlongPathConstraint(toppra.constraint.LinearConstraint):
         self._v_max = v_max
         self._gain = speed_gain
 
-    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+    def x_upper(self, gridpoints: np.ndarray) -> np.ndarray:
+        """The bound on ``sd^2`` at each grid point (finite: toppra needs finite bounds)."""
         gain = self._gain(np.asarray(gridpoints, dtype=float))
         upper = np.where(gain > 0, (self._v_max / np.maximum(gain, 1e-300)) ** 2, _X_UNBOUNDED)
-        xbound = np.stack([np.zeros_like(upper), np.minimum(upper, _X_UNBOUNDED)], axis=1)
+        return np.minimum(upper, _X_UNBOUNDED)
+
+    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+        upper = self.x_upper(gridpoints)
+        xbound = np.stack([np.zeros_like(upper), upper], axis=1)
         return None, None, None, None, None, None, xbound
 
 
@@ -245,32 +252,29 @@ def section_grid(
     by up to 37 % on the benchmark paths (the joint limits, bounded per |q''|, do not suffer
     it the same way). A short interval (``JUNCTION_INTERVAL`` of each arc) on both sides
     of such a junction puts a grid point on each arc next to it, so both sides are bounded."""
-    parts = []
-    for k in range(lo, hi + 1):
-        a, b = path.s0[k], path.s0[k + 1]
-        if path.kind[k] == ARC:
-            turn = (b - a) / path.radius[k]
-            n = max(2, int(np.ceil(turn * refine * arc_refine / ARC_STEP)))
-            pts = np.linspace(a, b, n + 1)[:-1]
-            parts.append(_beside_arcs(path, k, lo, hi, pts) if arc_junctions else pts)
-            continue
-        n = max(int(LINE_MIN_INTERVALS * refine), int(np.ceil((b - a) * refine / LINE_STEP)))
-        parts.append(_beside_arcs(path, k, lo, hi, np.linspace(a, b, n + 1)[:-1]))
-    parts.append(path.s0[hi + 1 : hi + 2])
-    return np.concatenate(parts)
-
-
-def _beside_arcs(path, k: int, lo: int, hi: int, pts: np.ndarray) -> np.ndarray:
-    """``pts`` of piece ``k`` (of pieces ``lo..hi``) with a grid point ``JUNCTION_INTERVAL`` of
-    the piece inside each end that meets an arc, so the arc's side of the junction is bounded."""
+    k = np.arange(lo, hi + 1)
     a, b = path.s0[k], path.s0[k + 1]
+    arc = path.kind[k] == ARC
+    with np.errstate(divide="ignore", invalid="ignore"):
+        turn = np.where(arc, (b - a) / np.where(arc, path.radius[k], 1.0), 0.0)
+    n = np.where(
+        arc,
+        np.maximum(2, np.ceil(turn * refine * arc_refine / ARC_STEP)),
+        np.maximum(int(LINE_MIN_INTERVALS * refine), np.ceil((b - a) * refine / LINE_STEP)),
+    ).astype(int)
+    # every piece's np.linspace(a, b, n + 1)[:-1], as linspace computes it: a + i (b - a) / n
+    piece = np.repeat(np.arange(k.shape[0]), n)
+    i = np.arange(piece.shape[0]) - np.repeat(np.cumsum(n) - n, n)
+    pts = i * ((b - a) / n)[piece] + a[piece]
+    # a point JUNCTION_INTERVAL of the piece inside each end that meets an arc of the section
+    # (lines; arcs too with arc_junctions), so the arc's side of the junction is bounded
+    beside = ~arc | arc_junctions
+    before = beside & (k > lo) & (path.kind[np.maximum(k - 1, 0)] == ARC)
+    after = beside & (k < hi) & (path.kind[np.minimum(k + 1, path.kind.shape[0] - 1)] == ARC)
     eps = JUNCTION_INTERVAL * (b - a)
-    extra = []
-    if k > lo and path.kind[k - 1] == ARC:
-        extra.append(a + eps)
-    if k < hi and path.kind[k + 1] == ARC:
-        extra.append(b - eps)
-    return np.sort(np.concatenate([pts, extra])) if extra else pts
+    extra = np.concatenate([(a + eps)[before], (b - eps)[after]])
+    grid = np.sort(np.concatenate([pts, extra])) if extra.shape[0] else pts
+    return np.concatenate([grid, path.s0[hi + 1 : hi + 2]])
 
 
 def check_deadline(deadline: float | None, what: str) -> None:
@@ -343,6 +347,62 @@ def _shifted_grid(path: BlendedPath, lo: int, hi: int, grid: np.ndarray) -> np.n
     nearer = np.abs(grid[at - 1] - bounds) < np.abs(grid[at] - bounds)
     grid[at - nearer] = bounds
     return grid
+
+
+def _compiled_profile(
+    section: _SectionPath,
+    grid: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    v_cart: float | None,
+    speed_gain: Callable[[np.ndarray], np.ndarray] | None,
+) -> np.ndarray | None:
+    """toppra's profile of a section without torque limits, from the compiled passes of
+    :func:`planner.timing.topp_compiled.topp_profile` on the same constraints (q', q'' as
+    :class:`_SectionPath` gives them to toppra, toppra's own velocity bounds, the speed
+    bound of :class:`_SpeedAlongPathConstraint`); None when they find no profile (toppra then
+    solves it, and says why if it fails too)."""
+    d1, d2 = section(grid, 1), section(grid, 2)
+    _, _, xb = _create_velocity_constraint(d1, np.stack([-v, v], axis=1))
+    xmax = np.minimum(-np.asarray(xb)[:, 0], _X_UNBOUNDED)
+    if v_cart is not None and speed_gain is not None:
+        xmax = np.minimum(xmax, _SpeedAlongPathConstraint(v_cart, speed_gain).x_upper(grid))
+    sd, _ = topp_profile(grid, d1, d2, a, xmax)
+    return sd
+
+
+def _toppra_profile(
+    section: _SectionPath,
+    grid: np.ndarray,
+    joint_constraints: tuple,
+    v_cart: float | None,
+    speed_gain: Callable[[np.ndarray], np.ndarray] | None,
+    torque: _TorqueConstraint | None,
+) -> np.ndarray:
+    """toppra's own profile of a section (seidel), in the solver's normalised unit."""
+    constraints = list(joint_constraints)
+    if v_cart is not None and speed_gain is not None:
+        constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))
+    if torque is not None:
+        constraints.append(torque)
+    instance = toppra.algorithm.TOPPRA(
+        constraints, section, gridpoints=grid, solver_wrapper="seidel"
+    )
+    s_start, s_end = section.path_interval
+    try:
+        _, sd, _ = instance.compute_parameterization(0.0, 0.0)
+    except ZeroDivisionError as exc:  # the seidel LP met a zero constraint row
+        raise TimingInfeasibleError(
+            f"toppra found no profile for the path section s in [{s_start:.4g}, "
+            f"{s_end:.4g}] rad: its LP solver met a degenerate constraint ({exc})"
+        ) from exc
+    code = instance.problem_data.return_code
+    if sd is None or np.any(~np.isfinite(sd)):
+        raise TimingInfeasibleError(
+            f"toppra found no profile for the path section s in [{s_start:.4g}, "
+            f"{s_end:.4g}] rad: {code}"
+        )
+    return np.asarray(sd, dtype=float)
 
 
 def solve_toppra(
@@ -429,28 +489,16 @@ def solve_toppra(
         grid = section_grid(
             path, lo, hi, refine=refine, arc_junctions=torque is not None, arc_refine=arc_refine
         )
-        constraints = list(joint_constraints)
-        if v_cart is not None and speed_gain is not None:
-            constraints.append(_SpeedAlongPathConstraint(v_cart, speed_gain))
-        if torque is not None:
-            constraints.append(torque)
-        instance = toppra.algorithm.TOPPRA(
-            constraints, section, gridpoints=grid, solver_wrapper="seidel"
+        section_sd = (
+            None
+            if torque is not None
+            else _compiled_profile(section, grid, v, a, v_cart, speed_gain)
         )
-        try:
-            _, sd, _ = instance.compute_parameterization(0.0, 0.0)
-        except ZeroDivisionError as exc:  # the seidel LP met a zero constraint row
-            raise TimingInfeasibleError(
-                f"toppra found no profile for the path section s in [{s_start:.4g}, "
-                f"{s_end:.4g}] rad: its LP solver met a degenerate constraint ({exc})"
-            ) from exc
-        code = instance.problem_data.return_code
-        if sd is None or np.any(~np.isfinite(sd)):
-            raise TimingInfeasibleError(
-                f"toppra found no profile for the path section s in [{s_start:.4g}, "
-                f"{s_end:.4g}] rad: {code}"
+        if section_sd is None:
+            section_sd = _toppra_profile(
+                section, grid, joint_constraints, v_cart, speed_gain, torque
             )
-        sd = np.asarray(sd, dtype=float) / c
+        sd = section_sd / c
         sd[0] = sd[-1] = 0.0
         if cache is not None and key is not None:
             cache[key] = (grid - float(s_start), sd)

@@ -176,7 +176,9 @@ class ValidityChecker:
 
     # ------------------------------------------------------------------ states
     def _measures(self, q: np.ndarray, full: bool) -> np.ndarray:
-        q = _states(q)
+        # writable (a copy of a frozen array), as every other caller passes it: numba compiles
+        # read-only arrays separately
+        q = np.require(_states(q), requirements=["C", "W"])
         out = np.empty((q.shape[0], N_MEASURES))
         evaluate_many(q, self._prm, *self._packed, full, out)
         return out
@@ -289,8 +291,9 @@ class ValidityChecker:
             Skip the rule checks of the two end postures (their measures are still computed).
             Only for callers that checked them already, e.g. a planner's tree nodes.
         """
-        qa = np.ascontiguousarray(_states(q_a)[0])
-        qb = np.ascontiguousarray(_states(q_b)[0])
+        # copies: writable, as the compiled planners pass them (one compiled signature)
+        qa = np.array(_states(q_a)[0])
+        qb = np.array(_states(q_b)[0])
         r, t = certify_motion(
             qa, qb, self._prm, *self._packed, self.coarse_step, MIN_CERTIFIED_STEP, ends_known_valid
         )
@@ -337,7 +340,7 @@ class ValidityChecker:
         reports the path valid. The extremes are taken over the waypoints and samples every
         ``sample_step`` rad (max-norm); they are diagnostics, not the certificate.
         """
-        q = np.ascontiguousarray(_states(waypoints))
+        q = np.require(_states(waypoints), requirements=["C", "W"])  # as in _measures
         bad, reason, t = -1, 0, 1.0
         if certify and len(q) == 1:
             reason = int(self._measures(q, False)[0, M_REASON])

@@ -1,0 +1,122 @@
+"""Paths remembered per scene (planner.planning.experience): a recalled path is valid by an
+independent dense check of every posture, only hard searches start a scene's memory, a
+memory serves only the scene (arrays, modes) it was made in, and the search walks it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner import Design, caching
+from planner.geometry import Box
+from planner.planning import PlanOptions, compiled_rrt, corridor, experience
+from planner.validity import Margins, ValidityChecker, densify
+
+NARROW = Design(0.5, 0.2, 0.6, joint_min=(-2.0, -np.pi, -np.pi), joint_max=(2.0, np.pi, np.pi))
+
+
+def window(dy: float = 0.0) -> list[Box]:
+    """The benchmark's narrow scene: a plate |z| <= 0.01, x in [0.05, 1.3], |y| <= 1.3 with
+    a window x < 0.45, |y| < 0.3 (moved by ``dy`` along y)."""
+    x0, x1, y1, hx, hy, t = 0.05, 1.3, 1.3, 0.45, 0.3, 0.02
+    return [
+        Box([(x0 + x1) / 2, dy - (hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+        Box([(x0 + x1) / 2, dy + (hy + y1) / 2, 0.0], [x1 - x0, y1 - hy, t]),
+        Box([(hx + x1) / 2, dy, 0.0], [x1 - hx, 2 * hy, t]),
+    ]
+
+
+@pytest.fixture(autouse=True)
+def _fresh_memory():
+    caching.clear("experience")
+    yield
+    caching.clear("experience")
+
+
+@pytest.fixture(scope="module")
+def scene() -> tuple[ValidityChecker, list[tuple[np.ndarray, np.ndarray]]]:
+    """The window scene in mode +-+ and seeded pairs theta1 > 0.3 -> theta1 < -0.3 whose
+    straight motion is not valid (the arm must pass the window), both ends in the one
+    component of the corridor grid that holds most marked cells (the grid only picks them)."""
+    checker = ValidityChecker(NARROW, Margins(), window(), "+", "+-+")
+    grid = corridor.corridor_grid(checker)
+    main = np.argmax(np.bincount(grid.labels.ravel())[1:]) + 1
+    rng = np.random.default_rng(5)
+    q = rng.uniform(NARROW.joint_min, NARROW.joint_max, (4000, 3))
+    q[:2000, 0] = rng.uniform(0.3, 1.8, 2000)
+    q[2000:, 0] = rng.uniform(-1.8, -0.3, 2000)
+    ok = checker.is_valid(q) & np.array([grid.labels[tuple(grid.cell_of(x))] == main for x in q])
+    a, b = q[:2000][ok[:2000]], q[2000:][ok[2000:]]
+    pairs = [(s, g) for s, g in zip(a, b, strict=False) if not checker.motion_valid(s, g)]
+    caching.clear("corridor")  # the grid only picked the pairs: no later plan finds it
+    return checker, pairs[:12]
+
+
+def _remember_one(checker: ValidityChecker, q_start, q_goal) -> np.ndarray:
+    out = compiled_rrt.rrt_connect(checker, q_start, q_goal, PlanOptions(seed=2), 2.0)
+    assert out is not None and out.waypoints is not None
+    experience.remember(
+        checker, out.waypoints, compiled_rrt.SIMPLIFY_SLACK, nodes=experience.MIN_NODES
+    )
+    return out.waypoints
+
+
+def test_a_recalled_path_is_valid_by_a_dense_independent_check(scene) -> None:
+    checker, pairs = scene
+    _remember_one(checker, *pairs[0])
+    hits = 0
+    for q_start, q_goal in pairs[1:]:
+        got = experience.recall(checker, q_start, q_goal)
+        if got is None:
+            continue
+        hits += 1
+        w, _ = got
+        np.testing.assert_array_equal(w[0], q_start)
+        np.testing.assert_array_equal(w[-1], q_goal)
+        # every posture every 0.5 mrad valid by the per-posture report (not the certificate)
+        assert checker.check_states(densify(w, 5e-4)).valid.all()
+        assert w[:, 0].max() > 0 > w[:, 0].min()  # through the window
+    assert hits >= 2
+
+
+def test_an_easy_search_starts_no_memory(scene) -> None:
+    checker, pairs = scene
+    path = np.stack(pairs[0])  # any path: it is not kept
+    experience.remember(checker, path, 0.005, nodes=experience.MIN_NODES - 1)
+    assert experience.recall(checker, *pairs[0]) is None
+
+
+def test_a_memory_serves_only_its_own_scene(scene) -> None:
+    checker, pairs = scene
+    q_start, q_goal = pairs[0]
+    _remember_one(checker, q_start, q_goal)
+    assert experience.recall(checker, q_start, q_goal) is not None
+    moved = ValidityChecker(NARROW, Margins(), window(dy=0.05), "+", "+-+")
+    assert experience.recall(moved, q_start, q_goal) is None
+    assert experience.recall(checker.with_mode("+--"), q_start, q_goal) is None
+    wider = checker.with_margins(Margins(clearance=0.02))
+    assert experience.recall(wider, q_start, q_goal) is None
+
+
+def test_the_search_walks_a_remembered_path_reproducibly(scene) -> None:
+    checker, pairs = scene
+    _remember_one(checker, *pairs[0])
+    walked = []
+    for q_start, q_goal in pairs[1:]:
+        if experience.recall(checker, q_start, q_goal) is None:
+            continue
+        runs = [
+            compiled_rrt.search(checker, q_start, q_goal, PlanOptions(seed=4), 1.0)
+            for _ in range(2)
+        ]
+        for out in runs:
+            assert out.waypoints is not None and out.certified and out.nodes == 0
+            assert checker.check_path(out.waypoints).valid
+        np.testing.assert_array_equal(runs[0].waypoints, runs[1].waypoints)
+        # the raw search neither walks nor fills the memory
+        raw = compiled_rrt.search(
+            checker, q_start, q_goal, PlanOptions(seed=4, simplify=False), 1.0
+        )
+        assert raw.waypoints is not None and raw.nodes > 0
+        walked.append(q_start)
+    assert walked
