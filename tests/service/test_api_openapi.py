@@ -127,9 +127,10 @@ def test_schemathesis_finds_no_failure_on_any_operation(live_server, tmp_path, s
     tests/schemathesis.toml says which answers count as accepted or rejected, and why, and
     narrows the coverage phase (every boundary case of a schema, no example bound) where it
     only repeated other cases: none for /v1/plan/batch (its items are /v1/plan's bodies, whose
-    boundaries /v1/plan's coverage sends) and /v1/simulate/bag (/v1/simulate's body), negative
+    boundaries /v1/plan's coverage sends) and /v1/simulate(/bag) (plan, sequence and stop
+    bodies one level down), negative
     only for the figures (every figure is drawn by test_api_workspace.py); all still get the
-    fuzzing phase's examples (about 12,000 coverage cases over 34 operations)."""
+    fuzzing phase's examples (about 9,400 coverage cases over 34 operations)."""
     import httpx
 
     paths = list(httpx.get(f"{live_server}/openapi.json", timeout=60).json()["paths"])
