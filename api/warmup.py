@@ -15,7 +15,7 @@ import logging
 import time
 from typing import Any
 
-__all__ = ["start_worker", "warm_up_inline", "warm_up_loop", "warm_up_worker"]
+__all__ = ["post_scope", "start_worker", "warm_up_inline", "warm_up_loop", "warm_up_worker"]
 
 logger = logging.getLogger(__name__)
 
@@ -108,15 +108,10 @@ async def warm_up_loop(app: Any) -> float:
     return time.perf_counter() - t0
 
 
-async def _request(app: Any, path: str, body: dict) -> int:
-    """One POST of ``body`` to ``path`` through ``app``'s router (below the middleware),
-    with the service's first API key if it has keys: the answer's status."""
-    keys = app.state.settings.tenant_keys
-    headers = [(b"content-type", b"application/json"), (b"host", b"localhost")]
-    if keys:
-        headers.append((b"x-api-key", next(iter(keys)).encode()))
-    raw = json.dumps(body).encode()
-    scope = {
+def post_scope(path: str, headers: list[tuple[bytes, bytes]]) -> dict[str, Any]:
+    """The ASGI scope of a POST to ``path`` from the loopback with ``headers``: what the
+    loop's warm-up sends through the router (and benchmarks/ops_overhead.py through the app)."""
+    return {
         "type": "http",
         "asgi": {"version": "3.0"},
         "http_version": "1.1",
@@ -129,9 +124,18 @@ async def _request(app: Any, path: str, body: dict) -> int:
         "headers": headers,
         "client": ("127.0.0.1", 0),
         "server": ("127.0.0.1", 0),
-        "state": {},
-        "app": app,
     }
+
+
+async def _request(app: Any, path: str, body: dict) -> int:
+    """One POST of ``body`` to ``path`` through ``app``'s router (below the middleware),
+    with the service's first API key if it has keys: the answer's status."""
+    keys = app.state.settings.tenant_keys
+    headers = [(b"content-type", b"application/json"), (b"host", b"localhost")]
+    if keys:
+        headers.append((b"x-api-key", next(iter(keys)).encode()))
+    raw = json.dumps(body).encode()
+    scope = {**post_scope(path, headers), "state": {}, "app": app}
     sent = [{"type": "http.request", "body": raw, "more_body": False}]
     never: asyncio.Future[None] = asyncio.get_running_loop().create_future()
     status = 0

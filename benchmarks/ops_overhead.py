@@ -80,24 +80,14 @@ _BODY = b'{"q": [0.2, 1.0, 2.0]}'
 
 
 def _fk_scope(path: str) -> dict:
-    return {
-        "type": "http",
-        "asgi": {"version": "3.0"},
-        "http_version": "1.1",
-        "method": "POST",
-        "scheme": "http",
-        "path": path,
-        "raw_path": path.encode(),
-        "root_path": "",
-        "query_string": b"",
-        "headers": [
-            (b"host", b"localhost"),
-            (b"content-type", b"application/json"),
-            (b"content-length", str(len(_BODY)).encode()),
-        ],
-        "client": ("127.0.0.1", 1),
-        "server": ("127.0.0.1", 80),
-    }
+    from planner_api.warmup import post_scope
+
+    headers = [
+        (b"host", b"localhost"),
+        (b"content-type", b"application/json"),
+        (b"content-length", str(len(_BODY)).encode()),
+    ]
+    return post_scope(path, headers)
 
 
 def _cpu_per_request(app: Callable[..., Awaitable[None]], path: str, n: int) -> float:
