@@ -212,6 +212,33 @@ def test_check_path_clearance_is_the_least_over_its_samples_among_many_obstacles
     assert rep.max_kappa_A == pytest.approx(float(states.kappa_A.max()), rel=1e-12)
 
 
+def test_check_path_extremes_skip_no_sample_that_could_lower_the_clearance():
+    """The diagnostics' second pass skips a sample's clearance where the certificate's
+    Lipschitz bound keeps it above the running minimum (planner.validity._path_kernels):
+    over long certified paths through a cloud of small obstacles (most samples skipped), the
+    extremes are those of every sample measured alone, to the bit."""
+    d = Design.default()
+    rng = np.random.default_rng(8)
+    centres = rng.uniform(-1.0, 1.0, (3000, 3))
+    centres = centres[np.linalg.norm(centres, axis=1) > 0.8]
+    chk = ValidityChecker(d, Margins(), [Sphere(c, 0.005) for c in centres], "+", "+-+")
+    paths = 0
+    while paths < 6:
+        w = np.column_stack(
+            [rng.uniform(-2.5, 2.5, 4), rng.uniform(1.2, 2.8, 4), rng.uniform(0.2, 1.8, 4)]
+        )
+        if not chk.check_states(w).valid.all():
+            continue
+        rep = chk.check_path(w)
+        if not rep.valid:
+            continue
+        paths += 1
+        states = chk.check_states(densify(w, 0.02))
+        assert rep.min_clearance == float(states.clearance.min())
+        assert rep.max_kappa_A == float(states.kappa_A.max())
+        assert rep.min_serial_margin == float(states.serial_margin.min())
+
+
 def test_serial_rules_off_keeps_the_other_rules():
     """A motion onto a serial singularity (leg A stretched) is certified for kappa and
     clearance with the serial rules off, and refused with them on."""

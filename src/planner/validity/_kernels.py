@@ -146,7 +146,8 @@ def evaluate_bounded(
     out,
 ):  # pragma: no cover
     """:func:`evaluate`; in ``full`` mode the clearance is exact only where it is below
-    ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima."""
+    ``clear_upper`` (a value >= ``clear_upper`` otherwise), for running minima; with
+    ``clear_upper`` = -inf it is not measured (-inf; the other rules' measures are)."""
     L0, L1, L2 = prm[P_L0], prm[P_L1], prm[P_L2]
     for k in range(N_MEASURES):
         out[k] = -np.inf
@@ -271,6 +272,8 @@ def _link_clearance(
     # break the rule, and a broken rule ends a relaxed check (the others are not measured);
     # no obstacle: nothing to measure (best stays at its cap)
     n_obstacles = spheres.shape[0] + capsules.shape[0] + boxes.shape[0]
+    if full and clear_upper == -np.inf:
+        n_obstacles = 0  # not measured (evaluate_bounded): best stays -inf
     for k in range(4 if n_obstacles > 0 else 0):
         link = (2, 3, 0, 1)[k]
         au, aw = ends_u[link], ends_w[link]
@@ -558,110 +561,3 @@ def _measure_ends(
     ms[n, M_REASON] = 0.0
     done[0] = True
     done[n] = True
-
-
-@njit(cache=True)
-def certify_path(
-    q,
-    prm,
-    spheres,
-    capsules,
-    boxes,
-    sphere_nodes,
-    capsule_nodes,
-    box_nodes,
-    sphere_grid,
-    coarse_step,
-    min_step,
-    reasons,
-    ts,
-):  # pragma: no cover
-    """Certify every motion of a waypoint path (N, 3); stops at the first broken motion."""
-    for i in range(q.shape[0] - 1):
-        r, t = certify_motion(
-            q[i],
-            q[i + 1],
-            prm,
-            spheres,
-            capsules,
-            boxes,
-            sphere_nodes,
-            capsule_nodes,
-            box_nodes,
-            sphere_grid,
-            coarse_step,
-            min_step,
-            False,
-        )
-        reasons[i] = r
-        ts[i] = t
-        if r != 0:
-            return i
-    return -1
-
-
-#: Every how many samples of a motion :func:`path_extremes` measures first.
-EXTREMES_STRIDE = 16
-
-
-@njit(cache=True)
-def path_extremes(
-    q, step, prm, spheres, capsules, boxes, sphere_nodes, capsule_nodes, box_nodes, sphere_grid, out
-):  # pragma: no cover
-    """(min clearance, max kappa_A, min signed serial) over the waypoints of q (N, 3) and
-    samples every ``step`` rad (max-norm) on the motions between them, into out (3,); NaN
-    when no sample closes the loop.
-
-    The samples are visited in two passes, every :data:`EXTREMES_STRIDE`-th of each motion
-    (and its end) first, the others then: the extremes are the same over the same samples in
-    any order, but the running minimum of the clearance, below which alone an obstacle is
-    measured exactly, falls near its final value early, so the obstacle trees are walked
-    within a smaller reach at most samples (among 100k points the exact clearance is most of
-    a straight plan's time)."""
-    m = np.empty(N_MEASURES)
-    lo_clear, hi_kappa, lo_serial = np.inf, -np.inf, np.inf
-    found = False
-    for sweep in range(2):
-        for i in range(q.shape[0]):
-            n = 1
-            if i > 0:
-                length = 0.0
-                for j in range(3):
-                    length = max(length, abs(q[i, j] - q[i - 1, j]))
-                n = max(1, math.ceil(length / step))
-            for k in range(1, n + 1):
-                if (k % EXTREMES_STRIDE == 0 or k == n) != (sweep == 0):
-                    continue  # the coarse samples in the first pass, the others in the second
-                if i == 0:
-                    a0, a1, a2 = q[0, 0], q[0, 1], q[0, 2]
-                else:
-                    t = k / n
-                    a0 = q[i - 1, 0] + t * (q[i, 0] - q[i - 1, 0])
-                    a1 = q[i - 1, 1] + t * (q[i, 1] - q[i - 1, 1])
-                    a2 = q[i - 1, 2] + t * (q[i, 2] - q[i - 1, 2])
-                # only obstacles that may lower the running minimum are measured exactly
-                evaluate_bounded(
-                    a0,
-                    a1,
-                    a2,
-                    prm,
-                    spheres,
-                    capsules,
-                    boxes,
-                    sphere_nodes,
-                    capsule_nodes,
-                    box_nodes,
-                    sphere_grid,
-                    True,
-                    lo_clear,
-                    m,
-                )
-                if m[M_KAPPA] > -np.inf:
-                    found = True
-                    lo_clear = min(lo_clear, m[M_CLEAR_RAW])
-                    hi_kappa = max(hi_kappa, m[M_KAPPA])
-                    lo_serial = min(lo_serial, m[M_SERIAL_RAW])
-    if not found:
-        out[0] = out[1] = out[2] = np.nan
-    else:
-        out[0], out[1], out[2] = lo_clear, hi_kappa, lo_serial

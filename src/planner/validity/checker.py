@@ -26,12 +26,11 @@ from planner.validity._kernels import (
     N_MEASURES,
     REASONS,
     certify_motion,
-    certify_path,
     evaluate,
     evaluate_many,
     pack_params,
-    path_extremes,
 )
+from planner.validity._path_kernels import certify_path, path_extremes
 from planner.validity.margins import (
     Margins,
 )
