@@ -44,7 +44,12 @@ from numba import njit
 from planner.planning import experience, ompl_backend
 from planner.planning.ompl_backend import SearchOutcome
 from planner.planning.problem import PlanOptions
-from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
+from planner.validity import (
+    MIN_CERTIFIED_STEP,
+    ValidityChecker,
+    certify_extension,
+    certify_motion,
+)
 
 __all__ = ["CAPACITY", "CHUNK", "CLUTTER_ROWS", "rrt_connect", "scene_range", "search", "simplify"]
 
@@ -183,9 +188,7 @@ def _grow(t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, 
     if count[t] >= nodes.shape[1]:
         return 0, -1
     s, c, b, sn, cn, bn, sg = packed
-    r, _ = certify_motion(
-        qa.copy(), qb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP, False
-    )
+    r = certify_extension(qa.copy(), qb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP)
     if r != 0:
         return 0, -1
     i = _insert(t, qb, near, nodes, parent, count, head, nxt, lo, inv)

@@ -33,7 +33,7 @@ Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C
 theta3 only and moves by at most ``L1 (|dtheta2| + |dtheta3|)``, a global bound.
 """
 
-from planner.validity._kernels import REASONS, certify_motion
+from planner.validity._kernels import REASONS, certify_extension, certify_motion
 from planner.validity.checker import (
     DEFAULT_COARSE_STEP,
     DIAGNOSTIC_STEP,
@@ -65,6 +65,7 @@ __all__ = [
     "StateReport",
     "ValidityChecker",
     "assembly_reason",
+    "certify_extension",
     "certify_motion",
     "densify",
     "warm_up",

@@ -271,9 +271,12 @@ class ValidityChecker:
           ``_kernels.sin_apex_min``);
         * serial: ``r45 + |dq2|``, ``r45 + |dq3|`` (sin of a difference of angles) and
           ``(L1 |dq2| + L2 r45) / (L1 + L2)`` (w), the largest of the three for their minimum;
-        * clearance: a link point at distance r <= L1 + L2 from the axis AB moves by at most
-          ``r |dq1|`` plus its in-plane motion (L1 |dq2| for C, and for P that of C or D plus
-          ``L2 r45``); a distance to a fixed obstacle is 1-Lipschitz in the link's points.
+        * clearance: a link point at distance r <= L1 + L2 from the axis AB moves by
+          ``r |dq1|`` normal to the plane (the turn about AB) and, within the plane, by at
+          most its in-plane motion v (L1 |dq2| for C, and for P that of C or D plus
+          ``L2 r45``; a point between two link ends moves at most as fast as the faster end):
+          orthogonal parts, so at most ``hypot(r |dq1|, v)``; a distance to a fixed obstacle
+          is 1-Lipschitz in the link's points.
 
         Joint limits hold on the whole motion when they hold at its ends (a box is convex);
         the loop closes and the assembly mode holds while |CD| stays in its kappa band
