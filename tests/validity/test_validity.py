@@ -239,6 +239,31 @@ def test_check_path_extremes_skip_no_sample_that_could_lower_the_clearance():
         assert rep.min_serial_margin == float(states.serial_margin.min())
 
 
+def test_an_extension_is_certified_as_its_motion_is():
+    """certify_extension (the search's extension test, its new posture evaluated first)
+    gives certify_motion's verdict on every motion from a valid posture, and a broken
+    rule of the end posture as the end's own reason."""
+    from planner.validity import MIN_CERTIFIED_STEP, REASONS, certify_extension, certify_motion
+
+    d = Design.default()
+    rng = np.random.default_rng(12)
+    centres = rng.uniform(-0.9, 0.9, (300, 3))
+    chk = ValidityChecker(d, Margins(), [Sphere(c, 0.02) for c in centres], "+", "+-+")
+    starts = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0], (400, 3))
+    starts = starts[chk.is_valid(starts)]
+    verdicts = {True: 0, False: 0}
+    for qa in starts[:60]:
+        for qb in qa + rng.normal(scale=0.3, size=(5, 3)):
+            args = (chk.params, *chk.packed, chk.coarse_step, MIN_CERTIFIED_STEP)
+            ext = certify_extension(qa, qb, *args)
+            full = certify_motion(qa, qb, *args, False)[0]
+            assert (ext == 0) == (full == 0)
+            if not chk.is_valid(qb[None])[0]:
+                assert REASONS[ext] == chk.check_states(qb).reason[0]
+            verdicts[ext == 0] += 1
+    assert min(verdicts.values()) > 20  # both verdicts were met
+
+
 def test_serial_rules_off_keeps_the_other_rules():
     """A motion onto a serial singularity (leg A stretched) is certified for kappa and
     clearance with the serial rules off, and refused with them on."""
