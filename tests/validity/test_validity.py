@@ -155,7 +155,7 @@ def test_motion_into_an_obstacle_between_samples_is_rejected():
 @pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
 def test_lipschitz_rates_bound_finite_differences(design):
     """The constants of the certificate bound the measured change of each margin."""
-    from planner.validity._kernels import evaluate_many, rates
+    from planner.validity._kernels import N_MEASURES, evaluate_many, rates
 
     rng = np.random.default_rng(2)
     margins = Margins(kappa_max=6.0)
@@ -166,7 +166,7 @@ def test_lipschitz_rates_bound_finite_differences(design):
         dq = rng.normal(size=3) * 0.5
         t = np.linspace(0, 1, 2001)
         q = a + t[:, None] * dq
-        out = np.empty((len(q), 7))
+        out = np.empty((len(q), N_MEASURES))
         evaluate_many(q, chk._prm, *chk._packed, True, out)
         inside = out[:, 1] >= 0  # kappa band holds: the rates apply
         bounds = rates(dq[0], dq[1], dq[2], chk._prm)
@@ -178,6 +178,49 @@ def test_lipschitz_rates_bound_finite_differences(design):
                 worst = max(worst, float((slope / rate).max()))
                 assert np.all(slope <= rate * (1 + 1e-6) + 1e-9)
     assert worst > 0.05  # the bounds are not vacuous
+
+
+@pytest.mark.parametrize("design", DESIGNS, ids=["sing-free", "paper", "other"])
+def test_local_lipschitz_rates_bound_finite_differences(design):
+    """The certificate's rates on a piece (planner.validity._kernels.rates_at: the apex sine
+    bounded on the piece, the links' distance from the axis AB bounded from the piece's
+    ends) bound the measured change of each margin inside that piece, and are tighter than
+    the motion's global rates somewhere."""
+    from planner.validity._kernels import (
+        M_AXIS,
+        M_KAPPA,
+        N_MEASURES,
+        evaluate_many,
+        rates,
+        rates_at,
+    )
+
+    rng = np.random.default_rng(21)
+    chk = ValidityChecker(design, Margins(kappa_max=6.0), OBSTACLES, "+", "+-+")
+    tighter = 0
+    for _ in range(60):
+        a = rng.uniform(-np.pi, np.pi, 3)
+        dq = rng.normal(size=3) * 0.5
+        t = np.linspace(0, 1, 2001)
+        out = np.empty((len(t), N_MEASURES))
+        evaluate_many(a + t[:, None] * dq, chk._prm, *chk._packed, True, out)
+        for _ in range(6):
+            i, j = sorted(rng.choice(len(t), 2, replace=False))
+            piece = out[i : j + 1]
+            if not (piece[:, 1] >= 0).all():
+                continue  # the kappa band breaks inside: no rate applies
+            kappa = piece[:, M_KAPPA]
+            s_min = float((2.0 / (kappa + 1.0 / kappa)).min()) * (1 - 1e-9)  # |sin apex|
+            w = t[j] - t[i]
+            local = rates_at(*dq, chk._prm, s_min, piece[0, M_AXIS], piece[-1, M_AXIS], w)
+            glob = rates(*dq, chk._prm)
+            tighter += local[2] < 0.9 * glob[2]
+            for col, rate in zip((1, 2, 3), local, strict=True):
+                g = piece[:, col]
+                slope = np.abs(np.diff(g)) / (t[1] - t[0])
+                ok = np.isfinite(slope)
+                assert np.all(slope[ok] <= rate * (1 + 1e-6) + 1e-9), (col, slope.max(), rate)
+    assert tighter > 20
 
 
 def test_check_path_diagnostics():

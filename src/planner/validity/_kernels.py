@@ -80,8 +80,10 @@ def pack_params(
 
 
 # measure vector layout (per state)
-M_REASON, M_DMARGIN, M_SERIAL, M_CLEAR, M_KAPPA, M_SERIAL_RAW, M_CLEAR_RAW = range(7)
-N_MEASURES = 7
+# (M_AXIS: the largest distance of a link point from the axis AB, m: what the turn theta1
+# moves a link by, the local bound of the certificate's clearance rate, rates_at)
+M_REASON, M_DMARGIN, M_SERIAL, M_CLEAR, M_AXIS, M_KAPPA, M_SERIAL_RAW, M_CLEAR_RAW = range(8)
+N_MEASURES = 8
 
 
 @njit(cache=True)
@@ -172,6 +174,7 @@ def evaluate_bounded(
         out[M_REASON] = reason if reason else R_ASSEMBLY
         return
     d = math.sqrt(d2)
+    out[M_AXIS] = max(abs(cw), max(abs(dw), abs(pw)))  # a link's points lie between its ends
     # kappa band on |CD|
     dmargin = min(d - 2.0 * L2 * prm[P_DLO], 2.0 * L2 * prm[P_DHI] - d)
     out[M_DMARGIN] = dmargin
@@ -329,37 +332,49 @@ def evaluate_many(
 
 
 @njit(cache=True)
-def rates_at(dq0, dq1, dq2, prm, s_min):  # pragma: no cover - compiled
-    """Lipschitz bounds over the parameter t in [0, 1] of a straight motion q0 + t dq, for the
-    d-margin, serial margin and clearance margin, valid wherever
-    |sin(theta4 - theta5)| >= s_min > 0.
+def rates_at(dq0, dq1, dq2, prm, s_min, axis_a, axis_b, w):  # pragma: no cover - compiled
+    """Lipschitz bounds over the parameter t of a straight motion q0 + t dq, for the
+    d-margin, serial margin and clearance margin, valid on a piece [ta, ta + w] of it where
+    |sin(theta4 - theta5)| >= s_min > 0 and whose ends have their link points at most
+    ``axis_a`` and ``axis_b`` from the axis AB (measure ``M_AXIS``; the global bound
+    L1 + L2 with w = 0 holds on any piece).
 
     The loop closure C + L2 e(theta4) = D + L2 e(theta5) differentiated and projected on
     e(theta5) gives |dtheta4| <= |dD - dC| / (L2 |sin(theta4 - theta5)|)
-    <= L1 (|dtheta2| + |dtheta3|) / (L2 s_min), and the same for theta5."""
+    <= L1 (|dtheta2| + |dtheta3|) / (L2 s_min), and the same for theta5. P's in-plane
+    velocity also solves (v_P - v_C) . e4 = 0, (v_P - v_D) . e5 = 0, a 2x2 system of unit
+    rows at the apex angle: |v_P| <= |(v_C . e4, v_D . e5)| / sqrt(1 - |cos(apex)|)
+    <= L1 hypot(|dtheta2|, |dtheta3|) / sqrt(1 - sqrt(1 - s_min^2)); the lesser of the two
+    bounds holds. A link point's distance r from the axis changes at most at the in-plane
+    speed v, so on the piece r <= (axis_a + axis_b + v w) / 2 (the two cones), and the point
+    moves by r |dtheta1| across the plane and v within it (orthogonal: their hypot)."""
     L1, L2 = prm[P_L1], prm[P_L2]
     reach = L1 + L2
     a0, a1, a2 = abs(dq0), abs(dq1), abs(dq2)
     rate_cd = L1 * (a1 + a2)
     r45 = rate_cd / (L2 * s_min)
     rate_serial = max(max(r45 + a1, r45 + a2), (L1 * a1 + L2 * r45) / reach)
-    # a point of a link moves by (distance to the axis AB) |dtheta1| across the plane (the
-    # turn about AB: normal to the plane) and by its in-plane motion within it: orthogonal
-    # parts, so its speed is their Euclidean sum (their plain sum overstated it by up to
-    # sqrt(2); on the fair scenes' simplified motions by ~1.3x)
     v_c = L1 * a1
     v_d = L1 * a2
+    cos_max = math.sqrt(max(1.0 - s_min * s_min, 0.0))
     v_p = min(v_c, v_d) + L2 * r45
+    if cos_max < 1.0:
+        v_p = min(v_p, L1 * math.hypot(a1, a2) / math.sqrt(1.0 - cos_max))
     v_cd = max(v_c, v_d)
-    rate_clear = max(math.hypot(L1 * a0, v_cd), math.hypot(reach * a0, max(v_cd, v_p)))
+    v_in = max(v_cd, v_p)  # the fastest in-plane motion of a link point
+    r = min(reach, 0.5 * (axis_a + axis_b + v_in * w))
+    # AC and BD lie within L1 of the axis and move in-plane at most as C or D
+    rate_clear = max(math.hypot(min(L1, r) * a0, v_cd), math.hypot(r * a0, v_in))
     return rate_cd, rate_serial, rate_clear
 
 
 @njit(cache=True)
 def rates(dq0, dq1, dq2, prm):  # pragma: no cover - compiled
-    """:func:`rates_at` valid wherever kappa(A) <= K = kappa_max: there
-    |sin(theta4 - theta5)| = (1 + |cos|) / kappa >= 1 / K."""
-    return rates_at(dq0, dq1, dq2, prm, 1.0 / prm[P_KAPPA])
+    """:func:`rates_at` valid on the whole motion wherever kappa(A) <= K = kappa_max: there
+    |sin(theta4 - theta5)| = (1 + |cos|) / kappa >= 1 / K; every link point within L1 + L2
+    of the axis."""
+    reach = prm[P_L1] + prm[P_L2]
+    return rates_at(dq0, dq1, dq2, prm, 1.0 / prm[P_KAPPA], reach, reach, 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -452,10 +467,10 @@ def certify_motion(
     # depth-first certification with an explicit stack of intervals
     cap = n + 128
     st_t = np.empty((cap, 2))
-    st_m = np.empty((cap, 2, 3))
+    st_m = np.empty((cap, 2, 4))  # per end: d-margin, serial margin, clearance margin, axis
     top = 0
     for k in range(n):
-        top = _push_piece(st_t, st_m, top, k / n, (k + 1) / n, ms[k, 1:4], ms[k + 1, 1:4])
+        top = _push_piece(st_t, st_m, top, k / n, (k + 1) / n, ms[k, 1:5], ms[k + 1, 1:5])
     mid = np.empty(N_MEASURES)
     while top > 0:
         top -= 1
@@ -464,7 +479,16 @@ def certify_motion(
         lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
         if lb_cd >= 0.0:
             # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
-            _, rate_serial, rate_clear = rates_at(dq0, dq1, dq2, prm, sin_apex_min(prm, lb_cd))
+            _, rate_serial, rate_clear = rates_at(
+                dq0,
+                dq1,
+                dq2,
+                prm,
+                sin_apex_min(prm, lb_cd),
+                st_m[top, 0, 3],
+                st_m[top, 1, 3],
+                w,
+            )
         else:
             rate_serial = rate_clear = np.inf
         lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
@@ -497,8 +521,8 @@ def certify_motion(
             return int(mid[M_REASON]), tm
         ma = st_m[top, 0].copy()
         mb = st_m[top, 1].copy()
-        top = _push_piece(st_t, st_m, top, ta, tm, ma, mid[1:4])
-        top = _push_piece(st_t, st_m, top, tm, tb, mid[1:4], mb)
+        top = _push_piece(st_t, st_m, top, ta, tm, ma, mid[1:5])
+        top = _push_piece(st_t, st_m, top, tm, tb, mid[1:5], mb)
     return 0, 1.0
 
 
@@ -563,10 +587,10 @@ def certify_extension(
 
 @njit(cache=True, inline="always")
 def _push_piece(st_t, st_m, top, ta, tb, m_a, m_b):  # pragma: no cover - compiled
-    """Push the piece [ta, tb] with the margins (3,) at its ends on the stack of
-    :func:`certify_motion`; returns the new top."""
+    """Push the piece [ta, tb] with the margins and axis distance (4,) at its ends on the
+    stack of :func:`certify_motion`; returns the new top."""
     st_t[top, 0], st_t[top, 1] = ta, tb
-    for j in range(3):
+    for j in range(4):
         st_m[top, 0, j] = m_a[j]
         st_m[top, 1, j] = m_b[j]
     return top + 1

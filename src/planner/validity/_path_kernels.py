@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from planner.validity._kernels import (
+    M_AXIS,
     M_CLEAR_RAW,
     M_DMARGIN,
     M_KAPPA,
@@ -20,6 +21,7 @@ from planner.validity._kernels import (
     N_MEASURES,
     certify_motion,
     evaluate_bounded,
+    rates,
     rates_at,
     sin_apex_min,
 )
@@ -110,7 +112,7 @@ def path_extremes(
             length = max(length, abs(q[i, j] - q[i - 1, j]))
         ns[i] = max(1, math.ceil(length / step))
         n_anchors += (ns[i] + EXTREMES_STRIDE - 1) // EXTREMES_STRIDE
-    anchors = np.empty((n_anchors, 2))  # (d-margin, clearance lower bound), in path order
+    anchors = np.empty((n_anchors, 3))  # (d-margin, clearance lower bound, axis), path order
     m = np.empty(N_MEASURES)
     ext = np.array([np.inf, -np.inf, np.inf, 0.0])  # running extremes; [3]: a loop closed
     a = 0
@@ -135,20 +137,27 @@ def path_extremes(
                     m,
                     ext,
                 )
-                anchors[a, 0], anchors[a, 1] = m[M_DMARGIN], m[M_CLEAR_RAW]
+                anchors[a, 0], anchors[a, 1], anchors[a, 2] = (
+                    m[M_DMARGIN],
+                    m[M_CLEAR_RAW],
+                    m[M_AXIS],
+                )
                 a += 1
     a = 0  # the anchor at the start of the piece
     for i in range(1, nq):
         n = ns[i]
         dq0, dq1, dq2 = q[i, 0] - q[i - 1, 0], q[i, 1] - q[i - 1, 1], q[i, 2] - q[i - 1, 2]
-        rate_cd = rates_at(dq0, dq1, dq2, prm, 1.0)[0]  # |CD|'s rate needs no apex bound
+        rate_cd = rates(dq0, dq1, dq2, prm)[0]
         ka = 0
         while ka < n:
             kb = min(ka + EXTREMES_STRIDE, n)
             lb_cd = 0.5 * (anchors[a, 0] + anchors[a + 1, 0] - rate_cd * (kb - ka) / n)
             rate = np.inf  # no bound on the clearance's rate: every sample measured
             if lb_cd >= 0.0:
-                rate = rates_at(dq0, dq1, dq2, prm, sin_apex_min(prm, lb_cd))[2] / n
+                s_min = sin_apex_min(prm, lb_cd)
+                w = (kb - ka) / n
+                rate = rates_at(dq0, dq1, dq2, prm, s_min, anchors[a, 2], anchors[a + 1, 2], w)[2]
+                rate /= n
             kl, cl, cb = ka, anchors[a, 1], anchors[a + 1, 1]
             for k in range(ka + 1, kb):
                 bound = max(cl - rate * (k - kl), cb - rate * (kb - k))

@@ -274,9 +274,13 @@ class ValidityChecker:
         * clearance: a link point at distance r <= L1 + L2 from the axis AB moves by
           ``r |dq1|`` normal to the plane (the turn about AB) and, within the plane, by at
           most its in-plane motion v (L1 |dq2| for C, and for P that of C or D plus
-          ``L2 r45``; a point between two link ends moves at most as fast as the faster end):
-          orthogonal parts, so at most ``hypot(r |dq1|, v)``; a distance to a fixed obstacle
-          is 1-Lipschitz in the link's points.
+          ``L2 r45``, or P's velocity from the two loop constraints
+          ``(v_P - v_C) . e4 = (v_P - v_D) . e5 = 0`` at most
+          ``L1 hypot(|dq2|, |dq3|) / sqrt(1 - sqrt(1 - s^2))``; a point between two link
+          ends moves at most as fast as the faster end): orthogonal parts, so at most
+          ``hypot(r |dq1|, v)``; on a piece, r is bounded by the largest distance from the
+          axis measured at its ends plus the cones of v (``_kernels.rates_at``); a distance
+          to a fixed obstacle is 1-Lipschitz in the link's points.
 
         Joint limits hold on the whole motion when they hold at its ends (a box is convex);
         the loop closes and the assembly mode holds while |CD| stays in its kappa band
