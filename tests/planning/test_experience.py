@@ -120,3 +120,26 @@ def test_the_search_walks_a_remembered_path_reproducibly(scene) -> None:
         assert raw.waypoints is not None and raw.nodes > 0
         walked.append(q_start)
     assert walked
+
+
+def test_a_search_that_walks_nothing_samples_near_the_remembered_paths(scene) -> None:
+    """Where no join to a remembered path holds, the search still draws part of its samples
+    near the remembered paths (experience.guide): it finds the window with fewer nodes than
+    the same seeded search without a memory, every path valid by the dense check."""
+    checker, pairs = scene
+    kept = _remember_one(checker, *pairs[0])
+    guide = experience.guide(checker)
+    np.testing.assert_array_equal(guide[: len(kept)], kept)
+    assert np.isnan(guide[len(kept)]).all()  # a break after each path
+    misses = [p for p in pairs[1:] if experience.recall(checker, *p) is None]
+    misses += pairs[1:5]  # and some that could walk: the search itself is what is compared
+    nodes = {True: 0, False: 0}
+    for guided in (True, False):
+        if not guided:
+            caching.clear("experience")
+        for q_start, q_goal in misses:
+            out = compiled_rrt.rrt_connect(checker, q_start, q_goal, PlanOptions(seed=3), 2.0)
+            assert out is not None and out.waypoints is not None
+            assert checker.check_states(densify(out.waypoints, 5e-4)).valid.all()
+            nodes[guided] += out.nodes
+    assert nodes[True] < 0.7 * nodes[False], nodes

@@ -77,6 +77,13 @@ RECALL_SHORTCUT_TRIES = (1, 4)
 #: turn around) is not pushed into the margin by a path that hugs it (the service's ruckig
 #: plan of ``tests/test_plan_checker.py`` came within 0.9 mm of the margin without it).
 SIMPLIFY_SLACK = 0.005
+#: Share of the search's samples drawn near the scene's remembered paths, where it has some
+#: (:func:`planner.planning.experience.guide`): a recall that found no join still knows
+#: where earlier searches found the passage.
+GUIDE_SHARE = 0.5
+#: Standard deviation (rad, per joint) of a guided sample about its point of a remembered
+#: path.
+GUIDE_SPREAD = 0.05
 #: Buckets per axis of the nearest-neighbour grid.
 _BUCKETS = 16
 #: Obstacle rows (spheres, points, capsules, boxes) from which :func:`scene_range` is short.
@@ -195,21 +202,41 @@ def _grow(t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, 
     return (2 if reach else 1), i
 
 
+@njit(cache=True, inline="always")
+def _sample(target, lo, hi, guide):  # pragma: no cover - compiled
+    """A random posture of the joint box into ``target``: with probability
+    :data:`GUIDE_SHARE`, where ``guide`` holds remembered paths (rows, NaN rows between
+    paths), a uniform point of one of their motions moved by a normal step of
+    :data:`GUIDE_SPREAD` per joint (clipped to the box); else uniform in the box (the same
+    draws as with no guide, so a search without one is unchanged)."""
+    m = guide.shape[0]
+    if m >= 2 and np.random.random() < GUIDE_SHARE:  # noqa: NPY002 (numba: the legacy API)
+        i = np.random.randint(0, m - 1)  # noqa: NPY002 (numba: the legacy API)
+        if np.isfinite(guide[i, 0]) and np.isfinite(guide[i + 1, 0]):
+            u = np.random.random()  # noqa: NPY002 (numba: the legacy API)
+            for k in range(3):
+                v = guide[i, k] + u * (guide[i + 1, k] - guide[i, k])
+                v += np.random.normal(0.0, GUIDE_SPREAD)  # noqa: NPY002 (numba: the legacy API)
+                target[k] = min(hi[k], max(lo[k], v))
+            return
+    for k in range(3):
+        target[k] = lo[k] + np.random.random() * (hi[k] - lo[k])  # noqa: NPY002 (numba: the legacy API)
+
+
 @njit(cache=True)
 def _run(
-    nodes, parent, count, head, nxt, lo, hi, width, rng, prm, packed, step, iters, state, out
+    nodes, parent, count, head, nxt, lo, hi, width, rng, prm, packed, step, guide, iters, state, out
 ):  # pragma: no cover - compiled
-    """``iters`` iterations of RRT-Connect; ``state[0]`` the tree that grows next. Returns
-    True with ``out`` = (node in tree 0, node in tree 1) when the trees met; ``state[1]`` = 1
-    when a tree is full."""
+    """``iters`` iterations of RRT-Connect, its targets drawn by :func:`_sample`;
+    ``state[0]`` the tree that grows next. Returns True with ``out`` = (node in tree 0, node
+    in tree 1) when the trees met; ``state[1]`` = 1 when a tree is full."""
     inv = 1.0 / width
     target = np.empty(3)
     for _ in range(iters):
         t = state[0]
         o = 1 - t
         state[0] = o
-        for k in range(3):
-            target[k] = lo[k] + np.random.random() * (hi[k] - lo[k])  # noqa: NPY002 (numba: the legacy API)
+        _sample(target, lo, hi, guide)
         st, i = _grow(
             t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step
         )
@@ -393,7 +420,26 @@ def rrt_connect(
     # more, cold): a call of no iteration pays that before the deadline starts, so that a
     # cold process finds the path a warm one finds (a first try's short budget is the
     # search's, not the loading's; tests/cli/test_cli_plan.py compares the two)
-    _run(nodes, parent, count, head, nxt, lo, hi, width, rng, prm, packed, step, 0, state, ends)
+    # the remembered paths of the scene guide part of the samples (experience.guide)
+    guide = experience.guide(checker) if options.simplify else np.empty((0, 3))
+    _run(
+        nodes,
+        parent,
+        count,
+        head,
+        nxt,
+        lo,
+        hi,
+        width,
+        rng,
+        prm,
+        packed,
+        step,
+        guide,
+        0,
+        state,
+        ends,
+    )
     deadline = time.monotonic() + time_budget_s
     found = False
     iters = CHUNK
@@ -411,6 +457,7 @@ def rrt_connect(
             prm,
             packed,
             step,
+            guide,
             iters,
             state,
             ends,

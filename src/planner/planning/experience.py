@@ -40,7 +40,7 @@ import numpy as np
 from planner.caching import BoundedCache, bounded_cache
 from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
-__all__ = ["MAX_DETOUR", "MAX_PATHS", "MAX_TESTS", "MIN_NODES", "recall", "remember"]
+__all__ = ["MAX_DETOUR", "MAX_PATHS", "MAX_TESTS", "MIN_NODES", "guide", "recall", "remember"]
 
 #: Tree nodes (both trees) from which a search's path is remembered.
 MIN_NODES = 64
@@ -166,3 +166,15 @@ def recall(
             keep[1:] = np.any(np.diff(out, axis=0) != 0.0, axis=1)  # no motion of no length
             return out[keep], scene.slack
     return None
+
+
+def guide(checker: ValidityChecker) -> np.ndarray:
+    """The remembered paths of the checker's scene as one (M, 3) array of their waypoints,
+    each path's followed by NaN rows (a break between paths), for a search to sample near
+    (:func:`planner.planning.compiled_rrt.rrt_connect`: where a recall found no join, the
+    passage the earlier searches found is still there); (0, 3) when nothing is remembered."""
+    scene = _scene(checker)
+    if scene is None or not scene.paths:
+        return np.empty((0, 3))
+    gap = np.full((1, 3), np.nan)
+    return np.ascontiguousarray(np.vstack([row for p in scene.paths for row in (p, gap)]))
