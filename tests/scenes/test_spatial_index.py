@@ -202,7 +202,7 @@ def _min_distance(ax, ay, az, bx, by, bz, *args) -> float:
     :func:`~planner.geometry.segment_obstacle_distance` calls, with its argument types (the
     inner function is compiled code's only; called from Python it would compile alone)."""
     from planner._kernels import read_only
-    from planner.geometry import _segments_distance
+    from planner.geometry.distance import _segments_distance
 
     *packed, best, t, relax = args
     out = np.empty(1)

@@ -51,7 +51,16 @@ from planner.validity import (
     certify_motion,
 )
 
-__all__ = ["CAPACITY", "CHUNK", "CLUTTER_ROWS", "rrt_connect", "scene_range", "search", "simplify"]
+__all__ = [
+    "CAPACITY",
+    "CHUNK",
+    "CLUTTER_ROWS",
+    "rrt_connect",
+    "scene_range",
+    "search",
+    "simplify",
+    "walk",
+]
 
 #: Iterations of the compiled loop before the first look at the deadline.
 CHUNK = 32
@@ -354,12 +363,34 @@ def _path(nodes: np.ndarray, parent: np.ndarray, ends: np.ndarray) -> np.ndarray
     return np.array(out[0] + out[1][1:])
 
 
+def walk(
+    checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, options: PlanOptions
+) -> SearchOutcome | None:
+    """A path ``q_start`` -> ``q_goal`` (3,) rad along a path remembered in the checker's scene
+    (:func:`planner.planning.experience.recall`), simplified with
+    :data:`RECALL_SHORTCUT_TRIES`, every motion certified; None when the search is not the
+    compiled ``rrtconnect`` with ``options.simplify`` (the raw search never walks), nothing is
+    remembered, or no join holds. A walk is a path: the planner tries it before asking the
+    region map's proofs (:func:`planner.planning.single_mode.plan_in_region`)."""
+    if options.name != "rrtconnect" or not options.simplify:
+        return None
+    remembered = experience.recall(checker, q_start, q_goal)
+    if remembered is None:
+        return None
+    path, slack = remembered
+    _seed(options.seed)
+    path = simplify(path, checker, slack, RECALL_SHORTCUT_TRIES)
+    return SearchOutcome(path, True, "Exact solution", True, certified=True)
+
+
 def search(
     checker: ValidityChecker,
     q_start: np.ndarray,
     q_goal: np.ndarray,
     options: PlanOptions,
     time_budget_s: float,
+    *,
+    walked: bool = False,
 ) -> SearchOutcome:
     """The product's search (what the planner calls): :func:`rrt_connect` for
     ``options.name == "rrtconnect"`` and one goal posture, OMPL
@@ -367,18 +398,15 @@ def search(
     (K, 3) with K > 1, and for the rest of the budget when the compiled trees fill up.
 
     With ``options.simplify`` (the default), in a scene where a search was hard before, a
-    remembered path is tried first (:func:`planner.planning.experience.recall`, then
-    :func:`simplify` with :data:`RECALL_SHORTCUT_TRIES`); the compiled search's simplified
-    path is offered to :func:`planner.planning.experience.remember`."""
+    remembered path is tried first (:func:`walk`; not again when the caller tried it:
+    ``walked``); the compiled search's simplified path is offered to
+    :func:`planner.planning.experience.remember`."""
     goals = np.asarray(q_goal, dtype=float).reshape(-1, 3)
     t0 = time.monotonic()
     if options.name == "rrtconnect" and len(goals) == 1:
-        remembered = experience.recall(checker, q_start, goals[0]) if options.simplify else None
-        if remembered is not None:
-            path, slack = remembered
-            _seed(options.seed)
-            path = simplify(path, checker, slack, RECALL_SHORTCUT_TRIES)
-            return SearchOutcome(path, True, "Exact solution", True, certified=True)
+        walked_path = None if walked else walk(checker, q_start, goals[0], options)
+        if walked_path is not None:
+            return walked_path
         out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
         if out is not None:
             if out.waypoints is not None and out.simplified:

@@ -287,6 +287,9 @@ def plan_in_region(
         waypoints, name, certified = None, "", False
         if options.try_direct and checker.motion_valid(q_start, q_goal):
             waypoints, name, certified = np.stack([q_start, q_goal]), "direct", True
+        elif (walked := compiled_rrt.walk(checker, q_start, q_goal, options)) is not None:
+            # a path remembered in the scene joins them: a path exists, no proof is asked
+            waypoints, name, certified = walked.waypoints, options.name, True
         else:
             if before_search is not None:
                 answer, before_search = before_search(q_goals), None
@@ -309,7 +312,9 @@ def plan_in_region(
             elif stuck or guide:
                 searches += 1
                 first_try = min(budget, corridor.FIRST_TRY_S)
-                outcome = compiled_rrt.search(checker, q_start, q_goal, options, first_try)
+                outcome = compiled_rrt.search(
+                    checker, q_start, q_goal, options, first_try, walked=True
+                )
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name
@@ -328,7 +333,9 @@ def plan_in_region(
             budget = deadline - time.monotonic()
             if waypoints is None and budget > 0:
                 searches += 1
-                outcome = compiled_rrt.search(checker, q_start, q_goal, options, budget)
+                outcome = compiled_rrt.search(
+                    checker, q_start, q_goal, options, budget, walked=True
+                )
                 last_status = outcome.ompl_status
                 if outcome.waypoints is not None:
                     waypoints, name = outcome.waypoints, options.name

@@ -479,16 +479,7 @@ def certify_motion(
         lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
         if lb_cd >= 0.0:
             # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
-            _, rate_serial, rate_clear = rates_at(
-                dq0,
-                dq1,
-                dq2,
-                prm,
-                sin_apex_min(prm, lb_cd),
-                st_m[top, 0, 3],
-                st_m[top, 1, 3],
-                w,
-            )
+            rate_serial, rate_clear = _piece_rates(dq0, dq1, dq2, prm, lb_cd, st_m[top], w)
         else:
             rate_serial = rate_clear = np.inf
         lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
@@ -583,6 +574,16 @@ def certify_extension(
         min_step,
         False,
     )[0]
+
+
+@njit(cache=True, inline="always")
+def _piece_rates(dq0, dq1, dq2, prm, lb_cd, ends, w):  # pragma: no cover - compiled
+    """The serial and clearance rates of :func:`certify_motion` on a piece of width w whose
+    |CD| stays ``lb_cd`` >= 0 inside its band, ``ends`` (2, 4) the measures at its ends
+    (inlined: no call per piece)."""
+    s_min = sin_apex_min(prm, lb_cd)
+    _, rate_serial, rate_clear = rates_at(dq0, dq1, dq2, prm, s_min, ends[0, 3], ends[1, 3], w)
+    return rate_serial, rate_clear
 
 
 @njit(cache=True, inline="always")

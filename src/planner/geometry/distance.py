@@ -1,73 +1,34 @@
-"""Obstacles and distances between the link capsules and them (numpy and numba, no I/O).
-
-Obstacles are the shapes of the wire vocabulary (``docs/conventions.md``): a sphere, an
-oriented box (quaternion ``[w, x, y, z]``, frame of the box to the base frame), a capsule, and
-a point cloud (every point a sphere of one radius, as a depth camera gives them). A floor is
-a large flat box. Distances are *signed* distances between a link's axis segment
-and the obstacle's surface (negative when the segment enters the obstacle); the link radius
-is subtracted by the caller (:mod:`planner.validity`).
-
-Why each routine is right:
-
-* sphere and capsule: closed-form point-to-segment distance (sphere), and for a capsule the
-  minimum over the link parameter of the point-to-segment distance; that function is convex in
-  the parameter (a distance to a convex set composed with an affine map), so a golden-section
-  search finds its minimum;
-* box: outside the box, an exact piecewise-quadratic minimisation in the box frame
-  (:func:`segment_box_distance`); for a segment entering the box, the signed distance
-  function of a convex set is convex, so the same golden-section search over the link
-  parameter gives the (negative) segment-to-box signed distance.
-
-The search stops when the bracket is below :data:`LINE_SEARCH_TOL` of the segment; the
-distance error is then below that times the segment length (a distance is 1-Lipschitz in the
-point), i.e. below 1e-9 m for links under a metre. The tests compare every routine with dense
-point sampling.
-
-Packing: :func:`pack_obstacles` turns a list of obstacles into three float arrays that the
-compiled kernels read (rows ``[cx, cy, cz, r]`` for spheres and for each point of a cloud,
-``[ax, ay, az, bx, by, bz, r]`` for capsules, ``[cx, cy, cz, R (9, row-major), hx, hy, hz]``
-for boxes, R the box-to-base rotation and h the half sizes), each with the tree of
-:mod:`planner.spatial_index` over its rows (the rows reordered along it), built once per
-obstacle set. :func:`segment_min_distance` walks the trees: the distance it returns is the
-same minimum a loop over every obstacle finds, in time that grows slowly with their number.
-"""
+"""The compiled distances between segments (the links' axes) and packed obstacles
+(:mod:`planner.geometry`, "Why each routine is right"), and the library's segment distance
+query :func:`segment_obstacle_distance`."""
 
 from __future__ import annotations
 
-import hashlib
 import math
-import operator
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from planner._kernels import read_only
-from planner.caching import BoundedCache, bounded_cache
-from planner.constants import MAX_POINTS
 from planner.exceptions import InputError
+from planner.geometry.packing import PackedObstacles, pack_obstacles
+from planner.geometry.shapes import Obstacle
 from planner.spatial_index import (
     BOUND_SLACK,
     GRID_HEADER,
     LEAF,
-    build_grid,
-    build_tree,
     local_segment_box_sq,
     node_lower_bound,
 )
 
 __all__ = [
     "LINE_SEARCH_TOL",
-    "MAX_POINTS",
-    "Box",
-    "Capsule",
-    "Obstacle",
-    "PackedObstacles",
-    "Points",
-    "Sphere",
-    "pack_obstacles",
+    "box_sdf",
+    "point_segment_distance",
+    "segment_box_distance",
+    "segment_convex_distance",
+    "segment_min_distance",
     "segment_obstacle_distance",
 ]
 
@@ -78,246 +39,6 @@ _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 _GOLDEN_ITERATIONS = math.ceil(math.log(LINE_SEARCH_TOL) / math.log(_GOLDEN))
 
 
-def _vector(name: str, value: object, size: int = 3) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be {size} numbers, got {value!r}") from exc
-    if arr.shape != (size,):
-        raise InputError(f"{name} must be {size} numbers, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} must be finite, got {arr.tolist()}")
-    arr = arr.copy()
-    arr.flags.writeable = False
-    return arr
-
-
-def _length(name: str, value: object, *, positive: bool) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a number, got {value!r}") from exc
-    if not math.isfinite(v) or v < 0 or (positive and v == 0):
-        rule = "> 0" if positive else ">= 0"
-        raise InputError(f"{name} must be finite and {rule}, got {v}")
-    return v
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Sphere:
-    """A ball: ``center`` (3,) m, ``radius`` m (>= 0; 0 is a point)."""
-
-    center: np.ndarray
-    radius: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vector("sphere.center", self.center))
-        object.__setattr__(self, "radius", _length("sphere.radius", self.radius, positive=False))
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Capsule:
-    """The points within ``radius`` (m) of the segment ``a``-``b`` ((3,) m each)."""
-
-    a: np.ndarray
-    b: np.ndarray
-    radius: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "a", _vector("capsule.a", self.a))
-        object.__setattr__(self, "b", _vector("capsule.b", self.b))
-        object.__setattr__(self, "radius", _length("capsule.radius", self.radius, positive=False))
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Box:
-    """An oriented box: ``center`` (3,) m, full edge lengths ``size`` (3,) m (> 0), and the
-    unit quaternion ``[w, x, y, z]`` turning the box frame into the base frame (normalised
-    here; a zero quaternion is an error)."""
-
-    center: np.ndarray
-    size: np.ndarray
-    quaternion: np.ndarray = (1.0, 0.0, 0.0, 0.0)  # type: ignore[assignment]
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vector("box.center", self.center))
-        size = _vector("box.size", self.size)
-        if np.any(size <= 0):
-            raise InputError(f"box.size must be > 0 in every axis, got {size.tolist()}")
-        object.__setattr__(self, "size", size)
-        quat = np.asarray(_vector("box.quaternion", self.quaternion, 4))
-        norm = float(np.linalg.norm(quat))
-        if norm < 1e-12:
-            raise InputError("box.quaternion must not be zero (it is normalised, [w, x, y, z])")
-        quat = quat / norm
-        quat.flags.writeable = False
-        object.__setattr__(self, "quaternion", quat)
-
-    @property
-    def rotation(self) -> np.ndarray:
-        """Shape (3, 3): box-frame to base-frame rotation matrix of the quaternion."""
-        w, x, y, z = self.quaternion
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Points:
-    """A point cloud: ``points`` (N, 3) m, 1 <= N <= :data:`MAX_POINTS`, every point a ball
-    of ``radius`` m (> 0: a sensor's points stand for surfaces of some thickness)."""
-
-    points: np.ndarray
-    radius: float
-
-    def __post_init__(self) -> None:
-        try:
-            pts = np.array(self.points, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError("points.points must be N x 3 numbers", field="points") from exc
-        if pts.ndim != 2 or pts.shape[1] != 3:
-            raise InputError(
-                f"points.points must have shape (N, 3), got {pts.shape}", field="points"
-            )
-        if len(pts) == 0:
-            raise InputError("points.points must hold at least one point", field="points")
-        if len(pts) > MAX_POINTS:
-            raise InputError(
-                f"points.points holds at most {MAX_POINTS} points, got {len(pts)}",
-                field="points",
-            )
-        finite = np.isfinite(pts).all(axis=1)
-        if not finite.all():
-            i = int(np.argmin(finite))
-            raise InputError(
-                f"points.points[{i}] must be finite, got {pts[i].tolist()}", field="points"
-            )
-        pts.flags.writeable = False
-        object.__setattr__(self, "points", pts)
-        try:
-            radius = _length("points.radius", self.radius, positive=True)
-        except InputError as exc:
-            raise InputError(str(exc), field="radius") from exc
-        object.__setattr__(self, "radius", radius)
-
-
-Obstacle = Sphere | Box | Capsule | Points
-
-
-class PackedObstacles(NamedTuple):
-    """Obstacles as float arrays for the compiled kernels (layout in the module docstring),
-    each kind's rows in the order of its tree (:mod:`planner.spatial_index`)."""
-
-    spheres: np.ndarray  # (ns, 4): spheres and the points of every cloud
-    capsules: np.ndarray  # (nc, 7)
-    boxes: np.ndarray  # (nb, 15)
-    sphere_nodes: np.ndarray  # (2 M - 1, 7) tree of the sphere rows
-    capsule_nodes: np.ndarray
-    box_nodes: np.ndarray
-    sphere_grid: np.ndarray  # (K,) the sphere rows' grid, empty when they have none
-
-    @property
-    def count(self) -> int:  # type: ignore[override]  # the obstacles', not tuple.count
-        return len(self.spheres) + len(self.capsules) + len(self.boxes)
-
-
-def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
-    """Pack obstacles into :class:`PackedObstacles`, their trees built (once: a caller that
-    checks many postures against one obstacle set packs it once and shares the result).
-
-    Two caches: by identity, the same obstacle objects (the next plan of a library user or
-    of a named scene, which keeps its objects) find their packing without a look at their
-    rows (rows of 1,000 spheres take 4 ms to gather, a 100,000-point cloud 3 ms to hash);
-    by content, an equal set of other objects (the same obstacles sent inline again) finds
-    the trees built. Obstacles are immutable (frozen, read-only arrays), so identity is
-    enough; the identity cache holds the objects, so their ids are not reused while it
-    remembers them."""
-    if len(obstacles) >= _IDENTITY_FROM or any(isinstance(o, Points) for o in obstacles):
-        # map over C callables, not generators: 1,000 obstacles in ~40 us instead of ~140
-        key = tuple(map(id, obstacles))
-        hit = _BY_IDENTITY.get(key)
-        if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
-            return hit[1]
-        packed = _pack(obstacles)
-        _BY_IDENTITY.put(key, (tuple(obstacles), packed))
-        return packed
-    return _pack(obstacles)
-
-
-def _pack(obstacles: Sequence[Obstacle]) -> PackedObstacles:
-    """:func:`pack_obstacles` without the identity cache."""
-    spheres, clouds, capsules, boxes = [], [], [], []
-    n_points = 0
-    for i, ob in enumerate(obstacles):
-        if isinstance(ob, Sphere):
-            spheres.append([*ob.center, ob.radius])
-        elif isinstance(ob, Points):
-            n_points += len(ob.points)
-            if n_points > MAX_POINTS:
-                raise InputError(
-                    f"obstacles hold at most {MAX_POINTS} points in all, got {n_points} by "
-                    f"obstacles[{i}]",
-                    field=str(i),
-                )
-            clouds.append(np.column_stack([ob.points, np.full(len(ob.points), ob.radius)]))
-        elif isinstance(ob, Capsule):
-            capsules.append([*ob.a, *ob.b, ob.radius])
-        elif isinstance(ob, Box):
-            boxes.append([*ob.center, *ob.rotation.ravel(), *(ob.size / 2)])
-        else:
-            raise InputError(
-                f"obstacles[{i}] must be a Sphere, Box, Capsule or Points, got {type(ob).__name__}"
-            )
-    rows = (
-        np.vstack([np.array(spheres, dtype=float).reshape(-1, 4), *clouds]),
-        np.array(capsules, dtype=float).reshape(-1, 7),
-        np.array(boxes, dtype=float).reshape(-1, 15),
-    )
-    small = sum(len(r) for r in rows) <= _CACHE_FROM
-    digest = hashlib.blake2b(digest_size=16)
-    for r in rows:
-        digest.update(np.asarray(r.shape, dtype=np.int64).tobytes())
-        digest.update(r.tobytes())
-    key = digest.digest()
-    cache = _PACKED_SMALL if small else _PACKED
-    hit = cache.get(key)
-    if hit is None:
-        hit = _pack_rows(rows)
-        cache.put(key, hit)
-    return hit
-
-
-def _pack_rows(rows: tuple[np.ndarray, np.ndarray, np.ndarray]) -> PackedObstacles:
-    """The trees of the three kinds' rows, every array read-only (shared through the cache)."""
-    (s_rows, s_nodes), (c_rows, c_nodes), (b_rows, b_nodes) = (
-        build_tree(kind, r) for kind, r in enumerate(rows)
-    )
-    packed = PackedObstacles(s_rows, c_rows, b_rows, s_nodes, c_nodes, b_nodes, build_grid(s_rows))
-    for a in packed:
-        a.flags.writeable = False
-    return packed
-
-
-#: Obstacle sets are packed once per process and content: the next checker of the same set
-#: (the next request of a scene) finds its trees built; sets of more rows than this in
-#: ``geometry.packed``, smaller ones in ``geometry.packed_small`` (:mod:`planner.caching`).
-_CACHE_FROM = 64
-_PACKED: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed")
-#: Sets of at most ``_CACHE_FROM`` rows have a cache of their own (hashing a few rows costs
-#: a microsecond, packing them with their trees some tens: every plan packs its scene), so
-#: that many small scenes never push a large scene's trees out of ``_PACKED``.
-_PACKED_SMALL: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed_small")
-#: Obstacle lists of at least this many objects (or holding a cloud) are remembered by
-#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``.
-_IDENTITY_FROM = 16
-_BY_IDENTITY: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache("geometry.by_identity")
-
-
-# ------------------------------------------------------------------------- compiled kernels
 @njit(cache=True, inline="always")
 def point_segment_distance(px, py, pz, ax, ay, az, bx, by, bz):  # pragma: no cover - compiled
     """Distance from point p to segment a-b (closed form: clamp the projection)."""
