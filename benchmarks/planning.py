@@ -523,8 +523,8 @@ def _dense_ok(chk: ValidityChecker, waypoints: np.ndarray) -> bool:
     return bool(chk.is_valid(densify(waypoints, DENSE_STEP)).all())
 
 
-_search = compiled_rrt.search
-_memory = (experience.recall, experience.remember)
+_search, _walk = compiled_rrt.search, compiled_rrt.walk
+_memory = (experience.recall, experience.remember, experience.guide)
 
 
 def _no_recall(*_args):
@@ -535,7 +535,11 @@ def _no_remember(*_args, **_kwargs):
     return None
 
 
-def _ompl_search(checker, q_start, q_goal, options, budget):
+def _no_guide(*_args):
+    return np.empty((0, 3))
+
+
+def _ompl_search(checker, q_start, q_goal, options, budget, **_kwargs):
     return ompl_backend.search(checker, q_start, q_goal, options, budget)
 
 
@@ -583,10 +587,13 @@ def fair_rows(args) -> None:
                     # "product OMPL": the same pipeline with OMPL's RRTConnect as its search
                     # (the product before the compiled search of issue 43)
                     compiled_rrt.search = _ompl_search if name == "product OMPL" else _search
+                    compiled_rrt.walk = _no_recall if name == "product OMPL" else _walk
                     # "product no mem": the product without remembered paths (each query
-                    # searches, as a scene's first hard query does)
-                    experience.recall, experience.remember = (
-                        (_no_recall, _no_remember) if name == "product no mem" else _memory
+                    # searches, as a scene's first hard query does, unguided)
+                    experience.recall, experience.remember, experience.guide = (
+                        (_no_recall, _no_remember, _no_guide)
+                        if name == "product no mem"
+                        else _memory
                     )
                     res = plan(
                         design,
@@ -610,8 +617,8 @@ def fair_rows(args) -> None:
                     path = out.waypoints
                 rec[name]["times"].append(time.perf_counter() - t0)
                 rec[name]["cpu"].append(time.process_time() - c0)
-                compiled_rrt.search = _search
-                experience.recall, experience.remember = _memory
+                compiled_rrt.search, compiled_rrt.walk = _search, _walk
+                experience.recall, experience.remember, experience.guide = _memory
                 if path is not None:
                     rec[name]["solved"] += 1
                     rec[name]["invalid"] += not _dense_ok(chk, path)

@@ -144,7 +144,10 @@ def recall(
     prm, packed, step = scene.slack, checker.packed, checker.coarse_step
 
     def test(q_a: np.ndarray, q_b: np.ndarray) -> bool:
-        return certify_motion(q_a, q_b, prm, *packed, step, MIN_CERTIFIED_STEP, False)[0] == 0
+        # writable copies: the remembered rows are read-only, and the certificate takes
+        # writable postures (one compiled signature: planner._kernels.read_only's rule)
+        a, b = np.array(q_a), np.array(q_b)
+        return certify_motion(a, b, prm, *packed, step, MIN_CERTIFIED_STEP, False)[0] == 0
 
     joins: dict[tuple[int, int, int], bool] = {}  # (end 0 start / 1 goal, path, vertex)
     tests = 0
