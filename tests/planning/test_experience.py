@@ -143,3 +143,17 @@ def test_a_search_that_walks_nothing_samples_near_the_remembered_paths(scene) ->
             assert checker.check_states(densify(out.waypoints, 5e-4)).valid.all()
             nodes[guided] += out.nodes
     assert nodes[True] < 0.7 * nodes[False], nodes
+
+
+def test_a_walk_needs_no_compiled_signature_of_its_own(scene) -> None:
+    """The walk certifies its joins with the search's array types (the remembered rows are
+    read-only: a read-only posture made numba load or compile a second certificate, 20 ms
+    for a process's first walk from the cache, seconds without it)."""
+    from planner.validity import certify_motion
+
+    checker, pairs = scene
+    _remember_one(checker, *pairs[0])
+    before = set(certify_motion.signatures)
+    walked = [compiled_rrt.walk(checker, s, g, PlanOptions()) for s, g in pairs[1:]]
+    assert any(w is not None for w in walked)
+    assert set(certify_motion.signatures) == before
