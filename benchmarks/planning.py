@@ -567,8 +567,8 @@ def fair_rows(args) -> None:
     )
     head = (
         f"{'scene':<11} {'set-up':<14} {'n':>3} {'solved':>6} {'invalid':>7} {'p50 ms':>8} "
-        f"{'p95 ms':>8} {'max ms':>8} {'cpu p50':>7} {'len rad':>7} {'x p50':>7} {'x p95':>7} "
-        f"{'x cpu':>6}"
+        f"{'p95 ms':>8} {'max ms':>8} {'cpu p50':>7} {'cpu p95':>7} {'len rad':>7} {'x p50':>7} "
+        f"{'x p95':>7} {'x cpu':>6} {'x cpu95':>7}"
     )
     print(head)
     print("-" * len(head))
@@ -626,26 +626,29 @@ def fair_rows(args) -> None:
                     rec[name]["lengths"].append(float(np.sum(steps)))
         prod = np.asarray(rec["product"]["times"]) * 1e3
         prod_cpu = np.median(rec["product"]["cpu"]) * 1e3
+        prod_cpu95 = np.percentile(rec["product"]["cpu"], 95) * 1e3
         for name in setups:
             r = rec[name]
             t = np.asarray(r["times"]) * 1e3
             cpu = np.median(r["cpu"]) * 1e3
+            cpu95 = np.percentile(r["cpu"], 95) * 1e3
             ratio = ""
             if name in setups[:2]:
                 ratio = (
                     f"{np.percentile(t, 50) / np.percentile(prod, 50):>6.1f}x "
                     f"{np.percentile(t, 95) / np.percentile(prod, 95):>6.1f}x "
-                    f"{cpu / prod_cpu:>5.1f}x"
+                    f"{cpu / prod_cpu:>5.1f}x {cpu95 / prod_cpu95:>6.1f}x"
                 )
             length = statistics.median(r["lengths"]) if r["lengths"] else float("nan")
             print(
                 f"{kind:<11} {name:<14} {len(t):>3} {r['solved']:>6} {r['invalid']:>7} "
                 f"{np.percentile(t, 50):>8.2f} {np.percentile(t, 95):>8.2f} {t.max():>8.1f} "
-                f"{cpu:>7.2f} {length:>7.2f} {ratio}"
+                f"{cpu:>7.2f} {cpu95:>7.2f} {length:>7.2f} {ratio}"
             )
     print(
-        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries; x cpu: "
-        "of the CPU-time medians, the process's own time, less moved by the machine's load); "
+        f"load at the end {os.getloadavg()[0]:.2f}; x: naive / product (same queries; x cpu, "
+        "x cpu95: of the CPU-time medians and 95th percentiles, the process's own time, less "
+        "moved by the machine's load); "
         "product OMPL: the product with OMPL's RRTConnect as its search (before the compiled "
         "search); product no mem: without the paths remembered per scene (planner.planning."
         "experience: each query searches)"
