@@ -64,13 +64,15 @@ def _time_asgi(app: Callable[..., Awaitable[None]], n: int, batch: int = 500) ->
     async def send(_message: dict) -> None:
         return None
 
+    size = max(1, min(batch, n))  # fewer requests than a batch: one batch of them all
+
     async def run() -> list[float]:
         per_call = []
-        for _ in range(n // batch):
+        for _ in range(max(1, n // size)):
             start = time.perf_counter()
-            for _ in range(batch):
+            for _ in range(size):
                 await app(dict(scope), receive, send)
-            per_call.append((time.perf_counter() - start) / batch)
+            per_call.append((time.perf_counter() - start) / size)
         return per_call
 
     return statistics.median(asyncio.run(run()))
@@ -104,7 +106,7 @@ def _cpu_per_request(app: Callable[..., Awaitable[None]], path: str, n: int) -> 
 
     async def run() -> list[float]:
         per_call = []
-        for k in range(n // 100 + 3):
+        for k in range(max(1, n // 100) + 3):  # at least one batch measured
             c0 = time.thread_time()
             for _ in range(100):
                 await app(_fk_scope(path), receive, send)
