@@ -100,11 +100,13 @@ class ToppraCurve:
         q, d1, d2 = self.path.evaluate_all(s)
         return q, d1 * sd[:, None], d1 * sdd[:, None] + d2 * (sd**2)[:, None], None
 
-    def check_path_positions(self, resolution: float) -> np.ndarray:
+    def check_path_positions(self, resolution: float, *, ordered: bool = True) -> np.ndarray:
         """Path positions ``resolution`` apart along s (s is the joint-space arc length, so
         consecutive checked postures are at most ``resolution`` apart whatever the timing),
         plus ``SUBSAMPLES`` points inside every grid interval (toppra certifies the limits at
-        grid points only) and both sides of every grid point (the acceleration jumps there)."""
+        grid points only) and both sides of every grid point (the acceleration jumps there).
+        Sorted and unique, or with ``ordered=False`` the same set unsorted, with repeats (for
+        a largest value over them, which needs no sort)."""
         prof = self.profile
         n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
         check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
@@ -114,7 +116,8 @@ class ToppraCurve:
             [[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1), [1.0 - 1e-9]]
         )
         s_sub = (prof.s[:-1, None] + ds[:, None] * frac[None, :]).ravel()
-        return np.unique(np.concatenate([s_geo, s_sub, prof.s]))
+        every = np.concatenate([s_geo, s_sub, prof.s])
+        return np.unique(every) if ordered else every
 
     def check_times(self, resolution: float) -> np.ndarray:
         """Times of :meth:`check_path_positions`."""
