@@ -27,7 +27,7 @@ from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
 from planner.timing.path import distance_to_polyline
 from planner.timing.torque import TorqueModel
-from planner.timing.trajectory import Curve, p_velocity
+from planner.timing.trajectory import Curve, ToppraCurve, p_velocity
 
 __all__ = [
     "LIMIT_RTOL",
@@ -111,6 +111,7 @@ def dense_check(
     deviation_limit: np.ndarray | None = None,
     torque_model: TorqueModel | None = None,
     torque_in_time: bool = True,
+    check_times: np.ndarray | None = None,
 ) -> CheckReport:
     """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
 
@@ -133,12 +134,20 @@ def dense_check(
         for jerk-limited moves; a toppra curve's path acceleration is constant between its
         grid points, each of which is checked with subsamples, so near rest, where time
         passes but s does not, its torques do not change).
+    check_times : shape (C,), s, optional
+        ``curve.check_times(resolution)`` when the caller has them already.
     """
-    times = [curve.check_times(resolution), extra_times]
+    if check_times is None:
+        check_times = curve.check_times(resolution)
+    times = [check_times, extra_times]
     if torque_model is not None and limits.torque is not None and torque_in_time:
         times.append(torque_check_times(curve.duration))
     t = np.unique(np.concatenate(times))
-    q, qd, qdd, jerk = curve.evaluate(t)
+    if isinstance(curve, ToppraCurve):  # its profile read once for both
+        q, qd, qdd, jerk, segments = curve.evaluate_with_segments(t)
+    else:
+        q, qd, qdd, jerk = curve.evaluate(t)
+        segments = curve.plan_segments(t)
     ratio = {
         "velocity": float(np.max(np.abs(qd) / limits.velocity_array)),
         "acceleration": float(np.max(np.abs(qdd) / limits.acceleration_array)),
@@ -156,11 +165,10 @@ def dense_check(
         ratio["cartesian_speed"] = float(np.max(np.where(assembled, speed, 0.0)))
         ratio["cartesian_speed"] /= max_cartesian_speed
 
-    rule = np.full(t.shape[0], "", dtype=object)
+    # each bad posture's first failing rule, in this order (masks; the names at the end)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     outside = np.any((q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL), axis=1)
-    rule[~assembled] = "assembly"
-    rule[outside & (rule == "")] = "joint_limits"
+    failed = [("assembly", ~assembled), ("joint_limits", outside)]
     if check_states is not None:
         valid = np.asarray(check_states(q))
         if valid.shape != (q.shape[0],) or valid.dtype != np.bool_:
@@ -168,10 +176,8 @@ def dense_check(
                 f"check_states must return a bool array of shape ({q.shape[0]},), "
                 f"got {valid.dtype} {valid.shape}"
             )
-        rule[~valid & (rule == "")] = "validity"
-    bad = rule != ""
+        failed.append(("validity", ~valid))
 
-    segments = curve.plan_segments(t)
     off = segments[:, 0] >= 0
     dev_q, dev_p = 0.0, 0.0
     if np.any(off):
@@ -183,15 +189,15 @@ def dense_check(
             allowed = np.full(lo.shape[0], np.inf)
             for j in range(int(np.max(hi - lo, initial=0)) + 1):
                 allowed = np.minimum(allowed, deviation_limit[np.minimum(lo + j, hi)])
-            too_far = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
-            idx = np.flatnonzero(off)[too_far]
-            rule[idx[rule[idx] == ""]] = "deviation"
-            bad = rule != ""
+            too_far = np.zeros(t.shape[0], dtype=bool)
+            too_far[np.flatnonzero(off)] = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
+            failed.append(("deviation", too_far))
         p_near = forward_batch(design, nearest, assembly_mode)
         both = assembled[off] & p_near.ok
         dev_q = float(np.max(dist))
         if np.any(both):
             dev_p = float(np.max(np.linalg.norm(p[off][both] - p_near.p[both], axis=1)))
+    bad, rule = _first_failed(failed, t.shape[0])
     return CheckReport(
         t=t,
         q=q,
@@ -201,3 +207,18 @@ def dense_check(
         max_deviation_q=dev_q,
         max_deviation_p=dev_p,
     )
+
+
+def _first_failed(
+    failed: list[tuple[str, np.ndarray]], m: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(bad (M,) bool, state_rule (M,) str) of the rules' failure masks in the order given:
+    a posture is named by the first rule it fails, "" when it fails none."""
+    bad = np.zeros(m, dtype=bool)
+    rule = np.full(m, "", dtype=object)
+    for name, mask in failed:
+        new = mask & ~bad
+        if new.any():
+            rule[new] = name
+            bad |= new
+    return bad, rule

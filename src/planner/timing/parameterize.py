@@ -134,9 +134,10 @@ def _fit_time_scale(
     speed_gain: Callable[[np.ndarray], np.ndarray] | None,
     v_cart: float | None,
     torque_model: TorqueModel | None = None,
-) -> PathProfile:
+) -> tuple[PathProfile, np.ndarray]:
     """The toppra profile slowed uniformly in time just enough that the limits hold at every
-    check position, not only at toppra's grid points.
+    check position, not only at toppra's grid points; and those check positions (the slowed
+    profile has the same grid, so the dense re-check's positions are these: built once).
 
     Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
     (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
@@ -162,9 +163,9 @@ def _fit_time_scale(
         dyn, grav = torque_model.split(q, d1 * sd[:, None], qdd)
         c = min(c, torque_time_scale(dyn, grav, tau_max, target))
     if c >= 1.0:
-        return prof
+        return prof, s
     logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
-    return prof.time_scaled(c)
+    return prof.time_scaled(c), s
 
 
 def _exceeded(report: CheckReport) -> list[str]:
@@ -465,6 +466,9 @@ class _State:
         linear in the number of waypoints; ``benchmarks/timing.py --scaling``).
     via, via_chains, via_off : the via waypoints (merged), the via chains built (by section)
         and the sections whose chain a repair dropped (:mod:`planner.timing.vias`).
+    positions : (path, grid, s) -- the check path positions ``s`` the time-scale fit measured
+        on ``path`` for a profile on ``grid`` (the dense re-check of a toppra curve on the same
+        path and grid, slowed or not, checks the same ones: built once).
     """
 
     path: BlendedPath
@@ -484,6 +488,7 @@ class _State:
     via_radius: np.ndarray | None = None
     via_chains: dict = field(default_factory=dict)
     via_off: set = field(default_factory=set)
+    positions: tuple[BlendedPath, np.ndarray, np.ndarray] | None = None
 
 
 def _build_blended_path(job: TimingJob) -> _State:
@@ -543,11 +548,12 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
             )
             if job.method != "toppra":
                 break
-            fitted = _fit_time_scale(
+            fitted, positions = _fit_time_scale(
                 ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart, job.torque
             )
             if best is None or fitted.duration < best.duration:
                 best = fitted
+                state.positions = (path, fitted.s, positions)
             if fitted.duration <= profile.duration * _TORQUE_REFINE_BELOW:
                 break
             refine *= 2  # the torques overshoot between grid points: a finer grid
@@ -617,6 +623,11 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
     """Step 4: the timed curve re-checked densely (:func:`~planner.timing.checks.dense_check`)
     against the requested limits (not the scaled ones), joint limits, assembly, validity and
     the requested deviation allowance."""
+    check_times = None
+    if isinstance(curve, ToppraCurve) and state.positions is not None:
+        path, grid, positions = state.positions
+        if curve.path is path and curve.profile.s is grid:  # the fit's positions
+            check_times = curve.check_times(job.resolution, positions)
     return dense_check(
         curve,
         design=job.design,
@@ -630,6 +641,7 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
         deviation_limit=state.dev0,
         torque_model=job.torque,
         torque_in_time=job.method == "ruckig",
+        check_times=check_times,
     )
 
 
