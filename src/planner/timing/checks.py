@@ -209,9 +209,7 @@ def dense_check(
     )
 
 
-def _first_failed(
-    failed: list[tuple[str, np.ndarray]], m: int
-) -> tuple[np.ndarray, np.ndarray]:
+def _first_failed(failed: list[tuple[str, np.ndarray]], m: int) -> tuple[np.ndarray, np.ndarray]:
     """(bad (M,) bool, state_rule (M,) str) of the rules' failure masks in the order given:
     a posture is named by the first rule it fails, "" when it fails none."""
     bad = np.zeros(m, dtype=bool)
