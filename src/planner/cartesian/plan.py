@@ -58,7 +58,7 @@ from planner.cartesian.chords import (
     chord_deviation_bound,
     second_derivative_bound,
 )
-from planner.cartesian.inspection import inspect_cartesian
+from planner.cartesian.inspection import inspect_cartesian, inspect_with_branch
 from planner.cartesian.messages import describe_stop, format_point
 from planner.cartesian.result import (
     CartesianDiagnostics,
@@ -215,11 +215,12 @@ class StraightMotion:
         slot, asm_sign = WORKING_MODES.index(mode), 1 if asm == "+" else -1
         walker = Walker(design, checker, poly, q0, slot, asm_sign)
         events: tuple[PathEvent, ...] = ()
+        known = None  # the pre-check's inverse kinematics of its probes: the plan's own
         if self.inspect:
-            events = inspect_cartesian(
+            events, known = inspect_with_branch(
                 design, start, pts, margins=problem.margins, deadline=budget.deadline
             )
-        probed = probe_polyline(design, checker, walker, poly, q0, slot, asm_sign, budget)
+        probed = probe_polyline(design, checker, walker, poly, q0, slot, asm_sign, budget, known)
         tol = self.path_tolerance
         refined = Refinement(
             design, checker, walker, poly, q0, fb.w[0], probed, self.chord_share * tol

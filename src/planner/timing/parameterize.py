@@ -131,7 +131,7 @@ def _fit_time_scale(
     curve: ToppraCurve,
     limits: JointLimits,
     resolution: float,
-    speed_gain: Callable[[np.ndarray], np.ndarray] | None,
+    gain_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
     v_cart: float | None,
     torque_model: TorqueModel | None = None,
 ) -> tuple[PathProfile, np.ndarray]:
@@ -155,8 +155,8 @@ def _fit_time_scale(
     r_a = np.max(np.abs(qdd) / limits.acceleration_array)
     target = 1.0 - _FIT_MARGIN
     c = min(1.0, target / r_v, np.sqrt(target / r_a))
-    if speed_gain is not None and v_cart is not None:
-        gain = speed_gain(s)
+    if gain_at is not None and v_cart is not None:
+        gain = gain_at(q, d1)  # |dP/ds| (TimingJob.gain_at) at the postures evaluated above
         c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
     tau_max = limits.torque_array
     if torque_model is not None and tau_max is not None:
@@ -549,7 +549,7 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
             if job.method != "toppra":
                 break
             fitted, positions = _fit_time_scale(
-                ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart, job.torque
+                ToppraCurve(path, profile), lim, job.resolution, job.gain_at, job.v_cart, job.torque
             )
             if best is None or fitted.duration < best.duration:
                 best = fitted
