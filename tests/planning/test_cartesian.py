@@ -152,6 +152,50 @@ def test_chord_bound_is_an_upper_bound_on_random_pieces():
     assert checked > 100
 
 
+def _chord_bound_vectorised(design, q_a, q_b, w_a, w_b, line_a, line_b, asm, m=8):
+    """chord_deviation_bound as numpy arrays of all pieces at once (its form before it was
+    compiled): the library's forward kinematics at t = k / m, the second-derivative bound."""
+    from planner.cartesian.chords import second_derivative_bound
+    from planner.kinematics import forward_batch
+
+    n = q_a.shape[0]
+    t = np.arange(m + 1) / m
+    qs = (q_a[:, None, :] + t[None, :, None] * (q_b - q_a)[:, None, :]).reshape(-1, 3)
+    fb = forward_batch(design, qs, asm)
+    p = fb.p.reshape(n, m + 1, 3)
+    ok = np.all(fb.ok.reshape(n, m + 1), axis=1)
+    chord = p[:, :1] + t[None, :, None] * (p[:, -1:] - p[:, :1])
+    f = np.max(np.linalg.norm(p - chord, axis=2), axis=1)
+    ends = np.maximum(
+        np.linalg.norm(p[:, 0] - line_a, axis=1), np.linalg.norm(p[:, -1] - line_b, axis=1)
+    )
+    m2 = second_derivative_bound(design, q_a, q_b, w_a, w_b)
+    with np.errstate(invalid="ignore"):
+        bound = f + m2 / (8.0 * m * m) + ends
+    return np.where(ok & np.isfinite(bound), bound, np.inf)
+
+
+@pytest.mark.parametrize("design", [DEFAULT, Design(0.6, 0.25, 0.45)])
+def test_compiled_chord_bound_equals_the_vectorised_form(design):
+    """The compiled chord bound, bit for bit the vectorised numpy form on random pieces, short
+    and long (finite bounds, pieces near a parallel singularity where the apex sine may
+    vanish, and, on the second design, postures whose loop does not close: inf)."""
+    rng = np.random.default_rng(5)
+    n = 400
+    q_a = rng.uniform(-3, 3, (n, 3))
+    q_b = q_a + rng.choice([0.03, 1.0, 10.0], (n, 1)) * rng.uniform(-0.3, 0.3, (n, 3))
+    w_a, w_b = rng.uniform(-0.8, 0.8, n), rng.uniform(-0.8, 0.8, n)
+    line_a, line_b = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    for asm in ("+", "-"):
+        for m in (1, 8):
+            got = chord_deviation_bound(
+                design, q_a, q_b, w_a, w_b, line_a, line_b, asm, subdivisions=m
+            )
+            ref = _chord_bound_vectorised(design, q_a, q_b, w_a, w_b, line_a, line_b, asm, m)
+            assert np.array_equal(got, ref)
+            assert np.isfinite(got).sum() > 50 and np.isinf(got).sum() > 5
+
+
 # ---------------------------------------------------------------- stopping points
 def test_line_into_a_serial_singularity_stops_at_the_margin_sphere():
     """Outward along +y from A: leg A stretches at |AP| = L1 + L2; serial_min is met first
