@@ -147,7 +147,9 @@ def _fit_time_scale(
     :func:`~planner.timing.torque.torque_time_scale` gives their c.
     """
     prof = curve.profile
-    s = curve.check_path_positions(resolution)
+    # unsorted (a largest value needs no order; the re-check sorts their times), but in
+    # order with torque limits, whose error names the first sample over a limit
+    s = curve.check_path_positions(resolution, ordered=torque_model is not None)
     _, sd, sdd = prof.at_path(s)
     q, d1, d2 = curve.path.evaluate_all(s)
     r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)

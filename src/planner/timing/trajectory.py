@@ -121,8 +121,11 @@ class ToppraCurve:
 
     def check_times(self, resolution: float, positions: np.ndarray | None = None) -> np.ndarray:
         """Times of :meth:`check_path_positions` (``positions`` when the caller has them
-        already: the time-scale fit measured the same ones)."""
-        s = self.check_path_positions(resolution) if positions is None else positions
+        already: the time-scale fit measured the same ones), sorted and unique (so the
+        positions need not be: the same times either way)."""
+        if positions is None:
+            positions = self.check_path_positions(resolution, ordered=False)
+        s = positions
         t, _, _ = self.profile.at_path(s)
         return np.unique(np.clip(t, 0.0, self.profile.duration))
 
