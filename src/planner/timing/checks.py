@@ -167,7 +167,8 @@ def dense_check(
 
     # each bad posture's first failing rule, in this order (masks; the names at the end)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
-    outside = np.any((q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL), axis=1)
+    beyond = (q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL)
+    outside = beyond.any(axis=1) if beyond.any() else np.zeros(q.shape[0], dtype=bool)
     failed = [("assembly", ~assembled), ("joint_limits", outside)]
     if check_states is not None:
         valid = np.asarray(check_states(q))
@@ -196,7 +197,8 @@ def dense_check(
         both = assembled[off] & p_near.ok
         dev_q = float(np.max(dist))
         if np.any(both):
-            dev_p = float(np.max(np.linalg.norm(p[off][both] - p_near.p[both], axis=1)))
+            at = np.flatnonzero(off)[both]
+            dev_p = float(np.max(np.linalg.norm(p[at] - p_near.p[both], axis=1)))
     bad, rule = _first_failed(failed, t.shape[0])
     return CheckReport(
         t=t,

@@ -498,9 +498,9 @@ def _build_blended_path(job: TimingJob) -> _State:
     vertices kept as rest points; the allowances per merged waypoint."""
     min_radius = min_blend_radius(job.limits)
     path = BlendedPath.from_waypoints(job.waypoints, job.max_deviation, job.stop, min_radius)
-    dev = np.minimum.reduceat(job.max_deviation, np.unique(path.index_map, return_index=True)[1])
-    via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
     first = np.unique(path.index_map, return_index=True)[1]
+    dev = np.minimum.reduceat(job.max_deviation, first)
+    via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
     via_radius = None if job.via_radius is None else np.minimum.reduceat(job.via_radius, first)
     return _State(
         path=path,

@@ -294,6 +294,8 @@ def _merge_duplicates(
     w = w_in[keep]
     w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
     n = w.shape[0]
+    if n == n_in and stop_in.shape == (n_in,):  # nothing merged: the same values, no .at
+        return w, index_map, stop_in.copy(), np.array(dev_in, dtype=float)
     stop = np.zeros(n, bool)
     np.logical_or.at(stop, index_map, stop_in)
     dev = np.full(n, np.inf)
