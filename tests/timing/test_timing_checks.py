@@ -102,6 +102,47 @@ def test_dense_check_catches_what_the_output_samples_miss():
     assert not report.limits_ok and report.worst_limit[0] == "velocity"
 
 
+@pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
+def test_the_compiled_pass_of_a_toppra_curve_equals_the_steps(design):
+    """The re-check of a toppra curve in one compiled pass (profile, postures, rates, P and
+    its velocity, plan segments, ratios) gives the report of the generic steps bit for bit:
+    the same curve behind ``TimeScaledCurve(curve, 1.0)``, which evaluates the same times
+    through ``evaluate`` and ``plan_segments``. Blended corners, postures outside the joint
+    limits and, on the second design, postures whose loop opens (assembly)."""
+    from planner.timing.trajectory import TimeScaledCurve
+
+    rng = np.random.default_rng(2)
+    opened = 0
+    for _ in range(6):
+        w = np.cumsum(rng.uniform(-0.8, 0.8, (5, 3)), axis=0) + np.array([0.0, 2.0, 1.0])
+        path = BlendedPath.from_waypoints(w, 0.1)
+        curve = ToppraCurve(path, solve_toppra(path, LIMITS))
+        kwargs = dict(
+            design=design,
+            assembly_mode="+",
+            waypoints=w,
+            limits=LIMITS,
+            resolution=0.01,
+            extra_times=np.arange(0, curve.duration, 0.01),
+            check_states=kappa_checker(design, 30.0),
+            max_cartesian_speed=0.3,
+            deviation_limit=np.full(5, 0.05),
+        )
+        fused = dense_check(curve, **kwargs)
+        steps = dense_check(TimeScaledCurve(curve, 1.0), **kwargs)
+        assert fused.limit_ratio == steps.limit_ratio
+        assert (fused.max_deviation_q, fused.max_deviation_p) == (
+            steps.max_deviation_q,
+            steps.max_deviation_p,
+        )
+        for a, b in ((fused.t, steps.t), (fused.q, steps.q), (fused.bad_state, steps.bad_state)):
+            assert np.array_equal(a, b)
+        assert list(fused.state_rule) == list(steps.state_rule)
+        opened += int(np.sum(fused.state_rule == "assembly"))
+    if design.L0 + 2 * design.L1 > 2 * design.L2:
+        assert opened > 0
+
+
 def test_kappa_checker_passes_on_a_well_conditioned_path():
     design = Design.paper_optimum()
     # Postures with theta4 - theta5 near pi/2 (kappa(A) ~ 1) for the paper optimum.

@@ -16,16 +16,20 @@ every acceleration jump, and at the output samples.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
+from planner import _kernels
+from planner.constants import ASSEMBLY_TOL
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
-from planner.timing.path import distance_to_polyline
+from planner.timing.path import ARC, distance_to_polyline
 from planner.timing.torque import TorqueModel
 from planner.timing.trajectory import Curve, ToppraCurve, p_velocity
 
@@ -143,27 +147,11 @@ def dense_check(
     if torque_model is not None and limits.torque is not None and torque_in_time:
         times.append(torque_check_times(curve.duration))
     t = np.unique(np.concatenate(times))
-    if isinstance(curve, ToppraCurve):  # its profile read once for both
-        q, qd, qdd, jerk, segments = curve.evaluate_with_segments(t)
-    else:
-        q, qd, qdd, jerk = curve.evaluate(t)
-        segments = curve.plan_segments(t)
-    ratio = {
-        "velocity": float(np.max(np.abs(qd) / limits.velocity_array)),
-        "acceleration": float(np.max(np.abs(qdd) / limits.acceleration_array)),
-    }
-    if jerk is not None and limits.jerk is not None:
-        finite = np.isfinite(jerk)
-        ratio["jerk"] = float(np.max(np.where(finite, np.abs(jerk), 0.0) / limits.jerk_array))
-    if torque_model is not None and limits.torque is not None:
-        tau = torque_model.torques(q, qd, qdd)
-        # a singular posture (NaN torque) fails the assembly or validity rules, not this one
-        ratio["torque"] = float(np.max(np.nan_to_num(np.abs(tau), nan=0.0) / limits.torque_array))
-    p, v_p, assembled = p_velocity(design, q, qd, assembly_mode)
+    q, p, assembled, segments, ratio, speed = _states(
+        curve, t, design, assembly_mode, limits, torque_model
+    )
     if max_cartesian_speed is not None:
-        speed = np.linalg.norm(v_p, axis=1)
-        ratio["cartesian_speed"] = float(np.max(np.where(assembled, speed, 0.0)))
-        ratio["cartesian_speed"] /= max_cartesian_speed
+        ratio["cartesian_speed"] = speed / max_cartesian_speed
 
     # each bad posture's first failing rule, in this order (masks; the names at the end)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
@@ -222,3 +210,172 @@ def _first_failed(failed: list[tuple[str, np.ndarray]], m: int) -> tuple[np.ndar
             rule[new] = name
             bad |= new
     return bad, rule
+
+
+def _states(
+    curve: Curve,
+    t: np.ndarray,
+    design: Design,
+    assembly_mode: str,
+    limits: JointLimits,
+    torque_model: TorqueModel | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float], float]:
+    """:func:`dense_check`'s postures at times ``t``: (q (M, 3), P (M, 3), assembled (M,),
+    plan segments (M, 2), the limit ratios (velocity, acceleration, jerk, torque; each
+    largest |value| / limit), the largest speed of P over the assembled postures, m/s). A
+    toppra curve without torque limits in one compiled pass (:func:`_toppra_states`)."""
+    torques = torque_model is not None and limits.torque is not None
+    if isinstance(curve, ToppraCurve) and curve.path.n_pieces > 0 and not torques:
+        return _toppra_states(curve, t, design, assembly_mode, limits)
+    q, qd, qdd, jerk = curve.evaluate(t)
+    segments = curve.plan_segments(t)
+    ratio = {
+        "velocity": float(np.max(np.abs(qd) / limits.velocity_array)),
+        "acceleration": float(np.max(np.abs(qdd) / limits.acceleration_array)),
+    }
+    if jerk is not None and limits.jerk is not None:
+        finite = np.isfinite(jerk)
+        ratio["jerk"] = float(np.max(np.where(finite, np.abs(jerk), 0.0) / limits.jerk_array))
+    if torque_model is not None and torques:
+        tau = torque_model.torques(q, qd, qdd)
+        # a singular posture (NaN torque) fails the assembly or validity rules, not this one
+        ratio["torque"] = float(np.max(np.nan_to_num(np.abs(tau), nan=0.0) / limits.torque_array))
+    p, v_p, assembled = p_velocity(design, q, qd, assembly_mode)
+    speed = float(np.max(np.where(assembled, np.linalg.norm(v_p, axis=1), 0.0)))
+    return q, p, assembled, segments, ratio, speed
+
+
+def _toppra_states(
+    curve: ToppraCurve, t: np.ndarray, design: Design, assembly_mode: str, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float], float]:
+    """:func:`_states` of a toppra curve in one compiled pass (:func:`_toppra_kernel`): the
+    profile read at each time, the posture and rates on the path, P and its velocity, the
+    largest ratios and speed, without an array per step; the same values as the steps
+    (``tests/timing/test_timing_checks.py``)."""
+    prof, path = curve.profile, curve.path
+    m = t.shape[0]
+    q, p = np.empty((m, 3)), np.empty((m, 3))
+    assembled = np.empty(m, dtype=np.bool_)
+    corner = np.empty(m, dtype=np.int64)
+    largest = np.zeros(3)
+    ro = _kernels.read_only
+    _toppra_kernel(
+        ro(t),
+        ro(prof.s),
+        ro(prof.sd),
+        ro(prof.time),
+        ro(prof.sdd),
+        ro(path.s0),
+        ro(path.kind, np.int8),
+        ro(path.origin),
+        ro(path.direction),
+        ro(path.normal),
+        ro(path.radius),
+        ro(path.corner, np.int64),
+        design.L0,
+        design.L1,
+        design.L2,
+        1.0 if assembly_mode == "+" else -1.0,
+        ASSEMBLY_TOL,
+        ro(limits.velocity_array),
+        ro(limits.acceleration_array),
+        q,
+        p,
+        assembled,
+        corner,
+        largest,
+    )
+    segments = np.where(corner[:, None] >= 0, np.stack([corner - 1, corner], axis=1), -1)
+    ratio = {"velocity": float(largest[0]), "acceleration": float(largest[1])}
+    return q, p, assembled, segments, ratio, float(largest[2])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _toppra_kernel(
+    t,
+    g_s,
+    g_sd,
+    g_time,
+    g_sdd,
+    s0,
+    kind,
+    origin,
+    direction,
+    normal,
+    radius,
+    corner,
+    L0,
+    L1,
+    L2,
+    branch,
+    tol,
+    vel,
+    acc,
+    q,
+    p,
+    assembled,
+    corner_out,
+    largest,
+):  # pragma: no cover - compiled
+    """Per time: (s, sd, sdd) as :meth:`PathProfile.at_time` reads them, the piece as
+    :meth:`BlendedPath.piece_index` finds it, q, q', q'' as ``_evaluate_pieces`` gives them,
+    qd = q' sd and qdd = q' sdd + q'' sd^2, P and dP/dt (:func:`planner._kernels.velocity_of`),
+    the blend's corner; into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j and |dP/dt|
+    over assembled postures (each formula in numpy's order: the same values bit for bit)."""
+    last = g_sdd.shape[0] - 1
+    n_pieces = kind.shape[0]
+    q1, q2 = np.empty(3), np.empty(3)
+    for m in range(t.shape[0]):
+        v = t[m]  # the time, clipped to [0, duration]
+        if v < 0.0:
+            v = 0.0
+        if v > g_time[-1]:
+            v = g_time[-1]
+        i = last if v != v else min(max(_count_at_most(g_time, v) - 1, 0), last)
+        tau = v - g_time[i]
+        a = g_sdd[i]
+        s = g_s[i] + g_sd[i] * tau + 0.5 * a * tau**2
+        if s > g_s[i + 1]:
+            s = g_s[i + 1]
+        sd = g_sd[i] + a * tau
+        k = n_pieces - 1 if s != s else min(max(_count_at_most(s0, s) - 1, 0), n_pieces - 1)
+        ds = s - s0[k]
+        if kind[k] == ARC:
+            r = radius[k]
+            phi = ds / r
+            c, si = np.cos(phi), np.sin(phi)
+            for j in range(3):
+                radial = direction[k, j] * c + normal[k, j] * si
+                q[m, j] = origin[k, j] + r * radial
+                q1[j] = normal[k, j] * c - direction[k, j] * si
+                q2[j] = -radial / r
+        else:
+            for j in range(3):
+                q[m, j] = origin[k, j] + direction[k, j] * ds
+                q1[j] = direction[k, j]
+                q2[j] = 0.0
+        qd0, qd1, qd2 = q1[0] * sd, q1[1] * sd, q1[2] * sd
+        for j in range(3):
+            largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])
+            largest[1] = max(largest[1], abs(q1[j] * a + q2[j] * sd**2) / acc[j])
+        state, p0, p1, p2, v0, v1, v2 = _kernels.velocity_of(
+            L0, L1, L2, q[m, 0], q[m, 1], q[m, 2], qd0, qd1, qd2, branch, tol
+        )
+        p[m, 0], p[m, 1], p[m, 2] = p0, p1, p2
+        assembled[m] = state == 2
+        if state == 2:
+            largest[2] = max(largest[2], math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
+        corner_out[m] = corner[k]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _count_at_most(grid, v):  # pragma: no cover - compiled
+    """How many of the increasing ``grid`` are <= v (``np.searchsorted(grid, v, "right")``)."""
+    lo, hi = 0, grid.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if grid[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
