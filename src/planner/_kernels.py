@@ -266,3 +266,19 @@ def velocity_of(
     pu_d = 0.5 * (cu_d + du_d) - s_d * ew - s * ew_d
     pw_d = 0.5 * (cw_d + dw_d) + s_d * eu + s * eu_d
     return 2, p0, p1, p2, pw_d * c1 - pw * s1 * qd0, pu_d, -pw_d * s1 - pw * c1 * qd0
+
+
+@njit(cache=True, nogil=True)
+def count_at_most(grid, v):  # pragma: no cover - compiled
+    """How many of the increasing ``grid`` are <= v: ``np.searchsorted(grid, v, "right")``
+    for a number v (NaN, which numpy sorts last: all of them)."""
+    if v != v:
+        return grid.shape[0]
+    lo, hi = 0, grid.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if grid[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo

@@ -24,7 +24,7 @@ from planner.constants import ASSEMBLY_TOL
 from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import inverse_in_mode
-from planner.timing.path import ARC, BlendedPath, distance_to_polyline
+from planner.timing.path import BlendedPath, distance_to_polyline, piece_of, point_on_piece
 
 __all__ = [
     "BISECT_TOL",
@@ -148,36 +148,21 @@ def max_deviation_along(
 def _max_deviation_kernel(
     s, s0, kind, origin, direction, normal, radius, q_rest, n_pieces, L0, L1, L2, branch, tol, w
 ):  # pragma: no cover - compiled
-    """:func:`max_deviation_along`'s pass: per position, the piece (``np.searchsorted(s0,
-    s, "right") - 1`` clipped to the pieces, as :meth:`BlendedPath.piece_index`), the posture
-    on it (:func:`planner.timing.path._evaluate_pieces`' formula), P (the loop closure of
+    """:func:`max_deviation_along`'s pass: per position, the piece
+    (:func:`~planner.timing.path.piece_of`), the posture on it
+    (:func:`~planner.timing.path.point_on_piece`), P (the loop closure of
     :func:`planner._kernels.forward_kernel`) and its least squared distance to the segments
     (:func:`planner.timing.path._nearest_on_segments`' arithmetic: NaN never replaces inf)."""
-    q, p = np.empty(3), np.empty(3)
+    q, p, tangent, curvature = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     worst = 0.0
     for m in range(s.shape[0]):
         if n_pieces == 0:
             q[0], q[1], q[2] = q_rest[0], q_rest[1], q_rest[2]
         else:
-            lo, hi = 0, s0.shape[0]  # first index with s0 > s[m]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if s0[mid] <= s[m]:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            k = min(max(lo - 1, 0), n_pieces - 1)
-            ds = s[m] - s0[k]
-            if kind[k] == ARC:
-                r = radius[k]
-                phi = ds / r
-                c, si = np.cos(phi), np.sin(phi)
-                for j in range(3):
-                    radial = direction[k, j] * c + normal[k, j] * si
-                    q[j] = origin[k, j] + r * radial
-            else:
-                for j in range(3):
-                    q[j] = origin[k, j] + direction[k, j] * ds
+            k = piece_of(s0, n_pieces, s[m])
+            point_on_piece(
+                k, s[m] - s0[k], kind, origin, direction, normal, radius, q, tangent, curvature
+            )
         closes, _, _, _, _, pu, pw, _ = _kernels.close_loop(L0, L1, L2, q[1], q[2], branch, tol)
         if closes:
             p[0], p[1], p[2] = pw * math.cos(q[0]), pu, -pw * math.sin(q[0])

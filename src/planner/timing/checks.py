@@ -29,7 +29,8 @@ from planner.design import Design
 from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
-from planner.timing.path import ARC, distance_to_polyline
+from planner.timing.path import distance_to_polyline, piece_of, point_on_piece
+from planner.timing.toppra_method import read_at_time
 from planner.timing.torque import TorqueModel
 from planner.timing.trajectory import Curve, ToppraCurve, p_velocity
 
@@ -317,43 +318,17 @@ def _toppra_kernel(
     corner_out,
     largest,
 ):  # pragma: no cover - compiled
-    """Per time: (s, sd, sdd) as :meth:`PathProfile.at_time` reads them, the piece as
-    :meth:`BlendedPath.piece_index` finds it, q, q', q'' as ``_evaluate_pieces`` gives them,
+    """Per time: (s, sd, sdd) as :meth:`PathProfile.at_time` reads them (``read_at_time``),
+    the piece and q, q', q'' on it (``piece_of``, ``point_on_piece``),
     qd = q' sd and qdd = q' sdd + q'' sd^2, P and dP/dt (:func:`planner._kernels.velocity_of`),
     the blend's corner; into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j and |dP/dt|
     over assembled postures (each formula in numpy's order: the same values bit for bit)."""
-    last = g_sdd.shape[0] - 1
     n_pieces = kind.shape[0]
     q1, q2 = np.empty(3), np.empty(3)
     for m in range(t.shape[0]):
-        v = t[m]  # the time, clipped to [0, duration]
-        if v < 0.0:
-            v = 0.0
-        if v > g_time[-1]:
-            v = g_time[-1]
-        i = last if v != v else min(max(_count_at_most(g_time, v) - 1, 0), last)
-        tau = v - g_time[i]
-        a = g_sdd[i]
-        s = g_s[i] + g_sd[i] * tau + 0.5 * a * tau**2
-        if s > g_s[i + 1]:
-            s = g_s[i + 1]
-        sd = g_sd[i] + a * tau
-        k = n_pieces - 1 if s != s else min(max(_count_at_most(s0, s) - 1, 0), n_pieces - 1)
-        ds = s - s0[k]
-        if kind[k] == ARC:
-            r = radius[k]
-            phi = ds / r
-            c, si = np.cos(phi), np.sin(phi)
-            for j in range(3):
-                radial = direction[k, j] * c + normal[k, j] * si
-                q[m, j] = origin[k, j] + r * radial
-                q1[j] = normal[k, j] * c - direction[k, j] * si
-                q2[j] = -radial / r
-        else:
-            for j in range(3):
-                q[m, j] = origin[k, j] + direction[k, j] * ds
-                q1[j] = direction[k, j]
-                q2[j] = 0.0
+        s, sd, a = read_at_time(t[m], g_s, g_sd, g_time, g_sdd)
+        k = piece_of(s0, n_pieces, s)
+        point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius, q[m], q1, q2)
         qd0, qd1, qd2 = q1[0] * sd, q1[1] * sd, q1[2] * sd
         for j in range(3):
             largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])
@@ -366,16 +341,3 @@ def _toppra_kernel(
         if state == 2:
             largest[2] = max(largest[2], math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
         corner_out[m] = corner[k]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _count_at_most(grid, v):  # pragma: no cover - compiled
-    """How many of the increasing ``grid`` are <= v (``np.searchsorted(grid, v, "right")``)."""
-    lo, hi = 0, grid.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if grid[mid] <= v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo

@@ -22,6 +22,7 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
+from planner import _kernels
 from planner.exceptions import InputError
 
 __all__ = ["BlendedPath", "distance_to_polyline"]
@@ -245,27 +246,40 @@ class BlendedPath:
 def _evaluate_pieces(
     s, idx, s0, kind, origin, direction, normal, radius, q, d1, d2
 ):  # pragma: no cover
-    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2: a line
-    ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``, its tangent
-    ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``. One pass
-    of compiled code per position (a check evaluates thousands, several times a timing)."""
+    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2
+    (:func:`point_on_piece` per position: one pass of compiled code, a check evaluates
+    thousands, several times a timing)."""
     for m in range(s.shape[0]):
         k = idx[m]
-        ds = s[m] - s0[k]
-        if kind[k] == ARC:
-            r = radius[k]
-            phi = ds / r
-            c, si = np.cos(phi), np.sin(phi)
-            for j in range(3):
-                radial = direction[k, j] * c + normal[k, j] * si
-                q[m, j] = origin[k, j] + r * radial
-                d1[m, j] = normal[k, j] * c - direction[k, j] * si
-                d2[m, j] = -radial / r
-        else:
-            for j in range(3):
-                q[m, j] = origin[k, j] + direction[k, j] * ds
-                d1[m, j] = direction[k, j]
-                d2[m, j] = 0.0
+        point_on_piece(k, s[m] - s0[k], kind, origin, direction, normal, radius, q[m], d1[m], d2[m])
+
+
+@njit(cache=True, nogil=True)
+def point_on_piece(k, ds, kind, origin, direction, normal, radius, q, d1, d2):  # pragma: no cover
+    """q, q', q'' (3,) at ``ds`` along piece ``k`` (of the :class:`BlendedPath` arrays), into
+    q, d1, d2: a line ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``,
+    its tangent ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``.
+    The one copy of these formulas for every compiled reader of a path."""
+    if kind[k] == ARC:
+        r = radius[k]
+        phi = ds / r
+        c, si = np.cos(phi), np.sin(phi)
+        for j in range(3):
+            radial = direction[k, j] * c + normal[k, j] * si
+            q[j] = origin[k, j] + r * radial
+            d1[j] = normal[k, j] * c - direction[k, j] * si
+            d2[j] = -radial / r
+    else:
+        for j in range(3):
+            q[j] = origin[k, j] + direction[k, j] * ds
+            d1[j] = direction[k, j]
+            d2[j] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def piece_of(s0, n_pieces, s):  # pragma: no cover
+    """:meth:`BlendedPath.piece_index` of one position (side "right", every piece)."""
+    return min(max(_kernels.count_at_most(s0, s) - 1, 0), n_pieces - 1)
 
 
 def _merge_duplicates(

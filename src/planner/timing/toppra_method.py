@@ -42,6 +42,8 @@ __all__ = [
     "SectionCache",
     "check_deadline",
     "min_blend_radius",
+    "read_at_path",
+    "read_at_time",
     "section_grid",
     "section_key",
     "solve_toppra",
@@ -247,45 +249,53 @@ class PathProfile:
 @njit(cache=True, nogil=True, error_model="numpy")
 def _profile_at(x, s, sd, time, sdd, forward, out):  # pragma: no cover - compiled
     """:meth:`PathProfile.at_time` (``forward``: x are times) or :meth:`PathProfile.at_path`
-    (x are path positions) into ``out`` (3, M): the interval ``i`` of the clipped x as
-    ``np.searchsorted(grid, x, "right") - 1`` clipped to the intervals, then the formulas
-    of those methods in the order numpy evaluated them (the same values bit for bit, NaN
-    kept NaN; ``tests/timing/test_timing_toppra.py``)."""
-    grid = time if forward else s
-    low = 0.0 if forward else s[0]  # the clip: [0, duration] or [s[0], s[-1]]
-    last = sdd.shape[0] - 1
+    (x are path positions) into ``out`` (3, M), by :func:`read_at_time` and
+    :func:`read_at_path`."""
     for m in range(x.shape[0]):
-        v = x[m]
-        if v < low:
-            v = low
-        if v > grid[-1]:
-            v = grid[-1]
-        if v != v:  # NaN: sorted last
-            i = last
-        else:
-            lo, hi = 0, grid.shape[0]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if grid[mid] <= v:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            i = min(max(lo - 1, 0), last)
-        a = sdd[i]
         if forward:
-            tau = v - time[i]
-            pos = s[i] + sd[i] * tau + 0.5 * a * tau**2
-            if pos > s[i + 1]:
-                pos = s[i + 1]
-            out[0, m] = pos
-            out[1, m] = sd[i] + a * tau
+            out[0, m], out[1, m], out[2, m] = read_at_time(x[m], s, sd, time, sdd)
         else:
-            inner = sd[i] ** 2 + 2 * a * (v - s[i])
-            rate = math.sqrt(inner) if not inner < 0.0 else 0.0
-            total = rate + sd[i]
-            out[0, m] = time[i] + 2 * (v - s[i]) / (total if not total < 1e-300 else 1e-300)
-            out[1, m] = rate
-        out[2, m] = a
+            out[0, m], out[1, m], out[2, m] = read_at_path(x[m], s, sd, time, sdd)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def read_at_time(v, s, sd, time, sdd):  # pragma: no cover - compiled
+    """(s, sd, sdd) of the profile (its arrays) at the time v, as :meth:`PathProfile.at_time`
+    reads them: the interval ``i`` of v clipped to [0, duration] as ``np.searchsorted(time,
+    v, "right") - 1`` clipped to the intervals, then its formulas in the order numpy
+    evaluated them (the same values bit for bit, NaN kept NaN;
+    ``tests/timing/test_timing_toppra.py``)."""
+    v = _clipped(v, 0.0, time[-1])
+    i = min(max(_kernels.count_at_most(time, v) - 1, 0), sdd.shape[0] - 1)
+    tau = v - time[i]
+    a = sdd[i]
+    pos = s[i] + sd[i] * tau + 0.5 * a * tau**2
+    if pos > s[i + 1]:
+        pos = s[i + 1]
+    return pos, sd[i] + a * tau, a
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def read_at_path(v, s, sd, time, sdd):  # pragma: no cover - compiled
+    """(time, sd, sdd) of the profile (its arrays) at the path position v, as
+    :meth:`PathProfile.at_path` reads them (see :func:`read_at_time`)."""
+    v = _clipped(v, s[0], s[-1])
+    i = min(max(_kernels.count_at_most(s, v) - 1, 0), sdd.shape[0] - 1)
+    a = sdd[i]
+    inner = sd[i] ** 2 + 2 * a * (v - s[i])
+    rate = math.sqrt(inner) if not inner < 0.0 else 0.0
+    total = rate + sd[i]
+    return time[i] + 2 * (v - s[i]) / (total if not total < 1e-300 else 1e-300), rate, a
+
+
+@njit(cache=True, nogil=True)
+def _clipped(v, low, high):  # pragma: no cover - compiled
+    """``np.clip(v, low, high)`` for a number (NaN stays NaN)."""
+    if v < low:
+        v = low
+    if v > high:
+        v = high
+    return v
 
 
 def section_grid(
