@@ -30,7 +30,7 @@ from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
 from planner.timing.path import distance_to_polyline, piece_of, point_on_piece
-from planner.timing.toppra_method import read_at_time
+from planner.timing.toppra_method import read_at_path, read_at_time
 from planner.timing.torque import TorqueModel
 from planner.timing.trajectory import Curve, ToppraCurve, p_velocity
 
@@ -40,6 +40,7 @@ __all__ = [
     "CheckReport",
     "StateChecker",
     "dense_check",
+    "fit_ratios",
     "torque_check_times",
 ]
 
@@ -253,15 +254,47 @@ def _toppra_states(
     profile read at each time, the posture and rates on the path, P and its velocity, the
     largest ratios and speed, without an array per step; the same values as the steps
     (``tests/timing/test_timing_checks.py``)."""
+    q, p, assembled, corner, largest = _toppra_pass(
+        curve, t, design, assembly_mode, limits, fit=False
+    )
+    segments = np.where(corner[:, None] >= 0, np.stack([corner - 1, corner], axis=1), -1)
+    ratio = {"velocity": float(largest[0]), "acceleration": float(largest[1])}
+    return q, p, assembled, segments, ratio, float(largest[2])
+
+
+def fit_ratios(
+    curve: ToppraCurve, s: np.ndarray, design: Design, assembly_mode: str, limits: JointLimits
+) -> tuple[np.floating, np.floating, np.floating]:
+    """At path positions ``s`` of a toppra curve (with pieces), in one compiled pass: the
+    largest |qd_j| / velocity_j and |qdd_j| / acceleration_j, and the largest |dP/ds| sd, m/s
+    (|dP/ds| inf where a posture does not assemble or CD is stretched; NaN when one such has
+    sd = 0, as numpy's largest of inf * 0): what the time-scale fit measures, the same values
+    as its steps (``tests/timing/test_timing_checks.py``)."""
+    largest = _toppra_pass(curve, s, design, assembly_mode, limits, fit=True)[4]
+    return largest[0], largest[1], largest[2]
+
+
+def _toppra_pass(
+    curve: ToppraCurve,
+    x: np.ndarray,
+    design: Design,
+    assembly_mode: str,
+    limits: JointLimits,
+    *,
+    fit: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_toppra_kernel` at times (``fit`` False) or path positions ``x``: (q, P,
+    assembled, corner, largest)."""
     prof, path = curve.profile, curve.path
-    m = t.shape[0]
+    m = x.shape[0]
     q, p = np.empty((m, 3)), np.empty((m, 3))
     assembled = np.empty(m, dtype=np.bool_)
     corner = np.empty(m, dtype=np.int64)
     largest = np.zeros(3)
     ro = _kernels.read_only
     _toppra_kernel(
-        ro(t),
+        ro(x),
+        fit,
         ro(prof.s),
         ro(prof.sd),
         ro(prof.time),
@@ -286,14 +319,13 @@ def _toppra_states(
         corner,
         largest,
     )
-    segments = np.where(corner[:, None] >= 0, np.stack([corner - 1, corner], axis=1), -1)
-    ratio = {"velocity": float(largest[0]), "acceleration": float(largest[1])}
-    return q, p, assembled, segments, ratio, float(largest[2])
+    return q, p, assembled, corner, largest
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _toppra_kernel(
-    t,
+    x,
+    fit,
     g_s,
     g_sd,
     g_time,
@@ -318,26 +350,54 @@ def _toppra_kernel(
     corner_out,
     largest,
 ):  # pragma: no cover - compiled
-    """Per time: (s, sd, sdd) as :meth:`PathProfile.at_time` reads them (``read_at_time``),
-    the piece and q, q', q'' on it (``piece_of``, ``point_on_piece``),
+    """Per time x (``fit`` False): (s, sd, sdd) as :meth:`PathProfile.at_time` reads them
+    (``read_at_time``), the piece and q, q', q'' on it (``piece_of``, ``point_on_piece``),
     qd = q' sd and qdd = q' sdd + q'' sd^2, P and dP/dt (:func:`planner._kernels.velocity_of`),
-    the blend's corner; into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j and |dP/dt|
-    over assembled postures (each formula in numpy's order: the same values bit for bit)."""
+    the blend's corner; into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j and
+    |dP/dt| over assembled postures. Per path position x (``fit``): (sd, sdd) as
+    :meth:`PathProfile.at_path` reads them, the posture at x, the same ratios, and into
+    ``largest[2]`` the greatest |dP/ds| sd (|dP/ds| from ``velocity_of`` at qd = q', inf where
+    it is not 2; NaN when one product is NaN). Each formula in numpy's order: the same
+    values bit for bit."""
     n_pieces = kind.shape[0]
     q1, q2 = np.empty(3), np.empty(3)
-    for m in range(t.shape[0]):
-        s, sd, a = read_at_time(t[m], g_s, g_sd, g_time, g_sdd)
+    nan_peak = False
+    for m in range(x.shape[0]):
+        if fit:
+            s = x[m]
+            _, sd, a = read_at_path(s, g_s, g_sd, g_time, g_sdd)
+        else:
+            s, sd, a = read_at_time(x[m], g_s, g_sd, g_time, g_sdd)
         k = piece_of(s0, n_pieces, s)
         point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius, q[m], q1, q2)
-        qd0, qd1, qd2 = q1[0] * sd, q1[1] * sd, q1[2] * sd
         for j in range(3):
             largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])
             largest[1] = max(largest[1], abs(q1[j] * a + q2[j] * sd**2) / acc[j])
+        rate = 1.0 if fit else sd  # |dP/ds| in the fit, |dP/dt| in the check
         state, p0, p1, p2, v0, v1, v2 = _kernels.velocity_of(
-            L0, L1, L2, q[m, 0], q[m, 1], q[m, 2], qd0, qd1, qd2, branch, tol
+            L0,
+            L1,
+            L2,
+            q[m, 0],
+            q[m, 1],
+            q[m, 2],
+            q1[0] * rate,
+            q1[1] * rate,
+            q1[2] * rate,
+            branch,
+            tol,
         )
         p[m, 0], p[m, 1], p[m, 2] = p0, p1, p2
         assembled[m] = state == 2
-        if state == 2:
-            largest[2] = max(largest[2], math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
         corner_out[m] = corner[k]
+        speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2) if state == 2 else np.inf
+        if fit:
+            peak = speed * sd
+            if peak != peak:
+                nan_peak = True
+            elif peak > largest[2]:
+                largest[2] = peak
+        elif state == 2:
+            largest[2] = max(largest[2], speed)
+    if nan_peak:
+        largest[2] = np.nan

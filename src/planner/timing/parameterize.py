@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -55,6 +55,7 @@ from planner.timing.checks import (
     CheckReport,
     StateChecker,
     dense_check,
+    fit_ratios,
     torque_check_times,
 )
 from planner.timing.jerk_filter import JerkFilteredCurve, jerk_limited
@@ -75,7 +76,7 @@ from planner.timing.toppra_method import (
     min_blend_radius,
     solve_toppra,
 )
-from planner.timing.torque import TorqueModel, torque_time_scale
+from planner.timing.torque import torque_time_scale
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -128,41 +129,44 @@ _FIT_MARGIN = 1e-3
 
 
 def _fit_time_scale(
-    curve: ToppraCurve,
-    limits: JointLimits,
-    resolution: float,
-    gain_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
-    v_cart: float | None,
-    torque_model: TorqueModel | None = None,
+    curve: ToppraCurve, limits: JointLimits, job: TimingJob
 ) -> tuple[PathProfile, np.ndarray]:
-    """The toppra profile slowed uniformly in time just enough that the limits hold at every
-    check position, not only at toppra's grid points; and those check positions (the slowed
-    profile has the same grid, so the dense re-check's positions are these: built once).
+    """The toppra profile slowed uniformly in time just enough that ``limits`` (the job's, or
+    scaled) hold at every check position, not only at toppra's grid points; and those check
+    positions (the slowed profile has the same grid, so the dense re-check's positions are
+    these: built once).
 
     Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
     (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
     the Cartesian speed by c and accelerations by c^2 at the same path positions, so
     ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
     all exactly at those positions; torques scale by c^2 in their dynamic part only, and
-    :func:`~planner.timing.torque.torque_time_scale` gives their c.
+    :func:`~planner.timing.torque.torque_time_scale` gives their c. Without torque limits the
+    ratios come from one compiled pass (:func:`~planner.timing.checks.fit_ratios`: the same
+    values as these steps).
     """
     prof = curve.profile
+    tau_max = limits.torque_array
+    torques = job.torque is not None and tau_max is not None
     # unsorted (a largest value needs no order; the re-check sorts their times), but in
     # order with torque limits, whose error names the first sample over a limit
-    s = curve.check_path_positions(resolution, ordered=torque_model is not None)
-    _, sd, sdd = prof.at_path(s)
-    q, d1, d2 = curve.path.evaluate_all(s)
-    r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
-    qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
-    r_a = np.max(np.abs(qdd) / limits.acceleration_array)
+    s = curve.check_path_positions(job.resolution, ordered=torques)
     target = 1.0 - _FIT_MARGIN
+    if not torques and curve.path.n_pieces > 0:
+        r_v, r_a, peak = fit_ratios(curve, s, job.design, job.assembly_mode, limits)
+    else:
+        _, sd, sdd = prof.at_path(s)
+        q, d1, d2 = curve.path.evaluate_all(s)
+        r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
+        qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
+        r_a = np.max(np.abs(qdd) / limits.acceleration_array)
+        peak = np.max(job.gain_at(q, d1) * sd) if job.v_cart is not None else np.nan
     c = min(1.0, target / r_v, np.sqrt(target / r_a))
-    if gain_at is not None and v_cart is not None:
-        gain = gain_at(q, d1)  # |dP/ds| (TimingJob.gain_at) at the postures evaluated above
-        c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
-    tau_max = limits.torque_array
-    if torque_model is not None and tau_max is not None:
-        dyn, grav = torque_model.split(q, d1 * sd[:, None], qdd)
+    if job.v_cart is not None:  # the largest |dP/ds| sd at the postures evaluated above
+        c = min(c, target * job.v_cart / max(float(peak), 1e-300))
+    if torques:
+        assert job.torque is not None and tau_max is not None
+        dyn, grav = job.torque.split(q, d1 * sd[:, None], qdd)
         c = min(c, torque_time_scale(dyn, grav, tau_max, target))
     if c >= 1.0:
         return prof, s
@@ -550,9 +554,7 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
             )
             if job.method != "toppra":
                 break
-            fitted, positions = _fit_time_scale(
-                ToppraCurve(path, profile), lim, job.resolution, job.gain_at, job.v_cart, job.torque
-            )
+            fitted, positions = _fit_time_scale(ToppraCurve(path, profile), lim, job)
             if best is None or fitted.duration < best.duration:
                 best = fitted
                 state.positions = (path, fitted.s, positions)
