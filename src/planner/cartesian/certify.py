@@ -314,8 +314,7 @@ class Refinement:
             q[new + 1],
             w[new],
             w[new + 1],
-            self.poly.at(s[new]),
-            self.poly.at(s[new + 1]),
+            *np.split(self.poly.at(np.concatenate([s[new], s[new + 1]])), 2),
             self.asm,
         )
         self.bound = np.concatenate([self.bound[:certified], b_tail])

@@ -132,19 +132,25 @@ def inspect_with_branch(
     margins: Margins | None = None,
     probe_step: float = PROBE_STEP,
     deadline: float | None = None,
+    built: tuple[Polyline, str] | None = None,
 ) -> tuple[tuple[PathEvent, ...], BranchSamples | None]:
     """:func:`inspect_cartesian`'s events, and the inverse kinematics of its probes (None
-    when it probed nothing), for the plan's own probes."""
+    when it probed nothing), for the plan's own probes. ``built``: the polyline from P of an
+    assembled start through ``waypoints`` and the start's working mode, when the caller has
+    built them (the plan), not built again."""
     margins = margins if margins is not None else Margins()
-    fb = forward_batch(design, start.q, start.assembly_mode)
-    if not fb.ok[0]:
-        return (), None
-    poly = Polyline(np.vstack([fb.p[0][None], as_points(waypoints)]))
+    if built is None:
+        fb = forward_batch(design, start.q, start.assembly_mode)
+        if not fb.ok[0]:
+            return (), None
+        poly = Polyline(np.vstack([fb.p[0][None], as_points(waypoints)]))
+        mode = posture_mode(design, start)
+    else:
+        poly, mode = built
     if poly.length == 0.0:
         return (), None
     events = _closed_form_events(design, margins.serial_min, poly)
     # probed: kappa(A) and the joint limits along the working mode's branch
-    mode = posture_mode(design, start)
     samples = None
     if mode is not None:
         check_deadline(deadline, "before probing the Cartesian pre-check")

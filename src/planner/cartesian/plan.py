@@ -218,7 +218,12 @@ class StraightMotion:
         known = None  # the pre-check's inverse kinematics of its probes: the plan's own
         if self.inspect:
             events, known = inspect_with_branch(
-                design, start, pts, margins=problem.margins, deadline=budget.deadline
+                design,
+                start,
+                pts,
+                margins=problem.margins,
+                deadline=budget.deadline,
+                built=(poly, mode),
             )
         probed = probe_polyline(design, checker, walker, poly, q0, slot, asm_sign, budget, known)
         tol = self.path_tolerance
