@@ -269,12 +269,23 @@ def velocity_of(
 
 
 @njit(cache=True, nogil=True)
-def count_at_most(grid, v):  # pragma: no cover - compiled
+def count_at_most_from(grid, v, hint):  # pragma: no cover - compiled
     """How many of the increasing ``grid`` are <= v: ``np.searchsorted(grid, v, "right")``
-    for a number v (NaN, which numpy sorts last: all of them)."""
+    for a number v (NaN, which numpy sorts last: all of them). ``hint`` is a count at most
+    this one (that of the number before, for increasing numbers): a few steps on from it,
+    where a bisection's branches are a guess each, then a bisection of the rest; a hint
+    above the count, or out of range, is ignored. The same count whatever the hint."""
+    n = grid.shape[0]
     if v != v:
-        return grid.shape[0]
-    lo, hi = 0, grid.shape[0]
+        return n
+    lo = 0
+    if 0 <= hint <= n and (hint == 0 or grid[hint - 1] <= v):
+        for _ in range(8):
+            if hint == n or grid[hint] > v:
+                return hint
+            hint += 1
+        lo = hint
+    hi = n
     while lo < hi:
         mid = (lo + hi) // 2
         if grid[mid] <= v:
@@ -282,3 +293,9 @@ def count_at_most(grid, v):  # pragma: no cover - compiled
         else:
             hi = mid
     return lo
+
+
+@njit(cache=True, nogil=True)
+def count_at_most(grid, v):  # pragma: no cover - compiled
+    """:func:`count_at_most_from` with no hint."""
+    return count_at_most_from(grid, v, -1)

@@ -155,11 +155,12 @@ def _max_deviation_kernel(
     (:func:`planner.timing.path._nearest_on_segments`' arithmetic: NaN never replaces inf)."""
     q, p, tangent, curvature = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     worst = 0.0
+    hint = 0
     for m in range(s.shape[0]):
         if n_pieces == 0:
             q[0], q[1], q[2] = q_rest[0], q_rest[1], q_rest[2]
         else:
-            k = piece_of(s0, n_pieces, s[m])
+            k, hint = piece_of(s0, n_pieces, s[m], hint)
             point_on_piece(
                 k, s[m] - s0[k], kind, origin, direction, normal, radius, q, tangent, curvature
             )

@@ -362,13 +362,14 @@ def _toppra_kernel(
     n_pieces = kind.shape[0]
     q1, q2 = np.empty(3), np.empty(3)
     nan_peak = False
+    at, on = 0, 0  # the grid and piece counts of the position before (hints)
     for m in range(x.shape[0]):
         if fit:
             s = x[m]
-            _, sd, a = read_at_path(s, g_s, g_sd, g_time, g_sdd)
+            _, sd, a, at = read_at_path(s, g_s, g_sd, g_time, g_sdd, at)
         else:
-            s, sd, a = read_at_time(x[m], g_s, g_sd, g_time, g_sdd)
-        k = piece_of(s0, n_pieces, s)
+            s, sd, a, at = read_at_time(x[m], g_s, g_sd, g_time, g_sdd, at)
+        k, on = piece_of(s0, n_pieces, s, on)
         point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius, q[m], q1, q2)
         for j in range(3):
             largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])

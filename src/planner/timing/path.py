@@ -277,9 +277,11 @@ def point_on_piece(k, ds, kind, origin, direction, normal, radius, q, d1, d2):  
 
 
 @njit(cache=True, nogil=True)
-def piece_of(s0, n_pieces, s):  # pragma: no cover
-    """:meth:`BlendedPath.piece_index` of one position (side "right", every piece)."""
-    return min(max(_kernels.count_at_most(s0, s) - 1, 0), n_pieces - 1)
+def piece_of(s0, n_pieces, s, hint):  # pragma: no cover
+    """:meth:`BlendedPath.piece_index` of one position (side "right", every piece), and the
+    count of ``s0`` found (the next call's ``hint``, :func:`planner._kernels.count_at_most_from`)."""
+    count = _kernels.count_at_most_from(s0, s, hint)
+    return min(max(count - 1, 0), n_pieces - 1), count
 
 
 def _merge_duplicates(

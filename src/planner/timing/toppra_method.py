@@ -251,41 +251,45 @@ def _profile_at(x, s, sd, time, sdd, forward, out):  # pragma: no cover - compil
     """:meth:`PathProfile.at_time` (``forward``: x are times) or :meth:`PathProfile.at_path`
     (x are path positions) into ``out`` (3, M), by :func:`read_at_time` and
     :func:`read_at_path`."""
+    hint = 0
     for m in range(x.shape[0]):
         if forward:
-            out[0, m], out[1, m], out[2, m] = read_at_time(x[m], s, sd, time, sdd)
+            out[0, m], out[1, m], out[2, m], hint = read_at_time(x[m], s, sd, time, sdd, hint)
         else:
-            out[0, m], out[1, m], out[2, m] = read_at_path(x[m], s, sd, time, sdd)
+            out[0, m], out[1, m], out[2, m], hint = read_at_path(x[m], s, sd, time, sdd, hint)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def read_at_time(v, s, sd, time, sdd):  # pragma: no cover - compiled
+def read_at_time(v, s, sd, time, sdd, hint):  # pragma: no cover - compiled
     """(s, sd, sdd) of the profile (its arrays) at the time v, as :meth:`PathProfile.at_time`
-    reads them: the interval ``i`` of v clipped to [0, duration] as ``np.searchsorted(time,
-    v, "right") - 1`` clipped to the intervals, then its formulas in the order numpy
-    evaluated them (the same values bit for bit, NaN kept NaN;
-    ``tests/timing/test_timing_toppra.py``)."""
+    reads them, and the grid count found (the next read's ``hint``,
+    :func:`planner._kernels.count_at_most_from`): the interval ``i`` of v clipped to
+    [0, duration] as ``np.searchsorted(time, v, "right") - 1`` clipped to the intervals,
+    then its formulas in the order numpy evaluated them (the same values bit for bit, NaN
+    kept NaN; ``tests/timing/test_timing_toppra.py``)."""
     v = _clipped(v, 0.0, time[-1])
-    i = min(max(_kernels.count_at_most(time, v) - 1, 0), sdd.shape[0] - 1)
+    count = _kernels.count_at_most_from(time, v, hint)
+    i = min(max(count - 1, 0), sdd.shape[0] - 1)
     tau = v - time[i]
     a = sdd[i]
     pos = s[i] + sd[i] * tau + 0.5 * a * tau**2
     if pos > s[i + 1]:
         pos = s[i + 1]
-    return pos, sd[i] + a * tau, a
+    return pos, sd[i] + a * tau, a, count
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def read_at_path(v, s, sd, time, sdd):  # pragma: no cover - compiled
+def read_at_path(v, s, sd, time, sdd, hint):  # pragma: no cover - compiled
     """(time, sd, sdd) of the profile (its arrays) at the path position v, as
-    :meth:`PathProfile.at_path` reads them (see :func:`read_at_time`)."""
+    :meth:`PathProfile.at_path` reads them, and the grid count (see :func:`read_at_time`)."""
     v = _clipped(v, s[0], s[-1])
-    i = min(max(_kernels.count_at_most(s, v) - 1, 0), sdd.shape[0] - 1)
+    count = _kernels.count_at_most_from(s, v, hint)
+    i = min(max(count - 1, 0), sdd.shape[0] - 1)
     a = sdd[i]
     inner = sd[i] ** 2 + 2 * a * (v - s[i])
     rate = math.sqrt(inner) if not inner < 0.0 else 0.0
     total = rate + sd[i]
-    return time[i] + 2 * (v - s[i]) / (total if not total < 1e-300 else 1e-300), rate, a
+    return time[i] + 2 * (v - s[i]) / (total if not total < 1e-300 else 1e-300), rate, a, count
 
 
 @njit(cache=True, nogil=True)
