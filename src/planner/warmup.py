@@ -296,9 +296,10 @@ def _straight(state: _State) -> None:
     from planner.kinematics import forward_batch
     from planner.planning import JointPosture
 
-    start = JointPosture(_START, "+")
+    start = JointPosture(np.asarray(_START), "+")
     p0 = forward_batch(state.design, np.asarray(_START), "+").p[0]
-    plan_cartesian(state.design, start, [p0 + np.array([0.0, 0.05, 0.0])], cartesian_speed=0.25)
+    goal = (p0 + np.array([0.0, 0.05, 0.0]))[None]
+    plan_cartesian(state.design, start, goal, cartesian_speed=0.25)
 
 
 def _analysis(state: _State) -> None:

@@ -308,13 +308,15 @@ class Refinement:
             known = np.full(len(s) - 1 - certified, np.nan)
         new = certified + np.flatnonzero(np.isnan(known))  # pieces not bounded yet
         b_tail = known.copy()
+        line = self.poly.at(np.concatenate([s[new], s[new + 1]]))  # both ends, one call
         b_tail[new - certified] = chord_deviation_bound(
             self.design,
             q[new],
             q[new + 1],
             w[new],
             w[new + 1],
-            *np.split(self.poly.at(np.concatenate([s[new], s[new + 1]])), 2),
+            line[: len(new)],
+            line[len(new) :],
             self.asm,
         )
         self.bound = np.concatenate([self.bound[:certified], b_tail])

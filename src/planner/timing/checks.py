@@ -16,9 +16,11 @@ every acceleration jump, and at the output samples.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
@@ -30,9 +32,12 @@ from planner.exceptions import InputError
 from planner.kinematics import forward_batch
 from planner.timing.limits import JointLimits
 from planner.timing.path import distance_to_polyline, piece_of, point_on_piece
-from planner.timing.toppra_method import read_at_path, read_at_time
-from planner.timing.torque import TorqueModel
+from planner.timing.toppra_method import PathProfile, read_at_path, read_at_time
+from planner.timing.torque import TorqueModel, torque_time_scale
 from planner.timing.trajectory import Curve, ToppraCurve, p_velocity
+
+if TYPE_CHECKING:
+    from planner.timing.job import TimingJob
 
 __all__ = [
     "LIMIT_RTOL",
@@ -41,8 +46,11 @@ __all__ = [
     "StateChecker",
     "dense_check",
     "fit_ratios",
+    "fit_time_scale",
     "torque_check_times",
 ]
+
+logger = logging.getLogger(__name__)
 
 #: Relative tolerance on every velocity, acceleration, jerk and Cartesian-speed limit: a sample
 #: passes when |value| <= limit * (1 + LIMIT_RTOL) (solver round-off, not a slack).
@@ -95,6 +103,56 @@ class CheckReport:
     def worst_limit(self) -> tuple[str, float]:
         rule = max(self.limit_ratio, key=lambda k: self.limit_ratio[k])
         return rule, self.limit_ratio[rule]
+
+
+def fit_time_scale(
+    curve: ToppraCurve, limits: JointLimits, job: TimingJob, margin: float
+) -> tuple[PathProfile, np.ndarray]:
+    """The toppra profile slowed uniformly in time just enough that ``limits`` (the job's, or
+    scaled) hold at every check position, ``margin`` (relative) inside them, not only at
+    toppra's grid points; and those check positions (the slowed profile has the same grid,
+    so the dense re-check's positions are these: built once). Step 3 of
+    :func:`planner.timing.time_path`; here beside the re-check, whose positions and compiled
+    pass it shares.
+
+    Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
+    (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
+    the Cartesian speed by c and accelerations by c^2 at the same path positions, so
+    ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
+    all exactly at those positions; torques scale by c^2 in their dynamic part only, and
+    :func:`~planner.timing.torque.torque_time_scale` gives their c. Without torque limits the
+    ratios come from one compiled pass (:func:`fit_ratios`: the same values as these steps).
+    """
+    prof = curve.profile
+    tau_max = limits.torque_array
+    torques = job.torque is not None and tau_max is not None
+    # unsorted (a largest value needs no order; the re-check sorts their times), but in
+    # order with torque limits, whose error names the first sample over a limit
+    s = curve.check_path_positions(job.resolution, ordered=torques)
+    target = 1.0 - margin
+    ratios: tuple[Any, Any, Any]  # numpy's floats: a zero ratio divides to inf, as before
+    if not torques and curve.path.n_pieces > 0:
+        ratios = fit_ratios(curve, s, job.design, job.assembly_mode, limits)
+    else:
+        _, sd, sdd = prof.at_path(s)
+        q, d1, d2 = curve.path.evaluate_all(s)
+        r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
+        qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
+        r_a = np.max(np.abs(qdd) / limits.acceleration_array)
+        peak = np.max(job.gain_at(q, d1) * sd) if job.v_cart is not None else np.nan
+        ratios = (r_v, r_a, peak)
+    r_v, r_a, peak = ratios
+    c = min(1.0, target / r_v, np.sqrt(target / r_a))
+    if job.v_cart is not None:  # the largest |dP/ds| sd at the postures evaluated above
+        c = min(c, target * job.v_cart / max(float(peak), 1e-300))
+    if torques:
+        assert job.torque is not None and tau_max is not None
+        dyn, grav = job.torque.split(q, d1 * sd[:, None], qdd)
+        c = min(c, torque_time_scale(dyn, grav, tau_max, target))
+    if c >= 1.0:
+        return prof, s
+    logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
+    return prof.time_scaled(c), s
 
 
 def torque_check_times(duration: float) -> np.ndarray:
@@ -158,8 +216,10 @@ def dense_check(
     # each bad posture's first failing rule, in this order (masks; the names at the end)
     lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
     beyond = (q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL)
-    outside = beyond.any(axis=1) if beyond.any() else np.zeros(q.shape[0], dtype=bool)
-    failed = [("assembly", ~assembled), ("joint_limits", outside)]
+    outside = np.zeros(len(q), dtype=bool)
+    if beyond.any():  # reduced per posture only then (most checks find none)
+        outside = np.any(beyond, axis=1)
+    failed: list[tuple[str, np.ndarray]] = [("assembly", ~assembled), ("joint_limits", outside)]
     if check_states is not None:
         valid = np.asarray(check_states(q))
         if valid.shape != (q.shape[0],) or valid.dtype != np.bool_:

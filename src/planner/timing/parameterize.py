@@ -55,7 +55,7 @@ from planner.timing.checks import (
     CheckReport,
     StateChecker,
     dense_check,
-    fit_ratios,
+    fit_time_scale,
     torque_check_times,
 )
 from planner.timing.jerk_filter import JerkFilteredCurve, jerk_limited
@@ -126,52 +126,6 @@ TOPPRA_ARC_REFINE = 4
 #: output samples, which fall between the fitted positions, pass too (the excess found there
 #: was at most 2e-4 on the benchmark paths).
 _FIT_MARGIN = 1e-3
-
-
-def _fit_time_scale(
-    curve: ToppraCurve, limits: JointLimits, job: TimingJob
-) -> tuple[PathProfile, np.ndarray]:
-    """The toppra profile slowed uniformly in time just enough that ``limits`` (the job's, or
-    scaled) hold at every check position, not only at toppra's grid points; and those check
-    positions (the slowed profile has the same grid, so the dense re-check's positions are
-    these: built once).
-
-    Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
-    (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
-    the Cartesian speed by c and accelerations by c^2 at the same path positions, so
-    ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
-    all exactly at those positions; torques scale by c^2 in their dynamic part only, and
-    :func:`~planner.timing.torque.torque_time_scale` gives their c. Without torque limits the
-    ratios come from one compiled pass (:func:`~planner.timing.checks.fit_ratios`: the same
-    values as these steps).
-    """
-    prof = curve.profile
-    tau_max = limits.torque_array
-    torques = job.torque is not None and tau_max is not None
-    # unsorted (a largest value needs no order; the re-check sorts their times), but in
-    # order with torque limits, whose error names the first sample over a limit
-    s = curve.check_path_positions(job.resolution, ordered=torques)
-    target = 1.0 - _FIT_MARGIN
-    if not torques and curve.path.n_pieces > 0:
-        r_v, r_a, peak = fit_ratios(curve, s, job.design, job.assembly_mode, limits)
-    else:
-        _, sd, sdd = prof.at_path(s)
-        q, d1, d2 = curve.path.evaluate_all(s)
-        r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
-        qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
-        r_a = np.max(np.abs(qdd) / limits.acceleration_array)
-        peak = np.max(job.gain_at(q, d1) * sd) if job.v_cart is not None else np.nan
-    c = min(1.0, target / r_v, np.sqrt(target / r_a))
-    if job.v_cart is not None:  # the largest |dP/ds| sd at the postures evaluated above
-        c = min(c, target * job.v_cart / max(float(peak), 1e-300))
-    if torques:
-        assert job.torque is not None and tau_max is not None
-        dyn, grav = job.torque.split(q, d1 * sd[:, None], qdd)
-        c = min(c, torque_time_scale(dyn, grav, tau_max, target))
-    if c >= 1.0:
-        return prof, s
-    logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
-    return prof.time_scaled(c), s
 
 
 def _exceeded(report: CheckReport) -> list[str]:
@@ -554,7 +508,7 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
             )
             if job.method != "toppra":
                 break
-            fitted, positions = _fit_time_scale(ToppraCurve(path, profile), lim, job)
+            fitted, positions = fit_time_scale(ToppraCurve(path, profile), lim, job, _FIT_MARGIN)
             if best is None or fitted.duration < best.duration:
                 best = fitted
                 state.positions = (path, fitted.s, positions)
