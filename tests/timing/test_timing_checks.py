@@ -105,14 +105,16 @@ def test_dense_check_catches_what_the_output_samples_miss():
 @pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
 def test_the_compiled_pass_of_a_toppra_curve_equals_the_steps(design):
     """The re-check of a toppra curve in one compiled pass (profile, postures, rates, P and
-    its velocity, plan segments, ratios) gives the report of the generic steps bit for bit:
-    the same curve behind ``TimeScaledCurve(curve, 1.0)``, which evaluates the same times
-    through ``evaluate`` and ``plan_segments``. Blended corners, postures outside the joint
-    limits and, on the second design, postures whose loop opens (assembly)."""
+    its velocity, joint limits, deviation from the plan and P's, ratios) gives the report of
+    the generic steps bit for bit: the same curve behind ``TimeScaledCurve(curve, 1.0)``,
+    which evaluates the same times through ``evaluate`` and ``plan_segments``. Blended
+    corners farther from the plan than allowed, postures outside the joint limits and, on
+    the second design, postures whose loop opens (assembly)."""
     from planner.timing.trajectory import TimeScaledCurve
 
     rng = np.random.default_rng(2)
     opened = 0
+    named: set[str] = set()
     for _ in range(6):
         w = np.cumsum(rng.uniform(-0.8, 0.8, (5, 3)), axis=0) + np.array([0.0, 2.0, 1.0])
         path = BlendedPath.from_waypoints(w, 0.1)
@@ -139,6 +141,8 @@ def test_the_compiled_pass_of_a_toppra_curve_equals_the_steps(design):
             assert np.array_equal(a, b)
         assert list(fused.state_rule) == list(steps.state_rule)
         opened += int(np.sum(fused.state_rule == "assembly"))
+        named.update(fused.state_rule)
+    assert {"deviation", "joint_limits", ""} <= named  # blends too far, joints beyond limits
     if design.L0 + 2 * design.L1 > 2 * design.L2:
         assert opened > 0
 

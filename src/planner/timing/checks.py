@@ -207,19 +207,15 @@ def dense_check(
     if torque_model is not None and limits.torque is not None and torque_in_time:
         times.append(torque_check_times(curve.duration))
     t = np.unique(np.concatenate(times))
-    q, p, assembled, segments, ratio, speed = _states(
-        curve, t, design, assembly_mode, limits, torque_model
-    )
+    st = _states(curve, t, design, assembly_mode, limits, torque_model, waypoints, deviation_limit)
+    q, ratio = st.q, st.ratio
     if max_cartesian_speed is not None:
-        ratio["cartesian_speed"] = speed / max_cartesian_speed
-
+        ratio["cartesian_speed"] = st.speed / max_cartesian_speed
     # each bad posture's first failing rule, in this order (masks; the names at the end)
-    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
-    beyond = (q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL)
-    outside = np.zeros(len(q), dtype=bool)
-    if beyond.any():  # reduced per posture only then (most checks find none)
-        outside = np.any(beyond, axis=1)
-    failed: list[tuple[str, np.ndarray]] = [("assembly", ~assembled), ("joint_limits", outside)]
+    failed: list[tuple[str, np.ndarray]] = [
+        ("assembly", ~st.assembled),
+        ("joint_limits", st.outside),
+    ]
     if check_states is not None:
         valid = np.asarray(check_states(q))
         if valid.shape != (q.shape[0],) or valid.dtype != np.bool_:
@@ -228,27 +224,9 @@ def dense_check(
                 f"got {valid.dtype} {valid.shape}"
             )
         failed.append(("validity", ~valid))
-
-    off = segments[:, 0] >= 0
-    dev_q, dev_p = 0.0, 0.0
-    if np.any(off):
-        dist, nearest = distance_to_polyline(waypoints, q[off], segments[off])
-        if deviation_limit is not None:
-            # A posture standing for segments lo..hi is near the corners lo+1..hi: it may be
-            # as far from the plan as the smallest of their allowances.
-            lo, hi = segments[off, 0] + 1, segments[off, 1]
-            allowed = np.full(lo.shape[0], np.inf)
-            for j in range(int(np.max(hi - lo, initial=0)) + 1):
-                allowed = np.minimum(allowed, deviation_limit[np.minimum(lo + j, hi)])
-            too_far = np.zeros(t.shape[0], dtype=bool)
-            too_far[np.flatnonzero(off)] = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
-            failed.append(("deviation", too_far))
-        p_near = forward_batch(design, nearest, assembly_mode)
-        both = assembled[off] & p_near.ok
-        dev_q = float(np.max(dist))
-        if np.any(both):
-            at = np.flatnonzero(off)[both]
-            dev_p = float(np.max(np.linalg.norm(p[at] - p_near.p[both], axis=1)))
+    if st.too_far is not None:
+        failed.append(("deviation", st.too_far))
+    dev_q, dev_p = st.dev_q, st.dev_p
     bad, rule = _first_failed(failed, t.shape[0])
     return CheckReport(
         t=t,
@@ -274,6 +252,25 @@ def _first_failed(failed: list[tuple[str, np.ndarray]], m: int) -> tuple[np.ndar
     return bad, rule
 
 
+@dataclass(frozen=True, eq=False)
+class _Postures:
+    """What :func:`dense_check` measures at its times before the validity rules: postures
+    q (M, 3), P (M, 3), assembled (M,), the limit ratios (velocity, acceleration, jerk,
+    torque; largest |value| / limit), the largest speed of P over the assembled postures
+    (m/s), the postures beyond a joint limit (M,), those farther from the plan than their
+    allowance (M,; None without ``deviation_limit`` or with no posture off the plan), and
+    the largest distance from the plan in joint space (rad) and at P (m)."""
+
+    q: np.ndarray
+    assembled: np.ndarray
+    ratio: dict[str, float]
+    speed: float
+    outside: np.ndarray
+    too_far: np.ndarray | None
+    dev_q: float
+    dev_p: float
+
+
 def _states(
     curve: Curve,
     t: np.ndarray,
@@ -281,14 +278,14 @@ def _states(
     assembly_mode: str,
     limits: JointLimits,
     torque_model: TorqueModel | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float], float]:
-    """:func:`dense_check`'s postures at times ``t``: (q (M, 3), P (M, 3), assembled (M,),
-    plan segments (M, 2), the limit ratios (velocity, acceleration, jerk, torque; each
-    largest |value| / limit), the largest speed of P over the assembled postures, m/s). A
-    toppra curve without torque limits in one compiled pass (:func:`_toppra_states`)."""
+    waypoints: np.ndarray,
+    deviation_limit: np.ndarray | None,
+) -> _Postures:
+    """:func:`dense_check`'s measures at times ``t`` (:class:`_Postures`). A toppra curve
+    without torque limits in one compiled pass (:func:`_toppra_states`)."""
     torques = torque_model is not None and limits.torque is not None
-    if isinstance(curve, ToppraCurve) and curve.path.n_pieces > 0 and not torques:
-        return _toppra_states(curve, t, design, assembly_mode, limits)
+    if isinstance(curve, ToppraCurve) and curve.path.n_pieces > 1 and not torques:
+        return _toppra_states(curve, t, design, assembly_mode, limits, waypoints, deviation_limit)
     q, qd, qdd, jerk = curve.evaluate(t)
     segments = curve.plan_segments(t)
     ratio = {
@@ -304,22 +301,65 @@ def _states(
         ratio["torque"] = float(np.max(np.nan_to_num(np.abs(tau), nan=0.0) / limits.torque_array))
     p, v_p, assembled = p_velocity(design, q, qd, assembly_mode)
     speed = float(np.max(np.where(assembled, np.linalg.norm(v_p, axis=1), 0.0)))
-    return q, p, assembled, segments, ratio, speed
+    lo, hi = np.asarray(design.joint_min), np.asarray(design.joint_max)
+    beyond = (q < lo - JOINT_LIMIT_TOL) | (q > hi + JOINT_LIMIT_TOL)
+    outside = np.zeros(len(q), dtype=bool)
+    if beyond.any():  # reduced per posture only then (most checks find none)
+        outside = np.any(beyond, axis=1)
+    off = segments[:, 0] >= 0
+    too_far, dev_q, dev_p = None, 0.0, 0.0
+    if np.any(off):
+        dist, nearest = distance_to_polyline(waypoints, q[off], segments[off])
+        if deviation_limit is not None:
+            # A posture standing for segments lo..hi is near the corners lo+1..hi: it may be
+            # as far from the plan as the smallest of their allowances.
+            lo, hi = segments[off, 0] + 1, segments[off, 1]
+            allowed = np.full(lo.shape[0], np.inf)
+            for j in range(int(np.max(hi - lo, initial=0)) + 1):
+                allowed = np.minimum(allowed, deviation_limit[np.minimum(lo + j, hi)])
+            too_far = np.zeros(t.shape[0], dtype=bool)
+            too_far[np.flatnonzero(off)] = dist > allowed * (1 + DEVIATION_RTOL) + 1e-12
+        p_near = forward_batch(design, nearest, assembly_mode)
+        both = assembled[off] & p_near.ok
+        dev_q = float(np.max(dist))
+        if np.any(both):
+            at = np.flatnonzero(off)[both]
+            dev_p = float(np.max(np.linalg.norm(p[at] - p_near.p[both], axis=1)))
+    return _Postures(q, assembled, ratio, speed, outside, too_far, dev_q, dev_p)
 
 
 def _toppra_states(
-    curve: ToppraCurve, t: np.ndarray, design: Design, assembly_mode: str, limits: JointLimits
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float], float]:
+    curve: ToppraCurve,
+    t: np.ndarray,
+    design: Design,
+    assembly_mode: str,
+    limits: JointLimits,
+    waypoints: np.ndarray,
+    deviation_limit: np.ndarray | None,
+) -> _Postures:
     """:func:`_states` of a toppra curve in one compiled pass (:func:`_toppra_kernel`): the
     profile read at each time, the posture and rates on the path, P and its velocity, the
-    largest ratios and speed, without an array per step; the same values as the steps
-    (``tests/timing/test_timing_checks.py``)."""
-    q, p, assembled, corner, largest = _toppra_pass(
-        curve, t, design, assembly_mode, limits, fit=False
+    joint limits, on a blend the distance to its two segments, the allowance and P of the
+    nearest planned posture, and the largest ratios, speed and distances, without an array
+    per step; the same values as the steps (``tests/timing/test_timing_checks.py``)."""
+    has_dev = deviation_limit is not None
+    dev = np.asarray(deviation_limit if has_dev else np.zeros(0), dtype=float)
+    out = _toppra_pass(
+        curve, t, design, assembly_mode, limits, fit=False, waypoints=waypoints, deviation=dev
     )
-    segments = np.where(corner[:, None] >= 0, np.stack([corner - 1, corner], axis=1), -1)
+    q, assembled, outside, too_far, largest = out
     ratio = {"velocity": float(largest[0]), "acceleration": float(largest[1])}
-    return q, p, assembled, segments, ratio, float(largest[2])
+    any_off = bool(largest[5] > 0.0)  # a posture on a blend (the plan's segments near it)
+    return _Postures(
+        q,
+        assembled,
+        ratio,
+        float(largest[2]),
+        outside,
+        too_far if has_dev and any_off else None,
+        float(largest[3]),
+        float(largest[4]),
+    )
 
 
 def fit_ratios(
@@ -342,16 +382,18 @@ def _toppra_pass(
     limits: JointLimits,
     *,
     fit: bool,
+    waypoints: np.ndarray | None = None,
+    deviation: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_toppra_kernel` at times (``fit`` False) or path positions ``x``: (q, P,
-    assembled, corner, largest)."""
+    """:func:`_toppra_kernel` at times (``fit`` False) or path positions ``x``: (q,
+    assembled, outside, too_far, largest)."""
     prof, path = curve.profile, curve.path
     m = x.shape[0]
-    q, p = np.empty((m, 3)), np.empty((m, 3))
-    assembled = np.empty(m, dtype=np.bool_)
-    corner = np.empty(m, dtype=np.int64)
-    largest = np.zeros(3)
+    q = np.empty((m, 3))
+    assembled, outside, too_far = (np.zeros(m, dtype=np.bool_) for _ in range(3))
+    largest = np.zeros(6)
     ro = _kernels.read_only
+    w = path.waypoints if waypoints is None else waypoints
     _toppra_kernel(
         ro(x),
         fit,
@@ -373,13 +415,18 @@ def _toppra_pass(
         ASSEMBLY_TOL,
         ro(limits.velocity_array),
         ro(limits.acceleration_array),
+        ro(np.asarray(design.joint_min, dtype=float) - JOINT_LIMIT_TOL),
+        ro(np.asarray(design.joint_max, dtype=float) + JOINT_LIMIT_TOL),
+        ro(w),
+        ro(np.zeros(0) if deviation is None else deviation),
+        1 + DEVIATION_RTOL,
         q,
-        p,
         assembled,
-        corner,
+        outside,
+        too_far,
         largest,
     )
-    return q, p, assembled, corner, largest
+    return q, assembled, outside, too_far, largest
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -404,23 +451,33 @@ def _toppra_kernel(
     tol,
     vel,
     acc,
+    jl_lo,
+    jl_hi,
+    w,
+    dev,
+    dev_scale,
     q,
-    p,
     assembled,
-    corner_out,
+    outside,
+    too_far,
     largest,
 ):  # pragma: no cover - compiled
     """Per time x (``fit`` False): (s, sd, sdd) as :meth:`PathProfile.at_time` reads them
     (``read_at_time``), the piece and q, q', q'' on it (``piece_of``, ``point_on_piece``),
     qd = q' sd and qdd = q' sdd + q'' sd^2, P and dP/dt (:func:`planner._kernels.velocity_of`),
-    the blend's corner; into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j and
-    |dP/dt| over assembled postures. Per path position x (``fit``): (sd, sdd) as
-    :meth:`PathProfile.at_path` reads them, the posture at x, the same ratios, and into
-    ``largest[2]`` the greatest |dP/ds| sd (|dP/ds| from ``velocity_of`` at qd = q', inf where
-    it is not 2; NaN when one product is NaN). Each formula in numpy's order: the same
-    values bit for bit."""
+    whether q is beyond ``jl_lo`` / ``jl_hi``, and on the blend of corner k the distance to
+    the plan's segments k-1 and k of ``w`` (``distance_to_polyline``'s arithmetic), whether
+    it is over ``dev[k] dev_scale + 1e-12`` (with ``dev``), and P of the nearest point;
+    into ``largest`` the greatest |qd_j| / vel_j, |qdd_j| / acc_j, |dP/dt| over assembled
+    postures, distance, |P - P_near| (both assembled) and the count of blend postures. Per
+    path position x (``fit``): (sd, sdd) as :meth:`PathProfile.at_path` reads them, the
+    posture at x, the same ratios, and into ``largest[2]`` the greatest |dP/ds| sd (|dP/ds|
+    from ``velocity_of`` at qd = q', inf where it is not 2; NaN when one product is NaN).
+    Each formula in numpy's order: the same values bit for bit."""
     n_pieces = kind.shape[0]
-    q1, q2 = np.empty(3), np.empty(3)
+    last_w = w.shape[0] - 1
+    n_seg = max(last_w, 1)
+    q1, q2, near = np.empty(3), np.empty(3), np.empty(3)
     nan_peak = False
     at, on = 0, 0  # the grid and piece counts of the position before (hints)
     for m in range(x.shape[0]):
@@ -448,9 +505,7 @@ def _toppra_kernel(
             branch,
             tol,
         )
-        p[m, 0], p[m, 1], p[m, 2] = p0, p1, p2
         assembled[m] = state == 2
-        corner_out[m] = corner[k]
         speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2) if state == 2 else np.inf
         if fit:
             peak = speed * sd
@@ -458,7 +513,50 @@ def _toppra_kernel(
                 nan_peak = True
             elif peak > largest[2]:
                 largest[2] = peak
-        elif state == 2:
+            continue
+        if state == 2:
             largest[2] = max(largest[2], speed)
+        for j in range(3):
+            if q[m, j] < jl_lo[j] or q[m, j] > jl_hi[j]:
+                outside[m] = True
+        c = corner[k]
+        if c < 0:  # on a line of the plan: no deviation
+            continue
+        largest[5] += 1.0
+        lo = min(max(c - 1, 0), n_seg - 1)
+        hi = min(max(c, lo), n_seg - 1)
+        best = np.inf
+        for seg in range(lo, hi + 1):
+            b = min(seg + 1, last_w)  # a single waypoint: the segment from it to itself
+            denom = 0.0
+            dot = 0.0
+            for j in range(3):
+                ab = w[b, j] - w[seg, j]
+                denom += ab * ab
+                dot += (q[m, j] - w[seg, j]) * ab
+            f = dot / max(denom, 1e-300) if denom > 0 else 0.0
+            f = min(max(f, 0.0), 1.0)
+            d2 = 0.0
+            foot0 = w[seg, 0] + f * (w[b, 0] - w[seg, 0])
+            foot1 = w[seg, 1] + f * (w[b, 1] - w[seg, 1])
+            foot2 = w[seg, 2] + f * (w[b, 2] - w[seg, 2])
+            d2 += (q[m, 0] - foot0) ** 2
+            d2 += (q[m, 1] - foot1) ** 2
+            d2 += (q[m, 2] - foot2) ** 2
+            if d2 < best:
+                best = d2
+                near[0], near[1], near[2] = foot0, foot1, foot2
+        dist = math.sqrt(best)
+        largest[3] = max(largest[3], dist)
+        if dev.shape[0] > 0:
+            too_far[m] = dist > dev[c] * dev_scale + 1e-12
+        closes, _, _, _, _, pu, pw, _ = _kernels.close_loop(
+            L0, L1, L2, near[1], near[2], branch, tol
+        )
+        if state == 2 and closes:
+            e0 = p0 - pw * math.cos(near[0])
+            e1 = p1 - pu
+            e2 = p2 - -pw * math.sin(near[0])
+            largest[4] = max(largest[4], math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
     if nan_peak:
         largest[2] = np.nan
