@@ -153,7 +153,7 @@ def _max_deviation_kernel(
     (:func:`~planner.timing.path.point_on_piece`), P (the loop closure of
     :func:`planner._kernels.forward_kernel`) and its least squared distance to the segments
     (:func:`planner.timing.path._nearest_on_segments`' arithmetic: NaN never replaces inf)."""
-    q, p, tangent, curvature = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    q, p = np.empty(3), np.empty(3)
     worst = 0.0
     hint = 0
     for m in range(s.shape[0]):
@@ -161,9 +161,9 @@ def _max_deviation_kernel(
             q[0], q[1], q[2] = q_rest[0], q_rest[1], q_rest[2]
         else:
             k, hint = piece_of(s0, n_pieces, s[m], hint)
-            point_on_piece(
-                k, s[m] - s0[k], kind, origin, direction, normal, radius, q, tangent, curvature
-            )
+            q[0], q[1], q[2] = point_on_piece(
+                k, s[m] - s0[k], kind, origin, direction, normal, radius
+            )[:3]
         closes, _, _, _, _, pu, pw, _ = _kernels.close_loop(L0, L1, L2, q[1], q[2], branch, tol)
         if closes:
             p[0], p[1], p[2] = pw * math.cos(q[0]), pu, -pw * math.sin(q[0])

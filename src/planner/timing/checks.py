@@ -487,7 +487,11 @@ def _toppra_kernel(
         else:
             s, sd, a, at = read_at_time(x[m], g_s, g_sd, g_time, g_sdd, at)
         k, on = piece_of(s0, n_pieces, s, on)
-        point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius, q[m], q1, q2)
+        (
+            q[m, 0], q[m, 1], q[m, 2],
+            q1[0], q1[1], q1[2],
+            q2[0], q2[1], q2[2],
+        ) = point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius)  # fmt: skip
         for j in range(3):
             largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])
             largest[1] = max(largest[1], abs(q1[j] * a + q2[j] * sd**2) / acc[j])

@@ -251,29 +251,49 @@ def _evaluate_pieces(
     thousands, several times a timing)."""
     for m in range(s.shape[0]):
         k = idx[m]
-        point_on_piece(k, s[m] - s0[k], kind, origin, direction, normal, radius, q[m], d1[m], d2[m])
+        (
+            q[m, 0], q[m, 1], q[m, 2],
+            d1[m, 0], d1[m, 1], d1[m, 2],
+            d2[m, 0], d2[m, 1], d2[m, 2],
+        ) = point_on_piece(k, s[m] - s0[k], kind, origin, direction, normal, radius)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
-def point_on_piece(k, ds, kind, origin, direction, normal, radius, q, d1, d2):  # pragma: no cover
-    """q, q', q'' (3,) at ``ds`` along piece ``k`` (of the :class:`BlendedPath` arrays), into
-    q, d1, d2: a line ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``,
-    its tangent ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``.
-    The one copy of these formulas for every compiled reader of a path."""
+def point_on_piece(k, ds, kind, origin, direction, normal, radius):  # pragma: no cover
+    """q, q', q'' (three numbers each) at ``ds`` along piece ``k`` (of the
+    :class:`BlendedPath` arrays): a line ``o + d ds``; an arc ``o + r (d cos phi + n sin
+    phi)``, ``phi = ds / r``, its tangent ``n cos phi - d sin phi`` and curvature vector
+    ``-(d cos phi + n sin phi) / r``. The one copy of these formulas for every compiled
+    reader of a path (numbers, not arrays: no view per position)."""
     if kind[k] == ARC:
         r = radius[k]
         phi = ds / r
         c, si = np.cos(phi), np.sin(phi)
-        for j in range(3):
-            radial = direction[k, j] * c + normal[k, j] * si
-            q[j] = origin[k, j] + r * radial
-            d1[j] = normal[k, j] * c - direction[k, j] * si
-            d2[j] = -radial / r
-    else:
-        for j in range(3):
-            q[j] = origin[k, j] + direction[k, j] * ds
-            d1[j] = direction[k, j]
-            d2[j] = 0.0
+        r0 = direction[k, 0] * c + normal[k, 0] * si
+        r1 = direction[k, 1] * c + normal[k, 1] * si
+        r2 = direction[k, 2] * c + normal[k, 2] * si
+        return (
+            origin[k, 0] + r * r0,
+            origin[k, 1] + r * r1,
+            origin[k, 2] + r * r2,
+            normal[k, 0] * c - direction[k, 0] * si,
+            normal[k, 1] * c - direction[k, 1] * si,
+            normal[k, 2] * c - direction[k, 2] * si,
+            -r0 / r,
+            -r1 / r,
+            -r2 / r,
+        )
+    return (
+        origin[k, 0] + direction[k, 0] * ds,
+        origin[k, 1] + direction[k, 1] * ds,
+        origin[k, 2] + direction[k, 2] * ds,
+        direction[k, 0],
+        direction[k, 1],
+        direction[k, 2],
+        0.0,
+        0.0,
+        0.0,
+    )
 
 
 @njit(cache=True, nogil=True)
