@@ -475,9 +475,7 @@ def _toppra_kernel(
     from ``velocity_of`` at qd = q', inf where it is not 2; NaN when one product is NaN).
     Each formula in numpy's order: the same values bit for bit."""
     n_pieces = kind.shape[0]
-    last_w = w.shape[0] - 1
-    n_seg = max(last_w, 1)
-    q1, q2, near = np.empty(3), np.empty(3), np.empty(3)
+    q1, q2 = np.empty(3), np.empty(3)
     nan_peak = False
     at, on = 0, 0  # the grid and piece counts of the position before (hints)
     for m in range(x.shape[0]):
@@ -487,11 +485,9 @@ def _toppra_kernel(
         else:
             s, sd, a, at = read_at_time(x[m], g_s, g_sd, g_time, g_sdd, at)
         k, on = piece_of(s0, n_pieces, s, on)
-        (
-            q[m, 0], q[m, 1], q[m, 2],
-            q1[0], q1[1], q1[2],
-            q2[0], q2[1], q2[2],
-        ) = point_on_piece(k, s - s0[k], kind, origin, direction, normal, radius)  # fmt: skip
+        (q[m, 0], q[m, 1], q[m, 2], q1[0], q1[1], q1[2], q2[0], q2[1], q2[2]) = point_on_piece(
+            k, s - s0[k], kind, origin, direction, normal, radius
+        )
         for j in range(3):
             largest[0] = max(largest[0], abs(q1[j] * sd) / vel[j])
             largest[1] = max(largest[1], abs(q1[j] * a + q2[j] * sd**2) / acc[j])
@@ -527,40 +523,49 @@ def _toppra_kernel(
         if c < 0:  # on a line of the plan: no deviation
             continue
         largest[5] += 1.0
-        lo = min(max(c - 1, 0), n_seg - 1)
-        hi = min(max(c, lo), n_seg - 1)
-        best = np.inf
-        for seg in range(lo, hi + 1):
-            b = min(seg + 1, last_w)  # a single waypoint: the segment from it to itself
-            denom = 0.0
-            dot = 0.0
-            for j in range(3):
-                ab = w[b, j] - w[seg, j]
-                denom += ab * ab
-                dot += (q[m, j] - w[seg, j]) * ab
-            f = dot / max(denom, 1e-300) if denom > 0 else 0.0
-            f = min(max(f, 0.0), 1.0)
-            d2 = 0.0
-            foot0 = w[seg, 0] + f * (w[b, 0] - w[seg, 0])
-            foot1 = w[seg, 1] + f * (w[b, 1] - w[seg, 1])
-            foot2 = w[seg, 2] + f * (w[b, 2] - w[seg, 2])
-            d2 += (q[m, 0] - foot0) ** 2
-            d2 += (q[m, 1] - foot1) ** 2
-            d2 += (q[m, 2] - foot2) ** 2
-            if d2 < best:
-                best = d2
-                near[0], near[1], near[2] = foot0, foot1, foot2
+        best, near0, near1, near2 = _nearest_on_corner(q[m, 0], q[m, 1], q[m, 2], c, w)
         dist = math.sqrt(best)
         largest[3] = max(largest[3], dist)
         if dev.shape[0] > 0:
             too_far[m] = dist > dev[c] * dev_scale + 1e-12
-        closes, _, _, _, _, pu, pw, _ = _kernels.close_loop(
-            L0, L1, L2, near[1], near[2], branch, tol
-        )
+        closes, _, _, _, _, pu, pw, _ = _kernels.close_loop(L0, L1, L2, near1, near2, branch, tol)
         if state == 2 and closes:
-            e0 = p0 - pw * math.cos(near[0])
+            e0 = p0 - pw * math.cos(near0)
             e1 = p1 - pu
-            e2 = p2 - -pw * math.sin(near[0])
+            e2 = p2 - -pw * math.sin(near0)
             largest[4] = max(largest[4], math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
     if nan_peak:
         largest[2] = np.nan
+
+
+@njit(cache=True, nogil=True)
+def _nearest_on_corner(x0, x1, x2, c, w):  # pragma: no cover - compiled
+    """The least squared distance of the posture (x0, x1, x2) to the plan's segments c - 1
+    and c of ``w`` (N, 3) and the foot of it, as ``distance_to_polyline`` measures a posture
+    against the segments it stands for (indices clipped to the segments, a single waypoint
+    a segment from it to itself; the first of equally near segments kept)."""
+    last_w = w.shape[0] - 1
+    n_seg = max(last_w, 1)
+    lo = min(max(c - 1, 0), n_seg - 1)
+    hi = min(max(c, lo), n_seg - 1)
+    best, near0, near1, near2 = np.inf, np.nan, np.nan, np.nan
+    for seg in range(lo, hi + 1):
+        b = min(seg + 1, last_w)
+        denom = 0.0
+        dot = 0.0
+        for j in range(3):
+            ab = w[b, j] - w[seg, j]
+            denom += ab * ab
+            dot += ((x0 if j == 0 else x1 if j == 1 else x2) - w[seg, j]) * ab
+        f = dot / max(denom, 1e-300) if denom > 0 else 0.0
+        f = min(max(f, 0.0), 1.0)
+        foot0 = w[seg, 0] + f * (w[b, 0] - w[seg, 0])
+        foot1 = w[seg, 1] + f * (w[b, 1] - w[seg, 1])
+        foot2 = w[seg, 2] + f * (w[b, 2] - w[seg, 2])
+        d2 = 0.0
+        d2 += (x0 - foot0) ** 2
+        d2 += (x1 - foot1) ** 2
+        d2 += (x2 - foot2) ** 2
+        if d2 < best:
+            best, near0, near1, near2 = d2, foot0, foot1, foot2
+    return best, near0, near1, near2

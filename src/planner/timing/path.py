@@ -251,11 +251,12 @@ def _evaluate_pieces(
     thousands, several times a timing)."""
     for m in range(s.shape[0]):
         k = idx[m]
-        (
-            q[m, 0], q[m, 1], q[m, 2],
-            d1[m, 0], d1[m, 1], d1[m, 2],
-            d2[m, 0], d2[m, 1], d2[m, 2],
-        ) = point_on_piece(k, s[m] - s0[k], kind, origin, direction, normal, radius)  # fmt: skip
+        q0, q1, q2, t0, t1, t2, c0, c1, c2 = point_on_piece(
+            k, s[m] - s0[k], kind, origin, direction, normal, radius
+        )
+        q[m, 0], q[m, 1], q[m, 2] = q0, q1, q2
+        d1[m, 0], d1[m, 1], d1[m, 2] = t0, t1, t2
+        d2[m, 0], d2[m, 1], d2[m, 2] = c0, c1, c2
 
 
 @njit(cache=True, nogil=True)
