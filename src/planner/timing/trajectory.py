@@ -132,20 +132,8 @@ class ToppraCurve:
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
         """On the blend of vertex k: segments k-1 and k; on a straight piece: (-1, -1)."""
         s, _, _ = self.profile.at_time(t)
-        return self._segments_at(s)
-
-    def _segments_at(self, s: np.ndarray) -> np.ndarray:
         k = self.path.arc_corner_at(s)
         return np.where(k[:, None] >= 0, np.stack([k - 1, k], axis=1), -1)
-
-    def evaluate_with_segments(
-        self, t: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, None, np.ndarray]:
-        """:meth:`evaluate` and :meth:`plan_segments` at the same times, the profile read
-        once (the dense re-check needs both)."""
-        s, sd, sdd = self.profile.at_time(t)
-        q, qd, qdd, jerk = self._at(s, sd, sdd)
-        return q, qd, qdd, jerk, self._segments_at(s)
 
 
 def sample_times(duration: float, rate_hz: float) -> np.ndarray:
