@@ -211,43 +211,91 @@ def conditioning_kernel(L1, L2, q, passive, w, out):  # pragma: no cover - compi
 def forward_velocity_kernel(
     L0, L1, L2, q, qd, branch, assembly_tol, p, v, ok
 ):  # pragma: no cover - compiled
-    """P (N, 3) and its velocity dP/dt (N, 3) for postures q (N, 3) moving at qd (N, 3), by
+    """P (N, 3) and its velocity dP/dt (N, 3) for postures q (N, 3) moving at qd (N, 3)
+    (:func:`velocity_of` per posture). ``ok`` is False where the loop does not close (P and
+    v NaN) or CD is stretched (v NaN, the velocity is unbounded there)."""
+    for i in range(q.shape[0]):
+        state, p0, p1, p2, v0, v1, v2 = velocity_of(
+            L0,
+            L1,
+            L2,
+            q[i, 0],
+            q[i, 1],
+            q[i, 2],
+            qd[i, 0],
+            qd[i, 1],
+            qd[i, 2],
+            branch[i],
+            assembly_tol,
+        )
+        p[i, 0], p[i, 1], p[i, 2] = p0, p1, p2
+        v[i, 0], v[i, 1], v[i, 2] = v0, v1, v2
+        ok[i] = state == 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def velocity_of(
+    L0, L1, L2, t1, t2, t3, qd0, qd1, qd2, branch, assembly_tol
+):  # pragma: no cover - compiled
+    """P and its velocity dP/dt for one posture (t1, t2, t3) moving at (qd0, qd1, qd2), by
     differentiating :func:`close_loop`: with C' = L1 e'(theta2) theta2', D' likewise,
     e = D - C, d2 = |e|^2 and s = branch sqrt(L2^2 / d2 - 1/4) (so 2 s s' = -L2^2 d2' / d2^2,
     d2' = 2 e.e'), P_plane' = (C' + D') / 2 + s' R e + s R e' (R the quarter turn
-    (u, w) -> (-w, u)); in 3-D, P = (w cos theta1, u, -w sin theta1). ``ok`` is False where
-    the loop does not close (P and v NaN) or CD is stretched (s = 0: v NaN, the velocity is
-    unbounded there)."""
-    for i in range(q.shape[0]):
-        t1, t2, t3 = q[i, 0], q[i, 1], q[i, 2]
-        closes, cu, cw, du, dw, pu, pw, d2 = close_loop(L0, L1, L2, t2, t3, branch[i], assembly_tol)
-        if not closes:
-            ok[i] = False
-            for j in range(3):
-                p[i, j] = np.nan
-                v[i, j] = np.nan
-            continue
-        c1, s1 = math.cos(t1), math.sin(t1)
-        p[i, 0] = pw * c1
-        p[i, 1] = pu
-        p[i, 2] = -pw * s1
-        eu, ew = du - cu, dw - cw
-        h2 = L2 * L2 - 0.25 * d2
-        s = branch[i] * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
-        if s == 0.0:  # CD stretched: P is there, its velocity unbounded
-            ok[i] = False
-            v[i, 0] = v[i, 1] = v[i, 2] = np.nan
-            continue
-        cu_d = -L1 * math.sin(t2) * qd[i, 1]
-        cw_d = L1 * math.cos(t2) * qd[i, 1]
-        du_d = -L1 * math.sin(t3) * qd[i, 2]
-        dw_d = L1 * math.cos(t3) * qd[i, 2]
-        eu_d, ew_d = du_d - cu_d, dw_d - cw_d
-        d2_d = 2.0 * (eu * eu_d + ew * ew_d)
-        s_d = -L2 * L2 * d2_d / (2.0 * s * d2 * d2)
-        pu_d = 0.5 * (cu_d + du_d) - s_d * ew - s * ew_d
-        pw_d = 0.5 * (cw_d + dw_d) + s_d * eu + s * eu_d
-        v[i, 0] = pw_d * c1 - pw * s1 * qd[i, 0]
-        v[i, 1] = pu_d
-        v[i, 2] = -pw_d * s1 - pw * c1 * qd[i, 0]
-        ok[i] = True
+    (u, w) -> (-w, u)); in 3-D, P = (w cos theta1, u, -w sin theta1).
+
+    Returns (state, P, v): state 0 where the loop does not close (P and v NaN), 1 where CD is
+    stretched (s = 0: P is there, v NaN), 2 otherwise."""
+    nan = np.nan
+    closes, cu, cw, du, dw, pu, pw, d2 = close_loop(L0, L1, L2, t2, t3, branch, assembly_tol)
+    if not closes:
+        return 0, nan, nan, nan, nan, nan, nan
+    c1, s1 = math.cos(t1), math.sin(t1)
+    p0, p1, p2 = pw * c1, pu, -pw * s1
+    eu, ew = du - cu, dw - cw
+    h2 = L2 * L2 - 0.25 * d2
+    s = branch * math.sqrt(h2 / d2) if h2 > 0.0 else 0.0
+    if s == 0.0:  # CD stretched: P is there, its velocity unbounded
+        return 1, p0, p1, p2, nan, nan, nan
+    cu_d = -L1 * math.sin(t2) * qd1
+    cw_d = L1 * math.cos(t2) * qd1
+    du_d = -L1 * math.sin(t3) * qd2
+    dw_d = L1 * math.cos(t3) * qd2
+    eu_d, ew_d = du_d - cu_d, dw_d - cw_d
+    d2_d = 2.0 * (eu * eu_d + ew * ew_d)
+    s_d = -L2 * L2 * d2_d / (2.0 * s * d2 * d2)
+    pu_d = 0.5 * (cu_d + du_d) - s_d * ew - s * ew_d
+    pw_d = 0.5 * (cw_d + dw_d) + s_d * eu + s * eu_d
+    return 2, p0, p1, p2, pw_d * c1 - pw * s1 * qd0, pu_d, -pw_d * s1 - pw * c1 * qd0
+
+
+@njit(cache=True, nogil=True)
+def count_at_most_from(grid, v, hint):  # pragma: no cover - compiled
+    """How many of the increasing ``grid`` are <= v: ``np.searchsorted(grid, v, "right")``
+    for a number v (NaN, which numpy sorts last: all of them). ``hint`` is a count at most
+    this one (that of the number before, for increasing numbers): a few steps on from it,
+    where a bisection's branches are a guess each, then a bisection of the rest; a hint
+    above the count, or out of range, is ignored. The same count whatever the hint."""
+    n = grid.shape[0]
+    if v != v:
+        return n
+    lo = 0
+    if 0 <= hint <= n and (hint == 0 or grid[hint - 1] <= v):
+        for _ in range(8):
+            if hint == n or grid[hint] > v:
+                return hint
+            hint += 1
+        lo = hint
+    hi = n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if grid[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def count_at_most(grid, v):  # pragma: no cover - compiled
+    """:func:`count_at_most_from` with no hint."""
+    return count_at_most_from(grid, v, -1)

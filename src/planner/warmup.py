@@ -287,6 +287,21 @@ def _stop(state: _State) -> None:
         )
 
 
+def _straight(state: _State) -> None:
+    """A straight tool path (:func:`planner.cartesian.plan.plan_cartesian`): the pre-check,
+    the probes (this line meets a serial margin at 58 %: the bisection too), the certified
+    refinement, its timing and the answer's compiled deviation measure
+    (:func:`planner.cartesian.walk.max_deviation_along`), which no other step runs."""
+    from planner.cartesian.plan import plan_cartesian
+    from planner.kinematics import forward_batch
+    from planner.planning import JointPosture
+
+    start = JointPosture(np.asarray(_START), "+")
+    p0 = forward_batch(state.design, np.asarray(_START), "+").p[0]
+    goal = (p0 + np.array([0.0, 0.05, 0.0]))[None]
+    plan_cartesian(state.design, start, goal, cartesian_speed=0.25)
+
+
 def _analysis(state: _State) -> None:
     """The workspace analysis (the design check: closed-form and sampled volumes, the
     conditioning; sections, loci) and scipy's optimiser."""
@@ -332,6 +347,7 @@ STEPS: tuple[Step, ...] = (
     Step("toppra: timing the plans", lambda state: _time_plans(state, "toppra")),
     Step("ruckig: timing the plans", lambda state: _time_plans(state, "ruckig")),
     Step("a stop mid-motion: along the path and by a brake", _stop),
+    Step("a straight line: certified, timed and measured", _straight),
     Step("analysis: workspace, sections, optimiser", _analysis),
     Step("matplotlib: a PNG and an SVG figure", _figures),
 )

@@ -77,8 +77,15 @@ torqued = solve(design, JointPosture([0.0, 2.0, 1.0], "+"), JointPosture([0.8, 2
                 options=PlanOptions(seed=1),
                 limits=JointLimits((3.0,) * 3, (30.0,) * 3, torque=(9.0, 2.0, 2.0)))
 checked = check_design(Design(0.0, 0.4, 0.4), rel_se=0.05)
+# a straight line of the tool from another start (the certificate, its timing, the measure)
+from planner.cartesian.plan import plan_cartesian
+from planner.kinematics import forward_batch
+line_start = JointPosture([0.3, 2.1, 1.2], "+")
+p_line = forward_batch(design, np.asarray(line_start.q), "+").p[0]
+line = plan_cartesian(design, line_start, [p_line + np.array([0.02, 0.1, -0.03])],
+                      cartesian_speed=0.3)
 more = [clouded.plan.status, torqued.plan.status, torqued.trajectory.duration > 0,
-        checked.singularity_free]
+        checked.singularity_free, line.status.value, line.trajectory is not None]
 png = render_figure("joint_section", Design.paper_optimum(), n=24, fmt="png")
 print(json.dumps({
     "calls": calls, "steps": [s.name for s in STEPS], "backend": backend,
@@ -104,12 +111,12 @@ def test_after_warm_up_a_first_request_imports_and_compiles_nothing():
     loaded and numba holds compiled kernels; a plan among a sphere, a box and a capsule,
     timed with both methods, and a figure of another design then load no module and add no
     compiled signature to any numba kernel, nor does a stop mid-motion of the Ruckig answer,
-    a plan among a point cloud, a torque-limited plan or a design check: nothing is imported
-    or compiled in a request."""
+    a plan among a point cloud, a torque-limited plan, a design check or a straight line of
+    the tool: nothing is imported or compiled in a request."""
     got = _run_workload()
     assert got["status"] == "solved" and all(d > 0 for d in got["durations"])
     assert got["stop"] == "solved"
-    assert got["more"] == ["solved", "solved", True, False]
+    assert got["more"] == ["solved", "solved", True, False, "solved", True]
     assert got["png"].startswith("89504e47")  # a PNG came out
     assert got["loaded"] == ["ompl", "toppra", "ruckig", "matplotlib", "scipy.optimize"]
     assert got["backend"] == "agg"

@@ -152,6 +152,50 @@ def test_chord_bound_is_an_upper_bound_on_random_pieces():
     assert checked > 100
 
 
+def _chord_bound_vectorised(design, q_a, q_b, w_a, w_b, line_a, line_b, asm, m=8):
+    """chord_deviation_bound as numpy arrays of all pieces at once (its form before it was
+    compiled): the library's forward kinematics at t = k / m, the second-derivative bound."""
+    from planner.cartesian.chords import second_derivative_bound
+    from planner.kinematics import forward_batch
+
+    n = q_a.shape[0]
+    t = np.arange(m + 1) / m
+    qs = (q_a[:, None, :] + t[None, :, None] * (q_b - q_a)[:, None, :]).reshape(-1, 3)
+    fb = forward_batch(design, qs, asm)
+    p = fb.p.reshape(n, m + 1, 3)
+    ok = np.all(fb.ok.reshape(n, m + 1), axis=1)
+    chord = p[:, :1] + t[None, :, None] * (p[:, -1:] - p[:, :1])
+    f = np.max(np.linalg.norm(p - chord, axis=2), axis=1)
+    ends = np.maximum(
+        np.linalg.norm(p[:, 0] - line_a, axis=1), np.linalg.norm(p[:, -1] - line_b, axis=1)
+    )
+    m2 = second_derivative_bound(design, q_a, q_b, w_a, w_b)
+    with np.errstate(invalid="ignore"):
+        bound = f + m2 / (8.0 * m * m) + ends
+    return np.where(ok & np.isfinite(bound), bound, np.inf)
+
+
+@pytest.mark.parametrize("design", [DEFAULT, Design(0.6, 0.25, 0.45)])
+def test_compiled_chord_bound_equals_the_vectorised_form(design):
+    """The compiled chord bound, bit for bit the vectorised numpy form on random pieces, short
+    and long (finite bounds, pieces near a parallel singularity where the apex sine may
+    vanish, and, on the second design, postures whose loop does not close: inf)."""
+    rng = np.random.default_rng(5)
+    n = 400
+    q_a = rng.uniform(-3, 3, (n, 3))
+    q_b = q_a + rng.choice([0.03, 1.0, 10.0], (n, 1)) * rng.uniform(-0.3, 0.3, (n, 3))
+    w_a, w_b = rng.uniform(-0.8, 0.8, n), rng.uniform(-0.8, 0.8, n)
+    line_a, line_b = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    for asm in ("+", "-"):
+        for m in (1, 8):
+            got = chord_deviation_bound(
+                design, q_a, q_b, w_a, w_b, line_a, line_b, asm, subdivisions=m
+            )
+            ref = _chord_bound_vectorised(design, q_a, q_b, w_a, w_b, line_a, line_b, asm, m)
+            assert np.array_equal(got, ref)
+            assert np.isfinite(got).sum() > 50 and np.isinf(got).sum() > 5
+
+
 # ---------------------------------------------------------------- stopping points
 def test_line_into_a_serial_singularity_stops_at_the_margin_sphere():
     """Outward along +y from A: leg A stretches at |AP| = L1 + L2; serial_min is met first
@@ -462,3 +506,46 @@ def test_measures_reuse_the_certificate_and_equal_one_pass(monkeypatch):
             assert dg.max_path_deviation == pytest.approx(dev, rel=1e-9)
     assert any(h > 0 for h in heads), heads  # a certificate failed and the head was sampled
     assert any(h == 0 for h in heads), heads  # and one covered the whole path
+
+
+def test_deviation_along_a_path_equals_its_postures_measured_one_by_one():
+    """``max_deviation_along`` (the answer's compiled measure) against two routes: the
+    library's own steps (the path's postures, their forward kinematics, the distance to the
+    polyline: bit for bit) and this file's closed-form kinematics and distances (to
+    round-off), on a blended path with arcs, positions in any order and beyond its ends,
+    polylines of one to four vertices, and inf where a posture does not assemble."""
+    from planner.cartesian.walk import distance_to_polyline_3d, max_deviation_along
+    from planner.kinematics import forward_batch
+    from planner.timing.path import ARC, BlendedPath
+
+    rng = np.random.default_rng(11)
+    design = Design(0.6, 0.25, 0.45)  # its loop opens: L0 + 2 L1 > 2 L2
+    # the last leg opens the loop (C and D more than 2 L2 apart near theta2 = pi, theta3 = 0)
+    w = np.array([[0.0, 2.0, 1.0], [0.3, 2.2, 1.1], [0.5, 2.0, 1.4], [0.4, 3.1, 0.0]])
+    path = BlendedPath.from_waypoints(w, 0.05)
+    assert np.any(path.kind == ARC)
+    s = rng.uniform(-0.1, path.length + 0.1, 3000)
+    rest = BlendedPath.from_waypoints(w[:1], 0.05)
+    infinite = 0
+    for k in (1, 2, 4):
+        vertices = rng.normal(size=(k, 3)) * 0.3
+        for asm in ("+", "-"):
+            q = path.evaluate_all(s)[0]
+            fb = forward_batch(design, q, asm)
+            steps = float(np.max(distance_to_polyline_3d(vertices, fb.p)))
+            got = max_deviation_along(design, path, s[::-1], asm, vertices)
+            assert got == steps or (math.isinf(got) and math.isinf(steps))
+            p = own_fk(design, q, asm)[0]
+            if k == 1:
+                own = np.linalg.norm(p - vertices[0], axis=1)
+            else:
+                own = poly_dist(p, vertices)
+            if np.all(fb.ok):
+                assert got == pytest.approx(float(np.max(own)), rel=1e-12)
+            else:
+                assert math.isinf(got)
+                infinite += 1
+            at_rest = max_deviation_along(design, rest, s[:5], asm, vertices)
+            p0 = forward_batch(design, w[0], asm).p
+            assert at_rest == float(np.max(distance_to_polyline_3d(vertices, p0)))
+    assert infinite > 0  # some postures of the other assembly mode do not close the loop

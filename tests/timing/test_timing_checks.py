@@ -102,6 +102,83 @@ def test_dense_check_catches_what_the_output_samples_miss():
     assert not report.limits_ok and report.worst_limit[0] == "velocity"
 
 
+@pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
+def test_the_compiled_pass_of_a_toppra_curve_equals_the_steps(design):
+    """The re-check of a toppra curve in one compiled pass (profile, postures, rates, P and
+    its velocity, joint limits, deviation from the plan and P's, ratios) gives the report of
+    the generic steps bit for bit: the same curve behind ``TimeScaledCurve(curve, 1.0)``,
+    which evaluates the same times through ``evaluate`` and ``plan_segments``. Blended
+    corners farther from the plan than allowed, postures outside the joint limits and, on
+    the second design, postures whose loop opens (assembly)."""
+    from planner.timing.trajectory import TimeScaledCurve
+
+    rng = np.random.default_rng(2)
+    opened = 0
+    named: set[str] = set()
+    for _ in range(6):
+        w = np.cumsum(rng.uniform(-0.8, 0.8, (5, 3)), axis=0) + np.array([0.0, 2.0, 1.0])
+        path = BlendedPath.from_waypoints(w, 0.1)
+        curve = ToppraCurve(path, solve_toppra(path, LIMITS))
+        kwargs = dict(
+            design=design,
+            assembly_mode="+",
+            waypoints=w,
+            limits=LIMITS,
+            resolution=0.01,
+            extra_times=np.arange(0, curve.duration, 0.01),
+            check_states=kappa_checker(design, 30.0),
+            max_cartesian_speed=0.3,
+            deviation_limit=np.full(5, 0.05),
+        )
+        fused = dense_check(curve, **kwargs)
+        steps = dense_check(TimeScaledCurve(curve, 1.0), **kwargs)
+        assert fused.limit_ratio == steps.limit_ratio
+        assert (fused.max_deviation_q, fused.max_deviation_p) == (
+            steps.max_deviation_q,
+            steps.max_deviation_p,
+        )
+        for a, b in ((fused.t, steps.t), (fused.q, steps.q), (fused.bad_state, steps.bad_state)):
+            assert np.array_equal(a, b)
+        assert list(fused.state_rule) == list(steps.state_rule)
+        opened += int(np.sum(fused.state_rule == "assembly"))
+        named.update(fused.state_rule)
+    assert {"deviation", "joint_limits", ""} <= named  # blends too far, joints beyond limits
+    if design.L0 + 2 * design.L1 > 2 * design.L2:
+        assert opened > 0
+
+
+@pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
+def test_the_fit_ratios_equal_their_numpy_steps(design):
+    """``fit_ratios`` (the time-scale fit's compiled pass) against the fit's numpy steps at
+    the same positions: the profile's rates, the path's postures, the ratios to the limits,
+    and the largest |dP/ds| sd (inf |dP/ds| where a loop opens; NaN where that meets sd = 0)
+    bit for bit."""
+    from planner.timing.checks import fit_ratios
+    from planner.timing.trajectory import p_velocity
+
+    rng = np.random.default_rng(8)
+    kinds = set()
+    for _ in range(8):
+        w = np.cumsum(rng.uniform(-0.8, 0.8, (5, 3)), axis=0) + np.array([0.0, 2.0, 1.0])
+        path = BlendedPath.from_waypoints(w, 0.1)
+        curve = ToppraCurve(path, solve_toppra(path, LIMITS))
+        s = curve.check_path_positions(0.01, ordered=False)
+        _, sd, sdd = curve.profile.at_path(s)
+        q, d1, d2 = path.evaluate_all(s)
+        r_v = np.max(np.abs(d1 * sd[:, None]) / LIMITS.velocity_array)
+        r_a = np.max(np.abs(d1 * sdd[:, None] + d2 * (sd**2)[:, None]) / LIMITS.acceleration_array)
+        _, v, ok = p_velocity(design, q, d1, "+")
+        with np.errstate(invalid="ignore"):  # inf * 0 where a loop opens at rest
+            peak = np.max(np.where(ok, np.linalg.norm(v, axis=1), np.inf) * sd)
+        got = fit_ratios(curve, s, design, "+", LIMITS)
+        assert got[:2] == (r_v, r_a)
+        assert got[2] == peak or (np.isnan(got[2]) and np.isnan(peak))
+        kinds.add("nan" if np.isnan(peak) else "inf" if np.isinf(peak) else "finite")
+    assert "finite" in kinds
+    if design.L0 + 2 * design.L1 > 2 * design.L2:
+        assert kinds - {"finite"}, kinds  # a posture whose loop opens
+
+
 def test_kappa_checker_passes_on_a_well_conditioned_path():
     design = Design.paper_optimum()
     # Postures with theta4 - theta5 near pi/2 (kappa(A) ~ 1) for the paper optimum.

@@ -171,3 +171,45 @@ def test_p_follows_the_requested_assembly_mode():
     np.testing.assert_allclose(minus.p, forward_batch(DESIGN, minus.q, "-").p, atol=1e-12)
     np.testing.assert_allclose(plus.p, forward_batch(DESIGN, plus.q, "+").p, atol=1e-12)
     assert np.abs(minus.p - plus.p).max() > 1e-3
+
+
+def _profile_at_numpy(prof, x, forward):
+    """PathProfile.at_time / at_path as numpy arrays (their form before they were compiled)."""
+    if forward:
+        t = np.clip(np.asarray(x, dtype=float), 0.0, prof.duration)
+        i = np.clip(np.searchsorted(prof.time, t, side="right") - 1, 0, prof.sdd.shape[0] - 1)
+        tau = t - prof.time[i]
+        a = prof.sdd[i]
+        s = prof.s[i] + prof.sd[i] * tau + 0.5 * a * tau**2
+        return np.minimum(s, prof.s[i + 1]), prof.sd[i] + a * tau, a
+    s = np.clip(np.asarray(x, dtype=float), prof.s[0], prof.s[-1])
+    i = np.clip(np.searchsorted(prof.s, s, side="right") - 1, 0, prof.sdd.shape[0] - 1)
+    a = prof.sdd[i]
+    sd = np.sqrt(np.maximum(prof.sd[i] ** 2 + 2 * a * (s - prof.s[i]), 0.0))
+    dt = 2 * (s - prof.s[i]) / np.maximum(sd + prof.sd[i], 1e-300)
+    return prof.time[i] + dt, sd, a
+
+
+def test_profile_reads_equal_their_numpy_form_bit_for_bit():
+    """The compiled reads of a toppra profile (``PathProfile.at_time``, ``at_path``) give
+    the numpy form's values bit for bit: at times and positions inside, on the grid points
+    (rests included: the profile of a path with a stop), outside (clipped), NaN kept NaN,
+    a 0-d input read as numpy scalars and a 2-d one in its shape."""
+    w = random_walk(np.random.default_rng(4), 6)
+    traj = time_path(Design.default(), w, JointLimits.default(), stop_at=[2])
+    prof = traj.curve.profile
+    rng = np.random.default_rng(9)
+    t = np.concatenate(
+        [rng.uniform(-0.1, prof.duration + 0.1, 2000), prof.time, [np.nan, 0.0, prof.duration]]
+    )
+    s = np.concatenate([rng.uniform(prof.s[0] - 0.1, prof.s[-1] + 0.1, 2000), prof.s, [np.nan]])
+    for x, forward in ((t, True), (s, False)):
+        got = prof.at_time(x) if forward else prof.at_path(x)
+        ref = _profile_at_numpy(prof, x, forward)
+        for g, r in zip(got, ref, strict=True):
+            assert np.array_equal(g, r, equal_nan=True)
+        one = prof.at_time(x[5]) if forward else prof.at_path(x[5])
+        assert all(isinstance(v, np.float64) and v == r[5] for v, r in zip(one, ref, strict=True))
+        square = prof.at_time(x[:6].reshape(2, 3)) if forward else prof.at_path(x[:6].reshape(2, 3))
+        assert all(np.array_equal(v, r[:6].reshape(2, 3)) for v, r in zip(square, ref, strict=True))
+    assert np.sum(prof.sd[1:-1] == 0.0) >= 1  # a rest inside the profile

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.cartesian.chords import chord_deviation_bound
+from planner.cartesian.inspection import BranchSamples
 from planner.cartesian.walk import (
     BISECT_TOL,
     PROBE_STEP,
@@ -93,9 +94,19 @@ def probe_polyline(
     slot: int,
     asm_sign: int,
     budget: Budget,
+    known: BranchSamples | None = None,
 ) -> Probed:
     """Step 1: the first broken rule along the polyline, bisected to
-    :data:`~planner.cartesian.walk.BISECT_TOL`."""
+    :data:`~planner.cartesian.walk.BISECT_TOL`. ``known``: the pre-check's inverse kinematics
+    of its probes, taken for a chunk whose probes are the same points (a single segment: the
+    pre-check probes every :data:`~planner.cartesian.walk.PROBE_STEP` m too) instead of
+    solving them again."""
+    if known is not None and not (
+        known.slot == slot
+        and known.asm_sign == asm_sign
+        and np.array_equal(known.vertices, poly.vertices)
+    ):
+        known = None
     if poly.length <= 0:
         return Probed(poly.length)
     n = max(2, math.ceil(poly.length / PROBE_STEP) + 1)
@@ -109,7 +120,10 @@ def probe_polyline(
             s_lin[-1] = poly.length
         corners = poly.cum[(poly.cum > s_prev) & (poly.cum < s_lin[-1])]
         s_probe = np.unique(np.concatenate([s_lin, corners]))
-        qw, ok, _, flipped = branch_ik(design, poly.at(s_probe), slot, asm_sign)
+        if known is not None and np.array_equal(known.s[c0:c1], s_probe):
+            qw, ok, flipped = known.q[c0:c1], known.ok[c0:c1], known.flipped[c0:c1]
+        else:
+            qw, ok, _, flipped = branch_ik(design, poly.at(s_probe), slot, asm_sign)
         first_missing = int(np.argmax(~ok)) if not np.all(ok) else len(s_probe)
         qp = np.full_like(qw, np.nan)
         if first_missing > 0:
@@ -294,14 +308,15 @@ class Refinement:
             known = np.full(len(s) - 1 - certified, np.nan)
         new = certified + np.flatnonzero(np.isnan(known))  # pieces not bounded yet
         b_tail = known.copy()
+        line = self.poly.at(np.concatenate([s[new], s[new + 1]]))  # both ends, one call
         b_tail[new - certified] = chord_deviation_bound(
             self.design,
             q[new],
             q[new + 1],
             w[new],
             w[new + 1],
-            self.poly.at(s[new]),
-            self.poly.at(s[new + 1]),
+            line[: len(new)],
+            line[len(new) :],
             self.asm,
         )
         self.bound = np.concatenate([self.bound[:certified], b_tail])

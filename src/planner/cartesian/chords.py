@@ -16,9 +16,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
+from planner import _kernels
+from planner.constants import ASSEMBLY_TOL
 from planner.design import Design
-from planner.kinematics import forward_batch
+from planner.exceptions import InputError
 
 __all__ = ["blend_allowance", "cd_length", "chord_deviation_bound", "second_derivative_bound"]
 
@@ -147,23 +150,100 @@ def chord_deviation_bound(
     line_a line_b (the distance to a convex set is convex), which is added.
     """
     m = int(subdivisions)
+    if m < 1:
+        raise InputError(f"subdivisions must be >= 1, got {subdivisions!r}")
     q_a, q_b = np.atleast_2d(q_a), np.atleast_2d(q_b)
+    if assembly_mode not in ("+", "-"):
+        raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
     n = q_a.shape[0]
-    t = np.arange(m + 1) / m
-    dq = q_b - q_a
-    qs = (q_a[:, None, :] + t[None, :, None] * dq[:, None, :]).reshape(-1, 3)
-    fb = forward_batch(design, qs, assembly_mode)
-    p = fb.p.reshape(n, m + 1, 3)
-    ok = np.all(fb.ok.reshape(n, m + 1), axis=1)
-    chord = p[:, :1] + t[None, :, None] * (p[:, -1:] - p[:, :1])
-    f = np.max(np.linalg.norm(p - chord, axis=2), axis=1)
-    ends = np.maximum(
-        np.linalg.norm(p[:, 0] - line_a, axis=1), np.linalg.norm(p[:, -1] - line_b, axis=1)
+    out = np.empty(n)
+    if n == 0:
+        return out
+    ro = _kernels.read_only
+    _chord_bound_kernel(
+        design.L0,
+        design.L1,
+        design.L2,
+        1.0 if assembly_mode == "+" else -1.0,
+        ASSEMBLY_TOL,
+        m,
+        ro(q_a),
+        ro(q_b),
+        ro(np.broadcast_to(w_a, (n,))),
+        ro(np.broadcast_to(w_b, (n,))),
+        ro(np.broadcast_to(line_a, (n, 3))),
+        ro(np.broadcast_to(line_b, (n, 3))),
+        ro(cd_length(design, q_a)),  # numpy's cos and sin, as second_derivative_bound's
+        ro(cd_length(design, q_b)),
+        out,
     )
-    m2 = second_derivative_bound(design, q_a, q_b, w_a, w_b)
-    with np.errstate(invalid="ignore"):
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chord_bound_kernel(
+    L0, L1, L2, branch, tol, m, q_a, q_b, w_a, w_b, line_a, line_b, cd_a, cd_b, out
+):  # pragma: no cover - compiled
+    """:func:`chord_deviation_bound` piece by piece, in one compiled pass: P at t = k / m on
+    each piece (:func:`planner._kernels.forward_kernel`'s loop closure), the largest distance
+    from its chord, the ends' distances from the line, plus :func:`second_derivative_bound`
+    (its formulas with ``|CD|`` at the ends given) over ``8 m^2``; inf where a posture does
+    not assemble or the bound is not finite. The same arithmetic in the same order as the
+    vectorised form (checked bit for bit in ``tests/planning/test_cartesian.py``)."""
+    p = np.empty((m + 1, 3))
+    for i in range(q_a.shape[0]):
+        dq0 = q_b[i, 0] - q_a[i, 0]
+        dq1 = q_b[i, 1] - q_a[i, 1]
+        dq2 = q_b[i, 2] - q_a[i, 2]
+        closes = True
+        for k in range(m + 1):
+            tk = k / m
+            t1 = q_a[i, 0] + tk * dq0
+            ok, _, _, _, _, pu, pw, _ = _kernels.close_loop(
+                L0, L1, L2, q_a[i, 1] + tk * dq1, q_a[i, 2] + tk * dq2, branch, tol
+            )
+            if not ok:
+                closes = False
+                break
+            p[k, 0] = pw * math.cos(t1)
+            p[k, 1] = pu
+            p[k, 2] = -pw * math.sin(t1)
+        if not closes:
+            out[i] = np.inf
+            continue
+        f = 0.0
+        for k in range(m + 1):
+            tk = k / m
+            d2 = 0.0
+            for j in range(3):
+                e = p[k, j] - (p[0, j] + tk * (p[m, j] - p[0, j]))
+                d2 += e * e
+            f = max(f, math.sqrt(d2))
+        ea, eb = 0.0, 0.0
+        for j in range(3):
+            ea += (p[0, j] - line_a[i, j]) * (p[0, j] - line_a[i, j])
+            eb += (p[m, j] - line_b[i, j]) * (p[m, j] - line_b[i, j])
+        ends = max(math.sqrt(ea), math.sqrt(eb))
+        # second_derivative_bound, one piece
+        a0, a2, a3 = abs(dq0), abs(dq1), abs(dq2)
+        rate_cd = L1 * (a2 + a3)
+        lo = 0.5 * (cd_a[i] + cd_b[i] - rate_cd) / (2.0 * L2)
+        hi = 0.5 * (cd_a[i] + cd_b[i] + rate_cd) / (2.0 * L2)
+        s = 0.0
+        if lo > 0.0 and hi < 1.0:
+            lo_c, hi_c = min(max(lo, 0.0), 1.0), min(max(hi, 0.0), 1.0)
+            s = min(2.0 * lo_c * math.sqrt(1.0 - lo_c**2), 2.0 * hi_c * math.sqrt(1.0 - hi_c**2))
+        if not s > 0.0:
+            out[i] = np.inf
+            continue
+        r = rate_cd / (L2 * s)
+        acc = (L1 * (a2**2 + a3**2) + 2 * L2 * r**2) / (L2 * s)
+        v = min(L1 * a2, L1 * a3) + L2 * r
+        p2 = min(L1 * a2**2, L1 * a3**2) + L2 * acc + L2 * r**2
+        w_max = max(abs(w_a[i]), abs(w_b[i])) + 0.5 * v
+        m2 = p2 + 2 * v * a0 + w_max * a0**2
         bound = f + m2 / (8.0 * m * m) + ends
-    return np.where(ok & np.isfinite(bound), bound, np.inf)
+        out[i] = bound if math.isfinite(bound) else np.inf
 
 
 def blend_allowance(

@@ -10,6 +10,7 @@ probed along the working mode's branch and bisected (:mod:`planner.cartesian.wal
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,7 +37,25 @@ from planner.validity import Margins
 #: singularities): bounds its time and memory whatever the polyline's length.
 MAX_INSPECT_PROBES = 20_000
 
-__all__ = ["inspect_cartesian"]
+__all__ = ["BranchSamples", "inspect_cartesian", "inspect_with_branch"]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class BranchSamples:
+    """The inverse kinematics of the working mode's branch (slot ``slot``, assembly sign
+    ``asm_sign``) at arc lengths ``s`` (m) of the polyline through ``vertices``, as
+    :func:`~planner.cartesian.walk.branch_ik` gives them (q wrapped, ok, w, flipped): the
+    pre-check's probes, which the plan's probes at the same points take instead of solving
+    them again (:func:`planner.cartesian.certify.probe_polyline`)."""
+
+    vertices: np.ndarray
+    slot: int
+    asm_sign: int
+    s: np.ndarray
+    q: np.ndarray
+    ok: np.ndarray
+    w: np.ndarray
+    flipped: np.ndarray
 
 
 def _sphere_crossings(p0, d, length, centre, radius):
@@ -100,21 +119,45 @@ def inspect_cartesian(
     -------
     tuple of PathEvent, ordered along the polyline.
     """
+    return inspect_with_branch(
+        design, start, waypoints, margins=margins, probe_step=probe_step, deadline=deadline
+    )[0]
+
+
+def inspect_with_branch(
+    design: Design,
+    start: JointPosture,
+    waypoints: np.ndarray,
+    *,
+    margins: Margins | None = None,
+    probe_step: float = PROBE_STEP,
+    deadline: float | None = None,
+    built: tuple[Polyline, str] | None = None,
+) -> tuple[tuple[PathEvent, ...], BranchSamples | None]:
+    """:func:`inspect_cartesian`'s events, and the inverse kinematics of its probes (None
+    when it probed nothing), for the plan's own probes. ``built``: the polyline from P of an
+    assembled start through ``waypoints`` and the start's working mode, when the caller has
+    built them (the plan), not built again."""
     margins = margins if margins is not None else Margins()
-    fb = forward_batch(design, start.q, start.assembly_mode)
-    if not fb.ok[0]:
-        return ()
-    poly = Polyline(np.vstack([fb.p[0][None], as_points(waypoints)]))
+    if built is None:
+        fb = forward_batch(design, start.q, start.assembly_mode)
+        if not fb.ok[0]:
+            return (), None
+        poly = Polyline(np.vstack([fb.p[0][None], as_points(waypoints)]))
+        mode = posture_mode(design, start)
+    else:
+        poly, mode = built
     if poly.length == 0.0:
-        return ()
+        return (), None
     events = _closed_form_events(design, margins.serial_min, poly)
     # probed: kappa(A) and the joint limits along the working mode's branch
-    mode = posture_mode(design, start)
+    samples = None
     if mode is not None:
         check_deadline(deadline, "before probing the Cartesian pre-check")
-        events += _probed_events(design, margins, start, mode, poly, probe_step)
+        probed, samples = _probed_events(design, margins, start, mode, poly, probe_step)
+        events += probed
     events.sort(key=lambda e: e.fraction)
-    return tuple(events)
+    return tuple(events), samples
 
 
 def _event(
@@ -198,16 +241,17 @@ def _probed_events(
     mode: str,
     poly: Polyline,
     probe_step: float,
-) -> list[PathEvent]:
+) -> tuple[list[PathEvent], BranchSamples]:
     """The probed step of :func:`inspect_cartesian`: along the working mode's branch, every
     ``probe_step`` m (at most :data:`MAX_INSPECT_PROBES` probes), where kappa(A) crosses
     kappa_max and a joint its literal limit (bisected between probes), then the parallel
-    singularities (:func:`_parallel_events`)."""
+    singularities (:func:`_parallel_events`); and the probes' inverse kinematics."""
     slot = WORKING_MODES.index(mode)
     asm_sign = 1 if start.assembly_mode == "+" else -1
     n = min(max(2, math.ceil(poly.length / probe_step) + 1), MAX_INSPECT_PROBES)
     s = np.linspace(0.0, poly.length, n)
-    q, ok, _, _ = branch_ik(design, poly.at(s), slot, asm_sign)
+    q, ok, w, flipped = branch_ik(design, poly.at(s), slot, asm_sign)
+    samples = BranchSamples(poly.vertices, slot, asm_sign, s, q.copy(), ok, w, flipped)
     q[0] = start.q
     cd, kappa_ok = _kappa_band(design, margins, q, ok)
     run = np.cumprod(ok).astype(bool)  # the branch exists from the start up to here
@@ -238,7 +282,7 @@ def _probed_events(
             else:
                 detail = "joint_limits: a joint reaches its literal limit"
             events.append(_event(poly, kind, 0.5 * (a + b), bool(ga), detail, seg))
-    return events + _parallel_events(poly, s, cd, run & ~kappa_ok)
+    return events + _parallel_events(poly, s, cd, run & ~kappa_ok), samples
 
 
 def _parallel_events(

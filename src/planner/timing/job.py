@@ -115,10 +115,15 @@ class TimingJob:
 
         def gain(s: np.ndarray) -> np.ndarray:
             q, d1, _ = path.evaluate_all(s)
-            _, v, ok = p_velocity(self.design, q, d1, self.assembly_mode)
-            return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
+            return self.gain_at(q, d1)
 
         return gain
+
+    def gain_at(self, q: np.ndarray, d1: np.ndarray) -> np.ndarray:
+        """|dP/ds| (M,), m/rad, at postures q (M, 3) with path tangents d1 (M, 3) (inf where
+        a posture does not assemble): :meth:`speed_gain` where the caller has them."""
+        _, v, ok = p_velocity(self.design, q, d1, self.assembly_mode)
+        return np.where(ok, np.linalg.norm(v, axis=1), np.inf)
 
 
 def validate_inputs(

@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -55,6 +55,7 @@ from planner.timing.checks import (
     CheckReport,
     StateChecker,
     dense_check,
+    fit_time_scale,
     torque_check_times,
 )
 from planner.timing.jerk_filter import JerkFilteredCurve, jerk_limited
@@ -75,7 +76,7 @@ from planner.timing.toppra_method import (
     min_blend_radius,
     solve_toppra,
 )
-from planner.timing.torque import TorqueModel, torque_time_scale
+from planner.timing.torque import torque_time_scale
 from planner.timing.trajectory import (
     Curve,
     RestCurve,
@@ -125,46 +126,6 @@ TOPPRA_ARC_REFINE = 4
 #: output samples, which fall between the fitted positions, pass too (the excess found there
 #: was at most 2e-4 on the benchmark paths).
 _FIT_MARGIN = 1e-3
-
-
-def _fit_time_scale(
-    curve: ToppraCurve,
-    limits: JointLimits,
-    resolution: float,
-    speed_gain: Callable[[np.ndarray], np.ndarray] | None,
-    v_cart: float | None,
-    torque_model: TorqueModel | None = None,
-) -> PathProfile:
-    """The toppra profile slowed uniformly in time just enough that the limits hold at every
-    check position, not only at toppra's grid points.
-
-    Between grid points on a blend, q' and q'' turn, so a limit can be exceeded by a little
-    (typically < 1 %, a few % on small blends). Slowing by c multiplies joint velocities and
-    the Cartesian speed by c and accelerations by c^2 at the same path positions, so
-    ``c = min(1, 1 / r_v, 1 / sqrt(r_a), 1 / r_cart)`` for the measured ratios r fixes them
-    all exactly at those positions; torques scale by c^2 in their dynamic part only, and
-    :func:`~planner.timing.torque.torque_time_scale` gives their c.
-    """
-    prof = curve.profile
-    s = curve.check_path_positions(resolution)
-    _, sd, sdd = prof.at_path(s)
-    q, d1, d2 = curve.path.evaluate_all(s)
-    r_v = np.max(np.abs(d1 * sd[:, None]) / limits.velocity_array)
-    qdd = d1 * sdd[:, None] + d2 * (sd**2)[:, None]
-    r_a = np.max(np.abs(qdd) / limits.acceleration_array)
-    target = 1.0 - _FIT_MARGIN
-    c = min(1.0, target / r_v, np.sqrt(target / r_a))
-    if speed_gain is not None and v_cart is not None:
-        gain = speed_gain(s)
-        c = min(c, target * v_cart / max(float(np.max(gain * sd)), 1e-300))
-    tau_max = limits.torque_array
-    if torque_model is not None and tau_max is not None:
-        dyn, grav = torque_model.split(q, d1 * sd[:, None], qdd)
-        c = min(c, torque_time_scale(dyn, grav, tau_max, target))
-    if c >= 1.0:
-        return prof
-    logger.debug("toppra profile slowed by %.6f to meet the limits between grid points", c)
-    return prof.time_scaled(c)
 
 
 def _exceeded(report: CheckReport) -> list[str]:
@@ -465,6 +426,9 @@ class _State:
         linear in the number of waypoints; ``benchmarks/timing.py --scaling``).
     via, via_chains, via_off : the via waypoints (merged), the via chains built (by section)
         and the sections whose chain a repair dropped (:mod:`planner.timing.vias`).
+    positions : (path, grid, s) -- the check path positions ``s`` the time-scale fit measured
+        on ``path`` for a profile on ``grid`` (the dense re-check of a toppra curve on the same
+        path and grid, slowed or not, checks the same ones: built once).
     """
 
     path: BlendedPath
@@ -484,6 +448,7 @@ class _State:
     via_radius: np.ndarray | None = None
     via_chains: dict = field(default_factory=dict)
     via_off: set = field(default_factory=set)
+    positions: tuple[BlendedPath, np.ndarray, np.ndarray] | None = None
 
 
 def _build_blended_path(job: TimingJob) -> _State:
@@ -491,9 +456,9 @@ def _build_blended_path(job: TimingJob) -> _State:
     vertices kept as rest points; the allowances per merged waypoint."""
     min_radius = min_blend_radius(job.limits)
     path = BlendedPath.from_waypoints(job.waypoints, job.max_deviation, job.stop, min_radius)
-    dev = np.minimum.reduceat(job.max_deviation, np.unique(path.index_map, return_index=True)[1])
-    via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
     first = np.unique(path.index_map, return_index=True)[1]
+    dev = np.minimum.reduceat(job.max_deviation, first)
+    via = None if job.via is None else np.bincount(path.index_map, job.via, len(dev)) > 0
     via_radius = None if job.via_radius is None else np.minimum.reduceat(job.via_radius, first)
     return _State(
         path=path,
@@ -543,11 +508,10 @@ def _time_by_method(job: TimingJob, state: _State) -> Curve:
             )
             if job.method != "toppra":
                 break
-            fitted = _fit_time_scale(
-                ToppraCurve(path, profile), lim, job.resolution, gain, job.v_cart, job.torque
-            )
+            fitted, positions = fit_time_scale(ToppraCurve(path, profile), lim, job, _FIT_MARGIN)
             if best is None or fitted.duration < best.duration:
                 best = fitted
+                state.positions = (path, fitted.s, positions)
             if fitted.duration <= profile.duration * _TORQUE_REFINE_BELOW:
                 break
             refine *= 2  # the torques overshoot between grid points: a finer grid
@@ -617,6 +581,11 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
     """Step 4: the timed curve re-checked densely (:func:`~planner.timing.checks.dense_check`)
     against the requested limits (not the scaled ones), joint limits, assembly, validity and
     the requested deviation allowance."""
+    check_times = None
+    if isinstance(curve, ToppraCurve) and state.positions is not None:
+        path, grid, positions = state.positions
+        if curve.path is path and curve.profile.s is grid:  # the fit's positions
+            check_times = curve.check_times(job.resolution, positions)
     return dense_check(
         curve,
         design=job.design,
@@ -630,6 +599,7 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
         deviation_limit=state.dev0,
         torque_model=job.torque,
         torque_in_time=job.method == "ruckig",
+        check_times=check_times,
     )
 
 

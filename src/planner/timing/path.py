@@ -22,6 +22,7 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
+from planner import _kernels
 from planner.exceptions import InputError
 
 __all__ = ["BlendedPath", "distance_to_polyline"]
@@ -245,27 +246,63 @@ class BlendedPath:
 def _evaluate_pieces(
     s, idx, s0, kind, origin, direction, normal, radius, q, d1, d2
 ):  # pragma: no cover
-    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2: a line
-    ``o + d ds``; an arc ``o + r (d cos phi + n sin phi)``, ``phi = ds / r``, its tangent
-    ``n cos phi - d sin phi`` and curvature vector ``-(d cos phi + n sin phi) / r``. One pass
-    of compiled code per position (a check evaluates thousands, several times a timing)."""
+    """q, q', q'' (M, 3) at ``s`` (M,) on the pieces ``idx`` (M,), into q, d1, d2
+    (:func:`point_on_piece` per position: one pass of compiled code, a check evaluates
+    thousands, several times a timing)."""
     for m in range(s.shape[0]):
         k = idx[m]
-        ds = s[m] - s0[k]
-        if kind[k] == ARC:
-            r = radius[k]
-            phi = ds / r
-            c, si = np.cos(phi), np.sin(phi)
-            for j in range(3):
-                radial = direction[k, j] * c + normal[k, j] * si
-                q[m, j] = origin[k, j] + r * radial
-                d1[m, j] = normal[k, j] * c - direction[k, j] * si
-                d2[m, j] = -radial / r
-        else:
-            for j in range(3):
-                q[m, j] = origin[k, j] + direction[k, j] * ds
-                d1[m, j] = direction[k, j]
-                d2[m, j] = 0.0
+        q0, q1, q2, t0, t1, t2, c0, c1, c2 = point_on_piece(
+            k, s[m] - s0[k], kind, origin, direction, normal, radius
+        )
+        q[m, 0], q[m, 1], q[m, 2] = q0, q1, q2
+        d1[m, 0], d1[m, 1], d1[m, 2] = t0, t1, t2
+        d2[m, 0], d2[m, 1], d2[m, 2] = c0, c1, c2
+
+
+@njit(cache=True, nogil=True)
+def point_on_piece(k, ds, kind, origin, direction, normal, radius):  # pragma: no cover
+    """q, q', q'' (three numbers each) at ``ds`` along piece ``k`` (of the
+    :class:`BlendedPath` arrays): a line ``o + d ds``; an arc ``o + r (d cos phi + n sin
+    phi)``, ``phi = ds / r``, its tangent ``n cos phi - d sin phi`` and curvature vector
+    ``-(d cos phi + n sin phi) / r``. The one copy of these formulas for every compiled
+    reader of a path (numbers, not arrays: no view per position)."""
+    if kind[k] == ARC:
+        r = radius[k]
+        phi = ds / r
+        c, si = np.cos(phi), np.sin(phi)
+        r0 = direction[k, 0] * c + normal[k, 0] * si
+        r1 = direction[k, 1] * c + normal[k, 1] * si
+        r2 = direction[k, 2] * c + normal[k, 2] * si
+        return (
+            origin[k, 0] + r * r0,
+            origin[k, 1] + r * r1,
+            origin[k, 2] + r * r2,
+            normal[k, 0] * c - direction[k, 0] * si,
+            normal[k, 1] * c - direction[k, 1] * si,
+            normal[k, 2] * c - direction[k, 2] * si,
+            -r0 / r,
+            -r1 / r,
+            -r2 / r,
+        )
+    return (
+        origin[k, 0] + direction[k, 0] * ds,
+        origin[k, 1] + direction[k, 1] * ds,
+        origin[k, 2] + direction[k, 2] * ds,
+        direction[k, 0],
+        direction[k, 1],
+        direction[k, 2],
+        0.0,
+        0.0,
+        0.0,
+    )
+
+
+@njit(cache=True, nogil=True)
+def piece_of(s0, n_pieces, s, hint):  # pragma: no cover
+    """:meth:`BlendedPath.piece_index` of one position (side "right", every piece), and the
+    count of ``s0`` found (the next call's ``hint``, :func:`planner._kernels.count_at_most_from`)."""
+    count = _kernels.count_at_most_from(s0, s, hint)
+    return min(max(count - 1, 0), n_pieces - 1), count
 
 
 def _merge_duplicates(
@@ -294,6 +331,8 @@ def _merge_duplicates(
     w = w_in[keep]
     w[-1] = w_in[-1]  # the path ends exactly on the last waypoint
     n = w.shape[0]
+    if n == n_in and stop_in.shape == (n_in,):  # nothing merged: the same values, no .at
+        return w, index_map, stop_in.copy(), np.array(dev_in, dtype=float)
     stop = np.zeros(n, bool)
     np.logical_or.at(stop, index_map, stop_in)
     dev = np.full(n, np.inf)

@@ -15,6 +15,7 @@ limits hold exactly at every instant.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,10 +24,12 @@ import numpy as np
 import toppra
 import toppra.algorithm
 import toppra.constraint
+from numba import njit
 from toppra._CythonUtils import _create_velocity_constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from toppra.interpolator import AbstractGeometricPath
 
+from planner import _kernels
 from planner.caching import cached
 from planner.exceptions import TimingDeadlineError, TimingInfeasibleError
 from planner.timing.limits import JointLimits
@@ -39,6 +42,8 @@ __all__ = [
     "SectionCache",
     "check_deadline",
     "min_blend_radius",
+    "read_at_path",
+    "read_at_time",
     "section_grid",
     "section_key",
     "solve_toppra",
@@ -213,23 +218,88 @@ class PathProfile:
         return PathProfile(self.s, self.sd * c, self.time / c, self.sdd * c**2)
 
     def at_time(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(s, sd, sdd) at times ``t`` (clipped to [0, duration]), each shape (M,)."""
-        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        i = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, self.sdd.shape[0] - 1)
-        tau = t - self.time[i]
-        a = self.sdd[i]
-        s = self.s[i] + self.sd[i] * tau + 0.5 * a * tau**2
-        s = np.minimum(s, self.s[i + 1])
-        return s, self.sd[i] + a * tau, a
+        """(s, sd, sdd) at times ``t`` (clipped to [0, duration]), each of t's shape: on the
+        grid interval ``i`` holding t, ``tau = t - time[i]``, ``s = s[i] + sd[i] tau +
+        a tau^2 / 2`` (at most ``s[i + 1]``), ``sd[i] + a tau``, ``a = sdd[i]``."""
+        return self._compiled(t, forward=True)
 
     def at_path(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(time, sd, sdd) at path positions ``s``, each shape (M,)."""
-        s = np.clip(np.asarray(s, dtype=float), self.s[0], self.s[-1])
-        i = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, self.sdd.shape[0] - 1)
-        a = self.sdd[i]
-        sd = np.sqrt(np.maximum(self.sd[i] ** 2 + 2 * a * (s - self.s[i]), 0.0))
-        dt = 2 * (s - self.s[i]) / np.maximum(sd + self.sd[i], 1e-300)
-        return self.time[i] + dt, sd, a
+        """(time, sd, sdd) at path positions ``s`` (clipped to the grid), each of s's shape:
+        on the grid interval ``i`` holding s, ``sd = sqrt(sd[i]^2 + 2 a (s - s[i]))``,
+        ``time[i] + 2 (s - s[i]) / (sd + sd[i])``, ``a = sdd[i]``."""
+        return self._compiled(s, forward=False)
+
+    def _compiled(self, x: object, *, forward: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`at_time` (``forward``) or :meth:`at_path` in one compiled pass
+        (:func:`_profile_at`; the dense re-check reads thousands of positions, several
+        times a timing)."""
+        if self.sdd.shape[0] == 0:
+            raise IndexError("a profile of one grid point has no interval to read")
+        arr = np.asarray(x, dtype=float)
+        flat = np.ascontiguousarray(arr.ravel())
+        out = np.empty((3, flat.shape[0]))
+        ro = _kernels.read_only
+        grid = (ro(self.s), ro(self.sd), ro(self.time), ro(self.sdd))
+        _profile_at(ro(flat), *grid, forward, out)
+        if arr.ndim == 0:
+            return out[0, 0], out[1, 0], out[2, 0]
+        return out[0].reshape(arr.shape), out[1].reshape(arr.shape), out[2].reshape(arr.shape)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _profile_at(x, s, sd, time, sdd, forward, out):  # pragma: no cover - compiled
+    """:meth:`PathProfile.at_time` (``forward``: x are times) or :meth:`PathProfile.at_path`
+    (x are path positions) into ``out`` (3, M), by :func:`read_at_time` and
+    :func:`read_at_path`."""
+    hint = 0
+    for m in range(x.shape[0]):
+        if forward:
+            out[0, m], out[1, m], out[2, m], hint = read_at_time(x[m], s, sd, time, sdd, hint)
+        else:
+            out[0, m], out[1, m], out[2, m], hint = read_at_path(x[m], s, sd, time, sdd, hint)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def read_at_time(v, s, sd, time, sdd, hint):  # pragma: no cover - compiled
+    """(s, sd, sdd) of the profile (its arrays) at the time v, as :meth:`PathProfile.at_time`
+    reads them, and the grid count found (the next read's ``hint``,
+    :func:`planner._kernels.count_at_most_from`): the interval ``i`` of v clipped to
+    [0, duration] as ``np.searchsorted(time, v, "right") - 1`` clipped to the intervals,
+    then its formulas in the order numpy evaluated them (the same values bit for bit, NaN
+    kept NaN; ``tests/timing/test_timing_toppra.py``)."""
+    v = _clipped(v, 0.0, time[-1])
+    count = _kernels.count_at_most_from(time, v, hint)
+    i = min(max(count - 1, 0), sdd.shape[0] - 1)
+    tau = v - time[i]
+    a = sdd[i]
+    pos = s[i] + sd[i] * tau + 0.5 * a * tau**2
+    if pos > s[i + 1]:
+        pos = s[i + 1]
+    return pos, sd[i] + a * tau, a, count
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def read_at_path(v, s, sd, time, sdd, hint):  # pragma: no cover - compiled
+    """(time, sd, sdd) of the profile (its arrays) at the path position v, as
+    :meth:`PathProfile.at_path` reads them, and the grid count (see :func:`read_at_time`)."""
+    v = _clipped(v, s[0], s[-1])
+    count = _kernels.count_at_most_from(s, v, hint)
+    i = min(max(count - 1, 0), sdd.shape[0] - 1)
+    a = sdd[i]
+    inner = sd[i] ** 2 + 2 * a * (v - s[i])
+    rate = math.sqrt(inner) if not inner < 0.0 else 0.0
+    total = rate + sd[i]
+    return time[i] + 2 * (v - s[i]) / (total if not total < 1e-300 else 1e-300), rate, a, count
+
+
+@njit(cache=True, nogil=True)
+def _clipped(v, low, high):  # pragma: no cover - compiled
+    """``np.clip(v, low, high)`` for a number (NaN stays NaN)."""
+    if v < low:
+        v = low
+    if v > high:
+        v = high
+    return v
 
 
 def section_grid(

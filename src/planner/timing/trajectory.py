@@ -100,11 +100,13 @@ class ToppraCurve:
         q, d1, d2 = self.path.evaluate_all(s)
         return q, d1 * sd[:, None], d1 * sdd[:, None] + d2 * (sd**2)[:, None], None
 
-    def check_path_positions(self, resolution: float) -> np.ndarray:
+    def check_path_positions(self, resolution: float, *, ordered: bool = True) -> np.ndarray:
         """Path positions ``resolution`` apart along s (s is the joint-space arc length, so
         consecutive checked postures are at most ``resolution`` apart whatever the timing),
         plus ``SUBSAMPLES`` points inside every grid interval (toppra certifies the limits at
-        grid points only) and both sides of every grid point (the acceleration jumps there)."""
+        grid points only) and both sides of every grid point (the acceleration jumps there).
+        Sorted and unique, or with ``ordered=False`` the same set unsorted, with repeats (for
+        a largest value over them, which needs no sort)."""
         prof = self.profile
         n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
         check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
@@ -114,11 +116,17 @@ class ToppraCurve:
             [[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1), [1.0 - 1e-9]]
         )
         s_sub = (prof.s[:-1, None] + ds[:, None] * frac[None, :]).ravel()
-        return np.unique(np.concatenate([s_geo, s_sub, prof.s]))
+        every = np.concatenate([s_geo, s_sub, prof.s])
+        return np.unique(every) if ordered else every
 
-    def check_times(self, resolution: float) -> np.ndarray:
-        """Times of :meth:`check_path_positions`."""
-        t, _, _ = self.profile.at_path(self.check_path_positions(resolution))
+    def check_times(self, resolution: float, positions: np.ndarray | None = None) -> np.ndarray:
+        """Times of :meth:`check_path_positions` (``positions`` when the caller has them
+        already: the time-scale fit measured the same ones), sorted and unique (so the
+        positions need not be: the same times either way)."""
+        if positions is None:
+            positions = self.check_path_positions(resolution, ordered=False)
+        s = positions
+        t, _, _ = self.profile.at_path(s)
         return np.unique(np.clip(t, 0.0, self.profile.duration))
 
     def plan_segments(self, t: np.ndarray) -> np.ndarray:
