@@ -17,6 +17,25 @@ in order, until one matches). Both answers are the same for every request of a r
   body that does not validate (its 422 is FastAPI's own), an empty body, a body larger than
   ``PLANNER_INLINE_PARSE_BYTES`` (parsed in a worker: :mod:`planner_api.routes.worker_body`),
   and any application with ``dependency_overrides`` (tests replace a job that way).
+- Bodies validated in the worker (a :class:`DirectSpec` without ``answer``: the routes that
+  run their job in the worker pool, a plan, a straight line, a sequence, a timing): the
+  plain request's body is not parsed on the loop at all. It crosses to a worker as its JSON
+  text, and the worker reads, validates and checks it (the route's
+  :class:`~planner_api.routes.worker_body.BodySpec`) and runs the job in the same call, as
+  a large body's path always did (:func:`~planner_api.routes.worker_body.cross_to_worker`).
+  Why: the loop's share of a small plan was reading and validating the body (~15-30 us) and
+  pickling the eight nested models it made (~20-25 us, Python per model), for the worker to
+  unpickle them (~35 us); the bytes pickle in ~5 us, and the worker reads and validates them
+  in about what it spent unpickling. What a bad body gets is unchanged: when the worker finds
+  that it does not parse or validate, the request takes FastAPI's path, whose 422 is the one
+  it always was (same status, ``loc``, message), before any job. The price, decided so:
+  such a 422 costs one worker round trip (the job's slot in the pool's queue and ~50 us of
+  a worker) and the loop's validation after it; bad bodies are the rare case, the good ones
+  are served faster. One case must not reach the pool's own errors first: when the crossing
+  fails with a full pool, a pool not running, a deadline passed in the queue or a worker
+  gone, the loop checks the body itself (:func:`~planner_api.routes.worker_body.checked_here`:
+  validation, the route's limits, the scene) and a bad body gets its 422, a good one the
+  pool's error, as when the loop validated first.
 - :func:`index_routes` puts a table in front of the router: the route a (method, path) pair
   matched is remembered (for the routes without path parameters, in a bounded table), and the
   next request with that pair tries that one route's pattern instead of every route's in
@@ -39,7 +58,20 @@ from starlette.routing import Match, Router
 from starlette.types import Receive, Scope, Send
 
 from planner_api.deps import require_api_key, watch_client
-from planner_api.routes.worker_body import BodyInvalidError, WorkerBodyRoute, validate_data
+from planner_api.exceptions import (
+    DeadlineExceededError,
+    PoolNotRunningError,
+    PoolSaturatedError,
+    WorkerCrashedError,
+)
+from planner_api.routes.worker_body import (
+    BodyInvalidError,
+    BodySpec,
+    WorkerBodyRoute,
+    checked_here,
+    cross_to_worker,
+    validate_data,
+)
 
 __all__ = ["DirectRoute", "DirectSpec", "answered_directly", "index_routes"]
 
@@ -55,10 +87,15 @@ _INDEX_SIZE = 256
 class DirectSpec:
     """How :class:`DirectRoute` answers a route: ``model`` is its body's model,
     ``await answer(request, body)`` its work on the validated body (what the endpoint does
-    with its dependencies, which it reads from ``request.app.state`` itself)."""
+    with its dependencies, which it reads from ``request.app.state`` itself).
+
+    ``answer`` None: the body is not parsed on the loop at all; it crosses to a worker as its
+    JSON text and is validated there, with the route's
+    :class:`~planner_api.routes.worker_body.BodySpec` (its ``parsed_in_worker`` mark; the
+    module docstring, "Bodies validated in the worker")."""
 
     model: type[BaseModel]
-    answer: Callable[[Request, Any], Awaitable[Response]]
+    answer: Callable[[Request, Any], Awaitable[Response]] | None = None
 
 
 def answered_directly(spec: DirectSpec) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -89,6 +126,9 @@ class DirectRoute(WorkerBodyRoute):
         if not found <= _KNOWN:
             return fallback
         keyed, watched = require_api_key in found, watch_client in found
+        if spec.answer is None:
+            return _crossing_handler(_body_spec(self, spec), fallback, keyed, watched)
+        answer = spec.answer
 
         async def handler(request: Request) -> Response:
             app = request.app
@@ -103,11 +143,70 @@ class DirectRoute(WorkerBodyRoute):
             except (BodyInvalidError, ValueError, RecursionError):
                 return await fallback(request)  # FastAPI's own 422
             if not watched:
-                return await spec.answer(request, body)
+                return await answer(request, body)
             async with asynccontextmanager(watch_client)(request):
-                return await spec.answer(request, body)
+                return await answer(request, body)
 
         return handler
+
+
+def _body_spec(route: APIRoute, spec: DirectSpec) -> BodySpec:
+    """The :class:`~planner_api.routes.worker_body.BodySpec` a crossing route's body is
+    parsed with in the worker (its endpoint's ``parsed_in_worker`` mark, for ``spec.model``)."""
+    body: BodySpec | None = getattr(route.endpoint, "__worker_body__", None)
+    if body is None or body.handle is not None or body.model is not spec.model:
+        raise TypeError(
+            f"{route.path}: a DirectSpec without an answer needs the route's parsed_in_worker "
+            f"mark with a job for {spec.model.__name__}"
+        )
+    return body
+
+
+def _crossing_handler(
+    spec: BodySpec, fallback: Callable[[Request], Any], keyed: bool, watched: bool
+) -> Callable[[Request], Any]:
+    """The handler of a route whose small bodies cross to a worker unparsed (the module
+    docstring, "Bodies validated in the worker")."""
+
+    async def handler(request: Request) -> Response:
+        app = request.app
+        settings = app.state.settings
+        raw = await request.body()  # kept by the request: the fallback reads it again
+        if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+            return await fallback(request)
+        if keyed:
+            await require_api_key(request, settings)
+        answer = await _crossed(request, spec, raw, watched)
+        return answer if answer is not None else await fallback(request)
+
+    return handler
+
+
+#: The pool's errors that may come before the worker has checked the body (refused, not
+#: running, past the deadline in the queue, a worker gone): answered only once the loop has
+#: checked the body itself (:func:`~planner_api.routes.worker_body.checked_here`).
+_BEFORE_THE_CHECK = (
+    PoolSaturatedError,
+    PoolNotRunningError,
+    DeadlineExceededError,
+    WorkerCrashedError,
+)
+
+
+async def _crossed(request: Request, spec: BodySpec, raw: bytes, watched: bool) -> Response | None:
+    """The answer of ``raw`` crossed to a worker; None when it does not parse or validate
+    (FastAPI's path then answers its own 422, the same to the byte as before)."""
+    try:
+        if not watched:
+            return await cross_to_worker(request, spec, raw)
+        async with asynccontextmanager(watch_client)(request):
+            return await cross_to_worker(request, spec, raw)
+    except BodyInvalidError:
+        return None
+    except _BEFORE_THE_CHECK:
+        if not await checked_here(request, spec, raw):
+            return None
+        raise
 
 
 def _included_dependencies(route: APIRoute) -> list[Any] | None:
