@@ -31,7 +31,7 @@ BAD = {
     "plan, a list": ("/v1/plan", b"[1, 2]"),
     "plan, bad JSON": ("/v1/plan", b'{"start": '),
     "plan, too deep": ("/v1/plan", b"[" * 5000 + b"]" * 5000),
-    "plan, number too long": ("/v1/plan", b'{"start": {"q": [1' + b"0" * 5000 + b", 0, 0]}}'),
+    "plan, number too long": ("/v1/plan", b'{"start": {"q": [1' + b"0" * 5000 + b", 0, 0]}}"),
     "plan, obstacles over the limit": ("/v1/plan", {**PLAN, "obstacles": [SPHERE, SPHERE]}),
     "plan, budget over the request's": ("/v1/plan", {**PLAN, "planner": {"time_budget_s": 1e4}}),
     "plan, unknown scene": ("/v1/plan", {**PLAN, "scene": "nowhere"}),
