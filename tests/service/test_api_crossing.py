@@ -87,8 +87,10 @@ def test_a_small_plan_is_never_parsed_on_the_loop(client, monkeypatch):
             return json.loads(data, **options)
 
     monkeypatch.setattr(starlette.requests, "json", CountingJson)
-    r = client.post("/v1/plan", json={**PLAN, "design": {"L1": 0.3, "L2": 0.4}})
-    assert r.status_code == 200 and r.json()["status"] == "solved", r.text
+    r = client.post("/v1/plan", json=PLAN)
+    # the worker completed the design from the configured one: its joint_max of 1 rad
+    assert r.status_code == 200 and r.json()["status"] == "invalid_start", r.text
+    assert "[-3.141592654, 1]" in r.json()["message"]
     assert parsed == []
     r = client.post("/v1/plan", json={**PLAN, "start": {"q": "x"}})  # FastAPI's 422 reads it
     assert r.status_code == 422 and len(parsed) == 1
