@@ -359,15 +359,18 @@ async def checked_here(request: Request, spec: BodySpec, raw: bytes) -> bool:
     """The checks the loop made before a job when it parsed the body itself, made here on
     ``raw``: False when the body does not parse or validate into the model (FastAPI's path
     answers its own 422); the route's own checks (:attr:`BodySpec.prepare`, a 422 at the
-    field) and the scene's resolution (an unknown scene's 422) raise as they would have;
-    True when all pass. For :mod:`planner_api.routes.direct`, when a body sent to a worker
+    field), the scene's resolution (an unknown scene's 422) and the design completed from the
+    service's default (a merged design that breaks a rule) raise as they would have; True
+    when all pass. For :mod:`planner_api.routes.direct`, when a body sent to a worker
     unparsed met an error of the pool (full, past its deadline) that may have come before
     the worker checked it: a bad body still gets its 422, never the pool's error."""
     try:
         body = parse_body(spec.model, raw)
     except BodyInvalidError:
         return False
-    body = spec.prepare(body, request.app.state.settings)
+    settings = request.app.state.settings
+    body = spec.prepare(body, settings)
     if spec.resolve_scene is not None:
-        await spec.resolve_scene(request, body)
+        body = await spec.resolve_scene(request, body)
+    with_design_defaults(body, settings.design_defaults)
     return True

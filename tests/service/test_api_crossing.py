@@ -4,7 +4,8 @@ what it got when the loop validated it. The oracle is FastAPI's own path on the 
 (any ``dependency_overrides`` send every request there): the same status and the same
 answer to the byte, for a broken rule, bad JSON, a body nested too deep, a number too long,
 a JSON null or list, the service's limits, an unknown scene and a merged design that breaks
-a rule; and with the pool full, a bad body still gets its 422 and a good one the 503."""
+a rule; and with the pool full, a bad body still gets its 422 and a good one the 503,
+a body the loop's own check refuses never reaching the pool."""
 
 from __future__ import annotations
 
@@ -97,13 +98,16 @@ def test_a_small_plan_is_never_parsed_on_the_loop(client, monkeypatch):
 
 
 def test_a_full_pool_answers_a_bad_body_422_and_a_good_one_503(client_factory):
-    with client_factory(warm=False, workers=1, queue_size=0, max_obstacles=1) as c:
+    design = '{"L1": 0.3, "L2": 0.4, "joint_max": [1, 1, 1]}'
+    settings = {"workers": 1, "queue_size": 0, "max_obstacles": 1, "default_design": design}
+    with client_factory(warm=False, **settings) as c:
         pool = c.app.state.pool
         busy = pool.submit(time.sleep, 3.0, deadline=time.monotonic() + 30)
         try:
             rule = c.post("/v1/plan", json={**PLAN, "start": {"q": "x"}})
             limit = c.post("/v1/plan", json={**PLAN, "obstacles": [SPHERE, SPHERE]})
             scene = c.post("/v1/plan", json={**PLAN, "scene": "nowhere"})
+            merged = c.post("/v1/plan", json={**PLAN, "design": {"joint_min": [2, 0, 0]}})
             good = c.post("/v1/plan", json=PLAN)
             refused = pool.rejected
         finally:
@@ -111,5 +115,9 @@ def test_a_full_pool_answers_a_bad_body_422_and_a_good_one_503(client_factory):
     assert rule.status_code == 422 and rule.json()["detail"][0]["loc"] == ["body", "start", "q"]
     assert limit.status_code == 422 and limit.json()["detail"][0]["loc"] == ["body", "obstacles"]
     assert scene.status_code == 422 and scene.json()["detail"][0]["loc"] == ["body", "scene"]
+    assert merged.status_code == 422
+    assert merged.json()["detail"][0]["loc"][:2] == ["body", "design"], merged.text
     assert good.status_code == 503 and good.json()["detail"][0]["type"] == "saturated"
-    assert refused == 4  # each crossing was refused by the pool, then checked on the loop
+    # a broken rule and a limit never reach the pool (the loop's own check); the scene, the
+    # merged design and the good body crossed, were refused, and were checked on the loop
+    assert refused == 3
