@@ -327,12 +327,12 @@ class Settings(BaseSettings):
         ge=0,
         le=1 << 30,
         description="Largest request body parsed on the event loop, bytes: a larger body of "
-        "/v1/plan/batch, PUT /v1/scenes/{name} or POST /v1/jobs is handed to a worker as "
-        "bytes and parsed there (the same rules and 422s), so that large bodies never hold "
-        "up the event loop; 0: every such body in a worker. /v1/plan, /v1/sequence, "
-        "/v1/cartesian and /v1/timing parse every valid body in a worker whatever its size; "
-        "a body of theirs that does not validate gets FastAPI's own 422, validated again on "
-        "the event loop, up to this size, and the worker's (the same loc and type) beyond.",
+        "/v1/plan, /v1/plan/batch, /v1/sequence, /v1/cartesian, /v1/timing, PUT "
+        "/v1/scenes/{name} or POST "
+        "/v1/jobs is handed to "
+        "a worker as bytes and "
+        "parsed there (the same rules and 422s), so that large bodies never hold up the "
+        "event loop; 0: every such body in a worker.",
     )
     job_result_max_mb: float = Field(
         32.0,

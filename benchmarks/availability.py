@@ -153,9 +153,8 @@ def main() -> None:
         "--inline-parse-bytes",
         type=int,
         default=None,
-        help="PLANNER_INLINE_PARSE_BYTES (default: the service's); 1073741824 parsed every "
-        "plan body on the event loop before valid plan bodies crossed to the workers "
-        "unparsed at every size (now it moves only a bad body's 422 to the loop)",
+        help="PLANNER_INLINE_PARSE_BYTES (default: the service's); 1073741824 parses every "
+        "body on the event loop, as before large bodies went to the workers",
     )
     ap.add_argument("--kinds", default="pairs,drops,bodies", help="disturbances, comma-separated")
     args = ap.parse_args()

@@ -19,29 +19,29 @@ in order, until one matches). Both answers are the same for every request of a r
   and any application with ``dependency_overrides`` (tests replace a job that way).
 - Bodies validated in the worker (a :class:`DirectSpec` without ``answer``: the routes that
   run their job in the worker pool, a plan, a straight line, a sequence, a timing): the
-  plain request's body is not parsed on the loop at all. It crosses to a worker as its JSON
-  text, and the worker reads, validates and checks it (the route's
-  :class:`~planner_api.routes.worker_body.BodySpec`) and runs the job in the same call, as
-  a large body's path always did (:func:`~planner_api.routes.worker_body.cross_to_worker`).
-  Why: the loop's share of a small plan was reading and validating the body (~15-30 us) and
-  pickling the eight nested models it made (~20-25 us, Python per model), for the worker to
-  unpickle them (~35 us); the bytes pickle in ~5 us, and the worker reads and validates them
-  in about what it spent unpickling. Where validation stays on the loop, decided so: a bad
+  plain request's body crosses to a worker as its JSON text, and the worker reads, validates
+  and checks it (the route's :class:`~planner_api.routes.worker_body.BodySpec`) and runs the
+  job in the same call, as a large body's path always did
+  (:func:`~planner_api.routes.worker_body.cross_to_worker`). Why: the loop's share of a small
+  plan was reading and validating the body (~28 us) and pickling the eight nested models it
+  made (~23 us, Python per model), for the worker to unpickle them (~29 us); the bytes and
+  the route's checks pickle in ~5-8 us, and the worker reads and validates them in about
+  what it spent unpickling (~33 us). Where validation stays on the loop, decided so: a bad
   body must not cost a worker round trip, a worker's wake-up or a slot in the pool's queue
   (a client sending bad bodies in a loop would take slots from good requests; measured, a
   422 that crossed first cost 2-5 ms at p50 under load against ~1 ms, the worker's wake-up
   mostly). So the loop still checks the body first, cheaply: pydantic's JSON-mode
-  validation in one pass (its models thrown away, not pickled) and the route's limits
-  (:func:`_passes_here`); a body that fails takes FastAPI's path at once, whose 422 is the
-  one it always was (same status, ``loc``, message). JSON mode is not FastAPI's Python mode,
-  so the worker validates again as FastAPI does; a body it refuses (a case JSON mode lets
-  through) also takes FastAPI's path. A merged design that breaks a rule or an unknown scene
-  is found in the worker (a round trip, as rare). One case must not reach the pool's own
-  errors first: when the crossing
-  fails with a full pool, a pool not running, a deadline passed in the queue or a worker
-  gone, the loop checks the body itself (:func:`~planner_api.routes.worker_body.checked_here`:
-  validation, the route's limits, the scene) and a bad body gets its 422, a good one the
-  pool's error, as when the loop validated first.
+  validation in one pass (~19 us; its models thrown away, never pickled) and the route's
+  limits (:func:`_passes_here`); a body that fails takes FastAPI's path at once, whose 422 is
+  the one it always was (same status, ``loc``, message). JSON mode is not FastAPI's Python
+  mode, so the worker validates again as FastAPI does; a body it refuses (a case JSON mode
+  lets through) also takes FastAPI's path. A merged design that breaks a rule or an unknown
+  scene is found in the worker (a round trip, as rare). One case must not reach the pool's
+  own errors first: when the crossing fails with a full pool, a pool not running, a deadline
+  passed in the queue or a worker gone, the loop checks the body itself
+  (:func:`~planner_api.routes.worker_body.checked_here`: validation, the route's limits, the
+  scene, the design) and a bad body gets its 422, a good one the pool's error, as when the
+  loop validated first.
 - :func:`index_routes` puts a table in front of the router: the route a (method, path) pair
   matched is remembered (for the routes without path parameters, in a bounded table), and the
   next request with that pair tries that one route's pattern instead of every route's in
