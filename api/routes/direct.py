@@ -27,13 +27,15 @@ in order, until one matches). Both answers are the same for every request of a r
   made (~23 us, Python per model), for the worker to unpickle them (~29 us); the bytes and
   the route's checks pickle in ~5-8 us, and the worker reads and validates them in about
   what it spent unpickling (~33 us). Where validation stays on the loop, decided so: a bad
-  body must not cost a worker round trip, a worker's wake-up or a slot in the pool's queue
-  (a client sending bad bodies in a loop would take slots from good requests; measured, a
-  422 that crossed first cost 2-5 ms at p50 under load against ~1 ms, the worker's wake-up
-  mostly). So the loop still checks the body first, cheaply: pydantic's JSON-mode
-  validation in one pass (~19 us; its models thrown away, never pickled) and the route's
+  body must not take a slot in the pool's queue from good requests (a client sending bad
+  bodies in a loop while the workers are busy). So when no worker is idle, the loop checks
+  the body first, cheaply: pydantic's JSON-mode validation in one pass (~19 us; its models
+  thrown away, never pickled) and the route's
   limits (:func:`_passes_here`); a body that fails takes FastAPI's path at once, whose 422 is
-  the one it always was (same status, ``loc``, message). JSON mode is not FastAPI's Python
+  the one it always was (same status, ``loc``, message). When a worker is idle the body
+  crosses unchecked: a bad one then costs that idle worker ~50 us and the request a round
+  trip (its 422 measured at 1-5 ms p50 under load against ~1 ms, the worker's wake-up
+  mostly), and the good ones, the common case, skip the check. JSON mode is not FastAPI's Python
   mode, so the worker validates again as FastAPI does; a body it refuses (a case JSON mode
   lets through) also takes FastAPI's path. A merged design that breaks a rule or an unknown
   scene is found in the worker (a round trip, as rare). One case must not reach the pool's
@@ -183,8 +185,10 @@ def _crossing_handler(
             return await fallback(request)
         if keyed:
             await require_api_key(request, settings)
-        if not _passes_here(spec, raw, settings):
-            return await fallback(request)  # FastAPI's own 422, no worker involved
+        pool = getattr(app.state, "pool", None)
+        idle = pool is not None and pool.in_flight < pool.workers
+        if not idle and not _passes_here(spec, raw, settings):
+            return await fallback(request)  # FastAPI's own 422, no pool slot taken
         answer = await _crossed(request, spec, raw, watched)
         return answer if answer is not None else await fallback(request)
 

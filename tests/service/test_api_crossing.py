@@ -121,3 +121,36 @@ def test_a_full_pool_answers_a_bad_body_422_and_a_good_one_503(client_factory):
     # a broken rule and a limit never reach the pool (the loop's own check); the scene, the
     # merged design and the good body crossed, were refused, and were checked on the loop
     assert refused == 3
+
+
+#: The bad bodies the loop's own check refuses (the rules, JSON and limits; not the scene or
+#: the merged design, which only the worker finds).
+CHECKED_HERE = [k for k in BAD if "scene" not in k and "merged" not in k]
+
+
+def test_with_no_idle_worker_a_bad_body_never_takes_a_queue_slot(client, monkeypatch):
+    pool = client.app.state.pool
+    sent: list[object] = []
+    run = pool.run
+    monkeypatch.setattr(pool, "run", lambda fn, *a, **k: (sent.append(fn), run(fn, *a, **k))[1])
+    busy = pool.submit(time.sleep, 5.0, deadline=time.monotonic() + 30)
+    try:
+        while pool.in_flight < 1:  # pragma: no cover - submit counts it at once
+            time.sleep(0.01)
+        for name in CHECKED_HERE:
+            path, body = BAD[name]
+            checked = client.post(path, content=_text(body), headers=JSON)
+            client.app.dependency_overrides[_fastapis_path] = _fastapis_path
+            try:
+                parsed_here = client.post(path, content=_text(body), headers=JSON)
+            finally:
+                client.app.dependency_overrides.clear()
+            assert checked.status_code == 422 and checked.json() == parsed_here.json(), name
+            assert sent == [] and pool.in_flight == 1, name  # nothing was queued
+    finally:
+        pool.cancel(busy)
+    end = time.monotonic() + 30
+    while (pool.in_flight or pool.warm_workers < 1) and time.monotonic() < end:
+        time.sleep(0.02)  # the busy worker stopped and replaced
+    with_idle_worker = client.post("/v1/plan", json={**PLAN, "start": {"q": "x"}})
+    assert with_idle_worker.status_code == 422 and len(sent) == 1  # it crossed unchecked
