@@ -34,8 +34,8 @@ in order, until one matches). Both answers are the same for every request of a r
   limits (:func:`_passes_here`); a body that fails takes FastAPI's path at once, whose 422 is
   the one it always was (same status, ``loc``, message). When a worker is idle the body
   crosses unchecked: a bad one then costs that idle worker ~50 us and the request a round
-  trip (its 422 measured at 1-5 ms p50 under load against ~1 ms, the worker's wake-up
-  mostly), and the good ones, the common case, skip the check. JSON mode is not FastAPI's Python
+  trip (its 422 measured at 1.6-5.3 ms p50 against ~1.0 ms, the worker's
+  wake-up mostly), and the good ones, the common case, skip the check. JSON mode is not FastAPI's Python
   mode, so the worker validates again as FastAPI does; a body it refuses (a case JSON mode
   lets through) also takes FastAPI's path. A merged design that breaks a rule or an unknown
   scene is found in the worker (a round trip, as rare). One case must not reach the pool's
