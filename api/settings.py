@@ -398,6 +398,7 @@ class Settings(BaseSettings):
         "over its scenes; a PUT beyond it is a 413 naming PLANNER_SCENE_BYTES_MAX.",
     )
     _design_defaults: DesignModel = PrivateAttr(default_factory=DesignModel)
+    _custom_design: DesignModel | None = PrivateAttr(default=None)
     _tenant_keys: dict[str, str] | None = PrivateAttr(default=None)
     _hosts: frozenset[str] | None = PrivateAttr(default=None)
 
@@ -461,6 +462,8 @@ class Settings(BaseSettings):
         if self.api_keys is not None and not self.api_keys.get_secret_value().strip():
             self.api_keys = None
         self._design_defaults = _parse_design(self.default_design)
+        built_in = self._design_defaults == DesignModel()
+        self._custom_design = None if built_in else self._design_defaults
         if self.api_keys is not None:
             if self.api_key is not None:
                 raise ValueError(
@@ -486,6 +489,13 @@ class Settings(BaseSettings):
     def design_defaults(self) -> DesignModel:
         """The parsed ``default_design``: what a request's absent design fields take."""
         return self._design_defaults
+
+    @property
+    def custom_design_defaults(self) -> DesignModel | None:
+        """:attr:`design_defaults` when they are not the built-in robot's, else None (a
+        request's design has nothing to take from them): what crosses to a worker with a
+        body, the built-in case costing no pickling."""
+        return self._custom_design
 
     @property
     def keyed(self) -> bool:

@@ -14,22 +14,23 @@ from planner.endpoints import cartesian as jobs
 from planner.wire import CartesianRequest, CartesianResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.routes._common import obstacles_within_limit, run_job
+from planner_api.routes.direct import DirectRoute, DirectSpec, answered_directly
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
     BodySpec,
-    WorkerBodyRoute,
     parsed_in_worker,
 )
 
 __all__ = ["cartesian", "router"]
 
-router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
+router = APIRouter(prefix="/v1", tags=["plan"], route_class=DirectRoute)
 
 
 @router.post("/cartesian", response_model=CartesianResponse)
 @parsed_in_worker(
     BodySpec(CartesianRequest, obstacles_within_limit, lambda _: jobs.cartesian, resolve_scene)
 )
+@answered_directly(DirectSpec(CartesianRequest))  # the body validated in the worker
 async def cartesian(
     body: CartesianRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
 ) -> Response:

@@ -104,16 +104,9 @@ async def _plan(
     )
 
 
-async def _plan_direct(request: Request, body: PlanRequest) -> Response:
-    """:func:`plan` without FastAPI's dependency solving (:mod:`planner_api.routes.direct`:
-    never with ``dependency_overrides``, so the job is the library's)."""
-    pool, deadline = await get_pool(request), await get_deadline(request)
-    return await _plan(request, body, pool, deadline, jobs.plan)
-
-
 @router.post("/plan", response_model=PlanResponse)
 @parsed_in_worker(BodySpec(PlanRequest, prepare_plan, plan_job_of, resolve_scene))
-@answered_directly(DirectSpec(PlanRequest, _plan_direct))
+@answered_directly(DirectSpec(PlanRequest))  # the body validated in the worker
 async def plan(
     body: PlanRequest,
     pool: Pool,

@@ -17,17 +17,17 @@ from planner.wire import SequenceRequest, SequenceResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.exceptions import LimitExceededError
 from planner_api.routes._common import check_obstacle_count, run_job
+from planner_api.routes.direct import DirectRoute, DirectSpec, answered_directly
 from planner_api.routes.scenes import resolve_scene
 from planner_api.routes.worker_body import (
     BodySpec,
     RouteLimits,
-    WorkerBodyRoute,
     parsed_in_worker,
 )
 
 __all__ = ["prepare_sequence", "router", "sequence"]
 
-router = APIRouter(prefix="/v1", tags=["plan"], route_class=WorkerBodyRoute)
+router = APIRouter(prefix="/v1", tags=["plan"], route_class=DirectRoute)
 
 
 def prepare_sequence(body: SequenceRequest, limits: RouteLimits) -> SequenceRequest:
@@ -53,6 +53,7 @@ def prepare_sequence(body: SequenceRequest, limits: RouteLimits) -> SequenceRequ
 @parsed_in_worker(
     BodySpec(SequenceRequest, prepare_sequence, lambda _: jobs.sequence, resolve_scene)
 )
+@answered_directly(DirectSpec(SequenceRequest))  # the body validated in the worker
 async def sequence(
     body: SequenceRequest, pool: Pool, deadline: Deadline, settings: SettingsDep, request: Request
 ) -> Response:

@@ -9,19 +9,20 @@ from planner.endpoints import timing as jobs
 from planner.wire import TimingRequest, TimingResponse
 from planner_api.deps import Deadline, Pool, SettingsDep
 from planner_api.routes._common import obstacles_within_limit, run_job
+from planner_api.routes.direct import DirectRoute, DirectSpec, answered_directly
 from planner_api.routes.worker_body import (
     BodySpec,
-    WorkerBodyRoute,
     parsed_in_worker,
 )
 
 __all__ = ["router", "timing"]
 
-router = APIRouter(prefix="/v1", tags=["timing"], route_class=WorkerBodyRoute)
+router = APIRouter(prefix="/v1", tags=["timing"], route_class=DirectRoute)
 
 
 @router.post("/timing", response_model=TimingResponse)
 @parsed_in_worker(BodySpec(TimingRequest, obstacles_within_limit, lambda _: jobs.timing))
+@answered_directly(DirectSpec(TimingRequest))  # the body validated in the worker
 async def timing(
     body: TimingRequest, pool: Pool, deadline: Deadline, settings: SettingsDep
 ) -> Response:

@@ -46,6 +46,8 @@ __all__ = [
     "WorkerBody",
     "WorkerBodyRoute",
     "answer_of_worker_body",
+    "checked_here",
+    "cross_to_worker",
     "load_json",
     "parse_body",
     "parsed_in_worker",
@@ -117,16 +119,56 @@ class BodySpec:
 
 @dataclass(frozen=True, slots=True)
 class WorkerBody:
-    """What a route hands a worker instead of a parsed body (:func:`run_worker_body`)."""
+    """What a route hands a worker instead of a parsed body (:func:`run_worker_body`).
+
+    ``design_defaults`` None: the service's default design is the built-in robot (nothing
+    to complete). Pickled as one flat tuple (:meth:`__reduce__`): the dataclasses' own
+    pickling runs Python per field and per nested object, which was most of the loop's
+    cost of handing a small body over (~20 us against ~5 us)."""
 
     spec_model: type[BaseModel]
     prepare: Callable[[Any, RouteLimits], Any]
     job: Job
     raw: bytes
     limits: Limits
-    design_defaults: DesignModel
+    design_defaults: DesignModel | None
     budget: JobBudget
     request_id: str | None
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        limits, budget = self.limits, self.budget
+        return _rebuilt, (
+            self.spec_model,
+            self.prepare,
+            self.job,
+            self.raw,
+            (
+                limits.max_obstacles,
+                limits.max_sequence_targets,
+                limits.max_batch,
+                limits.request_timeout_s,
+            ),
+            self.design_defaults,
+            budget.deadline,
+            budget.max_samples,
+            self.request_id,
+        )
+
+
+def _rebuilt(
+    model: type[BaseModel],
+    prepare: Callable[[Any, RouteLimits], Any],
+    job: Job,
+    raw: bytes,
+    limits: tuple[int, int, int, float],
+    defaults: DesignModel | None,
+    deadline: float | None,
+    max_samples: int | None,
+    request_id: str | None,
+) -> WorkerBody:
+    """A :class:`WorkerBody` from its :meth:`~WorkerBody.__reduce__` tuple (in the worker)."""
+    budget = JobBudget(deadline, max_samples)
+    return WorkerBody(model, prepare, job, raw, Limits(*limits), defaults, budget, request_id)
 
 
 def worker_body(
@@ -146,7 +188,7 @@ def worker_body(
         job,
         raw,
         Limits.of(settings),
-        settings.design_defaults,
+        settings.custom_design_defaults,
         budget,
         REQUEST_ID.get(),
     )
@@ -225,7 +267,8 @@ def run_worker_body(work: WorkerBody) -> tuple[str, Any]:
     body = work.prepare(parse_body(work.spec_model, work.raw), work.limits)
     if getattr(body, "scene", None) is not None:
         return "scene", body
-    body = with_design_defaults(body, work.design_defaults)
+    if work.design_defaults is not None:
+        body = with_design_defaults(body, work.design_defaults)
     return "done", run_measured(work.job, body, budget=work.budget, request_id=work.request_id)
 
 
@@ -273,7 +316,21 @@ class WorkerBodyRoute(APIRoute):
 async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
     """The route's work for a large body: parsed, checked and run in one worker call. The
     gate checked the API key before the body was read; the client is watched as the routes'
-    dependency watches it (a client gone cancels the job)."""
+    dependency watches it (a client gone cancels the job). A body that breaks a rule is a 422
+    with the worker's locations (:class:`BodyInvalidError`)."""
+    async with asynccontextmanager(watch_client)(request):
+        try:
+            return await cross_to_worker(request, spec, raw)
+        except BodyInvalidError as exc:
+            raise RequestValidationError(exc.items) from None
+
+
+async def cross_to_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
+    """The route's work on its body as JSON text: parsed, checked and run in one worker call
+    (:func:`run_worker_body`); a body naming a scene comes back parsed, has its scene resolved
+    here and crosses again as a parsed request. Raises :class:`BodyInvalidError` (from the
+    worker) when the body does not parse or validate; the caller answers it (a large body:
+    :func:`_in_worker`; a small one: :mod:`planner_api.routes.direct`, FastAPI's own 422)."""
     settings = request.app.state.settings
     pool = await get_pool(request)
     deadline = await get_deadline(request)
@@ -281,22 +338,39 @@ async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
     assert job is not None  # a route with a job of its own has a handle instead
     samples = answer_sample_limit(settings.max_trajectory_samples, settings.max_response_bytes)
     work = worker_body(spec.model, job, raw, settings, JobBudget(deadline, samples), spec.prepare)
-    async with asynccontextmanager(watch_client)(request):
-        try:
-            kind, value = await pool.run(run_worker_body, work, deadline=deadline)
-        except BodyInvalidError as exc:
-            raise RequestValidationError(exc.items) from None
-        if kind == "scene":
-            assert spec.resolve_scene is not None  # a model without a scene has none to name
-            body = await spec.resolve_scene(request, value)
-            return await run_job(
-                pool,
-                job,
-                body,
-                deadline,
-                design_defaults=settings.design_defaults,
-                max_samples=samples,
-            )
+    kind, value = await pool.run(run_worker_body, work, deadline=deadline)
+    if kind == "scene":
+        assert spec.resolve_scene is not None  # a model without a scene has none to name
+        body = await spec.resolve_scene(request, value)
+        return await run_job(
+            pool,
+            job,
+            body,
+            deadline,
+            design_defaults=settings.design_defaults,
+            max_samples=samples,
+        )
     content, sample = value
     record_job(sample)
     return json_response(content)
+
+
+async def checked_here(request: Request, spec: BodySpec, raw: bytes) -> bool:
+    """The checks the loop made before a job when it parsed the body itself, made here on
+    ``raw``: False when the body does not parse or validate into the model (FastAPI's path
+    answers its own 422); the route's own checks (:attr:`BodySpec.prepare`, a 422 at the
+    field), the scene's resolution (an unknown scene's 422) and the design completed from the
+    service's default (a merged design that breaks a rule) raise as they would have; True
+    when all pass. For :mod:`planner_api.routes.direct`, when a body sent to a worker
+    unparsed met an error of the pool (full, past its deadline) that may have come before
+    the worker checked it: a bad body still gets its 422, never the pool's error."""
+    try:
+        body = parse_body(spec.model, raw)
+    except BodyInvalidError:
+        return False
+    settings = request.app.state.settings
+    body = spec.prepare(body, settings)
+    if spec.resolve_scene is not None:
+        body = await spec.resolve_scene(request, body)
+    with_design_defaults(body, settings.design_defaults)
+    return True
