@@ -28,14 +28,14 @@ in order, until one matches). Both answers are the same for every request of a r
   the route's checks pickle in ~5-8 us, and the worker reads and validates them in about
   what it spent unpickling (~33 us). Where validation stays on the loop, decided so: a bad
   body must not take a slot in the pool's queue from good requests (a client sending bad
-  bodies in a loop while the workers are busy). So when no worker is idle, the loop checks
-  the body first, cheaply: pydantic's JSON-mode validation in one pass (~19 us; its models
-  thrown away, never pickled) and the route's
-  limits (:func:`_passes_here`); a body that fails takes FastAPI's path at once, whose 422 is
-  the one it always was (same status, ``loc``, message). When a worker is idle the body
-  crosses unchecked: a bad one then costs that idle worker ~50 us and the request a round
-  trip (its 422 measured at 1.6-5.3 ms p50 against ~1.0 ms, the worker's
-  wake-up mostly), and the good ones, the common case, skip the check. JSON mode is not FastAPI's Python
+  bodies in a loop while the workers are busy), nor cost a worker round trip (a 422 that
+  crossed measured 1.6-5.3 ms p50 against ~1.0 ms, the worker's wake-up mostly). So the loop
+  checks every body first, cheaply: pydantic's JSON-mode validation in one pass (~19 us; its
+  models thrown away, never pickled) and the route's limits (:func:`_passes_here`); a body
+  that fails takes FastAPI's path at once, whose 422 is the one it always was (same status,
+  ``loc``, message), and no worker sees it. (Checking only while no worker was idle, so that
+  good bodies skipped the check then, made a 422's cost depend on the pool's state, and
+  schemathesis's thousands of bad bodies slower by ~1 ms each.) JSON mode is not FastAPI's Python
   mode, so the worker validates again as FastAPI does; a body it refuses (a case JSON mode
   lets through) also takes FastAPI's path. A merged design that breaks a rule or an unknown
   scene is found in the worker (a round trip, as rare). One case must not reach the pool's
@@ -185,9 +185,7 @@ def _crossing_handler(
             return await fallback(request)
         if keyed:
             await require_api_key(request, settings)
-        pool = getattr(app.state, "pool", None)
-        idle = pool is not None and pool.in_flight < pool.workers
-        if not idle and not _passes_here(spec, raw, settings):
+        if not _passes_here(spec, raw, settings):
             return await fallback(request)  # FastAPI's own 422, no pool slot taken
         answer = await _crossed(request, spec, raw, watched)
         return answer if answer is not None else await fallback(request)

@@ -128,7 +128,9 @@ def test_a_full_pool_answers_a_bad_body_422_and_a_good_one_503(client_factory):
 CHECKED_HERE = [k for k in BAD if "scene" not in k and "merged" not in k]
 
 
-def test_with_no_idle_worker_a_bad_body_never_takes_a_queue_slot(client, monkeypatch):
+def test_a_bad_body_never_reaches_the_pool(client, monkeypatch):
+    """The loop checks every small body before it crosses (direct._passes_here): a bad one
+    takes no queue slot while the worker is busy and no worker round trip while it is idle."""
     pool = client.app.state.pool
     sent: list[object] = []
     run = pool.run
@@ -153,4 +155,6 @@ def test_with_no_idle_worker_a_bad_body_never_takes_a_queue_slot(client, monkeyp
     while (pool.in_flight or pool.warm_workers < 1) and time.monotonic() < end:
         time.sleep(0.02)  # the busy worker stopped and replaced
     with_idle_worker = client.post("/v1/plan", json={**PLAN, "start": {"q": "x"}})
-    assert with_idle_worker.status_code == 422 and len(sent) == 1  # it crossed unchecked
+    assert with_idle_worker.status_code == 422 and sent == []  # checked here: never crossed
+    good = client.post("/v1/plan", json=PLAN)
+    assert good.status_code == 200 and len(sent) == 1  # a good body crosses
