@@ -122,7 +122,12 @@ def _plan_ompl(state: _State) -> None:
 
     chk = ValidityChecker(state.design, margins, obstacles, "+", "++-")
     start, goal = np.array(_START), np.array(_GOAL)
-    compiled_rrt.rrt_connect(chk, start, goal, PlanOptions(seed=1), 2.0)
+    out = compiled_rrt.rrt_connect(chk, start, goal, PlanOptions(seed=1), 2.0)
+    if out is not None and out.waypoints is not None:
+        # the walk's recall of a remembered path (its compiled kernel; nothing remembered)
+        from planner.planning import experience
+
+        experience.load_kernels(chk, out.waypoints, compiled_rrt.SIMPLIFY_SLACK)
     ompl_backend.search(chk, start, goal, PlanOptions(seed=1), 0.05)
 
 

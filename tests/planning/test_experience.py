@@ -4,6 +4,8 @@ memory serves only the scene (arrays, modes) it was made in, and the search walk
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -157,3 +159,67 @@ def test_a_walk_needs_no_compiled_signature_of_its_own(scene) -> None:
     walked = [compiled_rrt.walk(checker, s, g, PlanOptions()) for s, g in pairs[1:]]
     assert any(w is not None for w in walked)
     assert set(certify_motion.signatures) == before
+
+
+def _recall_reference(
+    checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray
+) -> np.ndarray | None:
+    """The recall's rule written plainly in numpy (the module's first, Python version): the
+    candidates (path, entry i, exit j) by start -> P[i] -> along P -> P[j] -> goal within
+    MAX_DETOUR x the straight distance, shortest first (ties by path, i, j), each join
+    certified once by the checker with the slack, at most MAX_TESTS joins."""
+    scene = experience._scene(checker)
+    if scene is None:
+        return None
+    rows = []
+    for p, path in enumerate(scene.paths):
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+        ds = np.linalg.norm(path - q_start, axis=1)
+        dg = np.linalg.norm(path - q_goal, axis=1)
+        cost = ds[:, None] + np.abs(cum[None, :] - cum[:, None]) + dg[None, :]
+        i, j = np.indices(cost.shape)
+        rows.append(np.stack([cost.ravel(), np.full(cost.size, p), i.ravel(), j.ravel()], 1))
+    order = np.concatenate(rows)
+    order = order[order[:, 0] <= experience.MAX_DETOUR * float(np.linalg.norm(q_goal - q_start))]
+    order = order[np.argsort(order[:, 0], kind="stable")]
+    slack = replace(checker.margins, clearance=checker.margins.clearance + 0.005)
+    joining = checker.with_margins(slack)
+    joins: dict[tuple[int, int, int], bool] = {}
+    for _, p, i, j in order:
+        p, i, j = int(p), int(i), int(j)
+        path = scene.paths[p]
+        for end, v in ((0, i), (1, j)):
+            if (end, p, v) not in joins:
+                if len(joins) >= experience.MAX_TESTS:
+                    return None
+                a, b = (q_start, path[v]) if end == 0 else (path[v], q_goal)
+                joins[(end, p, v)] = joining.motion_valid(a, b)
+            if not joins[(end, p, v)]:
+                break
+        else:
+            walk = path[i : j + 1] if i <= j else path[j : i + 1][::-1]
+            out = np.vstack([q_start, walk, q_goal])
+            return out[np.r_[True, np.any(np.diff(out, axis=0) != 0.0, axis=1)]]
+    return None
+
+
+def test_the_compiled_recall_chooses_as_the_plain_rule_does(scene, monkeypatch) -> None:
+    """The compiled recall (experience._recall_rows) against the rule written plainly: the
+    same walk or the same None for every pair, with one to four remembered paths, and with
+    a budget of joins too small for most walks (MAX_TESTS 2)."""
+    checker, pairs = scene
+    walks = misses = 0
+    for budget in (experience.MAX_TESTS, 2):
+        monkeypatch.setattr(experience, "MAX_TESTS", budget)
+        caching.clear("experience")
+        for k in (0, 3, 6, 9):
+            _remember_one(checker, *pairs[k])
+            for q_start, q_goal in pairs:
+                got = experience.recall(checker, q_start, q_goal)
+                want = _recall_reference(checker, q_start, q_goal)
+                assert (got is None) == (want is None)
+                if got is not None:
+                    np.testing.assert_array_equal(got[0], want)
+                walks += got is not None
+                misses += got is None
+    assert walks and misses  # both outcomes compared

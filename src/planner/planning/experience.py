@@ -32,15 +32,26 @@ another query of a sequence may be the one that searches, and what is remembered
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit
 
 from planner.caching import BoundedCache, bounded_cache
 from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
 
-__all__ = ["MAX_DETOUR", "MAX_PATHS", "MAX_TESTS", "MIN_NODES", "guide", "recall", "remember"]
+__all__ = [
+    "MAX_DETOUR",
+    "MAX_PATHS",
+    "MAX_TESTS",
+    "MIN_NODES",
+    "guide",
+    "load_kernels",
+    "recall",
+    "remember",
+]
 
 #: Tree nodes (both trees) from which a search's path is remembered.
 MIN_NODES = 64
@@ -66,12 +77,15 @@ MAX_TESTS = 24
 class _Scene:
     """What is remembered of one scene: weak references to the packed obstacle arrays it
     was made with (their identity; the arrays are the obstacle cache's, not weighed here),
-    the kernels' parameters with the simplification's slack (the joins'), and the paths
-    (each (M, 3) rad)."""
+    the kernels' parameters with the simplification's slack (the joins'), the paths (each
+    (M, 3) rad, read-only) and the same paths as one array for the compiled code: each
+    path's rows followed by a NaN row (:func:`guide`'s and :func:`_recall_rows`'s form;
+    built once, never written)."""
 
     packed: tuple[weakref.ref, ...]
     slack: np.ndarray
     paths: tuple[np.ndarray, ...]
+    rows: np.ndarray
 
 
 _CACHE: BoundedCache[_Scene] = bounded_cache("experience.paths")
@@ -105,12 +119,43 @@ def remember(checker: ValidityChecker, path: np.ndarray, slack: float, *, nodes:
         return
     old = _scene(checker)
     if old is None:
-        margins = replace(checker.margins, clearance=checker.margins.clearance + slack)
         refs = tuple(weakref.ref(a) for a in checker.packed)
-        old = _Scene(refs, checker.with_margins(margins).params, ())
+        old = _Scene(refs, _slack_params(checker, slack), (), np.empty((0, 3)))
     kept = np.array(path, dtype=float)
     kept.flags.writeable = False
-    _CACHE.put(_key(checker), replace(old, paths=(*old.paths, kept)[-MAX_PATHS:]))
+    paths = (*old.paths, kept)[-MAX_PATHS:]
+    _CACHE.put(_key(checker), replace(old, paths=paths, rows=_rows(paths)))
+
+
+def _slack_params(checker: ValidityChecker, slack: float) -> np.ndarray:
+    """The checker's kernel parameters with ``slack`` (m) more clearance."""
+    margins = replace(checker.margins, clearance=checker.margins.clearance + slack)
+    return checker.with_margins(margins).params
+
+
+def _rows(paths: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The paths as one array, each path's rows followed by a NaN row (:class:`_Scene`);
+    writable (the one compiled signature of the search and the recall), never written."""
+    gap = np.full((1, 3), np.nan)
+    return np.ascontiguousarray(np.vstack([row for p in paths for row in (p, gap)]))
+
+
+def load_kernels(checker: ValidityChecker, path: np.ndarray, slack: float) -> None:
+    """Load (or compile) :func:`recall`'s compiled kernel with the array types of a real
+    recall, ``path`` (M, 3) a certified path of the checker's scene, nothing remembered:
+    the warm-up's step (:mod:`planner.warmup`), so that a process's first walk pays no
+    loading."""
+    q = np.array(path[0], dtype=float)
+    _recall_rows(
+        _rows((np.asarray(path, dtype=float),)),
+        q,
+        q.copy(),
+        0.0,
+        MAX_TESTS,
+        _slack_params(checker, slack),
+        tuple(checker.packed),
+        checker.coarse_step,
+    )
 
 
 def recall(
@@ -128,47 +173,112 @@ def recall(
     scene = _scene(checker)
     if scene is None:
         return None
-    q_start = np.asarray(q_start, dtype=float)
-    q_goal = np.asarray(q_goal, dtype=float)
-    rows = []  # (cost, path, i, j)
-    for p, path in enumerate(scene.paths):
-        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-        ds = np.linalg.norm(path - q_start, axis=1)
-        dg = np.linalg.norm(path - q_goal, axis=1)
-        cost = ds[:, None] + np.abs(cum[None, :] - cum[:, None]) + dg[None, :]
-        i, j = np.indices(cost.shape)
-        rows.append(np.stack([cost.ravel(), np.full(cost.size, p), i.ravel(), j.ravel()], 1))
-    order = np.concatenate(rows)
-    order = order[order[:, 0] <= MAX_DETOUR * float(np.linalg.norm(q_goal - q_start))]
-    order = order[np.argsort(order[:, 0], kind="stable")]
-    prm, packed, step = scene.slack, checker.packed, checker.coarse_step
+    q_start = np.array(q_start, dtype=float)
+    q_goal = np.array(q_goal, dtype=float)
+    reach = MAX_DETOUR * float(np.linalg.norm(q_goal - q_start))
+    ends = _recall_rows(
+        scene.rows,
+        q_start,
+        q_goal,
+        reach,
+        MAX_TESTS,
+        scene.slack,
+        tuple(checker.packed),
+        checker.coarse_step,
+    )
+    i, j = int(ends[0]), int(ends[1])
+    if i < 0:
+        return None
+    rows = scene.rows
+    walk = rows[i : j + 1] if i <= j else rows[j : i + 1][::-1]
+    out = np.vstack([q_start, walk, q_goal])
+    keep = np.ones(len(out), dtype=bool)
+    keep[1:] = np.any(np.diff(out, axis=0) != 0.0, axis=1)  # no motion of no length
+    return out[keep], scene.slack
 
-    def test(q_a: np.ndarray, q_b: np.ndarray) -> bool:
-        # writable copies: the remembered rows are read-only, and the certificate takes
-        # writable postures (one compiled signature: planner._kernels.read_only's rule)
-        a, b = np.array(q_a), np.array(q_b)
-        return certify_motion(a, b, prm, *packed, step, MIN_CERTIFIED_STEP, False)[0] == 0
 
-    joins: dict[tuple[int, int, int], bool] = {}  # (end 0 start / 1 goal, path, vertex)
+@njit(cache=True)
+def _recall_rows(rows, q_start, q_goal, reach, max_tests, prm, packed, step):  # pragma: no cover
+    """:func:`recall`'s choice, compiled (its Python loop over the candidates cost as much as
+    the joins' certificates): the rows (entry, exit) of ``rows`` (:class:`_Scene`'s form)
+    of the shortest candidate walk whose two joins are certified, or (-1, -1).
+
+    The candidates are every pair of rows (i, j) of one path with the cost ``|start - i| +
+    (length along the path between i and j) + |j - goal|`` at most ``reach``, tried in order
+    of cost (ties in the order path, i, j: a stable sort); each join (the start's to a row,
+    a row's to the goal) is certified once and its verdict kept for every candidate that
+    uses it; at most ``max_tests`` joins are certified."""
+    m = rows.shape[0]
+    cum = np.zeros(m)  # length along its path up to each row
+    ds = np.empty(m)
+    dg = np.empty(m)
+    first = np.empty(m, dtype=np.int64)  # the first row of each row's path
+    start = 0
+    for r in range(m):
+        if np.isnan(rows[r, 0]):
+            start = r + 1
+            continue
+        first[r] = start
+        if r > start:
+            step2 = 0.0
+            for k in range(3):
+                step2 += (rows[r, k] - rows[r - 1, k]) ** 2
+            cum[r] = cum[r - 1] + math.sqrt(step2)
+        a2 = 0.0
+        b2 = 0.0
+        for k in range(3):
+            a2 += (rows[r, k] - q_start[k]) ** 2
+            b2 += (rows[r, k] - q_goal[k]) ** 2
+        ds[r] = math.sqrt(a2)
+        dg[r] = math.sqrt(b2)
+    n = 0  # pairs of rows of one path
+    for r in range(m):
+        if not np.isnan(rows[r, 0]):
+            n += 2 * (r - first[r]) + 1  # row r with each earlier row of its path, both ways
+    cost = np.empty(n)
+    pair = np.empty((n, 2), dtype=np.int64)
+    c = 0
+    r = 0
+    while r < m:  # path by path, i then j in order (the order of ties)
+        if np.isnan(rows[r, 0]):
+            r += 1
+            continue
+        end = r
+        while end < m and not np.isnan(rows[end, 0]):
+            end += 1
+        for i in range(r, end):
+            for j in range(r, end):
+                v = ds[i] + abs(cum[j] - cum[i]) + dg[j]
+                if v <= reach:
+                    cost[c] = v
+                    pair[c, 0], pair[c, 1] = i, j
+                    c += 1
+        r = end
+    order = np.argsort(cost[:c], kind="mergesort")
+    joins = np.zeros((2, m), dtype=np.int8)  # 0 not tried, 1 certified, 2 not
+    s, cp, b, sn, cn, bn, sg = packed
     tests = 0
-    for _, p, i, j in order:
-        p, i, j = int(p), int(i), int(j)
-        path = scene.paths[p]
-        for end, v, q in ((0, i, q_start), (1, j, q_goal)):
-            if (end, p, v) not in joins:
-                if tests >= MAX_TESTS:
-                    return None
+    for o in order:
+        i, j = pair[o, 0], pair[o, 1]
+        held = True
+        for end_ in range(2):
+            v = i if end_ == 0 else j
+            if joins[end_, v] == 0:
+                if tests >= max_tests:
+                    return np.array([-1, -1])
                 tests += 1
-                joins[(end, p, v)] = bool(test(q, path[v]) if end == 0 else test(path[v], q))
-            if not joins[(end, p, v)]:
+                qa = q_start.copy() if end_ == 0 else rows[v].copy()
+                qb = rows[v].copy() if end_ == 0 else q_goal.copy()
+                r_, _ = certify_motion(
+                    qa, qb, prm, s, cp, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP, False
+                )
+                joins[end_, v] = 1 if r_ == 0 else 2
+            if joins[end_, v] != 1:
+                held = False
                 break
-        else:
-            walk = path[i : j + 1] if i <= j else path[j : i + 1][::-1]
-            out = np.vstack([q_start, walk, q_goal])
-            keep = np.ones(len(out), dtype=bool)
-            keep[1:] = np.any(np.diff(out, axis=0) != 0.0, axis=1)  # no motion of no length
-            return out[keep], scene.slack
-    return None
+        if held:
+            return np.array([i, j])
+    return np.array([-1, -1])
 
 
 def guide(checker: ValidityChecker) -> np.ndarray:
@@ -179,5 +289,4 @@ def guide(checker: ValidityChecker) -> np.ndarray:
     scene = _scene(checker)
     if scene is None or not scene.paths:
         return np.empty((0, 3))
-    gap = np.full((1, 3), np.nan)
-    return np.ascontiguousarray(np.vstack([row for p in scene.paths for row in (p, gap)]))
+    return scene.rows
