@@ -135,7 +135,9 @@ def _loop_cpu_s(pid: int) -> float:
     return int(Path(f"/proc/{pid}/schedstat").read_text().split()[0]) / 1e9
 
 
-def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: int) -> None:
+def _floor_rows(
+    url: str, pid: int, n: int, rng: np.random.Generator, workers: int, throughput: bool = True
+) -> None:
     """The per-request overhead against a bare FastAPI app on uvicorn (the floor), with one
     light keep-alive client per server, interleaved request by request so that both see the
     same machine load (issue goals: /v1/fk p50 <= 1.3 x bare p50; a small free-space plan p50
@@ -252,7 +254,8 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
             f"(/metrics, mean, its JSON included) {worker_ms:.2f} ms; over the def endpoint's "
             f"p50 (the earlier floor): {plan_p50 - def_p50:.2f} ms"
         )
-        _throughput_rows(url, pid, rng, workers)
+        if throughput:
+            _throughput_rows(url, pid, rng, workers)
     finally:
         bare.terminate()
         bare.wait(timeout=30)
@@ -579,6 +582,9 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=400)
     parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
     parser.add_argument(
+        "--no-throughput", action="store_true", help="the overhead rows without the throughput"
+    )
+    parser.add_argument(
         "--throughput-only", action="store_true", help="only the throughput row and its CPU"
     )
     parser.add_argument("--endpoints", nargs="*", help="only these rows (default: all)")
@@ -628,7 +634,9 @@ def main() -> None:
             f"{'in-proc p50':>12} {'p50 ratio':>10}"
         )
         print("per-request overhead, concurrency 1")
-        _floor_rows(url, proc.pid, min(args.requests, 300), rng, args.workers)
+        _floor_rows(
+            url, proc.pid, min(args.requests, 300), rng, args.workers, not args.no_throughput
+        )
         print()
         if args.floor_only:
             return
