@@ -18,7 +18,10 @@ application parses anything:
 4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
    request's budget), else 408 and the connection is closed, so a client that stalls cannot
    hold a connection;
-5. then FastAPI parses the JSON and validates the schema (422).
+5. then FastAPI parses the JSON and validates the schema (422); or, for a hot route whose
+   path the route table already knows, the route's direct answer, called here with the body
+   read (:func:`planner_api.routes.direct.index_routes`, "The front door's direct answer"),
+   which declines what is not the plain case back to the application's own path.
 
 Without the host check, a keyless service on a user's machine answers any web page that makes
 its own name resolve to 127.0.0.1 (DNS rebinding): the browser sends that page's name as the
