@@ -1,7 +1,8 @@
 """Service benchmark: latency and throughput of the HTTP service on loopback.
 
 Starts ``planner serve`` (uvicorn, ``--workers`` processes) on a free port. First the
-per-request overhead: a bare FastAPI app on uvicorn (the floor) and the service, each with one
+per-request overhead: a bare FastAPI app on uvicorn (the floor: its ``async def`` endpoint; its
+``def`` one, the earlier rounds' floor, beside it) and the service, each with one
 light keep-alive client (``http.client``), interleaved request by request in the same run,
 with the event-loop process's CPU per request (/proc) and the first plan and fk right after
 ``/v1/ready`` said ready against their steady-state medians (issue 43's goals);
