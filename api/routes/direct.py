@@ -152,7 +152,10 @@ class DirectRoute(WorkerBodyRoute):
     route (``planner_plain``) for the front door's direct answer (:func:`index_routes`)."""
 
     planner_plain: PlainAnswer | None = None
+    #: (keyed, watched) of the route's first inclusion with a plain answer, and whether an
+    #: inclusion (in any application: the routers are shared) differed from it since
     _planner_flags: tuple[bool, bool] | None = None
+    _planner_mixed: bool = False
 
     def get_route_handler(self) -> Callable[[Request], Any]:
         fallback = super().get_route_handler()
@@ -169,9 +172,11 @@ class DirectRoute(WorkerBodyRoute):
         else:
             plain = _answer_plain(spec.model, spec.answer, keyed, watched)
         # kept for the front door only while every inclusion of the route answers alike
-        same = self._planner_flags in (None, (keyed, watched))
-        self.planner_plain = plain if same else None
-        self._planner_flags = (keyed, watched) if same else (not keyed, not watched)
+        if self._planner_flags is None:
+            self._planner_flags = (keyed, watched)
+        elif self._planner_flags != (keyed, watched):
+            self._planner_mixed = True
+        self.planner_plain = None if self._planner_mixed else plain
 
         async def handler(request: Request) -> Response:
             if DECLINED not in request.scope:  # else the front door made these checks
