@@ -18,7 +18,10 @@ application parses anything:
 4. **body in bounded time**: the whole body must arrive within ``body_timeout_s`` (at most the
    request's budget), else 408 and the connection is closed, so a client that stalls cannot
    hold a connection;
-5. then FastAPI parses the JSON and validates the schema (422).
+5. then FastAPI parses the JSON and validates the schema (422); or, for a hot route whose
+   path the route table already knows, the route's direct answer, called here with the body
+   read (:func:`planner_api.routes.direct.index_routes`, "The front door's direct answer"),
+   which declines what is not the plain case back to the application's own path.
 
 Without the host check, a keyless service on a user's machine answers any web page that makes
 its own name resolve to 127.0.0.1 (DNS rebinding): the browser sends that page's name as the
@@ -40,6 +43,7 @@ import json
 import logging
 import time
 from collections.abc import Callable, Mapping
+from typing import Any
 
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -111,6 +115,16 @@ def _route_takes(scope: Scope) -> bool:
             cache.pop(next(iter(cache)))
         cache[key] = found
     return found
+
+
+def _direct_answer_of(scope: Scope) -> Callable[[Scope, Receive, Send, bytes], Any] | None:
+    """The route's direct answer of this (method, path), if the application keeps one
+    (``app.state.direct_answers``: :func:`planner_api.routes.direct.index_routes`), which
+    answers the request without the layers between this gate and the route."""
+    answers = getattr(getattr(scope.get("app"), "state", None), "direct_answers", None)
+    if not answers:
+        return None
+    return answers.get((scope.get("method"), scope.get("path")))
 
 
 def _is_json(content_type: str) -> bool:
@@ -232,11 +246,11 @@ class RequestGate:
             return
         if outcome == "disconnect":
             return  # the observer records 499: nobody is left to answer
-        buffered: Message | None = {
-            "type": "http.request",
-            "body": chunks[0] if len(chunks) == 1 else b"".join(chunks),
-            "more_body": False,
-        }
+        body = chunks[0] if len(chunks) == 1 else b"".join(chunks)
+        direct = _direct_answer_of(scope)
+        if direct is not None and await direct(scope, receive, send, body):
+            return
+        buffered: Message | None = {"type": "http.request", "body": body, "more_body": False}
 
         async def replay() -> Message:
             nonlocal buffered

@@ -1,7 +1,8 @@
 """Service benchmark: latency and throughput of the HTTP service on loopback.
 
 Starts ``planner serve`` (uvicorn, ``--workers`` processes) on a free port. First the
-per-request overhead: a bare FastAPI app on uvicorn (the floor) and the service, each with one
+per-request overhead: a bare FastAPI app on uvicorn (the floor: its ``async def`` endpoint; its
+``def`` one, the earlier rounds' floor, beside it) and the service, each with one
 light keep-alive client (``http.client``), interleaved request by request in the same run,
 with the event-loop process's CPU per request (/proc) and the first plan and fk right after
 ``/v1/ready`` said ready against their steady-state medians (issue 43's goals);
@@ -74,7 +75,11 @@ def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
 
 
 #: The floor: a bare FastAPI app on uvicorn answering a tiny JSON POST (no validation of
-#: ours, no worker process, no middleware), served the same way as the service.
+#: ours, no worker process, no middleware), served the same way as the service. ``/echo`` is
+#: an ``async def`` endpoint, the fastest a FastAPI user writes (the floor the goals are
+#: checked against); ``/echo-def`` the same as a plain ``def``, which FastAPI runs in its
+#: thread pool (a thread hop per request: about twice the CPU), the floor of the rounds
+#: before (docs/service.md, "Per-request overhead", says which floor each figure used).
 _BARE_APP = """
 import uvicorn
 from fastapi import FastAPI
@@ -86,7 +91,11 @@ class Body(BaseModel):
 app = FastAPI()
 
 @app.post("/echo")
-def echo(body: Body) -> dict:
+async def echo(body: Body) -> dict:
+    return {"q": body.q}
+
+@app.post("/echo-def")
+def echo_def(body: Body) -> dict:
     return {"q": body.q}
 
 uvicorn.run(app, host="127.0.0.1", port=int(__import__("sys").argv[1]), log_level="warning",
@@ -127,7 +136,9 @@ def _loop_cpu_s(pid: int) -> float:
     return int(Path(f"/proc/{pid}/schedstat").read_text().split()[0]) / 1e9
 
 
-def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: int) -> None:
+def _floor_rows(
+    url: str, pid: int, n: int, rng: np.random.Generator, workers: int, throughput: bool = True
+) -> None:
     """The per-request overhead against a bare FastAPI app on uvicorn (the floor), with one
     light keep-alive client per server, interleaved request by request so that both see the
     same machine load (issue goals: /v1/fk p50 <= 1.3 x bare p50; a small free-space plan p50
@@ -157,20 +168,31 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
         first_plan = service.call("POST", "/v1/plan", plan_bodies[0])
         first_fk = service.call("POST", "/v1/fk", fk_bodies[0])
         rows: dict[str, list[float]] = {
-            "bare FastAPI POST": [], "/v1/health (GET)": [], "/v1/fk": [],
+            "bare FastAPI POST": [], "bare POST, def endpoint": [], "/v1/health (GET)": [],
+            "/v1/fk": [],
             "/v1/plan (free, none)": [], "in-process plan job": [], "/v1/plan 422 (bad q)": [],
         }  # fmt: skip
         for i in range(min(n, 50)):  # warm connections, caches and workers
             floor.call("POST", "/echo", fk_bodies[i])
+            floor.call("POST", "/echo-def", fk_bodies[i])
             service.call("POST", "/v1/fk", fk_bodies[i])
             service.call("POST", "/v1/plan", plan_bodies[i])
         load = os.getloadavg()[0]
         job_s0, job_n0 = _worker_job_seconds(service)
-        cpu = {k: 0.0 for k in ("bare", "fk", "fk loop", "plan", "plan loop", "422 loop")}
+        cpu = dict.fromkeys(
+            ("bare", "bare loop", "bare def", "bare def loop", "fk", "fk loop", "plan",
+             "plan loop", "422 loop"),
+            0.0,
+        )  # fmt: skip
         for i in range(n):
-            c0 = _cpu_s(bare.pid)
+            c0, l0 = _cpu_s(bare.pid), _loop_cpu_s(bare.pid)
             rows["bare FastAPI POST"].append(floor.call("POST", "/echo", fk_bodies[i]))
-            cpu["bare"] += _cpu_s(bare.pid) - c0
+            c1, l1 = _cpu_s(bare.pid), _loop_cpu_s(bare.pid)
+            rows["bare POST, def endpoint"].append(floor.call("POST", "/echo-def", fk_bodies[i]))
+            cpu["bare"] += c1 - c0
+            cpu["bare loop"] += l1 - l0
+            cpu["bare def"] += _cpu_s(bare.pid) - c1
+            cpu["bare def loop"] += _loop_cpu_s(bare.pid) - l1
             rows["/v1/health (GET)"].append(service.call("GET", "/v1/health"))
             c0, l0 = _cpu_s(pid), _loop_cpu_s(pid)
             rows["/v1/fk"].append(service.call("POST", "/v1/fk", fk_bodies[i]))
@@ -197,18 +219,29 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
             print(f"{name:24} p50 {_pct(lat, 50):7.2f} ms   p95 {_pct(lat, 95):7.2f} ms")
         job_s1, job_n1 = _worker_job_seconds(service)
         bare_p50 = _pct(rows["bare FastAPI POST"], 50)
+        def_p50 = _pct(rows["bare POST, def endpoint"], 50)
         fk_p50 = _pct(rows["/v1/fk"], 50)
         plan_p50 = _pct(rows["/v1/plan (free, none)"], 50)
         interleaved = _pct(rows["in-process plan job"], 50)
         worker_ms = (job_s1 - job_s0) / max(job_n1 - job_n0, 1) * 1e3
-        print(f"/v1/fk p50 / bare p50 = {fk_p50 / bare_p50:.2f} (goal <= 1.3)")
+        print(
+            f"/v1/fk p50 / bare p50 = {fk_p50 / bare_p50:.2f} (goal <= 1.3; over the def "
+            f"endpoint's p50, the earlier floor: {fk_p50 / def_p50:.2f})"
+        )
         ms = {k: v / n * 1e3 for k, v in cpu.items()}
         print(
             f"server CPU per request (schedstat, ns), the event loop's thread / the whole "
             f"process (the worker's not counted): /v1/fk {ms['fk loop']:.3f} / {ms['fk']:.3f} "
-            f"ms, /v1/plan {ms['plan loop']:.3f} / {ms['plan']:.3f} ms; bare app (whole "
-            f"process) {ms['bare']:.3f} ms (goal: the event loop's <= 0.3 ms); the event "
-            f"loop's for a plan's 422 {ms['422 loop']:.3f} ms"
+            f"ms, /v1/plan {ms['plan loop']:.3f} / {ms['plan']:.3f} ms (goal: the event "
+            f"loop's <= 0.3 ms); the event loop's for a plan's 422 {ms['422 loop']:.3f} ms"
+        )
+        print(
+            f"bare app CPU per request, its event loop's thread / the whole process: async "
+            f"def endpoint (the floor) {ms['bare loop']:.3f} / {ms['bare']:.3f} ms, def "
+            f"endpoint (thread pool; the earlier rounds' floor) {ms['bare def loop']:.3f} / "
+            f"{ms['bare def']:.3f} ms; the service's loop over the floor's loop: /v1/fk "
+            f"{ms['fk loop'] - ms['bare loop']:+.3f} ms, /v1/plan "
+            f"{ms['plan loop'] - ms['bare loop']:+.3f} ms"
         )
         print(
             f"first requests after /v1/ready: plan {first_plan * 1e3:.2f} ms = "
@@ -219,9 +252,11 @@ def _floor_rows(url: str, pid: int, n: int, rng: np.random.Generator, workers: i
             f"plan p50 - bare p50 = {plan_p50 - bare_p50:.2f} ms against 1.5 x in-process "
             f"{interleaved:.2f} ms (interleaved) = {1.5 * interleaved:.2f} ms (goal: at most "
             f"that); in-process in a tight loop {plan_local:.2f} ms; the job in the worker "
-            f"(/metrics, mean, its JSON included) {worker_ms:.2f} ms"
+            f"(/metrics, mean, its JSON included) {worker_ms:.2f} ms; over the def endpoint's "
+            f"p50 (the earlier floor): {plan_p50 - def_p50:.2f} ms"
         )
-        _throughput_rows(url, pid, rng, workers)
+        if throughput:
+            _throughput_rows(url, pid, rng, workers)
     finally:
         bare.terminate()
         bare.wait(timeout=30)
@@ -548,6 +583,9 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=400)
     parser.add_argument("--floor-only", action="store_true", help="only the overhead rows")
     parser.add_argument(
+        "--no-throughput", action="store_true", help="the overhead rows without the throughput"
+    )
+    parser.add_argument(
         "--throughput-only", action="store_true", help="only the throughput row and its CPU"
     )
     parser.add_argument("--endpoints", nargs="*", help="only these rows (default: all)")
@@ -597,7 +635,9 @@ def main() -> None:
             f"{'in-proc p50':>12} {'p50 ratio':>10}"
         )
         print("per-request overhead, concurrency 1")
-        _floor_rows(url, proc.pid, min(args.requests, 300), rng, args.workers)
+        _floor_rows(
+            url, proc.pid, min(args.requests, 300), rng, args.workers, not args.no_throughput
+        )
         print()
         if args.floor_only:
             return

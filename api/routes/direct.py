@@ -49,10 +49,25 @@ in order, until one matches). Both answers are the same for every request of a r
   next request with that pair tries that one route's pattern instead of every route's in
   order. The route found is the one the ordered scan found, so nothing changes but the cost;
   a miss, a path with parameters or a partial match (405) takes Starlette's scan.
+- The front door's direct answer: once the table has handed a (method, path) to a
+  :class:`DirectRoute` (its second request), that route's plain answer is kept in
+  ``app.state.direct_answers``, and the gate (:class:`planner_api.middleware.RequestGate`),
+  having read the body, calls it itself: no FastAPI exception middleware, exit stack, router,
+  route wrapper or ``Request`` per layer (with the observer and the gate, about half of a
+  plain fk's loop time in-process: ~180 of ~320 us, against ~140 us for the route's handler
+  alone, on a loaded machine). What those layers do for such a request is done there: the
+  route set in the scope (the metrics' label), an error answered by the application's
+  handler for it through Starlette's own ``wrap_app_handling_exceptions`` (the handlers
+  FastAPI gives its exception middleware), an error without one raised to the outer
+  middleware (the 500). A request that is not the plain case (also a body the worker refused
+  after crossing) is declined before anything is sent (the scope marked :data:`DECLINED`) and takes the layers with its body replayed,
+  its route's handler going straight to FastAPI's path; so is every request while FastAPI's
+  tracing is on (it names the request's span as it routes it).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Awaitable, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -62,6 +77,8 @@ import fastapi.routing
 from fastapi import FastAPI, Request, Response
 from fastapi.routing import APIRoute
 from pydantic import BaseModel, ValidationError
+from starlette._exception_handler import wrap_app_handling_exceptions
+from starlette.middleware.exceptions import ExceptionMiddleware
 from starlette.routing import Match, Router
 from starlette.types import Receive, Scope, Send
 
@@ -82,7 +99,15 @@ from planner_api.routes.worker_body import (
     validate_data,
 )
 
-__all__ = ["DirectRoute", "DirectSpec", "answered_directly", "index_routes"]
+__all__ = [
+    "DECLINED",
+    "DirectAnswer",
+    "DirectRoute",
+    "DirectSpec",
+    "PlainAnswer",
+    "answered_directly",
+    "index_routes",
+]
 
 #: The dependencies :class:`DirectRoute` resolves itself; a route with any other one keeps
 #: FastAPI's path.
@@ -123,7 +148,14 @@ def answered_directly(spec: DirectSpec) -> Callable[[Callable[..., Any]], Callab
 class DirectRoute(WorkerBodyRoute):
     """A :class:`~planner_api.routes.worker_body.WorkerBodyRoute` whose endpoint, if marked
     with :func:`answered_directly`, answers its plain requests without FastAPI's dependency
-    solving (the module docstring)."""
+    solving (the module docstring). Its plain answer (:data:`PlainAnswer`) is kept on the
+    route (``planner_plain``) for the front door's direct answer (:func:`index_routes`)."""
+
+    planner_plain: PlainAnswer | None = None
+    #: (keyed, watched) of the route's first inclusion with a plain answer, and whether an
+    #: inclusion (in any application: the routers are shared) differed from it since
+    _planner_flags: tuple[bool, bool] | None = None
+    _planner_mixed: bool = False
 
     def get_route_handler(self) -> Callable[[Request], Any]:
         fallback = super().get_route_handler()
@@ -136,27 +168,60 @@ class DirectRoute(WorkerBodyRoute):
             return fallback
         keyed, watched = require_api_key in found, watch_client in found
         if spec.answer is None:
-            return _crossing_handler(_body_spec(self, spec), fallback, keyed, watched)
-        answer = spec.answer
+            plain = _crossing_plain(_body_spec(self, spec), keyed, watched)
+        else:
+            plain = _answer_plain(spec.model, spec.answer, keyed, watched)
+        # kept for the front door only while every inclusion of the route answers alike
+        if self._planner_flags is None:
+            self._planner_flags = (keyed, watched)
+        elif self._planner_flags != (keyed, watched):
+            self._planner_mixed = True
+        self.planner_plain = None if self._planner_mixed else plain
 
         async def handler(request: Request) -> Response:
-            app = request.app
-            settings = app.state.settings
-            raw = await request.body()  # kept by the request: the fallback reads it again
-            if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
-                return await fallback(request)
-            if keyed:
-                await require_api_key(request, settings)
-            try:  # read as FastAPI reads it (Starlette's request.json(), kept by the request)
-                body = validate_data(spec.model, await request.json())
-            except (BodyInvalidError, ValueError, RecursionError):
-                return await fallback(request)  # FastAPI's own 422
-            if not watched:
-                return await answer(request, body)
-            async with asynccontextmanager(watch_client)(request):
-                return await answer(request, body)
+            if DECLINED not in request.scope:  # else the front door made these checks
+                answer = await plain(request, await request.body())
+                if answer is not None:
+                    return answer
+            return await fallback(request)  # FastAPI's own path (and 422)
 
         return handler
+
+
+#: A route's plain answer to a request and its body: the answer, or None when the request
+#: is not the plain case (FastAPI's path answers it).
+PlainAnswer = Callable[[Request, bytes], Awaitable[Response | None]]
+#: Set in a request's scope when the front door's direct answer declined it
+#: (:func:`index_routes`): the route's handler then takes FastAPI's path at once, without
+#: making the checks (or a worker crossing) a second time.
+DECLINED = "planner.direct_declined"
+
+
+def _answer_plain(
+    model: type[BaseModel],
+    answer: Callable[[Request, Any], Awaitable[Response]],
+    keyed: bool,
+    watched: bool,
+) -> PlainAnswer:
+    """The plain answer of a route whose work runs on the validated body (fk, ik, analyze)."""
+
+    async def plain(request: Request, raw: bytes) -> Response | None:
+        app = request.app
+        settings = app.state.settings
+        if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+            return None
+        if keyed:
+            await require_api_key(request, settings)
+        try:  # read as FastAPI reads it (Starlette's request.json() is json.loads of the body)
+            body = validate_data(model, json.loads(raw))
+        except (BodyInvalidError, ValueError, RecursionError):
+            return None  # FastAPI's own 422
+        if not watched:
+            return await answer(request, body)
+        async with asynccontextmanager(watch_client)(request):
+            return await answer(request, body)
+
+    return plain
 
 
 def _body_spec(route: APIRoute, spec: DirectSpec) -> BodySpec:
@@ -171,26 +236,22 @@ def _body_spec(route: APIRoute, spec: DirectSpec) -> BodySpec:
     return body
 
 
-def _crossing_handler(
-    spec: BodySpec, fallback: Callable[[Request], Any], keyed: bool, watched: bool
-) -> Callable[[Request], Any]:
-    """The handler of a route whose small bodies cross to a worker unparsed (the module
+def _crossing_plain(spec: BodySpec, keyed: bool, watched: bool) -> PlainAnswer:
+    """The plain answer of a route whose small bodies cross to a worker unparsed (the module
     docstring, "Bodies validated in the worker")."""
 
-    async def handler(request: Request) -> Response:
+    async def plain(request: Request, raw: bytes) -> Response | None:
         app = request.app
         settings = app.state.settings
-        raw = await request.body()  # kept by the request: the fallback reads it again
         if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
-            return await fallback(request)
+            return None
         if keyed:
             await require_api_key(request, settings)
         if not _passes_here(spec, raw, settings):
-            return await fallback(request)  # FastAPI's own 422, no pool slot taken
-        answer = await _crossed(request, spec, raw, watched)
-        return answer if answer is not None else await fallback(request)
+            return None  # FastAPI's own 422, no pool slot taken
+        return await _crossed(request, spec, raw, watched)
 
-    return handler
+    return plain
 
 
 def _passes_here(spec: BodySpec, raw: bytes, settings: Any) -> bool:
@@ -255,11 +316,15 @@ def _included_dependencies(route: APIRoute) -> list[Any] | None:
 
 def index_routes(app: FastAPI) -> None:
     """Route ``app``'s requests through a table of the routes already matched (the module
-    docstring). Call once, after every route is included."""
+    docstring), and keep in ``app.state.direct_answers`` the front door's direct answer
+    (:func:`_direct_answer`) of each (method, path) that the table handed to a route with a
+    plain answer. Call once, after every route is included."""
     router: Router = app.router
     scan = router.middleware_stack
     table: dict[tuple[str, str], int] = {}
     routes = router.routes
+    direct: dict[tuple[str, str], DirectAnswer] = {}
+    app.state.direct_answers = direct
 
     async def routed(scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -275,6 +340,8 @@ def index_routes(app: FastAPI) -> None:
                 scope["route"] = route
                 scope.update(child)
                 await route.handle(scope, receive, send)
+                if key not in direct and len(direct) < _INDEX_SIZE:
+                    _remember_direct(app, direct, key, scope.get("route"))
                 return
         if at is None:
             found = _first_full_match(routes, scope)
@@ -285,6 +352,77 @@ def index_routes(app: FastAPI) -> None:
         await scan(scope, receive, send)
 
     router.middleware_stack = routed
+
+
+#: The front door's direct answer of a request whose body it has read: True when answered,
+#: False when declined (the request then takes the application's own path, the body
+#: replayed).
+DirectAnswer = Callable[[Scope, Receive, Send, bytes], Awaitable[bool]]
+
+
+def _remember_direct(
+    app: FastAPI, direct: dict[tuple[str, str], DirectAnswer], key: tuple[str, str], route: Any
+) -> None:
+    """Keep the direct answer of ``key`` when the route the table handed it to has a plain
+    answer (a :class:`DirectRoute` included once, or alike each time)."""
+    plain = getattr(route, "planner_plain", None) if isinstance(route, DirectRoute) else None
+    if plain is None:
+        return
+    handlers = _exception_handlers(app)
+
+    async def answer(scope: Scope, receive: Receive, send: Send, raw: bytes) -> bool:
+        return await _direct_answer(route, plain, handlers, scope, receive, send, raw)
+
+    direct[key] = answer
+
+
+def _exception_handlers(app: FastAPI) -> tuple[Any, Any]:
+    """The (exception, status) handler tables of ``app``'s ``ExceptionMiddleware``, as
+    FastAPI builds that middleware (every handler but the 500 one, which is the outermost
+    middleware's)."""
+    handlers = {k: v for k, v in app.exception_handlers.items() if k not in (500, Exception)}
+    middleware = ExceptionMiddleware(app.router, handlers=handlers)
+    return middleware._exception_handlers, middleware._status_handlers
+
+
+async def _direct_answer(
+    route: APIRoute,
+    plain: PlainAnswer,
+    handlers: tuple[Any, Any],
+    scope: Scope,
+    receive: Receive,
+    send: Send,
+    raw: bytes,
+) -> bool:
+    """``route``'s answer to a request whose body ``raw`` the front door read
+    (:class:`planner_api.middleware.RequestGate`), without the layers between the front door
+    and the route: FastAPI's exception middleware, its exit stack, the router, the route's
+    own wrapper. What they would do for this request is done here: the route set in the
+    scope (the metrics' label), an error answered by the application's handler for it, as
+    the route's wrapper answers it (Starlette's own ``wrap_app_handling_exceptions``), an
+    error without one raised to the outer middleware. False (the scope marked
+    :data:`DECLINED`) when the request is not the plain case, and when FastAPI's tracing is
+    on (it names the request's span as it routes it)."""
+    if "fastapi.telemetry" in scope:
+        return False
+    scope["route"] = route
+    scope["starlette.exception_handlers"] = handlers
+    request = Request(scope, receive)
+    request._body = raw  # what an exception handler reading the body would read
+    answered = True
+
+    async def respond(scope: Scope, receive: Receive, send: Send) -> None:
+        nonlocal answered
+        response = await plain(request, raw)
+        if response is None:
+            answered = False
+            return
+        await response(scope, receive, send)
+
+    await wrap_app_handling_exceptions(respond, request)(scope, receive, send)
+    if not answered:
+        scope[DECLINED] = True
+    return answered
 
 
 def _first_full_match(routes: list[Any], scope: Scope) -> int | None:
