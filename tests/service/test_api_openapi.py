@@ -139,17 +139,30 @@ PATH_COST_S = {
 DEFAULT_PATH_COST_S = 4.0
 
 
+def _resource(path: str) -> str:
+    """A path without its last ``/{parameter}`` segment: ``/v1/jobs/{job_id}`` and
+    ``/v1/jobs`` are one resource, kept in one shard so that schemathesis's stateful phase
+    can follow the links between them (create, then read or delete by name or id)."""
+    return re.sub(r"/\{[^}/]+\}$", "", path)
+
+
 def _shards(paths: list[str]) -> list[list[str]]:
-    """The paths dealt into :data:`SCHEMATHESIS_SHARDS` shards of about equal cost: the
-    costliest first, each to the shard with the least so far (ties: by name, then the lower
-    shard), so every xdist worker computes the same split."""
+    """The paths dealt into :data:`SCHEMATHESIS_SHARDS` shards of about equal cost, by
+    resource (:func:`_resource`): the costliest first, each to the shard with the least so
+    far (ties: by name, then the lower shard), so every xdist worker computes the same split."""
+    groups: dict[str, list[str]] = {}
+    for path in sorted(set(paths)):
+        groups.setdefault(_resource(path), []).append(path)
+    cost = {
+        key: sum(PATH_COST_S.get(p, DEFAULT_PATH_COST_S) for p in group)
+        for key, group in groups.items()
+    }
     shards: list[list[str]] = [[] for _ in range(SCHEMATHESIS_SHARDS)]
     totals = [0.0] * SCHEMATHESIS_SHARDS
-    cost = {p: PATH_COST_S.get(p, DEFAULT_PATH_COST_S) for p in set(paths)}
-    for path in sorted(cost, key=lambda p: (-cost[p], p)):
+    for key in sorted(cost, key=lambda g: (-cost[g], g)):
         k = min(range(SCHEMATHESIS_SHARDS), key=lambda j: (totals[j], j))
-        shards[k].append(path)
-        totals[k] += cost[path]
+        shards[k].extend(groups[key])
+        totals[k] += cost[key]
     return shards
 
 
@@ -171,10 +184,17 @@ def test_the_shards_cover_every_path_once():
     assert not any(  # exact, no prefix
         re.fullmatch(_shard_regex(paths, k), "/v1/plan/batch/x") for k in range(SCHEMATHESIS_SHARDS)
     )
-    # balanced by cost: no shard holds more than the costliest path over the even share
+    # a resource stays in one shard (its stateful links), and the shards are balanced by
+    # cost: none holds more than the costliest resource over the even share
     every = sorted(PATH_COST_S)
-    totals = [sum(PATH_COST_S[p] for p in shard) for shard in _shards(every)]
-    assert max(totals) - sum(totals) / SCHEMATHESIS_SHARDS <= max(PATH_COST_S.values())
+    shards = _shards(every)
+    (jobs,) = [k for k, shard in enumerate(shards) if "/v1/jobs" in shard]
+    assert "/v1/jobs/{job_id}" in shards[jobs]
+    cost = {key: 0.0 for key in map(_resource, every)}
+    for p in every:
+        cost[_resource(p)] += PATH_COST_S[p]
+    totals = [sum(PATH_COST_S[p] for p in shard) for shard in shards]
+    assert max(totals) - sum(totals) / SCHEMATHESIS_SHARDS <= max(cost.values())
 
 
 @pytest.mark.parametrize("shard", range(SCHEMATHESIS_SHARDS))
