@@ -5,7 +5,9 @@ waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client 
 examples use it. ``serve_factory`` starts one with other settings (e.g. an API key) as a
 context manager; ``server_factory`` starts processes that a test may signal or kill.
 ``postgres_factory`` starts a PostgreSQL server of a test's own (Debian's ``postgresql``
-package), which the test may stop and start again.
+package), which the test may stop and start again. ``pytest_collection_modifyitems`` runs
+the modules of :data:`RUN_FIRST` (the longest single tests) first, so that under ``-n 2`` no
+long test starts near the end while the other worker idles.
 """
 
 from __future__ import annotations
