@@ -5,7 +5,9 @@ waits for ``/v1/ready`` (every worker warm) and yields its base URL; the client 
 examples use it. ``serve_factory`` starts one with other settings (e.g. an API key) as a
 context manager; ``server_factory`` starts processes that a test may signal or kill.
 ``postgres_factory`` starts a PostgreSQL server of a test's own (Debian's ``postgresql``
-package), which the test may stop and start again.
+package), which the test may stop and start again. ``pytest_collection_modifyitems`` runs
+the modules of :data:`RUN_FIRST` (the longest single tests) first, so that under ``-n 2`` no
+long test starts near the end while the other worker idles.
 """
 
 from __future__ import annotations
@@ -352,3 +354,37 @@ def browser() -> Iterator[object]:
 
     with launch() as b:
         yield b
+
+
+#: Test modules whose single tests are the suite's longest (tens of seconds each on 2 cores:
+#: schemathesis's shards, a local Ray cluster, a live server's slow clients and worker kills,
+#: every figure of every preset, 64 time-bounded plans), longest first. They run first:
+#: under ``-n 2`` a 30 s test started near the end keeps one worker busy while the other
+#: idles, so long tests go first and the short ones fill in behind them (xdist hands out the
+#: rest as workers free up). Whole modules move, in their own order, so a module-scoped
+#: fixture is still set up once per worker. A module missing here only runs later; a name
+#: that no longer exists moves nothing.
+RUN_FIRST = (
+    "tests/service/test_api_openapi.py",
+    "tests/ops/test_ops_ray.py",
+    "tests/ops/test_ops_slow_clients.py",
+    "tests/ops/test_ops_workers.py",
+    "tests/service/test_api_worker_body.py",
+    "tests/service/test_api_workspace.py",
+    "tests/analysis/test_obstacle_regions.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Move the modules of :data:`RUN_FIRST` to the front, in that order (a stable sort: the
+    others keep their collection order). Every xdist worker sorts alike, as xdist requires."""
+    rank = {name: k for k, name in enumerate(RUN_FIRST)}
+
+    def key(item: pytest.Item) -> int:
+        try:
+            module = item.path.relative_to(ROOT).as_posix()
+        except ValueError:
+            return len(RUN_FIRST)
+        return rank.get(module, len(RUN_FIRST))
+
+    items.sort(key=key)
