@@ -87,6 +87,7 @@ from planner.planning import (
 )
 from planner.transits import sample_transits
 from planner.validity import Margins, ValidityChecker, densify
+from planner.warmup import warm_up
 
 SCENES = ("free", "spheres", "boxes", "narrow", "modes", "modes_spheres")
 MODE_SCENES = ("modes", "modes_spheres")
@@ -694,7 +695,10 @@ def main() -> None:
     args = parser.parse_args()
 
     options = PlanOptions(name=args.planner, time_budget_s=args.budget, range=args.range)
-    # warm up numba and OMPL outside the measurements
+    # warm up numba and OMPL outside the measurements: the product's own warm-up (what the
+    # service and `planner warm-up` run before the first request: every kernel a plan
+    # reaches loaded, the walk's recall too), then a plan of the benchmark's free scene
+    warm_up()
     d0, o0, _ = build_scene("free")
     q0 = build_queries("free", 1)[0]
     plan(d0, q0[0], q0[1], obstacles=o0, options=PlanOptions(try_direct=False))
