@@ -197,6 +197,19 @@ PlainAnswer = Callable[[Request, bytes], Awaitable[Response | None]]
 DECLINED = "planner.direct_declined"
 
 
+async def _plain_case(request: Request, raw: bytes, keyed: bool) -> bool:
+    """Whether a request may take its route's plain answer: no ``dependency_overrides``, a
+    body neither empty nor over ``inline_parse_bytes`` (else FastAPI's path answers it); the
+    API key checked first where the route asks one (a missing or wrong key raises its 401)."""
+    app = request.app
+    settings = app.state.settings
+    if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+        return False
+    if keyed:
+        await require_api_key(request, settings)
+    return True
+
+
 def _answer_plain(
     model: type[BaseModel],
     answer: Callable[[Request, Any], Awaitable[Response]],
@@ -206,12 +219,8 @@ def _answer_plain(
     """The plain answer of a route whose work runs on the validated body (fk, ik, analyze)."""
 
     async def plain(request: Request, raw: bytes) -> Response | None:
-        app = request.app
-        settings = app.state.settings
-        if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+        if not await _plain_case(request, raw, keyed):
             return None
-        if keyed:
-            await require_api_key(request, settings)
         try:  # read as FastAPI reads it (Starlette's request.json() is json.loads of the body)
             body = validate_data(model, json.loads(raw))
         except (BodyInvalidError, ValueError, RecursionError):
@@ -241,13 +250,9 @@ def _crossing_plain(spec: BodySpec, keyed: bool, watched: bool) -> PlainAnswer:
     docstring, "Bodies validated in the worker")."""
 
     async def plain(request: Request, raw: bytes) -> Response | None:
-        app = request.app
-        settings = app.state.settings
-        if app.dependency_overrides or not raw or len(raw) > settings.inline_parse_bytes:
+        if not await _plain_case(request, raw, keyed):
             return None
-        if keyed:
-            await require_api_key(request, settings)
-        if not _passes_here(spec, raw, settings):
+        if not _passes_here(spec, raw, request.app.state.settings):
             return None  # FastAPI's own 422, no pool slot taken
         return await _crossed(request, spec, raw, watched)
 
