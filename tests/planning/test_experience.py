@@ -206,15 +206,18 @@ def _recall_reference(
 def test_the_compiled_recall_chooses_as_the_plain_rule_does(scene, monkeypatch) -> None:
     """The compiled recall (experience._recall_rows) against the rule written plainly: the
     same walk or the same None for every pair, with one to four remembered paths, and with
-    a budget of joins too small for most walks (MAX_TESTS 2)."""
+    every budget of joins from 1 to 8 (and the module's): the walks found at exactly the
+    budget's last test (the plain rule's answer changes from one budget to the next for some
+    pair) tell a budget off by one."""
     checker, pairs = scene
     walks = misses = 0
-    for budget in (experience.MAX_TESTS, 2):
-        monkeypatch.setattr(experience, "MAX_TESTS", budget)
-        caching.clear("experience")
-        for k in (0, 3, 6, 9):
-            _remember_one(checker, *pairs[k])
-            for q_start, q_goal in pairs:
+    budget_decides = False
+    for k in (0, 3, 6, 9):
+        _remember_one(checker, *pairs[k])
+        for q_start, q_goal in pairs:
+            before = None
+            for budget in (*range(1, 9), experience.MAX_TESTS):
+                monkeypatch.setattr(experience, "MAX_TESTS", budget)
                 got = experience.recall(checker, q_start, q_goal)
                 want = _recall_reference(checker, q_start, q_goal)
                 assert (got is None) == (want is None)
@@ -222,4 +225,6 @@ def test_the_compiled_recall_chooses_as_the_plain_rule_does(scene, monkeypatch) 
                     np.testing.assert_array_equal(got[0], want)
                 walks += got is not None
                 misses += got is None
-    assert walks and misses  # both outcomes compared
+                budget_decides |= before is not None and (want is None) != before
+                before = want is None
+    assert walks and misses and budget_decides  # both outcomes, and a budget that decides
