@@ -450,46 +450,35 @@ def rrt_connect(
     # search's, not the loading's; tests/cli/test_cli_plan.py compares the two)
     # the remembered paths of the scene guide part of the samples (experience.guide)
     guide = experience.guide(checker) if options.simplify else np.empty((0, 3))
-    _run(
-        nodes,
-        parent,
-        count,
-        head,
-        nxt,
-        lo,
-        hi,
-        width,
-        rng,
-        prm,
-        packed,
-        step,
-        guide,
-        0,
-        state,
-        ends,
-    )
+
+    def run(iters: int) -> bool:  # ``iters`` iterations of the compiled search
+        return bool(
+            _run(
+                nodes,
+                parent,
+                count,
+                head,
+                nxt,
+                lo,
+                hi,
+                width,
+                rng,
+                prm,
+                packed,
+                step,
+                guide,
+                iters,
+                state,
+                ends,
+            )
+        )
+
+    run(0)
     deadline = time.monotonic() + time_budget_s
     found = False
     iters = CHUNK
     while (now := time.monotonic()) < deadline:
-        found = _run(
-            nodes,
-            parent,
-            count,
-            head,
-            nxt,
-            lo,
-            hi,
-            width,
-            rng,
-            prm,
-            packed,
-            step,
-            guide,
-            iters,
-            state,
-            ends,
-        )
+        found = run(iters)
         spent = time.monotonic() - now
         iters = max(1, min(4096, int(iters * CHUNK_S / max(spent, 1e-6))))
         if found or state[1]:
