@@ -69,7 +69,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Awaitable, Callable
-from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -82,7 +81,7 @@ from starlette.middleware.exceptions import ExceptionMiddleware
 from starlette.routing import Match, Router
 from starlette.types import Receive, Scope, Send
 
-from planner_api.deps import require_api_key, watch_client
+from planner_api.deps import ClientWatch, require_api_key, watch_client
 from planner_api.exceptions import (
     DeadlineExceededError,
     LimitExceededError,
@@ -227,7 +226,7 @@ def _answer_plain(
             return None  # FastAPI's own 422
         if not watched:
             return await answer(request, body)
-        async with asynccontextmanager(watch_client)(request):
+        async with ClientWatch(request):
             return await answer(request, body)
 
     return plain
@@ -295,7 +294,7 @@ async def _crossed(request: Request, spec: BodySpec, raw: bytes, watched: bool) 
     try:
         if not watched:
             return await cross_to_worker(request, spec, raw)
-        async with asynccontextmanager(watch_client)(request):
+        async with ClientWatch(request):
             return await cross_to_worker(request, spec, raw)
     except BodyInvalidError:
         return None

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from contextlib import asynccontextmanager
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Request, Response
@@ -18,7 +17,14 @@ from fastapi.exceptions import RequestValidationError
 from planner.endpoints import JobBudget, answer_sample_limit
 from planner.endpoints import plan as jobs
 from planner.wire import PlanBatchRequest, PlanBatchResponse, PlanRequest, PlanResponse
-from planner_api.deps import Deadline, Pool, SettingsDep, get_deadline, get_pool, watch_client
+from planner_api.deps import (
+    ClientWatch,
+    Deadline,
+    Pool,
+    SettingsDep,
+    get_deadline,
+    get_pool,
+)
 from planner_api.exceptions import LimitExceededError
 from planner_api.pool import WorkerPool
 from planner_api.routes._common import (
@@ -167,7 +173,7 @@ async def _batch_large(request: Request, raw: bytes) -> Response:
     settings = request.app.state.settings
     pool, deadline = await get_pool(request), await get_deadline(request)
     job = plan_job_of(request)
-    async with asynccontextmanager(watch_client)(request):
+    async with ClientWatch(request):
         try:
             items, parsed = await pool.run(
                 check_batch, (raw, Limits.of(settings)), deadline=deadline

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Awaitable, Callable
-from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -33,7 +32,7 @@ from pydantic import BaseModel, ValidationError
 
 from planner.endpoints import Job, JobBudget, answer_sample_limit
 from planner.wire import DesignModel
-from planner_api.deps import get_deadline, get_pool, watch_client
+from planner_api.deps import ClientWatch, get_deadline, get_pool
 from planner_api.logging import REQUEST_ID
 from planner_api.metrics import record_job, run_measured
 from planner_api.routes._common import json_response, run_job, with_design_defaults
@@ -318,7 +317,7 @@ async def _in_worker(request: Request, spec: BodySpec, raw: bytes) -> Response:
     gate checked the API key before the body was read; the client is watched as the routes'
     dependency watches it (a client gone cancels the job). A body that breaks a rule is a 422
     with the worker's locations (:class:`BodyInvalidError`)."""
-    async with asynccontextmanager(watch_client)(request):
+    async with ClientWatch(request):
         try:
             return await cross_to_worker(request, spec, raw)
         except BodyInvalidError as exc:
