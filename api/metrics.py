@@ -376,6 +376,7 @@ class Metrics:
         # locks on every call (as many entries as the label sets exported, so bounded alike)
         self._request_children: dict[tuple[str, str, int], tuple[Any, Any]] = {}
         self._job_children: dict[str, Any] = {}
+        self._outcome_children: dict[str, Any] = {}
         r.register(_PoolCollector(get_pool))
         self._caches = _CacheCollector(get_pool)
         r.register(self._caches)
@@ -388,7 +389,11 @@ class Metrics:
         child.observe(sample.seconds)
         self._caches.record(sample)
         if sample.status is not None:
-            self.plan_outcomes.labels(sample.status).inc()
+            outcome = self._outcome_children.get(sample.status)
+            if outcome is None:
+                outcome = self.plan_outcomes.labels(sample.status)
+                self._outcome_children[sample.status] = outcome
+            outcome.inc()
         if sample.planning_time_s is not None:
             self.planning_seconds.observe(sample.planning_time_s)
         if sample.timing_time_s is not None:

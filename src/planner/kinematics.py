@@ -209,6 +209,11 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         (|CD| > 2 L2) or C = D (P undetermined: a parallel singularity).
     """
     q2 = np.ascontiguousarray(np.atleast_2d(_finite_array("q", q, 3)))
+    return _forward(design, q2, _branch(assembly_mode, q2.shape[0]))
+
+
+def _forward(design: Design, q2: np.ndarray, branch: np.ndarray) -> PostureBatch:
+    """:func:`forward_batch` of q2 (N, 3), already checked, in the branches (N,) +1/-1."""
     n = q2.shape[0]
     p = np.empty((n, 3))
     passive = np.empty((n, 2))
@@ -220,7 +225,7 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         design.L1,
         design.L2,
         _kernels.read_only(q2),  # one compiled signature, frozen q or not
-        _branch(assembly_mode, n),
+        branch,
         ASSEMBLY_TOL,
         p,
         passive,
@@ -487,7 +492,7 @@ class Posture:
         )
 
 
-def _postures(batch: PostureBatch) -> list[Posture]:
+def _postures(batch: PostureBatch, all_ok: bool = False) -> list[Posture]:
     """The ``ok`` entries of a flat batch as Posture objects.
 
     The few postures of one call (/v1/fk, /v1/ik, one posture's analysis) are built in plain
@@ -497,12 +502,19 @@ def _postures(batch: PostureBatch) -> list[Posture]:
     most of a single-posture answer's time. The arithmetic is theirs, operation for
     operation (the same IEEE double operations on the same ``np.sin`` / ``np.cos`` values),
     so the postures are the same (``tests/core/test_kinematics.py`` checks them against the
-    vectorised form)."""
-    flat = batch.ok.reshape(-1)
-    q = batch.q.reshape(-1, 3)[flat]
-    passive = batch.passive.reshape(-1, 2)[flat]
-    p = batch.p.reshape(-1, 3)[flat]
-    w = batch.w.reshape(-1)[flat].tolist()
+    vectorised form). ``all_ok``: the caller knows every entry is ``ok`` (the arrays are
+    then copied whole, not picked by a mask: the same values, fresh arrays alike)."""
+    if all_ok:
+        q = batch.q.reshape(-1, 3).copy()
+        passive = batch.passive.reshape(-1, 2).copy()
+        p = batch.p.reshape(-1, 3).copy()
+        w = batch.w.reshape(-1).tolist()
+    else:
+        flat = batch.ok.reshape(-1)
+        q = batch.q.reshape(-1, 3)[flat]
+        passive = batch.passive.reshape(-1, 2)[flat]
+        p = batch.p.reshape(-1, 3)[flat]
+        w = batch.w.reshape(-1)[flat].tolist()
     # per posture: sin of t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4; cos of t1, t2, t3, t4
     angles = [
         [t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4]
@@ -592,7 +604,8 @@ class Manipulator:
         q = _finite_array("q", q, 3)
         if q.ndim != 1:
             raise InputError(f"q must have shape (3,), got {q.shape}")
-        batch = forward_batch(self._design, q, assembly_mode)
+        # q is checked: the batch of one without forward_batch's second check of it
+        batch = _forward(self._design, q.reshape(1, 3), _branch(assembly_mode, 1))
         if not batch.ok[0]:
             cu = -self._design.L0 / 2 + self._design.L1 * np.cos(q[1])
             du = self._design.L0 / 2 + self._design.L1 * np.cos(q[2])
@@ -602,7 +615,7 @@ class Manipulator:
             raise AssemblyError(
                 f"q does not assemble: |CD| = {cd:.6g} m > 2 L2 = {2 * self._design.L2:.6g} m"
             )
-        return _postures(batch)[0]
+        return _postures(batch, all_ok=True)[0]
 
     def inverse(self, p: np.ndarray, *, theta1_on_axis: float = 0.0) -> list[Posture]:
         """Every inverse-kinematics posture of P: up to 8, one per working mode, in the order of
