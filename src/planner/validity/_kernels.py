@@ -506,21 +506,7 @@ def certify_motion(
         top -= 1
         ta, tb = st_t[top, 0], st_t[top, 1]
         w = tb - ta
-        lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
-        if lb_cd >= 0.0:
-            # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
-            rate_serial, rate_clear, rate_prox = _piece_rates(
-                dq0, dq1, dq2, prm, lb_cd, st_m[top], w
-            )
-        else:
-            rate_serial = rate_clear = rate_prox = np.inf
-        lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
-        # the clearance per link group: the distal links' margin with every link's rate, and
-        # the least margin (a lower bound of the proximal links') with the proximal rate
-        lb_cl = min(
-            0.5 * (st_m[top, 0, 4] + st_m[top, 1, 4] - rate_clear * w),
-            0.5 * (st_m[top, 0, 2] + st_m[top, 1, 2] - rate_prox * w),
-        )
+        lb_cd, lb_se, lb_cl = _piece_bounds(dq0, dq1, dq2, prm, rate_cd, st_m[top], w)
         if lb_cd >= 0.0 and lb_se >= 0.0 and lb_cl >= 0.0:
             continue
         tm = 0.5 * (ta + tb)
@@ -614,15 +600,27 @@ def certify_extension(
 
 
 @njit(cache=True, inline="always")
-def _piece_rates(dq0, dq1, dq2, prm, lb_cd, ends, w):  # pragma: no cover - compiled
-    """The serial, clearance and proximal clearance rates of :func:`certify_motion` on a
-    piece of width w whose |CD| stays ``lb_cd`` >= 0 inside its band, ``ends`` (2, _KEPT) the
-    measures at its ends (inlined: no call per piece)."""
+def _piece_bounds(dq0, dq1, dq2, prm, rate_cd, ends, w):  # pragma: no cover - compiled
+    """The lower bounds (d-margin, serial margin, clearance margin) of :func:`certify_motion`
+    on a piece of width w, ``ends`` (2, _KEPT) the measures kept at its ends (inlined: no
+    call per piece). The margin's rates hold only while |CD| stays in its band: with the
+    d-margin's bound negative the others are -inf."""
+    lb_cd = 0.5 * (ends[0, 0] + ends[1, 0] - rate_cd * w)
+    if lb_cd < 0.0:
+        return lb_cd, -np.inf, -np.inf
+    # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
     s_min = sin_apex_min(prm, lb_cd)
     _, rate_serial, rate_clear, rate_prox = rates_at(
         dq0, dq1, dq2, prm, s_min, ends[0, 3], ends[1, 3], w
     )
-    return rate_serial, rate_clear, rate_prox
+    lb_se = 0.5 * (ends[0, 1] + ends[1, 1] - rate_serial * w)
+    # the clearance per link group: the distal links' margin with every link's rate, and the
+    # least margin (a lower bound of the proximal links') with the proximal links' rate
+    lb_cl = min(
+        0.5 * (ends[0, 4] + ends[1, 4] - rate_clear * w),
+        0.5 * (ends[0, 2] + ends[1, 2] - rate_prox * w),
+    )
+    return lb_cd, lb_se, lb_cl
 
 
 @njit(cache=True, inline="always")
