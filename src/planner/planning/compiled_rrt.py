@@ -423,7 +423,11 @@ def search(
         out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
         if out is not None:
             if out.waypoints is not None and out.simplified:
-                experience.remember(checker, out.waypoints, SIMPLIFY_SLACK, nodes=out.nodes)
+                sparse = checker.packed.count < CLUTTER_ROWS
+                hard = experience.SPARSE_MIN_NODES if sparse else experience.MIN_NODES
+                experience.remember(
+                    checker, out.waypoints, SIMPLIFY_SLACK, nodes=out.nodes, min_nodes=hard
+                )
             return out
     rest = time_budget_s - (time.monotonic() - t0)
     return ompl_backend.search(checker, q_start, q_goal, options, max(rest, 1e-3))
