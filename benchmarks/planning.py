@@ -14,7 +14,8 @@ default resolution (1 % of the space's extent) and at ``--naive-resolution`` (0.
 product, the product with OMPL's RRTConnect as its search ("product OMPL", the product
 before its compiled search) and the product without the paths it remembers per scene
 ("product no mem", :mod:`planner.planning.experience`: every query searches, as the first
-hard query of a scene does), interleaved query by query (the order rotating), on
+hard query of a scene does), interleaved query by query (the order rotating; each product
+set-up with its own corridor grids and remembered paths, :class:`OwnCaches`), on
 :data:`FAIR_SCENES`; every path found is re-checked every :data:`DENSE_STEP` rad and counted
 invalid when a sample breaks a rule. The yardstick of ``docs/planning.md`` ("What runs where,
 and the fair baseline"); the ``naive`` rows further down use the same per-state check.
