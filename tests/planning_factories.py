@@ -55,22 +55,38 @@ def reference_measures(
     c = conditioning(design, fb.q, fb.passive, fb.w)
     signs = np.array([1.0 if ch == "+" else -1.0 for ch in mode])
     serial = np.min(fb.serial_measures * signs, axis=1)
+    return fb.ok, c.kappa_A, serial, _links_clearance(design, fb, obstacles, LINKS, k)
+
+
+def reference_clearance(
+    design: Design, q: np.ndarray, assembly_mode: str, obstacles, links, k=0
+) -> np.ndarray:
+    """The least clearance (m) of some of the links (pairs of ``link_points`` indices, e.g.
+    ``LINKS[:2]`` the proximal AC and BD) at postures q (N, 3), as :func:`reference_measures`
+    measures it; NaN where the loop does not close."""
+    fb = forward_batch(design, q, assembly_mode)
+    clear = _links_clearance(design, fb, obstacles, links, k)
+    return np.where(fb.ok, clear, np.nan)
+
+
+def _links_clearance(design: Design, fb, obstacles, links, k) -> np.ndarray:
     pts = link_points(design, fb.q, fb.passive)
-    clear = np.full(len(q), np.inf)
+    n = len(fb.q)
+    clear = np.full(n, np.inf)
     if k == 0:
-        for i, j in LINKS:
+        for i, j in links:
             good = fb.ok
-            d = np.full(len(q), np.nan)
+            d = np.full(n, np.nan)
             d[good] = segment_obstacle_distance(pts[good, i], pts[good, j], obstacles)
             clear = np.minimum(clear, d - design.link_radius)
-        return fb.ok, c.kappa_A, serial, clear
+        return clear
     s = np.linspace(0, 1, k + 1)
-    for i, j in LINKS:
+    for i, j in links:
         x = pts[:, i, None, :] + s[None, :, None] * (pts[:, j] - pts[:, i])[:, None, :]
         for ob in obstacles:
-            d = point_distance(x.reshape(-1, 3), ob).reshape(len(q), -1).min(axis=1)
+            d = point_distance(x.reshape(-1, 3), ob).reshape(n, -1).min(axis=1)
             clear = np.minimum(clear, d - design.link_radius)
-    return fb.ok, c.kappa_A, serial, clear
+    return clear
 
 
 def wire_obstacle(ob) -> dict:

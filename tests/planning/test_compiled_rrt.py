@@ -85,7 +85,9 @@ def test_scene_range_short_in_clutter() -> None:
     rng = np.random.default_rng(1)
     many = [Sphere(c, 0.005) for c in rng.uniform(-0.7, 0.7, (compiled_rrt.CLUTTER_ROWS, 3))]
     crowded = ValidityChecker(design, Margins(), many, "+", "++-")
-    assert compiled_rrt.scene_range(few) == 1.0
+    free = ValidityChecker(design, Margins(), [], "+", "++-")
+    assert compiled_rrt.scene_range(free) == 1.0
+    assert compiled_rrt.scene_range(few) == 0.6
     assert compiled_rrt.scene_range(crowded) == 0.25
 
 

@@ -88,6 +88,20 @@ def test_an_easy_search_starts_no_memory(scene) -> None:
     assert experience.recall(checker, *pairs[0]) is None
 
 
+def test_a_sparse_scene_remembers_from_fewer_nodes(scene) -> None:
+    """With few obstacles (the window's three boxes, range 0.6 rad) a search of
+    SPARSE_MIN_NODES to MIN_NODES nodes is hard enough to remember; one of fewer is not."""
+    checker, pairs = scene
+    assert checker.packed.count < compiled_rrt.CLUTTER_ROWS
+    easy = compiled_rrt.search(checker, *pairs[0], PlanOptions(seed=2), 2.0)
+    assert easy.nodes < experience.SPARSE_MIN_NODES
+    assert experience.guide(checker).shape[0] == 0
+    hard = compiled_rrt.search(checker, *pairs[0], PlanOptions(seed=1), 2.0)
+    assert experience.SPARSE_MIN_NODES <= hard.nodes < experience.MIN_NODES
+    kept = experience.guide(checker)
+    np.testing.assert_array_equal(kept[:-1], hard.waypoints)  # its path, then a NaN row
+
+
 def test_a_memory_serves_only_its_own_scene(scene) -> None:
     checker, pairs = scene
     q_start, q_goal = pairs[0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from planning_factories import reference_measures
+from planning_factories import LINKS, reference_clearance, reference_measures
 
 from planner.design import Design
 from planner.exceptions import InputError
@@ -52,6 +52,40 @@ def test_state_measures_match_kinematics_and_sampling(design, asm, mode):
     near = np.abs(rep.clearance - margins.clearance) < 2e-3  # sampling can flip these
     assert np.array_equal(rep.valid[~near], ref[~near])
     assert np.array_equal(chk.is_valid(q), rep.valid)
+
+
+@pytest.mark.parametrize("design", DESIGNS, ids=["sing-free", "paper", "other"])
+def test_the_distal_links_clearance_is_measured_on_its_own(design):
+    """The measure the certificate bounds per link group (planner.validity._kernels
+    M_CLEAR_DIST): exact in full mode, the distal links CP and DP alone (against an
+    independent route: kinematics and segment distances); relaxed (as the certificate
+    measures), a lower bound of it that keeps at least half of its margin, never below the
+    all-links measure."""
+    from planner.validity._kernels import M_CLEAR, M_CLEAR_DIST, N_MEASURES, evaluate_many
+
+    rng = np.random.default_rng(31)
+    q = rng.uniform(-np.pi, np.pi, (400, 3))
+    margins = Margins(kappa_max=6.0, clearance=0.02)
+    obstacles = [*OBSTACLES, Sphere([0.12, -0.25, 0.0], 0.03)]  # near A: the proximal AC
+    chk = ValidityChecker(design, margins, obstacles, "+", "+-+", serial_rules=False)
+    full = np.empty((len(q), N_MEASURES))
+    evaluate_many(q, chk._prm, *chk._packed, True, full)
+    distal = reference_clearance(design, q, "+", obstacles, LINKS[2:])
+    closed = np.isfinite(distal) & (full[:, M_CLEAR] > -np.inf)
+    assert closed.sum() > 100
+    got = full[closed, M_CLEAR_DIST] + margins.clearance
+    np.testing.assert_allclose(got, distal[closed], atol=1e-9)
+    assert np.all(full[closed, M_CLEAR] <= full[closed, M_CLEAR_DIST])
+    assert np.any(full[closed, M_CLEAR] < full[closed, M_CLEAR_DIST] - 0.05)  # a proximal link
+    relaxed = np.empty_like(full)
+    evaluate_many(q, chk._prm, *chk._packed, False, relaxed)
+    valid = closed & (relaxed[:, 0] == 0)
+    assert valid.sum() > 50
+    true, low = full[valid, M_CLEAR_DIST], relaxed[valid, M_CLEAR_DIST]
+    capped = np.minimum(true, 0.25)  # nothing is measured beyond clearance + 0.25 m
+    assert np.all(low <= true + 1e-12)
+    assert np.all(low >= 0.5 * capped - 1e-12)
+    assert np.all(relaxed[valid, M_CLEAR] <= low)
 
 
 def test_reasons_are_the_first_broken_rule():
@@ -155,7 +189,7 @@ def test_motion_into_an_obstacle_between_samples_is_rejected():
 @pytest.mark.parametrize("design", DESIGNS[:2], ids=["sing-free", "paper"])
 def test_lipschitz_rates_bound_finite_differences(design):
     """The constants of the certificate bound the measured change of each margin."""
-    from planner.validity._kernels import N_MEASURES, evaluate_many, rates
+    from planner.validity._kernels import M_CLEAR_DIST, N_MEASURES, evaluate_many, rates
 
     rng = np.random.default_rng(2)
     margins = Margins(kappa_max=6.0)
@@ -170,7 +204,9 @@ def test_lipschitz_rates_bound_finite_differences(design):
         evaluate_many(q, chk._prm, *chk._packed, True, out)
         inside = out[:, 1] >= 0  # kappa band holds: the rates apply
         bounds = rates(dq[0], dq[1], dq[2], chk._prm)
-        for j, rate in zip((1, 2, 3), bounds, strict=True):
+        # d-margin, serial, every link's clearance, the distal links' clearance (that rate too)
+        cols = (1, 2, 3, M_CLEAR_DIST)
+        for j, rate in zip(cols, (*bounds[:3], bounds[2]), strict=True):
             g = out[:, j]
             both = inside[1:] & inside[:-1] & np.isfinite(g[1:]) & np.isfinite(g[:-1])
             if both.any():
@@ -188,6 +224,7 @@ def test_local_lipschitz_rates_bound_finite_differences(design):
     the motion's global rates somewhere."""
     from planner.validity._kernels import (
         M_AXIS,
+        M_CLEAR_DIST,
         M_KAPPA,
         N_MEASURES,
         evaluate_many,
@@ -197,13 +234,14 @@ def test_local_lipschitz_rates_bound_finite_differences(design):
 
     rng = np.random.default_rng(21)
     chk = ValidityChecker(design, Margins(kappa_max=6.0), OBSTACLES, "+", "+-+")
-    tighter = 0
+    tighter = slower = 0
     for _ in range(60):
         a = rng.uniform(-np.pi, np.pi, 3)
         dq = rng.normal(size=3) * 0.5
         t = np.linspace(0, 1, 2001)
+        qs = a + t[:, None] * dq
         out = np.empty((len(t), N_MEASURES))
-        evaluate_many(a + t[:, None] * dq, chk._prm, *chk._packed, True, out)
+        evaluate_many(qs, chk._prm, *chk._packed, True, out)
         for _ in range(6):
             i, j = sorted(rng.choice(len(t), 2, replace=False))
             piece = out[i : j + 1]
@@ -215,12 +253,17 @@ def test_local_lipschitz_rates_bound_finite_differences(design):
             local = rates_at(*dq, chk._prm, s_min, piece[0, M_AXIS], piece[-1, M_AXIS], w)
             glob = rates(*dq, chk._prm)
             tighter += local[2] < 0.9 * glob[2]
-            for col, rate in zip((1, 2, 3), local, strict=True):
-                g = piece[:, col]
+            slower += local[3] < 0.5 * local[2]
+            # the proximal links' clearance (an independent route: kinematics and segment
+            # distances) changes at most at the proximal rate
+            prox = reference_clearance(design, qs[i : j + 1], "+", OBSTACLES, LINKS[:2])
+            series = (piece[:, 1], piece[:, 2], piece[:, 3], piece[:, M_CLEAR_DIST], prox)
+            for g, rate in zip(series, (*local[:3], local[2], local[3]), strict=True):
                 slope = np.abs(np.diff(g)) / (t[1] - t[0])
                 ok = np.isfinite(slope)
-                assert np.all(slope[ok] <= rate * (1 + 1e-6) + 1e-9), (col, slope.max(), rate)
+                assert np.all(slope[ok] <= rate * (1 + 1e-6) + 1e-9), (slope.max(), rate)
     assert tighter > 20
+    assert slower > 20  # the proximal links' rate is the smaller one, often by half
 
 
 def test_check_path_diagnostics():

@@ -54,7 +54,10 @@ from planner.validity import (
 __all__ = [
     "CAPACITY",
     "CHUNK",
+    "CLUTTER_RANGE",
     "CLUTTER_ROWS",
+    "FREE_RANGE",
+    "SPARSE_RANGE",
     "rrt_connect",
     "scene_range",
     "search",
@@ -97,6 +100,9 @@ GUIDE_SPREAD = 0.05
 _BUCKETS = 16
 #: Obstacle rows (spheres, points, capsules, boxes) from which :func:`scene_range` is short.
 CLUTTER_ROWS = 50
+#: :func:`scene_range` without obstacles, with fewer than :data:`CLUTTER_ROWS` rows, and in
+#: clutter (rad).
+FREE_RANGE, SPARSE_RANGE, CLUTTER_RANGE = 1.0, 0.6, 0.25
 #: Up to this many nodes a tree is scanned whole for a nearest neighbour.
 _SCAN = 48
 
@@ -104,10 +110,11 @@ _SCAN = 48
 def scene_range(checker: ValidityChecker) -> float:
     """The extension length (rad) chosen from the scene when ``options.range`` is None.
 
-    1.0 rad in free space and sparse scenes (tuned on ``benchmarks/planning.py``: long
-    extensions reach the goal in few steps), 0.25 rad from :data:`CLUTTER_ROWS` obstacle rows
-    (the 1,000 small spheres, point clouds: every point is a row). Measured on the fair
-    scenes (the compiled search alone, 30 queries each, AMD EPYC, load 3-7):
+    :data:`FREE_RANGE` (1.0 rad) without obstacles (long extensions reach the goal in few
+    steps), :data:`SPARSE_RANGE` (0.6 rad) with obstacles, :data:`CLUTTER_RANGE` (0.25 rad)
+    from :data:`CLUTTER_ROWS` obstacle rows (the 1,000 small spheres, point clouds: every
+    point is a row). Measured on the fair scenes (the compiled search alone, 30 queries each,
+    AMD EPYC, load 3-7):
 
     ========== ================ ================ ================
     scene      range 0.25       range 0.5        range 1.0
@@ -120,10 +127,16 @@ def scene_range(checker: ValidityChecker) -> float:
     ========== ================ ================ ================
 
     In clutter, a long extension is mostly rejected deep inside (the certificate pays its
-    coarse samples up to the first invalid one) and the trees grow slowly; the narrow window
-    (three boxes) keeps 1.0."""
-    rows = checker.packed.count
-    return 1.0 if rows < CLUTTER_ROWS else 0.25
+    coarse samples up to the first invalid one) and the trees grow slowly. With few
+    obstacles, run J (docs/planning.md; the search and its simplification, CPU time per
+    query, every query of the fair table that is not a straight motion, 6 seeds each, both
+    query sets): narrow window p50 / p95 1.69 / 5.81 ms at 1.0, 1.50 / 4.26 at 0.6, 1.88 /
+    4.39 at 0.5 (query seed 11); 2.28 / 12.6, 1.90 / 3.59, 2.01 / 4.19 (seed 23), the paths
+    no longer; 5 spheres 0.31-0.45 ms at every range from 0.5 to 1.0. Among the 1,000
+    spheres 0.3-0.4 were no better than 0.25 on both sets."""
+    if not checker.obstacles:
+        return FREE_RANGE
+    return SPARSE_RANGE if checker.packed.count < CLUTTER_ROWS else CLUTTER_RANGE
 
 
 @njit(cache=True)
@@ -410,7 +423,11 @@ def search(
         out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
         if out is not None:
             if out.waypoints is not None and out.simplified:
-                experience.remember(checker, out.waypoints, SIMPLIFY_SLACK, nodes=out.nodes)
+                sparse = checker.packed.count < CLUTTER_ROWS
+                hard = experience.SPARSE_MIN_NODES if sparse else experience.MIN_NODES
+                experience.remember(
+                    checker, out.waypoints, SIMPLIFY_SLACK, nodes=out.nodes, min_nodes=hard
+                )
             return out
     rest = time_budget_s - (time.monotonic() - t0)
     return ompl_backend.search(checker, q_start, q_goal, options, max(rest, 1e-3))

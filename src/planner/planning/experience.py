@@ -10,9 +10,10 @@ start -> a remembered posture and a remembered posture -> goal, shortest total f
 walks the remembered path between them.
 
 What is remembered: the simplified path of a compiled search (:mod:`compiled_rrt`) whose
-trees grew to at least :data:`MIN_NODES` nodes (a hard query: a search of a few dozen nodes,
-as in open scenes, is cheaper than the joins and is not remembered, so the answers of easy
-scenes never depend on what was planned before), at most :data:`MAX_PATHS` per scene, the
+trees grew to at least :data:`MIN_NODES` nodes (:data:`SPARSE_MIN_NODES` with few obstacles,
+where the search's range is shorter; a hard query: a search of a few dozen nodes, as in open
+scenes, is cheaper than the joins and is not remembered, so the answers of easy scenes never
+depend on what was planned before), at most :data:`MAX_PATHS` per scene, the
 oldest out first. The scene is the checker's design, margins, modes, serial rules and its
 packed obstacle arrays (by identity: :func:`planner.geometry.pack_obstacles` gives the same
 arrays for the same obstacles while its cache holds them; an entry is only used with the
@@ -47,14 +48,24 @@ __all__ = [
     "MAX_PATHS",
     "MAX_TESTS",
     "MIN_NODES",
+    "SPARSE_MIN_NODES",
     "guide",
     "load_kernels",
     "recall",
     "remember",
 ]
 
-#: Tree nodes (both trees) from which a search's path is remembered.
+#: Tree nodes (both trees) from which a search's path is remembered, in clutter (at least
+#: ``compiled_rrt.CLUTTER_ROWS`` obstacle rows, where the search's range is 0.25 rad).
 MIN_NODES = 64
+#: The same with fewer obstacle rows, where the search's range is 0.6 rad
+#: (``compiled_rrt.SPARSE_RANGE``): the same passage is found with fewer nodes than at the
+#: 1.0 rad for which :data:`MIN_NODES` was chosen (the window's searches of query seed 11:
+#: 8-80 nodes, none of its main mode past 64, against 5-119 at 1.0 rad), so at 64 nothing
+#: was remembered and every query searched. Measured in the narrow window (fair table, CPU
+#: p50 / p95, docs/planning.md run J): query seed 11 1.87 / 7.3 ms at 64, 1.54 / 2.68 at 32,
+#: 1.35 / 2.96 at 40; seed 23 1.64 / 4.03, 1.71 / 3.73, 1.46 / 3.20.
+SPARSE_MIN_NODES = 40
 #: Remembered paths per scene (the oldest out first). Few: each adds its vertices to the
 #: candidates, and the joins to the nearest of many paths mostly fail, spending the recall's
 #: :data:`MAX_TESTS` (narrow window, 40 queries run four times in one process, CPU p50 per
@@ -109,13 +120,21 @@ def _scene(checker: ValidityChecker) -> _Scene | None:
     return hit
 
 
-def remember(checker: ValidityChecker, path: np.ndarray, slack: float, *, nodes: int) -> None:
+def remember(
+    checker: ValidityChecker,
+    path: np.ndarray,
+    slack: float,
+    *,
+    nodes: int,
+    min_nodes: int = MIN_NODES,
+) -> None:
     """Keep ``path`` (M, 3) rad, every motion certified for ``checker``, for the checker's
-    scene when its search grew ``nodes`` >= :data:`MIN_NODES` tree nodes; ``slack`` (m): the
+    scene when its search grew ``nodes`` >= ``min_nodes`` tree nodes (:data:`MIN_NODES`, or
+    :data:`SPARSE_MIN_NODES` for the search's caller in a sparse scene); ``slack`` (m): the
     extra clearance the joins of later recalls keep."""
     if not checker.obstacles or len(path) < 2:
         return
-    if nodes < MIN_NODES:
+    if nodes < min_nodes:
         return
     old = _scene(checker)
     if old is None:

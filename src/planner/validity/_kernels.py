@@ -81,9 +81,24 @@ def pack_params(
 
 # measure vector layout (per state)
 # (M_AXIS: the largest distance of a link point from the axis AB, m: what the turn theta1
-# moves a link by, the local bound of the certificate's clearance rate, rates_at)
-M_REASON, M_DMARGIN, M_SERIAL, M_CLEAR, M_AXIS, M_KAPPA, M_SERIAL_RAW, M_CLEAR_RAW = range(8)
-N_MEASURES = 8
+# moves a link by, the local bound of the certificate's clearance rate, rates_at;
+# M_CLEAR_DIST: the clearance margin of the distal links CP and DP alone, >= M_CLEAR: the
+# certificate bounds the proximal links AC and BD, which move slower, with their own rate.
+# M_DMARGIN .. M_CLEAR_DIST are contiguous: the certificate keeps them per piece end)
+(
+    M_REASON,
+    M_DMARGIN,
+    M_SERIAL,
+    M_CLEAR,
+    M_AXIS,
+    M_CLEAR_DIST,
+    M_KAPPA,
+    M_SERIAL_RAW,
+    M_CLEAR_RAW,
+) = range(9)
+N_MEASURES = 9
+#: The measures a certificate keeps per piece end (M_DMARGIN .. M_CLEAR_DIST).
+_KEPT = M_CLEAR_DIST - M_DMARGIN + 1
 
 
 @njit(cache=True)
@@ -205,7 +220,7 @@ def evaluate_bounded(
     if reason and not full:
         out[M_REASON] = reason
         return
-    clear = _link_clearance(
+    clear, clear_dist = _link_clearance(
         q0,
         prm,
         cu,
@@ -226,6 +241,7 @@ def evaluate_bounded(
     )
     out[M_CLEAR_RAW] = clear
     out[M_CLEAR] = clear - prm[P_CLEAR]
+    out[M_CLEAR_DIST] = clear_dist - prm[P_CLEAR]
     if reason == 0 and out[M_CLEAR] < 0.0:
         reason = R_CLEAR
     out[M_REASON] = reason
@@ -254,7 +270,9 @@ def _link_clearance(
     """The clearance step of :func:`evaluate_bounded`: the least distance (m) of the four
     links' surfaces to the obstacles, the links given by the closed loop's in-plane points
     C (cu, cw), D (du, dw) and P (pu, pw) and turned by theta1 = ``q0``. Exact in ``full``
-    mode below ``clear_upper``; otherwise relaxed as :func:`evaluate` says."""
+    mode below ``clear_upper``; otherwise relaxed as :func:`evaluate` says. Returns (all
+    links, distal links CP and DP alone): the distal links are measured first, so their own
+    value is known at no extra walk (the proximal walks only look for closer obstacles)."""
     # links in 3-D: rotate in-plane (u, w) about +y by theta1
     c1, s1 = math.cos(q0), math.sin(q0)
     rad = prm[P_RAD]
@@ -277,6 +295,7 @@ def _link_clearance(
     n_obstacles = spheres.shape[0] + capsules.shape[0] + boxes.shape[0]
     if full and clear_upper == -np.inf:
         n_obstacles = 0  # not measured (evaluate_bounded): best stays -inf
+    best_dist = best  # the distal links' own value (k = 0, 1)
     for k in range(4 if n_obstacles > 0 else 0):
         link = (2, 3, 0, 1)[k]
         au, aw = ends_u[link], ends_w[link]
@@ -304,9 +323,11 @@ def _link_clearance(
         )
         if dist < best:
             best = dist
+            if k < 2:
+                best_dist = best
             if relax > 0.0 and best < relax_from:
                 break  # the clearance rule is broken: decided (segment_min_distance)
-    return best - rad
+    return best - rad, best_dist - rad
 
 
 @njit(cache=True)
@@ -347,7 +368,13 @@ def rates_at(dq0, dq1, dq2, prm, s_min, axis_a, axis_b, w):  # pragma: no cover 
     <= L1 hypot(|dtheta2|, |dtheta3|) / sqrt(1 - sqrt(1 - s_min^2)); the lesser of the two
     bounds holds. A link point's distance r from the axis changes at most at the in-plane
     speed v, so on the piece r <= (axis_a + axis_b + v w) / 2 (the two cones), and the point
-    moves by r |dtheta1| across the plane and v within it (orthogonal: their hypot)."""
+    moves by r |dtheta1| across the plane and v within it (orthogonal: their hypot).
+
+    Returns (rate_cd, rate_serial, rate_clear, rate_prox): rate_clear bounds every link's
+    clearance, rate_prox the proximal links' AC and BD alone (their points lie within L1 of
+    the axis and move in-plane at most as C or D: with L1 < L2 a few times slower than the
+    distal links, which is what lets the certificate take longer pieces where a proximal
+    link is the closest, :func:`certify_motion`)."""
     L1, L2 = prm[P_L1], prm[P_L2]
     reach = L1 + L2
     a0, a1, a2 = abs(dq0), abs(dq1), abs(dq2)
@@ -364,8 +391,9 @@ def rates_at(dq0, dq1, dq2, prm, s_min, axis_a, axis_b, w):  # pragma: no cover 
     v_in = max(v_cd, v_p)  # the fastest in-plane motion of a link point
     r = min(reach, 0.5 * (axis_a + axis_b + v_in * w))
     # AC and BD lie within L1 of the axis and move in-plane at most as C or D
-    rate_clear = max(math.hypot(min(L1, r) * a0, v_cd), math.hypot(r * a0, v_in))
-    return rate_cd, rate_serial, rate_clear
+    rate_prox = math.hypot(min(L1, r) * a0, v_cd)
+    rate_clear = max(rate_prox, math.hypot(r * a0, v_in))
+    return rate_cd, rate_serial, rate_clear, rate_prox
 
 
 @njit(cache=True)
@@ -467,23 +495,18 @@ def certify_motion(
     # depth-first certification with an explicit stack of intervals
     cap = n + 128
     st_t = np.empty((cap, 2))
-    st_m = np.empty((cap, 2, 4))  # per end: d-margin, serial margin, clearance margin, axis
+    # per end (_KEPT): d-margin, serial margin, clearance margin, axis, distal clearance margin
+    st_m = np.empty((cap, 2, _KEPT))
     top = 0
+    k0, k1 = M_DMARGIN, M_DMARGIN + _KEPT
     for k in range(n):
-        top = _push_piece(st_t, st_m, top, k / n, (k + 1) / n, ms[k, 1:5], ms[k + 1, 1:5])
+        top = _push_piece(st_t, st_m, top, k / n, (k + 1) / n, ms[k, k0:k1], ms[k + 1, k0:k1])
     mid = np.empty(N_MEASURES)
     while top > 0:
         top -= 1
         ta, tb = st_t[top, 0], st_t[top, 1]
         w = tb - ta
-        lb_cd = 0.5 * (st_m[top, 0, 0] + st_m[top, 1, 0] - rate_cd * w)
-        if lb_cd >= 0.0:
-            # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
-            rate_serial, rate_clear = _piece_rates(dq0, dq1, dq2, prm, lb_cd, st_m[top], w)
-        else:
-            rate_serial = rate_clear = np.inf
-        lb_se = 0.5 * (st_m[top, 0, 1] + st_m[top, 1, 1] - rate_serial * w)
-        lb_cl = 0.5 * (st_m[top, 0, 2] + st_m[top, 1, 2] - rate_clear * w)
+        lb_cd, lb_se, lb_cl = _piece_bounds(dq0, dq1, dq2, prm, rate_cd, st_m[top], w)
         if lb_cd >= 0.0 and lb_se >= 0.0 and lb_cl >= 0.0:
             continue
         tm = 0.5 * (ta + tb)
@@ -512,8 +535,8 @@ def certify_motion(
             return int(mid[M_REASON]), tm
         ma = st_m[top, 0].copy()
         mb = st_m[top, 1].copy()
-        top = _push_piece(st_t, st_m, top, ta, tm, ma, mid[1:5])
-        top = _push_piece(st_t, st_m, top, tm, tb, mid[1:5], mb)
+        top = _push_piece(st_t, st_m, top, ta, tm, ma, mid[k0:k1])
+        top = _push_piece(st_t, st_m, top, tm, tb, mid[k0:k1], mb)
     return 0, 1.0
 
 
@@ -577,21 +600,35 @@ def certify_extension(
 
 
 @njit(cache=True, inline="always")
-def _piece_rates(dq0, dq1, dq2, prm, lb_cd, ends, w):  # pragma: no cover - compiled
-    """The serial and clearance rates of :func:`certify_motion` on a piece of width w whose
-    |CD| stays ``lb_cd`` >= 0 inside its band, ``ends`` (2, 4) the measures at its ends
-    (inlined: no call per piece)."""
+def _piece_bounds(dq0, dq1, dq2, prm, rate_cd, ends, w):  # pragma: no cover - compiled
+    """The lower bounds (d-margin, serial margin, clearance margin) of :func:`certify_motion`
+    on a piece of width w, ``ends`` (2, _KEPT) the measures kept at its ends (inlined: no
+    call per piece). The margin's rates hold only while |CD| stays in its band: with the
+    d-margin's bound negative the others are -inf."""
+    lb_cd = 0.5 * (ends[0, 0] + ends[1, 0] - rate_cd * w)
+    if lb_cd < 0.0:
+        return lb_cd, -np.inf, -np.inf
+    # |CD| stays lb_cd inside its band on the piece: a local bound on the apex sine
     s_min = sin_apex_min(prm, lb_cd)
-    _, rate_serial, rate_clear = rates_at(dq0, dq1, dq2, prm, s_min, ends[0, 3], ends[1, 3], w)
-    return rate_serial, rate_clear
+    _, rate_serial, rate_clear, rate_prox = rates_at(
+        dq0, dq1, dq2, prm, s_min, ends[0, 3], ends[1, 3], w
+    )
+    lb_se = 0.5 * (ends[0, 1] + ends[1, 1] - rate_serial * w)
+    # the clearance per link group: the distal links' margin with every link's rate, and the
+    # least margin (a lower bound of the proximal links') with the proximal links' rate
+    lb_cl = min(
+        0.5 * (ends[0, 4] + ends[1, 4] - rate_clear * w),
+        0.5 * (ends[0, 2] + ends[1, 2] - rate_prox * w),
+    )
+    return lb_cd, lb_se, lb_cl
 
 
 @njit(cache=True, inline="always")
 def _push_piece(st_t, st_m, top, ta, tb, m_a, m_b):  # pragma: no cover - compiled
-    """Push the piece [ta, tb] with the margins and axis distance (4,) at its ends on the
-    stack of :func:`certify_motion`; returns the new top."""
+    """Push the piece [ta, tb] with the measures kept (_KEPT,) at its ends on the stack of
+    :func:`certify_motion`; returns the new top."""
     st_t[top, 0], st_t[top, 1] = ta, tb
-    for j in range(4):
+    for j in range(_KEPT):
         st_m[top, 0, j] = m_a[j]
         st_m[top, 1, j] = m_b[j]
     return top + 1

@@ -280,7 +280,13 @@ class ValidityChecker:
           ends moves at most as fast as the faster end): orthogonal parts, so at most
           ``hypot(r |dq1|, v)``; on a piece, r is bounded by the largest distance from the
           axis measured at its ends plus the cones of v (``_kernels.rates_at``); a distance
-          to a fixed obstacle is 1-Lipschitz in the link's points.
+          to a fixed obstacle is 1-Lipschitz in the link's points. The proximal links AC and
+          BD lie within L1 of the axis and move in-plane at most as C or D, so their clearance
+          has the smaller rate ``hypot(min(L1, r) |dq1|, L1 max(|dq2|, |dq3|))``: a piece is
+          accepted when the distal links' own clearance margin (measured first, at no extra
+          walk) passes with every link's rate and the least margin (a lower bound of the
+          proximal links') passes with the proximal rate, which is tighter than the least
+          margin with every link's rate wherever a proximal link is the closest.
 
         Joint limits hold on the whole motion when they hold at its ends (a box is convex);
         the loop closes and the assembly mode holds while |CD| stays in its kappa band
