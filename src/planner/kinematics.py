@@ -492,7 +492,7 @@ class Posture:
         )
 
 
-def _postures(batch: PostureBatch, all_ok: bool = False) -> list[Posture]:
+def _postures(batch: PostureBatch) -> list[Posture]:
     """The ``ok`` entries of a flat batch as Posture objects.
 
     The few postures of one call (/v1/fk, /v1/ik, one posture's analysis) are built in plain
@@ -502,19 +502,13 @@ def _postures(batch: PostureBatch, all_ok: bool = False) -> list[Posture]:
     most of a single-posture answer's time. The arithmetic is theirs, operation for
     operation (the same IEEE double operations on the same ``np.sin`` / ``np.cos`` values),
     so the postures are the same (``tests/core/test_kinematics.py`` checks them against the
-    vectorised form). ``all_ok``: the caller knows every entry is ``ok`` (the arrays are
-    then copied whole, not picked by a mask: the same values, fresh arrays alike)."""
-    if all_ok:
-        q = batch.q.reshape(-1, 3).copy()
-        passive = batch.passive.reshape(-1, 2).copy()
-        p = batch.p.reshape(-1, 3).copy()
-        w = batch.w.reshape(-1).tolist()
-    else:
-        flat = batch.ok.reshape(-1)
-        q = batch.q.reshape(-1, 3)[flat]
-        passive = batch.passive.reshape(-1, 2)[flat]
-        p = batch.p.reshape(-1, 3)[flat]
-        w = batch.w.reshape(-1)[flat].tolist()
+    vectorised form). One posture in one assembly mode (:meth:`Manipulator.posture`) is
+    built without a batch: :func:`_one_posture`."""
+    flat = batch.ok.reshape(-1)
+    q = batch.q.reshape(-1, 3)[flat]
+    passive = batch.passive.reshape(-1, 2)[flat]
+    p = batch.p.reshape(-1, 3)[flat]
+    w = batch.w.reshape(-1)[flat].tolist()
     # per posture: sin of t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4; cos of t1, t2, t3, t4
     angles = [
         [t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4]
@@ -523,26 +517,12 @@ def _postures(batch: PostureBatch, all_ok: bool = False) -> list[Posture]:
     sines = np.sin(np.array(angles, dtype=float).reshape(-1, 7)).tolist()
     cosines = np.cos(np.array([a[:4] for a in angles], dtype=float).reshape(-1, 4)).tolist()
     d = batch.design
-    half, reach = d.L0 / 2, d.reach
     rows = []
     labels = []
-    for (s1, s2, s3, s4, s42, s53, s54), (c1, c2, c3, c4), wi in zip(
-        sines, cosines, w, strict=True
-    ):
-        cu, cw = -half + d.L1 * c2, d.L1 * s2
-        du, dw = half + d.L1 * c3, d.L1 * s3
-        pu, pw = cu + d.L2 * c4, cw + d.L2 * s4
-        rows.append(
-            [
-                (0.0, -half, 0.0),
-                (0.0, half, 0.0),
-                (cw * c1, cu, -cw * s1),
-                (dw * c1, du, -dw * s1),
-                (pw * c1, pu, -pw * s1),
-            ]
-        )
-        working = "".join(_sign_char(x) for x in (wi / reach, s42, s53))
-        labels.append((working, _sign_char(s54)))
+    for s, c, wi in zip(sines, cosines, w, strict=True):
+        row, working, assembly = _frame(d, s, c, wi)
+        rows.append(row)
+        labels.append((working, assembly))
     pts = np.array(rows, dtype=float).reshape(len(q), 5, 3)
     # Boolean indexing made fresh arrays: frozen once, each posture holds read-only row views.
     for a in (q, passive, p, pts):
@@ -557,6 +537,66 @@ def _postures(batch: PostureBatch, all_ok: bool = False) -> list[Posture]:
         )
         for i in range(len(q))
     ]
+
+
+def _frame(
+    d: Design, sines: Sequence[float], cosines: Sequence[float], w: float
+) -> tuple[list[tuple[float, float, float]], str, str]:
+    """One posture's points A, B, C, D, P (m) and its working and assembly modes, from the
+    sines of (t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4), the cosines of (t1, t2, t3, t4) and
+    its in-plane w: the arithmetic of :func:`_postures` and :func:`_one_posture` alike."""
+    s1, s2, s3, s4, s42, s53, s54 = sines
+    c1, c2, c3, c4 = cosines
+    half = d.L0 / 2
+    cu, cw = -half + d.L1 * c2, d.L1 * s2
+    du, dw = half + d.L1 * c3, d.L1 * s3
+    pu, pw = cu + d.L2 * c4, cw + d.L2 * s4
+    row = [
+        (0.0, -half, 0.0),
+        (0.0, half, 0.0),
+        (cw * c1, cu, -cw * s1),
+        (dw * c1, du, -dw * s1),
+        (pw * c1, pu, -pw * s1),
+    ]
+    working = "".join(_sign_char(x) for x in (w / d.reach, s42, s53))
+    return row, working, _sign_char(s54)
+
+
+def _one_posture(design: Design, q: np.ndarray, branch: np.ndarray) -> Posture | None:
+    """The posture of one checked q (3,) in one branch (1,) +1/-1, or None where the loop does
+    not close: :func:`_forward` and :func:`_postures` for one posture without the batch's
+    arrays (its (1, n) outputs, the mask, the copies and the list of one). The same kernel,
+    the same numpy ``arctan2``, ``sin`` and ``cos`` and the same arithmetic
+    (:func:`_frame`), so the same values to the bit (``tests/core/test_kinematics.py`` checks
+    it against the batch route)."""
+    p, w = np.empty((1, 3)), np.empty(1)
+    dy, dx, ok = np.empty((1, 2)), np.empty((1, 2)), np.empty(1, dtype=np.bool_)
+    _kernels.forward_kernel(
+        design.L0,
+        design.L1,
+        design.L2,
+        _kernels.read_only(q.reshape(1, 3)),
+        branch,
+        ASSEMBLY_TOL,
+        p,
+        dy,
+        dx,
+        w,
+        ok,
+    )
+    if not ok[0]:
+        return None
+    passive = np.arctan2(dy, dx).reshape(2)
+    (t1, t2, t3), (t4, t5) = q.tolist(), passive.tolist()
+    sines = np.sin(np.array([t1, t2, t3, t4, t4 - t2, t5 - t3, t5 - t4])).tolist()
+    cosines = np.cos(np.array([t1, t2, t3, t4])).tolist()
+    row, working, assembly = _frame(design, sines, cosines, float(w[0]))
+    pts = np.array(row, dtype=float)
+    q, p = q.copy(), p.reshape(3)
+    for a in (q, passive, p, pts):
+        a.flags.writeable = False
+    points = MappingProxyType(dict(zip("ABCDP", pts, strict=True)))
+    return Posture(q, passive, p, points, working, assembly)
 
 
 def _sign_char(x: float) -> str:
@@ -604,9 +644,9 @@ class Manipulator:
         q = _finite_array("q", q, 3)
         if q.ndim != 1:
             raise InputError(f"q must have shape (3,), got {q.shape}")
-        # q is checked: the batch of one without forward_batch's second check of it
-        batch = _forward(self._design, q.reshape(1, 3), _branch(assembly_mode, 1))
-        if not batch.ok[0]:
+        # q is checked: one posture without forward_batch's second check of it
+        found = _one_posture(self._design, q, _branch(assembly_mode, 1))
+        if found is None:
             cu = -self._design.L0 / 2 + self._design.L1 * np.cos(q[1])
             du = self._design.L0 / 2 + self._design.L1 * np.cos(q[2])
             cd = float(np.hypot(du - cu, self._design.L1 * (np.sin(q[2]) - np.sin(q[1]))))
@@ -615,7 +655,7 @@ class Manipulator:
             raise AssemblyError(
                 f"q does not assemble: |CD| = {cd:.6g} m > 2 L2 = {2 * self._design.L2:.6g} m"
             )
-        return _postures(batch, all_ok=True)[0]
+        return found
 
     def inverse(self, p: np.ndarray, *, theta1_on_axis: float = 0.0) -> list[Posture]:
         """Every inverse-kinematics posture of P: up to 8, one per working mode, in the order of

@@ -621,3 +621,41 @@ def test_within_limits_of_one_posture_is_the_array_rule() -> None:
         assert m.within_limits(q.tolist()) == expected
         answers.add(expected)
     assert answers == {True, False}
+
+
+def test_one_posture_is_the_batch_route_bit_for_bit() -> None:
+    """``Manipulator.posture`` builds its one posture without the batch's arrays
+    (kinematics._one_posture): every array, point and mode equal, to the bit, what the batch
+    route gives (forward_batch, then kinematics._postures) for the same joints, in both
+    assembly modes, and an AssemblyError exactly where the batch's loop does not close."""
+    from planner.kinematics import _postures
+
+    rng = np.random.default_rng(11)
+    built = refused = 0
+    # the last: the loop does not close for about half the joints (|CD| up to 1.0 > 2 L2)
+    for design in (Design.default(), Design.singularity_free(), Design(L0=0.4, L1=0.3, L2=0.3)):
+        m = Manipulator(design)
+        qs = rng.uniform(-3.2, 3.2, (300, 3))
+        for mode in ("+", "-"):
+            batch = forward_batch(design, qs, mode)
+            for i, q in enumerate(qs):
+                if not batch.ok[i]:
+                    with pytest.raises(AssemblyError):
+                        m.posture(q, mode)
+                    refused += 1
+                    continue
+                one = forward_batch(design, q, mode)  # the batch route for this q alone
+                (expected,) = _postures(one)
+                post = m.posture(q, mode)
+                for name in ("q", "passive", "p"):
+                    got, want = getattr(post, name), getattr(expected, name)
+                    assert got.tobytes() == want.tobytes(), name
+                    assert getattr(batch, name)[i].tobytes() == want.tobytes(), name
+                    assert not got.flags.writeable
+                for k in "ABCDP":
+                    assert post.points[k].tobytes() == expected.points[k].tobytes(), k
+                assert post.working_mode == expected.working_mode
+                assert post.assembly_mode == expected.assembly_mode
+                assert post.w == expected.w
+                built += 1
+    assert built > 1200 and refused > 100
