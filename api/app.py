@@ -10,6 +10,11 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from fastapi import FastAPI
+from fastapi._body_limit import AppBodyLimitMiddleware
+from fastapi.telemetry._asgi import ExceptionTelemetryMiddleware
+from starlette.middleware.body_limit import MAX_BODY_SIZE_SCOPE_KEY
+from starlette.middleware.errors import ServerErrorMiddleware
+from starlette.types import ASGIApp, Receive, Scope, Send
 
 import planner
 from planner import caching
@@ -107,7 +112,7 @@ def create_app(settings: Settings | None = None, *, warm_up: bool = True) -> Fas
             pool.shutdown(timeout_s=_KILL_AFTER_DRAIN_S if drained else settings.shutdown_timeout_s)
             app.state.scene_access.close()
 
-    app = FastAPI(
+    app = ServiceApp(
         title="hybrid-planner",
         version=planner.__version__,
         description="Motion planning, timing and design analysis for the 3-DOF hybrid "
@@ -183,3 +188,63 @@ def _include_routes(app: FastAPI, settings: Settings) -> None:
     install_viewer(app)  # GET / and /viewer/: the page, without the API key
     install_docs(app)
     index_routes(app)  # a request's route found by its (method, path), not by a scan
+
+
+class ServiceApp(FastAPI):
+    """The service's FastAPI application with its front door in front of FastAPI's own
+    layers: an HTTP request goes from the server straight to the 500 guard, the observer
+    and the gate (:mod:`planner_api.middleware`; the gate then calls a hot route's direct
+    answer, :mod:`planner_api.routes.direct`), without ``FastAPI.__call__``,
+    ``Starlette.__call__`` and the two middlewares FastAPI puts between its 500 guard and
+    the user's middleware (its exception telemetry and its body limit), which do nothing for
+    such a request: the body limit is not set (the gate has its own) and the exception
+    telemetry only records into a span that is not there. Why: the loop's CPU per request
+    (issue 43); these layers were a few microseconds of a plain fk's ~150 in-process.
+
+    The front is taken only when it changes nothing: once the middleware stack is built and
+    has the shape it was made with (else :func:`_front_of` gives None), for HTTP (lifespan
+    and WebSocket take FastAPI's path), without a ``root_path`` set on the application and
+    without a parent's body limit in the scope, and while FastAPI's telemetry is off: it
+    checks ``FastAPI._native_telemetry.enabled()`` itself on every request, as
+    ``FastAPI.__call__`` does (an OpenTelemetry provider an operator configures, even after
+    start, turns the front off at the next request, and FastAPI's tracing then sees every
+    request, as before). The 500 guard is a ``ServerErrorMiddleware`` with the handler and
+    debug flag of the one FastAPI built, so an error's 500 is the same."""
+
+    _front: ASGIApp | None = None
+
+    def build_middleware_stack(self) -> ASGIApp:
+        stack = super().build_middleware_stack()
+        self._front = _front_of(stack)
+        return stack
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        front = self._front
+        if (
+            front is not None
+            and scope["type"] == "http"
+            and not self.root_path
+            and MAX_BODY_SIZE_SCOPE_KEY not in scope
+            and not self._native_telemetry.enabled()
+        ):
+            scope["app"] = self  # as Starlette.__call__ sets it
+            await front(scope, receive, send)
+            return
+        await super().__call__(scope, receive, send)
+
+
+def _front_of(stack: ASGIApp) -> ASGIApp | None:
+    """The front door of a built middleware stack: its 500 guard (a copy) around the
+    outermost user middleware, when the stack is ``ServerErrorMiddleware`` ->
+    ``ExceptionTelemetryMiddleware`` -> ``AppBodyLimitMiddleware`` without a limit ->
+    :class:`RequestObserver` (as FastAPI builds it for :func:`create_app`); None for any
+    other shape (a FastAPI that builds its stack otherwise keeps its own path)."""
+    if not isinstance(stack, ServerErrorMiddleware):
+        return None
+    telemetry = stack.app
+    if not isinstance(telemetry, ExceptionTelemetryMiddleware):
+        return None
+    limit = telemetry.app
+    if not isinstance(limit, AppBodyLimitMiddleware) or not isinstance(limit.app, RequestObserver):
+        return None  # a body limit set wraps the observer in its own middleware
+    return ServerErrorMiddleware(limit.app, handler=stack.handler, debug=stack.debug)

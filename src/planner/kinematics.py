@@ -592,11 +592,11 @@ def _one_posture(design: Design, q: np.ndarray, branch: np.ndarray) -> Posture |
     cosines = np.cos(np.array([t1, t2, t3, t4])).tolist()
     row, working, assembly = _frame(design, sines, cosines, float(w[0]))
     pts = np.array(row, dtype=float)
-    q, p = q.copy(), p.reshape(3)
-    for a in (q, passive, p, pts):
+    q_own, p_own = q.copy(), p.reshape(3)
+    for a in (q_own, passive, p_own, pts):
         a.flags.writeable = False
     points = MappingProxyType(dict(zip("ABCDP", pts, strict=True)))
-    return Posture(q, passive, p, points, working, assembly)
+    return Posture(q_own, passive, p_own, points, working, assembly)
 
 
 def _sign_char(x: float) -> str:

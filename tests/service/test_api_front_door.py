@@ -131,3 +131,56 @@ def test_the_gate_is_the_innermost_middleware(client):
     from planner_api.middleware import RequestGate
 
     assert client.app.user_middleware[-1].cls is RequestGate
+
+
+def test_requests_enter_at_the_front_unless_fastapis_telemetry_is_on(client, monkeypatch):
+    """HTTP requests go from the server to the observer and the gate without FastAPI's own
+    outer layers (planner_api.app.ServiceApp), answered as before; while FastAPI's telemetry
+    is on (an OpenTelemetry provider configured), every request takes FastAPI's path again,
+    through its telemetry, as FastAPI would route it."""
+    from fastapi.telemetry._asgi import ExceptionTelemetryMiddleware, NativeTelemetry
+
+    passed: list[str] = []
+    inner = ExceptionTelemetryMiddleware.__call__
+
+    async def counted(self, scope, receive, send):
+        passed.append(scope["path"])
+        await inner(self, scope, receive, send)
+
+    monkeypatch.setattr(ExceptionTelemetryMiddleware, "__call__", counted)
+    at_the_front = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    assert at_the_front.status_code == 200 and passed == []
+    traced: list[str] = []
+
+    async def telemetry(self, *, app, scope, receive, send, legacy_otel):
+        traced.append(scope["path"])
+        scope["fastapi.telemetry"] = object()  # as FastAPI marks a traced request
+        await app(scope, receive, send)
+
+    monkeypatch.setattr(NativeTelemetry, "enabled", lambda self: True)
+    monkeypatch.setattr(NativeTelemetry, "__call__", telemetry)
+    through_fastapi = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    assert traced == ["/v1/fk"] and passed == ["/v1/fk"]
+    assert _seen(through_fastapi) == _seen(at_the_front)
+    assert client.app._front is not None
+
+
+def test_an_unexpected_error_at_the_front_is_fastapis_500(client, monkeypatch, caplog):
+    """An error no handler answers, in a request that entered at the front: the same clean
+    500 (status, headers but the request id, body) as through FastAPI's own outer layers,
+    and the error logged."""
+    from planner.kinematics import Manipulator
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("secret internals")
+
+    monkeypatch.setattr(Manipulator, "posture", boom)
+    at_the_front = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    assert at_the_front.status_code == 500 and "secret" not in at_the_front.text
+    assert "secret internals" in caplog.text
+    kept, client.app._front = client.app._front, None
+    try:
+        through_fastapi = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    finally:
+        client.app._front = kept
+    assert _seen(at_the_front) == _seen(through_fastapi)
