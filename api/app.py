@@ -44,7 +44,7 @@ from planner_api.settings import Settings, get_settings
 from planner_api.store_access import StoreAccess
 from planner_api.warmup import start_worker, warm_up_loop
 
-__all__ = ["create_app"]
+__all__ = ["ServiceApp", "create_app"]
 
 logger = logging.getLogger(__name__)
 
