@@ -10,9 +10,6 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from fastapi import FastAPI
-from fastapi._body_limit import AppBodyLimitMiddleware
-from fastapi.telemetry._asgi import ExceptionTelemetryMiddleware
-from starlette.middleware.body_limit import MAX_BODY_SIZE_SCOPE_KEY
 from starlette.middleware.errors import ServerErrorMiddleware
 from starlette.types import ASGIApp, Receive, Scope, Send
 
@@ -212,10 +209,15 @@ class ServiceApp(FastAPI):
     debug flag of the one FastAPI built, so an error's 500 is the same."""
 
     _front: ASGIApp | None = None
+    _body_key = ""
 
     def build_middleware_stack(self) -> ASGIApp:
         stack = super().build_middleware_stack()
-        self._front = _front_of(stack)
+        self._front = None
+        layers = _private_layers()
+        if layers is not None and hasattr(self, "_native_telemetry"):
+            self._front = _front_of(stack, layers[0], layers[1])
+            self._body_key = layers[2]
         return stack
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -224,7 +226,7 @@ class ServiceApp(FastAPI):
             front is not None
             and scope["type"] == "http"
             and not self.root_path
-            and MAX_BODY_SIZE_SCOPE_KEY not in scope
+            and self._body_key not in scope
             and not self._native_telemetry.enabled()
         ):
             scope["app"] = self  # as Starlette.__call__ sets it
@@ -233,18 +235,34 @@ class ServiceApp(FastAPI):
         await super().__call__(scope, receive, send)
 
 
-def _front_of(stack: ASGIApp) -> ASGIApp | None:
+def _private_layers() -> tuple[type, type, str] | None:
+    """FastAPI's private layers that :func:`_front_of` recognises (its body limit, its
+    exception telemetry) and Starlette's scope key of a parent's body limit; None where the
+    installed FastAPI has none of them (pyproject admits FastAPI releases older than these
+    layers): the application then keeps FastAPI's own path, and starts as before."""
+    try:
+        from fastapi._body_limit import AppBodyLimitMiddleware
+        from fastapi.telemetry._asgi import ExceptionTelemetryMiddleware
+        from starlette.middleware.body_limit import MAX_BODY_SIZE_SCOPE_KEY
+    except ImportError:
+        return None
+    return AppBodyLimitMiddleware, ExceptionTelemetryMiddleware, MAX_BODY_SIZE_SCOPE_KEY
+
+
+def _front_of(stack: ASGIApp, limit_type: type, telemetry_type: type) -> ASGIApp | None:
     """The front door of a built middleware stack: its 500 guard (a copy) around the
     outermost user middleware, when the stack is ``ServerErrorMiddleware`` ->
-    ``ExceptionTelemetryMiddleware`` -> ``AppBodyLimitMiddleware`` without a limit ->
-    :class:`RequestObserver` (as FastAPI builds it for :func:`create_app`); None for any
-    other shape (a FastAPI that builds its stack otherwise keeps its own path)."""
+    ``telemetry_type`` (FastAPI's ``ExceptionTelemetryMiddleware``) -> ``limit_type``
+    (``AppBodyLimitMiddleware``) without a limit -> :class:`RequestObserver` (as FastAPI
+    builds it for :func:`create_app`); None for any other shape (a FastAPI that builds its
+    stack otherwise keeps its own path)."""
     if not isinstance(stack, ServerErrorMiddleware):
         return None
     telemetry = stack.app
-    if not isinstance(telemetry, ExceptionTelemetryMiddleware):
+    if not isinstance(telemetry, telemetry_type):
         return None
-    limit = telemetry.app
-    if not isinstance(limit, AppBodyLimitMiddleware) or not isinstance(limit.app, RequestObserver):
+    limit = getattr(telemetry, "app", None)  # each layer holds the next as ``app``
+    observer = getattr(limit, "app", None)
+    if not isinstance(limit, limit_type) or not isinstance(observer, RequestObserver):
         return None  # a body limit set wraps the observer in its own middleware
-    return ServerErrorMiddleware(limit.app, handler=stack.handler, debug=stack.debug)
+    return ServerErrorMiddleware(observer, handler=stack.handler, debug=stack.debug)

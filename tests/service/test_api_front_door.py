@@ -184,3 +184,22 @@ def test_an_unexpected_error_at_the_front_is_fastapis_500(client, monkeypatch, c
     finally:
         client.app._front = kept
     assert _seen(at_the_front) == _seen(through_fastapi)
+
+
+def test_a_fastapi_without_the_layers_the_front_knows_keeps_its_own_path(client, monkeypatch):
+    """pyproject admits FastAPI releases without the private layers the front recognises
+    (planner_api.app._private_layers): there the application has no front and answers
+    through FastAPI's own layers, the same answer."""
+    import planner_api.app as app_module
+
+    at_the_front = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    monkeypatch.setattr(app_module, "_private_layers", lambda: None)
+    client.app.build_middleware_stack()
+    try:
+        assert client.app._front is None
+        through_fastapi = client.post("/v1/fk", json=CASES["fk"][1], headers=KEY)
+    finally:
+        monkeypatch.undo()
+        client.app.build_middleware_stack()
+    assert client.app._front is not None
+    assert _seen(through_fastapi) == _seen(at_the_front)
