@@ -209,11 +209,6 @@ def forward_batch(design: Design, q: np.ndarray, assembly_mode: object) -> Postu
         (|CD| > 2 L2) or C = D (P undetermined: a parallel singularity).
     """
     q2 = np.ascontiguousarray(np.atleast_2d(_finite_array("q", q, 3)))
-    return _forward(design, q2, _branch(assembly_mode, q2.shape[0]))
-
-
-def _forward(design: Design, q2: np.ndarray, branch: np.ndarray) -> PostureBatch:
-    """:func:`forward_batch` of q2 (N, 3), already checked, in the branches (N,) +1/-1."""
     n = q2.shape[0]
     p = np.empty((n, 3))
     passive = np.empty((n, 2))
@@ -225,7 +220,7 @@ def _forward(design: Design, q2: np.ndarray, branch: np.ndarray) -> PostureBatch
         design.L1,
         design.L2,
         _kernels.read_only(q2),  # one compiled signature, frozen q or not
-        branch,
+        _branch(assembly_mode, n),
         ASSEMBLY_TOL,
         p,
         passive,
@@ -564,7 +559,7 @@ def _frame(
 
 def _one_posture(design: Design, q: np.ndarray, branch: np.ndarray) -> Posture | None:
     """The posture of one checked q (3,) in one branch (1,) +1/-1, or None where the loop does
-    not close: :func:`_forward` and :func:`_postures` for one posture without the batch's
+    not close: :func:`forward_batch` and :func:`_postures` for one posture without the batch's
     arrays (its (1, n) outputs, the mask, the copies and the list of one). The same kernel,
     the same numpy ``arctan2``, ``sin`` and ``cos`` and the same arithmetic
     (:func:`_frame`), so the same values to the bit (``tests/core/test_kinematics.py`` checks

@@ -136,7 +136,13 @@ def scene_range(checker: ValidityChecker) -> float:
     spheres 0.3-0.4 were no better than 0.25 on both sets."""
     if not checker.obstacles:
         return FREE_RANGE
-    return SPARSE_RANGE if checker.packed.count < CLUTTER_ROWS else CLUTTER_RANGE
+    return CLUTTER_RANGE if _in_clutter(checker) else SPARSE_RANGE
+
+
+def _in_clutter(checker: ValidityChecker) -> bool:
+    """Whether the scene has :data:`CLUTTER_ROWS` obstacle rows or more: the short range
+    (:func:`scene_range`) and the memory's higher threshold (:func:`search`)."""
+    return checker.packed.count >= CLUTTER_ROWS
 
 
 @njit(cache=True)
@@ -423,8 +429,8 @@ def search(
         out = rrt_connect(checker, q_start, goals[0], options, time_budget_s)
         if out is not None:
             if out.waypoints is not None and out.simplified:
-                sparse = checker.packed.count < CLUTTER_ROWS
-                hard = experience.SPARSE_MIN_NODES if sparse else experience.MIN_NODES
+                clutter = _in_clutter(checker)
+                hard = experience.MIN_NODES if clutter else experience.SPARSE_MIN_NODES
                 experience.remember(
                     checker, out.waypoints, SIMPLIFY_SLACK, nodes=out.nodes, min_nodes=hard
                 )
