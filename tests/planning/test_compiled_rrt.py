@@ -11,7 +11,7 @@ from planner import Design
 from planner.geometry import Sphere
 from planner.planning import PlanOptions, compiled_rrt
 from planner.planning.compiled_rrt import _BUCKETS, _insert, _nearest
-from planner.validity import Margins, ValidityChecker, densify
+from planner.validity import N_MEASURES, Margins, ValidityChecker, densify
 
 START, GOAL = np.array([0.2, 1.0, 2.0]), np.array([1.0, 1.0, 2.0])
 
@@ -65,6 +65,7 @@ def test_nearest_grid_matches_a_brute_force_scan() -> None:
     inv = 1.0 / width
     n = 400
     nodes = np.empty((1, n, 3))
+    meas = np.empty((1, n, N_MEASURES))
     parent = np.empty((1, n), dtype=np.int64)
     nxt = np.empty((1, n), dtype=np.int64)
     head = np.full((1, _BUCKETS, _BUCKETS, _BUCKETS), -1, dtype=np.int64)
@@ -72,11 +73,46 @@ def test_nearest_grid_matches_a_brute_force_scan() -> None:
     # clustered nodes, so that many queries fall far from every node
     pts = np.clip(rng.normal([1.0, 2.0, -2.0], 0.4, (n, 3)), lo, hi)
     for p in pts:
-        _insert(0, p, -1, nodes, parent, count, head, nxt, lo, inv)
+        _insert(0, p, np.zeros(N_MEASURES), -1, nodes, meas, parent, count, head, nxt, lo, inv)
     for q in rng.uniform(lo, hi, (300, 3)):
         got = _nearest(0, q, nodes, count, head, nxt, lo, inv, width)
         want = int(np.argmin(np.sum((pts - q) ** 2, axis=1)))
         assert np.isclose(np.sum((pts[got] - q) ** 2), np.sum((pts[want] - q) ** 2))
+
+
+def test_simplify_skips_only_pairs_known_not_joined() -> None:
+    """The simplification's second reduction leaves out the pairs of old vertices (tried by
+    the first): its paths are those of the three steps run plainly, every pair certified,
+    on raw searches' paths among small spheres (where most long motions are refused)."""
+    from planner.planning.compiled_rrt import _reduce, _seed, _shortcut, _simplify
+
+    design = Design.default()
+    rng = np.random.default_rng(8)
+    spheres = [Sphere(c, 0.02) for c in rng.uniform(-0.8, 0.8, (400, 3))]
+    chk = ValidityChecker(design, Margins(), spheres, "+", "+-+")
+    prm, packed, step = chk.params, tuple(chk.packed), chk.coarse_step
+    ends = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0], (300, 3))
+    ends = ends[chk.is_valid(ends)]
+    compared = changed = 0
+    for k in range(0, len(ends) - 1, 2):
+        out = compiled_rrt.rrt_connect(
+            chk, ends[k], ends[k + 1], PlanOptions(seed=k + 1, simplify=False), 0.5
+        )
+        if out is None or out.waypoints is None or len(out.waypoints) < 4:
+            continue
+        path = out.waypoints
+        _seed(k)
+        got = _simplify(path, 2, 8, prm, packed, step)
+        _seed(k)
+        plain = _reduce(path, np.zeros(len(path), dtype=np.bool_), prm, packed, step)
+        plain, _ = _shortcut(plain, 2 * len(plain) + 8, prm, packed, step)
+        plain = _reduce(plain, np.zeros(len(plain), dtype=np.bool_), prm, packed, step)
+        assert got.shape == plain.shape and np.array_equal(got, plain)
+        compared += 1
+        changed += len(got) < len(path)
+        if compared == 8:
+            break
+    assert compared == 8 and changed >= 5
 
 
 def test_scene_range_short_in_clutter() -> None:

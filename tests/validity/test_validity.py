@@ -326,24 +326,46 @@ def test_check_path_extremes_skip_no_sample_that_could_lower_the_clearance():
 
 
 def test_an_extension_is_certified_as_its_motion_is():
-    """certify_extension (the search's extension test, its new posture evaluated first)
-    gives certify_motion's verdict on every motion from a valid posture, and a broken
-    rule of the end posture as the end's own reason."""
-    from planner.validity import MIN_CERTIFIED_STEP, REASONS, certify_extension, certify_motion
+    """certify_extension (the search's extension test, its new posture evaluated first,
+    the tree node's measures given) and certify_between (both ends' measures given) give
+    certify_motion's verdict on every motion, from valid and from invalid postures; a broken
+    rule of the end posture is the extension's own reason, and the extension leaves the end's
+    measures, as measure_posture gives them, for the tree to keep."""
+    from planner.validity import (
+        MIN_CERTIFIED_STEP,
+        N_MEASURES,
+        REASONS,
+        certify_between,
+        certify_extension,
+        certify_motion,
+        measure_posture,
+    )
 
     d = Design.default()
     rng = np.random.default_rng(12)
     centres = rng.uniform(-0.9, 0.9, (300, 3))
     chk = ValidityChecker(d, Margins(), [Sphere(c, 0.02) for c in centres], "+", "+-+")
     starts = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0], (400, 3))
-    starts = starts[chk.is_valid(starts)]
+    valid = chk.is_valid(starts)
+    starts = np.concatenate([starts[valid][:60], starts[~valid][:10]])
     verdicts = {True: 0, False: 0}
-    for qa in starts[:60]:
+    kit = (*chk.packed,)
+    for qa in starts:
+        ma = np.empty(N_MEASURES)
+        measure_posture(qa, chk.params, *kit, ma)
+        assert (ma[0] == 0) == bool(chk.is_valid(qa[None])[0])
         for qb in qa + rng.normal(scale=0.3, size=(5, 3)):
-            args = (chk.params, *chk.packed, chk.coarse_step, MIN_CERTIFIED_STEP)
-            ext = certify_extension(qa, qb, *args)
-            full = certify_motion(qa, qb, *args, False)[0]
+            tail = (chk.coarse_step, MIN_CERTIFIED_STEP)
+            mb, mb_own = np.empty(N_MEASURES), np.empty(N_MEASURES)
+            full = certify_motion(qa, qb, chk.params, *kit, *tail, False)[0]
+            measure_posture(qb, chk.params, *kit, mb_own)
+            between = certify_between(qa, qb, ma, mb_own, chk.params, *kit, *tail)[0]
+            assert (between == 0) == (full == 0)
+            if ma[0] != 0:
+                continue  # a search extends from valid nodes only
+            ext = certify_extension(qa, qb, ma, mb, chk.params, *kit, *tail)
             assert (ext == 0) == (full == 0)
+            np.testing.assert_array_equal(mb, mb_own)
             if not chk.is_valid(qb[None])[0]:
                 assert REASONS[ext] == chk.check_states(qb).reason[0]
             verdicts[ext == 0] += 1

@@ -46,9 +46,12 @@ from planner.planning.ompl_backend import SearchOutcome
 from planner.planning.problem import PlanOptions
 from planner.validity import (
     MIN_CERTIFIED_STEP,
+    N_MEASURES,
     ValidityChecker,
+    certify_between,
     certify_extension,
     certify_motion,
+    measure_posture,
 )
 
 __all__ = [
@@ -159,10 +162,12 @@ def _bucket(q, lo, inv):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _insert(t, q, par, nodes, parent, count, head, nxt, lo, inv):  # pragma: no cover
-    """Add node q with parent ``par`` to tree t (its bucket list); returns its index."""
+def _insert(t, q, m, par, nodes, meas, parent, count, head, nxt, lo, inv):  # pragma: no cover
+    """Add node q, its measures m (the certificate's, kept in ``meas`` for the motions that
+    leave it), with parent ``par`` to tree t (its bucket list); returns its index."""
     i = count[t]
     nodes[t, i, 0], nodes[t, i, 1], nodes[t, i, 2] = q[0], q[1], q[2]
+    meas[t, i] = m
     parent[t, i] = par
     b0, b1, b2 = _bucket(q, lo, inv)
     nxt[t, i] = head[t, b0, b1, b2]
@@ -212,9 +217,12 @@ def _nearest(t, q, nodes, count, head, nxt, lo, inv, width):  # pragma: no cover
 
 
 @njit(cache=True)
-def _grow(t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step):
+def _grow(
+    t, target, nodes, meas, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step, mb
+):  # pragma: no cover - compiled
     """OMPL's ``growTree``: extend tree t from its node nearest to ``target`` by at most
-    ``rng``; returns (status, new node): 0 trapped, 1 advanced, 2 reached."""  # pragma: no cover
+    ``rng``; returns (status, new node): 0 trapped, 1 advanced, 2 reached. ``mb`` is
+    scratch for the new posture's measures."""
     near = _nearest(t, target, nodes, count, head, nxt, lo, inv, width)
     qa = nodes[t, near]
     d = math.sqrt((target[0] - qa[0]) ** 2 + (target[1] - qa[1]) ** 2 + (target[2] - qa[2]) ** 2)
@@ -223,10 +231,13 @@ def _grow(t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, 
     if count[t] >= nodes.shape[1]:
         return 0, -1
     s, c, b, sn, cn, bn, sg = packed
-    r = certify_extension(qa.copy(), qb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP)
+    ma = meas[t, near]
+    r = certify_extension(
+        qa.copy(), qb, ma, mb, prm, s, c, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP
+    )
     if r != 0:
         return 0, -1
-    i = _insert(t, qb, near, nodes, parent, count, head, nxt, lo, inv)
+    i = _insert(t, qb, mb, near, nodes, meas, parent, count, head, nxt, lo, inv)
     return (2 if reach else 1), i
 
 
@@ -253,20 +264,52 @@ def _sample(target, lo, hi, guide):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _run(
-    nodes, parent, count, head, nxt, lo, hi, width, rng, prm, packed, step, guide, iters, state, out
+    nodes,
+    meas,
+    parent,
+    count,
+    head,
+    nxt,
+    lo,
+    hi,
+    width,
+    rng,
+    prm,
+    packed,
+    step,
+    guide,
+    iters,
+    state,
+    out,
 ):  # pragma: no cover - compiled
     """``iters`` iterations of RRT-Connect, its targets drawn by :func:`_sample`;
     ``state[0]`` the tree that grows next. Returns True with ``out`` = (node in tree 0, node
     in tree 1) when the trees met; ``state[1]`` = 1 when a tree is full."""
     inv = 1.0 / width
     target = np.empty(3)
+    mb = np.empty(N_MEASURES)
     for _ in range(iters):
         t = state[0]
         o = 1 - t
         state[0] = o
         _sample(target, lo, hi, guide)
         st, i = _grow(
-            t, target, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step
+            t,
+            target,
+            nodes,
+            meas,
+            parent,
+            count,
+            head,
+            nxt,
+            lo,
+            inv,
+            width,
+            rng,
+            prm,
+            packed,
+            step,
+            mb,
         )
         if count[t] >= nodes.shape[1]:
             state[1] = 1
@@ -276,7 +319,22 @@ def _run(
         q_new = nodes[t, i].copy()
         while True:
             st2, j = _grow(
-                o, q_new, nodes, parent, count, head, nxt, lo, inv, width, rng, prm, packed, step
+                o,
+                q_new,
+                nodes,
+                meas,
+                parent,
+                count,
+                head,
+                nxt,
+                lo,
+                inv,
+                width,
+                rng,
+                prm,
+                packed,
+                step,
+                mb,
             )
             if st2 != 1:
                 break
@@ -300,16 +358,45 @@ def _valid(qa, qb, prm, packed, step):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _reduce(path, prm, packed, step):  # pragma: no cover - compiled
+def _reduce(path, known, prm, packed, step):  # pragma: no cover - compiled
     """Greedy vertex reduction: from each kept vertex, the farthest later vertex joined to it
-    by a certified motion (the next one always is: the path's own motion)."""
+    by a certified motion (the next one always is: the path's own motion). A pair of
+    vertices both marked in ``known`` is known not to be joined (:func:`_simplify`) and is
+    not certified again; each vertex is measured once for all the motions tried from and to
+    it (:func:`planner.validity.certify_between`)."""
     n = path.shape[0]
+    s, c, b, sn, cn, bn, sg = packed
+    meas = np.empty((n, N_MEASURES))
+    measured = np.zeros(n, dtype=np.bool_)
     keep = np.zeros(n, dtype=np.bool_)
     keep[0] = True
     i = 0
     while i < n - 1:
         j = n - 1
-        while j > i + 1 and not _valid(path[i].copy(), path[j].copy(), prm, packed, step):
+        while j > i + 1:
+            if not (known[i] and known[j]):
+                for v in (i, j):
+                    if not measured[v]:
+                        measure_posture(path[v], prm, s, c, b, sn, cn, bn, sg, meas[v])
+                        measured[v] = True
+                r, _ = certify_between(
+                    path[i],
+                    path[j],
+                    meas[i],
+                    meas[j],
+                    prm,
+                    s,
+                    c,
+                    b,
+                    sn,
+                    cn,
+                    bn,
+                    sg,
+                    step,
+                    MIN_CERTIFIED_STEP,
+                )
+                if r == 0:
+                    break
             j -= 1
         keep[j] = True
         i = j
@@ -320,8 +407,10 @@ def _reduce(path, prm, packed, step):  # pragma: no cover - compiled
 def _shortcut(path, tries, prm, packed, step):  # pragma: no cover - compiled
     """Random shortcuts between two points on two different motions of the path (OMPL's
     ``shortcutPath`` idea): when the straight motion between them is certified, the path
-    between them is replaced by it."""
+    between them is replaced by it. Returns the path and, per vertex, whether it is one of
+    the given path's (the shortcuts' new vertices are not)."""
     p = path.copy()
+    old = np.ones(p.shape[0], dtype=np.bool_)
     for _ in range(tries):
         n = p.shape[0]
         if n < 3:
@@ -335,20 +424,42 @@ def _shortcut(path, tries, prm, packed, step):  # pragma: no cover - compiled
         ta, tb = np.random.random(), np.random.random()  # noqa: NPY002 (numba: the legacy API)
         qa = p[a] + ta * (p[a + 1] - p[a])
         qb = p[b] + tb * (p[b + 1] - p[b])
-        old = np.sqrt(np.sum((p[a + 1] - qa) ** 2)) + np.sqrt(np.sum((qb - p[b]) ** 2))
+        old_len = np.sqrt(np.sum((p[a + 1] - qa) ** 2)) + np.sqrt(np.sum((qb - p[b]) ** 2))
         for k in range(a + 1, b):
-            old += np.sqrt(np.sum((p[k + 1] - p[k]) ** 2))
-        if np.sqrt(np.sum((qb - qa) ** 2)) >= old - 1e-9:
+            old_len += np.sqrt(np.sum((p[k + 1] - p[k]) ** 2))
+        if np.sqrt(np.sum((qb - qa) ** 2)) >= old_len - 1e-9:
             continue
         if not _valid(qa.copy(), qb.copy(), prm, packed, step):
             continue
-        q = np.empty((a + 1 + 2 + (n - b - 1), 3))
+        m = a + 1 + 2 + (n - b - 1)
+        q = np.empty((m, 3))
         q[: a + 1] = p[: a + 1]
         q[a + 1] = qa
         q[a + 2] = qb
         q[a + 3 :] = p[b + 1 :]
-        p = q
-    return p
+        kept = np.empty(m, dtype=np.bool_)
+        kept[: a + 1] = old[: a + 1]
+        kept[a + 1] = False
+        kept[a + 2] = False
+        kept[a + 3 :] = old[b + 1 :]
+        p, old = q, kept
+    return p, old
+
+
+@njit(cache=True)
+def _simplify(path, tries_a, tries_b, prm, packed, step):  # pragma: no cover - compiled
+    """:func:`simplify`'s work in one compiled call. The second reduction certifies only
+    pairs with a shortcut's new vertex: two vertices of the first reduction's path that are
+    not neighbours there were tried by it (from the earlier one, every later vertex beyond
+    the one it kept) and not joined, the motion's certificate being deterministic; and a
+    shortcut replaces a run of vertices by two new ones, so two old vertices are neighbours
+    after the shortcuts only where they were before."""
+    path = _reduce(path, np.zeros(path.shape[0], dtype=np.bool_), prm, packed, step)
+    count = tries_a * path.shape[0] + tries_b
+    if count > 0:
+        path, old = _shortcut(path, count, prm, packed, step)
+        path = _reduce(path, old, prm, packed, step)
+    return path
 
 
 def simplify(
@@ -357,16 +468,10 @@ def simplify(
     """The simplification of a found path (N, 3) rad, every new motion certified with the
     kernels' parameters ``slack`` (the checker's with :data:`SIMPLIFY_SLACK` more
     clearance): greedy vertex reduction, then ``tries[0] * n + tries[1]`` random shortcuts
-    (n the vertices left; none when both are 0) and the reduction again."""
+    (n the vertices left; none when both are 0) and the reduction again (:func:`_simplify`)."""
     if len(path) <= 2:
         return path
-    prm, packed, step = slack, tuple(checker.packed), checker.coarse_step
-    path = _reduce(path, prm, packed, step)
-    count = tries[0] * len(path) + tries[1]
-    if count > 0:
-        path = _shortcut(path, count, prm, packed, step)
-        path = _reduce(path, prm, packed, step)
-    return path
+    return _simplify(path, tries[0], tries[1], slack, tuple(checker.packed), checker.coarse_step)
 
 
 def _path(nodes: np.ndarray, parent: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -456,16 +561,19 @@ def rrt_connect(
     width = (hi - lo) / _BUCKETS
     rng = options.range if options.range is not None else scene_range(checker)
     nodes = np.empty((2, CAPACITY, 3))
+    meas = np.empty((2, CAPACITY, N_MEASURES))  # the nodes' measures (certify_extension)
     parent = np.empty((2, CAPACITY), dtype=np.int64)
     nxt = np.empty((2, CAPACITY), dtype=np.int64)
     head = np.full((2, _BUCKETS, _BUCKETS, _BUCKETS), -1, dtype=np.int64)
     count = np.zeros(2, dtype=np.int64)
     inv = 1.0 / width
-    _insert(0, np.array(q_start, dtype=float), -1, nodes, parent, count, head, nxt, lo, inv)
-    _insert(1, np.array(q_goal, dtype=float), -1, nodes, parent, count, head, nxt, lo, inv)
+    prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
+    for t, q in enumerate((q_start, q_goal)):
+        root, m = np.array(q, dtype=float), np.empty(N_MEASURES)
+        measure_posture(root, prm, *packed, m)
+        _insert(t, root, m, -1, nodes, meas, parent, count, head, nxt, lo, inv)
     state = np.zeros(2, dtype=np.int64)
     ends = np.zeros(2, dtype=np.int64)
-    prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
     _seed(options.seed)
     # A process's first search loads the compiled kernels from numba's cache (a second or
     # more, cold): a call of no iteration pays that before the deadline starts, so that a
@@ -478,6 +586,7 @@ def rrt_connect(
         return bool(
             _run(
                 nodes,
+                meas,
                 parent,
                 count,
                 head,

@@ -17,14 +17,19 @@ Motions are the straight joint-space segments between two postures. :meth:`Valid
 check_motion` certifies a whole segment, it does not sample it at a fixed step; the argument
 is in its docstring. Everything runs in compiled numba kernels over many states at once.
 
-The package has four modules, one job each: :mod:`planner.validity.margins` (``Margins``
+The package has six modules, one job each: :mod:`planner.validity.margins` (``Margins``
 and their defaults), :mod:`planner.validity.checker` (``ValidityChecker`` and its helpers:
-what callers use), :mod:`planner.validity.reports`
-(the records it returns) and :mod:`planner.validity._kernels` (the compiled kernels, private).
-Every public name is importable from ``planner.validity`` itself; one compiled kernel is
-public too, ``certify_motion`` (the certificate of :meth:`ValidityChecker.check_motion` over
-a checker's ``_prm`` and ``packed`` arrays), for compiled callers that run it in their own
-loops (:mod:`planner.planning.compiled_rrt`).
+what callers use), :mod:`planner.validity.reports` (the records it returns), and three of
+compiled kernels, private: :mod:`planner.validity._kernels` (one posture's measures and their
+rates), :mod:`planner.validity._certificate` (a motion's certificate) and
+:mod:`planner.validity._path_kernels` (a whole path's certificate and diagnostics).
+Every public name is importable from ``planner.validity`` itself; the certificate's
+compiled kernel is public too, ``certify_motion`` (the certificate of
+:meth:`ValidityChecker.check_motion` over a checker's ``_prm`` and ``packed`` arrays), for
+compiled callers that run it in their own loops (:mod:`planner.planning.compiled_rrt`), with
+its variants for such loops: ``certify_between`` (the ends' measures given,
+``measure_posture``, ``N_MEASURES`` per posture) and ``certify_extension`` (a search's
+extension).
 
 Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C-P-D is
 ``gamma = |theta4 - theta5|`` (mod pi) and ``|CD| = 2 L2 sin(gamma / 2)``, so (corrected eq. 8)
@@ -33,7 +38,13 @@ Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C
 theta3 only and moves by at most ``L1 (|dtheta2| + |dtheta3|)``, a global bound.
 """
 
-from planner.validity._kernels import REASONS, certify_extension, certify_motion
+from planner.validity._certificate import (
+    certify_between,
+    certify_extension,
+    certify_motion,
+    measure_posture,
+)
+from planner.validity._kernels import N_MEASURES, REASONS
 from planner.validity.checker import (
     DEFAULT_COARSE_STEP,
     DIAGNOSTIC_STEP,
@@ -58,6 +69,7 @@ __all__ = [
     "DEFAULT_SERIAL_MIN",
     "DIAGNOSTIC_STEP",
     "MIN_CERTIFIED_STEP",
+    "N_MEASURES",
     "REASONS",
     "Margins",
     "MotionReport",
@@ -65,8 +77,10 @@ __all__ = [
     "StateReport",
     "ValidityChecker",
     "assembly_reason",
+    "certify_between",
     "certify_extension",
     "certify_motion",
     "densify",
+    "measure_posture",
     "warm_up",
 ]

@@ -1,5 +1,5 @@
 """The compiled kernels over a whole waypoint path (numba): its certificate
-(:func:`certify_path`, every motion by :func:`planner.validity._kernels.certify_motion`) and
+(:func:`certify_path`, every motion by :func:`planner.validity._certificate.certify_motion`) and
 its diagnostics (:func:`path_extremes`). Private, as :mod:`planner.validity._kernels`, whose
 per-posture kernels they call (inlined: after editing one of those, touch this file so that
 numba's cache, keyed on this file, compiles these again).
@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
+from planner.validity._certificate import certify_motion
 from planner.validity._kernels import (
     M_AXIS,
     M_CLEAR_RAW,
@@ -19,7 +20,6 @@ from planner.validity._kernels import (
     M_KAPPA,
     M_SERIAL_RAW,
     N_MEASURES,
-    certify_motion,
     evaluate_bounded,
     rates,
     rates_at,

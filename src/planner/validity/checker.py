@@ -18,6 +18,7 @@ from planner.design import Design
 from planner.exceptions import InputError
 from planner.geometry import Obstacle, PackedObstacles, pack_obstacles
 from planner.kinematics import ASSEMBLY_MODES, WORKING_MODES
+from planner.validity._certificate import certify_motion
 from planner.validity._kernels import (
     M_CLEAR_RAW,
     M_KAPPA,
@@ -25,7 +26,6 @@ from planner.validity._kernels import (
     M_SERIAL_RAW,
     N_MEASURES,
     REASONS,
-    certify_motion,
     evaluate,
     evaluate_many,
     pack_params,
