@@ -568,9 +568,10 @@ def rrt_connect(
     count = np.zeros(2, dtype=np.int64)
     inv = 1.0 / width
     prm, packed, step = checker.params, tuple(checker.packed), checker.coarse_step
-    for t, q in enumerate((q_start, q_goal)):
+    sph, cap, box, sph_n, cap_n, box_n, grid = packed
+    for t, q in enumerate((q_start, q_goal)):  # the roots, measured for certify_extension
         root, m = np.array(q, dtype=float), np.empty(N_MEASURES)
-        measure_posture(root, prm, *packed, m)
+        measure_posture(root, prm, sph, cap, box, sph_n, cap_n, box_n, grid, m)
         _insert(t, root, m, -1, nodes, meas, parent, count, head, nxt, lo, inv)
     state = np.zeros(2, dtype=np.int64)
     ends = np.zeros(2, dtype=np.int64)
