@@ -80,17 +80,35 @@ def test_nearest_grid_matches_a_brute_force_scan() -> None:
         assert np.isclose(np.sum((pts[got] - q) ** 2), np.sum((pts[want] - q) ** 2))
 
 
-def test_simplify_skips_only_pairs_known_not_joined() -> None:
-    """The simplification's second reduction leaves out the pairs of old vertices (tried by
-    the first): its paths are those of the three steps run plainly, every pair certified,
-    on raw searches' paths among small spheres (where most long motions are refused)."""
-    from planner.planning.compiled_rrt import _reduce, _seed, _shortcut, _simplify
+def test_simplify_gives_the_plain_greedy_paths() -> None:
+    """The simplification's shortcuts (its second reduction leaves out the pairs of old
+    vertices the first tried; a motion is first probed where a neighbouring one broke a
+    rule; each vertex measured once) give the paths of the plain route: a greedy reduction
+    in Python that certifies every pair with certify_motion, the same random shortcuts, the
+    plain reduction again. On raw searches' paths among small spheres, where most long
+    motions are refused."""
+    from planner.planning.compiled_rrt import _seed, _shortcut, _simplify
+    from planner.validity import MIN_CERTIFIED_STEP, certify_motion
 
     design = Design.default()
     rng = np.random.default_rng(8)
     spheres = [Sphere(c, 0.02) for c in rng.uniform(-0.8, 0.8, (400, 3))]
     chk = ValidityChecker(design, Margins(), spheres, "+", "+-+")
     prm, packed, step = chk.params, tuple(chk.packed), chk.coarse_step
+
+    def joined(qa: np.ndarray, qb: np.ndarray) -> bool:
+        return certify_motion(qa, qb, prm, *packed, step, MIN_CERTIFIED_STEP, False)[0] == 0
+
+    def plain_reduce(path: np.ndarray) -> np.ndarray:
+        keep, i = [0], 0
+        while i < len(path) - 1:
+            j = len(path) - 1
+            while j > i + 1 and not joined(path[i], path[j]):
+                j -= 1
+            keep.append(j)
+            i = j
+        return path[keep]
+
     ends = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0], (300, 3))
     ends = ends[chk.is_valid(ends)]
     compared = changed = 0
@@ -104,9 +122,9 @@ def test_simplify_skips_only_pairs_known_not_joined() -> None:
         _seed(k)
         got = _simplify(path, 2, 8, prm, packed, step)
         _seed(k)
-        plain = _reduce(path, np.zeros(len(path), dtype=np.bool_), prm, packed, step)
+        plain = plain_reduce(path)
         plain, _ = _shortcut(plain, 2 * len(plain) + 8, prm, packed, step)
-        plain = _reduce(plain, np.zeros(len(plain), dtype=np.bool_), prm, packed, step)
+        plain = plain_reduce(plain)
         assert got.shape == plain.shape and np.array_equal(got, plain)
         compared += 1
         changed += len(got) < len(path)
