@@ -120,7 +120,7 @@ def test_simplify_gives_the_plain_greedy_paths() -> None:
             continue
         path = out.waypoints
         _seed(k)
-        got = _simplify(path, 2, 8, prm, packed, step)
+        got = _simplify(path, np.zeros(len(path), dtype=np.bool_), 2, 8, prm, packed, step)
         _seed(k)
         plain = plain_reduce(path)
         plain, _ = _shortcut(plain, 2 * len(plain) + 8, prm, packed, step)

@@ -138,6 +138,45 @@ def test_the_search_walks_a_remembered_path_reproducibly(scene) -> None:
     assert walked
 
 
+def test_a_walks_simplification_skips_only_the_remembered_pairs(scene) -> None:
+    """A walk's first reduction leaves out the pairs of the remembered path's vertices (its
+    last reduction tried them and joined none): the walks' simplified paths are those of
+    the simplification that certifies every pair."""
+    checker, pairs = scene
+    kept = _remember_one(checker, *pairs[0])
+    tries = compiled_rrt.RECALL_SHORTCUT_TRIES
+
+    def both(path: np.ndarray, slack: np.ndarray) -> list[np.ndarray]:
+        out = []
+        for reduced_inside in (True, False):
+            compiled_rrt._seed(3)
+            out.append(
+                compiled_rrt.simplify(path, checker, slack, tries, reduced_inside=reduced_inside)
+            )
+        np.testing.assert_array_equal(out[0], out[1])
+        return out
+
+    compared = 0
+    for q_start, q_goal in pairs[1:]:
+        got = experience.recall(checker, q_start, q_goal)
+        if got is None:
+            continue
+        path, slack = got
+        assert len(path) >= 4  # two joins and at least two remembered vertices
+        both(path, slack)
+        compared += 1
+    assert compared >= 2
+    # joins that a reduction shortens (the ends on the remembered path's first and last
+    # motions): the ends' pairs are still certified
+    assert len(kept) >= 3
+    ends = (kept[0] + kept[1]) / 2, (kept[-2] + kept[-1]) / 2
+    path = np.vstack([ends[0], kept, ends[1]])
+    out = both(path, experience._scene(checker).slack)[0]
+    assert len(out) < len(path)
+    np.testing.assert_array_equal(out[0], ends[0])
+    assert not any(np.array_equal(v, kept[0]) for v in out)
+
+
 def test_a_search_that_walks_nothing_samples_near_the_remembered_paths(scene) -> None:
     """Where no join to a remembered path holds, the search still draws part of its samples
     near the remembered paths (experience.guide): it finds the window with fewer nodes than

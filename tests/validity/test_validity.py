@@ -372,6 +372,45 @@ def test_an_extension_is_certified_as_its_motion_is():
     assert min(verdicts.values()) > 20  # both verdicts were met
 
 
+def test_a_motion_blocked_near_a_hint_is_refused_there():
+    """blocked_near probes the posture of a motion nearest to a hint (its projection in
+    joint space): True only where that posture breaks a rule by the per-posture report, and
+    then the certificate refuses the motion; False at the ends and for a motion of no
+    length."""
+    from planner.validity import (
+        MIN_CERTIFIED_STEP,
+        N_MEASURES,
+        REASONS,
+        blocked_near,
+        certify_motion,
+    )
+
+    d = Design.default()
+    rng = np.random.default_rng(13)
+    centres = rng.uniform(-0.9, 0.9, (300, 3))
+    chk = ValidityChecker(d, Margins(), [Sphere(c, 0.02) for c in centres], "+", "+-+")
+    kit = (chk.params, *chk.packed)
+    out = np.empty(N_MEASURES)
+    blocked = 0
+    for _ in range(300):
+        qa = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0])
+        qb = qa + rng.normal(scale=0.4, size=3)
+        hint = qa + rng.uniform(-0.2, 1.2) * (qb - qa) + rng.normal(scale=0.05, size=3)
+        t = float(np.dot(hint - qa, qb - qa) / np.dot(qb - qa, qb - qa))
+        got = blocked_near(qa, qb, hint, *kit, out)
+        if not 0.0 < t < 1.0:
+            assert not got
+            continue
+        probe = qa + t * (qb - qa)
+        assert got == (not chk.is_valid(probe[None])[0])
+        if got:
+            blocked += 1
+            assert chk.check_states(probe).reason[0] == REASONS[int(out[0])]
+            assert certify_motion(qa, qb, *kit, chk.coarse_step, MIN_CERTIFIED_STEP, False)[0] != 0
+    assert blocked > 30
+    assert not blocked_near(qa, qa.copy(), qa, *kit, out)
+
+
 def test_serial_rules_off_keeps_the_other_rules():
     """A motion onto a serial singularity (leg A stretched) is certified for kappa and
     clearance with the serial rules off, and refused with them on."""

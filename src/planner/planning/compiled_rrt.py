@@ -48,6 +48,7 @@ from planner.validity import (
     MIN_CERTIFIED_STEP,
     N_MEASURES,
     ValidityChecker,
+    blocked_near,
     certify_between,
     certify_extension,
     certify_motion,
@@ -365,7 +366,7 @@ def _reduce(path, known, prm, packed, step):  # pragma: no cover - compiled
     not certified again; each vertex is measured once for all the motions tried from and to
     it (:func:`planner.validity.certify_between`); a motion is probed first where it passes
     nearest to the posture the last refused motion from the same vertex broke at
-    (:func:`_blocked`)."""
+    (:func:`planner.validity.blocked_near`)."""
     n = path.shape[0]
     s, c, b, sn, cn, bn, sg = packed
     meas = np.empty((n, N_MEASURES))
@@ -381,7 +382,7 @@ def _reduce(path, known, prm, packed, step):  # pragma: no cover - compiled
         while j > i + 1:
             if not (known[i] and known[j]):
                 qa, qb = path[i], path[j]
-                if hinted and _blocked(qa, qb, hint, prm, packed, probe):
+                if hinted and blocked_near(qa, qb, hint, prm, s, c, b, sn, cn, bn, sg, probe):
                     j -= 1
                     continue
                 for v in (i, j):
@@ -400,28 +401,6 @@ def _reduce(path, known, prm, packed, step):  # pragma: no cover - compiled
         keep[j] = True
         i = j
     return path[keep]
-
-
-@njit(cache=True, inline="always")
-def _blocked(qa, qb, hint, prm, packed, probe):  # pragma: no cover - compiled
-    """Whether the posture of the motion qa -> qb nearest to ``hint`` (where a neighbouring
-    motion broke a rule) is invalid, in which case the motion is refused without its
-    certificate (the verdict the certificate gives: a motion with an invalid posture is
-    never certified). In clutter the motions from one vertex to its successive later
-    vertices are mostly stopped by the same obstacle, which one evaluation there finds
-    where the certificate's samples in bisection order take several."""
-    d0, d1, d2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
-    dd = d0 * d0 + d1 * d1 + d2 * d2
-    if dd <= 0.0:
-        return False
-    t = ((hint[0] - qa[0]) * d0 + (hint[1] - qa[1]) * d1 + (hint[2] - qa[2]) * d2) / dd
-    if not (0.0 < t < 1.0):
-        return False  # the nearest posture is an end: measured with the vertices
-    s, c, b, sn, cn, bn, sg = packed
-    q = np.empty(3)
-    q[0], q[1], q[2] = qa[0] + t * d0, qa[1] + t * d1, qa[2] + t * d2
-    measure_posture(q, prm, s, c, b, sn, cn, bn, sg, probe)
-    return probe[0] != 0.0  # M_REASON: a rule broken
 
 
 @njit(cache=True)
@@ -468,14 +447,15 @@ def _shortcut(path, tries, prm, packed, step):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _simplify(path, tries_a, tries_b, prm, packed, step):  # pragma: no cover - compiled
-    """:func:`simplify`'s work in one compiled call. The second reduction certifies only
+def _simplify(path, known, tries_a, tries_b, prm, packed, step):  # pragma: no cover - compiled
+    """:func:`simplify`'s work in one compiled call, ``known`` the vertices whose pairs the
+    first reduction need not certify (:func:`_reduce`). The second reduction certifies only
     pairs with a shortcut's new vertex: two vertices of the first reduction's path that are
     not neighbours there were tried by it (from the earlier one, every later vertex beyond
     the one it kept) and not joined, the motion's certificate being deterministic; and a
     shortcut replaces a run of vertices by two new ones, so two old vertices are neighbours
     after the shortcuts only where they were before."""
-    path = _reduce(path, np.zeros(path.shape[0], dtype=np.bool_), prm, packed, step)
+    path = _reduce(path, known, prm, packed, step)
     count = tries_a * path.shape[0] + tries_b
     if count > 0:
         path, old = _shortcut(path, count, prm, packed, step)
@@ -484,15 +464,30 @@ def _simplify(path, tries_a, tries_b, prm, packed, step):  # pragma: no cover - 
 
 
 def simplify(
-    path: np.ndarray, checker: ValidityChecker, slack: np.ndarray, tries: tuple[int, int]
+    path: np.ndarray,
+    checker: ValidityChecker,
+    slack: np.ndarray,
+    tries: tuple[int, int],
+    *,
+    reduced_inside: bool = False,
 ) -> np.ndarray:
     """The simplification of a found path (N, 3) rad, every new motion certified with the
     kernels' parameters ``slack`` (the checker's with :data:`SIMPLIFY_SLACK` more
     clearance): greedy vertex reduction, then ``tries[0] * n + tries[1]`` random shortcuts
-    (n the vertices left; none when both are 0) and the reduction again (:func:`_simplify`)."""
+    (n the vertices left; none when both are 0) and the reduction again (:func:`_simplify`).
+    ``reduced_inside``: the path's vertices but its ends are a simplified path's (a walk:
+    two joins onto a remembered path), whose last reduction with the same ``slack`` tried
+    every pair of them that are not neighbours and joined none; the first reduction does
+    not certify those pairs again (the same verdicts but where a pair's certificate would
+    not be that of the reversed motion, which only keeps a vertex more: every kept motion
+    is still certified)."""
     if len(path) <= 2:
         return path
-    return _simplify(path, tries[0], tries[1], slack, tuple(checker.packed), checker.coarse_step)
+    known = np.zeros(len(path), dtype=np.bool_)
+    if reduced_inside:
+        known[1:-1] = True
+    packed, step = tuple(checker.packed), checker.coarse_step
+    return _simplify(path, known, tries[0], tries[1], slack, packed, step)
 
 
 def _path(nodes: np.ndarray, parent: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -524,7 +519,7 @@ def walk(
         return None
     path, slack = remembered
     _seed(options.seed)
-    path = simplify(path, checker, slack, RECALL_SHORTCUT_TRIES)
+    path = simplify(path, checker, slack, RECALL_SHORTCUT_TRIES, reduced_inside=True)
     return SearchOutcome(path, True, "Exact solution", True, certified=True)
 
 

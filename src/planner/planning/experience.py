@@ -41,7 +41,14 @@ import numpy as np
 from numba import njit
 
 from planner.caching import BoundedCache, bounded_cache
-from planner.validity import MIN_CERTIFIED_STEP, ValidityChecker, certify_motion
+from planner.validity import (
+    MIN_CERTIFIED_STEP,
+    N_MEASURES,
+    ValidityChecker,
+    blocked_near,
+    certify_between,
+    measure_posture,
+)
 
 __all__ = [
     "MAX_DETOUR",
@@ -226,7 +233,9 @@ def _recall_rows(rows, q_start, q_goal, reach, max_tests, prm, packed, step):  #
     (length along the path between i and j) + |j - goal|`` at most ``reach``, tried in order
     of cost (ties in the order path, i, j: a stable sort); each join (the start's to a row,
     a row's to the goal) is certified once and its verdict kept for every candidate that
-    uses it; at most ``max_tests`` joins are certified."""
+    uses it; at most ``max_tests`` joins are certified (a join refused at the posture nearest
+    to where the last refused join of its end broke a rule counts as one, certificate
+    skipped: :func:`planner.validity.blocked_near`)."""
     m = rows.shape[0]
     cum = np.zeros(m)  # length along its path up to each row
     ds = np.empty(m)
@@ -276,6 +285,16 @@ def _recall_rows(rows, q_start, q_goal, reach, max_tests, prm, packed, step):  #
     order = np.argsort(cost[:c], kind="mergesort")
     joins = np.zeros((2, m), dtype=np.int8)  # 0 not tried, 1 certified, 2 not
     s, cp, b, sn, cn, bn, sg = packed
+    # each posture measured once for all its joins (certify_between); a join is probed
+    # first near where the last refused join of the same end broke a rule (blocked_near)
+    ends = np.empty((2, N_MEASURES))
+    measure_posture(q_start, prm, s, cp, b, sn, cn, bn, sg, ends[0])
+    measure_posture(q_goal, prm, s, cp, b, sn, cn, bn, sg, ends[1])
+    meas = np.empty((m, N_MEASURES))
+    measured = np.zeros(m, dtype=np.bool_)
+    hint = np.empty((2, 3))
+    hinted = np.zeros(2, dtype=np.bool_)
+    probe = np.empty(N_MEASURES)
     tests = 0
     for o in order:
         i, j = pair[o, 0], pair[o, 1]
@@ -286,12 +305,27 @@ def _recall_rows(rows, q_start, q_goal, reach, max_tests, prm, packed, step):  #
                 if tests >= max_tests:
                     return np.array([-1, -1])
                 tests += 1
-                qa = q_start.copy() if end_ == 0 else rows[v].copy()
-                qb = rows[v].copy() if end_ == 0 else q_goal.copy()
-                r_, _ = certify_motion(
-                    qa, qb, prm, s, cp, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP, False
-                )
-                joins[end_, v] = 1 if r_ == 0 else 2
+                row = rows[v].copy()  # writeable, as the start and the goal: one signature
+                if not measured[v]:
+                    measure_posture(row, prm, s, cp, b, sn, cn, bn, sg, meas[v])
+                    measured[v] = True
+                qa = q_start if end_ == 0 else row
+                qb = row if end_ == 0 else q_goal
+                ma = ends[0] if end_ == 0 else meas[v]
+                mb = meas[v] if end_ == 0 else ends[1]
+                if hinted[end_] and blocked_near(
+                    qa, qb, hint[end_], prm, s, cp, b, sn, cn, bn, sg, probe
+                ):
+                    joins[end_, v] = 2
+                else:
+                    r_, t = certify_between(
+                        qa, qb, ma, mb, prm, s, cp, b, sn, cn, bn, sg, step, MIN_CERTIFIED_STEP
+                    )
+                    joins[end_, v] = 1 if r_ == 0 else 2
+                    if r_ != 0:
+                        for k in range(3):
+                            hint[end_, k] = qa[k] + t * (qb[k] - qa[k])
+                        hinted[end_] = True
             if joins[end_, v] != 1:
                 held = False
                 break

@@ -28,8 +28,9 @@ compiled kernel is public too, ``certify_motion`` (the certificate of
 :meth:`ValidityChecker.check_motion` over a checker's ``_prm`` and ``packed`` arrays), for
 compiled callers that run it in their own loops (:mod:`planner.planning.compiled_rrt`), with
 its variants for such loops: ``certify_between`` (the ends' measures given,
-``measure_posture``, ``N_MEASURES`` per posture) and ``certify_extension`` (a search's
-extension).
+``measure_posture``, ``N_MEASURES`` per posture), ``certify_extension`` (a search's
+extension) and ``blocked_near`` (a motion refused at one posture near where another broke a
+rule).
 
 Why kappa(A) is checked through |CD|: the apex angle of the isosceles triangle C-P-D is
 ``gamma = |theta4 - theta5|`` (mod pi) and ``|CD| = 2 L2 sin(gamma / 2)``, so (corrected eq. 8)
@@ -39,6 +40,7 @@ theta3 only and moves by at most ``L1 (|dtheta2| + |dtheta3|)``, a global bound.
 """
 
 from planner.validity._certificate import (
+    blocked_near,
     certify_between,
     certify_extension,
     certify_motion,
@@ -77,6 +79,7 @@ __all__ = [
     "StateReport",
     "ValidityChecker",
     "assembly_reason",
+    "blocked_near",
     "certify_between",
     "certify_extension",
     "certify_motion",

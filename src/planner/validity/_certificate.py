@@ -32,7 +32,13 @@ from planner.validity._kernels import (
     sin_apex_min,
 )
 
-__all__ = ["certify_between", "certify_extension", "certify_motion", "measure_posture"]
+__all__ = [
+    "blocked_near",
+    "certify_between",
+    "certify_extension",
+    "certify_motion",
+    "measure_posture",
+]
 
 
 @njit(cache=True)
@@ -169,6 +175,55 @@ def measure_posture(
         False,
         out,
     )
+
+
+@njit(cache=True)
+def blocked_near(
+    qa,
+    qb,
+    hint,
+    prm,
+    spheres,
+    capsules,
+    boxes,
+    sphere_nodes,
+    capsule_nodes,
+    box_nodes,
+    sphere_grid,
+    out,
+):  # pragma: no cover
+    """Whether the posture of the motion qa -> qb nearest to ``hint`` (3,) (Euclidean, in
+    joint space) breaks a rule, measured into ``out`` (layout ``M_*``); False where that
+    posture is an end (measured by the caller) or the motion has no length. True means the
+    motion's certificate would refuse it (a motion with an invalid posture is never
+    certified), so a caller can skip the certificate: a loop that tries many motions from
+    or to one posture (a path's reduction, a remembered path's joins) gives ``hint`` the
+    posture where the last one broke a rule, and in clutter the next one is mostly stopped
+    by the same obstacle, which this one evaluation finds where the certificate's samples
+    in bisection order take several."""
+    d0, d1, d2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    if dd <= 0.0:
+        return False
+    t = ((hint[0] - qa[0]) * d0 + (hint[1] - qa[1]) * d1 + (hint[2] - qa[2]) * d2) / dd
+    if not (0.0 < t < 1.0):
+        return False
+    evaluate(
+        qa[0] + t * d0,
+        qa[1] + t * d1,
+        qa[2] + t * d2,
+        prm,
+        spheres,
+        capsules,
+        boxes,
+        sphere_nodes,
+        capsule_nodes,
+        box_nodes,
+        sphere_grid,
+        False,
+        out,
+    )
+    return out[M_REASON] != 0.0
 
 
 @njit(cache=True, inline="always")
