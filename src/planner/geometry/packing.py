@@ -46,18 +46,40 @@ def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
     rows (rows of 1,000 spheres take 4 ms to gather, a 100,000-point cloud 3 ms to hash);
     by content, an equal set of other objects (the same obstacles sent inline again) finds
     the trees built. Obstacles are immutable (frozen, read-only arrays), so identity is
-    enough; the identity cache holds the objects, so their ids are not reused while it
-    remembers them."""
-    if len(obstacles) >= _IDENTITY_FROM or any(isinstance(o, Points) for o in obstacles):
-        # map over C callables, not generators: 1,000 obstacles in ~40 us instead of ~140
-        key = tuple(map(id, obstacles))
-        hit = _BY_IDENTITY.get(key)
-        if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
-            return hit[1]
-        packed = _pack(obstacles)
-        _BY_IDENTITY.put(key, (tuple(obstacles), packed))
-        return packed
-    return _pack(obstacles)
+    enough: an entry holds its objects, and a hit is every object the very one it holds,
+    in order (:func:`_by_identity`)."""
+    if not isinstance(obstacles, list | tuple):
+        obstacles = tuple(obstacles)
+    large = len(obstacles) >= _IDENTITY_FROM or any(isinstance(o, Points) for o in obstacles)
+    cache = _BY_IDENTITY if large else _BY_IDENTITY_SMALL
+    return _by_identity(cache, obstacles)
+
+
+def _by_identity(
+    cache: BoundedCache[tuple[tuple, PackedObstacles]], obstacles: list | tuple
+) -> PackedObstacles:
+    """The packing of ``obstacles`` remembered in ``cache`` by the objects' identity, or
+    packed now (:func:`_pack`) and remembered.
+
+    The key is a fingerprint: the count and the ids of at most :data:`_KEY_IDS` + 1 objects
+    spread over the list (the last one included); a hit is then confirmed object by object
+    (``is``, in C: 1,000 objects in ~15 us, where a key of every id cost ~30 us to build and
+    as much again to hash and compare in the look-up, and ~115 us in all per plan among the
+    1,000 spheres of ``benchmarks/planning.py --fair``, docs/planning.md, run K). Two lists
+    of one fingerprint but other objects (a rare pattern: the same objects at the sampled
+    places, others between them) take each other's entry in turn, each packed again by
+    content (:func:`_pack`, its trees found in the content cache): slower, never wrong."""
+    n = len(obstacles)
+    if n == 0:
+        return _pack(obstacles)
+    stride = max(1, n // _KEY_IDS)
+    key = (n, *map(id, obstacles[::stride]), id(obstacles[-1]))
+    hit = cache.get(key)
+    if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
+        return hit[1]
+    packed = _pack(obstacles)
+    cache.put(key, (tuple(obstacles), packed))
+    return packed
 
 
 def _pack(obstacles: Sequence[Obstacle]) -> PackedObstacles:
@@ -124,6 +146,14 @@ _PACKED: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed")
 #: that many small scenes never push a large scene's trees out of ``_PACKED``.
 _PACKED_SMALL: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed_small")
 #: Obstacle lists of at least this many objects (or holding a cloud) are remembered by
-#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``.
+#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``; smaller ones in
+#: ``geometry.by_identity_small`` (their own, as the content caches: many small scenes never
+#: push a large scene's entry out; a hit there costs ~1 us, hashing their rows ~8 us).
 _IDENTITY_FROM = 16
 _BY_IDENTITY: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache("geometry.by_identity")
+_BY_IDENTITY_SMALL: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache(
+    "geometry.by_identity_small"
+)
+#: Ids of at most this many objects (and the last one's) make an identity key
+#: (:func:`_by_identity`).
+_KEY_IDS = 16
