@@ -70,10 +70,8 @@ def _by_identity(
     places, others between them) take each other's entry in turn, each packed again by
     content (:func:`_pack`, its trees found in the content cache): slower, never wrong."""
     n = len(obstacles)
-    if n == 0:
-        return _pack(obstacles)
     stride = max(1, n // _KEY_IDS)
-    key = (n, *map(id, obstacles[::stride]), id(obstacles[-1]))
+    key = (n, *map(id, obstacles[::stride]), id(obstacles[-1])) if n else (0,)
     hit = cache.get(key)
     if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
         return hit[1]
