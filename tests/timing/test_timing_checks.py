@@ -138,6 +138,8 @@ def test_a_toppra_curve_is_checked_for_validity_at_the_resolution_and_the_sample
     assert np.max(np.linalg.norm(np.diff(q_at, axis=0), axis=1)) <= resolution + 1e-12
     dense_check(curve, check_states=record, **kwargs)
     assert len(asked[1]) == len(report.t) > len(asked[0])
+    dense_check(curve, check_states=record, validity_times=at[1:] - 1e-9, **kwargs)
+    assert len(asked[2]) == len(report.t)  # times not among the check times: every posture
     # a slab crossed between two output samples and between two sub-samples is caught
     q_out = curve.evaluate(t_out)[0][:, 0]
     mid = int(np.argmax(np.diff(q_out)))

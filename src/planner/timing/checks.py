@@ -246,14 +246,18 @@ def _valid_states(
     validity_times: np.ndarray | None,
     extra_times: np.ndarray,
 ) -> np.ndarray:
-    """:func:`dense_check`'s validity of the postures q (M,, 3) at its times t (M,, sorted,
-    unique): ``check_states`` at every one, or with ``validity_times`` only at those and at
-    ``extra_times`` (both among t, to the bit), the others counted valid."""
+    """:func:`dense_check`'s validity of the postures q (M, 3) at its times t (M,), sorted and
+    unique: ``check_states`` at every one, or with ``validity_times`` only at those and at
+    ``extra_times`` (both among t, to the bit; else at every one), the others valid."""
     at = None
     if validity_times is not None:
         at = np.zeros(t.shape[0], dtype=bool)
-        at[np.searchsorted(t, validity_times)] = True
-        at[np.searchsorted(t, extra_times)] = True
+        for times in (validity_times, extra_times):
+            i = np.minimum(np.searchsorted(t, times), t.shape[0] - 1)
+            if not np.array_equal(t[i], times):  # not among t: every posture, never fewer
+                at = None
+                break
+            at[i] = True
     asked = q if at is None else q[at]
     valid = np.asarray(check_states(asked))
     if valid.shape != (asked.shape[0],) or valid.dtype != np.bool_:
