@@ -135,3 +135,27 @@ def test_packings_found_by_identity_are_the_packings_of_those_very_objects(n):
             np.testing.assert_array_equal(a, b)
     assert not np.array_equal(pack_obstacles(other).spheres, rows)
     np.testing.assert_array_equal(pack_obstacles(spheres).spheres, rows)
+
+
+def test_packed_digest_is_the_rows_digest_and_follows_the_content():
+    """``packed_digest``: blake2b of each kind's packed rows with their shapes (computed here
+    from the arrays), the same for a packing of fresh equal objects, another for other
+    content, and the same again when asked twice (remembered by the arrays' identity)."""
+    import hashlib
+
+    from planner import caching
+    from planner.geometry import Points, packed_digest
+
+    rng = np.random.default_rng(5)
+    scene = [Points(rng.uniform(-1, 1, (300, 3)), 0.01), Sphere([0.2, 0.1, 0.3], 0.05)]
+    caching.clear("geometry")
+    packed = pack_obstacles(scene)
+    want = hashlib.blake2b(digest_size=16)
+    for a in packed[:3]:
+        want.update(np.asarray(a.shape, dtype=np.int64).tobytes())
+        want.update(a.tobytes())
+    assert packed_digest(packed) == packed_digest(packed) == want.digest()
+    fresh = [Points(np.array(scene[0].points), 0.01), Sphere([0.2, 0.1, 0.3], 0.05)]
+    assert pack_obstacles(fresh) is packed or packed_digest(pack_obstacles(fresh)) == want.digest()
+    moved = [scene[0], Sphere([0.2, 0.1, 0.31], 0.05)]
+    assert packed_digest(pack_obstacles(moved)) != want.digest()
