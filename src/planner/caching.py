@@ -85,6 +85,8 @@ _TABLE = {
     "geometry.packed": (0.25, 16, "packed obstacle sets of more than 64 rows, by content"),
     "geometry.packed_small": (0.02, 256, "packed obstacle sets of at most 64 rows, by content"),
     "geometry.by_identity": (0.18, 8, "packed obstacle lists of 16+ objects or a cloud, by identity"),
+    "geometry.by_identity_small": (0.005, 256, "packed obstacle lists of < 16 objects, by identity"),
+    "geometry.digests": (0.0005, 64, "content digests of packed obstacle sets, by identity"),
     "corridor.grids": (0.06, 32, "corridor grids of (design, margins, obstacles, modes, shape)"),
     "corridor.too_costly": (0.0001, 32, "projected times (s) of corridor builds stopped"),
     "experience.paths": (0.005, 64, "remembered certified paths of (design, margins, modes, obstacles)"),

@@ -8,7 +8,7 @@ import pytest
 from planning_factories import point_distance
 
 from planner.exceptions import InputError
-from planner.geometry import Box, Capsule, Sphere, segment_obstacle_distance
+from planner.geometry import Box, Capsule, Sphere, pack_obstacles, segment_obstacle_distance
 from planner.wire import obstacle_from_dict
 
 
@@ -105,3 +105,57 @@ def test_boxes_touching_and_grazing():
     d = segment_obstacle_distance(a, b, [box])
     np.testing.assert_allclose(d[:3], [0.05, 0.0, np.hypot(0.02, 0.03)], atol=1e-9)
     assert d[3] == pytest.approx(-min(h), abs=1e-9)
+
+
+@pytest.mark.parametrize("n", [0, 3, 40])
+def test_packings_found_by_identity_are_the_packings_of_those_very_objects(n):
+    """``pack_obstacles`` remembers a list by the identity of its objects (a key of sampled
+    ids, a hit confirmed object by object): the same objects again (in a list or a tuple)
+    give the packing kept; a list that shares the sampled objects but holds another one
+    between them, or the same objects in another order, is packed from its own rows (equal
+    to the packing of fresh objects of the same content), and the first list keeps its own."""
+    from planner import caching
+
+    rng = np.random.default_rng(n)
+    spheres = [Sphere(rng.uniform(-0.8, 0.8, 3), 0.02 + 0.001 * i) for i in range(n)]
+    caching.clear("geometry")
+    first = pack_obstacles(spheres)
+    assert pack_obstacles(tuple(spheres)) is first
+    if n == 0:
+        return
+    rows = first.spheres.copy()
+    stride = max(1, n // 16)
+    other = list(spheres)
+    k = next((i for i in range(1, n - 1) if i % stride), 1)  # a place the key does not sample
+    other[k] = Sphere(spheres[k].center + 0.3, spheres[k].radius)
+    for changed in (other, spheres[::-1], spheres, other):
+        fresh = [Sphere(o.center, o.radius) for o in changed]
+        got, want = pack_obstacles(changed), pack_obstacles(fresh)
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(pack_obstacles(other).spheres, rows)
+    np.testing.assert_array_equal(pack_obstacles(spheres).spheres, rows)
+
+
+def test_packed_digest_is_the_rows_digest_and_follows_the_content():
+    """``packed_digest``: blake2b of each kind's packed rows with their shapes (computed here
+    from the arrays), the same for a packing of fresh equal objects, another for other
+    content, and the same again when asked twice (remembered by the arrays' identity)."""
+    import hashlib
+
+    from planner import caching
+    from planner.geometry import Points, packed_digest
+
+    rng = np.random.default_rng(5)
+    scene = [Points(rng.uniform(-1, 1, (300, 3)), 0.01), Sphere([0.2, 0.1, 0.3], 0.05)]
+    caching.clear("geometry")
+    packed = pack_obstacles(scene)
+    want = hashlib.blake2b(digest_size=16)
+    for a in packed[:3]:
+        want.update(np.asarray(a.shape, dtype=np.int64).tobytes())
+        want.update(a.tobytes())
+    assert packed_digest(packed) == packed_digest(packed) == want.digest()
+    fresh = [Points(np.array(scene[0].points), 0.01), Sphere([0.2, 0.1, 0.3], 0.05)]
+    assert pack_obstacles(fresh) is packed or packed_digest(pack_obstacles(fresh)) == want.digest()
+    moved = [scene[0], Sphere([0.2, 0.1, 0.31], 0.05)]
+    assert packed_digest(pack_obstacles(moved)) != want.digest()

@@ -102,6 +102,54 @@ def test_dense_check_catches_what_the_output_samples_miss():
     assert not report.limits_ok and report.worst_limit[0] == "velocity"
 
 
+def test_a_toppra_curve_is_checked_for_validity_at_the_resolution_and_the_samples():
+    """With ``validity_times`` (a toppra curve's :meth:`ToppraCurve.validity_times`, what
+    ``time_path`` passes), the rules are asked at postures at most the resolution apart in
+    joint space (measured here on the postures asked, sorted by time) and at every output
+    sample, not at the grid's sub-samples that the limits need: fewer postures asked, and a
+    thin slab between two output samples still caught; without it, every check time."""
+    w = np.array([[0.0, 0.0, 0.0], [1.0, 0.6, 0.2], [1.6, 0.1, 0.9]])
+    path = BlendedPath.from_waypoints(w, 0.05)
+    curve = ToppraCurve(path, solve_toppra(path, LIMITS))
+    t_out = np.arange(0, curve.duration, 0.1)
+    resolution = 0.01
+    every = curve.check_times(resolution)
+    at = curve.validity_times(resolution)
+    assert np.all(np.isin(at, every)) and len(at) < len(every)  # the same floats
+    asked: list[np.ndarray] = []
+
+    def record(q):
+        asked.append(np.array(q))
+        return np.ones(len(q), dtype=bool)
+
+    kwargs = dict(
+        design=DESIGN,
+        assembly_mode="+",
+        waypoints=w,
+        limits=LIMITS,
+        resolution=resolution,
+        extra_times=t_out,
+        max_cartesian_speed=None,
+    )
+    report = dense_check(curve, check_states=record, validity_times=at, **kwargs)
+    assert not report.bad_state.any()
+    q_at = curve.evaluate(np.union1d(at, t_out))[0]
+    np.testing.assert_array_equal(asked[0], q_at)  # in time order
+    assert np.max(np.linalg.norm(np.diff(q_at, axis=0), axis=1)) <= resolution + 1e-12
+    dense_check(curve, check_states=record, **kwargs)
+    assert len(asked[1]) == len(report.t) > len(asked[0])
+    dense_check(curve, check_states=record, validity_times=at[1:] - 1e-9, **kwargs)
+    assert len(asked[2]) == len(report.t)  # times not among the check times: every posture
+    # a slab crossed between two output samples and between two sub-samples is caught
+    q_out = curve.evaluate(t_out)[0][:, 0]
+    mid = int(np.argmax(np.diff(q_out)))
+    x0 = q_out[mid] + 0.3 * (q_out[mid + 1] - q_out[mid])
+    slab = box_checker([x0, -1, -1], [x0 + 0.012, 1, 1])
+    assert np.all(slab(curve.evaluate(t_out)[0]))
+    report = dense_check(curve, check_states=slab, validity_times=at, **kwargs)
+    assert report.bad_state.any() and set(report.state_rule[report.bad_state]) == {"validity"}
+
+
 @pytest.mark.parametrize("design", [Design.default(), Design(0.6, 0.25, 0.45)])
 def test_the_compiled_pass_of_a_toppra_curve_equals_the_steps(design):
     """The re-check of a toppra curve in one compiled pass (profile, postures, rates, P and

@@ -27,9 +27,22 @@ def locate(rmap: RegionMap, q: np.ndarray) -> tuple[int, int] | None:
 
     A posture on a cell edge lies in two or four closed cells; the one returned is any of
     them (each holds it, which is all the proofs need)."""
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.shape != (3,) or not np.all(np.isfinite(q)):
-        raise InputError(f"q must be 3 finite numbers, got {q!r}")
+    return _locate(rmap, _posture(q))
+
+
+def _posture(q: np.ndarray) -> tuple[float, float, float]:
+    """Posture q (3,) rad as three finite floats (InputError otherwise)."""
+    arr = np.asarray(q, dtype=float).reshape(-1)
+    if arr.shape != (3,):
+        raise InputError(f"q must be 3 finite numbers, got {arr!r}")
+    q0, q1, q2 = arr.tolist()
+    if not (math.isfinite(q0) and math.isfinite(q1) and math.isfinite(q2)):
+        raise InputError(f"q must be 3 finite numbers, got {arr!r}")
+    return q0, q1, q2
+
+
+def _locate(rmap: RegionMap, q: tuple[float, float, float]) -> tuple[int, int] | None:
+    """:func:`locate` of a posture checked by :func:`_posture`."""
     lo, hi = rmap.design.joint_min, rmap.design.joint_max
     if not (lo[1] <= q[1] <= hi[1] and lo[2] <= q[2] <= hi[2]):
         return None
@@ -41,10 +54,10 @@ def locate(rmap: RegionMap, q: np.ndarray) -> tuple[int, int] | None:
 def _components_at(rmap: RegionMap, q: np.ndarray, ai: int) -> set[int] | None:
     """Union-graph components of every region whose cells hold q (None: q outside the box
     or theta1 outside its limits)."""
-    q = np.asarray(q, dtype=float).reshape(-1)
-    cell = locate(rmap, q)
+    qf = _posture(q)
+    cell = _locate(rmap, qf)
     d = rmap.design
-    if cell is None or not d.joint_min[0] <= q[0] <= d.joint_max[0]:
+    if cell is None or not d.joint_min[0] <= qf[0] <= d.joint_max[0]:
         return None
     k3, k2 = cell
     labs = rmap.labels[ai, :, k3, k2]
@@ -62,10 +75,10 @@ def regions_at(rmap: RegionMap, q: np.ndarray, assembly_mode: str) -> tuple[Regi
     surely invalid."""
     if assembly_mode not in ASSEMBLY_MODES:
         raise InputError(f"assembly_mode must be '+' or '-', got {assembly_mode!r}")
-    q = np.asarray(q, dtype=float).reshape(-1)
-    cell = locate(rmap, q)
+    qf = _posture(q)
+    cell = _locate(rmap, qf)
     d = rmap.design
-    if cell is None or not d.joint_min[0] <= q[0] <= d.joint_max[0]:
+    if cell is None or not d.joint_min[0] <= qf[0] <= d.joint_max[0]:
         return ()
     ai = ASSEMBLY_MODES.index(assembly_mode)
     labs = rmap.labels[ai, :, cell[0], cell[1]].tolist()

@@ -48,7 +48,7 @@ from planner.geometry.distance import (
     segment_min_distance,
     segment_obstacle_distance,
 )
-from planner.geometry.packing import PackedObstacles, pack_obstacles
+from planner.geometry.packing import PackedObstacles, pack_obstacles, packed_digest
 from planner.geometry.shapes import Box, Capsule, Obstacle, Points, Sphere
 
 __all__ = [
@@ -62,6 +62,7 @@ __all__ = [
     "Sphere",
     "box_sdf",
     "pack_obstacles",
+    "packed_digest",
     "point_segment_distance",
     "segment_box_distance",
     "segment_convex_distance",

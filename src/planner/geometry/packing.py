@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import operator
+import weakref
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -17,7 +18,7 @@ from planner.exceptions import InputError
 from planner.geometry.shapes import Box, Capsule, Obstacle, Points, Sphere
 from planner.spatial_index import build_grid, build_tree
 
-__all__ = ["PackedObstacles", "pack_obstacles"]
+__all__ = ["PackedObstacles", "pack_obstacles", "packed_digest"]
 
 
 class PackedObstacles(NamedTuple):
@@ -46,18 +47,59 @@ def pack_obstacles(obstacles: Sequence[Obstacle]) -> PackedObstacles:
     rows (rows of 1,000 spheres take 4 ms to gather, a 100,000-point cloud 3 ms to hash);
     by content, an equal set of other objects (the same obstacles sent inline again) finds
     the trees built. Obstacles are immutable (frozen, read-only arrays), so identity is
-    enough; the identity cache holds the objects, so their ids are not reused while it
-    remembers them."""
-    if len(obstacles) >= _IDENTITY_FROM or any(isinstance(o, Points) for o in obstacles):
-        # map over C callables, not generators: 1,000 obstacles in ~40 us instead of ~140
-        key = tuple(map(id, obstacles))
-        hit = _BY_IDENTITY.get(key)
-        if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
-            return hit[1]
-        packed = _pack(obstacles)
-        _BY_IDENTITY.put(key, (tuple(obstacles), packed))
-        return packed
-    return _pack(obstacles)
+    enough: an entry holds its objects, and a hit is every object the very one it holds,
+    in order (:func:`_by_identity`)."""
+    if not isinstance(obstacles, list | tuple):
+        obstacles = tuple(obstacles)
+    large = len(obstacles) >= _IDENTITY_FROM or any(isinstance(o, Points) for o in obstacles)
+    cache = _BY_IDENTITY if large else _BY_IDENTITY_SMALL
+    return _by_identity(cache, obstacles)
+
+
+def _by_identity(
+    cache: BoundedCache[tuple[tuple, PackedObstacles]], obstacles: list | tuple
+) -> PackedObstacles:
+    """The packing of ``obstacles`` remembered in ``cache`` by the objects' identity, or
+    packed now (:func:`_pack`) and remembered.
+
+    The key is a fingerprint: the count and the ids of at most :data:`_KEY_IDS` + 1 objects
+    spread over the list (the last one included); a hit is then confirmed object by object
+    (``is``, in C: 1,000 objects in ~15 us, where a key of every id cost ~30 us to build and
+    as much again to hash and compare in the look-up, and ~115 us in all per plan among the
+    1,000 spheres of ``benchmarks/planning.py --fair``, docs/planning.md, run K). Two lists
+    of one fingerprint but other objects (a rare pattern: the same objects at the sampled
+    places, others between them) take each other's entry in turn, each packed again by
+    content (:func:`_pack`, its trees found in the content cache): slower, never wrong."""
+    n = len(obstacles)
+    stride = max(1, n // _KEY_IDS)
+    key = (n, *map(id, obstacles[::stride]), id(obstacles[-1])) if n else (0,)
+    hit = cache.get(key)
+    if hit is not None and all(map(operator.is_, hit[0], obstacles)):  # same length: key
+        return hit[1]
+    packed = _pack(obstacles)
+    cache.put(key, (tuple(obstacles), packed))
+    return packed
+
+
+def packed_digest(packed: PackedObstacles) -> bytes:
+    """A digest (16 bytes) of the packed rows of the three kinds, their shapes included: the
+    same for equal obstacle sets whatever their objects, for a cache keyed by the obstacles'
+    content (the corridor grids'). Computed once per packing: remembered by the identity of
+    its arrays (checked through weak references, so an array freed and its id reused is not
+    mistaken for it), where hashing a 100,000-point cloud's rows cost ~0.75 ms a look-up
+    (docs/planning.md, run K)."""
+    rows = packed[:3]
+    key = tuple(map(id, rows))
+    hit = _DIGESTS.get(key)
+    if hit is not None and all(r() is a for r, a in zip(hit[0], rows, strict=True)):
+        return hit[1]
+    digest = hashlib.blake2b(digest_size=16)
+    for a in rows:
+        digest.update(np.asarray(a.shape, dtype=np.int64).tobytes())
+        digest.update(np.ascontiguousarray(a).tobytes())
+    out = digest.digest()
+    _DIGESTS.put(key, (tuple(weakref.ref(a) for a in rows), out))
+    return out
 
 
 def _pack(obstacles: Sequence[Obstacle]) -> PackedObstacles:
@@ -124,6 +166,16 @@ _PACKED: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed")
 #: that many small scenes never push a large scene's trees out of ``_PACKED``.
 _PACKED_SMALL: BoundedCache[PackedObstacles] = bounded_cache("geometry.packed_small")
 #: Obstacle lists of at least this many objects (or holding a cloud) are remembered by
-#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``.
+#: identity (:func:`pack_obstacles`) in ``geometry.by_identity``; smaller ones in
+#: ``geometry.by_identity_small`` (their own, as the content caches: many small scenes never
+#: push a large scene's entry out; a hit there costs ~1 us, hashing their rows ~8 us).
 _IDENTITY_FROM = 16
 _BY_IDENTITY: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache("geometry.by_identity")
+_BY_IDENTITY_SMALL: BoundedCache[tuple[tuple, PackedObstacles]] = bounded_cache(
+    "geometry.by_identity_small"
+)
+#: Ids of at most this many objects (and the last one's) make an identity key
+#: (:func:`_by_identity`).
+_KEY_IDS = 16
+#: :func:`packed_digest`'s digests by the identity of the packed arrays (weak references).
+_DIGESTS: BoundedCache[tuple[tuple, bytes]] = bounded_cache("geometry.digests")

@@ -43,6 +43,7 @@ from scipy import ndimage
 
 from planner.analysis.heap import heap_grow, heap_pop, heap_push
 from planner.caching import BoundedCache, bounded_cache
+from planner.geometry import packed_digest
 from planner.planning import compiled_rrt
 from planner.planning.problem import PlanOptions
 from planner.validity import ValidityChecker
@@ -197,9 +198,9 @@ def cached_corridor_grid(
 
 def _cache_key(checker: ValidityChecker, shape: tuple[int, int, int]) -> tuple:
     """What the marks depend on: the design with its joint limits, the margins, the obstacles
-    (their packed arrays as bytes, with their shapes), the modes, the serial rules and the
-    shape."""
-    obstacles = tuple((a.shape, a.tobytes()) for a in checker.packed[:3])
+    (a digest of their packed rows with their shapes, :func:`planner.geometry.packed_digest`,
+    computed once per packing), the modes, the serial rules and the shape."""
+    obstacles = packed_digest(checker.packed)
     cells = tuple(int(n) for n in shape)
     if len(cells) != 3 or min(cells) < 2:
         raise ValueError(f"shape must be 3 cell counts >= 2, got {cells!r}")

@@ -142,6 +142,9 @@ class _Search:
     _whys: dict[str, str] = field(default_factory=dict)
     #: every goal set :meth:`disproof` was asked about, in order (the 3-D proof reuses them)
     _asked: list[np.ndarray] = field(default_factory=list)
+    #: what one call asks more than once, answered once: the proof's region map
+    #: (:meth:`region_map`) and the start's working mode (:meth:`start_mode`)
+    _once: dict[str, object] = field(default_factory=dict)
 
     def single_mode(
         self,
@@ -199,8 +202,14 @@ class _Search:
 
     def region_map(self) -> region_maps.RegionMap | None:
         """The design's obstacle-free region map for a proof, when it is cheap now
-        (:func:`planner.planning.proofs.proof_region_map` before the request's deadline)."""
-        return proof_region_map(self.design, self.margins, self.options, self.deadline)
+        (:func:`planner.planning.proofs.proof_region_map` before the request's deadline);
+        asked once per call (a map absent then is not built later in the call: the budget
+        only shrinks)."""
+        if "rmap" not in self._once:
+            self._once["rmap"] = proof_region_map(
+                self.design, self.margins, self.options, self.deadline
+            )
+        return self._once["rmap"]  # type: ignore[return-value]
 
     def disproof(self, goals: np.ndarray) -> PlanResult | None:
         """The region map's proof that no valid path joins the start to any of the goal
@@ -240,8 +249,10 @@ class _Search:
         )
 
     def start_mode(self) -> str | None:
-        """The start's working mode (None where it is undefined)."""
-        return posture_mode(self.design, self.start)
+        """The start's working mode (None where it is undefined), computed once per call."""
+        if "mode" not in self._once:
+            self._once["mode"] = posture_mode(self.design, self.start)
+        return self._once["mode"]  # type: ignore[return-value]
 
     def disproof_or_detour(self, goals: np.ndarray) -> PlanResult | None:
         """The single-mode planner's ``before_search`` for a goal in the start's mode (joint

@@ -185,11 +185,10 @@ def plan_single_mode(
 
     goal_mode = None
     if isinstance(goal, JointPosture):  # one kinematics call for both modes
-        fb = forward_batch(
-            design,
-            np.stack([start.q, goal.q]),
-            np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)]),
-        )
+        asm: str | np.ndarray = start.assembly_mode
+        if goal.assembly_mode != asm:
+            asm = np.array([1.0 if p.assembly_mode == "+" else -1.0 for p in (start, goal)])
+        fb = forward_batch(design, np.array([start.q, goal.q]), asm)
         labels = [
             mode_label(sg) if ok else None
             for sg, ok in zip(fb.working_mode_signs, fb.ok, strict=True)
@@ -286,7 +285,7 @@ def plan_in_region(
         attempts += 1
         waypoints, name, certified = None, "", False
         if options.try_direct and checker.motion_valid(q_start, q_goal):
-            waypoints, name, certified = np.stack([q_start, q_goal]), "direct", True
+            waypoints, name, certified = np.array([q_start, q_goal]), "direct", True
         elif (walked := compiled_rrt.walk(checker, q_start, q_goal, options)) is not None:
             # a path remembered in the scene joins them: a path exists, no proof is asked
             waypoints, name, certified = walked.waypoints, options.name, True

@@ -176,6 +176,7 @@ def dense_check(
     torque_model: TorqueModel | None = None,
     torque_in_time: bool = True,
     check_times: np.ndarray | None = None,
+    validity_times: np.ndarray | None = None,
 ) -> CheckReport:
     """Evaluate ``curve`` at its check times (and ``extra_times``) and test every rule.
 
@@ -200,6 +201,11 @@ def dense_check(
         passes but s does not, its torques do not change).
     check_times : shape (C,), s, optional
         ``curve.check_times(resolution)`` when the caller has them already.
+    validity_times : shape (V,), s, optional
+        Check times (each one of ``check_times``, to the bit) at most ``resolution`` apart
+        in joint space, e.g. :meth:`ToppraCurve.validity_times`: ``check_states`` is then
+        asked at these and at ``extra_times`` only (the others are there for the limits;
+        the rules of a posture depend on the posture alone). None: at every check time.
     """
     if check_times is None:
         check_times = curve.check_times(resolution)
@@ -217,13 +223,7 @@ def dense_check(
         ("joint_limits", st.outside),
     ]
     if check_states is not None:
-        valid = np.asarray(check_states(q))
-        if valid.shape != (q.shape[0],) or valid.dtype != np.bool_:
-            raise InputError(
-                f"check_states must return a bool array of shape ({q.shape[0]},), "
-                f"got {valid.dtype} {valid.shape}"
-            )
-        failed.append(("validity", ~valid))
+        failed.append(("validity", ~_valid_states(check_states, q, t, validity_times, extra_times)))
     if st.too_far is not None:
         failed.append(("deviation", st.too_far))
     dev_q, dev_p = st.dev_q, st.dev_p
@@ -237,6 +237,39 @@ def dense_check(
         max_deviation_q=dev_q,
         max_deviation_p=dev_p,
     )
+
+
+def _valid_states(
+    check_states: StateChecker,
+    q: np.ndarray,
+    t: np.ndarray,
+    validity_times: np.ndarray | None,
+    extra_times: np.ndarray,
+) -> np.ndarray:
+    """:func:`dense_check`'s validity of the postures q (M, 3) at its times t (M,), sorted and
+    unique: ``check_states`` at every one, or with ``validity_times`` only at those and at
+    ``extra_times`` (both among t, to the bit; else at every one), the others valid."""
+    at = None
+    if validity_times is not None:
+        at = np.zeros(t.shape[0], dtype=bool)
+        for times in (validity_times, extra_times):
+            i = np.minimum(np.searchsorted(t, times), t.shape[0] - 1)
+            if not np.array_equal(t[i], times):  # not among t: every posture, never fewer
+                at = None
+                break
+            at[i] = True
+    asked = q if at is None else q[at]
+    valid = np.asarray(check_states(asked))
+    if valid.shape != (asked.shape[0],) or valid.dtype != np.bool_:
+        raise InputError(
+            f"check_states must return a bool array of shape ({asked.shape[0]},), "
+            f"got {valid.dtype} {valid.shape}"
+        )
+    if at is None:
+        return valid
+    every = np.ones(t.shape[0], dtype=bool)
+    every[at] = valid
+    return every
 
 
 def _first_failed(failed: list[tuple[str, np.ndarray]], m: int) -> tuple[np.ndarray, np.ndarray]:

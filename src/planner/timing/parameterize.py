@@ -581,11 +581,15 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
     """Step 4: the timed curve re-checked densely (:func:`~planner.timing.checks.dense_check`)
     against the requested limits (not the scaled ones), joint limits, assembly, validity and
     the requested deviation allowance."""
-    check_times = None
-    if isinstance(curve, ToppraCurve) and state.positions is not None:
-        path, grid, positions = state.positions
-        if curve.path is path and curve.profile.s is grid:  # the fit's positions
-            check_times = curve.check_times(job.resolution, positions)
+    check_times = validity_times = None
+    if isinstance(curve, ToppraCurve):
+        # the validity rules at postures job.resolution apart (and the output samples),
+        # the limits at every check time (ToppraCurve.validity_times)
+        validity_times = curve.validity_times(job.resolution)
+        if state.positions is not None:
+            path, grid, positions = state.positions
+            if curve.path is path and curve.profile.s is grid:  # the fit's positions
+                check_times = curve.check_times(job.resolution, positions)
     return dense_check(
         curve,
         design=job.design,
@@ -600,6 +604,7 @@ def _dense_check(job: TimingJob, state: _State, curve: Curve, t_out: np.ndarray)
         torque_model=job.torque,
         torque_in_time=job.method == "ruckig",
         check_times=check_times,
+        validity_times=validity_times,
     )
 
 

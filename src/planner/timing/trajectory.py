@@ -108,9 +108,8 @@ class ToppraCurve:
         Sorted and unique, or with ``ordered=False`` the same set unsorted, with repeats (for
         a largest value over them, which needs no sort)."""
         prof = self.profile
-        n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
-        check_sample_count(n + prof.s.shape[0] * (SUBSAMPLES + 3))
-        s_geo = np.linspace(prof.s[0], prof.s[-1], n)
+        s_geo = self.geometric_positions(resolution)
+        check_sample_count(s_geo.shape[0] + prof.s.shape[0] * (SUBSAMPLES + 3))
         ds = np.diff(prof.s)
         frac = np.concatenate(
             [[1e-9], np.arange(1, SUBSAMPLES + 1) / (SUBSAMPLES + 1), [1.0 - 1e-9]]
@@ -118,6 +117,24 @@ class ToppraCurve:
         s_sub = (prof.s[:-1, None] + ds[:, None] * frac[None, :]).ravel()
         every = np.concatenate([s_geo, s_sub, prof.s])
         return np.unique(every) if ordered else every
+
+    def geometric_positions(self, resolution: float) -> np.ndarray:
+        """Path positions evenly ``resolution`` apart at most along s, both ends included:
+        the part of :meth:`check_path_positions` that bounds the joint-space gap between
+        checked postures (s is the joint-space arc length)."""
+        n = max(2, int(np.ceil(self.path.length / resolution)) + 1)
+        return np.linspace(self.profile.s[0], self.profile.s[-1], n)
+
+    def validity_times(self, resolution: float) -> np.ndarray:
+        """Times of :meth:`geometric_positions`, sorted and unique (each one of
+        :meth:`check_times`, to the bit: the profile is read position by position): where
+        the dense re-check tests the path's validity rules (with the output samples). The
+        rules of a posture depend on the posture alone, and these are at most
+        ``resolution`` apart; the other check times (inside every grid interval and on
+        both sides of its ends) are there for the limits, which toppra certifies at the
+        grid points only."""
+        t, _, _ = self.profile.at_path(self.geometric_positions(resolution))
+        return np.unique(np.clip(t, 0.0, self.profile.duration))
 
     def check_times(self, resolution: float, positions: np.ndarray | None = None) -> np.ndarray:
         """Times of :meth:`check_path_positions` (``positions`` when the caller has them
