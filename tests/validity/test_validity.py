@@ -325,6 +325,14 @@ def test_check_path_extremes_skip_no_sample_that_could_lower_the_clearance():
         assert rep.min_serial_margin == float(states.serial_margin.min())
 
 
+def _small_spheres(rng: np.random.Generator) -> ValidityChecker:
+    """The default design in modes (+, +-+) among 300 spheres of 2 cm drawn by ``rng``:
+    clutter where many motions are refused and many certified."""
+    centres = rng.uniform(-0.9, 0.9, (300, 3))
+    spheres = [Sphere(c, 0.02) for c in centres]
+    return ValidityChecker(Design.default(), Margins(), spheres, "+", "+-+")
+
+
 def test_an_extension_is_certified_as_its_motion_is():
     """certify_extension (the search's extension test, its new posture evaluated first,
     the tree node's measures given) and certify_between (both ends' measures given) give
@@ -341,10 +349,8 @@ def test_an_extension_is_certified_as_its_motion_is():
         measure_posture,
     )
 
-    d = Design.default()
     rng = np.random.default_rng(12)
-    centres = rng.uniform(-0.9, 0.9, (300, 3))
-    chk = ValidityChecker(d, Margins(), [Sphere(c, 0.02) for c in centres], "+", "+-+")
+    chk = _small_spheres(rng)
     starts = rng.uniform([-2.5, 1.0, 0.2], [2.5, 3.0, 2.0], (400, 3))
     valid = chk.is_valid(starts)
     starts = np.concatenate([starts[valid][:60], starts[~valid][:10]])
@@ -385,10 +391,8 @@ def test_a_motion_blocked_near_a_hint_is_refused_there():
         certify_motion,
     )
 
-    d = Design.default()
     rng = np.random.default_rng(13)
-    centres = rng.uniform(-0.9, 0.9, (300, 3))
-    chk = ValidityChecker(d, Margins(), [Sphere(c, 0.02) for c in centres], "+", "+-+")
+    chk = _small_spheres(rng)
     kit = (chk.params, *chk.packed)
     out = np.empty(N_MEASURES)
     blocked = 0
