@@ -80,10 +80,44 @@ def _start_server(workers: int) -> tuple[subprocess.Popen[bytes], str]:
 #: checked against); ``/echo-def`` the same as a plain ``def``, which FastAPI runs in its
 #: thread pool (a thread hop per request: about twice the CPU), the floor of the rounds
 #: before (docs/service.md, "Per-request overhead", says which floor each figure used).
+#: ``/echo-hop`` is ``/echo`` with a hand-over to another process on the way, the least a
+#: plan's hand-over to its worker can cost the loop: the validated body's JSON written to a
+#: child process's pipe, the loop asleep until the child echoes it back (read when the pipe
+#: wakes the loop, as the service's pool reads its workers), the echoed bytes the answer.
+#: The child is started on the first such request; it ends when the app's pipe closes.
 _BARE_APP = """
+import asyncio
+import os
+import subprocess
+import sys
+
 import uvicorn
-from fastapi import FastAPI
+from fastapi import FastAPI, Response
 from pydantic import BaseModel
+
+_ECHO = "import sys\\nfor line in sys.stdin.buffer:\\n    sys.stdout.buffer.write(line)\\n" \\
+    "    sys.stdout.buffer.flush()"
+_hop = {}
+
+async def hand_over(data: bytes) -> bytes:
+    loop = asyncio.get_running_loop()
+    if not _hop:
+        child = subprocess.Popen([sys.executable, "-c", _ECHO], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE, bufsize=0)
+        out = child.stdout.fileno()
+        os.set_blocking(out, False)
+        _hop.update(child=child, waiter=None)
+
+        def readable() -> None:
+            chunk = os.read(out, 65536)
+            waiter = _hop["waiter"]
+            if waiter is not None and not waiter.done():
+                waiter.set_result(chunk)
+
+        loop.add_reader(out, readable)
+    waiter = _hop["waiter"] = loop.create_future()
+    os.write(_hop["child"].stdin.fileno(), data + b"\\n")
+    return (await waiter).rstrip(b"\\n")
 
 class Body(BaseModel):
     q: list[float]
@@ -97,6 +131,11 @@ async def echo(body: Body) -> dict:
 @app.post("/echo-def")
 def echo_def(body: Body) -> dict:
     return {"q": body.q}
+
+@app.post("/echo-hop")
+async def echo_hop(body: Body) -> Response:
+    answer = await hand_over(body.model_dump_json().encode())
+    return Response(answer, media_type="application/json")
 
 uvicorn.run(app, host="127.0.0.1", port=int(__import__("sys").argv[1]), log_level="warning",
             access_log=False)
@@ -581,7 +620,10 @@ def _hot_rows(n: int = 2000) -> None:
     keep-alive requests back to back (``--hot``). The interleaved rows of
     :func:`_floor_rows` send each request to a process whose caches the other server and the
     client have just used: there every process's CPU per request is ~2-3x its hot figure,
-    the floor's too. Both measure the same code; the goal's 0.3 ms is read against both."""
+    the floor's too. Both measure the same code; the goal's 0.3 ms is read against both.
+    The second floor, the bare app with a hand-over to another process (``/echo-hop``),
+    is what a plan's hand-over to its worker costs the loop at the least: a plan's figure
+    above it is the service's own work, not the process hop."""
     bare, bare_url = _start_bare()
     proc, url = _start_server(1)
     plan = {
@@ -591,6 +633,7 @@ def _hot_rows(n: int = 2000) -> None:
     }
     rows = (
         ("bare FastAPI POST (async def)", bare, bare_url, "/echo", {"q": [0.1, 0.2, 0.3]}, n),
+        ("bare + a process hop", bare, bare_url, "/echo-hop", {"q": [0.1, 0.2, 0.3]}, n),
         ("/v1/fk", proc, url, "/v1/fk", {"q": [0.2, 1.0, 2.0], "assembly_mode": "+"}, n),
         ("/v1/plan (free, none)", proc, url, "/v1/plan", plan, n // 2),
     )
@@ -599,6 +642,7 @@ def _hot_rows(n: int = 2000) -> None:
             f"event loop CPU per request, hot (each server alone, back to back); load "
             f"{os.getloadavg()[0]:.1f}"
         )
+        figures: dict[str, float] = {}
         for name, server, base, path, body, count in rows:
             client = LightClient(base)
             for _ in range(200):  # its caches and the connection warm
@@ -608,6 +652,9 @@ def _hot_rows(n: int = 2000) -> None:
             walls = [client.request("POST", path, body)[2] for _ in range(count)]
             ms = (_loop_cpu_s(server.pid) - c0) / count * 1e3
             print(f"{name:30} loop CPU {ms:6.3f} ms   p50 {_pct(walls, 50):6.3f} ms")
+            figures[name] = ms
+        hop, plan_ms = figures["bare + a process hop"], figures["/v1/plan (free, none)"]
+        print(f"/v1/plan over the process hop's floor: {plan_ms - hop:6.3f} ms of loop CPU")
     finally:
         for server in (bare, proc):
             server.terminate()
