@@ -120,12 +120,18 @@ def test_simplify_gives_the_plain_greedy_paths() -> None:
             continue
         path = out.waypoints
         _seed(k)
-        got = _simplify(path, np.zeros(len(path), dtype=np.bool_), 2, 8, prm, packed, step)
+        known = np.zeros(len(path), dtype=np.bool_)
+        gain = compiled_rrt.SHORTCUT_MIN_GAIN
+        got = _simplify(path, known, 2, 8, gain, prm, packed, step)
         _seed(k)
         plain = plain_reduce(path)
-        plain, _ = _shortcut(plain, 2 * len(plain) + 8, prm, packed, step)
+        plain, _ = _shortcut(plain, 2 * len(plain) + 8, gain, prm, packed, step)
         plain = plain_reduce(plain)
         assert got.shape == plain.shape and np.array_equal(got, plain)
+        # no shortcut gains its whole path's length: with that least gain none is taken
+        _seed(k)
+        same, _ = _shortcut(path, 2 * len(path) + 8, 1.0, prm, packed, step)
+        np.testing.assert_array_equal(same, path)
         compared += 1
         changed += len(got) < len(path)
         if compared == 8:
