@@ -7,6 +7,8 @@ from __future__ import annotations
 import asyncio
 import inspect
 import json
+import threading
+import time
 
 import httpx
 import pytest
@@ -64,15 +66,52 @@ def _async(script: Script, **options) -> AsyncPlannerClient:
 
 @pytest.fixture
 def sleeps(monkeypatch):
-    """Record the client's sleeps instead of sleeping (sync and async)."""
+    """Record the client's sleeps instead of sleeping (sync and async). Only this thread's:
+    ``time.sleep`` and ``asyncio.sleep`` are the modules' own, and a thread an earlier test
+    of the same worker left running (a server's loop polling every 0.25 s) sleeps for real
+    (faked, it once spun and filled the record)."""
     waited: list[float] = []
+    here = threading.current_thread()
+    real_sleep, real_async_sleep = time.sleep, asyncio.sleep
 
-    async def fake_async_sleep(s: float) -> None:
-        waited.append(s)
+    def fake_sleep(s: float) -> None:
+        if threading.current_thread() is here:
+            waited.append(s)
+        else:
+            real_sleep(s)
 
-    monkeypatch.setattr(client_module.time, "sleep", waited.append)
+    async def fake_async_sleep(s: float, *args: object) -> None:
+        if threading.current_thread() is here:
+            waited.append(s)
+        else:
+            await real_async_sleep(s, *args)
+
+    monkeypatch.setattr(client_module.time, "sleep", fake_sleep)
     monkeypatch.setattr(client_module.asyncio, "sleep", fake_async_sleep)
     return waited
+
+
+def test_the_sleeps_of_other_threads_are_real_and_not_recorded(sleeps):
+    """The fixture records this thread's sleeps only: another thread's (a server left
+    running by an earlier test of the worker) sleep for real and stay out of the record."""
+    slept = []
+
+    def other() -> None:
+        async def poll() -> None:
+            for _ in range(3):
+                t0 = time.monotonic()
+                await asyncio.sleep(0.01)
+                slept.append(time.monotonic() - t0)
+
+        asyncio.run(poll())
+        t0 = time.monotonic()
+        time.sleep(0.01)
+        slept.append(time.monotonic() - t0)
+
+    thread = threading.Thread(target=other)
+    thread.start()
+    thread.join(10)
+    assert len(slept) == 4 and min(slept) >= 0.009 and sleeps == []
 
 
 def test_request_body_headers_and_parsed_model():
