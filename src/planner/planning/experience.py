@@ -305,7 +305,7 @@ def _recall_rows(rows, q_start, q_goal, reach, max_tests, prm, packed, step):  #
                 if tests >= max_tests:
                     return np.array([-1, -1])
                 tests += 1
-                row = rows[v].copy()  # writeable, as the start and the goal: one signature
+                row = rows[v]  # a row of the writable rows (_rows): the start's array type
                 if not measured[v]:
                     measure_posture(row, prm, s, cp, b, sn, cn, bn, sg, meas[v])
                     measured[v] = True
