@@ -30,6 +30,14 @@ def _echo_seed(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanRespo
     return PlanResponse(status="no_path", message=str(request.planner.seed))
 
 
+def _hold_until(flag: str, limit_s: float = 60.0) -> None:
+    """Keep a worker busy until the file ``flag`` exists (at most ``limit_s``): a job that
+    stays busy however slowly the test reaches its next request."""
+    end = time.monotonic() + limit_s
+    while not os.path.exists(flag) and time.monotonic() < end:
+        time.sleep(0.01)
+
+
 def _sleep_pid(request: PlanRequest, budget: JobBudget = UNBOUNDED) -> PlanResponse:
     time.sleep(request.planner.time_budget_s)
     return PlanResponse(status="timeout", message=str(os.getpid()))
@@ -132,17 +140,21 @@ def test_ready_turns_200_once_workers_answer(client_factory):
         }
 
 
-def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory):
+def test_saturated_pool_answers_503_with_retry_after_then_recovers(client_factory, tmp_path):
     with client_factory(workers=1, queue_size=0, retry_after_s=2, warm=False) as c:
         _wait_ready(c)
         pool: WorkerPool = c.app.state.pool
         c.app.dependency_overrides[get_plan_function] = lambda: _echo_seed
-        busy = pool.submit(time.sleep, 0.5)
+        # the only worker held until the 503 is seen (a fixed sleep of 0.5 s once ended
+        # before a loaded machine's request arrived, which then found the worker free)
+        flag = tmp_path / "release"
+        busy = pool.submit(_hold_until, str(flag))
         r = c.post("/v1/plan", json=PLAN)  # (fk runs in the event loop: no worker needed)
+        flag.touch()
         assert r.status_code == 503
         assert r.headers["retry-after"] == "2"
         assert r.json()["detail"][0]["type"] == "saturated"
-        busy.result(timeout=30)
+        busy.result(timeout=90)
         _wait_idle(pool)
         assert c.post("/v1/plan", json=PLAN).status_code == 200
         c.app.dependency_overrides.clear()
