@@ -255,6 +255,11 @@ def test_the_grid_query_equals_numpy_over_strewn_spheres(seed):
         ref = np.min(_point_segment(c, a, b) - r)
         exact = _min_distance(*a, *b, *packed, np.inf, 0.0, 0.0)
         assert abs(exact - ref) < 1e-12
+        # exact below a finite bound (a running minimum's: path_extremes), within two
+        # cells or beyond: the least distance where it is below, else a value >= the bound
+        for upper in (ref + 0.004, ref - 0.004, 0.05, 0.4):
+            got = _min_distance(*a, *b, *packed, upper, 0.0, 0.0)
+            assert abs(got - ref) < 1e-12 if ref < upper else got >= upper
         t = 0.03
         got = _min_distance(*a, *b, *packed, t + 0.25, t, 0.5)
         if ref < t:
